@@ -1,0 +1,22 @@
+"""Builds the C extension pmsm_hil._fw: the firmware core plus the emulator's sim board.
+
+The extension exports a plain C API (firmware/sim/emu.h) that pmsm_hil.emulator.fwlib loads with
+ctypes; its Python module init is only there so that pip builds and installs it like any extension.
+"""
+from glob import glob
+
+from setuptools import Extension, setup
+
+sources = sorted(glob("firmware/core/*.c")) + sorted(glob("firmware/sim/*.c")) + ["pmsm_hil/_fw_module.c"]
+
+setup(
+    ext_modules=[
+        Extension(
+            "pmsm_hil._fw",
+            sources=sources,
+            include_dirs=["firmware/core", "firmware/sim"],
+            extra_compile_args=["-std=c99", "-O2", "-Wall", "-Wextra"],
+            libraries=["m"],
+        )
+    ]
+)
