@@ -1,0 +1,588 @@
+#include "fw.h"
+#include "transforms.h"
+
+#include <math.h>
+#include <string.h>
+
+#define FW_STOP_RAMP_RPM_S 3000.0f   /* quick-stop deceleration */
+#define FW_STOP_SPEED_RPM 3.0f       /* below this, with the reference at zero, PWM goes off */
+#define FW_STOP_HOLD_S 0.05f         /* zero reference held this long before PWM off */
+#define FW_STOP_TIMEOUT_S 3.0f       /* PWM off after this long in any case */
+#define FW_RPM_PER_RAD_S 9.549296585513720f
+
+/* stop reasons (arg of the stopped event) */
+#define FW_STOP_HOST 0
+#define FW_STOP_ABORT 1
+#define FW_STOP_FAULT 2
+#define FW_STOP_HEARTBEAT 3
+#define FW_STOP_PROFILE_END 4
+
+/* ------------------------------------------------------------------ link helpers */
+
+bool fw_send(fw_t *f, uint16_t msg_id, const uint16_t *payload, uint16_t n)
+{
+    uint16_t len = frame_encode(msg_id, f->tx_seq, payload, n, f->frame_buf,
+                                (uint16_t)(sizeof(f->frame_buf) / sizeof(f->frame_buf[0])));
+    f->tx_seq = (uint16_t)((f->tx_seq + 1u) & 0xFFu);
+    if (len == 0u) {
+        f->tx.dropped++;
+        return false;
+    }
+    return txq_push(&f->tx, f->frame_buf, len);
+}
+
+static void send_ack(fw_t *f, uint16_t cmd_id, uint16_t cmd_seq, uint16_t status)
+{
+    proto_ack_t a;
+    uint16_t n;
+    a.cmd_id = cmd_id;
+    a.cmd_seq = cmd_seq;
+    a.status = status;
+    n = proto_ack_pack(&a, f->payload_buf);
+    (void)fw_send(f, PROTO_ID_ACK, f->payload_buf, n);
+}
+
+static void send_event(fw_t *f, uint16_t code, int32_t arg)
+{
+    proto_event_t e;
+    uint16_t n;
+    e.tick = f->tick;
+    e.code = code;
+    e.arg = arg;
+    n = proto_event_pack(&e, f->payload_buf);
+    (void)fw_send(f, PROTO_ID_EVENT, f->payload_buf, n);
+}
+
+static void send_identify(fw_t *f)
+{
+    proto_identify_t m;
+    uint16_t n;
+    m.proto_version = PROTO_VERSION;
+    m.schema_hash = PROTO_SCHEMA_HASH;
+    m.fw_major = FW_VERSION_MAJOR;
+    m.fw_minor = FW_VERSION_MINOR;
+    m.fw_patch = FW_VERSION_PATCH;
+    m.board = f->cfg.board;
+    m.tx_buf_octets = TXQ_SIZE;
+    m.capture_len = CAPTURE_LEN;
+    n = proto_identify_pack(&m, f->payload_buf);
+    (void)fw_send(f, PROTO_ID_IDENTIFY, f->payload_buf, n);
+}
+
+static void send_capture_chunk(fw_t *f, uint16_t offset)
+{
+    proto_capture_chunk_t c;
+    capture_sample_t s;
+    uint16_t i, n, count = capture_count(&f->cap);
+    memset(&c, 0, sizeof(c));
+    c.offset = offset;
+    c.tick0 = capture_tick0(&f->cap);
+    n = 0u;
+    for (i = 0u; i < 8u; i++) {
+        if ((uint32_t)offset + i >= count || !capture_get(&f->cap, (uint16_t)(offset + i), &s)) {
+            break;
+        }
+        c.i_a_a[i] = s.i_a_a;
+        c.i_b_a[i] = s.i_b_a;
+        c.i_c_a[i] = s.i_c_a;
+        c.s_abc[i] = s.s_abc;
+        c.v_dc_v[i] = s.v_dc_v;
+        c.theta_e_rad[i] = s.theta_e_rad;
+        c.omega_e_rad_s[i] = s.omega_e_rad_s;
+        n++;
+    }
+    c.n_valid = n;
+    n = proto_capture_chunk_pack(&c, f->payload_buf);
+    (void)fw_send(f, PROTO_ID_CAPTURE_CHUNK, f->payload_buf, n);
+}
+
+/* ------------------------------------------------------------------ state changes */
+
+bool fw_active(const fw_t *f)
+{
+    return f->state == PROTO_STATE_RUNNING || f->state == PROTO_STATE_STOPPING;
+}
+
+static void enter_stopping(fw_t *f, uint16_t reason)
+{
+    if (f->state == PROTO_STATE_RUNNING) {
+        f->state = PROTO_STATE_STOPPING;
+        f->stop_reason = reason;
+        f->stop_ref_rpm = f->sig.speed_ref_rpm;
+        f->stop_ticks = 0u;
+        f->stop_hold_ticks = 0u;
+    }
+}
+
+static void send_status(fw_t *f);
+
+static void pwm_off(fw_t *f, uint16_t new_state, uint16_t reason)
+{
+    f->state = new_state;
+    f->stop_reason = reason;
+    send_event(f, PROTO_EVENT_STOPPED, (int32_t)reason);
+    send_status(f);
+}
+
+static void trip(fw_t *f, uint16_t fault_bits)
+{
+    f->faults = (uint16_t)(f->faults | fault_bits);
+    send_event(f, PROTO_EVENT_FAULT, (int32_t)fault_bits);
+    if (capture_trigger(&f->cap)) {
+        send_event(f, PROTO_EVENT_CAPTURE_TRIGGERED, -1);
+    }
+    pwm_off(f, PROTO_STATE_FAULT, FW_STOP_FAULT);
+}
+
+static uint16_t start_run(fw_t *f)
+{
+    mpcc_cfg_t mc;
+    speed_pi_cfg_t sc;
+    enc_cfg_t ec;
+    if (!f->have_motor || !f->have_ctrl || !profile_complete(&f->prof)) {
+        return PROTO_ACK_STATUS_BAD_STATE;
+    }
+    if (fw_active(f)) {
+        return PROTO_ACK_STATUS_BUSY;
+    }
+    mpcc_cfg_default(&mc);
+    mc.ts_s = f->ctrl.ts_s;
+    mc.rho = f->ctrl.rho;
+    mc.dead_time_s = f->ctrl.dead_time_s;
+    mc.v_drop_v = f->ctrl.v_drop_v;
+    mpcc_init(&f->mpcc, &mc);
+
+    sc.kp_a_per_rad_s = f->ctrl.speed_kp_a_per_rad_s;
+    sc.ki_a_per_rad = f->ctrl.speed_ki_a_per_rad;
+    sc.ts_s = f->ctrl.ts_s * (float)f->ctrl.speed_div;
+    sc.out_max_a = f->motor.i_max_a;
+    speed_pi_init(&f->spi, &sc);
+
+    ec.counts = f->ctrl.enc_counts;
+    ec.pole_pairs = f->motor.pole_pairs;
+    ec.offset_rad = f->ctrl.enc_offset_rad;
+    ec.bw_rad_s = f->ctrl.speed_obs_bw_rad_s;
+    ec.ts_s = f->ctrl.ts_s;
+    enc_init(&f->enc, &ec);
+
+    capture_init(&f->cap, f->ctrl.capture_pre);
+    profile_start(&f->prof, f->ctrl.ts_s);
+    memset(&f->sig, 0, sizeof(f->sig));
+    f->i_s_ref_a = 0.0f;
+    f->speed_div_count = 0u;
+    f->faults = 0u;
+    f->tick = 0u;
+    f->hb_isr = f->isr_count;
+    f->hb_lost = false;
+    f->state = PROTO_STATE_RUNNING;
+    f->stop_reason = 0u;
+    f->stop_ref_rpm = 0.0f;
+    return PROTO_ACK_STATUS_OK;
+}
+
+/* ------------------------------------------------------------------ commands */
+
+static uint16_t cmd_config_motor(fw_t *f, const uint16_t *p, uint16_t n)
+{
+    proto_config_motor_t m;
+    if (!proto_config_motor_unpack(&m, p, n)) {
+        return PROTO_ACK_STATUS_BAD_VALUE;
+    }
+    if (fw_active(f)) {
+        return PROTO_ACK_STATUS_BUSY;
+    }
+    if (m.pole_pairs == 0u || !(m.r_s_ohm > 0.0f) || !(m.l_d_h > 0.0f) || !(m.l_q_h > 0.0f) ||
+        !(m.psi_f_wb >= 0.0f) || !(m.j_kgm2 > 0.0f) || !(m.i_max_a > 0.0f) ||
+        !(m.i_trip_a > m.i_max_a) || !(m.speed_max_rpm > 0.0f) ||
+        !(m.speed_trip_rpm > m.speed_max_rpm) || !(m.v_dc_max_v > m.v_dc_min_v)) {
+        return PROTO_ACK_STATUS_BAD_VALUE;
+    }
+    f->motor.pole_pairs = m.pole_pairs;
+    f->motor.r_s_ohm = m.r_s_ohm;
+    f->motor.l_d_h = m.l_d_h;
+    f->motor.l_q_h = m.l_q_h;
+    f->motor.psi_f_wb = m.psi_f_wb;
+    f->motor.j_kgm2 = m.j_kgm2;
+    f->motor.i_max_a = m.i_max_a;
+    f->motor.speed_max_rpm = m.speed_max_rpm;
+    f->limits.i_trip_a = m.i_trip_a;
+    f->limits.speed_trip_rpm = m.speed_trip_rpm;
+    f->limits.v_dc_min_v = m.v_dc_min_v;
+    f->limits.v_dc_max_v = m.v_dc_max_v;
+    f->have_motor = true;
+    return PROTO_ACK_STATUS_OK;
+}
+
+static uint16_t cmd_config_ctrl(fw_t *f, const uint16_t *p, uint16_t n)
+{
+    proto_config_ctrl_t c;
+    if (!proto_config_ctrl_unpack(&c, p, n)) {
+        return PROTO_ACK_STATUS_BAD_VALUE;
+    }
+    if (fw_active(f)) {
+        return PROTO_ACK_STATUS_BUSY;
+    }
+    if (!(c.ts_s >= 1e-5f && c.ts_s <= 1e-3f) || c.speed_div == 0u || !(c.rho > 0.0f) ||
+        !(c.heartbeat_timeout_s > 0.0f) || c.enc_counts < 4u || !(c.speed_obs_bw_rad_s > 0.0f) ||
+        c.current_ref > PROTO_CURRENT_REF_MTPA || c.current_ctrl != PROTO_CURRENT_CTRL_MPCC ||
+        c.capture_pre >= CAPTURE_LEN || c.speed_kp_a_per_rad_s < 0.0f || c.speed_ki_a_per_rad < 0.0f) {
+        return PROTO_ACK_STATUS_BAD_VALUE;
+    }
+    f->ctrl = c;
+    f->have_ctrl = true;
+    return PROTO_ACK_STATUS_OK;
+}
+
+static uint16_t cmd_profile_segment(fw_t *f, const uint16_t *p, uint16_t n)
+{
+    proto_profile_segment_t s;
+    profile_segment_t seg;
+    if (!proto_profile_segment_unpack(&s, p, n)) {
+        return PROTO_ACK_STATUS_BAD_VALUE;
+    }
+    if (fw_active(f)) {
+        return PROTO_ACK_STATUS_BUSY;
+    }
+    if (f->have_motor && (fabsf(s.speed_rpm) > f->motor.speed_max_rpm)) {
+        return PROTO_ACK_STATUS_BAD_VALUE;
+    }
+    seg.duration_s = s.duration_s;
+    seg.speed_rpm = s.speed_rpm;
+    seg.ramp_rpm_s = s.ramp_rpm_s;
+    seg.load_nm = s.load_nm;
+    seg.flags = s.flags;
+    return profile_set(&f->prof, s.index, &seg) ? PROTO_ACK_STATUS_OK : PROTO_ACK_STATUS_BAD_VALUE;
+}
+
+static void handle_frame(fw_t *f, uint16_t id, uint16_t seq, const uint16_t *p, uint16_t n)
+{
+    uint16_t st = PROTO_ACK_STATUS_OK;
+    f->rx_frames++;
+    switch (id) {
+    case PROTO_ID_HELLO:
+        send_identify(f);
+        return;
+    case PROTO_ID_HEARTBEAT:
+        f->hb_isr = f->isr_count;
+        return;
+    case PROTO_ID_CAPTURE_READ: {
+        proto_capture_read_t r;
+        if (proto_capture_read_unpack(&r, p, n)) {
+            send_capture_chunk(f, r.offset);
+            return;
+        }
+        st = PROTO_ACK_STATUS_BAD_VALUE;
+        break;
+    }
+    case PROTO_ID_CONFIG_MOTOR:
+        st = cmd_config_motor(f, p, n);
+        break;
+    case PROTO_ID_CONFIG_CTRL:
+        st = cmd_config_ctrl(f, p, n);
+        break;
+    case PROTO_ID_PROFILE_CLEAR: {
+        proto_profile_clear_t c;
+        if (!proto_profile_clear_unpack(&c, p, n) || c.n_segments > PROFILE_MAX_SEGMENTS) {
+            st = PROTO_ACK_STATUS_BAD_VALUE;
+        } else if (fw_active(f)) {
+            st = PROTO_ACK_STATUS_BUSY;
+        } else {
+            profile_clear(&f->prof, c.n_segments);
+        }
+        break;
+    }
+    case PROTO_ID_PROFILE_SEGMENT:
+        st = cmd_profile_segment(f, p, n);
+        break;
+    case PROTO_ID_START:
+        st = start_run(f);
+        if (st == PROTO_ACK_STATUS_OK) {
+            send_ack(f, id, seq, st);
+            send_event(f, PROTO_EVENT_STARTED, 0);
+            return;
+        }
+        break;
+    case PROTO_ID_STOP:
+        if (f->state == PROTO_STATE_RUNNING) {
+            enter_stopping(f, FW_STOP_HOST);
+        } else if (!fw_active(f)) {
+            st = PROTO_ACK_STATUS_OK;   /* already stopped: idempotent */
+        }
+        break;
+    case PROTO_ID_ABORT:
+        if (fw_active(f)) {
+            pwm_off(f, PROTO_STATE_IDLE, FW_STOP_ABORT);
+        }
+        break;
+    default:
+        st = PROTO_ACK_STATUS_UNKNOWN;
+        break;
+    }
+    send_ack(f, id, seq, st);
+}
+
+void fw_rx_octet(fw_t *f, uint16_t octet)
+{
+    int16_t r = frame_parser_push(&f->rx, octet);
+    if (r == FRAME_OK) {
+        handle_frame(f, f->rx.msg_id, f->rx.seq, f->rx.payload, f->rx.payload_len);
+    } else if (r < 0) {
+        f->rx_bad++;
+    }
+}
+
+bool fw_tx_pop(fw_t *f, uint16_t *octet)
+{
+    return txq_pop(&f->tx, octet);
+}
+
+/* ------------------------------------------------------------------ telemetry */
+
+static void send_status(fw_t *f)
+{
+    const proto_config_ctrl_t *c = &f->ctrl;
+    uint16_t n;
+    {
+        proto_status_t s;
+        uint32_t age = (f->isr_count - f->hb_isr);
+        float age_ms = (float)age * c->ts_s * 1000.0f;
+        s.tick = f->tick;
+        s.state = f->state;
+        s.segment = f->prof.index;
+        s.faults = f->faults;
+        s.v_dc_v = f->sig.v_dc_v;
+        s.tx_dropped = f->tx.dropped;
+        s.rx_bad = (uint16_t)(f->rx_bad > 0xFFFFu ? 0xFFFFu : f->rx_bad);
+        s.rx_frames = f->rx_frames;
+        s.hb_age_ms = (uint16_t)(age_ms > 65535.0f ? 65535.0f : age_ms);
+        s.capture_count = capture_count(&f->cap);
+        n = proto_status_pack(&s, f->payload_buf);
+        (void)fw_send(f, PROTO_ID_STATUS, f->payload_buf, n);
+    }
+}
+
+static void send_telemetry(fw_t *f)
+{
+    const proto_config_ctrl_t *c = &f->ctrl;
+    uint16_t n;
+    if (c->fast_div != 0u && (f->tick % c->fast_div) == 0u) {
+        proto_telem_fast_t t;
+        t.tick = f->tick;
+        t.speed_ref_rpm = f->sig.speed_ref_rpm;
+        t.speed_rpm = f->sig.speed_rpm;
+        t.speed_est_rpm = f->sig.speed_est_rpm;
+        t.theta_e_rad = f->sig.theta_e_rad;
+        t.theta_e_est_rad = f->sig.theta_e_est_rad;
+        t.i_d_a = f->sig.i_d_a;
+        t.i_q_a = f->sig.i_q_a;
+        t.i_d_ref_a = f->sig.i_d_ref_a;
+        t.i_q_ref_a = f->sig.i_q_ref_a;
+        t.u_d_v = f->sig.u_d_v;
+        t.u_q_v = f->sig.u_q_v;
+        t.load_nm = f->sig.load_nm;
+        n = proto_telem_fast_pack(&t, f->payload_buf);
+        (void)fw_send(f, PROTO_ID_TELEM_FAST, f->payload_buf, n);
+    }
+    if (c->params_div != 0u && (f->tick % c->params_div) == 0u) {
+        proto_params_t pm;
+        pm.tick = f->tick;
+        pm.estimator = PROTO_ESTIMATOR_NOMINAL;
+        pm.flags = 4u;   /* feeds the predictor */
+        pm.l_d_h = f->motor.l_d_h;
+        pm.l_q_h = f->motor.l_q_h;
+        pm.psi_f_wb = f->motor.psi_f_wb;
+        pm.r_s_ohm = f->motor.r_s_ohm;
+        n = proto_params_pack(&pm, f->payload_buf);
+        (void)fw_send(f, PROTO_ID_PARAMS, f->payload_buf, n);
+    }
+    if (c->status_div != 0u && (f->tick % c->status_div) == 0u) {
+        send_status(f);
+    }
+}
+
+/* ------------------------------------------------------------------ control period */
+
+static void check_faults(fw_t *f, const fw_meas_t *m)
+{
+    uint16_t bits = 0u;
+    float it = f->limits.i_trip_a;
+    if (fabsf(m->i_a_a) > it || fabsf(m->i_b_a) > it || fabsf(m->i_c_a) > it) {
+        bits |= PROTO_FAULT_OVER_CURRENT;
+    }
+    if (fabsf(f->enc_out.speed_rpm) > f->limits.speed_trip_rpm) {
+        bits |= PROTO_FAULT_OVER_SPEED;
+    }
+    if (m->v_dc_v < f->limits.v_dc_min_v) {
+        bits |= PROTO_FAULT_DC_UNDER_VOLTAGE;
+    }
+    if (m->v_dc_v > f->limits.v_dc_max_v) {
+        bits |= PROTO_FAULT_DC_OVER_VOLTAGE;
+    }
+    if (bits != 0u) {
+        trip(f, bits);
+    }
+}
+
+static void check_heartbeat(fw_t *f)
+{
+    float age_s = (float)(f->isr_count - f->hb_isr) * f->ctrl.ts_s;
+    if (!f->hb_lost && age_s > f->ctrl.heartbeat_timeout_s) {
+        f->hb_lost = true;
+        f->faults = (uint16_t)(f->faults | PROTO_FAULT_HEARTBEAT);
+        send_event(f, PROTO_EVENT_HEARTBEAT_LOST, (int32_t)(age_s * 1000.0f));
+        enter_stopping(f, FW_STOP_HEARTBEAT);
+    }
+}
+
+/* Speed reference and load for this period, from the profile or the stop ramp. */
+static void reference(fw_t *f, float *speed_ref_rpm, float *load_nm)
+{
+    if (f->state == PROTO_STATE_RUNNING) {
+        profile_out_t po;
+        profile_step(&f->prof, f->ctrl.ts_s, &po);
+        if (po.segment_started) {
+            send_event(f, PROTO_EVENT_SEGMENT_START, (int32_t)po.index);
+            if ((po.flags & PROFILE_FLAG_CAPTURE) != 0u && capture_trigger(&f->cap)) {
+                send_event(f, PROTO_EVENT_CAPTURE_TRIGGERED, (int32_t)po.index);
+            }
+        }
+        if (po.finished) {
+            send_event(f, PROTO_EVENT_PROFILE_DONE, (int32_t)po.index);
+            enter_stopping(f, FW_STOP_PROFILE_END);
+        } else {
+            *speed_ref_rpm = po.speed_ref_rpm;
+            *load_nm = po.load_nm;
+            return;
+        }
+    }
+    /* stopping: quick-stop ramp to zero, load released */
+    f->stop_ref_rpm = profile_ramp(f->stop_ref_rpm, 0.0f, FW_STOP_RAMP_RPM_S, f->ctrl.ts_s);
+    *speed_ref_rpm = f->stop_ref_rpm;
+    *load_nm = 0.0f;
+}
+
+void fw_isr(fw_t *f, const fw_meas_t *m, fw_cmd_t *cmd)
+{
+    float speed_ref_rpm = 0.0f, load_nm = 0.0f, c, s, i_al, i_be;
+    fw_dq_t idq_ref;
+    mpcc_in_t mi;
+    mpcc_out_t mo;
+    capture_sample_t cs;
+
+    f->isr_count++;
+    f->sig.v_dc_v = m->v_dc_v;
+    cmd->pwm_on = false;
+    cmd->s_a = 0u;
+    cmd->s_b = 0u;
+    cmd->s_c = 0u;
+    cmd->load_nm = 0.0f;
+    if (!fw_active(f)) {
+        return;
+    }
+
+    /* angle and speed slot: the encoder (its observer starts where the rotor is) */
+    if (f->tick == 0u) {
+        enc_reset(&f->enc, m->enc_count);
+    }
+    enc_step(&f->enc, m->enc_count, &f->enc_out);
+    f->sig.theta_e_rad = f->enc_out.theta_e_rad;
+    f->sig.speed_rpm = f->enc_out.speed_rpm;
+    f->sig.theta_e_est_rad = f->enc_out.theta_e_rad;
+    f->sig.speed_est_rpm = f->enc_out.speed_rpm;
+    f->sig.omega_e_rad_s = f->enc_out.omega_e_rad_s;
+
+    c = cosf(f->sig.theta_e_est_rad);
+    s = sinf(f->sig.theta_e_est_rad);
+    i_al = m->i_a_a;
+    i_be = (m->i_a_a + 2.0f * m->i_b_a) * 0.57735026918963f;
+    f->sig.i_d_a = c * i_al + s * i_be;
+    f->sig.i_q_a = -s * i_al + c * i_be;
+
+    check_faults(f, m);
+    if (!fw_active(f)) {
+        send_telemetry(f);
+        f->tick++;
+        return;
+    }
+    check_heartbeat(f);
+
+    reference(f, &speed_ref_rpm, &load_nm);
+    if (!fw_active(f)) {   /* reference() may end the run */
+        send_telemetry(f);
+        f->tick++;
+        return;
+    }
+    f->sig.speed_ref_rpm = speed_ref_rpm;
+    f->sig.load_nm = load_nm;
+
+    /* speed loop */
+    f->speed_div_count++;
+    if (f->speed_div_count >= f->ctrl.speed_div) {
+        f->speed_div_count = 0u;
+        f->i_s_ref_a = speed_pi_step(&f->spi, speed_ref_rpm / FW_RPM_PER_RAD_S,
+                                     f->enc_out.omega_m_rad_s);
+        mtpa_split(&f->motor, f->ctrl.current_ref, f->i_s_ref_a, &idq_ref);
+        f->sig.i_d_ref_a = idq_ref.d;
+        f->sig.i_q_ref_a = idq_ref.q;
+    }
+
+    /* current control slot: MPCC */
+    mi.i_d_a = f->sig.i_d_a;
+    mi.i_q_a = f->sig.i_q_a;
+    mi.i_d_ref_a = f->sig.i_d_ref_a;
+    mi.i_q_ref_a = f->sig.i_q_ref_a;
+    mi.theta_e_rad = f->sig.theta_e_est_rad;
+    mi.omega_e_rad_s = f->enc_out.omega_e_rad_s;
+    mi.v_dc_v = m->v_dc_v;
+    mi.r_s_ohm = f->motor.r_s_ohm;
+    mi.l_d_h = f->motor.l_d_h;
+    mi.l_q_h = f->motor.l_q_h;
+    mi.psi_f_wb = f->motor.psi_f_wb;
+    mpcc_step(&f->mpcc, &mi, &mo);
+    f->sig.u_d_v = mo.u_d_v;
+    f->sig.u_q_v = mo.u_q_v;
+    cmd->s_a = mo.s_a;
+    cmd->s_b = mo.s_b;
+    cmd->s_c = mo.s_c;
+    cmd->pwm_on = true;
+    cmd->load_nm = load_nm;
+
+    cs.i_a_a = m->i_a_a;
+    cs.i_b_a = m->i_b_a;
+    cs.i_c_a = m->i_c_a;
+    cs.s_abc = mo.s_abc_applied;   /* the state applied while i(k) was sampled */
+    cs.v_dc_v = m->v_dc_v;
+    cs.theta_e_rad = f->sig.theta_e_rad;
+    cs.omega_e_rad_s = f->enc_out.omega_e_rad_s;
+    capture_record(&f->cap, f->tick, &cs);
+
+    send_telemetry(f);
+    f->tick++;
+
+    /* end of a stop: reference at zero and the rotor (nearly) still for a while, or too long */
+    if (f->state == PROTO_STATE_STOPPING) {
+        f->stop_ticks++;
+        if (f->stop_ref_rpm == 0.0f && fabsf(f->enc_out.speed_rpm) < FW_STOP_SPEED_RPM) {
+            f->stop_hold_ticks++;
+        } else {
+            f->stop_hold_ticks = 0u;
+        }
+    }
+    if (f->state == PROTO_STATE_STOPPING &&
+        ((float)f->stop_hold_ticks * f->ctrl.ts_s >= FW_STOP_HOLD_S ||
+         (float)f->stop_ticks * f->ctrl.ts_s >= FW_STOP_TIMEOUT_S)) {
+        cmd->pwm_on = false;
+        pwm_off(f, f->stop_reason == FW_STOP_PROFILE_END ? PROTO_STATE_DONE : PROTO_STATE_IDLE,
+                f->stop_reason);
+    }
+}
+
+void fw_init(fw_t *f, const fw_cfg_t *cfg)
+{
+    memset(f, 0, sizeof(*f));
+    f->cfg = *cfg;
+    frame_parser_init(&f->rx);
+    txq_init(&f->tx);
+    capture_init(&f->cap, 0u);
+    f->state = PROTO_STATE_IDLE;
+}

@@ -1,0 +1,321 @@
+/* Finite-control-set MPCC (paper A (2)-(5)) with one-period delay compensation and an optional
+ * dead-time/device-drop model. See mpcc.h and docs/control.md. C28x-safe: float only, one
+ * sinf/cosf pair per call, two divisions only when the predictor inductances change. */
+#include "mpcc.h"
+
+#include <math.h>
+#include "transforms.h"
+
+/* alpha/beta voltage of each code (code = s_a | s_b << 1 | s_c << 2), per volt of v_dc,
+ * amplitude-invariant: u_alpha = (2 s_a - s_b - s_c)/3, u_beta = (s_b - s_c)/sqrt(3). */
+static const float k_vec_alpha[8] = {
+    0.0f, 2.0f / 3.0f, -1.0f / 3.0f, 1.0f / 3.0f, -1.0f / 3.0f, 1.0f / 3.0f, -2.0f / 3.0f, 0.0f
+};
+static const float k_vec_beta[8] = {
+    0.0f, 0.0f, TF_INV_SQRT3_F, TF_INV_SQRT3_F, -TF_INV_SQRT3_F, -TF_INV_SQRT3_F, 0.0f, 0.0f
+};
+
+/* All 8 states in the paper's order V0, V1 (100), V2 (110), V3 (010), V4 (011), V5 (001),
+ * V6 (101), V7 (111), written as codes (s_a is bit 0). */
+static const uint16_t k_cand_all8[8] = { 0u, 1u, 3u, 2u, 6u, 4u, 5u, 7u };
+
+#define MPCC_L_MIN_H 1.0e-7f
+
+void mpcc_vector(uint16_t code, float *u_alpha_per_vdc, float *u_beta_per_vdc)
+{
+    uint16_t c = (uint16_t)(code & 7u);
+    *u_alpha_per_vdc = k_vec_alpha[c];
+    *u_beta_per_vdc = k_vec_beta[c];
+}
+
+void mpcc_cfg_default(mpcc_cfg_t *cfg)
+{
+    cfg->ts_s = 50.0e-6f;
+    cfg->rho = 1.0f;
+    cfg->dead_time_s = 0.0f;
+    cfg->v_drop_v = 0.0f;
+    cfg->cand_set = MPCC_CAND_ALL8;
+    cfg->dt_model = MPCC_DT_AVERAGE;
+    cfg->delay_comp = MPCC_DELAY_COMP_ON;
+}
+
+void mpcc_init(mpcc_t *m, const mpcc_cfg_t *cfg)
+{
+    m->cfg = *cfg;
+    if (!(m->cfg.ts_s > 0.0f)) {
+        m->cfg.ts_s = 50.0e-6f;
+    }
+    if (!(m->cfg.rho >= 0.0f)) {
+        m->cfg.rho = 1.0f;
+    }
+    if (!(m->cfg.dead_time_s >= 0.0f)) {
+        m->cfg.dead_time_s = 0.0f;
+    }
+    if (!(m->cfg.v_drop_v >= 0.0f)) {
+        m->cfg.v_drop_v = 0.0f;
+    }
+    if (m->cfg.cand_set != MPCC_CAND_ADJACENT) {
+        m->cfg.cand_set = MPCC_CAND_ALL8;
+    }
+    if (m->cfg.dt_model != MPCC_DT_SWITCHING) {
+        m->cfg.dt_model = MPCC_DT_AVERAGE;
+    }
+    if (m->cfg.delay_comp != MPCC_DELAY_COMP_OFF) {
+        m->cfg.delay_comp = MPCC_DELAY_COMP_ON;
+    }
+    m->l_d_cached_h = 0.0f;
+    m->l_q_cached_h = 0.0f;
+    m->inv_l_d = 0.0f;
+    m->inv_l_q = 0.0f;
+    mpcc_reset(m);
+}
+
+void mpcc_reset(mpcc_t *m)
+{
+    m->sw_prev = 0u;
+    m->sw_prev2 = 0u;
+}
+
+static float sgn3(float x)
+{
+    return (x > 0.0f) ? 1.0f : ((x < 0.0f) ? -1.0f : 0.0f);
+}
+
+static uint16_t n_changes(uint16_t a, uint16_t b)
+{
+    uint16_t x = (uint16_t)((a ^ b) & 7u);
+    return (uint16_t)((x & 1u) + ((x >> 1) & 1u) + ((x >> 2) & 1u));
+}
+
+/* Effective pole voltage of each leg for both switch positions during one period, as the
+ * firmware models the inverter: v[x][s] with x = leg (a, b, c), s = commanded upper switch.
+ * prev: the state before the period (for the switching model), i_abc: phase currents whose sign
+ * decides the distortion. Ideal: v = s v_dc. */
+static void leg_voltages(const mpcc_t *m, float v_dc_v, uint16_t prev, const float i_abc[3],
+                         float v[3][2])
+{
+    uint16_t x;
+    const float v_edge = v_dc_v * m->cfg.dead_time_s / m->cfg.ts_s;
+    for (x = 0u; x < 3u; x++) {
+        const float sg = sgn3(i_abc[x]);
+        float d0, d1;
+        if (m->cfg.dt_model == MPCC_DT_SWITCHING) {
+            const uint16_t was_on = (uint16_t)((prev >> x) & 1u);
+            /* turned on (0 -> 1) with i > 0: the lower diode carries the dead time, -v_dc Td;
+             * turned off (1 -> 0) with i < 0: the upper diode carries it, +v_dc Td. */
+            d1 = (was_on == 0u && sg > 0.0f) ? -v_edge : 0.0f;
+            d0 = (was_on == 1u && sg < 0.0f) ? v_edge : 0.0f;
+            d1 -= m->cfg.v_drop_v * sg;
+            d0 -= m->cfg.v_drop_v * sg;
+        } else {
+            d1 = -(v_edge + m->cfg.v_drop_v) * sg;
+            d0 = d1;
+        }
+        v[x][0] = d0;
+        v[x][1] = v_dc_v + d1;
+    }
+}
+
+/* dq phase currents -> abc at the angle (c, s). */
+static void dq_to_abc(float i_d, float i_q, float c, float s, float i_abc[3])
+{
+    float al, be;
+    tf_inv_park(i_d, i_q, c, s, &al, &be);
+    tf_inv_clarke(al, be, &i_abc[0], &i_abc[1], &i_abc[2]);
+}
+
+/* Rotate (c, s) forward by the angle whose cos/sin are (cd, sd). */
+static void rot(float *c, float *s, float cd, float sd)
+{
+    const float c0 = *c;
+    *c = c0 * cd - *s * sd;
+    *s = *s * cd + c0 * sd;
+}
+
+void mpcc_step(mpcc_t *m, const mpcc_in_t *in, mpcc_out_t *out)
+{
+    const float ts = m->cfg.ts_s;
+    const float w = in->omega_e_rad_s;
+    const float r = in->r_s_ohm;
+    const bool dt_on = (m->cfg.dead_time_s > 0.0f) || (m->cfg.v_drop_v > 0.0f);
+    const bool comp = (m->cfg.delay_comp == MPCC_DELAY_COMP_ON);
+    float c0, s0, c1, s1, ck1, sk1, c2, s2, cd, sd, half, h2;
+    float v[3][2], i_abc[3];
+    float g_d, g_q, u_al, u_be, u_d1, u_q1, i_d1, i_q1, e_d, e_q;
+    float gd[3], gq[3];
+    uint16_t x, n, n_cand, best, best_ch;
+    uint16_t cand[8];
+    float best_j, best_ed, best_eq;
+
+    /* ---- predictor gains (reciprocals cached: no division unless the parameters change) */
+    if (!(in->l_d_h > MPCC_L_MIN_H) || !(in->l_q_h > MPCC_L_MIN_H) || !(in->v_dc_v >= 0.0f)) {
+        /* unusable parameters: apply a zero vector, report the applied one */
+        best = (n_changes(m->sw_prev, 7u) < n_changes(m->sw_prev, 0u)) ? 7u : 0u;
+        out->s_abc_applied = m->sw_prev;
+        out->u_d_v = out->u_q_v = out->u_d_avg_v = out->u_q_avg_v = 0.0f;
+        out->i_d_k1_a = out->i_d_k2_a = in->i_d_a;
+        out->i_q_k1_a = out->i_q_k2_a = in->i_q_a;
+        out->cost = 0.0f;
+        m->sw_prev2 = m->sw_prev;
+        m->sw_prev = best;
+        out->s_abc_next = best;
+        out->s_a = (uint16_t)(best & 1u);
+        out->s_b = (uint16_t)((best >> 1) & 1u);
+        out->s_c = (uint16_t)((best >> 2) & 1u);
+        return;
+    }
+    if (in->l_d_h != m->l_d_cached_h) {
+        m->l_d_cached_h = in->l_d_h;
+        m->inv_l_d = 1.0f / in->l_d_h;
+    }
+    if (in->l_q_h != m->l_q_cached_h) {
+        m->l_q_cached_h = in->l_q_h;
+        m->inv_l_q = 1.0f / in->l_q_h;
+    }
+    g_d = ts * m->inv_l_d;
+    g_q = ts * m->inv_l_q;
+
+    /* ---- angles: theta (sample), theta + wTs/2 (mid of [k, k+1)), theta + wTs (k+1),
+     * theta + 3wTs/2 (mid of [k+1, k+2)). One sinf/cosf pair, the rest by small rotations. */
+    c0 = cosf(in->theta_e_rad);
+    s0 = sinf(in->theta_e_rad);
+    half = 0.5f * w * ts;
+    if (half > 0.5f) {
+        half = 0.5f;
+    } else if (half < -0.5f) {
+        half = -0.5f;
+    }
+    h2 = half * half;
+    cd = 1.0f - h2 * (0.5f - h2 * (1.0f / 24.0f));
+    sd = half * (1.0f - h2 * ((1.0f / 6.0f) - h2 * (1.0f / 120.0f)));
+    c1 = c0;
+    s1 = s0;
+    rot(&c1, &s1, cd, sd);
+    ck1 = c1;
+    sk1 = s1;
+    rot(&ck1, &sk1, cd, sd);
+    c2 = ck1;
+    s2 = sk1;
+    rot(&c2, &s2, cd, sd);
+
+    /* ---- the vector applied during [k, k+1): chosen last call */
+    {
+        const uint16_t p = m->sw_prev;
+        float ua = 0.0f, ub = 0.0f;
+        if (dt_on) {
+            dq_to_abc(in->i_d_a, in->i_q_a, c0, s0, i_abc);
+            leg_voltages(m, in->v_dc_v, m->sw_prev2, i_abc, v);
+        } else {
+            for (x = 0u; x < 3u; x++) {
+                v[x][0] = 0.0f;
+                v[x][1] = in->v_dc_v;
+            }
+        }
+        for (x = 0u; x < 3u; x++) {
+            const float vx = v[x][(p >> x) & 1u];
+            const uint16_t unit = (uint16_t)(1u << x);
+            ua += vx * k_vec_alpha[unit];
+            ub += vx * k_vec_beta[unit];
+        }
+        u_al = ua;
+        u_be = ub;
+    }
+    tf_park(u_al, u_be, c0, s0, &out->u_d_v, &out->u_q_v);
+    tf_park(u_al, u_be, c1, s1, &u_d1, &u_q1);
+    out->u_d_avg_v = u_d1;
+    out->u_q_avg_v = u_q1;
+    out->s_abc_applied = m->sw_prev;
+
+    /* ---- step k -> k+1 with the applied vector (delay compensation), eq. (2) corrected */
+    if (comp) {
+        i_d1 = in->i_d_a + g_d * (u_d1 - r * in->i_d_a + w * in->l_q_h * in->i_q_a);
+        i_q1 = in->i_q_a + g_q * (u_q1 - r * in->i_q_a - w * in->l_d_h * in->i_d_a
+                                  - w * in->psi_f_wb);
+    } else {
+        /* uncompensated: pretend the new vector acts at once, i.e. predict one step from i(k) */
+        i_d1 = in->i_d_a;
+        i_q1 = in->i_q_a;
+        c2 = c1;
+        s2 = s1;
+        ck1 = c0;
+        sk1 = s0;
+    }
+    out->i_d_k1_a = i_d1;
+    out->i_q_k1_a = i_q1;
+
+    /* ---- step k+1 -> k+2, eq. (3) corrected: i2 = base + g u2(candidate) */
+    e_d = in->i_d_ref_a - (i_d1 + g_d * (-r * i_d1 + w * in->l_q_h * i_q1));
+    e_q = in->i_q_ref_a - (i_q1 + g_q * (-r * i_q1 - w * in->l_d_h * i_d1 - w * in->psi_f_wb));
+
+    /* per-leg unit pole voltage in dq at theta + 3wTs/2, scaled by Ts/L */
+    for (x = 0u; x < 3u; x++) {
+        const uint16_t unit = (uint16_t)(1u << x);
+        float ud, uq;
+        tf_park(k_vec_alpha[unit], k_vec_beta[unit], c2, s2, &ud, &uq);
+        gd[x] = g_d * ud;
+        gq[x] = g_q * uq;
+    }
+    if (dt_on) {
+        dq_to_abc(i_d1, i_q1, ck1, sk1, i_abc);
+        leg_voltages(m, in->v_dc_v, m->sw_prev, i_abc, v);
+    } else {
+        for (x = 0u; x < 3u; x++) {
+            v[x][0] = 0.0f;
+            v[x][1] = in->v_dc_v;
+        }
+    }
+
+    /* ---- candidates */
+    if (m->cfg.cand_set == MPCC_CAND_ADJACENT) {
+        n_cand = 3u;
+        cand[0] = (uint16_t)(m->sw_prev ^ 1u);
+        cand[1] = (uint16_t)(m->sw_prev ^ 2u);
+        cand[2] = (uint16_t)(m->sw_prev ^ 4u);
+    } else {
+        n_cand = 8u;
+        for (n = 0u; n < 8u; n++) {
+            cand[n] = k_cand_all8[n];
+        }
+    }
+
+    best = cand[0];
+    best_j = 0.0f;
+    best_ed = 0.0f;
+    best_eq = 0.0f;
+    best_ch = 4u;
+    for (n = 0u; n < n_cand; n++) {
+        const uint16_t cd_ = cand[n];
+        const float va = v[0][cd_ & 1u];
+        const float vb = v[1][(cd_ >> 1) & 1u];
+        const float vc = v[2][(cd_ >> 2) & 1u];
+        const float ed = e_d - (va * gd[0] + vb * gd[1] + vc * gd[2]);
+        const float eq = e_q - (va * gq[0] + vb * gq[1] + vc * gq[2]);
+        const float j = ed * ed + m->cfg.rho * eq * eq;
+        if (n == 0u || j < best_j || best_j != best_j) {
+            best = cd_;
+            best_j = j;
+            best_ed = ed;
+            best_eq = eq;
+            best_ch = n_changes(m->sw_prev, cd_);
+        } else if (j == best_j) {
+            /* exact tie (V0/V7 without a switching dead-time model): fewer switch changes */
+            const uint16_t ch = n_changes(m->sw_prev, cd_);
+            if (ch < best_ch) {
+                best = cd_;
+                best_ed = ed;
+                best_eq = eq;
+                best_ch = ch;
+            }
+        }
+    }
+
+    out->cost = best_j;
+    out->i_d_k2_a = in->i_d_ref_a - best_ed;
+    out->i_q_k2_a = in->i_q_ref_a - best_eq;
+    m->sw_prev2 = m->sw_prev;
+    m->sw_prev = best;
+    out->s_abc_next = best;
+    out->s_a = (uint16_t)(best & 1u);
+    out->s_b = (uint16_t)((best >> 1) & 1u);
+    out->s_c = (uint16_t)((best >> 2) & 1u);
+}

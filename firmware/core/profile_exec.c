@@ -1,0 +1,111 @@
+#include "profile_exec.h"
+
+void profile_clear(profile_exec_t *p, uint16_t n_segments)
+{
+    uint16_t i;
+    p->n_declared = n_segments;
+    for (i = 0u; i < (PROFILE_MAX_SEGMENTS + 31u) / 32u; i++) {
+        p->loaded_mask[i] = 0u;
+    }
+    p->index = 0u;
+    p->tick_in_seg = 0u;
+    p->begun = false;
+    p->speed_ref_rpm = 0.0f;
+    p->done = false;
+}
+
+bool profile_set(profile_exec_t *p, uint16_t index, const profile_segment_t *s)
+{
+    if (index >= p->n_declared || index >= PROFILE_MAX_SEGMENTS || !(s->duration_s > 0.0f) ||
+        s->ramp_rpm_s < 0.0f) {
+        return false;
+    }
+    p->seg[index] = *s;
+    p->loaded_mask[index / 32u] |= (uint32_t)1u << (index % 32u);
+    return true;
+}
+
+bool profile_complete(const profile_exec_t *p)
+{
+    uint16_t i;
+    if (p->n_declared == 0u) {
+        return false;
+    }
+    for (i = 0u; i < p->n_declared; i++) {
+        if ((p->loaded_mask[i / 32u] & ((uint32_t)1u << (i % 32u))) == 0u) {
+            return false;
+        }
+    }
+    return true;
+}
+
+void profile_start(profile_exec_t *p, float ts_s)
+{
+    uint16_t i;
+    for (i = 0u; i < p->n_declared && i < PROFILE_MAX_SEGMENTS; i++) {
+        float n = p->seg[i].duration_s / ts_s + 0.5f;
+        p->seg_ticks[i] = (n < 1.0f) ? 1u : (uint32_t)n;
+    }
+    p->index = 0u;
+    p->tick_in_seg = 0u;
+    p->begun = false;
+    p->speed_ref_rpm = 0.0f;
+    p->done = false;
+}
+
+float profile_ramp(float ref, float target, float rate_per_s, float ts_s)
+{
+    float step;
+    if (rate_per_s <= 0.0f) {
+        return target;
+    }
+    step = rate_per_s * ts_s;
+    if (target > ref + step) {
+        return ref + step;
+    }
+    if (target < ref - step) {
+        return ref - step;
+    }
+    return target;
+}
+
+void profile_step(profile_exec_t *p, float ts_s, profile_out_t *out)
+{
+    const profile_segment_t *s;
+    out->segment_started = false;
+    out->finished = false;
+    if (p->done || p->n_declared == 0u) {
+        out->speed_ref_rpm = p->speed_ref_rpm;
+        out->load_nm = 0.0f;
+        out->index = p->index;
+        out->flags = 0u;
+        return;
+    }
+    if (!p->begun) {
+        p->begun = true;
+        p->tick_in_seg = 0u;
+        out->segment_started = true;
+    } else {
+        p->tick_in_seg++;
+        if (p->tick_in_seg >= p->seg_ticks[p->index]) {
+            if ((uint16_t)(p->index + 1u) >= p->n_declared) {
+                p->done = true;
+                out->finished = true;
+                out->speed_ref_rpm = p->speed_ref_rpm;
+                out->load_nm = 0.0f;
+                out->index = p->index;
+                out->flags = 0u;
+                return;
+            }
+            p->index++;
+            p->tick_in_seg = 0u;
+            out->segment_started = true;
+        }
+    }
+    s = &p->seg[p->index];
+    p->speed_ref_rpm = profile_ramp(p->speed_ref_rpm, s->speed_rpm, s->ramp_rpm_s, ts_s);
+    out->speed_ref_rpm = p->speed_ref_rpm;
+    out->load_nm = s->load_nm;
+    out->index = p->index;
+    out->flags = s->flags;
+}

@@ -1,0 +1,48 @@
+/* Profile executor: runs the downloaded segments (duration, speed target, ramp, load) on the
+ * firmware's own clock. Time comes in as the control period; nothing here reads a clock. */
+#ifndef PROFILE_EXEC_H
+#define PROFILE_EXEC_H
+
+#include <stdint.h>
+#include <stdbool.h>
+
+#define PROFILE_MAX_SEGMENTS 64u
+#define PROFILE_FLAG_CAPTURE 1u
+
+typedef struct {
+    float duration_s;
+    float speed_rpm;
+    float ramp_rpm_s;   /* 0 = step */
+    float load_nm;
+    uint16_t flags;
+} profile_segment_t;
+
+typedef struct {
+    profile_segment_t seg[PROFILE_MAX_SEGMENTS];
+    uint16_t n_declared;  /* from profile_clear */
+    uint32_t loaded_mask[(PROFILE_MAX_SEGMENTS + 31u) / 32u];
+    uint32_t seg_ticks[PROFILE_MAX_SEGMENTS];  /* durations in control periods (set at start) */
+    uint16_t index;       /* running segment */
+    uint32_t tick_in_seg; /* control periods into the running segment */
+    bool begun;
+    float speed_ref_rpm;  /* ramped reference */
+    bool done;
+} profile_exec_t;
+
+typedef struct {
+    float speed_ref_rpm;
+    float load_nm;
+    bool segment_started; /* true in the period a segment begins */
+    bool finished;        /* true in the period the last segment ends */
+    uint16_t index;
+    uint16_t flags;
+} profile_out_t;
+
+void profile_clear(profile_exec_t *p, uint16_t n_segments);
+bool profile_set(profile_exec_t *p, uint16_t index, const profile_segment_t *s);
+bool profile_complete(const profile_exec_t *p);
+void profile_start(profile_exec_t *p, float ts_s);
+void profile_step(profile_exec_t *p, float ts_s, profile_out_t *out);
+float profile_ramp(float ref, float target, float rate_per_s, float ts_s);
+
+#endif

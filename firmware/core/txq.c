@@ -1,0 +1,40 @@
+#include "txq.h"
+
+void txq_init(txq_t *q)
+{
+    q->head = 0u;
+    q->tail = 0u;
+    q->level = 0u;
+    q->dropped = 0u;
+}
+
+uint16_t txq_free(const txq_t *q)
+{
+    return (uint16_t)(TXQ_SIZE - q->level);
+}
+
+bool txq_push(txq_t *q, const uint16_t *octets, uint16_t n)
+{
+    uint16_t i;
+    if (n > txq_free(q)) {
+        q->dropped++;
+        return false;
+    }
+    for (i = 0u; i < n; i++) {
+        q->buf[q->head] = octets[i];
+        q->head = (uint16_t)((q->head + 1u) & (TXQ_SIZE - 1u));
+    }
+    q->level = (uint16_t)(q->level + n);
+    return true;
+}
+
+bool txq_pop(txq_t *q, uint16_t *octet)
+{
+    if (q->level == 0u) {
+        return false;
+    }
+    *octet = q->buf[q->tail];
+    q->tail = (uint16_t)((q->tail + 1u) & (TXQ_SIZE - 1u));
+    q->level = (uint16_t)(q->level - 1u);
+    return true;
+}

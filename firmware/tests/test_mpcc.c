@@ -1,0 +1,466 @@
+/* MPCC unit tests: constructed cases, closed-loop tracking on a dq plant with paper A's motor,
+ * delay compensation and dead-time compensation. */
+#include <stdio.h>
+#include <math.h>
+#include "check.h"
+#include "mpcc.h"
+#include "transforms.h"
+
+/* Paper A's motor and drive. */
+#define R_OHM 0.9
+#define LD_H 0.005
+#define LQ_H 0.012
+#define PSI_WB 0.18
+#define POLES 4
+#define VDC_V 540.0
+#define TS_S 50e-6
+#define PI_D 3.14159265358979323846
+
+/* ------------------------------------------------------------------ plant
+ * Continuous dq model integrated with fine Euler sub-steps (the "exact" plant the Euler
+ * predictor is compared against). The inverter holds a switch state for a whole period; the
+ * state chosen by the controller at k is applied from k+1 on (one-period computation delay).
+ * Optional switch-level dead time: after a leg changes state both its switches are off for
+ * td_s, and the pole voltage follows the current sign (i > 0: 0, i < 0: v_dc); plus a device
+ * drop -v_drop sign(i). */
+typedef struct {
+    double i_d, i_q, theta, w;   /* electrical */
+    double r, l_d, l_q, psi, vdc;
+    double td_s, v_drop;
+    int sw;                      /* state applied during the current period */
+    double sum_id, sum_iq;       /* time integral of the currents over the last period / Ts */
+} plant_t;
+
+#define N_SUB 100
+
+static void plant_init(plant_t *p, double w)
+{
+    p->i_d = 0.0;
+    p->i_q = 0.0;
+    p->theta = 0.3;
+    p->w = w;
+    p->r = R_OHM;
+    p->l_d = LD_H;
+    p->l_q = LQ_H;
+    p->psi = PSI_WB;
+    p->vdc = VDC_V;
+    p->td_s = 0.0;
+    p->v_drop = 0.0;
+    p->sw = 0;
+    p->sum_id = 0.0;
+    p->sum_iq = 0.0;
+}
+
+static double sgn(double x) { return x > 0.0 ? 1.0 : (x < 0.0 ? -1.0 : 0.0); }
+
+/* One control period with switch state sw_new applied from its start. */
+static void plant_period(plant_t *p, int sw_new)
+{
+    const double h = TS_S / N_SUB;
+    int n, x;
+    p->sum_id = 0.0;
+    p->sum_iq = 0.0;
+    for (n = 0; n < N_SUB; n++) {
+        const double t = (n + 0.5) * h;
+        const double th = p->theta + p->w * t;
+        const double c = cos(th), s = sin(th);
+        /* phase currents */
+        const double ia = c * p->i_d - s * p->i_q;
+        const double ib_ = s * p->i_d + c * p->i_q;
+        double iph[3], v[3], ua, ub, ud, uq, did, diq;
+        iph[0] = ia;
+        iph[1] = -0.5 * ia + 0.8660254037844386 * ib_;
+        iph[2] = -0.5 * ia - 0.8660254037844386 * ib_;
+        for (x = 0; x < 3; x++) {
+            const int on_new = (sw_new >> x) & 1;
+            const int on_old = (p->sw >> x) & 1;
+            if (on_new != on_old && t < p->td_s) {
+                v[x] = iph[x] > 0.0 ? 0.0 : (iph[x] < 0.0 ? p->vdc : on_old * p->vdc);
+            } else {
+                v[x] = on_new * p->vdc;
+            }
+            v[x] -= p->v_drop * sgn(iph[x]);
+        }
+        ua = (2.0 * v[0] - v[1] - v[2]) / 3.0;
+        ub = (v[1] - v[2]) / sqrt(3.0);
+        ud = c * ua + s * ub;
+        uq = -s * ua + c * ub;
+        did = (ud - p->r * p->i_d + p->w * p->l_q * p->i_q) / p->l_d;
+        diq = (uq - p->r * p->i_q - p->w * p->l_d * p->i_d - p->w * p->psi) / p->l_q;
+        p->sum_id += (p->i_d + 0.5 * h * did) / N_SUB;
+        p->sum_iq += (p->i_q + 0.5 * h * diq) / N_SUB;
+        p->i_d += h * did;
+        p->i_q += h * diq;
+    }
+    p->theta += p->w * TS_S;
+    p->theta = fmod(p->theta, 2.0 * PI_D);
+    p->sw = sw_new;
+}
+
+static void fill_in(mpcc_in_t *in, const plant_t *p, float id_ref, float iq_ref)
+{
+    in->i_d_a = (float)p->i_d;
+    in->i_q_a = (float)p->i_q;
+    in->i_d_ref_a = id_ref;
+    in->i_q_ref_a = iq_ref;
+    in->theta_e_rad = (float)p->theta;
+    in->omega_e_rad_s = (float)p->w;
+    in->v_dc_v = (float)p->vdc;
+    in->r_s_ohm = (float)R_OHM;
+    in->l_d_h = (float)LD_H;
+    in->l_q_h = (float)LQ_H;
+    in->psi_f_wb = (float)PSI_WB;
+}
+
+typedef struct {
+    double mean_ed, mean_eq, rms_ed, rms_eq, sw_per_s;
+    double avg_ed, avg_eq;   /* error of the time-averaged (not sampled) current */
+} track_t;
+
+/* Run MPCC on the plant at a fixed electrical speed; statistics after a 10 ms settling time. */
+static track_t run_track(const mpcc_cfg_t *cfg, double w, double td_s, double v_drop,
+                         float id_ref, float iq_ref, double t_end)
+{
+    mpcc_t m;
+    mpcc_in_t in;
+    mpcc_out_t out;
+    plant_t p;
+    track_t r = { 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0 };
+    long k, n_k = (long)(t_end / TS_S + 0.5), n_stat = 0, n_sw = 0;
+    int pending = 0;
+    mpcc_init(&m, cfg);
+    plant_init(&p, w);
+    p.td_s = td_s;
+    p.v_drop = v_drop;
+    /* start near the operating point */
+    p.i_d = id_ref;
+    p.i_q = iq_ref;
+    for (k = 0; k < n_k; k++) {
+        fill_in(&in, &p, id_ref, iq_ref);
+        mpcc_step(&m, &in, &out);
+        if (k * TS_S >= 0.01) {
+            const double ed = id_ref - p.i_d, eq = iq_ref - p.i_q;
+            r.mean_ed += ed;
+            r.mean_eq += eq;
+            r.rms_ed += ed * ed;
+            r.rms_eq += eq * eq;
+            n_stat++;
+            if (out.s_abc_next != (uint16_t)pending) {
+                n_sw += 1;
+            }
+        }
+        plant_period(&p, pending);
+        pending = out.s_abc_next;
+        if (k * TS_S >= 0.01) {
+            r.avg_ed += id_ref - p.sum_id;
+            r.avg_eq += iq_ref - p.sum_iq;
+        }
+    }
+    r.avg_ed /= (double)n_stat;
+    r.avg_eq /= (double)n_stat;
+    r.mean_ed /= (double)n_stat;
+    r.mean_eq /= (double)n_stat;
+    r.rms_ed = sqrt(r.rms_ed / (double)n_stat);
+    r.rms_eq = sqrt(r.rms_eq / (double)n_stat);
+    r.sw_per_s = (double)n_sw / ((double)n_stat * TS_S);
+    return r;
+}
+
+static mpcc_cfg_t cfg_default(void)
+{
+    mpcc_cfg_t c;
+    mpcc_cfg_default(&c);
+    c.ts_s = (float)TS_S;
+    return c;
+}
+
+/* ------------------------------------------------------------------ constructed cases */
+static void test_vector_table(void)
+{
+    uint16_t code;
+    for (code = 0u; code < 8u; code++) {
+        float al, be, ua, ub;
+        const float sa = (float)(code & 1u), sb = (float)((code >> 1) & 1u), sc = (float)((code >> 2) & 1u);
+        mpcc_vector(code, &al, &be);
+        tf_clarke(sa, sb, sc, &ua, &ub);
+        CHECK_NEAR(al, ua, 1e-6, "vector alpha = Clarke of the switch pattern");
+        CHECK_NEAR(be, ub, 1e-6, "vector beta = Clarke of the switch pattern");
+        if (code != 0u && code != 7u) {
+            CHECK_NEAR(sqrtf(al * al + be * be), 2.0f / 3.0f, 1e-6, "active vector magnitude 2/3 v_dc");
+        }
+    }
+}
+
+static void test_obvious_choice(void)
+{
+    mpcc_cfg_t cfg = cfg_default();
+    mpcc_t m;
+    mpcc_in_t in;
+    mpcc_out_t out;
+    plant_t p;
+
+    /* standstill, zero current, large +q reference at theta = 0.3 rad: the q axis points at
+     * 107 deg in alpha/beta, so V3 (010, 120 deg) is the vector that drives i_q up best */
+    mpcc_init(&m, &cfg);
+    plant_init(&p, 0.0);
+    p.theta = 0.3;
+    fill_in(&in, &p, 0.0f, 10.0f);
+    mpcc_step(&m, &in, &out);
+    CHECK(out.s_a == 0u && out.s_b == 1u && out.s_c == 0u, "+q demand at 0.3 rad selects V3 (010)");
+    CHECK(out.s_abc_next == 2u, "code of V3 is 2 (s_b = bit 1)");
+    CHECK(out.s_abc_applied == 0u, "after reset the applied state is V0");
+    CHECK_NEAR(out.u_d_v, 0.0f, 1e-6, "zero vector applied: u_d = 0");
+
+    /* -d demand at theta = 0: -alpha direction, V4 (011, 180 deg) */
+    mpcc_init(&m, &cfg);
+    p.theta = 0.0;
+    fill_in(&in, &p, -10.0f, 0.0f);
+    mpcc_step(&m, &in, &out);
+    CHECK(out.s_abc_next == 6u, "-d demand at 0 rad selects V4 (011)");
+
+    /* +d demand at theta = pi/3 (V2 direction) */
+    mpcc_init(&m, &cfg);
+    p.theta = PI_D / 3.0;
+    fill_in(&in, &p, 10.0f, 0.0f);
+    mpcc_step(&m, &in, &out);
+    CHECK(out.s_abc_next == 3u, "+d demand at 60 deg selects V2 (110)");
+
+    /* at speed the back-EMF must be counteracted: at 1500 r/min with i = 0 and ref = 0 the
+     * zero vector would let i_q fall by ~w psi Ts / L_q each period, so an active vector with
+     * positive u_q near the q axis wins */
+    mpcc_init(&m, &cfg);
+    plant_init(&p, 1500.0 / 60.0 * 2.0 * PI_D * POLES);
+    p.theta = 0.3;
+    fill_in(&in, &p, 0.0f, 0.0f);
+    mpcc_step(&m, &in, &out);
+    {
+        float al, be, uq;
+        const float th2 = 0.3f + 1.5f * (float)(p.w * TS_S);
+        mpcc_vector(out.s_abc_next, &al, &be);
+        uq = -sinf(th2) * al + cosf(th2) * be;
+        CHECK(out.s_abc_next != 0u && out.s_abc_next != 7u, "at speed an active vector holds i = 0");
+        CHECK(uq > 0.3f, "the chosen vector opposes the back-EMF (u_q > 0)");
+    }
+}
+
+/* V0/V7 tie: fewest switch changes from the previous state. */
+static void test_zero_vector_tie(void)
+{
+    mpcc_cfg_t cfg = cfg_default();
+    mpcc_t m;
+    mpcc_in_t in;
+    mpcc_out_t out;
+    const float g = (float)(TS_S * R_OHM);
+    float id1, iq1, ud, uq, al, be;
+    const float c = cosf(0.2f), s = sinf(0.2f);
+    uint16_t prev;
+
+    for (prev = 0u; prev < 8u; prev++) {
+        mpcc_init(&m, &cfg);
+        m.sw_prev = prev;
+        in.i_d_a = 1.0f;
+        in.i_q_a = 2.0f;
+        in.theta_e_rad = 0.2f;
+        in.omega_e_rad_s = 0.0f;
+        in.v_dc_v = (float)VDC_V;
+        in.r_s_ohm = (float)R_OHM;
+        in.l_d_h = (float)LD_H;
+        in.l_q_h = (float)LQ_H;
+        in.psi_f_wb = (float)PSI_WB;
+        /* reference = what the zero vector gives at k+2 after prev at k+1 (standstill) */
+        mpcc_vector(prev, &al, &be);
+        ud = (float)VDC_V * (c * al + s * be);
+        uq = (float)VDC_V * (-s * al + c * be);
+        id1 = in.i_d_a + (float)TS_S / (float)LD_H * (ud - (float)R_OHM * in.i_d_a);
+        iq1 = in.i_q_a + (float)TS_S / (float)LQ_H * (uq - (float)R_OHM * in.i_q_a);
+        in.i_d_ref_a = id1 - g / (float)LD_H * id1;
+        in.i_q_ref_a = iq1 - g / (float)LQ_H * iq1;
+        mpcc_step(&m, &in, &out);
+        CHECK(out.s_abc_next == 0u || out.s_abc_next == 7u, "zero vector chosen");
+        {
+            const uint16_t ones = (uint16_t)((prev & 1u) + ((prev >> 1) & 1u) + ((prev >> 2) & 1u));
+            const uint16_t want = ones >= 2u ? 7u : 0u;
+            CHECK(out.s_abc_next == want, "V0/V7 tie broken by fewer switch changes");
+        }
+        CHECK_NEAR(out.cost, 0.0f, 1e-3, "zero-vector prediction reaches the reference");
+        CHECK(out.s_abc_applied == prev, "applied state reported");
+        CHECK_NEAR(out.u_d_v, ud, 1e-3, "u_d of the applied vector at theta");
+        CHECK_NEAR(out.u_q_v, uq, 1e-3, "u_q of the applied vector at theta");
+        CHECK_NEAR(out.i_d_k1_a, id1, 1e-4, "i_d(k+1) prediction");
+        CHECK_NEAR(out.i_q_k1_a, iq1, 1e-4, "i_q(k+1) prediction");
+    }
+}
+
+/* The Euler prediction of one period matches the plant (small error, dominated by Euler). */
+static void test_prediction_vs_plant(void)
+{
+    mpcc_cfg_t cfg = cfg_default();
+    mpcc_t m;
+    mpcc_in_t in;
+    mpcc_out_t out;
+    plant_t p;
+    int k;
+    double max_ed = 0.0, max_eq = 0.0;
+    mpcc_init(&m, &cfg);
+    plant_init(&p, 1000.0 / 60.0 * 2.0 * PI_D * POLES);
+    p.i_d = -1.0;
+    p.i_q = 5.0;
+    {
+        int pending = 0;
+        for (k = 0; k < 400; k++) {
+            float pd, pq;
+            fill_in(&in, &p, -1.0f, 5.0f);
+            mpcc_step(&m, &in, &out);
+            pd = out.i_d_k1_a;
+            pq = out.i_q_k1_a;
+            plant_period(&p, pending);
+            pending = out.s_abc_next;
+            if (fabs(pd - p.i_d) > max_ed) max_ed = fabs(pd - p.i_d);
+            if (fabs(pq - p.i_q) > max_eq) max_eq = fabs(pq - p.i_q);
+        }
+    }
+    printf("  one-step prediction error max: d %.4f A, q %.4f A\n", max_ed, max_eq);
+    CHECK(max_ed < 0.05 && max_eq < 0.05, "i(k+1) prediction within 50 mA of the plant");
+}
+
+/* ------------------------------------------------------------------ closed loop */
+static void test_tracking(void)
+{
+    mpcc_cfg_t cfg = cfg_default();
+    static const double rpm[3] = { 15.0, 240.0, 1000.0 };
+    int n;
+    for (n = 0; n < 3; n++) {
+        const double w = rpm[n] / 60.0 * 2.0 * PI_D * POLES;
+        track_t t = run_track(&cfg, w, 0.0, 0.0, -2.0f, 8.0f, 1.0);
+        printf("  %6.0f r/min: mean err d %+.3f q %+.3f A (time-avg %+.3f %+.3f), rms d %.3f q %.3f A, %.0f changes/s\n",
+               rpm[n], t.mean_ed, t.mean_eq, t.avg_ed, t.avg_eq, t.rms_ed, t.rms_eq, t.sw_per_s);
+        CHECK(fabs(t.mean_ed) < 0.15 && fabs(t.mean_eq) < 0.15, "mean current error < 0.15 A");
+        CHECK(t.rms_ed < 1.0 && t.rms_eq < 0.6, "bounded ripple (rms d < 1 A, q < 0.6 A)");
+    }
+    /* a reference step: i_q 0 -> 10 A settles within 1 ms */
+    {
+        mpcc_t m;
+        mpcc_in_t in;
+        mpcc_out_t out;
+        plant_t p;
+        int k, pending = 0, k_reach = -1;
+        mpcc_init(&m, &cfg);
+        plant_init(&p, 240.0 / 60.0 * 2.0 * PI_D * POLES);
+        for (k = 0; k < 200; k++) {
+            fill_in(&in, &p, 0.0f, 10.0f);
+            mpcc_step(&m, &in, &out);
+            plant_period(&p, pending);
+            pending = out.s_abc_next;
+            if (k_reach < 0 && p.i_q > 9.0) {
+                k_reach = k;
+            }
+        }
+        printf("  i_q step 0 -> 10 A reaches 9 A after %d periods\n", k_reach + 1);
+        CHECK(k_reach >= 0 && k_reach < 20, "i_q step reaches 90 % within 1 ms");
+        CHECK(fabs(p.i_q - 10.0) < 1.0 && fabs(p.i_d) < 1.5, "i_q step settles");
+    }
+}
+
+static void test_delay_compensation(void)
+{
+    mpcc_cfg_t on = cfg_default(), off = cfg_default();
+    static const double rpm[2] = { 240.0, 1000.0 };
+    int n;
+    off.delay_comp = MPCC_DELAY_COMP_OFF;
+    for (n = 0; n < 2; n++) {
+        const double w = rpm[n] / 60.0 * 2.0 * PI_D * POLES;
+        track_t a = run_track(&on, w, 0.0, 0.0, -2.0f, 8.0f, 0.1);
+        track_t b = run_track(&off, w, 0.0, 0.0, -2.0f, 8.0f, 0.1);
+        const double ea = sqrt(a.rms_ed * a.rms_ed + a.rms_eq * a.rms_eq);
+        const double eb = sqrt(b.rms_ed * b.rms_ed + b.rms_eq * b.rms_eq);
+        printf("  %6.0f r/min: rms current error with delay compensation %.3f A, without %.3f A\n",
+               rpm[n], ea, eb);
+        CHECK(ea < 0.8 * eb, "delay compensation reduces the current error");
+    }
+}
+
+/* Dead time in the plant: the firmware's dead-time model reduces the low-speed mean error. */
+static void test_dead_time(void)
+{
+    mpcc_cfg_t none = cfg_default(), avg = cfg_default(), swm = cfg_default();
+    const double td = 2.0e-6, vdrop = 1.5;
+    static const double rpm[2] = { 15.0, 240.0 };
+    int n;
+    avg.dead_time_s = (float)td;
+    avg.v_drop_v = (float)vdrop;
+    avg.dt_model = MPCC_DT_AVERAGE;
+    swm = avg;
+    swm.dt_model = MPCC_DT_SWITCHING;
+    for (n = 0; n < 2; n++) {
+        const double w = rpm[n] / 60.0 * 2.0 * PI_D * POLES;
+        track_t a = run_track(&none, w, td, vdrop, -2.0f, 5.0f, 0.2);
+        track_t b = run_track(&avg, w, td, vdrop, -2.0f, 5.0f, 0.2);
+        track_t c = run_track(&swm, w, td, vdrop, -2.0f, 5.0f, 0.2);
+        const double ea = hypot(a.mean_ed, a.mean_eq), eb = hypot(b.mean_ed, b.mean_eq),
+                     ec = hypot(c.mean_ed, c.mean_eq);
+        printf("  %6.0f r/min, dead time %.1f us: |mean err| none %.3f (rms %.3f/%.3f), "
+               "average %.3f (rms %.3f/%.3f), switching %.3f (rms %.3f/%.3f) A\n",
+               rpm[n], td * 1e6, ea, a.rms_ed, a.rms_eq, eb, b.rms_ed, b.rms_eq, ec, c.rms_ed, c.rms_eq);
+        CHECK(ec < ea, "switching dead-time model reduces the mean error");
+    }
+}
+
+/* Paper A Table 1: only one-switch-change neighbours are chosen. */
+static void test_adjacent_set(void)
+{
+    mpcc_cfg_t cfg = cfg_default();
+    mpcc_t m;
+    mpcc_in_t in;
+    mpcc_out_t out;
+    plant_t p;
+    int k, pending = 0, ok = 1;
+    cfg.cand_set = MPCC_CAND_ADJACENT;
+    mpcc_init(&m, &cfg);
+    plant_init(&p, 240.0 / 60.0 * 2.0 * PI_D * POLES);
+    for (k = 0; k < 2000; k++) {
+        uint16_t x;
+        fill_in(&in, &p, 0.0f, 5.0f);
+        mpcc_step(&m, &in, &out);
+        x = (uint16_t)((out.s_abc_next ^ out.s_abc_applied) & 7u);
+        if (!(x == 1u || x == 2u || x == 4u)) {
+            ok = 0;
+        }
+        plant_period(&p, pending);
+        pending = out.s_abc_next;
+    }
+    CHECK(ok, "adjacent set: exactly one leg changes per period");
+    CHECK(fabs(p.i_q - 5.0) < 2.0, "adjacent set still controls the current");
+}
+
+static void test_bad_params(void)
+{
+    mpcc_cfg_t cfg = cfg_default();
+    mpcc_t m;
+    mpcc_in_t in;
+    mpcc_out_t out;
+    plant_t p;
+    mpcc_init(&m, &cfg);
+    plant_init(&p, 100.0);
+    fill_in(&in, &p, 0.0f, 5.0f);
+    in.l_d_h = 0.0f;
+    mpcc_step(&m, &in, &out);
+    CHECK(out.s_abc_next == 0u, "invalid inductance: zero vector");
+    in.l_d_h = (float)LD_H;
+    in.i_q_a = NAN;
+    mpcc_step(&m, &in, &out);
+    CHECK(out.s_abc_next < 8u, "NaN current: a valid state");
+}
+
+int main(void)
+{
+    test_vector_table();
+    test_obvious_choice();
+    test_zero_vector_tie();
+    test_prediction_vs_plant();
+    test_tracking();
+    test_delay_compensation();
+    test_dead_time();
+    test_adjacent_set();
+    test_bad_params();
+    return CHECK_DONE();
+}

@@ -1,0 +1,167 @@
+"""Per-segment run summary: speed error after settling, recovery after load steps, current ripple,
+faults. Everything is derived from the log alone (segment boundaries from the segment_start events),
+so it works on any pmsm-hil log.
+
+Definitions (docs/analysis.md):
+- band: max(1 % of |setpoint|, 1 r/min), the speed-tracking bound.
+- plateau window: from the end of the segment's ramp plus min(0.5 s, half the plateau) to the
+  segment's end; the mean speed error is taken there.
+- recovery (segments whose load differs from the previous segment's): time from the segment start
+  to the moment after which the 20 ms moving average of the speed error stays within the band.
+- ripple: RMS of i_d − i_d* and i_q − i_q* in the plateau window (telemetry rate).
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from pmsm_hil.log.reader import read_log
+
+RECOVERY_LIMIT_S = 0.3
+AVG_WINDOW_S = 0.02
+
+
+@dataclass
+class SegmentStats:
+    index: int
+    name: str
+    t_start_s: float
+    t_end_s: float
+    setpoint_rpm: float
+    load_nm: float
+    load_step_nm: float
+    band_rpm: float
+    mean_error_rpm: float
+    mean_ok: bool
+    recovery_s: float | None       # None: no load step in this segment
+    recovery_ok: bool | None
+    ripple_d_a: float
+    ripple_q_a: float
+    faults: int
+
+
+@dataclass
+class RunSummary:
+    path: str
+    segments: list[SegmentStats] = field(default_factory=list)
+    faults: list[str] = field(default_factory=list)
+    duration_s: float = 0.0
+    frames: int = 0
+
+    @property
+    def ok(self) -> bool:
+        return all(s.mean_ok and s.recovery_ok is not False for s in self.segments) and not self.faults
+
+    def as_dict(self) -> dict:
+        return {"path": self.path, "ok": self.ok, "duration_s": self.duration_s,
+                "faults": self.faults, "segments": [asdict(s) for s in self.segments]}
+
+
+def _moving_average(x: np.ndarray, n: int) -> np.ndarray:
+    if n <= 1 or len(x) < n:
+        return x.copy()
+    c = np.cumsum(np.insert(x, 0, 0.0))
+    out = np.empty_like(x)
+    out[n - 1:] = (c[n:] - c[:-n]) / n
+    out[: n - 1] = c[1:n] / np.arange(1, n)
+    return out
+
+
+def recovery_time(t: np.ndarray, err: np.ndarray, band: float, t0: float) -> float:
+    """Time from t0 until the moving-average error stays within band; inf if it never does."""
+    if len(t) < 2:
+        return float("inf")
+    dt = float(np.median(np.diff(t)))
+    avg = _moving_average(err, max(1, int(round(AVG_WINDOW_S / dt))))
+    outside = np.nonzero(np.abs(avg) > band)[0]
+    if len(outside) == 0:
+        return 0.0
+    last = outside[-1]
+    if last + 1 >= len(t):
+        return float("inf")
+    return float(t[last + 1] - t0)
+
+
+def summarize(tel: dict, events: dict, names: list[str] | None = None, path: str = "") -> RunSummary:
+    t = np.asarray(tel["t_s"], dtype=float)
+    ref = np.asarray(tel["speed_ref_rpm"], dtype=float)
+    spd = np.asarray(tel["speed_rpm"], dtype=float)
+    load = np.asarray(tel["load_nm"], dtype=float)
+    ed = np.asarray(tel["i_d_a"], float) - np.asarray(tel["i_d_ref_a"], float)
+    eq = np.asarray(tel["i_q_a"], float) - np.asarray(tel["i_q_ref_a"], float)
+    kinds = [str(k) for k in events.get("kind", [])]
+    ev_t = np.asarray(events.get("t_s", []), dtype=float)
+    ev_arg = np.asarray(events.get("arg", []), dtype=int)
+    starts = [(float(ev_t[i]), int(ev_arg[i])) for i, k in enumerate(kinds) if k == "segment_start"]
+    ends = [float(ev_t[i]) for i, k in enumerate(kinds) if k in ("profile_done", "stopped")]
+    fault_events = [(float(ev_t[i]), str(events["text"][i])) for i, k in enumerate(kinds)
+                    if k in ("fault", "heartbeat_lost")]
+    summary = RunSummary(path=path, duration_s=float(t[-1]) if len(t) else 0.0, frames=len(t),
+                         faults=[f"{ts:.3f} s {txt}" for ts, txt in fault_events])
+    prev_load = 0.0
+    for k, (t0, idx) in enumerate(starts):
+        t1 = starts[k + 1][0] if k + 1 < len(starts) else (min(ends) if ends else summary.duration_s)
+        sel = (t >= t0) & (t < t1)
+        if sel.sum() < 4:
+            continue
+        ts, r, s = t[sel], ref[sel], spd[sel]
+        setpoint = float(r[-1])
+        seg_load = float(np.median(load[sel]))
+        band = max(0.01 * abs(setpoint), 1.0)
+        at_final = np.nonzero(np.abs(r - setpoint) > 1e-6 + 0.001 * abs(setpoint))[0]
+        t_ramp_end = float(ts[at_final[-1] + 1]) if len(at_final) and at_final[-1] + 1 < len(ts) else t0
+        plateau = t1 - t_ramp_end
+        w0 = t_ramp_end + min(0.5, 0.5 * plateau)
+        win = sel & (t >= w0)
+        err = s - r
+        mean_err = float(np.mean(spd[win] - ref[win])) if win.sum() else float("nan")
+        step = seg_load - prev_load
+        rec = rec_ok = None
+        if abs(step) > 1e-6:
+            rec = recovery_time(ts, err, band, t0)
+            rec_ok = rec <= RECOVERY_LIMIT_S
+        n_faults = sum(1 for ft, _ in fault_events if t0 <= ft < t1)
+        summary.segments.append(SegmentStats(
+            index=idx, name=(names[idx] if names and idx < len(names) else f"segment {idx}"),
+            t_start_s=t0, t_end_s=t1, setpoint_rpm=setpoint, load_nm=seg_load, load_step_nm=step,
+            band_rpm=band, mean_error_rpm=mean_err, mean_ok=bool(abs(mean_err) <= band),
+            recovery_s=rec, recovery_ok=rec_ok,
+            ripple_d_a=float(np.sqrt(np.mean(ed[win] ** 2))) if win.sum() else float("nan"),
+            ripple_q_a=float(np.sqrt(np.mean(eq[win] ** 2))) if win.sum() else float("nan"),
+            faults=n_faults))
+        prev_load = seg_load
+    return summary
+
+
+def summarize_log(path: Path) -> RunSummary:
+    log = read_log(path)
+    names = None
+    meta = log.metadata.get("run", {}) if hasattr(log, "metadata") else {}
+    if meta.get("segment_names"):
+        names = meta["segment_names"].split("|")
+    return summarize(log.topic("/pmsm/telemetry"), log.topic("/pmsm/events"), names, str(path))
+
+
+def print_summary(summary: RunSummary, console=None) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    console = console or Console()
+    tab = Table(title=f"run summary: {summary.path}", header_style="bold")
+    for col in ("seg", "name", "setpoint r/min", "load N·m", "mean err r/min", "band",
+                "recovery s", "ripple d/q A", "faults"):
+        tab.add_column(col, justify="right" if col not in ("name",) else "left")
+    for s in summary.segments:
+        ok = "[green]" if s.mean_ok else "[red]"
+        rec = "" if s.recovery_s is None else (
+            ("[green]" if s.recovery_ok else "[red]") + f"{s.recovery_s:.3f}")
+        tab.add_row(str(s.index), s.name, f"{s.setpoint_rpm:.1f}", f"{s.load_nm:.2f}",
+                    f"{ok}{s.mean_error_rpm:+.3f}", f"±{s.band_rpm:.2f}", rec,
+                    f"{s.ripple_d_a:.3f}/{s.ripple_q_a:.3f}", str(s.faults))
+    console.print(tab)
+    for f in summary.faults:
+        console.print(f"[red]fault[/] {f}")
+    verdict = "[green]all plateaus within bounds[/]" if summary.ok else "[red]bounds missed[/]"
+    console.print(f"{len(summary.segments)} segments, {summary.duration_s:.2f} s: {verdict}")

@@ -1,0 +1,71 @@
+"""From a profile (motor, rig, control, telemetry) to the device's configuration frames, including
+the speed-PI design when the profile leaves the gains to the tool (docs/control.md)."""
+from __future__ import annotations
+
+import math
+
+from pmsm_hil.protocol import generated as gen
+
+DEFAULT_SPEED_BW_RAD_S = 2 * math.pi * 15.0   # speed-loop bandwidth when the profile gives no gains
+DEFAULT_OBSERVER_BW_RAD_S = 2 * math.pi * 40.0
+CAPTURE_PRE = 256
+
+
+def torque_constant(motor) -> float:
+    """k_t = 1.5 p psi_f (N·m/A), the surface-magnet part; MTPA adds reluctance torque on top."""
+    return 1.5 * motor.pole_pairs * motor.psi_f_wb
+
+
+def design_speed_pi(motor, bw_rad_s: float = DEFAULT_SPEED_BW_RAD_S) -> tuple[float, float]:
+    """PI on mechanical rad/s -> stator current (A): crossover at bw, PI zero at bw/4."""
+    kp = motor.j_kgm2 * bw_rad_s / torque_constant(motor)
+    ki = kp * bw_rad_s / 4.0
+    return kp, ki
+
+
+def _div(rate_hz: float, ts_s: float) -> int:
+    return 0 if not rate_hz else max(1, round(1.0 / (rate_hz * ts_s)))
+
+
+def _effect(rig, name: str):
+    """The rig's effect `name` if it is enabled, else None."""
+    eff = getattr(rig, "effects", {}).get(name) if rig is not None else None
+    if eff is None or not getattr(eff, "enabled", True):
+        return None
+    return eff
+
+
+def encoder_counts(rig) -> int:
+    enc = _effect(rig, "encoder")
+    lines = getattr(enc, "lines", 2500) if enc is not None else 2500
+    return int(4 * lines)
+
+
+def device_config(profile) -> tuple[dict, dict]:
+    """(config_motor fields, config_ctrl fields) for `profile`."""
+    m, c, tel = profile.motor, profile.control, profile.telemetry
+    motor_cfg = dict(pole_pairs=m.pole_pairs, r_s_ohm=m.r_s_ohm, l_d_h=m.l_d_h, l_q_h=m.l_q_h,
+                     psi_f_wb=m.psi_f_wb, j_kgm2=m.j_kgm2, i_max_a=m.i_max_a,
+                     speed_max_rpm=m.speed_max_rpm, i_trip_a=m.i_trip_a,
+                     speed_trip_rpm=m.speed_trip_rpm, v_dc_min_v=m.v_dc_min_v,
+                     v_dc_max_v=m.v_dc_max_v)
+    kp, ki = c.speed_kp_a_per_rad_s, c.speed_ki_a_per_rad
+    if kp is None or ki is None:
+        kp_d, ki_d = design_speed_pi(m)
+        kp = kp_d if kp is None else kp
+        ki = ki_d if ki is None else ki
+    dt = _effect(profile.rig, "dead_time") if getattr(c, "dead_time_comp", True) else None
+    ctrl_cfg = dict(
+        ts_s=c.ts_s, rho=c.rho, speed_kp_a_per_rad_s=kp, speed_ki_a_per_rad=ki,
+        speed_div=_div(c.speed_loop_hz, c.ts_s),
+        current_ref=gen.ENUMS["current_ref"]["mtpa" if c.current_ref == "mtpa" else "id_zero"],
+        current_ctrl=gen.ENUMS["current_ctrl"]["mpcc"],
+        heartbeat_timeout_s=c.heartbeat_timeout_s,
+        fast_div=_div(tel.fast_hz, c.ts_s), params_div=_div(tel.params_hz, c.ts_s),
+        status_div=_div(tel.status_hz, c.ts_s),
+        enc_counts=encoder_counts(profile.rig), enc_offset_rad=0.0,
+        speed_obs_bw_rad_s=getattr(c, "speed_obs_bw_rad_s", None) or DEFAULT_OBSERVER_BW_RAD_S,
+        dead_time_s=getattr(dt, "dead_time_s", 0.0) if dt is not None else 0.0,
+        v_drop_v=getattr(dt, "v_drop_v", 0.0) if dt is not None else 0.0,
+        capture_pre=CAPTURE_PRE)
+    return motor_cfg, ctrl_cfg

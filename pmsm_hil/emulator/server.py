@@ -1,0 +1,112 @@
+"""The emulator process: the firmware core + sim board behind a pseudo-terminal.
+
+Device time runs as fast as the host keeps up, but never more than half the firmware's heartbeat
+timeout ahead of the last heartbeat it received. When the host falls silent the emulator falls back
+to real time, so the firmware's heartbeat timeout fires after the same wall time as on a rig.
+"""
+from __future__ import annotations
+
+import errno
+import os
+import select
+import signal
+import sys
+import time
+import tty
+from dataclasses import dataclass, field
+
+from pmsm_hil.emulator.fwlib import EmulatedDevice
+
+CHUNK_TICKS = 1000          # control periods per call into C (50 ms of device time at 50 us)
+MAX_PENDING = 1 << 16       # octets waiting for the host before the emulator pauses
+
+
+@dataclass
+class Pacer:
+    """Decides how many control periods may run now (see the module docstring)."""
+
+    lead_fraction: float = 0.5
+    _last_hb: int = -1
+    _anchor: tuple[float, int] | None = field(default=None)
+
+    def allowance(self, dev: EmulatedDevice, now: float) -> int:
+        timeout = dev.get("heartbeat_timeout_s") or 0.5
+        ts_s = dev.get("ts_s")
+        lead_ticks = int(self.lead_fraction * timeout / ts_s)
+        hb, isr = dev.heartbeat_isr, dev.isr_count
+        if hb != self._last_hb:
+            self._last_hb = hb
+            self._anchor = None
+        ahead = hb + lead_ticks - isr
+        if ahead > 0:
+            return min(ahead, CHUNK_TICKS)
+        if self._anchor is None:
+            self._anchor = (now, isr)
+        real_time = int((now - self._anchor[0]) / ts_s) - (isr - self._anchor[1])
+        return max(0, min(real_time, CHUNK_TICKS))
+
+
+class PtyServer:
+    """Serves one EmulatedDevice on a pty until stopped."""
+
+    def __init__(self, device: EmulatedDevice):
+        self.dev = device
+        self.pacer = Pacer()
+        self.master, self.slave = os.openpty()
+        tty.setraw(self.slave)
+        os.set_blocking(self.master, False)
+        self.path = os.ttyname(self.slave)
+        self._pending = bytearray()
+        self._stop = False
+
+    def stop(self, *_args) -> None:
+        self._stop = True
+
+    def serve(self) -> None:
+        while not self._stop:
+            now = time.monotonic()
+            ticks_allowed = self.pacer.allowance(self.dev, now) if self.dev.active else 0
+            can_run = len(self._pending) < MAX_PENDING
+            busy = self.dev.active and ticks_allowed > 0 and can_run
+            wait = 0.0 if busy else 0.002
+            rlist, wlist, _ = select.select([self.master], [self.master] if self._pending else [],
+                                            [], wait)
+            if rlist:
+                try:
+                    data = os.read(self.master, 65536)
+                except OSError as e:  # EIO: no reader on the slave side right now
+                    if e.errno not in (errno.EIO, errno.EAGAIN):
+                        raise
+                    data = b""
+                self.dev.rx(data)
+            if can_run:
+                _, out = self.dev.run(ticks_allowed if self.dev.active else 0)
+                self._pending += out
+            if self._pending:
+                try:
+                    n = os.write(self.master, self._pending)
+                    del self._pending[:n]
+                except OSError as e:
+                    if e.errno not in (errno.EAGAIN, errno.EIO):
+                        raise
+
+    def close(self) -> None:
+        for fd in (self.master, self.slave):
+            try:
+                os.close(fd)
+            except OSError:
+                pass
+
+
+def serve_pty(settings: dict[str, float], announce=print) -> None:
+    """Run the emulator on a pty, printing `serial: PATH`, until SIGINT/SIGTERM."""
+    dev = EmulatedDevice(settings)
+    server = PtyServer(dev)
+    signal.signal(signal.SIGTERM, server.stop)
+    signal.signal(signal.SIGINT, server.stop)
+    announce(f"serial: {server.path}")
+    sys.stdout.flush()
+    try:
+        server.serve()
+    finally:
+        server.close()

@@ -1,0 +1,396 @@
+"""YAML sources with line numbers, and the one-line problem reports that name file, line and field.
+
+Every YAML file (profile, motor, rig) is read once with ``yaml.compose`` so that each key path keeps
+the line it was written on; the constructed data then goes through pydantic, and every pydantic or
+semantic problem is reported as ``file:line: field.path = value message``.
+"""
+from __future__ import annotations
+
+import difflib
+import math
+import os
+import re
+import typing
+from dataclasses import dataclass, field as dc_field
+from typing import Any
+
+import annotated_types
+import yaml
+from pydantic import BaseModel, ValidationError
+
+__all__ = ["Problem", "ProfileError", "Source", "read_source", "unit_of", "fmt_value", "loc_str"]
+
+
+# ----------------------------------------------------------------------------------- problems
+
+_NO_VALUE = object()  # a problem about a key that has no value (missing, file-level)
+
+
+@dataclass(frozen=True)
+class Problem:
+    """One problem found in one file: ``file:line[:column]: field = value message``."""
+
+    file: str
+    line: int | None
+    field: str | None
+    value: Any
+    message: str
+    column: int | None = None
+    has_value: bool = True
+
+    def __str__(self) -> str:
+        where = self.file
+        if self.line is not None:
+            where += f":{self.line}"
+            if self.column is not None:
+                where += f":{self.column}"
+        if self.field and self.has_value:
+            body = f"{self.field} = {fmt_value(self.value)} {self.message}"
+        elif self.field:
+            body = f"{self.field} {self.message}"
+        else:
+            body = self.message
+        return f"{where}: {body}"
+
+
+class ProfileError(Exception):
+    """A profile, motor or rig file is invalid.
+
+    ``file``, ``line``, ``field`` and ``value`` describe the first problem; ``problems`` holds all
+    of them and ``str()`` lists them one per line.
+    """
+
+    def __init__(self, problems: list[Problem] | Problem):
+        if isinstance(problems, Problem):
+            problems = [problems]
+        if not problems:
+            raise ValueError("ProfileError needs at least one problem")
+        self.problems: list[Problem] = list(problems)
+        first = self.problems[0]
+        self.file: str = first.file
+        self.line: int | None = first.line
+        self.field: str | None = first.field
+        self.value: Any = first.value if first.has_value else None
+        super().__init__(str(self))
+
+    def __str__(self) -> str:
+        return "\n".join(str(p) for p in self.problems)
+
+
+# ----------------------------------------------------------------------------------- formatting
+
+_UNITS = (  # longest suffix first
+    ("_a_per_rad_s", "A/(rad/s)"),
+    ("_a_per_rad", "A/rad"),
+    ("_rpm_s", "r/min/s"),
+    ("_rad_s", "rad/s"),
+    ("_rpm", "r/min"),
+    ("_nms", "N m s/rad"),
+    ("_nm", "N m"),
+    ("_kgm2", "kg m^2"),
+    ("_ohm", "ohm"),
+    ("_wb", "Wb"),
+    ("_hz", "Hz"),
+    ("_rad", "rad"),
+    ("_s", "s"),
+    ("_a", "A"),
+    ("_v", "V"),
+    ("_h", "H"),
+    ("_c", "degC"),
+)
+
+
+def unit_of(name: str) -> str:
+    """The unit that a name's suffix carries (``ts_s`` -> ``s``), or ``''``."""
+    for suffix, unit in _UNITS:
+        if name.endswith(suffix):
+            return unit
+    return ""
+
+
+def fmt_num(x: float | int) -> str:
+    if isinstance(x, bool):
+        return "true" if x else "false"
+    if isinstance(x, int):
+        return str(x)
+    if isinstance(x, float) and math.isfinite(x) and x.is_integer() and abs(x) < 1e15:
+        return str(int(x))
+    return f"{x:.6g}" if isinstance(x, float) else str(x)
+
+
+def fmt_value(v: Any) -> str:
+    if v is None:
+        return "null"
+    if isinstance(v, (bool, int, float)):
+        return fmt_num(v)
+    if isinstance(v, str):
+        return repr(v)
+    text = yaml.safe_dump(v, default_flow_style=True, width=1_000_000).strip()
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def loc_str(loc: tuple) -> str:
+    out = ""
+    for part in loc:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        else:
+            out += ("." if out else "") + str(part)
+    return out
+
+
+# ----------------------------------------------------------------------------------- YAML reading
+
+class _Loader(yaml.SafeLoader):
+    """SafeLoader that also reads YAML 1.2 floats without a dot (``50e-6``) as floats."""
+
+
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
+    list("-+0123456789"),
+)
+
+
+@dataclass
+class Source:
+    """One YAML file: its text, data and the line of every key path."""
+
+    path: str
+    text: str = ""
+    data: Any = None
+    lines: dict[tuple, int] = dc_field(default_factory=dict)
+    problems: list[Problem] = dc_field(default_factory=list)
+
+    def line(self, loc: tuple) -> int | None:
+        """Line of ``loc``, else of its nearest ancestor that is in the file."""
+        loc = tuple(loc)
+        while True:
+            if loc in self.lines:
+                return self.lines[loc]
+            if not loc:
+                return None
+            loc = loc[:-1]
+
+    def has(self, loc: tuple) -> bool:
+        return tuple(loc) in self.lines
+
+    def problem(self, loc: tuple, message: str, value: Any = _NO_VALUE) -> Problem:
+        return Problem(self.path, self.line(loc), loc_str(loc) or None,
+                       None if value is _NO_VALUE else value, message,
+                       has_value=value is not _NO_VALUE)
+
+
+def _walk(node: yaml.Node, path: tuple, src: Source) -> None:
+    if isinstance(node, yaml.MappingNode):
+        seen: dict[Any, int] = {}
+        for key_node, val_node in node.value:
+            if not isinstance(key_node, yaml.ScalarNode):
+                continue
+            key = key_node.value
+            key_line = key_node.start_mark.line + 1
+            if key in seen:
+                src.problems.append(Problem(
+                    src.path, key_line, loc_str(path + (key,)), None,
+                    f"is given twice (first on line {seen[key]})", has_value=False))
+                continue
+            seen[key] = key_line
+            if isinstance(val_node, yaml.ScalarNode):
+                src.lines[path + (key,)] = val_node.start_mark.line + 1
+            else:
+                src.lines[path + (key,)] = key_line
+            _walk(val_node, path + (key,), src)
+    elif isinstance(node, yaml.SequenceNode):
+        for i, item in enumerate(node.value):
+            src.lines[path + (i,)] = item.start_mark.line + 1
+            _walk(item, path + (i,), src)
+
+
+def read_source(path: str, *, what: str = "file",
+                referenced_by: tuple[Source, tuple, Any] | None = None) -> Source:
+    """Read and parse one YAML file; problems (unreadable, invalid YAML) go to ``src.problems``.
+
+    ``referenced_by`` = (source, loc, value) of the key that named this file, so that a file that
+    cannot be read is reported at that key.
+    """
+    src = Source(path=path)
+    try:
+        with open(path, encoding="utf-8") as f:
+            src.text = f.read()
+    except OSError as e:
+        reason = e.strerror or str(e)
+        if referenced_by is not None:
+            ref, loc, value = referenced_by
+            src.problems.append(ref.problem(loc, f"names a {what} that cannot be read: {path}: {reason}",
+                                            value))
+        else:
+            src.problems.append(Problem(path, None, None, None, f"cannot read the {what}: {reason}",
+                                        has_value=False))
+        return src
+    except UnicodeDecodeError as e:
+        src.problems.append(Problem(path, None, None, None, f"is not UTF-8 text: {e}", has_value=False))
+        return src
+
+    loader = _Loader(src.text)
+    try:
+        node = loader.get_single_node()
+        data = loader.construct_document(node) if node is not None else None
+    except yaml.MarkedYAMLError as e:
+        mark = e.problem_mark or e.context_mark
+        msg = "invalid YAML: " + (e.problem or "syntax error")
+        if e.context:
+            msg += f" ({e.context}"
+            if e.context_mark is not None and e.context_mark is not mark:
+                msg += f" on line {e.context_mark.line + 1}"
+            msg += ")"
+        src.problems.append(Problem(path, mark.line + 1 if mark else None, None, None, msg,
+                                    column=mark.column + 1 if mark else None, has_value=False))
+        return src
+    except yaml.YAMLError as e:
+        src.problems.append(Problem(path, None, None, None, f"invalid YAML: {e}", has_value=False))
+        return src
+    finally:
+        loader.dispose()
+
+    if node is None:
+        src.problems.append(Problem(path, 1, None, None, f"the {what} is empty", has_value=False))
+        return src
+    if not isinstance(data, dict):
+        src.problems.append(Problem(path, node.start_mark.line + 1, None, None,
+                                    f"the {what} must be a mapping of `key: value` lines, "
+                                    f"not a {type(data).__name__}", has_value=False))
+        return src
+    src.data = data
+    src.lines[()] = node.start_mark.line + 1
+    _walk(node, (), src)
+    return src
+
+
+# ----------------------------------------------------------------------------------- pydantic -> problems
+
+def _unwrap(annotation: Any) -> Any:
+    """Optional[X] -> X, list[X] -> list marker handled by caller."""
+    origin = typing.get_origin(annotation)
+    if origin in (typing.Union, getattr(__import__("types"), "UnionType", None)):
+        args = [a for a in typing.get_args(annotation) if a is not type(None)]
+        if len(args) == 1:
+            return _unwrap(args[0])
+    return annotation
+
+
+def _resolve(model: type[BaseModel], loc: tuple) -> tuple[type[BaseModel] | None, Any]:
+    """Walk ``loc`` through ``model``; return (model owning the last key, its FieldInfo or None)."""
+    current: Any = model
+    owner: type[BaseModel] | None = None
+    info = None
+    for part in loc:
+        current = _unwrap(current)
+        if isinstance(part, int):
+            if typing.get_origin(current) in (list, tuple):
+                current = typing.get_args(current)[0]
+                continue
+            return None, None
+        if isinstance(current, type) and issubclass(current, BaseModel):
+            owner = current
+            info = current.model_fields.get(part)
+            if info is None:
+                return owner, None
+            current = info.annotation
+        else:
+            return None, None
+    return owner, info
+
+
+def range_text(info: Any, name: str) -> str:
+    lo = hi = None
+    lo_open = hi_open = False
+    for m in getattr(info, "metadata", ()):
+        if isinstance(m, annotated_types.Gt):
+            lo, lo_open = m.gt, True
+        elif isinstance(m, annotated_types.Ge):
+            lo, lo_open = m.ge, False
+        elif isinstance(m, annotated_types.Lt):
+            hi, hi_open = m.lt, True
+        elif isinstance(m, annotated_types.Le):
+            hi, hi_open = m.le, False
+    unit = unit_of(name)
+    unit = f" {unit}" if unit else ""
+    if lo is not None and hi is not None:
+        return (f"is outside the allowed range {'(' if lo_open else '['}{fmt_num(lo)}, "
+                f"{fmt_num(hi)}{')' if hi_open else ']'}{unit}")
+    if lo is not None:
+        return f"must be {'>' if lo_open else '>='} {fmt_num(lo)}{unit}"
+    if hi is not None:
+        return f"must be {'<' if hi_open else '<='} {fmt_num(hi)}{unit}"
+    return "is out of range"
+
+
+def _field_hint(info: Any, name: str) -> str:
+    desc = getattr(info, "description", None)
+    return f" ({desc})" if desc else ""
+
+
+def validation_problems(exc: ValidationError, src: Source, model: type[BaseModel],
+                        loc_prefix: tuple = ()) -> list[Problem]:
+    out: list[Problem] = []
+    for err in exc.errors():
+        loc = loc_prefix + tuple(p for p in err["loc"] if isinstance(p, (str, int)))
+        typ = err["type"]
+        value = err.get("input")
+        name = str(loc[-1]) if loc else ""
+        owner, info = _resolve(model, loc[len(loc_prefix):]) if loc else (None, None)
+        if typ == "missing":
+            out.append(src.problem(loc, "is missing (required" + (
+                f": {info.description})" if info is not None and info.description else ")")))
+            continue
+        if typ == "extra_forbidden":
+            allowed = list(owner.model_fields) if owner is not None else []
+            close = difflib.get_close_matches(name, allowed, n=1, cutoff=0.6)
+            section = loc_str(loc[:-1]) or "the file"
+            if close:
+                msg = f"is not a field of {section}; did you mean '{close[0]}'?"
+            else:
+                msg = f"is not a field of {section} (known: {', '.join(allowed)})"
+            out.append(src.problem(loc, msg, value))
+            continue
+        if typ in ("float_type", "float_parsing"):
+            msg = "is not a number" + (" (write numbers without quotes)" if isinstance(value, str) else "")
+        elif typ in ("int_type", "int_parsing", "int_from_float"):
+            msg = "is not a whole number"
+        elif typ in ("bool_type", "bool_parsing"):
+            msg = "is not true or false"
+        elif typ == "string_type":
+            msg = "is not text (put it in quotes)"
+        elif typ == "literal_error":
+            msg = f"is not one of {err.get('ctx', {}).get('expected', '')}"
+        elif typ == "finite_number":
+            msg = "is not a finite number"
+        elif typ in ("greater_than", "greater_than_equal", "less_than", "less_than_equal"):
+            msg = range_text(info, name)
+        elif typ in ("model_type", "model_attributes_type", "dict_type"):
+            msg = "must be a mapping of `key: value` lines"
+        elif typ == "list_type":
+            msg = "must be a list (lines starting with `- `)"
+        elif typ == "too_short":
+            msg = f"must have at least {err.get('ctx', {}).get('min_length')} item(s)"
+        elif typ == "too_long":
+            msg = f"must have at most {err.get('ctx', {}).get('max_length')} items"
+        elif typ == "string_too_short":
+            msg = "must not be empty"
+        else:
+            msg = err["msg"][0].lower() + err["msg"][1:]
+        out.append(src.problem(loc, msg, value))
+    return out
+
+
+def did_you_mean(name: str, choices: typing.Iterable[str]) -> str:
+    close = difflib.get_close_matches(name, list(choices), n=1, cutoff=0.6)
+    return f"; did you mean '{close[0]}'?" if close else ""
+
+
+def resolve_ref(base_file: str, ref: str) -> str:
+    """A path written in a YAML file, relative to that file's directory."""
+    ref = os.path.expanduser(ref)
+    if os.path.isabs(ref):
+        return os.path.normpath(ref)
+    return os.path.normpath(os.path.join(os.path.dirname(base_file), ref))

@@ -1,0 +1,124 @@
+"""Motor files (profiles/motors/*.yaml): the nominal machine model and its protection limits."""
+from __future__ import annotations
+
+import math
+
+from pydantic import Field, ValidationError
+
+from ._base import FileModel, num
+from ._source import Problem, ProfileError, Source, fmt_num, read_source, validation_problems
+
+__all__ = ["Motor", "load_motor", "mtpa_currents", "mtpa_torque_nm"]
+
+
+def mtpa_currents(i_s_a: float, psi_f_wb: float, l_d_h: float, l_q_h: float) -> tuple[float, float]:
+    """(i_d_a, i_q_a) of maximum torque per ampere for current magnitude ``i_s_a`` (i_q >= 0).
+
+    From dT/d(beta) = 0 with T = 1.5 p (psi_f i_q + (L_d - L_q) i_d i_q):
+    i_d = (psi_f - sqrt(psi_f^2 + 8 (L_q - L_d)^2 i_s^2)) / (4 (L_q - L_d)); i_d = 0 when L_d = L_q.
+    """
+    d_l = l_q_h - l_d_h
+    if abs(d_l) < 1e-12:
+        return 0.0, float(i_s_a)
+    i_d = (psi_f_wb - math.sqrt(psi_f_wb**2 + 8.0 * d_l**2 * i_s_a**2)) / (4.0 * d_l)
+    i_q = math.sqrt(max(i_s_a**2 - i_d**2, 0.0))
+    return i_d, i_q
+
+
+def mtpa_torque_nm(i_s_a: float, pole_pairs: int, psi_f_wb: float, l_d_h: float, l_q_h: float) -> float:
+    """Electromagnetic torque for current magnitude ``i_s_a`` on the MTPA trajectory."""
+    i_d, i_q = mtpa_currents(i_s_a, psi_f_wb, l_d_h, l_q_h)
+    return 1.5 * pole_pairs * (psi_f_wb * i_q + (l_d_h - l_q_h) * i_d * i_q)
+
+
+class Motor(FileModel):
+    """Nominal PMSM model (what the firmware's predictor and the host's "sim" use) and limits."""
+
+    name: str = Field(min_length=1, description="text")
+    pole_pairs: int = Field(ge=1, le=100, description="pole pairs p")
+    r_s_ohm: float = Field(gt=0, le=1000, description="stator resistance per phase, ohm")
+    l_d_h: float = Field(gt=0, le=10, description="d-axis inductance, H")
+    l_q_h: float = Field(gt=0, le=10, description="q-axis inductance, H")
+    psi_f_wb: float = Field(gt=0, le=100, description="permanent-magnet flux linkage, Wb")
+    j_kgm2: float = Field(gt=0, le=1e4, description="rotor (+ coupled load) inertia, kg m^2")
+    b_visc_nms: float = Field(0.0, ge=0, le=1e3, description="viscous friction, N m s/rad")
+    t_coulomb_nm: float = Field(0.0, ge=0, le=1e4, description="Coulomb friction, N m")
+    v_dc_v: float = Field(gt=0, le=2000, description="nominal DC-link voltage, V")
+    i_max_a: float = Field(gt=0, le=10000, description="current limit of the controller, A")
+    i_trip_a: float = Field(gt=0, le=10000, description="over-current trip, A (> i_max_a)")
+    speed_max_rpm: float = Field(gt=0, le=1e6, description="speed reference limit, r/min")
+    speed_trip_rpm: float = Field(gt=0, le=1e6, description="over-speed trip, r/min (> speed_max_rpm)")
+    torque_max_nm: float = Field(gt=0, le=1e6, description="load/torque limit, N m")
+    v_dc_min_v: float = Field(gt=0, le=2000, description="DC-link under-voltage trip, V")
+    v_dc_max_v: float = Field(gt=0, le=2000, description="DC-link over-voltage trip, V")
+    source: str = Field("", description="where the numbers come from")
+
+    # ------------------------------------------------------------------ derived quantities
+    def mtpa_currents(self, i_s_a: float) -> tuple[float, float]:
+        return mtpa_currents(i_s_a, self.psi_f_wb, self.l_d_h, self.l_q_h)
+
+    def torque_mtpa_nm(self, i_s_a: float) -> float:
+        return mtpa_torque_nm(i_s_a, self.pole_pairs, self.psi_f_wb, self.l_d_h, self.l_q_h)
+
+    @property
+    def speed_max_rad_s(self) -> float:
+        """Mechanical speed limit in rad/s."""
+        return self.speed_max_rpm * math.pi / 30.0
+
+    def metadata(self) -> dict[str, str]:
+        """Flat string record for the MCAP metadata."""
+        out = {k: (fmt_num(v) if isinstance(v, (int, float)) else str(v))
+               for k, v in self.model_dump().items()}
+        out["file"] = self.path.replace("\\", "/").rsplit("/", 1)[-1]
+        out["sha256"] = self.sha256
+        return out
+
+
+def motor_checks(src: Source) -> list[Problem]:
+    """Relations between fields (each reported at the line of the field that breaks it)."""
+    d = src.data
+    out: list[Problem] = []
+    i_max, i_trip = num(d, "i_max_a"), num(d, "i_trip_a")
+    if i_max and i_trip is not None and i_trip <= i_max:
+        out.append(src.problem(("i_trip_a",), f"must be above i_max_a {fmt_num(i_max)} A", i_trip))
+    s_max, s_trip = num(d, "speed_max_rpm"), num(d, "speed_trip_rpm")
+    if s_max and s_trip is not None and s_trip <= s_max:
+        out.append(src.problem(("speed_trip_rpm",), f"must be above speed_max_rpm {fmt_num(s_max)} r/min",
+                               s_trip))
+    v, v_min, v_max = num(d, "v_dc_v"), num(d, "v_dc_min_v"), num(d, "v_dc_max_v")
+    if v is not None and v_min is not None and v_min >= v:
+        out.append(src.problem(("v_dc_min_v",), f"must be below v_dc_v {fmt_num(v)} V", v_min))
+    if v is not None and v_max is not None and v_max <= v:
+        out.append(src.problem(("v_dc_max_v",), f"must be above v_dc_v {fmt_num(v)} V", v_max))
+    p, psi, l_d, l_q, t_max = (num(d, k) for k in ("pole_pairs", "psi_f_wb", "l_d_h", "l_q_h", "torque_max_nm"))
+    if all(x is not None and x > 0 for x in (p, psi, l_d, l_q, i_max, t_max)) and isinstance(p, int):
+        t_mtpa = mtpa_torque_nm(i_max, p, psi, l_d, l_q)
+        if t_max > t_mtpa * 1.001:
+            out.append(src.problem(("torque_max_nm",),
+                                   f"is more than the {t_mtpa:.4g} N m that i_max_a {fmt_num(i_max)} A "
+                                   f"gives on the MTPA trajectory", t_max))
+    return out
+
+
+def _load_motor_source(src: Source) -> tuple[Motor | None, list[Problem]]:
+    if src.problems:
+        return None, list(src.problems)
+    problems: list[Problem] = []
+    motor = None
+    try:
+        motor = Motor.model_validate(src.data)
+    except ValidationError as e:
+        problems += validation_problems(e, src, Motor)
+    problems += motor_checks(src)
+    if problems:
+        return None, problems
+    motor._path, motor._yaml_text = src.path, src.text
+    return motor, []
+
+
+def load_motor(path: str) -> Motor:
+    """Load and validate one motor file; raises ProfileError."""
+    motor, problems = _load_motor_source(read_source(str(path), what="motor file"))
+    if problems:
+        raise ProfileError(problems)
+    return motor

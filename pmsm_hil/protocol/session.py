@@ -1,0 +1,137 @@
+"""A protocol session with one device: hello/identify with the version and schema check, commands
+with acknowledgement and retry, and a stream of decoded frames for everything else."""
+from __future__ import annotations
+
+import time
+from collections import deque
+from dataclasses import dataclass
+
+from pmsm_hil.protocol import codec
+from pmsm_hil.protocol import generated as gen
+from pmsm_hil.transport.base import Transport, TransportError
+
+ACK_TEXT = {v: k for k, v in gen.ENUMS["ack_status"].items()}
+
+
+class DeviceError(Exception):
+    """The device refused, did not answer, or speaks another protocol; the message says which."""
+
+
+@dataclass
+class Identity:
+    proto_version: int
+    schema_hash: int
+    fw_version: str
+    board: str
+    tx_buf_octets: int
+    capture_len: int
+
+
+class Session:
+    def __init__(self, transport: Transport):
+        self.t = transport
+        self.decoder = codec.FrameDecoder()
+        self.inbox: deque = deque()   # frames that arrived while waiting for something else
+        self._seq = 0
+        self.identity: Identity | None = None
+
+    # ------------------------------------------------------------------ sending
+    def send(self, name: str, **fields) -> int:
+        seq = self._seq
+        self._seq = (self._seq + 1) & 0xFF
+        self.t.write(codec.encode(name, seq, **fields))
+        return seq
+
+    # ------------------------------------------------------------------ receiving
+    def poll(self, timeout_s: float = 0.0) -> list:
+        """Frames received now (plus any held back), waiting at most timeout_s for data."""
+        frames = list(self.inbox)
+        self.inbox.clear()
+        data = self.t.read(0.0 if frames else timeout_s)
+        if data:
+            frames.extend(self.decoder.feed(data))
+        return frames
+
+    def _wait_for(self, match, timeout_s: float):
+        deadline = time.monotonic() + timeout_s
+        held: list = []
+        found = None
+        while found is None:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                break
+            data = self.t.read(min(left, 0.05))
+            if not data:
+                continue
+            for fr in self.decoder.feed(data):
+                if found is None and match(fr):
+                    found = fr
+                else:
+                    held.append(fr)   # kept, in order, for the caller's next poll()
+        self.inbox.extend(held)
+        return found
+
+    def request(self, name: str, timeout_s: float = 0.5, retries: int = 3, **fields) -> None:
+        """Send a command and wait for its ack; retried on silence, DeviceError on refusal."""
+        msg_id = gen.BY_NAME[name].id
+        for _attempt in range(retries):
+            seq = self.send(name, **fields)
+            fr = self._wait_for(lambda f: f.name == "ack" and f.fields["cmd_id"] == msg_id
+                                and f.fields["cmd_seq"] == seq, timeout_s)
+            if fr is None:
+                continue
+            status = fr.fields["status"]
+            if status != gen.ENUMS["ack_status"]["ok"]:
+                raise DeviceError(f"device refused {name} ({ACK_TEXT.get(status, status)})"
+                                  + (f": {fields}" if fields else ""))
+            return
+        raise DeviceError(f"device did not acknowledge {name} after {retries} tries "
+                          f"({timeout_s:.1f} s each) on {self.t.name}")
+
+    def hello(self, timeout_s: float = 2.0) -> Identity:
+        """Identify the device; refuse a protocol version or schema mismatch, naming both."""
+        for _attempt in range(2):
+            self.send("hello", host_proto_version=gen.PROTOCOL_VERSION)
+            fr = self._wait_for(lambda f: f.name == "identify", timeout_s / 2)
+            if fr is not None:
+                break
+        else:
+            raise DeviceError(f"no answer to hello within {timeout_s:.1f} s on {self.t.name}: "
+                              f"is the device powered, the port right and the baud rate matching?")
+        f = fr.fields
+        if f["proto_version"] != gen.PROTOCOL_VERSION or f["schema_hash"] != gen.SCHEMA_HASH:
+            raise DeviceError(
+                f"protocol mismatch: device speaks version {f['proto_version']} schema "
+                f"{f['schema_hash']:08x}, this host speaks version {gen.PROTOCOL_VERSION} schema "
+                f"{gen.SCHEMA_HASH:08x}; flash the firmware built from this tree or use the host "
+                f"that matches the firmware")
+        self.identity = Identity(
+            proto_version=f["proto_version"], schema_hash=f["schema_hash"],
+            fw_version=f"{f['fw_major']}.{f['fw_minor']}.{f['fw_patch']}",
+            board={0: "emulator", 1: "f28335"}.get(f["board"], str(f["board"])),
+            tx_buf_octets=f["tx_buf_octets"], capture_len=f["capture_len"])
+        return self.identity
+
+    def read_capture(self, count: int, timeout_s: float = 0.5, retries: int = 3) -> list[dict]:
+        """Upload the capture buffer chunk by chunk (8 samples each), retrying lost chunks."""
+        chunks = []
+        offset = 0
+        while offset < count:
+            for _attempt in range(retries):
+                self.send("capture_read", offset=offset)
+                fr = self._wait_for(lambda f, o=offset: f.name == "capture_chunk"
+                                    and f.fields["offset"] == o, timeout_s)
+                if fr is not None:
+                    break
+            else:
+                raise DeviceError(f"capture chunk at offset {offset} not received after "
+                                  f"{retries} tries")
+            n = fr.fields["n_valid"]
+            if n == 0:
+                break
+            chunks.append(fr.fields)
+            offset += n
+        return chunks
+
+
+__all__ = ["Session", "DeviceError", "Identity", "TransportError"]

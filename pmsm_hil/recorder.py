@@ -1,0 +1,160 @@
+"""Turns decoded device frames into log messages (the MCAP contract) and keeps the live state."""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+from pmsm_hil.protocol import generated as gen
+
+STATE_NAMES = {v: k for k, v in gen.ENUMS["state"].items()}
+EVENT_NAMES = {v: k for k, v in gen.ENUMS["event"].items()}
+ESTIMATOR_NAMES = {v: k for k, v in gen.ENUMS["estimator"].items()}
+FAULT_BITS = gen.ENUMS["fault"]
+STOP_REASONS = {0: "host stop", 1: "abort", 2: "fault", 3: "heartbeat lost", 4: "profile end"}
+
+TELEMETRY_FIELDS = ("speed_ref_rpm", "speed_rpm", "speed_est_rpm", "theta_e_rad", "theta_e_est_rad",
+                    "i_d_a", "i_q_a", "i_d_ref_a", "i_q_ref_a", "u_d_v", "u_q_v", "load_nm")
+TRUTH_FIELDS = ("l_d_h", "l_q_h", "psi_f_wb", "r_s_ohm", "theta_e_rad", "speed_rpm", "torque_nm",
+                "temp_winding_c", "temp_magnet_c", "effects")
+STATUS_FIELDS = ("segment", "faults", "v_dc_v", "tx_dropped", "rx_bad", "rx_frames", "hb_age_ms",
+                 "capture_count")
+
+
+def fault_text(bits: int) -> str:
+    names = [name for name, b in FAULT_BITS.items() if bits & b]
+    return "+".join(names) if names else "none"
+
+
+@dataclass
+class LiveState:
+    """What the live view shows; updated from every frame."""
+    t_s: float = 0.0
+    total_s: float = 0.0
+    segment: int = 0
+    state: str = "idle"
+    faults: int = 0
+    telemetry: dict = field(default_factory=dict)
+    params: dict = field(default_factory=dict)      # estimator -> fields
+    truth: dict = field(default_factory=dict)
+    status: dict = field(default_factory=dict)
+    frames: int = 0
+    octets: int = 0
+    seq_gaps: int = 0
+    bad_frames: int = 0
+    tx_dropped: int = 0
+    wall_start: float = field(default_factory=time.monotonic)
+    events: list = field(default_factory=list)      # (t_s, kind, arg, text)
+    stopped: bool = False
+    stop_reason: str = ""
+
+    @property
+    def wall_s(self) -> float:
+        return time.monotonic() - self.wall_start
+
+    @property
+    def realtime_factor(self) -> float:
+        w = self.wall_s
+        return self.t_s / w if w > 0 else 0.0
+
+
+class Recorder:
+    """Feeds frames to the log writer (device topics) and to the live state."""
+
+    def __init__(self, writer, ts_s: float, segment_names: list[str]):
+        self.w = writer
+        self.ts_s = ts_s
+        self.names = segment_names
+        self.live = LiveState()
+        self._last_seq: int | None = None
+
+    def _t(self, tick: int) -> float:
+        return tick * self.ts_s
+
+    def event(self, t_s: float, kind: str, code: int, arg: int, text: str) -> None:
+        self.w.write("/pmsm/events", t_s, {"kind": kind, "code": code, "arg": arg, "text": text})
+        self.live.events.append((t_s, kind, arg, text))
+
+    def frames(self, frames) -> None:
+        live = self.live
+        for fr in frames:
+            live.frames += 1
+            if self._last_seq is not None and fr.seq != ((self._last_seq + 1) & 0xFF):
+                live.seq_gaps += 1
+            self._last_seq = fr.seq
+            handler = getattr(self, "_on_" + fr.name, None)
+            if handler is not None:
+                handler(fr.fields)
+
+    # one handler per device message -------------------------------------------------------
+    def _on_telem_fast(self, f: dict) -> None:
+        t = self._t(f["tick"])
+        row = {k: f[k] for k in TELEMETRY_FIELDS}
+        self.w.write("/pmsm/telemetry", t, row)
+        self.live.t_s = t
+        self.live.telemetry = row
+
+    def _on_params(self, f: dict) -> None:
+        t = self._t(f["tick"])
+        name = ESTIMATOR_NAMES.get(f["estimator"], str(f["estimator"]))
+        flags = f["flags"]
+        row = {"estimator": name, "l_d_h": f["l_d_h"], "l_q_h": f["l_q_h"],
+               "psi_f_wb": f["psi_f_wb"], "r_s_ohm": f["r_s_ohm"], "excited": bool(flags & 1),
+               "converged": bool(flags & 2), "feeds_predictor": bool(flags & 4)}
+        self.w.write("/pmsm/params", t, row)
+        self.live.params[name] = row
+
+    def _on_status(self, f: dict) -> None:
+        t = self._t(f["tick"])
+        state = STATE_NAMES.get(f["state"], str(f["state"]))
+        row = {"state": state, **{k: f[k] for k in STATUS_FIELDS}}
+        self.w.write("/pmsm/status", t, row)
+        live = self.live
+        live.status = row
+        live.state = state
+        live.faults = f["faults"]
+        live.tx_dropped = f["tx_dropped"]
+        live.segment = f["segment"]
+
+    def _on_event(self, f: dict) -> None:
+        t = self._t(f["tick"])
+        code, arg = f["code"], f["arg"]
+        kind = EVENT_NAMES.get(code, f"event_{code}")
+        if kind == "segment_start":
+            name = self.names[arg] if 0 <= arg < len(self.names) else ""
+            text = f"segment {arg} {name}".rstrip()
+            self.live.segment = arg
+        elif kind == "fault":
+            text = f"fault: {fault_text(arg)}"
+            self.live.faults |= arg
+        elif kind == "stopped":
+            text = f"stopped: {STOP_REASONS.get(arg, arg)}"
+            self.live.stopped = True
+            self.live.stop_reason = STOP_REASONS.get(arg, str(arg))
+        elif kind == "heartbeat_lost":
+            text = f"heartbeat lost: last heartbeat {arg} ms ago"
+        elif kind == "capture_triggered":
+            text = "capture triggered by " + ("a fault" if arg < 0 else f"segment {arg}")
+        else:
+            text = kind.replace("_", " ")
+        self.event(t, kind, code, arg, text)
+
+    def _on_sim_truth(self, f: dict) -> None:
+        t = self._t(f["tick"])
+        row = {k: f[k] for k in TRUTH_FIELDS}
+        self.w.write("/sim/truth", t, row)
+        self.live.truth = row
+
+    def capture(self, chunks: list[dict]) -> int:
+        """Writes uploaded capture chunks as /pmsm/capture messages; returns the sample count."""
+        n = 0
+        for c in chunks:
+            for i in range(c["n_valid"]):
+                t = self._t(c["tick0"] + c["offset"] + i)
+                s = c["s_abc"][i]
+                self.w.write("/pmsm/capture", t, {
+                    "i_a_a": c["i_a_a"][i], "i_b_a": c["i_b_a"][i], "i_c_a": c["i_c_a"][i],
+                    "s_a": s & 1, "s_b": (s >> 1) & 1, "s_c": (s >> 2) & 1,
+                    "v_dc_v": c["v_dc_v"][i], "theta_e_rad": c["theta_e_rad"][i],
+                    "omega_e_rad_s": c["omega_e_rad_s"][i]})
+                n += 1
+        return n

@@ -1,0 +1,213 @@
+"""Plays a profile on a device (rig or emulator): configure, download, start, stream to the log,
+keep the heartbeat, and end safely whatever happens (profile end, Ctrl-C, fault, dropped link)."""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from pmsm_hil import __version__
+from pmsm_hil.control_design import device_config
+from pmsm_hil.log.writer import LogWriter
+from pmsm_hil.protocol import generated as gen
+from pmsm_hil.protocol.session import DeviceError, Session
+from pmsm_hil.recorder import LiveState, Recorder
+from pmsm_hil.transport.base import TransportError
+
+
+@dataclass
+class RunOptions:
+    heartbeat_period_s: float = 0.02      # device time between heartbeats (also at least every 50 ms wall)
+    silent_after_s: float | None = None   # testing: stop sending heartbeats after this device time
+    stop_after_s: float | None = None     # ask the device to stop after this device time
+    device_timeout_s: float = 3.0         # no data for this long while running: the device is lost
+    capture: bool = True                  # upload the capture buffer at the end
+    seed: int | None = None               # recorded in the metadata (the emulator's seed)
+    rig_name: str = ""
+    on_update_s: float = 0.1              # wall time between observer updates
+
+
+@dataclass
+class RunResult:
+    log_path: Path
+    state: str
+    stop_reason: str
+    faults: int
+    interrupted: bool
+    error: str = ""
+    capture_samples: int = 0
+    live: LiveState = field(default_factory=LiveState)
+
+
+class RunInterrupted(Exception):
+    pass
+
+
+def _metadata(profile, session: Session, options: RunOptions) -> dict[str, dict[str, str]]:
+    ident = session.identity
+    return {
+        "run": {"profile": profile.name, "profile_path": str(profile.path),
+                "motor": profile.motor.name, "rig": options.rig_name,
+                "seed": "" if options.seed is None else str(options.seed),
+                "host_version": __version__, "transport": session.t.name,
+                "ts_s": repr(profile.control.ts_s),
+                "segment_names": "|".join(s.name or f"segment {i}" for i, s in enumerate(profile.segments))},
+        "device": {"board": ident.board, "fw_version": ident.fw_version,
+                   "proto_version": str(ident.proto_version),
+                   "schema_hash": f"{ident.schema_hash:08x}"},
+    }
+
+
+def _attachments(profile) -> list[tuple[str, str, bytes]]:
+    out = []
+    for label, text in getattr(profile, "yaml_texts", {}).items():
+        out.append((label, "application/yaml", text.encode()))
+    return out
+
+
+def configure(session: Session, profile) -> None:
+    """Send motor, control and profile to the device, each acknowledged."""
+    motor_cfg, ctrl_cfg = device_config(profile)
+    session.request("config_motor", **motor_cfg)
+    session.request("config_ctrl", **ctrl_cfg)
+    session.request("profile_clear", n_segments=len(profile.segments))
+    for i, s in enumerate(profile.segments):
+        session.request("profile_segment", index=i, duration_s=s.duration_s, speed_rpm=s.speed_rpm,
+                        ramp_rpm_s=s.ramp_rpm_s, load_nm=s.load_nm,
+                        flags=1 if s.capture else 0)
+
+
+def run_profile(profile, session: Session, log_path: Path, options: RunOptions | None = None,
+                observer=None) -> RunResult:
+    """Run `profile` on the device behind `session`, logging to `log_path` (MCAP)."""
+    options = options or RunOptions()
+    log_path = Path(log_path)
+    session.hello()
+    configure(session, profile)
+    names = [s.name or f"segment {i}" for i, s in enumerate(profile.segments)]
+    interrupted = False
+    error = ""
+    writer = LogWriter(log_path, _metadata(profile, session, options), _attachments(profile))
+    rec = Recorder(writer, profile.control.ts_s, names)
+    rec.live.total_s = profile.total_duration_s
+    try:
+        try:
+            session.request("start")
+            rec.event(0.0, "host", 0, 0, f"started {profile.name} on {session.t.name}")
+            interrupted = _stream(session, rec, options, observer)
+        except KeyboardInterrupt:
+            interrupted = True
+            _stop_device(session, rec, observer)
+        except (TransportError, DeviceError) as e:
+            error = str(e)
+            rec.event(rec.live.t_s, "host", 0, 0, f"link error: {error}")
+            try:
+                session.send("abort")
+            except TransportError:
+                pass
+        n_cap = 0
+        if options.capture and not error:
+            n_cap = _upload_capture(session, rec, observer)
+        _write_link_stats(writer, session, rec)
+    finally:
+        writer.close()
+    live = rec.live
+    return RunResult(log_path=log_path, state=live.state, stop_reason=live.stop_reason,
+                     faults=live.faults, interrupted=interrupted, error=error,
+                     capture_samples=n_cap if not error else 0, live=live)
+
+
+def _stream(session: Session, rec: Recorder, options: RunOptions, observer) -> bool:
+    live = rec.live
+    last_hb_dev = -1.0
+    last_hb_wall = 0.0
+    last_data_wall = time.monotonic()
+    last_update = 0.0
+    hb_counter = 0
+    stop_sent = False
+    while True:
+        frames = session.poll(0.02)
+        now = time.monotonic()
+        if frames:
+            last_data_wall = now
+            rec.frames(frames)
+        live.octets = session.decoder.octets if hasattr(session.decoder, "octets") else live.octets
+        live.bad_frames = _bad_frames(session)
+        if live.stopped and live.state in ("done", "idle", "fault"):
+            return False
+        if live.stopped and not frames:
+            # stopped event seen; wait for the status frame that follows, then end
+            if now - last_data_wall > 0.3:
+                return False
+        silent = options.silent_after_s is not None and live.t_s >= options.silent_after_s
+        if not silent and (live.t_s - last_hb_dev >= options.heartbeat_period_s
+                           or now - last_hb_wall >= 0.05):
+            session.send("heartbeat", counter=hb_counter)
+            hb_counter = (hb_counter + 1) & 0xFFFFFFFF
+            last_hb_dev, last_hb_wall = live.t_s, now
+        if options.stop_after_s is not None and live.t_s >= options.stop_after_s and not stop_sent:
+            session.send("stop")
+            stop_sent = True
+            rec.event(live.t_s, "host", 0, 0, "stop requested by the host")
+        if now - last_data_wall > options.device_timeout_s:
+            raise DeviceError(f"device fell silent for {options.device_timeout_s:.1f} s on "
+                              f"{session.t.name} while running")
+        if observer is not None and now - last_update >= options.on_update_s:
+            last_update = now
+            observer.update(live)
+
+
+def _bad_frames(session: Session) -> int:
+    d = session.decoder
+    return sum(getattr(d, k, 0) for k in ("crc_errors", "cobs_errors", "len_errors", "unknown_id"))
+
+
+def _stop_device(session: Session, rec: Recorder, observer) -> None:
+    """Ctrl-C: ask for a controlled stop, keep logging until the device reports it (or abort)."""
+    live = rec.live
+    rec.event(live.t_s, "host", 0, 0, "interrupted by the user: stop sent")
+    if observer is not None:
+        observer.message("interrupted: stopping the motor (Ctrl-C again to abort)")
+    try:
+        session.send("stop")
+        deadline = time.monotonic() + 5.0
+        while time.monotonic() < deadline and not live.stopped:
+            frames = session.poll(0.02)
+            rec.frames(frames)
+            session.send("heartbeat", counter=0)
+        if not live.stopped:
+            session.send("abort")
+            rec.event(live.t_s, "host", 0, 0, "device did not stop within 5 s: abort sent")
+    except KeyboardInterrupt:
+        session.send("abort")
+        rec.event(live.t_s, "host", 0, 0, "interrupted twice: abort sent")
+    except (TransportError, DeviceError) as e:
+        rec.event(live.t_s, "host", 0, 0, f"link error while stopping: {e}")
+
+
+def _upload_capture(session: Session, rec: Recorder, observer) -> int:
+    count = int(rec.live.status.get("capture_count", 0) or 0)
+    # the status frame may predate the end of the capture: drain what is left, then ask
+    rec.frames(session.poll(0.05))
+    count = int(rec.live.status.get("capture_count", count) or 0)
+    if count <= 0:
+        return 0
+    if observer is not None:
+        observer.message(f"uploading capture ({count} samples)")
+    try:
+        chunks = session.read_capture(count)
+    except (DeviceError, TransportError) as e:
+        rec.event(rec.live.t_s, "warning", 0, 0, f"capture upload failed: {e}")
+        return 0
+    rec.frames(session.poll(0.0))
+    return rec.capture(chunks)
+
+
+def _write_link_stats(writer, session: Session, rec: Recorder) -> None:
+    d = session.decoder
+    live = rec.live
+    writer.write("/host/link", live.t_s, {
+        "wall_s": live.wall_s, "frames_ok": getattr(d, "frames_ok", live.frames),
+        "crc_errors": getattr(d, "crc_errors", 0), "cobs_errors": getattr(d, "cobs_errors", 0),
+        "len_errors": getattr(d, "len_errors", 0), "unknown_id": getattr(d, "unknown_id", 0),
+        "octets": getattr(d, "octets", 0), "seq_gaps": live.seq_gaps})

@@ -1,0 +1,1 @@
+"""Developer tools (code generators), run from the repository root as `python3 -m tools.<name>`."""
