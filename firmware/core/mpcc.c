@@ -35,7 +35,7 @@ void mpcc_cfg_default(mpcc_cfg_t *cfg)
     cfg->dead_time_s = 0.0f;
     cfg->v_drop_v = 0.0f;
     cfg->cand_set = MPCC_CAND_ALL8;
-    cfg->dt_model = MPCC_DT_AVERAGE;
+    cfg->dt_model = MPCC_DT_SWITCHING;
     cfg->delay_comp = MPCC_DELAY_COMP_ON;
 }
 
@@ -57,8 +57,8 @@ void mpcc_init(mpcc_t *m, const mpcc_cfg_t *cfg)
     if (m->cfg.cand_set != MPCC_CAND_ADJACENT) {
         m->cfg.cand_set = MPCC_CAND_ALL8;
     }
-    if (m->cfg.dt_model != MPCC_DT_SWITCHING) {
-        m->cfg.dt_model = MPCC_DT_AVERAGE;
+    if (m->cfg.dt_model != MPCC_DT_AVERAGE) {
+        m->cfg.dt_model = MPCC_DT_SWITCHING;
     }
     if (m->cfg.delay_comp != MPCC_DELAY_COMP_OFF) {
         m->cfg.delay_comp = MPCC_DELAY_COMP_ON;

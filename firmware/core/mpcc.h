@@ -25,9 +25,12 @@
 
 /* Dead-time / device-drop model used in the prediction and in out->u_d_v/u_q_v (cfg.dt_model).
  * Both are off when dead_time_s == 0 and v_drop_v == 0. */
-#define MPCC_DT_AVERAGE 0u     /* per phase -V_dt sign(i_x), V_dt = v_dc dead_time/ts + v_drop */
-#define MPCC_DT_SWITCHING 1u   /* per switching event: a leg turned on with i_x > 0 loses
-                                  v_dc dead_time, turned off with i_x < 0 gains it; plus -v_drop sign(i_x) */
+#define MPCC_DT_SWITCHING 0u   /* default, exact for FCS: per switching event of a leg, turned on
+                                  with i_x > 0 it loses v_dc dead_time, turned off with i_x < 0 it
+                                  gains it (averaged over the period); plus -v_drop sign(i_x) */
+#define MPCC_DT_AVERAGE 1u     /* PWM-style average: per phase -V_dt sign(i_x),
+                                  V_dt = v_dc dead_time/ts + v_drop (assumes one on/off pair per
+                                  period: over-compensates FCS switching, see docs/control.md) */
 
 /* Delay compensation (cfg.delay_comp). OFF exists for tests and comparisons only. */
 #define MPCC_DELAY_COMP_ON 0u
@@ -41,7 +44,7 @@ typedef struct {
     /* Added options: zero-initialise the cfg (or call mpcc_cfg_default) so that 0 selects the
      * defaults; unknown values fall back to the defaults. */
     uint16_t cand_set;   /* MPCC_CAND_* (default ALL8) */
-    uint16_t dt_model;   /* MPCC_DT_* (default AVERAGE) */
+    uint16_t dt_model;   /* MPCC_DT_* (default SWITCHING) */
     uint16_t delay_comp; /* MPCC_DELAY_COMP_* (default ON) */
 } mpcc_cfg_t;
 

@@ -15,6 +15,8 @@ def add_parser(sub) -> None:
     p.add_argument("--rig", default=None, help="rig file: the plant's departures from the model")
     p.add_argument("--seed", type=int, default=1, help="seed of the plant's noise (default 1)")
     p.add_argument("--baud", type=int, default=921600, help="emulated UART bit rate")
+    p.add_argument("--corrupt-ppm", type=float, default=0.0, metavar="PPM",
+                   help="flip bits in this many of a million octets sent (tests the host's framing)")
 
 
 def main(args: argparse.Namespace) -> int:
@@ -30,5 +32,5 @@ def main(args: argparse.Namespace) -> int:
     if args.baud <= 0:
         return fail("error", f"--baud {args.baud}: must be a positive bit rate", 2)
     settings = emulator_settings(motor, rig, seed=args.seed, baud=args.baud)
-    serve_pty(settings, announce=lambda s: print(s, flush=True))
+    serve_pty(settings, announce=lambda s: print(s, flush=True), corrupt_ppm=args.corrupt_ppm)
     return 0

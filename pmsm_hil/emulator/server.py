@@ -46,12 +46,31 @@ class Pacer:
         return max(0, min(real_time, CHUNK_TICKS))
 
 
+class LinkCorrupter:
+    """Flips random bits in the octets sent to the host (a noisy line, for testing the host)."""
+
+    def __init__(self, ppm: float, seed: int):
+        import numpy as np
+        self.p = ppm * 1e-6
+        self.rng = np.random.default_rng(seed)
+
+    def __call__(self, data: bytes) -> bytes:
+        k = self.rng.binomial(len(data), self.p)
+        if k == 0:
+            return data
+        buf = bytearray(data)
+        for i, bit in zip(self.rng.integers(0, len(data), k), self.rng.integers(0, 8, k)):
+            buf[int(i)] ^= 1 << int(bit)
+        return bytes(buf)
+
+
 class PtyServer:
     """Serves one EmulatedDevice on a pty until stopped."""
 
-    def __init__(self, device: EmulatedDevice):
+    def __init__(self, device: EmulatedDevice, corrupt_ppm: float = 0.0, seed: int = 1):
         self.dev = device
         self.pacer = Pacer()
+        self.corrupt = LinkCorrupter(corrupt_ppm, seed) if corrupt_ppm > 0 else None
         self.master, self.slave = os.openpty()
         tty.setraw(self.slave)
         os.set_blocking(self.master, False)
@@ -81,6 +100,8 @@ class PtyServer:
                 self.dev.rx(data)
             if can_run:
                 _, out = self.dev.run(ticks_allowed if self.dev.active else 0)
+                if self.corrupt is not None and out:
+                    out = self.corrupt(out)
                 self._pending += out
             if self._pending:
                 try:
@@ -98,10 +119,10 @@ class PtyServer:
                 pass
 
 
-def serve_pty(settings: dict[str, float], announce=print) -> None:
+def serve_pty(settings: dict[str, float], announce=print, corrupt_ppm: float = 0.0) -> None:
     """Run the emulator on a pty, printing `serial: PATH`, until SIGINT/SIGTERM."""
     dev = EmulatedDevice(settings)
-    server = PtyServer(dev)
+    server = PtyServer(dev, corrupt_ppm, int(settings.get("seed", 1)))
     signal.signal(signal.SIGTERM, server.stop)
     signal.signal(signal.SIGINT, server.stop)
     announce(f"serial: {server.path}")

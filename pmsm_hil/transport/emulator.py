@@ -13,9 +13,11 @@ from pmsm_hil.transport.serial_port import SerialTransport
 
 class EmulatorTransport(SerialTransport):
     def __init__(self, motor_path: str, rig_path: str | None, seed: int, baud: int,
-                 start_timeout_s: float = 20.0):
-        cmd = [sys.executable, "-m", "pmsm_hil.cli.main", "emulate", "--motor", str(motor_path),
+                 start_timeout_s: float = 20.0, corrupt_ppm: float = 0.0):
+        cmd = [sys.executable, "-m", "pmsm_hil.emulator", "--motor", str(motor_path),
                "--seed", str(seed), "--baud", str(baud)]
+        if corrupt_ppm:
+            cmd += ["--corrupt-ppm", str(corrupt_ppm)]
         if rig_path:
             cmd += ["--rig", str(rig_path)]
         self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,

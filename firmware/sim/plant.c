@@ -1,0 +1,766 @@
+/* IPMSM + two-level inverter + sensors + load: the emulator's plant. See plant.h and docs/plant.md.
+ *
+ * Structure (the seams for the rig effects):
+ *   mag_eval()      magnetics: currents (and angle) -> flux linkages, inverse incremental inductances,
+ *                   d(psi)/d(theta), extra torque. The one place for saturation, flux harmonics, cogging.
+ *   deriv()         the dq voltage equations and the mechanics, evaluated at one RK4 stage.
+ *   leg_dist()      inverter distortion voltage per leg (dead time, device drop).
+ *   sensor_*()      phase-current ADC, DC-link voltage, encoder. The one place for offsets, gains,
+ *                   noise, quantisation.
+ *   advance_on()    RK4 over one period with a known stationary-frame (or rotor-frame) voltage.
+ *   advance_off()   PWM off: diode bridge with current-zero events.
+ */
+#include "plant.h"
+
+#include <math.h>
+#include <stddef.h>
+#include <string.h>
+
+#define PL_PI 3.14159265358979323846
+#define PL_TWO_PI 6.28318530717958647692
+#define PL_SQRT3_2 0.86602540378443864676
+#define PL_INV_SQRT3 0.57735026918962576451
+
+/* unit vectors of the phase axes in the stationary frame (amplitude-invariant Clarke: i_x = e_x . i_ab) */
+static const double EX[3] = {1.0, -0.5, -0.5};
+static const double EY[3] = {0.0, PL_SQRT3_2, -PL_SQRT3_2};
+
+enum { MODE_KNOWN = 0, MODE_ONE_BLOCKED = 1, MODE_ALL_BLOCKED = 3, MODE_UDQ = 4 };
+
+/* ------------------------------------------------------------------ small helpers */
+
+static inline double sigm(double x)
+{
+    double x2;
+    if (x >= 3.0) {
+        return 1.0;
+    }
+    if (x <= -3.0) {
+        return -1.0;
+    }
+    x2 = x * x;
+    return x * (27.0 + x2) / (27.0 + 9.0 * x2);
+}
+
+double plant_sigmoid(double x) { return sigm(x); }
+
+/* cos and sin of a small angle: Taylor to d^8 / d^9 (error < 3e-15 for |d| < 0.25), libm beyond. */
+static inline void rot_small(double d, double *cd, double *sd)
+{
+    if (fabs(d) < 0.25) {
+        const double d2 = d * d;
+        *sd = d * (1.0 - d2 * (1.0 / 6.0) * (1.0 - d2 * (1.0 / 20.0) * (1.0 - d2 * (1.0 / 42.0) * (1.0 - d2 * (1.0 / 72.0)))));
+        *cd = 1.0 - d2 * 0.5 * (1.0 - d2 * (1.0 / 12.0) * (1.0 - d2 * (1.0 / 30.0) * (1.0 - d2 * (1.0 / 56.0))));
+    } else {
+        *sd = sin(d);
+        *cd = cos(d);
+    }
+}
+
+static inline double wrap_2pi(double a)
+{
+    if (a >= PL_TWO_PI) {
+        a -= PL_TWO_PI;
+    } else if (a < 0.0) {
+        a += PL_TWO_PI;
+    }
+    if (a >= PL_TWO_PI || a < 0.0) {   /* more than one turn per period: only at absurd speeds */
+        a = fmod(a, PL_TWO_PI);
+        if (a < 0.0) {
+            a += PL_TWO_PI;
+        }
+        if (a >= PL_TWO_PI) {
+            a = 0.0;
+        }
+    }
+    return a;
+}
+
+/* ------------------------------------------------------------------ magnetics (effect seam) */
+
+/* Flux linkages and inverse incremental inductances at (i_d, i_q) and electrical angle (c = cos, s = sin).
+ * Linear IPMSM now. Saturation (flux map with incremental inductances), cross-saturation, flux
+ * harmonics (dpsi/dtheta) and cogging (t_extra) go here and nowhere else; the voltage equations in
+ * deriv() already use the general form u = R i + L_inc di/dt + w_e (dpsi/dtheta - J psi). */
+static inline void mag_eval(const plant_t *p, double id, double iq, double c, double s, plant_mag_t *m)
+{
+    (void)c;
+    (void)s;
+    m->psi_d_wb = p->l_d_h * id + p->psi_f_wb;
+    m->psi_q_wb = p->l_q_h * iq;
+    m->g_dd = p->inv_l_d;
+    m->g_dq = 0.0;
+    m->g_qd = 0.0;
+    m->g_qq = p->inv_l_q;
+    m->dpsi_d_dth_wb = 0.0;
+    m->dpsi_q_dth_wb = 0.0;
+    m->t_extra_nm = 0.0;
+}
+
+static inline double torque_of(const plant_t *p, double id, double iq, const plant_mag_t *m)
+{
+    return 1.5 * (double)p->cfg.pole_pairs * (m->psi_d_wb * iq - m->psi_q_wb * id) + m->t_extra_nm;
+}
+
+void plant_flux(const plant_t *p, double i_d_a, double i_q_a, double theta_e_rad, plant_mag_t *m)
+{
+    mag_eval(p, i_d_a, i_q_a, cos(theta_e_rad), sin(theta_e_rad), m);
+}
+
+double plant_torque(const plant_t *p, double i_d_a, double i_q_a, double theta_e_rad)
+{
+    plant_mag_t m;
+    plant_flux(p, i_d_a, i_q_a, theta_e_rad, &m);
+    return torque_of(p, i_d_a, i_q_a, &m);
+}
+
+/* ------------------------------------------------------------------ inverter distortion (effect seam) */
+
+static inline double leg_dist(const plant_t *p, double i, int transition)
+{
+    double sg, v, kdt;
+    if (p->inv_i_dt <= 0.0) {
+        return 0.0;
+    }
+    sg = sigm(i * p->inv_i_dt);
+    v = -p->cfg.v_drop_v * sg;
+    if (transition != 0 && p->cfg.dead_time_s > 0.0) {
+        kdt = p->v_dc_v * p->cfg.dead_time_s / p->cfg.ts_s;
+        if (transition == 1) {          /* 0 -> 1: upper switch delayed; i > 0 keeps the lower diode on */
+            v -= kdt * 0.5 * (1.0 + sg);
+        } else if (transition == -1) {  /* 1 -> 0: lower switch delayed; i < 0 keeps the upper diode on */
+            v += kdt * 0.5 * (1.0 - sg);
+        } else {                        /* both edges in the period */
+            v -= kdt * sg;
+        }
+    }
+    return v;
+}
+
+double plant_leg_distortion_v(const plant_t *p, double i_a, int transition)
+{
+    return leg_dist(p, i_a, transition);
+}
+
+/* ------------------------------------------------------------------ dynamics */
+
+typedef struct {
+    double c0, s0;      /* cos, sin theta_e at the period start */
+    double u1, u2;      /* known voltage: (alpha, beta) in the stationary frame, or (d, q) in MODE_UDQ */
+    double t_load;
+    double fric;        /* signed Coulomb torque opposing the motion (0 when stuck or frozen) */
+    int frozen;         /* speed not integrated: stuck in static friction, or held */
+    int blocked;        /* MODE_ONE_BLOCKED: index of the open phase */
+    double lam;         /* MODE_ONE_BLOCKED: multiplier of the last evaluation (v_x = 1.5 lam) */
+} ctx_t;
+
+/* state of one period: currents, speed, mechanical angle relative to the period start */
+typedef struct {
+    double id, iq, w, th;
+} xs_t;
+
+typedef struct {
+    double did, diq, dw, dth, ud, uq;
+} dx_t;
+
+static inline void deriv(const plant_t *p, ctx_t *k, const xs_t *x, dx_t *dx, int mode)
+{
+    const double pp = (double)p->cfg.pole_pairs;
+    double cd, sd, c, s, ud, uq, we, rd, rq, te;
+    plant_mag_t m;
+
+    rot_small(pp * x->th, &cd, &sd);
+    c = k->c0 * cd - k->s0 * sd;
+    s = k->s0 * cd + k->c0 * sd;
+    if (mode == MODE_UDQ) {
+        ud = k->u1;
+        uq = k->u2;
+    } else {
+        ud = c * k->u1 + s * k->u2;
+        uq = -s * k->u1 + c * k->u2;
+    }
+    mag_eval(p, x->id, x->iq, c, s, &m);
+    we = pp * x->w;
+    rd = ud - p->r_s_ohm * x->id + we * (m.psi_q_wb - m.dpsi_d_dth_wb);
+    rq = uq - p->r_s_ohm * x->iq - we * (m.psi_d_wb + m.dpsi_q_dth_wb);
+    if (mode == MODE_ONE_BLOCKED) {
+        /* open phase x: its terminal floats so that d(i_x)/dt = 0, i_x = g . i_dq with g = R(-theta) e_x;
+         * the floating terminal adds lam * g to u_dq (lam = 2/3 v_x). */
+        const double ex = EX[k->blocked], ey = EY[k->blocked];
+        const double gd = c * ex + s * ey, gq = -s * ex + c * ey;
+        const double ggd = m.g_dd * gd + m.g_qd * gq, ggq = m.g_dq * gd + m.g_qq * gq; /* G^T g */
+        const double gGf = ggd * rd + ggq * rq;
+        const double gGg = ggd * gd + ggq * gq;
+        const double gJi = -gd * x->iq + gq * x->id;
+        const double lam = -(gGf + we * gJi) / gGg;
+        k->lam = lam;
+        rd += lam * gd;
+        rq += lam * gq;
+        ud += lam * gd;
+        uq += lam * gq;
+    }
+    if (mode == MODE_ALL_BLOCKED) {
+        dx->did = 0.0;
+        dx->diq = 0.0;
+        ud -= rd;   /* the terminals float: the motor sees its own back-EMF */
+        uq -= rq;
+    } else {
+        dx->did = m.g_dd * rd + m.g_dq * rq;
+        dx->diq = m.g_qd * rd + m.g_qq * rq;
+    }
+    te = torque_of(p, x->id, x->iq, &m);
+    dx->dw = k->frozen ? 0.0 : (te - k->t_load - p->cfg.b_visc_nms * x->w - k->fric) * p->inv_j;
+    dx->dth = x->w;
+    dx->ud = ud;
+    dx->uq = uq;
+}
+
+/* Coulomb friction for one sub-step (Karnopp): sticks at w = 0 while |T_e - T_load| <= T_c. */
+static inline void mech_mode(const plant_t *p, ctx_t *k, const xs_t *x)
+{
+    const double tc = p->cfg.t_coulomb_nm;
+    k->fric = 0.0;
+    k->frozen = p->hold_speed;
+    if (p->hold_speed || !(tc > 0.0)) {
+        return;
+    }
+    if (x->w > 0.0) {
+        k->fric = tc;
+    } else if (x->w < 0.0) {
+        k->fric = -tc;
+    } else {
+        double cd, sd, td;
+        plant_mag_t m;
+        rot_small((double)p->cfg.pole_pairs * x->th, &cd, &sd);
+        mag_eval(p, x->id, x->iq, k->c0 * cd - k->s0 * sd, k->s0 * cd + k->c0 * sd, &m);
+        td = torque_of(p, x->id, x->iq, &m) - k->t_load;
+        if (fabs(td) <= tc) {
+            k->frozen = 1;
+        } else {
+            k->fric = td > 0.0 ? tc : -tc;
+        }
+    }
+}
+
+/* after a sub-step: dry friction stops a reversal at zero (breakaway is decided at the next sub-step) */
+static inline void mech_clamp(const ctx_t *k, xs_t *x)
+{
+    if (x->w * k->fric < 0.0) {
+        x->w = 0.0;
+    }
+}
+
+/* classic RK4 over h; accumulates the integral of u_dq for the truth */
+static inline void rk4(const plant_t *p, ctx_t *k, xs_t *x, double h, int mode, double *aud, double *auq)
+{
+    dx_t k1, k2, k3, k4;
+    xs_t y;
+    const double h2 = 0.5 * h, h6 = h * (1.0 / 6.0);
+
+    deriv(p, k, x, &k1, mode);
+    y.id = x->id + h2 * k1.did;
+    y.iq = x->iq + h2 * k1.diq;
+    y.w = x->w + h2 * k1.dw;
+    y.th = x->th + h2 * k1.dth;
+    deriv(p, k, &y, &k2, mode);
+    y.id = x->id + h2 * k2.did;
+    y.iq = x->iq + h2 * k2.diq;
+    y.w = x->w + h2 * k2.dw;
+    y.th = x->th + h2 * k2.dth;
+    deriv(p, k, &y, &k3, mode);
+    y.id = x->id + h * k3.did;
+    y.iq = x->iq + h * k3.diq;
+    y.w = x->w + h * k3.dw;
+    y.th = x->th + h * k3.dth;
+    deriv(p, k, &y, &k4, mode);
+    x->id += h6 * (k1.did + 2.0 * (k2.did + k3.did) + k4.did);
+    x->iq += h6 * (k1.diq + 2.0 * (k2.diq + k3.diq) + k4.diq);
+    x->w += h6 * (k1.dw + 2.0 * (k2.dw + k3.dw) + k4.dw);
+    x->th += h6 * (k1.dth + 2.0 * (k2.dth + k3.dth) + k4.dth);
+    *aud += h6 * (k1.ud + 2.0 * (k2.ud + k3.ud) + k4.ud);
+    *auq += h6 * (k1.uq + 2.0 * (k2.uq + k3.uq) + k4.uq);
+}
+
+/* store the period's end state: angle wrap and the exact cos/sin of the new electrical angle */
+static void finish_period(plant_t *p, const xs_t *x, double aud, double auq)
+{
+    double the;
+    p->i_d_a = x->id;
+    p->i_q_a = x->iq;
+    p->omega_m_rad_s = x->w;
+    p->theta_m_rad = wrap_2pi(p->theta_m_rad + x->th);
+    the = (double)p->cfg.pole_pairs * p->theta_m_rad;
+    p->cos_e = cos(the);
+    p->sin_e = sin(the);
+    p->u_d_avg_v = aud / p->cfg.ts_s;
+    p->u_q_avg_v = auq / p->cfg.ts_s;
+    p->n_periods++;
+}
+
+static void advance_on(plant_t *p, int mode, double u1, double u2, double t_load)
+{
+    ctx_t k;
+    xs_t x;
+    double aud = 0.0, auq = 0.0;
+    const double h = p->h_s;
+    int n;
+
+    k.c0 = p->cos_e;
+    k.s0 = p->sin_e;
+    k.u1 = u1;
+    k.u2 = u2;
+    k.t_load = t_load;
+    k.blocked = -1;
+    k.lam = 0.0;
+    x.id = p->i_d_a;
+    x.iq = p->i_q_a;
+    x.w = p->omega_m_rad_s;
+    x.th = 0.0;
+    for (n = 0; n < p->cfg.substeps; n++) {
+        mech_mode(p, &k, &x);
+        if (mode == MODE_UDQ) {
+            rk4(p, &k, &x, h, MODE_UDQ, &aud, &auq);
+        } else {
+            rk4(p, &k, &x, h, MODE_KNOWN, &aud, &auq);
+        }
+        mech_clamp(&k, &x);
+    }
+    p->load_nm = t_load;
+    finish_period(p, &x, aud, auq);
+}
+
+/* ------------------------------------------------------------------ PWM off: diode bridge */
+
+static inline void phase_currents(double c, double s, double id, double iq, double i3[3])
+{
+    const double ial = c * id - s * iq, ibe = s * id + c * iq;
+    i3[0] = ial;
+    i3[1] = -0.5 * ial + PL_SQRT3_2 * ibe;
+    i3[2] = -0.5 * ial - PL_SQRT3_2 * ibe;
+}
+
+static inline void angle_at(const ctx_t *k, double pp, double th, double *c, double *s)
+{
+    double cd, sd;
+    rot_small(pp * th, &cd, &sd);
+    *c = k->c0 * cd - k->s0 * sd;
+    *s = k->s0 * cd + k->c0 * sd;
+}
+
+/* open phase b (set i_b = 0 exactly by removing the current's component along g = R(-theta) e_b) */
+static void block_phase(plant_t *p, const ctx_t *k, xs_t *x, int b)
+{
+    double c, s, gd, gq, ix, i3[3];
+    int n, y, nblk = 0;
+    angle_at(k, (double)p->cfg.pole_pairs, x->th, &c, &s);
+    gd = c * EX[b] + s * EY[b];
+    gq = -s * EX[b] + c * EY[b];
+    ix = gd * x->id + gq * x->iq;
+    x->id -= ix * gd;
+    x->iq -= ix * gq;
+    p->diode[b] = 0;
+    phase_currents(c, s, x->id, x->iq, i3);
+    for (n = 0; n < 3; n++) {
+        if (p->diode[n] == 0) {
+            nblk++;
+        }
+    }
+    for (y = 0; y < 3; y++) {
+        if (p->diode[y] != 0 && (double)p->diode[y] * i3[y] <= 0.0) {
+            nblk = 3;
+        }
+    }
+    if (nblk >= 2) {
+        x->id = 0.0;
+        x->iq = 0.0;
+        p->diode[0] = p->diode[1] = p->diode[2] = 0;
+    }
+}
+
+/* known (stationary-frame) voltage of the conducting diodes; blocked terminals counted as 0 */
+static void diode_voltage(const plant_t *p, double *ual, double *ube)
+{
+    double v[3];
+    int n;
+    for (n = 0; n < 3; n++) {
+        v[n] = p->diode[n] > 0 ? -p->cfg.v_drop_v : (p->diode[n] < 0 ? p->v_dc_v + p->cfg.v_drop_v : 0.0);
+    }
+    *ual = (2.0 * v[0] - v[1] - v[2]) * (1.0 / 3.0);
+    *ube = (v[1] - v[2]) * PL_INV_SQRT3;
+}
+
+static int diode_mode(const plant_t *p, int *blocked)
+{
+    int n, nb = 0;
+    *blocked = -1;
+    for (n = 0; n < 3; n++) {
+        if (p->diode[n] == 0) {
+            nb++;
+            *blocked = n;
+        }
+    }
+    return nb == 0 ? MODE_KNOWN : (nb == 1 ? MODE_ONE_BLOCKED : MODE_ALL_BLOCKED);
+}
+
+/* a blocked diode pair or phase starts to conduct when the floating terminal would leave the rails */
+static void diode_unblock(plant_t *p, ctx_t *k, const xs_t *x)
+{
+    dx_t d;
+    double c, s, eal, ebe, e3[3];
+    int mode = diode_mode(p, &k->blocked), n, hi = 0, lo = 0;
+    const double vd = p->cfg.v_drop_v;
+    if (mode == MODE_KNOWN) {
+        return;
+    }
+    diode_voltage(p, &k->u1, &k->u2);
+    deriv(p, k, x, &d, mode);
+    if (mode == MODE_ONE_BLOCKED) {
+        const double vx = 1.5 * k->lam;
+        if (vx > p->v_dc_v + vd) {
+            p->diode[k->blocked] = -1;
+        } else if (vx < -vd) {
+            p->diode[k->blocked] = 1;
+        }
+        return;
+    }
+    /* all open: terminal voltages are the back-EMFs plus a common float */
+    angle_at(k, (double)p->cfg.pole_pairs, x->th, &c, &s);
+    eal = c * d.ud - s * d.uq;
+    ebe = s * d.ud + c * d.uq;
+    for (n = 0; n < 3; n++) {
+        e3[n] = EX[n] * eal + EY[n] * ebe;
+        if (e3[n] > e3[hi]) {
+            hi = n;
+        }
+        if (e3[n] < e3[lo]) {
+            lo = n;
+        }
+    }
+    if (e3[hi] - e3[lo] > p->v_dc_v + 2.0 * vd) {
+        p->diode[hi] = -1;   /* highest back-EMF pushes current out into DC+ */
+        p->diode[lo] = 1;
+    }
+}
+
+static void advance_off(plant_t *p, double t_load)
+{
+    ctx_t k;
+    xs_t x, x0;
+    double aud = 0.0, auq = 0.0;
+    const double pp = (double)p->cfg.pole_pairs;
+    int n;
+
+    k.c0 = p->cos_e;
+    k.s0 = p->sin_e;
+    k.t_load = t_load;
+    k.lam = 0.0;
+    k.fric = 0.0;
+    k.frozen = p->hold_speed;
+    k.u1 = k.u2 = 0.0;
+    k.blocked = -1;
+    x.id = p->i_d_a;
+    x.iq = p->i_q_a;
+    x.w = p->omega_m_rad_s;
+    x.th = 0.0;
+
+    if (p->pwm_prev) {  /* switches just opened: each current keeps flowing through the opposite diode */
+        double i3[3];
+        int b = -1, nb = 0;
+        phase_currents(k.c0, k.s0, x.id, x.iq, i3);
+        for (n = 0; n < 3; n++) {
+            p->diode[n] = (int8_t)(i3[n] > 1e-9 ? 1 : (i3[n] < -1e-9 ? -1 : 0));
+            if (p->diode[n] == 0) {
+                nb++;
+                b = n;
+            }
+        }
+        if (nb == 1) {
+            p->diode[b] = 1;      /* placeholder so that block_phase sees one open phase */
+            block_phase(p, &k, &x, b);
+        } else if (nb > 1) {
+            x.id = x.iq = 0.0;
+            p->diode[0] = p->diode[1] = p->diode[2] = 0;
+        }
+    }
+
+    for (n = 0; n < p->cfg.substeps; n++) {
+        double rem = p->h_s;
+        int iter;
+        for (iter = 0; iter < 8 && rem > 0.0; iter++) {
+            double aud0 = aud, auq0 = auq, frac = 2.0, c, s, i0[3], i1[3];
+            int mode, y, ev = -1;
+            diode_unblock(p, &k, &x);
+            mode = diode_mode(p, &k.blocked);
+            diode_voltage(p, &k.u1, &k.u2);
+            mech_mode(p, &k, &x);
+            x0 = x;
+            angle_at(&k, pp, x.th, &c, &s);
+            phase_currents(c, s, x.id, x.iq, i0);
+            rk4(p, &k, &x, rem, mode, &aud, &auq);
+            if (mode != MODE_ALL_BLOCKED && iter < 7) {
+                angle_at(&k, pp, x.th, &c, &s);
+                phase_currents(c, s, x.id, x.iq, i1);
+                for (y = 0; y < 3; y++) {
+                    const double a0 = (double)p->diode[y] * i0[y], a1 = (double)p->diode[y] * i1[y];
+                    if (p->diode[y] != 0 && a1 <= 0.0) {
+                        const double f = a0 > 0.0 ? a0 / (a0 - a1) : 0.0;
+                        if (f < frac) {
+                            frac = f;
+                            ev = y;
+                        }
+                    }
+                }
+            }
+            if (ev < 0) {  /* no current zero in this piece (or last try): accept, force consistency */
+                if (mode != MODE_ALL_BLOCKED) {
+                    angle_at(&k, pp, x.th, &c, &s);
+                    phase_currents(c, s, x.id, x.iq, i1);
+                    for (y = 0; y < 3; y++) {
+                        if (p->diode[y] != 0 && (double)p->diode[y] * i1[y] <= 0.0) {
+                            block_phase(p, &k, &x, y);
+                            break;
+                        }
+                    }
+                }
+                mech_clamp(&k, &x);
+                rem = 0.0;
+                break;
+            }
+            x = x0;
+            aud = aud0;
+            auq = auq0;
+            if (frac > 0.0) {
+                rk4(p, &k, &x, frac * rem, mode, &aud, &auq);
+                mech_clamp(&k, &x);
+            }
+            block_phase(p, &k, &x, ev);
+            rem -= frac * rem;
+        }
+    }
+    p->load_nm = t_load;
+    finish_period(p, &x, aud, auq);
+}
+
+/* ------------------------------------------------------------------ sensors (effect seam) */
+
+/* one phase-current channel: true current -> + Gaussian noise -> ADC quantisation (mid-tread).
+ * Offsets, gain errors, range clipping, filtering belong here. */
+static inline double sensor_current(plant_t *p, double i)
+{
+    double v = i;
+    if (p->cfg.i_noise_a > 0.0) {
+        v += p->cfg.i_noise_a * rng_gauss(&p->rng);
+    }
+    if (p->inv_lsb > 0.0) {
+        const double q = v * p->inv_lsb;
+        v = (double)(long long)(q + (q >= 0.0 ? 0.5 : -0.5)) * p->cfg.adc_lsb_a;
+    }
+    return v;
+}
+
+/* incremental encoder: floor of the mechanical angle (plus offset) in counts, wrapped to [0, N) */
+static inline uint32_t sensor_encoder(const plant_t *p)
+{
+    double a = p->theta_m_rad + p->enc_off_w;
+    uint32_t c;
+    if (a >= PL_TWO_PI) {
+        a -= PL_TWO_PI;
+    }
+    c = (uint32_t)(a * p->enc_scale);
+    if (c >= p->cfg.enc_counts) {
+        c -= p->cfg.enc_counts;
+    }
+    return c;
+}
+
+/* ------------------------------------------------------------------ API */
+
+void plant_cfg_default(plant_cfg_t *cfg)
+{
+    memset(cfg, 0, sizeof *cfg);
+    cfg->r_s_ohm = 0.9;
+    cfg->l_d_h = 5e-3;
+    cfg->l_q_h = 12e-3;
+    cfg->psi_f_wb = 0.18;
+    cfg->pole_pairs = 4;
+    cfg->j_kgm2 = 0.0036;
+    cfg->b_visc_nms = 0.0;
+    cfg->t_coulomb_nm = 0.0;
+    cfg->v_dc_v = 540.0;
+    cfg->dead_time_s = 0.0;
+    cfg->v_drop_v = 0.0;
+    cfg->i_dt_a = 0.5;
+    cfg->i_noise_a = 0.0;
+    cfg->adc_lsb_a = 0.0;
+    cfg->enc_counts = 10000u;
+    cfg->enc_offset_rad = 0.0;
+    cfg->ts_s = 50e-6;
+    cfg->substeps = 1;
+    cfg->seed = 1u;
+    cfg->temp_ambient_c = 25.0;
+}
+
+const char *plant_cfg_check(const plant_cfg_t *cfg)
+{
+    if (!(cfg->r_s_ohm >= 0.0)) return "r_s_ohm must be >= 0";
+    if (!(cfg->l_d_h > 0.0)) return "l_d_h must be > 0";
+    if (!(cfg->l_q_h > 0.0)) return "l_q_h must be > 0";
+    if (!(cfg->psi_f_wb >= 0.0)) return "psi_f_wb must be >= 0";
+    if (cfg->pole_pairs < 1) return "pole_pairs must be >= 1";
+    if (!(cfg->j_kgm2 > 0.0)) return "j_kgm2 must be > 0";
+    if (!(cfg->b_visc_nms >= 0.0)) return "b_visc_nms must be >= 0";
+    if (!(cfg->t_coulomb_nm >= 0.0)) return "t_coulomb_nm must be >= 0";
+    if (!(cfg->v_dc_v >= 0.0)) return "v_dc_v must be >= 0";
+    if (!(cfg->dead_time_s >= 0.0 && cfg->dead_time_s < cfg->ts_s)) return "dead_time_s must be in [0, ts_s)";
+    if (!(cfg->v_drop_v >= 0.0)) return "v_drop_v must be >= 0";
+    if (!(cfg->i_noise_a >= 0.0)) return "i_noise_a must be >= 0";
+    if (!(cfg->adc_lsb_a >= 0.0)) return "adc_lsb_a must be >= 0";
+    if (cfg->enc_counts < 1u) return "enc_counts must be >= 1";
+    if (!(cfg->ts_s > 0.0)) return "ts_s must be > 0";
+    if (cfg->substeps < 1) return "substeps must be >= 1";
+    return NULL;
+}
+
+void plant_init(plant_t *p, const plant_cfg_t *cfg)
+{
+    memset(p, 0, sizeof *p);
+    p->cfg = *cfg;
+    if (p->cfg.substeps < 1) {
+        p->cfg.substeps = 1;
+    }
+    if (p->cfg.pole_pairs < 1) {
+        p->cfg.pole_pairs = 1;
+    }
+    if (p->cfg.enc_counts < 1u) {
+        p->cfg.enc_counts = 1u;
+    }
+    p->r_s_ohm = cfg->r_s_ohm;
+    p->l_d_h = cfg->l_d_h;
+    p->l_q_h = cfg->l_q_h;
+    p->psi_f_wb = cfg->psi_f_wb;
+    p->v_dc_v = cfg->v_dc_v;
+    p->temp_winding_c = cfg->temp_ambient_c;
+    p->temp_magnet_c = cfg->temp_ambient_c;
+    p->inv_l_d = 1.0 / cfg->l_d_h;
+    p->inv_l_q = 1.0 / cfg->l_q_h;
+    p->inv_j = 1.0 / cfg->j_kgm2;
+    p->inv_i_dt = cfg->i_dt_a > 0.0 ? 1.0 / cfg->i_dt_a : 0.0;
+    p->inv_lsb = cfg->adc_lsb_a > 0.0 ? 1.0 / cfg->adc_lsb_a : 0.0;
+    p->enc_scale = (double)p->cfg.enc_counts / PL_TWO_PI;
+    p->enc_off_w = wrap_2pi(fmod(cfg->enc_offset_rad, PL_TWO_PI));
+    p->h_s = cfg->ts_s / (double)p->cfg.substeps;
+    p->cos_e = 1.0;
+    p->sin_e = 0.0;
+    p->pwm_prev = false;
+    rng_seed(&p->rng, cfg->seed);
+}
+
+void plant_sample(plant_t *p, fw_meas_t *m)
+{
+    double i3[3];
+    phase_currents(p->cos_e, p->sin_e, p->i_d_a, p->i_q_a, i3);
+    m->i_a_a = (float)sensor_current(p, i3[0]);
+    m->i_b_a = (float)sensor_current(p, i3[1]);
+    m->i_c_a = (float)sensor_current(p, i3[2]);
+    m->v_dc_v = (float)p->v_dc_v;
+    m->enc_count = sensor_encoder(p);
+}
+
+/* switching or averaged PWM with leg duties d (for switch states d is 0 or 1) */
+static void step_legs(plant_t *p, const double d[3], bool pwm_on, bool carrier, double t_load)
+{
+    double i3[3], v[3];
+    int n;
+    if (!pwm_on) {
+        advance_off(p, t_load);
+        p->pwm_prev = false;
+        return;
+    }
+    phase_currents(p->cos_e, p->sin_e, p->i_d_a, p->i_q_a, i3);
+    for (n = 0; n < 3; n++) {
+        int tr = 0;
+        if (carrier) {
+            tr = (d[n] > 0.0 && d[n] < 1.0) ? 2 : 0;
+        } else if (p->pwm_prev) {
+            const int sn = d[n] > 0.5, sp = p->s_prev[n] != 0;
+            tr = sn - sp;
+        }
+        v[n] = p->v_dc_v * d[n] + leg_dist(p, i3[n], tr);
+        p->s_prev[n] = (uint16_t)(d[n] > 0.5);
+    }
+    advance_on(p, MODE_KNOWN, (2.0 * v[0] - v[1] - v[2]) * (1.0 / 3.0), (v[1] - v[2]) * PL_INV_SQRT3, t_load);
+    p->pwm_prev = true;
+}
+
+void plant_step(plant_t *p, const fw_cmd_t *cmd)
+{
+    double d[3];
+    d[0] = cmd->s_a ? 1.0 : 0.0;
+    d[1] = cmd->s_b ? 1.0 : 0.0;
+    d[2] = cmd->s_c ? 1.0 : 0.0;
+    step_legs(p, d, cmd->pwm_on, false, (double)cmd->load_nm);
+}
+
+void plant_step_duty(plant_t *p, const double duty[3], bool pwm_on, double load_nm)
+{
+    double d[3];
+    int n;
+    for (n = 0; n < 3; n++) {
+        d[n] = duty[n] < 0.0 ? 0.0 : (duty[n] > 1.0 ? 1.0 : duty[n]);
+    }
+    step_legs(p, d, pwm_on, true, load_nm);
+}
+
+void plant_step_udq(plant_t *p, double u_d_v, double u_q_v, double load_nm)
+{
+    advance_on(p, MODE_UDQ, u_d_v, u_q_v, load_nm);
+    p->pwm_prev = false;   /* not an inverter: no switch history */
+}
+
+void plant_set_mech(plant_t *p, double theta_m_rad, double omega_m_rad_s, bool hold_speed)
+{
+    const double the = (double)p->cfg.pole_pairs * wrap_2pi(fmod(theta_m_rad, PL_TWO_PI));
+    p->theta_m_rad = wrap_2pi(fmod(theta_m_rad, PL_TWO_PI));
+    p->omega_m_rad_s = omega_m_rad_s;
+    p->hold_speed = hold_speed;
+    p->cos_e = cos(the);
+    p->sin_e = sin(the);
+}
+
+void plant_set_currents(plant_t *p, double i_d_a, double i_q_a)
+{
+    p->i_d_a = i_d_a;
+    p->i_q_a = i_q_a;
+    p->pwm_prev = true;   /* re-derive the diode states from the current signs if PWM is off next */
+}
+
+void plant_truth(const plant_t *p, plant_truth_t *t)
+{
+    plant_mag_t m;
+    double i3[3];
+    const double pp = (double)p->cfg.pole_pairs;
+    mag_eval(p, p->i_d_a, p->i_q_a, p->cos_e, p->sin_e, &m);
+    phase_currents(p->cos_e, p->sin_e, p->i_d_a, p->i_q_a, i3);
+    t->i_d_a = p->i_d_a;
+    t->i_q_a = p->i_q_a;
+    t->theta_m_rad = p->theta_m_rad;
+    t->theta_e_rad = wrap_2pi(fmod(pp * p->theta_m_rad, PL_TWO_PI));
+    t->omega_m_rad_s = p->omega_m_rad_s;
+    t->speed_rpm = p->omega_m_rad_s * (30.0 / PL_PI);
+    t->torque_nm = torque_of(p, p->i_d_a, p->i_q_a, &m);
+    t->u_d_v = p->u_d_avg_v;
+    t->u_q_v = p->u_q_avg_v;
+    t->r_s_ohm = p->r_s_ohm;
+    t->l_d_h = p->l_d_h;
+    t->l_q_h = p->l_q_h;
+    t->psi_f_wb = p->psi_f_wb;
+    t->temp_winding_c = p->temp_winding_c;
+    t->temp_magnet_c = p->temp_magnet_c;
+    t->t_s = (double)p->n_periods * p->cfg.ts_s;
+    t->i_a_a = i3[0];
+    t->i_b_a = i3[1];
+    t->i_c_a = i3[2];
+    t->omega_e_rad_s = pp * p->omega_m_rad_s;
+    t->v_dc_v = p->v_dc_v;
+    t->load_nm = p->load_nm;
+}
