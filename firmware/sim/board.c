@@ -26,18 +26,7 @@ size_t emu_size(void) { return sizeof(emu_t); }
 void emu_init(emu_t *e)
 {
     memset(e, 0, sizeof(*e));
-    /* paper A's IPMSM, 540 V DC link, ideal inverter and sensors */
-    e->pcfg.r_s_ohm = 0.9;
-    e->pcfg.l_d_h = 0.005;
-    e->pcfg.l_q_h = 0.012;
-    e->pcfg.psi_f_wb = 0.18;
-    e->pcfg.pole_pairs = 4;
-    e->pcfg.j_kgm2 = 0.0036;
-    e->pcfg.v_dc_v = 540.0;
-    e->pcfg.enc_counts = 10000u;
-    e->pcfg.ts_s = 50e-6;
-    e->pcfg.substeps = 2;
-    e->pcfg.seed = 1u;
+    plant_cfg_default(&e->pcfg);   /* paper A's IPMSM, 540 V DC link, ideal inverter and sensors */
     e->baud = 921600.0;
     e->truth_div = 200u;
     emu_reset(e);
@@ -67,6 +56,7 @@ int emu_set(emu_t *e, const char *key, double value)
     EMU_KEY("ts_s", pcfg.ts_s, double)
     EMU_KEY("substeps", pcfg.substeps, int)
     EMU_KEY("seed", pcfg.seed, uint32_t)
+    EMU_KEY("temp_ambient_c", pcfg.temp_ambient_c, double)
     EMU_KEY("baud", baud, double)
     EMU_KEY("truth_div", truth_div, uint32_t)
     return -1;

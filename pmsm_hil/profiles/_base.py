@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import os
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict, PrivateAttr
@@ -49,3 +50,26 @@ def num(d: Any, key: str, default: Any = None) -> float | None:
     if isinstance(v, float) and not math.isfinite(v):
         return None
     return v
+
+
+def meta_value(v: Any) -> str:
+    """Exact text of a value for MCAP metadata (floats round-trip)."""
+    if v is None:
+        return "null"
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, float)):
+        return repr(v)
+    return str(v)
+
+
+def default_file(rel: str) -> str:
+    """A shipped file under profiles/ (``rel`` like "rigs/default.yaml"): in the source tree
+    beside the package, else under ./profiles of the working directory."""
+    here = os.path.dirname(os.path.abspath(__file__))
+    candidates = [os.path.join(os.path.dirname(os.path.dirname(here)), "profiles", rel),
+                  os.path.join("profiles", rel)]
+    for c in candidates:
+        if os.path.isfile(c):
+            return c
+    return candidates[-1]

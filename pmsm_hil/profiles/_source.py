@@ -160,7 +160,8 @@ class Source:
     text: str = ""
     data: Any = None
     lines: dict[tuple, int] = dc_field(default_factory=dict)
-    problems: list[Problem] = dc_field(default_factory=list)
+    problems: list[Problem] = dc_field(default_factory=list)  # fatal: nothing more can be checked
+    soft: list[Problem] = dc_field(default_factory=list)      # reported, but checking goes on
 
     def line(self, loc: tuple) -> int | None:
         """Line of ``loc``, else of its nearest ancestor that is in the file."""
@@ -190,7 +191,7 @@ def _walk(node: yaml.Node, path: tuple, src: Source) -> None:
             key = key_node.value
             key_line = key_node.start_mark.line + 1
             if key in seen:
-                src.problems.append(Problem(
+                src.soft.append(Problem(
                     src.path, key_line, loc_str(path + (key,)), None,
                     f"is given twice (first on line {seen[key]})", has_value=False))
                 continue

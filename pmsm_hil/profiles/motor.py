@@ -2,10 +2,11 @@
 from __future__ import annotations
 
 import math
+import os
 
 from pydantic import Field, ValidationError
 
-from ._base import FileModel, num
+from ._base import FileModel, default_file, meta_value, num
 from ._source import Problem, ProfileError, Source, fmt_num, read_source, validation_problems
 
 __all__ = ["Motor", "load_motor", "mtpa_currents", "mtpa_torque_nm"]
@@ -67,8 +68,7 @@ class Motor(FileModel):
 
     def metadata(self) -> dict[str, str]:
         """Flat string record for the MCAP metadata."""
-        out = {k: (fmt_num(v) if isinstance(v, (int, float)) else str(v))
-               for k, v in self.model_dump().items()}
+        out = {k: meta_value(v) for k, v in self.model_dump().items()}
         out["file"] = self.path.replace("\\", "/").rsplit("/", 1)[-1]
         out["sha256"] = self.sha256
         return out
@@ -103,7 +103,7 @@ def motor_checks(src: Source) -> list[Problem]:
 def _load_motor_source(src: Source) -> tuple[Motor | None, list[Problem]]:
     if src.problems:
         return None, list(src.problems)
-    problems: list[Problem] = []
+    problems: list[Problem] = list(src.soft)
     motor = None
     try:
         motor = Motor.model_validate(src.data)
@@ -116,9 +116,11 @@ def _load_motor_source(src: Source) -> tuple[Motor | None, list[Problem]]:
     return motor, []
 
 
-def load_motor(path: str) -> Motor:
-    """Load and validate one motor file; raises ProfileError."""
-    motor, problems = _load_motor_source(read_source(str(path), what="motor file"))
+def load_motor(path: str | os.PathLike | None = None) -> Motor:
+    """Load and validate one motor file (None: the shipped profiles/motors/paper-a-ipmsm.yaml);
+    raises ProfileError."""
+    path = default_file("motors/paper-a-ipmsm.yaml") if path is None else os.fspath(path)
+    motor, problems = _load_motor_source(read_source(path, what="motor file"))
     if problems:
         raise ProfileError(problems)
     return motor

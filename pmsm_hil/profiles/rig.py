@@ -8,12 +8,13 @@ parameters and defaults, one field in ``Effects`` (default: the effect disabled)
 from __future__ import annotations
 
 import math
+import os
 from typing import Iterator
 
 from pydantic import Field, ValidationError
 
-from ._base import FileModel, StrictModel
-from ._source import Problem, ProfileError, Source, fmt_num, read_source, validation_problems
+from ._base import FileModel, StrictModel, default_file, meta_value
+from ._source import Problem, ProfileError, Source, read_source, validation_problems
 
 __all__ = ["Rig", "Effect", "Effects", "DeadTime", "AdcNoise", "AdcQuantisation", "Encoder",
            "Friction", "EFFECT_BITS", "load_rig"]
@@ -100,6 +101,10 @@ class Effects(StrictModel):
     def names(self) -> list[str]:
         return list(type(self).model_fields)
 
+    def get(self, name: str, default: Effect | None = None) -> Effect | None:
+        """The effect ``name`` (enabled or not), or ``default`` for an unknown name."""
+        return getattr(self, name) if name in type(self).model_fields else default
+
 
 class Rig(FileModel):
     """The emulator's plant departures (issue 5 extends the effects)."""
@@ -129,11 +134,11 @@ class Rig(FileModel):
     def metadata(self) -> dict[str, str]:
         """Flat string record for the MCAP metadata ("effect.param": value)."""
         out = {"name": self.name, "file": self.path.replace("\\", "/").rsplit("/", 1)[-1],
-               "sha256": self.sha256, "v_dc_v": "null" if self.v_dc_v is None else fmt_num(self.v_dc_v),
+               "sha256": self.sha256, "v_dc_v": meta_value(self.v_dc_v),
                "effects": ",".join(self.enabled_effects), "effects_mask": str(self.effects_mask)}
         for name, eff in self.effects.items():
             for k, v in eff.model_dump().items():
-                out[f"{name}.{k}"] = fmt_num(v) if isinstance(v, (int, float)) else str(v)
+                out[f"{name}.{k}"] = meta_value(v)
         return out
 
 
@@ -143,14 +148,18 @@ def _load_rig_source(src: Source) -> tuple[Rig | None, list[Problem]]:
     try:
         rig = Rig.model_validate(src.data)
     except ValidationError as e:
-        return None, validation_problems(e, src, Rig)
+        return None, list(src.soft) + validation_problems(e, src, Rig)
+    if src.soft:
+        return None, list(src.soft)
     rig._path, rig._yaml_text = src.path, src.text
     return rig, []
 
 
-def load_rig(path: str) -> Rig:
-    """Load and validate one rig file; raises ProfileError."""
-    rig, problems = _load_rig_source(read_source(str(path), what="rig file"))
+def load_rig(path: str | os.PathLike | None = None) -> Rig:
+    """Load and validate one rig file (None: the shipped profiles/rigs/default.yaml);
+    raises ProfileError."""
+    path = default_file("rigs/default.yaml") if path is None else os.fspath(path)
+    rig, problems = _load_rig_source(read_source(path, what="rig file"))
     if problems:
         raise ProfileError(problems)
     return rig

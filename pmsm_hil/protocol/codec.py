@@ -156,6 +156,9 @@ _DECODERS: dict[int, tuple[str, int, Callable[[bytes], dict[str, Any]]]] = {
 }
 
 
+_LENGTHS: dict[int, int] = {spec.id: spec.length for spec in BY_ID.values()}
+
+
 def decode_payload(msg_id: int, payload: bytes) -> dict[str, Any]:
     """Payload octets -> {field: value}; scaled fields as SI floats, arrays as tuples."""
     entry = _DECODERS.get(msg_id)
@@ -201,8 +204,10 @@ class FrameDecoder:
         self.cobs_errors = 0
         self.len_errors = 0       # too long, or a known id with the wrong payload length
         self.short_errors = 0     # fewer than 4 octets after COBS
-        self.unknown_id = 0       # good CRC but an id not in the protocol (feed only)
+        self.unknown_id = 0       # good frame but an id not in the protocol (feed only)
+        self.seq_gaps = 0         # frames missing according to the sequence numbers
         self.octets = 0
+        self._next_seq = -1       # sequence number expected next; -1 before the first frame
 
     @property
     def bad_frames(self) -> int:
@@ -210,10 +215,14 @@ class FrameDecoder:
 
     def counters(self) -> dict[str, int]:
         return {k: getattr(self, k) for k in ("frames_ok", "crc_errors", "cobs_errors", "len_errors",
-                                              "short_errors", "unknown_id", "octets")}
+                                              "short_errors", "unknown_id", "seq_gaps", "octets")}
 
     def feed_raw(self, data: bytes) -> list[tuple[int, int, bytes]]:
-        """Octets in, [(msg_id, seq, payload)] out for every frame with a good CRC (id not checked)."""
+        """Octets in, [(msg_id, seq, payload)] out for every good frame: COBS and CRC good and, for a
+        known id, the right payload length. Unknown ids pass (as in the firmware's parser).
+
+        The length check matters: CRC-16/CCITT-FALSE cannot see 0x00 octets appended after the CRC,
+        which a delimiter flipped to 0x01 produces."""
         self.octets += len(data)
         chunks = (self._tail + data if self._tail else bytes(data)).split(b"\x00")
         tail = chunks.pop()
@@ -229,7 +238,8 @@ class FrameDecoder:
         self._tail = tail
 
         out = []
-        append = out.append
+        append, lengths = out.append, _LENGTHS
+        next_seq, gaps = self._next_seq, 0
         for chunk in chunks:
             if not chunk:
                 continue
@@ -245,8 +255,16 @@ class FrameDecoder:
                 self.len_errors += 1
             elif crc_hqx(raw, CRC_INIT):
                 self.crc_errors += 1
+            elif lengths.get(raw[0], n - 4) != n - 4:
+                self.len_errors += 1
             else:
-                append((raw[0], raw[1], raw[2:-2]))
+                seq = raw[1]
+                if seq != next_seq and next_seq >= 0:
+                    gaps += (seq - next_seq) & 0xFF
+                next_seq = (seq + 1) & 0xFF
+                append((raw[0], seq, raw[2:-2]))
+        self._next_seq = next_seq
+        self.seq_gaps += gaps
         self.frames_ok += len(out)
         return out
 
@@ -259,9 +277,6 @@ class FrameDecoder:
             entry = decoders.get(msg_id)
             if entry is None:
                 self.unknown_id += 1
-                self.frames_ok -= 1
-            elif len(payload) != entry[1]:
-                self.len_errors += 1
                 self.frames_ok -= 1
             else:
                 append(Frame(msg_id, seq, entry[0], entry[2](payload)))
