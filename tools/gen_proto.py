@@ -16,7 +16,7 @@ import re
 import struct
 import sys
 import zlib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import yaml
@@ -65,6 +65,7 @@ class Field:
     count: int            # 1 for a scalar
     scale: float | None   # SI units per LSB
     offset: int           # octet offset in the payload
+    note: str = ""        # the yaml line's trailing comment (documentation only, not hashed)
 
     @property
     def octets(self) -> int:
@@ -120,6 +121,24 @@ def schema_hash(doc: dict) -> int:
     return zlib.crc32(text.encode("ascii")) & 0xFFFFFFFF
 
 
+FIELD_LINE = re.compile(r"^\s*-\s*\{\s*name:\s*(\w+)\b.*\}\s*#\s*(.*?)\s*$")
+MESSAGE_LINE = re.compile(r"^  (\w+):\s*$")
+
+
+def field_notes(text: str) -> dict[tuple[str, str], str]:
+    """Trailing comments of the field lines, by (message, field): they document the field."""
+    notes, message = {}, None
+    in_messages = False
+    for line in text.splitlines():
+        if line.startswith("messages:"):
+            in_messages = True
+        elif in_messages and (m := MESSAGE_LINE.match(line)):
+            message = m.group(1)
+        elif in_messages and message and (m := FIELD_LINE.match(line)):
+            notes[(message, m.group(1))] = m.group(2)
+    return notes
+
+
 def _parse_field(msg: str, raw: dict, offset: int) -> Field:
     where = f"message {msg!r} field {raw.get('name')!r}"
     unknown = set(raw) - {"name", "type", "scale", "count"}
@@ -144,7 +163,7 @@ def _parse_field(msg: str, raw: dict, offset: int) -> Field:
     return Field(name, wt, count, scale, offset)
 
 
-def _parse_message(name: str, raw: dict) -> Message:
+def _parse_message(name: str, raw: dict, notes: dict[tuple[str, str], str]) -> Message:
     where = f"message {name!r}"
     if not IDENT.match(name):
         raise SchemaError(f"{where}: name must match {IDENT.pattern}")
@@ -159,6 +178,7 @@ def _parse_message(name: str, raw: dict) -> Message:
     fields, offset, seen = [], 0, set()
     for f_raw in raw.get("fields") or []:
         field = _parse_field(name, f_raw, offset)
+        field = replace(field, note=notes.get((name, field.name), ""))
         if field.name in seen:
             raise SchemaError(f"{where}: field {field.name!r} appears twice")
         seen.add(field.name)
@@ -171,7 +191,8 @@ def _parse_message(name: str, raw: dict) -> Message:
 
 
 def load_schema(path: Path) -> Schema:
-    doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+    text = path.read_text(encoding="utf-8")
+    doc = yaml.safe_load(text)
     version = doc.get("protocol_version")
     if not isinstance(version, int) or not 0 <= version <= 0xFFFF:
         raise SchemaError(f"{path}: protocol_version must be an integer 0..65535")
@@ -182,7 +203,8 @@ def load_schema(path: Path) -> Schema:
         for vname, v in values.items():
             if not IDENT.match(vname) or not isinstance(v, int) or not 0 <= v <= 0xFFFF:
                 raise SchemaError(f"enum {ename!r} value {vname!r}: name or value {v!r} invalid")
-    messages = tuple(_parse_message(n, m) for n, m in (doc.get("messages") or {}).items())
+    notes = field_notes(text)
+    messages = tuple(_parse_message(n, m, notes) for n, m in (doc.get("messages") or {}).items())
     by_id: dict[int, str] = {}
     for m in messages:
         if m.id in by_id:
@@ -259,7 +281,7 @@ def c_field_comment(f: Field) -> str:
     if f.scale is not None:
         lo, hi = f.type.lo * f.scale, f.type.hi * f.scale
         text += f" x {f.scale:.10g} on the wire, {lo:.6g} .. {hi:.6g}"
-    return text
+    return text + (f"; {f.note}" if f.note else "")
 
 
 def render_c_header(s: Schema) -> str:
@@ -432,15 +454,15 @@ def render_doc_tables(s: Schema) -> str:
         if not m.fields:
             out.append("")
             continue
-        out += ["", "| offset | field | type | scale | SI range |", "|---:|---|---|---|---|"]
+        out += ["", "| offset | field | type | scale | SI range | note |", "|---:|---|---|---|---|---|"]
         for f in m.fields:
             t = f.type.name + (f"[{f.count}]" if f.count > 1 else "")
             if f.scale is None:
-                scale, rng = "", ""
+                scale, rng = "\u2014", "\u2014"
             else:
                 scale = f"{f.scale:.10g}"
                 rng = f"{f.type.lo * f.scale:.6g} .. {f.type.hi * f.scale:.6g}"
-            out.append(f"| {f.offset} | `{f.name}` | {t} | {scale} | {rng} |")
+            out.append(f"| {f.offset} | `{f.name}` | {t} | {scale} | {rng} | {f.note} |")
         out.append("")
     out.append("Enums:")
     out.append("")

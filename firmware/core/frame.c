@@ -142,6 +142,8 @@ static int16_t parser_end(frame_parser_t *p)
     bool truncated = (p->block_left != 0u);
     bool short_frame = (p->len < 4u);
     bool crc_ok = (p->crc == 0u);   /* CRC over data + its own CRC (high first) leaves 0 */
+    int16_t expected_len = short_frame ? -1 : proto_payload_len(p->buf[0]);
+    bool len_ok = (expected_len < 0) || ((uint16_t)expected_len + 4u == p->len);
     parser_restart(p);
     if (empty || skipped) {
         return FRAME_NONE;
@@ -154,6 +156,11 @@ static int16_t parser_end(frame_parser_t *p)
     }
     if (!crc_ok) {
         return parser_error(p, FRAME_ERR_CRC);
+    }
+    if (!len_ok) {
+        /* CRC-16/CCITT-FALSE cannot see 0x00 octets appended after the CRC (the residue stays 0),
+         * which a delimiter flipped to 0x01 produces: the known payload length catches that. */
+        return parser_error(p, FRAME_ERR_LEN);
     }
     return FRAME_OK;
 }

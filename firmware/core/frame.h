@@ -20,7 +20,8 @@
 #define FRAME_OK 1            /* a good frame: msg_id, seq, payload, payload_len are valid */
 #define FRAME_ERR_CRC (-1)    /* CRC mismatch */
 #define FRAME_ERR_COBS (-2)   /* the frame ended inside a COBS block */
-#define FRAME_ERR_LEN (-3)    /* more than FRAME_MAX_RAW decoded octets: skipped up to the next 0x00 */
+#define FRAME_ERR_LEN (-3)    /* over FRAME_MAX_RAW octets (skipped up to the next 0x00), or a known
+                               * message id with a payload length other than PROTO_LEN_x */
 #define FRAME_ERR_SHORT (-4)  /* fewer than 4 decoded octets (id, seq, crc) */
 
 /* CRC-16/CCITT-FALSE of n octets (check value: "123456789" -> 0x29B1). */
@@ -58,7 +59,8 @@ void frame_parser_init(frame_parser_t *p);
 
 /* Feeds one octet; returns FRAME_NONE, FRAME_OK or a FRAME_ERR_x (< 0). A frame is judged when its
  * 0x00 delimiter arrives (an overflow as soon as it happens); after any error the parser
- * resynchronises at the next 0x00. */
+ * resynchronises at the next 0x00. FRAME_OK means: COBS and CRC good and, for a message id the
+ * protocol knows, payload_len == PROTO_LEN_x (unknown ids pass, for the dispatcher to refuse). */
 int16_t frame_parser_push(frame_parser_t *p, uint16_t octet);
 
 /* sizeof(frame_parser_t), for callers that hold the parser as opaque memory (ctypes). */

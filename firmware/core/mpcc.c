@@ -37,6 +37,8 @@ void mpcc_cfg_default(mpcc_cfg_t *cfg)
     cfg->cand_set = MPCC_CAND_ALL8;
     cfg->dt_model = MPCC_DT_SWITCHING;
     cfg->delay_comp = MPCC_DELAY_COMP_ON;
+    cfg->k_int_rad_s = MPCC_K_INT_DEFAULT_RAD_S;
+    cfg->int_max_a = MPCC_INT_MAX_DEFAULT_A;
 }
 
 void mpcc_init(mpcc_t *m, const mpcc_cfg_t *cfg)
@@ -63,6 +65,12 @@ void mpcc_init(mpcc_t *m, const mpcc_cfg_t *cfg)
     if (m->cfg.delay_comp != MPCC_DELAY_COMP_OFF) {
         m->cfg.delay_comp = MPCC_DELAY_COMP_ON;
     }
+    if (!(m->cfg.k_int_rad_s > 0.0f) || !(m->cfg.k_int_rad_s * m->cfg.ts_s < 0.5f)) {
+        m->cfg.k_int_rad_s = 0.0f;
+    }
+    if (!(m->cfg.int_max_a >= 0.0f) || !(m->cfg.int_max_a < 1.0e6f)) {
+        m->cfg.int_max_a = 0.0f;
+    }
     m->l_d_cached_h = 0.0f;
     m->l_q_cached_h = 0.0f;
     m->inv_l_d = 0.0f;
@@ -74,6 +82,13 @@ void mpcc_reset(mpcc_t *m)
 {
     m->sw_prev = 0u;
     m->sw_prev2 = 0u;
+    m->int_d_a = 0.0f;
+    m->int_q_a = 0.0f;
+}
+
+static float clampf(float x, float lim)
+{
+    return (x > lim) ? lim : ((x < -lim) ? -lim : x);
 }
 
 static float sgn3(float x)
@@ -145,7 +160,7 @@ void mpcc_step(mpcc_t *m, const mpcc_in_t *in, mpcc_out_t *out)
     float gd[3], gq[3];
     uint16_t x, n, n_cand, best, best_ch;
     uint16_t cand[8];
-    float best_j, best_ed, best_eq;
+    float best_j, best_ed, best_eq, ref_d, ref_q;
 
     /* ---- predictor gains (reciprocals cached: no division unless the parameters change) */
     if (!(in->l_d_h > MPCC_L_MIN_H) || !(in->l_q_h > MPCC_L_MIN_H) || !(in->v_dc_v >= 0.0f)) {
@@ -243,9 +258,23 @@ void mpcc_step(mpcc_t *m, const mpcc_in_t *in, mpcc_out_t *out)
     out->i_d_k1_a = i_d1;
     out->i_q_k1_a = i_q1;
 
+    /* ---- offset compensation: integrate the sampled error, shift the references */
+    if (m->cfg.k_int_rad_s > 0.0f) {
+        const float kt = m->cfg.k_int_rad_s * ts;
+        const float lim = m->cfg.int_max_a;
+        const float ed0 = clampf(in->i_d_ref_a - in->i_d_a, lim);
+        const float eq0 = clampf(in->i_q_ref_a - in->i_q_a, lim);
+        if (ed0 == ed0 && eq0 == eq0) {
+            m->int_d_a = clampf(m->int_d_a + kt * ed0, lim);
+            m->int_q_a = clampf(m->int_q_a + kt * eq0, lim);
+        }
+    }
+    ref_d = in->i_d_ref_a + m->int_d_a;
+    ref_q = in->i_q_ref_a + m->int_q_a;
+
     /* ---- step k+1 -> k+2, eq. (3) corrected: i2 = base + g u2(candidate) */
-    e_d = in->i_d_ref_a - (i_d1 + g_d * (-r * i_d1 + w * in->l_q_h * i_q1));
-    e_q = in->i_q_ref_a - (i_q1 + g_q * (-r * i_q1 - w * in->l_d_h * i_d1 - w * in->psi_f_wb));
+    e_d = ref_d - (i_d1 + g_d * (-r * i_d1 + w * in->l_q_h * i_q1));
+    e_q = ref_q - (i_q1 + g_q * (-r * i_q1 - w * in->l_d_h * i_d1 - w * in->psi_f_wb));
 
     /* per-leg unit pole voltage in dq at theta + 3wTs/2, scaled by Ts/L */
     for (x = 0u; x < 3u; x++) {
@@ -310,8 +339,8 @@ void mpcc_step(mpcc_t *m, const mpcc_in_t *in, mpcc_out_t *out)
     }
 
     out->cost = best_j;
-    out->i_d_k2_a = in->i_d_ref_a - best_ed;
-    out->i_q_k2_a = in->i_q_ref_a - best_eq;
+    out->i_d_k2_a = ref_d - best_ed;
+    out->i_q_k2_a = ref_q - best_eq;
     m->sw_prev2 = m->sw_prev;
     m->sw_prev = best;
     out->s_abc_next = best;

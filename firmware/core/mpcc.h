@@ -36,6 +36,9 @@
 #define MPCC_DELAY_COMP_ON 0u
 #define MPCC_DELAY_COMP_OFF 1u
 
+#define MPCC_K_INT_DEFAULT_RAD_S 2000.0f
+#define MPCC_INT_MAX_DEFAULT_A 1.5f
+
 typedef struct {
     float ts_s;          /* control period */
     float rho;           /* q-axis weighting factor of the cost (paper A: 1) */
@@ -46,12 +49,18 @@ typedef struct {
     uint16_t cand_set;   /* MPCC_CAND_* (default ALL8) */
     uint16_t dt_model;   /* MPCC_DT_* (default SWITCHING) */
     uint16_t delay_comp; /* MPCC_DELAY_COMP_* (default ON) */
+    float k_int_rad_s;   /* offset compensation: bandwidth of an integrator on the sampled current
+                            error that shifts the references the cost sees (0: off = plain paper A).
+                            Removes the steady-state offset and the low-speed dead band of
+                            single-vector FCS; see docs/control.md */
+    float int_max_a;     /* clamp of that integrator (A) */
 } mpcc_cfg_t;
 
 typedef struct {
     mpcc_cfg_t cfg;
     uint16_t sw_prev;    /* state chosen by the previous call = applied during the current period */
     uint16_t sw_prev2;   /* state applied during the previous period (for the switching dead-time model) */
+    float int_d_a, int_q_a; /* offset-compensation integrators (reference shift, A) */
     /* cached reciprocals of the predictor inductances (recomputed when they change) */
     float l_d_cached_h, l_q_cached_h, inv_l_d, inv_l_q;
 } mpcc_t;

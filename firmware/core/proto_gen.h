@@ -92,22 +92,22 @@ bool proto_config_motor_unpack(proto_config_motor_t *m, const uint16_t *buf, uin
 #define PROTO_LEN_CONFIG_CTRL 52u
 typedef struct {
     float ts_s;                    /* f32 */
-    float rho;                     /* f32 */
-    float speed_kp_a_per_rad_s;    /* f32 */
+    float rho;                     /* f32; MPCC q-axis weighting factor */
+    float speed_kp_a_per_rad_s;    /* f32; speed PI on mechanical rad/s -> q current (A) */
     float speed_ki_a_per_rad;      /* f32 */
-    uint16_t speed_div;            /* u16 */
-    uint16_t current_ref;          /* u8 */
-    uint16_t current_ctrl;         /* u8 */
+    uint16_t speed_div;            /* u16; control periods per speed-loop period */
+    uint16_t current_ref;          /* u8; enum current_ref */
+    uint16_t current_ctrl;         /* u8; enum current_ctrl */
     float heartbeat_timeout_s;     /* f32 */
-    uint16_t fast_div;             /* u16 */
+    uint16_t fast_div;             /* u16; control periods per fast telemetry frame (0 = off) */
     uint16_t params_div;           /* u16 */
     uint16_t status_div;           /* u16 */
-    uint32_t enc_counts;           /* u32 */
-    float enc_offset_rad;          /* f32 */
-    float speed_obs_bw_rad_s;      /* f32 */
-    float dead_time_s;             /* f32 */
-    float v_drop_v;                /* f32 */
-    uint16_t capture_pre;          /* u16 */
+    uint32_t enc_counts;           /* u32; encoder counts per mechanical revolution */
+    float enc_offset_rad;          /* f32; electrical angle at count 0 */
+    float speed_obs_bw_rad_s;      /* f32; encoder speed observer bandwidth */
+    float dead_time_s;             /* f32; the firmware's nominal dead time (compensation) */
+    float v_drop_v;                /* f32; the firmware's nominal device drop */
+    uint16_t capture_pre;          /* u16; samples kept before a capture trigger */
 } proto_config_ctrl_t;
 uint16_t proto_config_ctrl_pack(const proto_config_ctrl_t *m, uint16_t *buf);
 bool proto_config_ctrl_unpack(proto_config_ctrl_t *m, const uint16_t *buf, uint16_t len);
@@ -128,9 +128,9 @@ typedef struct {
     uint16_t index;                /* u16 */
     float duration_s;              /* f32 */
     float speed_rpm;               /* f32 */
-    float ramp_rpm_s;              /* f32 */
+    float ramp_rpm_s;              /* f32; 0 = step */
     float load_nm;                 /* f32 */
-    uint16_t flags;                /* u16 */
+    uint16_t flags;                /* u16; bit0: capture trigger at segment start */
 } proto_profile_segment_t;
 uint16_t proto_profile_segment_pack(const proto_profile_segment_t *m, uint16_t *buf);
 bool proto_profile_segment_unpack(proto_profile_segment_t *m, const uint16_t *buf, uint16_t len);
@@ -186,7 +186,7 @@ bool proto_capture_read_unpack(proto_capture_read_t *m, const uint16_t *buf, uin
 typedef struct {
     uint16_t cmd_id;               /* u8 */
     uint16_t cmd_seq;              /* u8 */
-    uint16_t status;               /* u8 */
+    uint16_t status;               /* u8; enum ack_status */
 } proto_ack_t;
 uint16_t proto_ack_pack(const proto_ack_t *m, uint16_t *buf);
 bool proto_ack_unpack(proto_ack_t *m, const uint16_t *buf, uint16_t len);
@@ -200,7 +200,7 @@ typedef struct {
     uint16_t fw_major;             /* u8 */
     uint16_t fw_minor;             /* u8 */
     uint16_t fw_patch;             /* u8 */
-    uint16_t board;                /* u8 */
+    uint16_t board;                /* u8; 0 = emulator (sim board), 1 = F28335 */
     uint16_t tx_buf_octets;        /* u16 */
     uint16_t capture_len;          /* u16 */
 } proto_identify_t;
@@ -211,11 +211,11 @@ bool proto_identify_unpack(proto_identify_t *m, const uint16_t *buf, uint16_t le
 #define PROTO_ID_TELEM_FAST 0x90u
 #define PROTO_LEN_TELEM_FAST 28u
 typedef struct {
-    uint32_t tick;                 /* u32 */
+    uint32_t tick;                 /* u32; control periods since start; t_s = tick * ts_s */
     float speed_ref_rpm;           /* i16 x 0.1 on the wire, -3276.8 .. 3276.7 */
     float speed_rpm;               /* i16 x 0.1 on the wire, -3276.8 .. 3276.7 */
     float speed_est_rpm;           /* i16 x 0.1 on the wire, -3276.8 .. 3276.7 */
-    float theta_e_rad;             /* u16 x 9.587379924e-05 on the wire, 0 .. 6.28309 */
+    float theta_e_rad;             /* u16 x 9.587379924e-05 on the wire, 0 .. 6.28309; 2*pi/65536 */
     float theta_e_est_rad;         /* u16 x 9.587379924e-05 on the wire, 0 .. 6.28309 */
     float i_d_a;                   /* i16 x 0.002 on the wire, -65.536 .. 65.534 */
     float i_q_a;                   /* i16 x 0.002 on the wire, -65.536 .. 65.534 */
@@ -233,8 +233,8 @@ bool proto_telem_fast_unpack(proto_telem_fast_t *m, const uint16_t *buf, uint16_
 #define PROTO_LEN_PARAMS 22u
 typedef struct {
     uint32_t tick;                 /* u32 */
-    uint16_t estimator;            /* u8 */
-    uint16_t flags;                /* u8 */
+    uint16_t estimator;            /* u8; enum estimator */
+    uint16_t flags;                /* u8; bit0 excited, bit1 converged, bit2 feeds predictor */
     float l_d_h;                   /* f32 */
     float l_q_h;                   /* f32 */
     float psi_f_wb;                /* f32 */
@@ -248,15 +248,15 @@ bool proto_params_unpack(proto_params_t *m, const uint16_t *buf, uint16_t len);
 #define PROTO_LEN_STATUS 25u
 typedef struct {
     uint32_t tick;                 /* u32 */
-    uint16_t state;                /* u8 */
+    uint16_t state;                /* u8; enum state */
     uint16_t segment;              /* u16 */
-    uint16_t faults;               /* u16 */
+    uint16_t faults;               /* u16; enum fault bits */
     float v_dc_v;                  /* i16 x 0.1 on the wire, -3276.8 .. 3276.7 */
-    uint32_t tx_dropped;           /* u32 */
-    uint16_t rx_bad;               /* u16 */
+    uint32_t tx_dropped;           /* u32; frames dropped because the TX buffer was full */
+    uint16_t rx_bad;               /* u16; frames rejected (CRC, COBS, length) */
     uint32_t rx_frames;            /* u32 */
     uint16_t hb_age_ms;            /* u16 */
-    uint16_t capture_count;        /* u16 */
+    uint16_t capture_count;        /* u16; samples held in the capture buffer */
 } proto_status_t;
 uint16_t proto_status_pack(const proto_status_t *m, uint16_t *buf);
 bool proto_status_unpack(proto_status_t *m, const uint16_t *buf, uint16_t len);
@@ -266,7 +266,7 @@ bool proto_status_unpack(proto_status_t *m, const uint16_t *buf, uint16_t len);
 #define PROTO_LEN_EVENT 10u
 typedef struct {
     uint32_t tick;                 /* u32 */
-    uint16_t code;                 /* u16 */
+    uint16_t code;                 /* u16; enum event */
     int32_t arg;                   /* i32 */
 } proto_event_t;
 uint16_t proto_event_pack(const proto_event_t *m, uint16_t *buf);
@@ -278,11 +278,11 @@ bool proto_event_unpack(proto_event_t *m, const uint16_t *buf, uint16_t len);
 typedef struct {
     uint16_t offset;               /* u16 */
     uint16_t n_valid;              /* u8 */
-    uint32_t tick0;                /* u32 */
+    uint32_t tick0;                /* u32; tick of the buffer's first sample */
     float i_a_a[8];                /* i16[8] x 0.002 on the wire, -65.536 .. 65.534 */
     float i_b_a[8];                /* i16[8] x 0.002 on the wire, -65.536 .. 65.534 */
     float i_c_a[8];                /* i16[8] x 0.002 on the wire, -65.536 .. 65.534 */
-    uint16_t s_abc[8];             /* u8[8] */
+    uint16_t s_abc[8];             /* u8[8]; bit0 s_a, bit1 s_b, bit2 s_c */
     float v_dc_v[8];               /* i16[8] x 0.1 on the wire, -3276.8 .. 3276.7 */
     float theta_e_rad[8];          /* u16[8] x 9.587379924e-05 on the wire, 0 .. 6.28309 */
     float omega_e_rad_s[8];        /* i16[8] x 0.1 on the wire, -3276.8 .. 3276.7 */
@@ -304,7 +304,7 @@ typedef struct {
     float torque_nm;               /* f32 */
     float temp_winding_c;          /* f32 */
     float temp_magnet_c;           /* f32 */
-    uint32_t effects;              /* u32 */
+    uint32_t effects;              /* u32; bit mask of active rig effects */
 } proto_sim_truth_t;
 uint16_t proto_sim_truth_pack(const proto_sim_truth_t *m, uint16_t *buf);
 bool proto_sim_truth_unpack(proto_sim_truth_t *m, const uint16_t *buf, uint16_t len);

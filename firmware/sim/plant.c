@@ -25,29 +25,30 @@
 static const double EX[3] = {1.0, -0.5, -0.5};
 static const double EY[3] = {0.0, PL_SQRT3_2, -PL_SQRT3_2};
 
+#if defined(__GNUC__)
+#define PL_INLINE static inline __attribute__((always_inline))
+#else
+#define PL_INLINE static inline
+#endif
+
 enum { MODE_KNOWN = 0, MODE_ONE_BLOCKED = 1, MODE_ALL_BLOCKED = 3, MODE_UDQ = 4 };
 
 /* ------------------------------------------------------------------ small helpers */
 
-static inline double sigm(double x)
+PL_INLINE double sigm(double x)
 {
     double x2;
-    if (x >= 3.0) {
-        return 1.0;
-    }
-    if (x <= -3.0) {
-        return -1.0;
-    }
+    x = x > 3.0 ? 3.0 : (x < -3.0 ? -3.0 : x);   /* the rational is exactly +-1 at +-3 */
     x2 = x * x;
     return x * (27.0 + x2) / (27.0 + 9.0 * x2);
 }
 
 double plant_sigmoid(double x) { return sigm(x); }
 
-/* cos and sin of a small angle: Taylor to d^8 / d^9 (error < 3e-15 for |d| < 0.25), libm beyond. */
-static inline void rot_small(double d, double *cd, double *sd)
+/* cos and sin of a small angle: Taylor to d^8 / d^9 (error < 2e-15 for |d| < 0.15), libm beyond. */
+PL_INLINE void rot_small(double d, double *cd, double *sd)
 {
-    if (fabs(d) < 0.25) {
+    if (fabs(d) < 0.15) {
         const double d2 = d * d;
         *sd = d * (1.0 - d2 * (1.0 / 6.0) * (1.0 - d2 * (1.0 / 20.0) * (1.0 - d2 * (1.0 / 42.0) * (1.0 - d2 * (1.0 / 72.0)))));
         *cd = 1.0 - d2 * 0.5 * (1.0 - d2 * (1.0 / 12.0) * (1.0 - d2 * (1.0 / 30.0) * (1.0 - d2 * (1.0 / 56.0))));
@@ -82,7 +83,7 @@ static inline double wrap_2pi(double a)
  * Linear IPMSM now. Saturation (flux map with incremental inductances), cross-saturation, flux
  * harmonics (dpsi/dtheta) and cogging (t_extra) go here and nowhere else; the voltage equations in
  * deriv() already use the general form u = R i + L_inc di/dt + w_e (dpsi/dtheta - J psi). */
-static inline void mag_eval(const plant_t *p, double id, double iq, double c, double s, plant_mag_t *m)
+PL_INLINE void mag_eval(const plant_t *p, double id, double iq, double c, double s, plant_mag_t *m)
 {
     (void)c;
     (void)s;
@@ -97,7 +98,7 @@ static inline void mag_eval(const plant_t *p, double id, double iq, double c, do
     m->t_extra_nm = 0.0;
 }
 
-static inline double torque_of(const plant_t *p, double id, double iq, const plant_mag_t *m)
+PL_INLINE double torque_of(const plant_t *p, double id, double iq, const plant_mag_t *m)
 {
     return 1.5 * (double)p->cfg.pole_pairs * (m->psi_d_wb * iq - m->psi_q_wb * id) + m->t_extra_nm;
 }
@@ -116,36 +117,30 @@ double plant_torque(const plant_t *p, double i_d_a, double i_q_a, double theta_e
 
 /* ------------------------------------------------------------------ inverter distortion (effect seam) */
 
-static inline double leg_dist(const plant_t *p, double i, int transition)
+PL_INLINE double leg_dist(const plant_t *p, double i, int transition, double k_dt_v)
 {
-    double sg, v, kdt;
+    double sg, rise, fall;
     if (p->inv_i_dt <= 0.0) {
         return 0.0;
     }
     sg = sigm(i * p->inv_i_dt);
-    v = -p->cfg.v_drop_v * sg;
-    if (transition != 0 && p->cfg.dead_time_s > 0.0) {
-        kdt = p->v_dc_v * p->cfg.dead_time_s / p->cfg.ts_s;
-        if (transition == 1) {          /* 0 -> 1: upper switch delayed; i > 0 keeps the lower diode on */
-            v -= kdt * 0.5 * (1.0 + sg);
-        } else if (transition == -1) {  /* 1 -> 0: lower switch delayed; i < 0 keeps the upper diode on */
-            v += kdt * 0.5 * (1.0 - sg);
-        } else {                        /* both edges in the period */
-            v -= kdt * sg;
-        }
-    }
-    return v;
+    /* 0 -> 1: the upper switch turns on t_d late; meanwhile i > 0 keeps the lower diode on (volts lost).
+     * 1 -> 0: the lower switch turns on t_d late; meanwhile i < 0 keeps the upper diode on (volts gained).
+     * sigma replaces the ideal sign: small currents cannot swing the leg within the dead time. */
+    rise = (transition == 1 || transition == 2) ? 1.0 : 0.0;
+    fall = (transition == -1 || transition == 2) ? 1.0 : 0.0;
+    return -p->cfg.v_drop_v * sg - k_dt_v * (rise * 0.5 * (1.0 + sg) - fall * 0.5 * (1.0 - sg));
 }
 
 double plant_leg_distortion_v(const plant_t *p, double i_a, int transition)
 {
-    return leg_dist(p, i_a, transition);
+    return leg_dist(p, i_a, transition, p->v_dc_v * p->cfg.dead_time_s / p->cfg.ts_s);
 }
 
 /* ------------------------------------------------------------------ dynamics */
 
 typedef struct {
-    double c0, s0;      /* cos, sin theta_e at the period start */
+    double c0, s0;      /* cos, sin theta_e at the start of the sub-step (the angle reference of x.th) */
     double u1, u2;      /* known voltage: (alpha, beta) in the stationary frame, or (d, q) in MODE_UDQ */
     double t_load;
     double fric;        /* signed Coulomb torque opposing the motion (0 when stuck or frozen) */
@@ -154,7 +149,7 @@ typedef struct {
     double lam;         /* MODE_ONE_BLOCKED: multiplier of the last evaluation (v_x = 1.5 lam) */
 } ctx_t;
 
-/* state of one period: currents, speed, mechanical angle relative to the period start */
+/* state within a period: currents, speed, mechanical angle relative to the sub-step start */
 typedef struct {
     double id, iq, w, th;
 } xs_t;
@@ -163,15 +158,21 @@ typedef struct {
     double did, diq, dw, dth, ud, uq;
 } dx_t;
 
-static inline void deriv(const plant_t *p, ctx_t *k, const xs_t *x, dx_t *dx, int mode)
+PL_INLINE void deriv(const plant_t *p, ctx_t *k, const xs_t *x, dx_t *dx, int mode, int first)
 {
     const double pp = (double)p->cfg.pole_pairs;
-    double cd, sd, c, s, ud, uq, we, rd, rq, te;
+    double c, s, ud, uq, we, rd, rq, te;
     plant_mag_t m;
 
-    rot_small(pp * x->th, &cd, &sd);
-    c = k->c0 * cd - k->s0 * sd;
-    s = k->s0 * cd + k->c0 * sd;
+    if (first) {   /* the first RK4 stage sits at the sub-step start: x->th == 0 */
+        c = k->c0;
+        s = k->s0;
+    } else {
+        double cd, sd;
+        rot_small(pp * x->th, &cd, &sd);
+        c = k->c0 * cd - k->s0 * sd;
+        s = k->s0 * cd + k->c0 * sd;
+    }
     if (mode == MODE_UDQ) {
         ud = k->u1;
         uq = k->u2;
@@ -216,7 +217,7 @@ static inline void deriv(const plant_t *p, ctx_t *k, const xs_t *x, dx_t *dx, in
 }
 
 /* Coulomb friction for one sub-step (Karnopp): sticks at w = 0 while |T_e - T_load| <= T_c. */
-static inline void mech_mode(const plant_t *p, ctx_t *k, const xs_t *x)
+PL_INLINE void mech_mode(const plant_t *p, ctx_t *k, const xs_t *x)
 {
     const double tc = p->cfg.t_coulomb_nm;
     k->fric = 0.0;
@@ -243,7 +244,7 @@ static inline void mech_mode(const plant_t *p, ctx_t *k, const xs_t *x)
 }
 
 /* after a sub-step: dry friction stops a reversal at zero (breakaway is decided at the next sub-step) */
-static inline void mech_clamp(const ctx_t *k, xs_t *x)
+PL_INLINE void mech_clamp(const ctx_t *k, xs_t *x)
 {
     if (x->w * k->fric < 0.0) {
         x->w = 0.0;
@@ -251,28 +252,28 @@ static inline void mech_clamp(const ctx_t *k, xs_t *x)
 }
 
 /* classic RK4 over h; accumulates the integral of u_dq for the truth */
-static inline void rk4(const plant_t *p, ctx_t *k, xs_t *x, double h, int mode, double *aud, double *auq)
+PL_INLINE void rk4(const plant_t *p, ctx_t *k, xs_t *x, double h, int mode, double *aud, double *auq)
 {
     dx_t k1, k2, k3, k4;
     xs_t y;
     const double h2 = 0.5 * h, h6 = h * (1.0 / 6.0);
 
-    deriv(p, k, x, &k1, mode);
+    deriv(p, k, x, &k1, mode, 1);
     y.id = x->id + h2 * k1.did;
     y.iq = x->iq + h2 * k1.diq;
     y.w = x->w + h2 * k1.dw;
     y.th = x->th + h2 * k1.dth;
-    deriv(p, k, &y, &k2, mode);
+    deriv(p, k, &y, &k2, mode, 0);
     y.id = x->id + h2 * k2.did;
     y.iq = x->iq + h2 * k2.diq;
     y.w = x->w + h2 * k2.dw;
     y.th = x->th + h2 * k2.dth;
-    deriv(p, k, &y, &k3, mode);
+    deriv(p, k, &y, &k3, mode, 0);
     y.id = x->id + h * k3.did;
     y.iq = x->iq + h * k3.diq;
     y.w = x->w + h * k3.dw;
     y.th = x->th + h * k3.dth;
-    deriv(p, k, &y, &k4, mode);
+    deriv(p, k, &y, &k4, mode, 0);
     x->id += h6 * (k1.did + 2.0 * (k2.did + k3.did) + k4.did);
     x->iq += h6 * (k1.diq + 2.0 * (k2.diq + k3.diq) + k4.diq);
     x->w += h6 * (k1.dw + 2.0 * (k2.dw + k3.dw) + k4.dw);
@@ -281,27 +282,45 @@ static inline void rk4(const plant_t *p, ctx_t *k, xs_t *x, double h, int mode, 
     *auq += h6 * (k1.uq + 2.0 * (k2.uq + k3.uq) + k4.uq);
 }
 
-/* store the period's end state: angle wrap and the exact cos/sin of the new electrical angle */
-static void finish_period(plant_t *p, const xs_t *x, double aud, double auq)
+/* move the angle reference of the context to the end of the piece just integrated */
+static inline void advance_ref(const plant_t *p, ctx_t *k, xs_t *x, double *th_tot)
 {
-    double the;
+    double cd, sd, c;
+    rot_small((double)p->cfg.pole_pairs * x->th, &cd, &sd);
+    c = k->c0 * cd - k->s0 * sd;
+    k->s0 = k->s0 * cd + k->c0 * sd;
+    k->c0 = c;
+    *th_tot += x->th;
+    x->th = 0.0;
+}
+
+/* store the period's end state; cos/sin of the electrical angle are carried incrementally (renormalised)
+ * and recomputed from theta_m every 256 periods, which bounds their drift to ~1e-14 */
+static void finish_period(plant_t *p, const ctx_t *k, const xs_t *x, double th_tot, double aud, double auq)
+{
     p->i_d_a = x->id;
     p->i_q_a = x->iq;
     p->omega_m_rad_s = x->w;
-    p->theta_m_rad = wrap_2pi(p->theta_m_rad + x->th);
-    the = (double)p->cfg.pole_pairs * p->theta_m_rad;
-    p->cos_e = cos(the);
-    p->sin_e = sin(the);
+    p->theta_m_rad = wrap_2pi(p->theta_m_rad + th_tot);
+    p->n_periods++;
+    if ((p->n_periods & 255u) == 0u) {
+        const double the = (double)p->cfg.pole_pairs * p->theta_m_rad;
+        p->cos_e = cos(the);
+        p->sin_e = sin(the);
+    } else {
+        const double r = 1.5 - 0.5 * (k->c0 * k->c0 + k->s0 * k->s0);
+        p->cos_e = k->c0 * r;
+        p->sin_e = k->s0 * r;
+    }
     p->u_d_avg_v = aud / p->cfg.ts_s;
     p->u_q_avg_v = auq / p->cfg.ts_s;
-    p->n_periods++;
 }
 
 static void advance_on(plant_t *p, int mode, double u1, double u2, double t_load)
 {
     ctx_t k;
     xs_t x;
-    double aud = 0.0, auq = 0.0;
+    double aud = 0.0, auq = 0.0, th_tot = 0.0;
     const double h = p->h_s;
     int n;
 
@@ -324,14 +343,15 @@ static void advance_on(plant_t *p, int mode, double u1, double u2, double t_load
             rk4(p, &k, &x, h, MODE_KNOWN, &aud, &auq);
         }
         mech_clamp(&k, &x);
+        advance_ref(p, &k, &x, &th_tot);
     }
     p->load_nm = t_load;
-    finish_period(p, &x, aud, auq);
+    finish_period(p, &k, &x, th_tot, aud, auq);
 }
 
 /* ------------------------------------------------------------------ PWM off: diode bridge */
 
-static inline void phase_currents(double c, double s, double id, double iq, double i3[3])
+PL_INLINE void phase_currents(double c, double s, double id, double iq, double i3[3])
 {
     const double ial = c * id - s * iq, ibe = s * id + c * iq;
     i3[0] = ial;
@@ -339,7 +359,7 @@ static inline void phase_currents(double c, double s, double id, double iq, doub
     i3[2] = -0.5 * ial - PL_SQRT3_2 * ibe;
 }
 
-static inline void angle_at(const ctx_t *k, double pp, double th, double *c, double *s)
+PL_INLINE void angle_at(const ctx_t *k, double pp, double th, double *c, double *s)
 {
     double cd, sd;
     rot_small(pp * th, &cd, &sd);
@@ -413,7 +433,7 @@ static void diode_unblock(plant_t *p, ctx_t *k, const xs_t *x)
         return;
     }
     diode_voltage(p, &k->u1, &k->u2);
-    deriv(p, k, x, &d, mode);
+    deriv(p, k, x, &d, mode, 0);
     if (mode == MODE_ONE_BLOCKED) {
         const double vx = 1.5 * k->lam;
         if (vx > p->v_dc_v + vd) {
@@ -446,7 +466,7 @@ static void advance_off(plant_t *p, double t_load)
 {
     ctx_t k;
     xs_t x, x0;
-    double aud = 0.0, auq = 0.0;
+    double aud = 0.0, auq = 0.0, th_tot = 0.0;
     const double pp = (double)p->cfg.pole_pairs;
     int n;
 
@@ -523,6 +543,7 @@ static void advance_off(plant_t *p, double t_load)
                     }
                 }
                 mech_clamp(&k, &x);
+                advance_ref(p, &k, &x, &th_tot);
                 rem = 0.0;
                 break;
             }
@@ -534,18 +555,19 @@ static void advance_off(plant_t *p, double t_load)
                 mech_clamp(&k, &x);
             }
             block_phase(p, &k, &x, ev);
+            advance_ref(p, &k, &x, &th_tot);
             rem -= frac * rem;
         }
     }
     p->load_nm = t_load;
-    finish_period(p, &x, aud, auq);
+    finish_period(p, &k, &x, th_tot, aud, auq);
 }
 
 /* ------------------------------------------------------------------ sensors (effect seam) */
 
 /* one phase-current channel: true current -> + Gaussian noise -> ADC quantisation (mid-tread).
  * Offsets, gain errors, range clipping, filtering belong here. */
-static inline double sensor_current(plant_t *p, double i)
+PL_INLINE double sensor_current(plant_t *p, double i)
 {
     double v = i;
     if (p->cfg.i_noise_a > 0.0) {
@@ -559,7 +581,7 @@ static inline double sensor_current(plant_t *p, double i)
 }
 
 /* incremental encoder: floor of the mechanical angle (plus offset) in counts, wrapped to [0, N) */
-static inline uint32_t sensor_encoder(const plant_t *p)
+PL_INLINE uint32_t sensor_encoder(const plant_t *p)
 {
     double a = p->theta_m_rad + p->enc_off_w;
     uint32_t c;
@@ -669,13 +691,14 @@ void plant_sample(plant_t *p, fw_meas_t *m)
 /* switching or averaged PWM with leg duties d (for switch states d is 0 or 1) */
 static void step_legs(plant_t *p, const double d[3], bool pwm_on, bool carrier, double t_load)
 {
-    double i3[3], v[3];
+    double i3[3], v[3], k_dt_v;
     int n;
     if (!pwm_on) {
         advance_off(p, t_load);
         p->pwm_prev = false;
         return;
     }
+    k_dt_v = p->v_dc_v * p->cfg.dead_time_s / p->cfg.ts_s;
     phase_currents(p->cos_e, p->sin_e, p->i_d_a, p->i_q_a, i3);
     for (n = 0; n < 3; n++) {
         int tr = 0;
@@ -685,7 +708,7 @@ static void step_legs(plant_t *p, const double d[3], bool pwm_on, bool carrier, 
             const int sn = d[n] > 0.5, sp = p->s_prev[n] != 0;
             tr = sn - sp;
         }
-        v[n] = p->v_dc_v * d[n] + leg_dist(p, i3[n], tr);
+        v[n] = p->v_dc_v * d[n] + leg_dist(p, i3[n], tr, k_dt_v);
         p->s_prev[n] = (uint16_t)(d[n] > 0.5);
     }
     advance_on(p, MODE_KNOWN, (2.0 * v[0] - v[1] - v[2]) * (1.0 / 3.0), (v[1] - v[2]) * PL_INV_SQRT3, t_load);

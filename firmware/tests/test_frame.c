@@ -185,12 +185,19 @@ static void test_encode_limits(void)
     uint16_t out[2u * FRAME_MAX_ENCODED];
     uint16_t len;
     memset(payload, 0, sizeof payload);
-    len = frame_encode(0x90u, 0u, payload, PROTO_MAX_PAYLOAD, out, FRAME_MAX_ENCODED);
+    CHECK(proto_payload_len(0xFFu) == -1, "0xFF is not a message id");
+    len = frame_encode(0xFFu, 0u, payload, PROTO_MAX_PAYLOAD, out, FRAME_MAX_ENCODED);
     CHECK(len > 0u && len <= FRAME_MAX_ENCODED, "the longest payload fits in FRAME_MAX_ENCODED");
-    CHECK(frame_encode(0x90u, 0u, payload, PROTO_MAX_PAYLOAD + 1u, out, 2u * FRAME_MAX_ENCODED) == 0u,
+    CHECK(frame_encode(0xFFu, 0u, payload, PROTO_MAX_PAYLOAD + 1u, out, 2u * FRAME_MAX_ENCODED) == 0u,
           "a payload over PROTO_MAX_PAYLOAD is refused");
     frame_parser_init(&parser);
-    CHECK(push_all(&parser, out, len) == 1 && parser.payload_len == PROTO_MAX_PAYLOAD, "and parses back");
+    CHECK(push_all(&parser, out, len) == 1 && parser.payload_len == PROTO_MAX_PAYLOAD,
+          "an unknown id passes the framing, for the dispatcher to refuse");
+
+    /* a known id with the wrong payload length is a framing error */
+    len = frame_encode(PROTO_ID_TELEM_FAST, 0u, payload, PROTO_LEN_TELEM_FAST + 1u, out, FRAME_MAX_ENCODED);
+    frame_parser_init(&parser);
+    CHECK(push_all(&parser, out, len) == 0 && parser.err_len == 1u, "known id, wrong length: FRAME_ERR_LEN");
 }
 
 static void test_accessors(void)

@@ -1,0 +1,97 @@
+"""Emulator speed: device time per wall time, at Ts = 50 us, for the firmware core + sim board.
+
+Runs paper A's profile on the emulated device in this process (no host decoding: the octets the
+UART sends are produced and dropped), and, in the same run, gym-electric-motor's finite-control-set
+PMSM environment on the same motor and inverter (benchmarks/gem_fcs.py). Prints both as multiples
+of real time and their ratio.
+
+    python3 benchmarks/emulator_speed.py [--profile profiles/paper-a.yaml] [--rig FILE] [--repeat 3]
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from pmsm_hil.emulator.settings import emulator_settings  # noqa: E402
+from pmsm_hil.profiles import load_profile  # noqa: E402
+from pmsm_hil.protocol.session import Session  # noqa: E402
+from pmsm_hil.runner import configure  # noqa: E402
+from pmsm_hil.transport.inproc import InProcessTransport  # noqa: E402
+
+
+def emulator_realtime_factor(profile_path: str, rig: str | None = None, seed: int = 1) -> dict:
+    profile = load_profile(profile_path, rig_override=rig)
+    settings = emulator_settings(profile.motor, profile.rig, seed=seed, baud=profile.link.baud,
+                                 ts_s=profile.control.ts_s)
+    tr = InProcessTransport(settings)
+    s = Session(tr)
+    s.hello()
+    configure(s, profile)
+    s.request("start")
+    dev = tr.dev
+    ticks = 0
+    octets = 0
+    t0 = time.perf_counter()
+    while dev.active:
+        n, out = dev.run(4000)  # 0.2 s: within the heartbeat timeout
+        ticks += n
+        octets += len(out)
+        # keep the heartbeat alive the way the host would (no decoding)
+        s.send("heartbeat", counter=ticks)
+    wall = time.perf_counter() - t0
+    device_s = ticks * profile.control.ts_s
+    return {"device_s": device_s, "wall_s": wall, "ticks": ticks, "octets": octets,
+            "ns_per_period": wall / ticks * 1e9, "realtime_factor": device_s / wall,
+            "rig": rig or str(getattr(profile.rig, "path", "default"))}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--profile", default=str(ROOT / "profiles" / "paper-a.yaml"))
+    ap.add_argument("--rig", action="append", default=None,
+                    help="rig file(s) to measure (default: the profile's rig)")
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--gem-seconds", type=float, default=0.5,
+                    help="simulated seconds of gym-electric-motor per repeat")
+    ap.add_argument("--no-gem", action="store_true")
+    args = ap.parse_args()
+
+    rigs = args.rig or [None]
+    ours = {}
+    for rig in rigs:
+        best = None
+        for _ in range(args.repeat):
+            r = emulator_realtime_factor(args.profile, rig)
+            if best is None or r["realtime_factor"] > best["realtime_factor"]:
+                best = r
+        ours[rig] = best
+        print(f"pmsm-hil emulator  rig={best['rig']}: {best['device_s']:.2f} s device time in "
+              f"{best['wall_s']:.3f} s wall = {best['realtime_factor']:.0f}x real time "
+              f"({best['ns_per_period']:.0f} ns per 50 us period, best of {args.repeat})")
+    if args.no_gem:
+        return
+    try:
+        sys.path.insert(0, str(ROOT / "benchmarks"))
+        from gem_fcs import gem_realtime_factor
+    except ImportError as e:
+        print(f"gym-electric-motor not measured: {e} (pip install gym-electric-motor)")
+        return
+    best_gem = None
+    for _ in range(args.repeat):
+        g = gem_realtime_factor(sim_seconds=args.gem_seconds, tau=50e-6)
+        if best_gem is None or g["realtime_factor"] > best_gem["realtime_factor"]:
+            best_gem = g
+    print(f"gym-electric-motor {best_gem.get('env_id', '')}: {best_gem['steps_per_s']:.0f} steps/s "
+          f"= {best_gem['realtime_factor']:.2f}x real time (best of {args.repeat})")
+    for rig, r in ours.items():
+        print(f"ratio pmsm-hil/gym-electric-motor (rig={r['rig']}): "
+              f"{r['realtime_factor'] / best_gem['realtime_factor']:.0f}x")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,173 @@
+"""The command line as a user meets it: runs, bad input, bad links, Ctrl-C."""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+import tty
+
+import pytest
+
+from pmsm_hil.log.reader import read_log
+from pmsm_hil.protocol import codec
+from pmsm_hil.protocol import generated as gen
+
+CLI = [sys.executable, "-m", "pmsm_hil.cli.main"]
+
+
+def cli(*args, timeout=180, **kw):
+    return subprocess.run([*CLI, *map(str, args)], capture_output=True, text=True, timeout=timeout,
+                          **kw)
+
+
+def test_run_on_the_emulator_writes_a_log_and_a_summary(data, tmp_path):
+    out = tmp_path / "short.mcap"
+    r = cli("run", data / "short.yaml", "--out", out, "--no-live")
+    assert r.returncode == 0, r.stderr
+    assert f"log: {out}" in r.stdout
+    assert "run summary" in r.stdout
+    assert "all plateaus within bounds" in r.stdout
+    log = read_log(out)
+    assert len(log.topic("/pmsm/telemetry")["t_s"]) > 5000
+    a = cli("analyze", out)
+    assert a.returncode == 0 and "load on" in a.stdout
+
+
+def test_bad_profile_names_file_line_field(tmp_path, root):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(f"name: bad\nmotor: {root}/profiles/motors/paper-a-ipmsm.yaml\nsegments:\n"
+                   "  - {duration_s: 1.0, speed_rpm: 9000, load_nm: 0}\n")
+    r = cli("run", bad, "--no-live")
+    assert r.returncode == 2
+    assert "Traceback" not in r.stderr
+    assert "bad.yaml:4" in r.stderr and "speed_rpm" in r.stderr and "9000" in r.stderr
+
+
+def test_missing_profile_file(tmp_path):
+    r = cli("run", tmp_path / "nope.yaml", "--no-live")
+    assert r.returncode == 2
+    assert "nope.yaml" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_port_that_does_not_exist(data):
+    r = cli("run", data / "short.yaml", "--port", "/dev/ttyNOPE0", "--no-live")
+    assert r.returncode == 3
+    assert "/dev/ttyNOPE0 does not exist" in r.stderr
+    assert "Traceback" not in r.stderr
+
+
+def _pty():
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    return master, slave, os.ttyname(slave)
+
+
+def test_device_that_does_not_answer(data):
+    master, slave, path = _pty()
+    try:
+        r = cli("run", data / "short.yaml", "--port", path, "--no-live", timeout=60)
+    finally:
+        os.close(master)
+        os.close(slave)
+    assert r.returncode == 3
+    assert "no answer to hello" in r.stderr and path in r.stderr
+    assert "Traceback" not in r.stderr
+
+
+def test_protocol_mismatch_is_refused_naming_both_versions(data):
+    master, slave, path = _pty()
+    stop = threading.Event()
+
+    def fake_device():
+        dec = codec.FrameDecoder()
+        while not stop.is_set():
+            try:
+                chunk = os.read(master, 4096)
+            except OSError:
+                return
+            for fr in dec.feed(chunk):
+                if fr.name == "hello":
+                    os.write(master, codec.encode(
+                        "identify", 0, proto_version=gen.PROTOCOL_VERSION + 1,
+                        schema_hash=0x12345678, fw_major=9, fw_minor=0, fw_patch=0, board=1,
+                        tx_buf_octets=1024, capture_len=1024))
+
+    th = threading.Thread(target=fake_device, daemon=True)
+    th.start()
+    try:
+        r = cli("run", data / "short.yaml", "--port", path, "--no-live", timeout=60)
+    finally:
+        stop.set()
+        os.close(slave)
+        os.close(master)
+    assert r.returncode == 3
+    assert "protocol mismatch" in r.stderr
+    assert f"version {gen.PROTOCOL_VERSION + 1}" in r.stderr and "12345678" in r.stderr
+    assert f"version {gen.PROTOCOL_VERSION}" in r.stderr and f"{gen.SCHEMA_HASH:08x}" in r.stderr
+
+
+def test_ctrl_c_stops_the_motor_and_keeps_the_log(data, tmp_path):
+    out = tmp_path / "int.mcap"
+    p = subprocess.Popen([*CLI, "run", str(data / "long.yaml"), "--out", str(out), "--no-live"],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # wait until the run streams (progress lines), then interrupt
+    deadline = time.monotonic() + 60
+    seen = ""
+    while time.monotonic() < deadline:
+        line = p.stdout.readline()
+        seen += line
+        if line.startswith("t=") and "running" in line:
+            break
+    time.sleep(0.5)
+    p.send_signal(signal.SIGINT)
+    stdout, stderr = p.communicate(timeout=60)
+    assert p.returncode == 130, stderr
+    assert "Traceback" not in stderr
+    log = read_log(out)
+    kinds = list(log.topic("/pmsm/events")["kind"])
+    texts = list(log.topic("/pmsm/events")["text"])
+    assert "stopped" in kinds
+    assert any("host stop" in t for t in texts)
+    tel = log.topic("/pmsm/telemetry")
+    assert abs(tel["speed_rpm"][-1]) < 5.0
+
+
+def test_emulate_serves_a_pty_that_run_uses_like_a_rig(data, tmp_path):
+    emu = subprocess.Popen([*CLI, "emulate", "--seed", "3"], stdout=subprocess.PIPE,
+                           stderr=subprocess.PIPE, text=True)
+    try:
+        line = emu.stdout.readline()
+        assert line.startswith("serial: /dev/"), line
+        port = line.split()[1]
+        out = tmp_path / "rig.mcap"
+        r = cli("run", data / "short.yaml", "--port", port, "--out", out, "--no-live")
+        assert r.returncode == 0, r.stderr
+        assert read_log(out).metadata["device"]["board"] == "emulator"
+    finally:
+        emu.send_signal(signal.SIGTERM)
+        emu.wait(timeout=10)
+    assert emu.returncode == 0
+
+
+def test_corrupted_link_is_counted_dropped_and_resynchronised(data, tmp_path):
+    from pmsm_hil.profiles import load_profile
+    from pmsm_hil.protocol.session import Session
+    from pmsm_hil.runner import RunOptions, run_profile
+    from pmsm_hil.transport.emulator import EmulatorTransport
+
+    profile = load_profile(str(data / "short.yaml"))
+    tr = EmulatorTransport(str(profile.motor.path), str(profile.rig.path), seed=1, baud=921600,
+                           corrupt_ppm=300)
+    try:
+        result = run_profile(profile, Session(tr), tmp_path / "noisy.mcap", RunOptions())
+    finally:
+        tr.close()
+    assert result.state == "done" and result.faults == 0
+    assert result.live.bad_frames > 0
+    tel = read_log(tmp_path / "noisy.mcap").topic("/pmsm/telemetry")
+    # most frames made it, and the ones that did are intact (t_s on the 0.5 ms grid)
+    assert len(tel["t_s"]) > 0.9 * profile.total_duration_s * 2000
+    assert pytest.approx(0.0, abs=1e-9) == float(max(abs((tel["t_s"] * 2000) - (tel["t_s"] * 2000).round())))
