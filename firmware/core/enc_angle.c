@@ -1,4 +1,7 @@
-/* Encoder angle and speed observer. See enc_angle.h and docs/control.md. */
+/* Encoder angle and speed observer. See enc_angle.h and docs/control.md.
+ * C28x note: the F28335 has no 32-bit integer divider (a % is a ~100-cycle library call) and
+ * floorf is a library call too, so the per-period path uses neither: counts arrive in range,
+ * modulo reductions are conditional subtractions bounded by the pole-pair count. */
 #include "enc_angle.h"
 
 #include <math.h>
@@ -23,6 +26,7 @@ void enc_init(enc_t *e, const enc_cfg_t *cfg)
     if (!(e->cfg.ts_s > 0.0f)) {
         e->cfg.ts_s = 50.0e-6f;
     }
+    e->cfg.offset_rad = (e->cfg.offset_rad == e->cfg.offset_rad) ? tf_wrap_2pi(e->cfg.offset_rad) : 0.0f;
     bw = e->cfg.bw_rad_s;
     if (!(bw > 0.0f)) {
         bw = ENC_BW_DEFAULT_RAD_S;
@@ -37,6 +41,8 @@ void enc_init(enc_t *e, const enc_cfg_t *cfg)
     e->k1_ts = k1 * e->cfg.ts_s;
     e->k2_ts = k2 * e->cfg.ts_s;
     e->rad_per_count = FW_TWO_PI_F / (float)e->cfg.counts;
+    /* exact integer electrical position needs counts * pole_pairs to fit 32 bits */
+    e->int_elec = (e->cfg.counts <= 0xFFFFFFFFu / (uint32_t)e->cfg.pole_pairs);
     enc_reset(e, 0u);
 }
 
@@ -47,55 +53,85 @@ void enc_reset(enc_t *e, uint32_t count)
     e->w_cps = 0.0f;
 }
 
+/* (c * p) mod n for c < n without a division: at most p - 1 subtractions. */
+static uint32_t mul_mod(uint32_t c, uint32_t p, uint32_t n)
+{
+    uint32_t x = c * p;
+    while (x >= n) {
+        x -= n;
+    }
+    return x;
+}
+
+/* x in [0, 4 pi) -> [0, 2 pi) */
+static float wrap_once(float x)
+{
+    if (x >= FW_TWO_PI_F) {
+        x -= FW_TWO_PI_F;
+    }
+    if (x >= FW_TWO_PI_F || x < 0.0f) {
+        x = tf_wrap_2pi(x);   /* rounding corner: the general (library) wrap */
+    }
+    return x;
+}
+
 /* Move the observer's integer part by the whole counts in f_obs, leaving f_obs in [0, 1). */
 static void carry(enc_t *e)
 {
     const uint32_t n = e->cfg.counts;
-    float fl;
     int32_t k;
     if (e->f_obs >= 0.0f && e->f_obs < 1.0f) {
         return;
     }
-    fl = floorf(e->f_obs);
-    if (!(fl > -2.0e9f && fl < 2.0e9f)) {   /* absurd (or NaN) state: restart at the integer part */
+    if (!(e->f_obs > -1.0e9f && e->f_obs < 1.0e9f)) {   /* absurd (or NaN) state: restart here */
         e->f_obs = 0.0f;
         e->w_cps = 0.0f;
         return;
     }
-    k = (int32_t)fl;
-    e->f_obs -= fl;
-    if (e->f_obs >= 1.0f) {   /* rounding */
-        e->f_obs = 0.0f;
+    k = (int32_t)e->f_obs;             /* truncation toward zero */
+    if ((float)k > e->f_obs) {
+        k--;                           /* floor */
+    }
+    e->f_obs -= (float)k;
+    if (e->f_obs >= 1.0f) {            /* rounding */
+        e->f_obs -= 1.0f;
         k++;
     }
-    k %= (int32_t)n;
-    if (k < 0) {
-        k += (int32_t)n;
+    if (e->f_obs < 0.0f) {
+        e->f_obs = 0.0f;
     }
-    e->n_obs = (e->n_obs + (uint32_t)k) % n;
+    if (k >= (int32_t)n || k <= -(int32_t)n) {
+        k %= (int32_t)n;               /* more than a turn per period: not a real speed */
+    }
+    if (k < 0) {
+        const uint32_t d = (uint32_t)(-k);
+        e->n_obs = (e->n_obs >= d) ? (e->n_obs - d) : (e->n_obs + n - d);
+    } else {
+        const uint32_t d = (uint32_t)k;
+        e->n_obs = (e->n_obs >= n - d) ? (e->n_obs - (n - d)) : (e->n_obs + d);
+    }
 }
 
 void enc_step(enc_t *e, uint32_t count, enc_out_t *out)
 {
     const uint32_t n = e->cfg.counts;
     const uint32_t p = e->cfg.pole_pairs;
-    const uint32_t c = count % n;
+    const uint32_t c = (count < n) ? count : (count % n);
     uint32_t diff;
-    float err, theta_obs_counts;
+    float err, obs_counts;
 
     /* raw-count angles */
     out->theta_m_rad = (float)c * e->rad_per_count;
-    if (n <= 0xFFFFFFFFu / p) {
-        const uint32_t ce = (c * p) % n;   /* electrical position in counts, exact */
-        out->theta_e_rad = tf_wrap_2pi((float)ce * e->rad_per_count + e->cfg.offset_rad);
+    if (e->int_elec) {
+        out->theta_e_rad = wrap_once((float)mul_mod(c, p, n) * e->rad_per_count + e->cfg.offset_rad);
     } else {
         out->theta_e_rad = tf_wrap_2pi((float)p * out->theta_m_rad + e->cfg.offset_rad);
     }
 
-    /* observer: predict, innovation (wrapped), correct */
+    /* observer: predict, innovation (wrapped to +-n/2), correct */
     e->f_obs += e->cfg.ts_s * e->w_cps;
     carry(e);
-    diff = (c + n - e->n_obs) % n;   /* [0, n) */
+    diff = (c >= e->n_obs) ? (c - e->n_obs) : (c + (n - e->n_obs));   /* [0, n) */
     if (diff > n / 2u) {
         err = -(float)(n - diff) - e->f_obs;
     } else {
@@ -109,10 +145,11 @@ void enc_step(enc_t *e, uint32_t count, enc_out_t *out)
     out->omega_m_rad_s = e->w_cps * e->rad_per_count;
     out->omega_e_rad_s = (float)e->cfg.pole_pairs * out->omega_m_rad_s;
     out->speed_rpm = out->omega_m_rad_s * ENC_RPM_PER_RAD_S;
-    if (n <= 0xFFFFFFFFu / p) {
-        theta_obs_counts = (float)((e->n_obs * p) % n) + e->f_obs * (float)e->cfg.pole_pairs;
+    if (e->int_elec) {
+        obs_counts = (float)mul_mod(e->n_obs, p, n) + e->f_obs * (float)e->cfg.pole_pairs;
+        out->theta_e_obs_rad = wrap_once(obs_counts * e->rad_per_count + e->cfg.offset_rad);
     } else {
-        theta_obs_counts = ((float)e->n_obs + e->f_obs) * (float)e->cfg.pole_pairs;
+        obs_counts = ((float)e->n_obs + e->f_obs) * (float)e->cfg.pole_pairs;
+        out->theta_e_obs_rad = tf_wrap_2pi(obs_counts * e->rad_per_count + e->cfg.offset_rad);
     }
-    out->theta_e_obs_rad = tf_wrap_2pi(theta_obs_counts * e->rad_per_count + e->cfg.offset_rad);
 }

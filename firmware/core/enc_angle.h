@@ -13,6 +13,7 @@
 #define ENC_ANGLE_H
 
 #include <stdint.h>
+#include <stdbool.h>
 #include "fw_types.h"
 
 #define ENC_ZETA_F 0.70710678f
@@ -45,6 +46,7 @@ typedef struct {
     uint32_t n_obs;         /* observer angle, integer counts, 0 .. counts-1 */
     float f_obs;            /* observer angle, fractional counts, [0, 1) */
     float w_cps;            /* observer speed, counts/s */
+    bool int_elec;          /* counts * pole_pairs fits 32 bits: exact integer electrical angle */
 } enc_t;
 
 void enc_init(enc_t *e, const enc_cfg_t *cfg);

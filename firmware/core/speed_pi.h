@@ -1,7 +1,7 @@
 /* Speed PI controller (C28x-safe), run at the speed-loop rate (1 kHz by default).
  * Input: mechanical speed in rad/s. Output: the stator current magnitude command i_s (A), signed
  * (+ = motoring forward), clamped to +-out_max_a.
- *   i_s = kp e + I,   I += ki ts e   (e = ref - meas)
+ *   i_s = kp (b ref - meas) + I,   I += ki ts e   (e = ref - meas, set-point weight b = 1 by default)
  * Anti-windup: conditional integration (clamping). The integrator is not advanced when the
  * output is saturated and the error would push it further into saturation, and the integrator
  * itself is held within +-out_max_a. See docs/control.md. */
@@ -20,6 +20,8 @@ typedef struct {
 
 typedef struct {
     speed_pi_cfg_t cfg;
+    float ref_weight;       /* set-point weight b of the P term, kp (b ref - meas); 1 after init
+                               (plain PI), see speed_pi_set_ref_weight */
     float integ_a;          /* integrator state (A) */
     float out_a;            /* last output (A) */
     bool saturated;         /* last output was clamped */
@@ -27,8 +29,14 @@ typedef struct {
 
 void speed_pi_init(speed_pi_t *p, const speed_pi_cfg_t *cfg);
 float speed_pi_step(speed_pi_t *p, float ref_rad_s, float meas_rad_s);
-/* Preload the integrator (bumpless start from a known current, e.g. 0). */
+/* Preload the integrator with out0_a (clamped): bumpless when the P term is zero, i.e. with
+ * b = 1 and ref = meas, or at standstill with ref = 0 (the usual start). */
 void speed_pi_reset(speed_pi_t *p, float out0_a);
+/* Bumpless preset for any b: the next output is out0_a for these ref and meas. */
+void speed_pi_preset(speed_pi_t *p, float out0_a, float ref_rad_s, float meas_rad_s);
+/* Two-degree-of-freedom PI: the P term acts on b ref - meas (0 <= b <= 1). b < 1 lowers the
+ * overshoot to reference steps; the load-disturbance response is unchanged. Default 1. */
+void speed_pi_set_ref_weight(speed_pi_t *p, float b);
 /* Change the clamp at run time (e.g. a derated current limit). */
 void speed_pi_set_limit(speed_pi_t *p, float out_max_a);
 

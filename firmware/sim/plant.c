@@ -38,7 +38,8 @@ enum { MODE_KNOWN = 0, MODE_ONE_BLOCKED = 1, MODE_ALL_BLOCKED = 3, MODE_UDQ = 4 
 PL_INLINE double sigm(double x)
 {
     double x2;
-    x = x > 3.0 ? 3.0 : (x < -3.0 ? -3.0 : x);   /* the rational is exactly +-1 at +-3 */
+    x = x < 3.0 ? x : 3.0;    /* branch-free clamp (minsd/maxsd); the rational is exactly +-1 at +-3 */
+    x = x > -3.0 ? x : -3.0;
     x2 = x * x;
     return x * (27.0 + x2) / (27.0 + 9.0 * x2);
 }
@@ -117,30 +118,30 @@ double plant_torque(const plant_t *p, double i_d_a, double i_q_a, double theta_e
 
 /* ------------------------------------------------------------------ inverter distortion (effect seam) */
 
-PL_INLINE double leg_dist(const plant_t *p, double i, int transition, double k_dt_v)
+PL_INLINE double leg_dist(const plant_t *p, double i, double rise, double fall, double k_dt_v)
 {
-    double sg, rise, fall;
+    double sg;
     if (p->inv_i_dt <= 0.0) {
         return 0.0;
     }
     sg = sigm(i * p->inv_i_dt);
-    /* 0 -> 1: the upper switch turns on t_d late; meanwhile i > 0 keeps the lower diode on (volts lost).
-     * 1 -> 0: the lower switch turns on t_d late; meanwhile i < 0 keeps the upper diode on (volts gained).
-     * sigma replaces the ideal sign: small currents cannot swing the leg within the dead time. */
-    rise = (transition == 1 || transition == 2) ? 1.0 : 0.0;
-    fall = (transition == -1 || transition == 2) ? 1.0 : 0.0;
+    /* rise (0 -> 1): the upper switch turns on t_d late; meanwhile i > 0 keeps the lower diode on (volts lost).
+     * fall (1 -> 0): the lower switch turns on t_d late; meanwhile i < 0 keeps the upper diode on (volts gained).
+     * sigma replaces the ideal sign: a small current cannot swing the leg within the dead time. */
     return -p->cfg.v_drop_v * sg - k_dt_v * (rise * 0.5 * (1.0 + sg) - fall * 0.5 * (1.0 - sg));
 }
 
 double plant_leg_distortion_v(const plant_t *p, double i_a, int transition)
 {
-    return leg_dist(p, i_a, transition, p->v_dc_v * p->cfg.dead_time_s / p->cfg.ts_s);
+    const double rise = (transition == 1 || transition == 2) ? 1.0 : 0.0;
+    const double fall = (transition == -1 || transition == 2) ? 1.0 : 0.0;
+    return leg_dist(p, i_a, rise, fall, p->v_dc_v * p->cfg.dead_time_s / p->cfg.ts_s);
 }
 
 /* ------------------------------------------------------------------ dynamics */
 
 typedef struct {
-    double c0, s0;      /* cos, sin theta_e at the start of the sub-step (the angle reference of x.th) */
+    double c0, s0;      /* cos, sin theta_e at the start of the current sub-step (the angle reference) */
     double u1, u2;      /* known voltage: (alpha, beta) in the stationary frame, or (d, q) in MODE_UDQ */
     double t_load;
     double fric;        /* signed Coulomb torque opposing the motion (0 when stuck or frozen) */
@@ -149,7 +150,8 @@ typedef struct {
     double lam;         /* MODE_ONE_BLOCKED: multiplier of the last evaluation (v_x = 1.5 lam) */
 } ctx_t;
 
-/* state within a period: currents, speed, mechanical angle relative to the sub-step start */
+/* state within a period: currents, speed, and the mechanical angle relative to the sub-step start
+ * (0 between sub-steps: rk4() moves the context's angle reference c0, s0 forward instead) */
 typedef struct {
     double id, iq, w, th;
 } xs_t;
@@ -158,35 +160,42 @@ typedef struct {
     double did, diq, dw, dth, ud, uq;
 } dx_t;
 
-PL_INLINE void deriv(const plant_t *p, ctx_t *k, const xs_t *x, dx_t *dx, int mode, int first)
+/* angle of an RK4 stage: cos, sin of theta_e at the mechanical angle th (relative to the sub-step
+ * start), from the start speed; each stage corrects it by its own small deviation */
+typedef struct {
+    double c, s, th;
+} base_t;
+
+PL_INLINE void deriv(const plant_t *p, ctx_t *k, const xs_t *x, dx_t *dx, int mode, const base_t *b, int first)
 {
     const double pp = (double)p->cfg.pole_pairs;
     double c, s, ud, uq, we, rd, rq, te;
     plant_mag_t m;
 
-    if (first) {   /* the first RK4 stage sits at the sub-step start: x->th == 0 */
-        c = k->c0;
-        s = k->s0;
-    } else {
-        double cd, sd;
-        rot_small(pp * x->th, &cd, &sd);
-        c = k->c0 * cd - k->s0 * sd;
-        s = k->s0 * cd + k->c0 * sd;
+    if (first) {   /* the first stage sits at the sub-step start */
+        c = b->c;
+        s = b->s;
+    } else {       /* e = p (th - th_base) ~ p h^2 dw/dt / 4 is tiny: second order is exact to 1e-16 */
+        const double e = pp * (x->th - b->th);
+        c = b->c - e * (b->s + 0.5 * e * b->c);
+        s = b->s + e * (b->c - 0.5 * e * b->s);
     }
     if (mode == MODE_UDQ) {
         ud = k->u1;
         uq = k->u2;
-    } else {
+    } else {       /* stationary-frame voltage seen in the rotor frame */
         ud = c * k->u1 + s * k->u2;
         uq = -s * k->u1 + c * k->u2;
     }
     mag_eval(p, x->id, x->iq, c, s, &m);
     we = pp * x->w;
+    /* L_inc di/dt = u - R i + w_e (J psi - dpsi/dtheta),  J psi = (psi_q, -psi_d) */
     rd = ud - p->r_s_ohm * x->id + we * (m.psi_q_wb - m.dpsi_d_dth_wb);
     rq = uq - p->r_s_ohm * x->iq - we * (m.psi_d_wb + m.dpsi_q_dth_wb);
     if (mode == MODE_ONE_BLOCKED) {
-        /* open phase x: its terminal floats so that d(i_x)/dt = 0, i_x = g . i_dq with g = R(-theta) e_x;
-         * the floating terminal adds lam * g to u_dq (lam = 2/3 v_x). */
+        /* open phase x: its terminal floats so that d(i_x)/dt = 0, where i_x = g . i_dq with
+         * g = R(-theta_e) e_x, so d(i_x)/dt = g . (di/dt + w_e J' i), J' i = (-i_q, i_d);
+         * the floating terminal adds lam * g to u_dq (lam = 2/3 of its voltage). */
         const double ex = EX[k->blocked], ey = EY[k->blocked];
         const double gd = c * ex + s * ey, gq = -s * ex + c * ey;
         const double ggd = m.g_dd * gd + m.g_qd * gq, ggq = m.g_dq * gd + m.g_qq * gq; /* G^T g */
@@ -203,7 +212,7 @@ PL_INLINE void deriv(const plant_t *p, ctx_t *k, const xs_t *x, dx_t *dx, int mo
     if (mode == MODE_ALL_BLOCKED) {
         dx->did = 0.0;
         dx->diq = 0.0;
-        ud -= rd;   /* the terminals float: the motor sees its own back-EMF */
+        ud -= rd;   /* the terminals float: the motor's terminals show its own back-EMF */
         uq -= rq;
     } else {
         dx->did = m.g_dd * rd + m.g_dq * rq;
@@ -230,10 +239,9 @@ PL_INLINE void mech_mode(const plant_t *p, ctx_t *k, const xs_t *x)
     } else if (x->w < 0.0) {
         k->fric = -tc;
     } else {
-        double cd, sd, td;
+        double td;
         plant_mag_t m;
-        rot_small((double)p->cfg.pole_pairs * x->th, &cd, &sd);
-        mag_eval(p, x->id, x->iq, k->c0 * cd - k->s0 * sd, k->s0 * cd + k->c0 * sd, &m);
+        mag_eval(p, x->id, x->iq, k->c0, k->s0, &m);
         td = torque_of(p, x->id, x->iq, &m) - k->t_load;
         if (fabs(td) <= tc) {
             k->frozen = 1;
@@ -251,51 +259,66 @@ PL_INLINE void mech_clamp(const ctx_t *k, xs_t *x)
     }
 }
 
-/* classic RK4 over h; accumulates the integral of u_dq for the truth */
-PL_INLINE void rk4(const plant_t *p, ctx_t *k, xs_t *x, double h, int mode, double *aud, double *auq)
+/* Classic RK4 over h (x->th == 0 on entry). Accumulates the integral of u_dq (for the truth) and
+ * moves the context's angle reference to the end of the step: x->th back to 0, the step's angle
+ * added to *th_tot. One small-angle rotation per step, no libm call below 0.15 rad per half step. */
+PL_INLINE void rk4(const plant_t *p, ctx_t *k, xs_t *x, double h, int mode, double *aud, double *auq, double *th_tot)
 {
     dx_t k1, k2, k3, k4;
     xs_t y;
+    base_t b1, b2, b4;
+    const double pp = (double)p->cfg.pole_pairs;
     const double h2 = 0.5 * h, h6 = h * (1.0 / 6.0);
+    double cd, sd, c2, s2, dth, e, e2, e3;
 
-    deriv(p, k, x, &k1, mode, 1);
+    /* stage angles at the start speed: half step, and full step by the double-angle formula */
+    rot_small(pp * h2 * x->w, &cd, &sd);
+    c2 = cd * cd - sd * sd;
+    s2 = 2.0 * cd * sd;
+    b1.c = k->c0;
+    b1.s = k->s0;
+    b1.th = 0.0;
+    b2.c = k->c0 * cd - k->s0 * sd;
+    b2.s = k->s0 * cd + k->c0 * sd;
+    b2.th = h2 * x->w;
+    b4.c = k->c0 * c2 - k->s0 * s2;
+    b4.s = k->s0 * c2 + k->c0 * s2;
+    b4.th = h * x->w;
+
+    deriv(p, k, x, &k1, mode, &b1, 1);
     y.id = x->id + h2 * k1.did;
     y.iq = x->iq + h2 * k1.diq;
     y.w = x->w + h2 * k1.dw;
-    y.th = x->th + h2 * k1.dth;
-    deriv(p, k, &y, &k2, mode, 0);
+    y.th = h2 * k1.dth;
+    deriv(p, k, &y, &k2, mode, &b2, 0);
     y.id = x->id + h2 * k2.did;
     y.iq = x->iq + h2 * k2.diq;
     y.w = x->w + h2 * k2.dw;
-    y.th = x->th + h2 * k2.dth;
-    deriv(p, k, &y, &k3, mode, 0);
+    y.th = h2 * k2.dth;
+    deriv(p, k, &y, &k3, mode, &b2, 0);
     y.id = x->id + h * k3.did;
     y.iq = x->iq + h * k3.diq;
     y.w = x->w + h * k3.dw;
-    y.th = x->th + h * k3.dth;
-    deriv(p, k, &y, &k4, mode, 0);
+    y.th = h * k3.dth;
+    deriv(p, k, &y, &k4, mode, &b4, 0);
     x->id += h6 * (k1.did + 2.0 * (k2.did + k3.did) + k4.did);
     x->iq += h6 * (k1.diq + 2.0 * (k2.diq + k3.diq) + k4.diq);
     x->w += h6 * (k1.dw + 2.0 * (k2.dw + k3.dw) + k4.dw);
-    x->th += h6 * (k1.dth + 2.0 * (k2.dth + k3.dth) + k4.dth);
+    dth = h6 * (k1.dth + 2.0 * (k2.dth + k3.dth) + k4.dth);
     *aud += h6 * (k1.ud + 2.0 * (k2.ud + k3.ud) + k4.ud);
     *auq += h6 * (k1.uq + 2.0 * (k2.uq + k3.uq) + k4.uq);
-}
-
-/* move the angle reference of the context to the end of the piece just integrated */
-static inline void advance_ref(const plant_t *p, ctx_t *k, xs_t *x, double *th_tot)
-{
-    double cd, sd, c;
-    rot_small((double)p->cfg.pole_pairs * x->th, &cd, &sd);
-    c = k->c0 * cd - k->s0 * sd;
-    k->s0 = k->s0 * cd + k->c0 * sd;
-    k->c0 = c;
-    *th_tot += x->th;
+    /* new angle reference: the full-step base rotated by the step's own deviation (third order) */
+    e = pp * (dth - b4.th);
+    e2 = 1.0 - 0.5 * e * e;
+    e3 = e * (1.0 - e * e * (1.0 / 6.0));
+    k->c0 = b4.c * e2 - b4.s * e3;
+    k->s0 = b4.s * e2 + b4.c * e3;
+    *th_tot += dth;
     x->th = 0.0;
 }
 
-/* store the period's end state; cos/sin of the electrical angle are carried incrementally (renormalised)
- * and recomputed from theta_m every 256 periods, which bounds their drift to ~1e-14 */
+/* store the period's end state; cos/sin of the electrical angle are carried incrementally
+ * (renormalised every period) and recomputed from theta_m every 256 periods */
 static void finish_period(plant_t *p, const ctx_t *k, const xs_t *x, double th_tot, double aud, double auq)
 {
     p->i_d_a = x->id;
@@ -312,8 +335,25 @@ static void finish_period(plant_t *p, const ctx_t *k, const xs_t *x, double th_t
         p->cos_e = k->c0 * r;
         p->sin_e = k->s0 * r;
     }
-    p->u_d_avg_v = aud / p->cfg.ts_s;
-    p->u_q_avg_v = auq / p->cfg.ts_s;
+    p->u_d_avg_v = aud * p->inv_ts;
+    p->u_q_avg_v = auq * p->inv_ts;
+}
+
+static void ctx_start(const plant_t *p, ctx_t *k, xs_t *x, double t_load)
+{
+    k->c0 = p->cos_e;
+    k->s0 = p->sin_e;
+    k->u1 = 0.0;
+    k->u2 = 0.0;
+    k->t_load = t_load;
+    k->fric = 0.0;
+    k->frozen = p->hold_speed;
+    k->blocked = -1;
+    k->lam = 0.0;
+    x->id = p->i_d_a;
+    x->iq = p->i_q_a;
+    x->w = p->omega_m_rad_s;
+    x->th = 0.0;
 }
 
 static void advance_on(plant_t *p, int mode, double u1, double u2, double t_load)
@@ -324,26 +364,17 @@ static void advance_on(plant_t *p, int mode, double u1, double u2, double t_load
     const double h = p->h_s;
     int n;
 
-    k.c0 = p->cos_e;
-    k.s0 = p->sin_e;
+    ctx_start(p, &k, &x, t_load);
     k.u1 = u1;
     k.u2 = u2;
-    k.t_load = t_load;
-    k.blocked = -1;
-    k.lam = 0.0;
-    x.id = p->i_d_a;
-    x.iq = p->i_q_a;
-    x.w = p->omega_m_rad_s;
-    x.th = 0.0;
     for (n = 0; n < p->cfg.substeps; n++) {
         mech_mode(p, &k, &x);
         if (mode == MODE_UDQ) {
-            rk4(p, &k, &x, h, MODE_UDQ, &aud, &auq);
+            rk4(p, &k, &x, h, MODE_UDQ, &aud, &auq, &th_tot);
         } else {
-            rk4(p, &k, &x, h, MODE_KNOWN, &aud, &auq);
+            rk4(p, &k, &x, h, MODE_KNOWN, &aud, &auq, &th_tot);
         }
         mech_clamp(&k, &x);
-        advance_ref(p, &k, &x, &th_tot);
     }
     p->load_nm = t_load;
     finish_period(p, &k, &x, th_tot, aud, auq);
@@ -359,35 +390,21 @@ PL_INLINE void phase_currents(double c, double s, double id, double iq, double i
     i3[2] = -0.5 * ial - PL_SQRT3_2 * ibe;
 }
 
-PL_INLINE void angle_at(const ctx_t *k, double pp, double th, double *c, double *s)
-{
-    double cd, sd;
-    rot_small(pp * th, &cd, &sd);
-    *c = k->c0 * cd - k->s0 * sd;
-    *s = k->s0 * cd + k->c0 * sd;
-}
-
-/* open phase b (set i_b = 0 exactly by removing the current's component along g = R(-theta) e_b) */
+/* open phase b: set i_b = 0 exactly by removing the current's component along g = R(-theta_e) e_b;
+ * if the remaining pair no longer flows in its diodes' direction, everything is open */
 static void block_phase(plant_t *p, const ctx_t *k, xs_t *x, int b)
 {
-    double c, s, gd, gq, ix, i3[3];
-    int n, y, nblk = 0;
-    angle_at(k, (double)p->cfg.pole_pairs, x->th, &c, &s);
-    gd = c * EX[b] + s * EY[b];
-    gq = -s * EX[b] + c * EY[b];
-    ix = gd * x->id + gq * x->iq;
+    const double gd = k->c0 * EX[b] + k->s0 * EY[b], gq = -k->s0 * EX[b] + k->c0 * EY[b];
+    const double ix = gd * x->id + gq * x->iq;
+    double i3[3];
+    int n, nblk = 0;
     x->id -= ix * gd;
     x->iq -= ix * gq;
     p->diode[b] = 0;
-    phase_currents(c, s, x->id, x->iq, i3);
+    phase_currents(k->c0, k->s0, x->id, x->iq, i3);
     for (n = 0; n < 3; n++) {
-        if (p->diode[n] == 0) {
+        if (p->diode[n] == 0 || (double)p->diode[n] * i3[n] <= 0.0) {
             nblk++;
-        }
-    }
-    for (y = 0; y < 3; y++) {
-        if (p->diode[y] != 0 && (double)p->diode[y] * i3[y] <= 0.0) {
-            nblk = 3;
         }
     }
     if (nblk >= 2) {
@@ -397,7 +414,7 @@ static void block_phase(plant_t *p, const ctx_t *k, xs_t *x, int b)
     }
 }
 
-/* known (stationary-frame) voltage of the conducting diodes; blocked terminals counted as 0 */
+/* known (stationary-frame) voltage of the conducting diodes; open terminals counted as 0 */
 static void diode_voltage(const plant_t *p, double *ual, double *ube)
 {
     double v[3];
@@ -422,20 +439,21 @@ static int diode_mode(const plant_t *p, int *blocked)
     return nb == 0 ? MODE_KNOWN : (nb == 1 ? MODE_ONE_BLOCKED : MODE_ALL_BLOCKED);
 }
 
-/* a blocked diode pair or phase starts to conduct when the floating terminal would leave the rails */
+/* an open phase (or pair) starts to conduct when its floating terminal would leave the DC rails */
 static void diode_unblock(plant_t *p, ctx_t *k, const xs_t *x)
 {
-    dx_t d;
-    double c, s, eal, ebe, e3[3];
-    int mode = diode_mode(p, &k->blocked), n, hi = 0, lo = 0;
+    const base_t b = {k->c0, k->s0, 0.0};
     const double vd = p->cfg.v_drop_v;
+    dx_t d;
+    double eal, ebe, e3[3];
+    int mode = diode_mode(p, &k->blocked), n, hi = 0, lo = 0;
     if (mode == MODE_KNOWN) {
         return;
     }
     diode_voltage(p, &k->u1, &k->u2);
-    deriv(p, k, x, &d, mode, 0);
+    deriv(p, k, x, &d, mode, &b, 1);
     if (mode == MODE_ONE_BLOCKED) {
-        const double vx = 1.5 * k->lam;
+        const double vx = 1.5 * k->lam;   /* floating terminal voltage above DC- */
         if (vx > p->v_dc_v + vd) {
             p->diode[k->blocked] = -1;
         } else if (vx < -vd) {
@@ -443,10 +461,9 @@ static void diode_unblock(plant_t *p, ctx_t *k, const xs_t *x)
         }
         return;
     }
-    /* all open: terminal voltages are the back-EMFs plus a common float */
-    angle_at(k, (double)p->cfg.pole_pairs, x->th, &c, &s);
-    eal = c * d.ud - s * d.uq;
-    ebe = s * d.ud + c * d.uq;
+    /* all open: the terminals sit at the phase back-EMFs plus a common float */
+    eal = k->c0 * d.ud - k->s0 * d.uq;
+    ebe = k->s0 * d.ud + k->c0 * d.uq;
     for (n = 0; n < 3; n++) {
         e3[n] = EX[n] * eal + EY[n] * ebe;
         if (e3[n] > e3[hi]) {
@@ -457,32 +474,23 @@ static void diode_unblock(plant_t *p, ctx_t *k, const xs_t *x)
         }
     }
     if (e3[hi] - e3[lo] > p->v_dc_v + 2.0 * vd) {
-        p->diode[hi] = -1;   /* highest back-EMF pushes current out into DC+ */
+        p->diode[hi] = -1;   /* the highest back-EMF drives current out through the upper diode */
         p->diode[lo] = 1;
     }
 }
 
+/* PWM off for one period. Each phase is clamped by a diode to the rail that opposes its current
+ * (i > 0: lower diode, terminal at -v_drop; i < 0: upper diode, v_dc + v_drop); a phase whose current
+ * reaches zero opens (its terminal floats, its current stays zero); an open phase or pair conducts
+ * again only if the back-EMF pushes its terminal beyond a rail (uncontrolled rectification). */
 static void advance_off(plant_t *p, double t_load)
 {
     ctx_t k;
     xs_t x, x0;
     double aud = 0.0, auq = 0.0, th_tot = 0.0;
-    const double pp = (double)p->cfg.pole_pairs;
     int n;
 
-    k.c0 = p->cos_e;
-    k.s0 = p->sin_e;
-    k.t_load = t_load;
-    k.lam = 0.0;
-    k.fric = 0.0;
-    k.frozen = p->hold_speed;
-    k.u1 = k.u2 = 0.0;
-    k.blocked = -1;
-    x.id = p->i_d_a;
-    x.iq = p->i_q_a;
-    x.w = p->omega_m_rad_s;
-    x.th = 0.0;
-
+    ctx_start(p, &k, &x, t_load);
     if (p->pwm_prev) {  /* switches just opened: each current keeps flowing through the opposite diode */
         double i3[3];
         int b = -1, nb = 0;
@@ -495,7 +503,6 @@ static void advance_off(plant_t *p, double t_load)
             }
         }
         if (nb == 1) {
-            p->diode[b] = 1;      /* placeholder so that block_phase sees one open phase */
             block_phase(p, &k, &x, b);
         } else if (nb > 1) {
             x.id = x.iq = 0.0;
@@ -507,19 +514,18 @@ static void advance_off(plant_t *p, double t_load)
         double rem = p->h_s;
         int iter;
         for (iter = 0; iter < 8 && rem > 0.0; iter++) {
-            double aud0 = aud, auq0 = auq, frac = 2.0, c, s, i0[3], i1[3];
+            const double aud0 = aud, auq0 = auq, th0 = th_tot, c0 = k.c0, s0 = k.s0;
+            double frac = 2.0, i0[3], i1[3];
             int mode, y, ev = -1;
             diode_unblock(p, &k, &x);
             mode = diode_mode(p, &k.blocked);
             diode_voltage(p, &k.u1, &k.u2);
             mech_mode(p, &k, &x);
             x0 = x;
-            angle_at(&k, pp, x.th, &c, &s);
-            phase_currents(c, s, x.id, x.iq, i0);
-            rk4(p, &k, &x, rem, mode, &aud, &auq);
+            phase_currents(k.c0, k.s0, x.id, x.iq, i0);
+            rk4(p, &k, &x, rem, mode, &aud, &auq, &th_tot);
             if (mode != MODE_ALL_BLOCKED && iter < 7) {
-                angle_at(&k, pp, x.th, &c, &s);
-                phase_currents(c, s, x.id, x.iq, i1);
+                phase_currents(k.c0, k.s0, x.id, x.iq, i1);
                 for (y = 0; y < 3; y++) {
                     const double a0 = (double)p->diode[y] * i0[y], a1 = (double)p->diode[y] * i1[y];
                     if (p->diode[y] != 0 && a1 <= 0.0) {
@@ -531,10 +537,9 @@ static void advance_off(plant_t *p, double t_load)
                     }
                 }
             }
-            if (ev < 0) {  /* no current zero in this piece (or last try): accept, force consistency */
+            if (ev < 0) {  /* no current zero inside the piece (or the last try): accept it */
                 if (mode != MODE_ALL_BLOCKED) {
-                    angle_at(&k, pp, x.th, &c, &s);
-                    phase_currents(c, s, x.id, x.iq, i1);
+                    phase_currents(k.c0, k.s0, x.id, x.iq, i1);
                     for (y = 0; y < 3; y++) {
                         if (p->diode[y] != 0 && (double)p->diode[y] * i1[y] <= 0.0) {
                             block_phase(p, &k, &x, y);
@@ -543,19 +548,21 @@ static void advance_off(plant_t *p, double t_load)
                     }
                 }
                 mech_clamp(&k, &x);
-                advance_ref(p, &k, &x, &th_tot);
-                rem = 0.0;
                 break;
             }
+            /* a conducting current reaches zero inside the piece: redo the piece up to the zero
+             * (linear interpolation of the crossing), open that phase, go on with the rest */
             x = x0;
             aud = aud0;
             auq = auq0;
+            th_tot = th0;
+            k.c0 = c0;
+            k.s0 = s0;
             if (frac > 0.0) {
-                rk4(p, &k, &x, frac * rem, mode, &aud, &auq);
+                rk4(p, &k, &x, frac * rem, mode, &aud, &auq, &th_tot);
                 mech_clamp(&k, &x);
             }
             block_phase(p, &k, &x, ev);
-            advance_ref(p, &k, &x, &th_tot);
             rem -= frac * rem;
         }
     }
@@ -573,9 +580,9 @@ PL_INLINE double sensor_current(plant_t *p, double i)
     if (p->cfg.i_noise_a > 0.0) {
         v += p->cfg.i_noise_a * rng_gauss(&p->rng);
     }
-    if (p->inv_lsb > 0.0) {
+    if (p->inv_lsb > 0.0) {   /* round to nearest (even) by the 1.5 * 2^52 trick: branch-free, exact */
         const double q = v * p->inv_lsb;
-        v = (double)(long long)(q + (q >= 0.0 ? 0.5 : -0.5)) * p->cfg.adc_lsb_a;
+        v = ((q + 6755399441055744.0) - 6755399441055744.0) * p->cfg.adc_lsb_a;
     }
     return v;
 }
@@ -671,6 +678,7 @@ void plant_init(plant_t *p, const plant_cfg_t *cfg)
     p->enc_scale = (double)p->cfg.enc_counts / PL_TWO_PI;
     p->enc_off_w = wrap_2pi(fmod(cfg->enc_offset_rad, PL_TWO_PI));
     p->h_s = cfg->ts_s / (double)p->cfg.substeps;
+    p->inv_ts = 1.0 / cfg->ts_s;
     p->cos_e = 1.0;
     p->sin_e = 0.0;
     p->pwm_prev = false;
@@ -688,10 +696,11 @@ void plant_sample(plant_t *p, fw_meas_t *m)
     m->enc_count = sensor_encoder(p);
 }
 
-/* switching or averaged PWM with leg duties d (for switch states d is 0 or 1) */
+/* switching (d = 0 or 1, held over the period, transitions at the period start) or averaged PWM
+ * (carrier: 0 < d < 1 means one rising and one falling edge in the period) */
 static void step_legs(plant_t *p, const double d[3], bool pwm_on, bool carrier, double t_load)
 {
-    double i3[3], v[3], k_dt_v;
+    double i3[3], v[3], k_dt_v, was_on;
     int n;
     if (!pwm_on) {
         advance_off(p, t_load);
@@ -699,16 +708,18 @@ static void step_legs(plant_t *p, const double d[3], bool pwm_on, bool carrier, 
         return;
     }
     k_dt_v = p->v_dc_v * p->cfg.dead_time_s / p->cfg.ts_s;
+    was_on = p->pwm_prev ? 1.0 : 0.0;
     phase_currents(p->cos_e, p->sin_e, p->i_d_a, p->i_q_a, i3);
     for (n = 0; n < 3; n++) {
-        int tr = 0;
+        double rise, fall;
         if (carrier) {
-            tr = (d[n] > 0.0 && d[n] < 1.0) ? 2 : 0;
-        } else if (p->pwm_prev) {
-            const int sn = d[n] > 0.5, sp = p->s_prev[n] != 0;
-            tr = sn - sp;
+            rise = fall = (d[n] > 0.0 && d[n] < 1.0) ? 1.0 : 0.0;
+        } else {   /* arithmetic, not branches: FCS switch sequences are unpredictable */
+            const double sp = (double)p->s_prev[n];
+            rise = was_on * d[n] * (1.0 - sp);
+            fall = was_on * sp * (1.0 - d[n]);
         }
-        v[n] = p->v_dc_v * d[n] + leg_dist(p, i3[n], tr, k_dt_v);
+        v[n] = p->v_dc_v * d[n] + leg_dist(p, i3[n], rise, fall, k_dt_v);
         p->s_prev[n] = (uint16_t)(d[n] > 0.5);
     }
     advance_on(p, MODE_KNOWN, (2.0 * v[0] - v[1] - v[2]) * (1.0 / 3.0), (v[1] - v[2]) * PL_INV_SQRT3, t_load);
@@ -718,9 +729,9 @@ static void step_legs(plant_t *p, const double d[3], bool pwm_on, bool carrier, 
 void plant_step(plant_t *p, const fw_cmd_t *cmd)
 {
     double d[3];
-    d[0] = cmd->s_a ? 1.0 : 0.0;
-    d[1] = cmd->s_b ? 1.0 : 0.0;
-    d[2] = cmd->s_c ? 1.0 : 0.0;
+    d[0] = (double)(cmd->s_a != 0);
+    d[1] = (double)(cmd->s_b != 0);
+    d[2] = (double)(cmd->s_c != 0);
     step_legs(p, d, cmd->pwm_on, false, (double)cmd->load_nm);
 }
 

@@ -85,7 +85,7 @@ typedef struct {
     double u_d_avg_v, u_q_avg_v;    /* applied dq voltage averaged over the last period */
     uint64_t n_periods;
     /* derived constants (plant_init) */
-    double inv_l_d, inv_l_q, inv_j, inv_i_dt, inv_lsb, enc_scale, enc_off_w, h_s;
+    double inv_l_d, inv_l_q, inv_j, inv_i_dt, inv_lsb, enc_scale, enc_off_w, h_s, inv_ts;
     rng_t rng;
 } plant_t;
 

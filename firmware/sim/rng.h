@@ -59,8 +59,8 @@ static inline double rng_gauss(rng_t *r)
     const uint32_t i = u & 127u;
     const uint32_t j = u >> 8;                     /* 24-bit magnitude */
     if (j < rng_zig_k[i]) {
-        const double x = (double)j * rng_zig_w[i];
-        return (u & 128u) ? -x : x;
+        static const double sgn[2] = {1.0, -1.0};   /* branch-free sign: it is a coin toss */
+        return (double)j * rng_zig_w[i] * sgn[(u >> 7) & 1u];
     }
     return rng_gauss_slow_(r, u);
 }

@@ -148,7 +148,10 @@ def print_summary(summary: RunSummary, console=None) -> None:
     from rich.console import Console
     from rich.table import Table
 
-    console = console or Console()
+    if console is None:
+        console = Console()
+        if not console.is_terminal:
+            console = Console(width=max(console.width, 132))
     tab = Table(title=f"run summary: {summary.path}", header_style="bold")
     for col in ("seg", "name", "setpoint r/min", "load N·m", "mean err r/min", "band",
                 "recovery s", "ripple d/q A", "faults"):

@@ -143,9 +143,8 @@ def _payload_decoder(spec: MessageSpec) -> Callable[[bytes], dict[str, Any]]:
         scaled = [f"v[{k}]" + ("" if f.scale is None else f" * {f.scale!r}") for k in range(i, i + f.count)]
         items.append(f"{f.name!r}: " + (scaled[0] if f.count == 1 else f"({', '.join(scaled)},)"))
         i += f.count
-    src = (f"def decode_{spec.name}(p):\n"
-           f"    v = unpack(p)\n" if spec.fields else f"def decode_{spec.name}(p):\n")
-    src += f"    return {{{', '.join(items)}}}\n"
+    body = "    v = unpack(p)\n" if spec.fields else ""
+    src = f"def decode_{spec.name}(p):\n{body}    return {{{', '.join(items)}}}\n"
     namespace: dict[str, Any] = {"unpack": spec.struct.unpack}
     exec(compile(src, f"<codec {spec.name}>", "exec"), namespace)
     return namespace[f"decode_{spec.name}"]
@@ -154,8 +153,6 @@ def _payload_decoder(spec: MessageSpec) -> Callable[[bytes], dict[str, Any]]:
 _DECODERS: dict[int, tuple[str, int, Callable[[bytes], dict[str, Any]]]] = {
     spec.id: (spec.name, spec.length, _payload_decoder(spec)) for spec in BY_ID.values()
 }
-
-
 _LENGTHS: dict[int, int] = {spec.id: spec.length for spec in BY_ID.values()}
 
 
@@ -199,7 +196,7 @@ class FrameDecoder:
     def __init__(self) -> None:
         self._tail = b""          # octets after the last delimiter
         self._skipping = False    # the tail overflowed: drop octets up to the next delimiter
-        self.frames_ok = 0
+        self.frames_ok = 0        # good frames returned (by feed: those with a known id)
         self.crc_errors = 0
         self.cobs_errors = 0
         self.len_errors = 0       # too long, or a known id with the wrong payload length
