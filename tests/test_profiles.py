@@ -209,18 +209,18 @@ def test_ramp_too_slow_is_a_warning(ws):
 def test_out_of_range_speed_names_motor_limit(ws):
     path = write("x.yaml", GOOD.replace("speed_rpm: -200", "speed_rpm: 2400"))
     (msg,) = problems_of(path)
-    assert msg == ("x.yaml:12: segments[2].speed_rpm = 2400 is beyond the motor's speed_max_rpm 1500 "
+    assert msg == ("x.yaml:11: segments[2].speed_rpm = 2400 is beyond the motor's speed_max_rpm 1500 "
                    "(motors/paper-a-ipmsm.yaml)")
     with pytest.raises(ProfileError) as ei:
         load_profile(path)
     e = ei.value
-    assert (e.file, e.line, e.field, e.value) == ("x.yaml", 12, "segments[2].speed_rpm", 2400)
+    assert (e.file, e.line, e.field, e.value) == ("x.yaml", 11, "segments[2].speed_rpm", 2400)
 
 
 def test_out_of_range_load_names_motor_limit(ws):
     path = write("x.yaml", GOOD.replace("load_nm: 5.0", "load_nm: -20"))
     (msg,) = problems_of(path)
-    assert msg == ("x.yaml:11: segments[1].load_nm = -20 is beyond the motor's torque_max_nm 18.3 "
+    assert msg == ("x.yaml:10: segments[1].load_nm = -20 is beyond the motor's torque_max_nm 18.3 "
                    "(motors/paper-a-ipmsm.yaml)")
 
 
@@ -241,13 +241,13 @@ def test_malformed_yaml_gives_line_and_column(ws):
 def test_unknown_field_did_you_mean(ws):
     path = write("x.yaml", GOOD.replace("  rho: 1.0", "  rhoo: 1.0"))
     (msg,) = problems_of(path)
-    assert msg == "x.yaml:6: control.rhoo = 1 is not a field of control; did you mean 'rho'?"
+    assert msg == "x.yaml:5: control.rhoo = 1 is not a field of control; did you mean 'rho'?"
     path = write("y.yaml", GOOD.replace("  fast_hz: 2000", "  fast_hz: 2000\n  banana: 3"))
     (msg,) = problems_of(path)
-    assert msg.startswith("y.yaml:9: telemetry.banana = 3 is not a field of telemetry (known: fast_hz,")
+    assert msg.startswith("y.yaml:8: telemetry.banana = 3 is not a field of telemetry (known: fast_hz,")
     path = write("z.yaml", GOOD.replace("{name: c,", "{name: c, sped_rpm: 3,"))
     (msg,) = problems_of(path)
-    assert msg == "z.yaml:12: segments[2].sped_rpm = 3 is not a field of segments[2]; did you mean 'speed_rpm'?"
+    assert msg == "z.yaml:11: segments[2].sped_rpm = 3 is not a field of segments[2]; did you mean 'speed_rpm'?"
 
 
 def test_missing_required_fields(ws):
@@ -269,12 +269,12 @@ def test_wrong_types(ws):
     assert msgs == [
         "x.yaml:4: control.ts_s = '50e-6' is not a number (write numbers without quotes)",
         "x.yaml:5: control.rho = 'fast' is not a number (write numbers without quotes)",
-        "x.yaml:11: segments[1].capture = 1 is not true or false",
+        "x.yaml:10: segments[1].capture = 1 is not true or false",
     ]
     path = write("y.yaml", GOOD.replace("  rho: 1.0", "  current_ref: mtp"))
-    assert problems_of(path) == ["y.yaml:6: control.current_ref = 'mtp' is not one of 'mtpa' or 'id_zero'"]
+    assert problems_of(path) == ["y.yaml:5: control.current_ref = 'mtp' is not one of 'mtpa' or 'id_zero'"]
     path = write("z.yaml", GOOD.replace("telemetry:\n  fast_hz: 2000", "telemetry: 2000"))
-    assert problems_of(path) == ["z.yaml:7: telemetry = 2000 must be a mapping of `key: value` lines"]
+    assert problems_of(path) == ["z.yaml:6: telemetry = 2000 must be a mapping of `key: value` lines"]
 
 
 def test_ranges_and_rates(ws):
@@ -283,8 +283,8 @@ def test_ranges_and_rates(ws):
     msgs = problems_of(path)
     assert msgs == [
         "x.yaml:4: control.ts_s = 1e-05 is outside the allowed range [2e-05, 0.001] s",
-        "x.yaml:10: segments[0].duration_s = 0 is outside the allowed range (0, 3600] s",
-        "x.yaml:10: segments[0].ramp_rpm_s = -5 is outside the allowed range [0, 1000000] r/min/s",
+        "x.yaml:9: segments[0].duration_s = 0 is outside the allowed range (0, 3600] s",
+        "x.yaml:9: segments[0].ramp_rpm_s = -5 is outside the allowed range [0, 1000000] r/min/s",
     ]
     path = write("y.yaml", GOOD.replace("fast_hz: 2000", "fast_hz: 3000\n  params_hz: 30000")
                  .replace("rho: 1.0", "rho: 1.0\n  speed_loop_hz: 1500"))
@@ -292,9 +292,9 @@ def test_ranges_and_rates(ws):
     assert msgs == [
         "y.yaml:6: control.speed_loop_hz = 1500 does not divide the control rate 20000 Hz (1/control.ts_s); "
         "nearest valid: 1428.57 or 1538.46 Hz",
-        "y.yaml:9: telemetry.fast_hz = 3000 does not divide the control rate 20000 Hz (1/control.ts_s); "
+        "y.yaml:8: telemetry.fast_hz = 3000 does not divide the control rate 20000 Hz (1/control.ts_s); "
         "nearest valid: 2857.14 or 3333.33 Hz",
-        "y.yaml:10: telemetry.params_hz = 30000 is above the control rate 20000 Hz (1/control.ts_s)",
+        "y.yaml:9: telemetry.params_hz = 30000 is above the control rate 20000 Hz (1/control.ts_s)",
     ]
     # another control rate: 1/ts_s = 10 kHz, 2000 Hz still divides, 3000 does not
     path = write("z.yaml", GOOD.replace("ts_s: 50e-6", "ts_s: 100e-6"))
@@ -395,7 +395,7 @@ def test_several_problems_all_listed(ws):
         load_profile(path)
     e = ei.value
     assert len(e.problems) == 3 and len(str(e).splitlines()) == 3
-    assert [p.line for p in e.problems] == [5, 11, 12]
+    assert [p.line for p in e.problems] == [5, 10, 11]
     assert (e.file, e.line, e.field, e.value) == ("x.yaml", 5, "control.rho", -1)
 
 
