@@ -343,14 +343,14 @@ def test_missing_default_rig(ws):
 def test_motor_file_problems_name_the_motor_file(ws):
     text = (ws / "motors" / "paper-a-ipmsm.yaml").read_text()
     text = (text.replace("i_trip_a: 25.0", "i_trip_a: 12.0").replace("torque_max_nm: 18.3", "torque_max_nm: 25")
-            .replace("pole_pairs: 4", "pole_pairs: 4.5").replace("r_s_ohm: 0.9", "r_s_ohms: 0.9"))
+            .replace("j_kgm2: 0.0036", "j_kgm2: 4.5 g m^2").replace("r_s_ohm: 0.9", "r_s_ohms: 0.9"))
     (ws / "motors" / "bad.yaml").write_text(text)
     msgs = problems_of(write("x.yaml", GOOD.replace("paper-a-ipmsm", "bad")))
-    lines = {yaml_line(ws / "motors" / "bad.yaml", k) for k in ("pole_pairs", "r_s_ohms", "i_trip_a", "torque_max_nm")}
+    lines = {yaml_line(ws / "motors" / "bad.yaml", k) for k in ("j_kgm2", "r_s_ohms", "i_trip_a", "torque_max_nm")}
     assert all(m.startswith("motors/bad.yaml:") for m in msgs)
     assert {int(m.split(":")[1]) for m in msgs} >= lines
     joined = "\n".join(msgs)
-    assert "pole_pairs = 4.5 is not a whole number" in joined
+    assert "j_kgm2 = '4.5 g m^2' is not a number" in joined
     assert "r_s_ohms = 0.9 is not a field of the file; did you mean 'r_s_ohm'?" in joined
     assert "r_s_ohm is missing (required" in joined
     assert "i_trip_a = 12 must be above i_max_a 15 A" in joined

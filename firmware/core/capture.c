@@ -75,6 +75,15 @@ bool capture_trigger(capture_t *c)
     return true;
 }
 
+bool capture_freeze(capture_t *c)
+{
+    if (c->state == CAPTURE_FROZEN) {
+        return false;
+    }
+    c->state = CAPTURE_FROZEN;
+    return true;
+}
+
 bool capture_frozen(const capture_t *c)
 {
     return c->state == CAPTURE_FROZEN;

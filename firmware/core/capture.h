@@ -34,6 +34,7 @@ typedef struct {
 void capture_init(capture_t *c, uint16_t pre);
 void capture_record(capture_t *c, uint32_t tick, const capture_sample_t *s);
 bool capture_trigger(capture_t *c);   /* false if a capture is already triggered or frozen */
+bool capture_freeze(capture_t *c);     /* stop now, keeping everything recorded (a fault); false if already frozen */
 bool capture_frozen(const capture_t *c);
 uint16_t capture_count(const capture_t *c);
 uint32_t capture_tick0(const capture_t *c);              /* tick of the oldest sample */

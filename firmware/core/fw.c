@@ -128,7 +128,7 @@ static void trip(fw_t *f, uint16_t fault_bits)
 {
     f->faults = (uint16_t)(f->faults | fault_bits);
     send_event(f, PROTO_EVENT_FAULT, (int32_t)fault_bits);
-    if (capture_trigger(&f->cap)) {
+    if (capture_freeze(&f->cap)) {   /* the whole buffer leads up to the fault */
         send_event(f, PROTO_EVENT_CAPTURE_TRIGGERED, -1);
     }
     pwm_off(f, PROTO_STATE_FAULT, FW_STOP_FAULT);
@@ -498,6 +498,16 @@ void fw_isr(fw_t *f, const fw_meas_t *m, fw_cmd_t *cmd)
     f->sig.i_d_a = c * i_al + s * i_be;
     f->sig.i_q_a = -s * i_al + c * i_be;
 
+    /* capture: the sample with the switch state applied while it was taken */
+    cs.i_a_a = m->i_a_a;
+    cs.i_b_a = m->i_b_a;
+    cs.i_c_a = m->i_c_a;
+    cs.s_abc = f->mpcc.sw_prev;
+    cs.v_dc_v = m->v_dc_v;
+    cs.theta_e_rad = f->sig.theta_e_rad;
+    cs.omega_e_rad_s = f->enc_out.omega_e_rad_s;
+    capture_record(&f->cap, f->tick, &cs);
+
     check_faults(f, m);
     if (!fw_active(f)) {
         send_telemetry(f);
@@ -546,15 +556,6 @@ void fw_isr(fw_t *f, const fw_meas_t *m, fw_cmd_t *cmd)
     cmd->s_c = mo.s_c;
     cmd->pwm_on = true;
     cmd->load_nm = load_nm;
-
-    cs.i_a_a = m->i_a_a;
-    cs.i_b_a = m->i_b_a;
-    cs.i_c_a = m->i_c_a;
-    cs.s_abc = mo.s_abc_applied;   /* the state applied while i(k) was sampled */
-    cs.v_dc_v = m->v_dc_v;
-    cs.theta_e_rad = f->sig.theta_e_rad;
-    cs.omega_e_rad_s = f->enc_out.omega_e_rad_s;
-    capture_record(&f->cap, f->tick, &cs);
 
     send_telemetry(f);
     f->tick++;

@@ -6,6 +6,9 @@
  *   2. for every candidate switching state predict i(k+2) and evaluate
  *      J = (i_d* - i_d(k+2))^2 + rho (i_q* - i_q(k+2))^2,
  *   3. return the best state; the caller applies it from k+1 on.
+ * Additions to paper A (docs/control.md): an offset-compensation integrator that shifts the
+ * references the cost sees (removes FCS's steady-state offset and low-speed dead band; k_int = 0
+ * gives plain paper A), and a dead-time/device-drop model in the prediction.
  * The model is the physical dq model (the paper's (1)-(3) carry a sign typo in the q-axis cross
  * coupling; see docs/control.md):
  *   L_d di_d/dt = u_d - R i_d + w L_q i_q
@@ -44,8 +47,9 @@ typedef struct {
     float rho;           /* q-axis weighting factor of the cost (paper A: 1) */
     float dead_time_s;   /* inverter dead time known to the firmware (0: no compensation) */
     float v_drop_v;      /* device on-state drop known to the firmware (0: none) */
-    /* Added options: zero-initialise the cfg (or call mpcc_cfg_default) so that 0 selects the
-     * defaults; unknown values fall back to the defaults. */
+    /* Added options. Call mpcc_cfg_default() first, then set the fields above. (A zero-initialised
+     * cfg selects the enum defaults but leaves the offset compensation off: plain paper A.)
+     * Unknown enum values fall back to the defaults. */
     uint16_t cand_set;   /* MPCC_CAND_* (default ALL8) */
     uint16_t dt_model;   /* MPCC_DT_* (default SWITCHING) */
     uint16_t delay_comp; /* MPCC_DELAY_COMP_* (default ON) */
