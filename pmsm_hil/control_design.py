@@ -6,8 +6,8 @@ import math
 
 from pmsm_hil.protocol import generated as gen
 
-DEFAULT_SPEED_BW_RAD_S = 2 * math.pi * 15.0   # speed-loop bandwidth when the profile gives no gains
-DEFAULT_OBSERVER_BW_RAD_S = 2 * math.pi * 40.0
+DEFAULT_SPEED_BW_RAD_S = 150.0
+DEFAULT_OBSERVER_BW_RAD_S = 1000.0            # encoder speed observer (docs/control.md)
 CAPTURE_PRE = 256
 
 

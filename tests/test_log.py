@@ -23,7 +23,7 @@ from mcap.stream_reader import StreamReader
 from mcap_ros2._dynamic import serialize_dynamic
 from mcap_ros2.decoder import DecoderFactory
 
-from pmsm_hil.log.reader import LogFormatError, read_log
+from pmsm_hil.log.reader import LogFormatError, read_log, rewrite_log
 from pmsm_hil.log.schemas import TOPICS, codec_for, schema_hash
 from pmsm_hil.log.writer import LogWriter, available_compressions
 
@@ -287,6 +287,20 @@ def test_truncated_file_is_readable(tmp_path):
     k = len(log.topic("/pmsm/telemetry")["t_s"])
     assert k > 0 and log.truncated is False
     assert_columns_equal(log.topic("/pmsm/telemetry"), rows[:k], "/pmsm/telemetry")
+
+
+def test_rewrite_finalises_a_cut_log(all_topics_log, tmp_path):
+    path, rows = all_topics_log
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(path.read_bytes()[:-200])          # summary lost
+    assert not read_log(cut).finalised
+    rewrite_log(cut, tmp_path / "fixed.mcap")
+    log = read_log(tmp_path / "fixed.mcap")
+    assert log.finalised and log.metadata["run"] == META["run"] and len(log.attachments) == 2
+    for topic, rs in rows.items():
+        assert_columns_equal(log.topic(topic), rs, topic)
+    with open(tmp_path / "fixed.mcap", "rb") as f:
+        assert make_reader(f).get_summary().statistics.message_count == sum(map(len, rows.values()))
 
 
 def _child(code: str, tmp_path: Path) -> subprocess.CompletedProcess:

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import yaml
 
-from pmsm_hil.profiles import (EFFECT_BITS, FRAME_OVERHEAD_OCTETS, PAYLOAD_OCTETS, Motor, Profile,
+from pmsm_hil.profiles import (EFFECT_BITS, FRAME_OVERHEAD_OCTETS, MAX_SEGMENTS, PAYLOAD_OCTETS, Motor, Profile,
                                ProfileError, Rig, link_budget, load_motor, load_profile, load_rig)
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -302,7 +302,7 @@ def test_ranges_and_rates(ws):
 
 
 def test_total_duration_limit(ws):
-    segs = "\n".join(f"  - {{duration_s: 1000, speed_rpm: 10}}" for _ in range(4))
+    segs = "\n".join("  - {duration_s: 1000, speed_rpm: 10}" for _ in range(4))
     path = write("x.yaml", "name: x\nmotor: motors/paper-a-ipmsm.yaml\nsegments:\n" + segs + "\n")
     assert problems_of(path) == ["x.yaml:3: segments last 4000 s in total, beyond the 3600 s limit"]
 
@@ -437,3 +437,15 @@ def test_payload_sizes_match_the_protocol_source():
         fields = spec["messages"][name]["fields"]
         assert sum(size[f["type"]] * f.get("count", 1) for f in fields) == octets, name
     assert FRAME_OVERHEAD_OCTETS == 6
+
+
+def test_segment_limit_matches_the_firmware(ws):
+    header = ROOT / "firmware" / "core" / "profile_exec.h"
+    if header.exists():
+        import re
+        m = re.search(r"#define\s+PROFILE_MAX_SEGMENTS\s+(\d+)", header.read_text())
+        assert m and int(m.group(1)) == MAX_SEGMENTS
+    segs = "\n".join("  - {duration_s: 0.1, speed_rpm: 10}" for _ in range(MAX_SEGMENTS + 1))
+    path = write("x.yaml", "name: x\nmotor: motors/paper-a-ipmsm.yaml\nsegments:\n" + segs + "\n")
+    assert problems_of(path) == [f"x.yaml:3: segments = [{MAX_SEGMENTS + 1} items] must have at most "
+                                 f"{MAX_SEGMENTS} items"]

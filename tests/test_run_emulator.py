@@ -62,6 +62,8 @@ def test_paper_a_speed_tracking_within_bounds(paper_a_run):
     plateaus = [s for s in summary.segments if s.setpoint_rpm != 0]
     for s in plateaus:
         assert abs(s.mean_error_rpm) <= s.band_rpm, (s.name, s.mean_error_rpm, s.band_rpm)
+        # and the plant's own speed agrees (the encoder is not fooling the controller)
+        assert abs(s.true_mean_error_rpm) <= s.band_rpm, (s.name, s.true_mean_error_rpm)
     steps = [s for s in summary.segments if s.recovery_s is not None]
     assert len(steps) == 6   # on and off at 15, 240 and 1000 r/min
     for s in steps:

@@ -9,6 +9,9 @@
 #define FW_STOP_HOLD_S 0.05f         /* zero reference held this long before PWM off */
 #define FW_STOP_TIMEOUT_S 3.0f       /* PWM off after this long in any case */
 #define FW_RPM_PER_RAD_S 9.549296585513720f
+#define FW_SPEED_REF_WEIGHT 0.7f     /* set-point weight of the speed PI's proportional path */
+#define FW_DITHER_PERIOD 22u         /* q-current dither: not a divisor of the speed-loop period */
+#define FW_DITHER_GAIN 0.6f          /* peak-to-peak, as a fraction of one vector's current step */
 
 /* stop reasons (arg of the stopped event) */
 #define FW_STOP_HOST 0
@@ -139,6 +142,7 @@ static uint16_t start_run(fw_t *f)
     mpcc_cfg_t mc;
     speed_pi_cfg_t sc;
     enc_cfg_t ec;
+    dither_cfg_t dc;
     if (!f->have_motor || !f->have_ctrl || !profile_complete(&f->prof)) {
         return PROTO_ACK_STATUS_BAD_STATE;
     }
@@ -157,6 +161,7 @@ static uint16_t start_run(fw_t *f)
     sc.ts_s = f->ctrl.ts_s * (float)f->ctrl.speed_div;
     sc.out_max_a = f->motor.i_max_a;
     speed_pi_init(&f->spi, &sc);
+    speed_pi_set_ref_weight(&f->spi, FW_SPEED_REF_WEIGHT);
 
     ec.counts = f->ctrl.enc_counts;
     ec.pole_pairs = f->motor.pole_pairs;
@@ -164,6 +169,10 @@ static uint16_t start_run(fw_t *f)
     ec.bw_rad_s = f->ctrl.speed_obs_bw_rad_s;
     ec.ts_s = f->ctrl.ts_s;
     enc_init(&f->enc, &ec);
+
+    dc.period = FW_DITHER_PERIOD;
+    dc.gain = FW_DITHER_GAIN;
+    dither_init(&f->dither, &dc);
 
     capture_init(&f->cap, f->ctrl.capture_pre);
     profile_start(&f->prof, f->ctrl.ts_s);
@@ -540,7 +549,8 @@ void fw_isr(fw_t *f, const fw_meas_t *m, fw_cmd_t *cmd)
     mi.i_d_a = f->sig.i_d_a;
     mi.i_q_a = f->sig.i_q_a;
     mi.i_d_ref_a = f->sig.i_d_ref_a;
-    mi.i_q_ref_a = f->sig.i_q_ref_a;
+    mi.i_q_ref_a = f->sig.i_q_ref_a +
+                   dither_step(&f->dither, 0.6666667f * m->v_dc_v * f->ctrl.ts_s / f->motor.l_q_h);
     mi.theta_e_rad = f->sig.theta_e_est_rad;
     mi.omega_e_rad_s = f->enc_out.omega_e_rad_s;
     mi.v_dc_v = m->v_dc_v;

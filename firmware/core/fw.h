@@ -20,6 +20,7 @@
 #include "speed_pi.h"
 #include "mtpa.h"
 #include "enc_angle.h"
+#include "dither.h"
 
 #define FW_VERSION_MAJOR 0u
 #define FW_VERSION_MINOR 1u
@@ -68,6 +69,7 @@ typedef struct {
     speed_pi_t spi;
     enc_t enc;
     enc_out_t enc_out;
+    dither_t dither;
     float i_s_ref_a;
     float stop_ref_rpm;
     uint32_t stop_ticks;

@@ -376,6 +376,7 @@ static void advance_on(plant_t *p, int mode, double u1, double u2, double t_load
         }
         mech_clamp(&k, &x);
     }
+    p->diodes_valid = false;
     p->load_nm = t_load;
     finish_period(p, &k, &x, th_tot, aud, auq);
 }
@@ -491,7 +492,7 @@ static void advance_off(plant_t *p, double t_load)
     int n;
 
     ctx_start(p, &k, &x, t_load);
-    if (p->pwm_prev) {  /* switches just opened: each current keeps flowing through the opposite diode */
+    if (!p->diodes_valid) {  /* switches just opened: each current keeps flowing through the opposite diode */
         double i3[3];
         int b = -1, nb = 0;
         phase_currents(k.c0, k.s0, x.id, x.iq, i3);
@@ -566,6 +567,7 @@ static void advance_off(plant_t *p, double t_load)
             rem -= frac * rem;
         }
     }
+    p->diodes_valid = true;
     p->load_nm = t_load;
     finish_period(p, &k, &x, th_tot, aud, auq);
 }
@@ -674,6 +676,7 @@ void plant_init(plant_t *p, const plant_cfg_t *cfg)
     p->inv_l_q = 1.0 / cfg->l_q_h;
     p->inv_j = 1.0 / cfg->j_kgm2;
     p->inv_i_dt = cfg->i_dt_a > 0.0 ? 1.0 / cfg->i_dt_a : 0.0;
+    p->dist_on = p->inv_i_dt > 0.0 && (cfg->v_drop_v > 0.0 || cfg->dead_time_s > 0.0);
     p->inv_lsb = cfg->adc_lsb_a > 0.0 ? 1.0 / cfg->adc_lsb_a : 0.0;
     p->enc_scale = (double)p->cfg.enc_counts / PL_TWO_PI;
     p->enc_off_w = wrap_2pi(fmod(cfg->enc_offset_rad, PL_TWO_PI));
@@ -709,6 +712,15 @@ static void step_legs(plant_t *p, const double d[3], bool pwm_on, bool carrier, 
     }
     k_dt_v = p->v_dc_v * p->cfg.dead_time_s / p->cfg.ts_s;
     was_on = p->pwm_prev ? 1.0 : 0.0;
+    if (!p->dist_on) {   /* ideal inverter */
+        for (n = 0; n < 3; n++) {
+            v[n] = p->v_dc_v * d[n];
+            p->s_prev[n] = (uint16_t)(d[n] > 0.5);
+        }
+        advance_on(p, MODE_KNOWN, (2.0 * v[0] - v[1] - v[2]) * (1.0 / 3.0), (v[1] - v[2]) * PL_INV_SQRT3, t_load);
+        p->pwm_prev = true;
+        return;
+    }
     phase_currents(p->cos_e, p->sin_e, p->i_d_a, p->i_q_a, i3);
     for (n = 0; n < 3; n++) {
         double rise, fall;
@@ -765,7 +777,7 @@ void plant_set_currents(plant_t *p, double i_d_a, double i_q_a)
 {
     p->i_d_a = i_d_a;
     p->i_q_a = i_q_a;
-    p->pwm_prev = true;   /* re-derive the diode states from the current signs if PWM is off next */
+    p->diodes_valid = false;   /* re-derive the diode states from the current signs if PWM is off next */
 }
 
 void plant_truth(const plant_t *p, plant_truth_t *t)

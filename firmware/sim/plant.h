@@ -50,7 +50,7 @@ typedef struct {
     double enc_offset_rad;   /* encoder reads wrap(theta_m + enc_offset_rad) */
     /* integration */
     double ts_s;             /* control period */
-    int substeps;            /* RK4 sub-steps per period (1 is enough to 1e-7 A, see docs/plant.md) */
+    int substeps;            /* RK4 sub-steps per period (1: within ~3e-5 A of a 1000-step reference, docs/plant.md) */
     uint32_t seed;           /* noise seed */
     /* additions */
     double temp_ambient_c;   /* initial winding and magnet temperature (reported in the truth) */
@@ -79,7 +79,9 @@ typedef struct {
     uint16_t s_prev[3];         /* switch states of the last period (for the dead-time transitions) */
     bool pwm_prev;              /* PWM was on in the last period */
     int8_t diode[3];            /* PWM off: +1 lower diode conducts (i > 0), -1 upper (i < 0), 0 blocked */
+    bool diodes_valid;          /* diode[] belongs to the current state (the last period was PWM off) */
     bool hold_speed;            /* speed imposed (ideal dyno / test): omega_m does not change */
+    bool dist_on;               /* inverter distortion (dead time or device drop) configured */
     double load_nm;             /* load torque in force */
     /* last period, for the truth */
     double u_d_avg_v, u_q_avg_v;    /* applied dq voltage averaged over the last period */

@@ -152,6 +152,18 @@ static void test_steady_state(void)
         CHECK_NEAR(t.i_a_a, ua / 0.9, 1e-6, "switch state (1,0,0): i_a = 2/3 v_dc / R");
         CHECK_NEAR(t.i_b_a, -0.5 * ua / 0.9, 1e-6, "switch state (1,0,0): i_b = -i_a / 2");
     }
+
+    /* averaged PWM: duties (0.6, 0.4, 0.4) at theta_e = 0: u_d = 2/3 (0.6 - 0.4) v_dc */
+    plant_init(&p, &cfg);
+    {
+        const double duty[3] = {0.6, 0.4, 0.4};
+        for (k = 0; k < 8000; k++) {
+            plant_step_duty(&p, duty, true, 0.0);
+        }
+        plant_truth(&p, &t);
+        CHECK_NEAR(t.i_d_a, 2.0 / 3.0 * 0.2 * 9.0 / 0.9, 1e-6, "duty PWM: steady i_d");
+        CHECK_NEAR(t.i_q_a, 0.0, 1e-9, "duty PWM: i_q = 0");
+    }
 }
 
 /* ------------------------------------------------------------------ energy and torque */
@@ -309,7 +321,7 @@ static void test_rk4_accuracy(void)
         plant_cfg_t cfg;
         plant_t p;
         ref_x x = {0.0, 0.0, w0, 0.0};
-        double emax[4] = {0, 0, 0, 0}, ewmax[4] = {0, 0, 0, 0}, ethmax[4] = {0, 0, 0, 0}, eind = 0.0;
+        double emax[4] = {0, 0, 0, 0}, ewmax[4] = {0, 0, 0, 0}, ethmax[4] = {0, 0, 0, 0}, eind = 0.0, imax = 0.0;
         static const int sa[8] = {0, 1, 1, 0, 0, 0, 1, 1}, sb[8] = {0, 0, 1, 1, 1, 0, 0, 1}, sc[8] = {0, 0, 0, 0, 1, 1, 1, 1};
         cfg_base(&cfg);
         cfg.b_visc_nms = 1e-3;
@@ -322,6 +334,7 @@ static void test_rk4_accuracy(void)
             const int j = acc_seq[k];
             ref_period(&cfg, &x, sa[j], sb[j], sc[j], 2.0, 1000);
             eind = maxd(eind, maxd(fabs(x.id - rid[k]), fabs(x.iq - riq[k])));
+            imax = maxd(imax, sqrt(rid[k] * rid[k] + riq[k] * riq[k]));
         }
         for (n = 0; n < 3; n++) {
             cfg.substeps = subs[n];
@@ -333,8 +346,8 @@ static void test_rk4_accuracy(void)
                 ethmax[n] = maxd(ethmax[n], angdiff(th[k], rth[k]));
             }
         }
-        printf("RK4 accuracy at %4.0f r/min over %d periods (FCS current loop, |i| up to %.0f A, speed %.0f..%.0f rad/s):\n",
-               speeds_rpm[si], ACC_N, 16.0, w0, rw[ACC_N - 1]);
+        printf("RK4 accuracy at %4.0f r/min over %d periods (FCS current loop, |i| up to %.1f A, speed %.0f..%.0f rad/s):\n",
+               speeds_rpm[si], ACC_N, imax, w0, rw[ACC_N - 1]);
         for (n = 0; n < 3; n++) {
             printf("  substeps %d vs 1000: max |di| %.3e A, max |dw| %.3e rad/s, max |dtheta_m| %.3e rad\n",
                    subs[n], emax[n], ewmax[n], ethmax[n]);
@@ -455,6 +468,20 @@ static void test_pwm_off(void)
     CHECK(stays, "PWM off: currents stay exactly zero (back-EMF below v_dc)");
     CHECK(fabs(sqrt(t.u_d_v * t.u_d_v + t.u_q_v * t.u_q_v) - 4 * 1000.0 * PI / 30.0 * 0.18) < 1e-6,
           "PWM off, open: the terminals show the back-EMF w_e psi_f");
+
+    /* after an ideal voltage source (plant_step_udq) the diodes take over just the same */
+    plant_init(&p, &cfg);
+    plant_set_mech(&p, 0.0, 500.0 * PI / 30.0, true);
+    for (k = 0; k < 200; k++) {
+        plant_step_udq(&p, -20.0, 150.0, 0.0);
+    }
+    plant_truth(&p, &t);
+    CHECK(fabs(t.i_q_a) > 1.0, "udq drive built up a current");
+    for (k = 0; k < 40; k++) {
+        plant_step(&p, &off);
+    }
+    plant_truth(&p, &t);
+    CHECK(t.i_d_a == 0.0 && t.i_q_a == 0.0, "PWM off after plant_step_udq: currents decay to zero");
 
     /* free rotor, switching on and off again */
     plant_init(&p, &cfg);

@@ -35,6 +35,7 @@ class SegmentStats:
     band_rpm: float
     mean_error_rpm: float
     mean_ok: bool
+    true_mean_error_rpm: float | None   # the plant's own speed (emulator logs only)
     recovery_s: float | None       # None: no load step in this segment
     recovery_ok: bool | None
     ripple_d_a: float
@@ -84,7 +85,8 @@ def recovery_time(t: np.ndarray, err: np.ndarray, band: float, t0: float) -> flo
     return float(t[last + 1] - t0)
 
 
-def summarize(tel: dict, events: dict, names: list[str] | None = None, path: str = "") -> RunSummary:
+def summarize(tel: dict, events: dict, names: list[str] | None = None, path: str = "",
+              truth: dict | None = None) -> RunSummary:
     t = np.asarray(tel["t_s"], dtype=float)
     ref = np.asarray(tel["speed_ref_rpm"], dtype=float)
     spd = np.asarray(tel["speed_rpm"], dtype=float)
@@ -117,6 +119,13 @@ def summarize(tel: dict, events: dict, names: list[str] | None = None, path: str
         win = sel & (t >= w0)
         err = s - r
         mean_err = float(np.mean(spd[win] - ref[win])) if win.sum() else float("nan")
+        true_err = None
+        if truth is not None and len(truth.get("t_s", [])):
+            tt = np.asarray(truth["t_s"], float)
+            tw = (tt >= w0) & (tt < t1)
+            if tw.sum():
+                true_err = float(np.mean(np.asarray(truth["speed_rpm"], float)[tw]
+                                         - np.interp(tt[tw], t, ref)))
         step = seg_load - prev_load
         rec = rec_ok = None
         if abs(step) > 1e-6:
@@ -127,6 +136,7 @@ def summarize(tel: dict, events: dict, names: list[str] | None = None, path: str
             index=idx, name=(names[idx] if names and idx < len(names) else f"segment {idx}"),
             t_start_s=t0, t_end_s=t1, setpoint_rpm=setpoint, load_nm=seg_load, load_step_nm=step,
             band_rpm=band, mean_error_rpm=mean_err, mean_ok=bool(abs(mean_err) <= band),
+            true_mean_error_rpm=true_err,
             recovery_s=rec, recovery_ok=rec_ok,
             ripple_d_a=float(np.sqrt(np.mean(ed[win] ** 2))) if win.sum() else float("nan"),
             ripple_q_a=float(np.sqrt(np.mean(eq[win] ** 2))) if win.sum() else float("nan"),
@@ -141,7 +151,9 @@ def summarize_log(path: Path) -> RunSummary:
     meta = log.metadata.get("run", {}) if hasattr(log, "metadata") else {}
     if meta.get("segment_names"):
         names = meta["segment_names"].split("|")
-    return summarize(log.topic("/pmsm/telemetry"), log.topic("/pmsm/events"), names, str(path))
+    truth = log.topic("/sim/truth") if "/sim/truth" in log.topics else None
+    return summarize(log.topic("/pmsm/telemetry"), log.topic("/pmsm/events"), names, str(path),
+                     truth)
 
 
 def print_summary(summary: RunSummary, console=None) -> None:
@@ -151,18 +163,25 @@ def print_summary(summary: RunSummary, console=None) -> None:
     if console is None:
         console = Console()
         if not console.is_terminal:
-            console = Console(width=max(console.width, 132))
+            console = Console(width=max(console.width, 160))
     tab = Table(title=f"run summary: {summary.path}", header_style="bold")
-    for col in ("seg", "name", "setpoint r/min", "load N·m", "mean err r/min", "band",
-                "recovery s", "ripple d/q A", "faults"):
+    has_truth = any(s.true_mean_error_rpm is not None for s in summary.segments)
+    cols = ["seg", "name", "setpoint r/min", "load N·m", "mean err r/min"]
+    cols += ["true err r/min"] if has_truth else []
+    cols += ["band", "recovery s", "ripple d/q A", "faults"]
+    for col in cols:
         tab.add_column(col, justify="right" if col not in ("name",) else "left")
     for s in summary.segments:
         ok = "[green]" if s.mean_ok else "[red]"
         rec = "" if s.recovery_s is None else (
             ("[green]" if s.recovery_ok else "[red]") + f"{s.recovery_s:.3f}")
-        tab.add_row(str(s.index), s.name, f"{s.setpoint_rpm:.1f}", f"{s.load_nm:.2f}",
-                    f"{ok}{s.mean_error_rpm:+.3f}", f"±{s.band_rpm:.2f}", rec,
-                    f"{s.ripple_d_a:.3f}/{s.ripple_q_a:.3f}", str(s.faults))
+        row = [str(s.index), s.name, f"{s.setpoint_rpm:.1f}", f"{s.load_nm:.2f}",
+               f"{ok}{s.mean_error_rpm:+.3f}"]
+        if has_truth:
+            te = s.true_mean_error_rpm
+            row.append("" if te is None else f"{'[green]' if abs(te) <= s.band_rpm else '[red]'}{te:+.3f}")
+        row += [f"±{s.band_rpm:.2f}", rec, f"{s.ripple_d_a:.3f}/{s.ripple_q_a:.3f}", str(s.faults)]
+        tab.add_row(*row)
     console.print(tab)
     for f in summary.faults:
         console.print(f"[red]fault[/] {f}")

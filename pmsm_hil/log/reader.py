@@ -17,14 +17,12 @@ import re
 import struct
 import zlib
 from dataclasses import dataclass, field
-from typing import Any
-
 import numpy as np
 
 from pmsm_hil.log.schemas import (PRIMITIVES, TOPICS, Codec, FieldDef, TopicDef, codec_for)
 from pmsm_hil.log.writer import MCAP_MAGIC
 
-__all__ = ["read_log", "Log", "Attachment", "LogFormatError"]
+__all__ = ["read_log", "rewrite_log", "Log", "Attachment", "LogFormatError"]
 
 _REC = struct.Struct("<BQ")
 _U16 = struct.Struct("<H").unpack_from
@@ -509,4 +507,29 @@ def read_log(path: str | os.PathLike) -> Log:
         buf = f.read()
     log = Log(path)
     _Parser(log, buf).run()
+    return log
+
+
+def rewrite_log(src: str | os.PathLike, dst: str | os.PathLike) -> Log:
+    """Read ``src`` (finalised or not) and write its messages, metadata and attachments to a new,
+    finalised ``dst`` (e.g. to open a log of a killed run in Foxglove). Topics whose schema is not
+    flat are left out (listed in the returned log's ``problems``)."""
+    from pmsm_hil.log.writer import LogWriter
+
+    log = read_log(src)
+    extra = []
+    for topic in log.topics:
+        codec = log._codec(log._by_topic[topic])
+        if codec is not None and topic not in TOPICS:
+            extra.append(codec.topic)
+    meta = {k: v for k, v in log.metadata.items() if k != "log"}
+    atts = [(a.name, a.media_type, a.data) for a in log.attachments]
+    with LogWriter(dst, meta, atts, topics=extra) as w:
+        for topic in log.topics:
+            if log._codec(log._by_topic[topic]) is None:
+                log.problems.append(f"{topic}: schema is not flat; not rewritten")
+                continue
+            cols = log.topic(topic)
+            if len(cols["t_s"]):
+                w.write_many(topic, cols)
     return log

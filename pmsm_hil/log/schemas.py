@@ -11,14 +11,14 @@ from __future__ import annotations
 
 import hashlib
 import struct
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Iterable, Sequence
 
 import numpy as np
 
 __all__ = ["FieldDef", "TopicDef", "Codec", "TOPICS", "DEVICE_TOPICS", "HOST_TOPICS",
            "LOG_FORMAT_VERSION", "SCHEMA_ENCODING", "MESSAGE_ENCODING", "schema_hash", "codec_for",
-           "run_metadata", "EVENT_KINDS", "ESTIMATORS", "PRIMITIVES"]
+           "EVENT_KINDS", "ESTIMATORS", "PRIMITIVES"]
 
 LOG_FORMAT_VERSION = 1
 SCHEMA_ENCODING = "ros2msg"
@@ -104,7 +104,7 @@ TOPICS: dict[str, TopicDef] = {t.topic: t for t in (
     ), "telemetry.fast_hz (<= 2 kHz)", "fast telemetry frame"),
     TopicDef("/pmsm/params", "pmsm_hil/msg/Params", (
         T,
-        _f("estimator", "", "nominal | rls | adaline | nlms_adaline", "string"),
+        _f("estimator", "", "nominal, rls, adaline or nlms_adaline", "string"),
         _f("l_d_h", "H", "estimated d-axis inductance"),
         _f("l_q_h", "H", "estimated q-axis inductance"),
         _f("psi_f_wb", "Wb", "estimated permanent-magnet flux linkage"),
@@ -127,7 +127,7 @@ TOPICS: dict[str, TopicDef] = {t.topic: t for t in (
     ), "1/ts_s in bursts (uploaded after the run)", "control-rate capture"),
     TopicDef("/pmsm/status", "pmsm_hil/msg/Status", (
         T,
-        _f("state", "", "idle | running | stopping | fault | done", "string"),
+        _f("state", "", "idle, running, stopping, fault or done", "string"),
         _f("segment", "", "index of the running profile segment", "int32"),
         _f("faults", "", "fault bits: 1 over_current, 2 over_speed, 4 dc_under_voltage, "
                          "8 dc_over_voltage, 16 heartbeat", "uint16"),
@@ -140,7 +140,7 @@ TOPICS: dict[str, TopicDef] = {t.topic: t for t in (
     ), "telemetry.status_hz (10 Hz)", "device state and link counters", deterministic=False),
     TopicDef("/pmsm/events", "pmsm_hil/msg/Event", (
         T,
-        _f("kind", "", " | ".join(EVENT_KINDS), "string"),
+        _f("kind", "", ", ".join(EVENT_KINDS[:-1]) + " or " + EVENT_KINDS[-1], "string"),
         _f("code", "", "device event code (firmware/proto/pmsm_proto.yaml enum event), 0 for host events",
            "int32"),
         _f("arg", "", "segment index, fault bits, heartbeat age in ms, warning code, ...", "int32"),
@@ -183,17 +183,6 @@ def schema_hash(topics: Iterable[TopicDef] | None = None) -> str:
     for t in sorted(topics if topics is not None else TOPICS.values(), key=lambda t: t.topic):
         h.update(f"{t.topic}\n{t.schema_name}\n{t.msgdef}\n".encode())
     return h.hexdigest()[:16]
-
-
-def run_metadata(*, host_version: str, proto_version: int | str = "", schema_hash_hex: str = "",
-                 firmware_version: str = "", board: str = "", seed: int | str | None = None,
-                 **extra: Any) -> dict[str, str]:
-    """A "run" metadata record with the documented keys (all values as text)."""
-    rec = {"host_version": str(host_version), "proto_version": str(proto_version),
-           "schema_hash": str(schema_hash_hex), "fw_version": str(firmware_version),
-           "board": str(board), "seed": "" if seed is None else str(seed)}
-    rec.update({k: str(v) for k, v in extra.items()})
-    return rec
 
 
 # ----------------------------------------------------------------------------------- CDR codec

@@ -70,23 +70,19 @@ def _record(op: int, content: bytes) -> bytes:
 
 def available_compressions() -> list[str]:
     out = []
-    try:
-        import zstandard  # noqa: F401
+    import importlib.util
+
+    if importlib.util.find_spec("zstandard") is not None:
         out.append("zstd")
-    except ImportError:
-        pass
-    try:
-        import lz4.frame  # noqa: F401
+    if importlib.util.find_spec("lz4") is not None:
         out.append("lz4")
-    except ImportError:
-        pass
     return out + [""]
 
 
 def _compressor(name: str):
     if name == "zstd":
         import zstandard
-        c = zstandard.ZstdCompressor(level=3)
+        c = zstandard.ZstdCompressor(level=1)
         return c.compress
     if name == "lz4":
         import lz4.frame

@@ -10,6 +10,7 @@ import difflib
 import math
 import os
 import re
+import types
 import typing
 from dataclasses import dataclass, field as dc_field
 from typing import Any
@@ -126,7 +127,9 @@ def fmt_value(v: Any) -> str:
     if isinstance(v, str):
         return repr(v)
     text = yaml.safe_dump(v, default_flow_style=True, width=1_000_000).strip()
-    return text if len(text) <= 60 else text[:57] + "..."
+    if len(text) <= 60:
+        return text
+    return f"[{len(v)} items]" if isinstance(v, list) else text[:57] + "..."
 
 
 def loc_str(loc: tuple) -> str:
@@ -272,7 +275,7 @@ def read_source(path: str, *, what: str = "file",
 def _unwrap(annotation: Any) -> Any:
     """Optional[X] -> X, list[X] -> list marker handled by caller."""
     origin = typing.get_origin(annotation)
-    if origin in (typing.Union, getattr(__import__("types"), "UnionType", None)):
+    if origin in (typing.Union, types.UnionType):
         args = [a for a in typing.get_args(annotation) if a is not type(None)]
         if len(args) == 1:
             return _unwrap(args[0])
@@ -326,11 +329,6 @@ def range_text(info: Any, name: str) -> str:
     return "is out of range"
 
 
-def _field_hint(info: Any, name: str) -> str:
-    desc = getattr(info, "description", None)
-    return f" ({desc})" if desc else ""
-
-
 def validation_problems(exc: ValidationError, src: Source, model: type[BaseModel],
                         loc_prefix: tuple = ()) -> list[Problem]:
     out: list[Problem] = []
@@ -382,11 +380,6 @@ def validation_problems(exc: ValidationError, src: Source, model: type[BaseModel
             msg = err["msg"][0].lower() + err["msg"][1:]
         out.append(src.problem(loc, msg, value))
     return out
-
-
-def did_you_mean(name: str, choices: typing.Iterable[str]) -> str:
-    close = difflib.get_close_matches(name, list(choices), n=1, cutoff=0.6)
-    return f"; did you mean '{close[0]}'?" if close else ""
 
 
 def resolve_ref(base_file: str, ref: str) -> str:

@@ -35,7 +35,7 @@ def mtpa_torque_nm(i_s_a: float, pole_pairs: int, psi_f_wb: float, l_d_h: float,
 class Motor(FileModel):
     """Nominal PMSM model (what the firmware's predictor and the host's "sim" use) and limits."""
 
-    name: str = Field(min_length=1, description="text")
+    name: str = Field(min_length=1, description="motor name")
     pole_pairs: int = Field(ge=1, le=100, description="pole pairs p")
     r_s_ohm: float = Field(gt=0, le=1000, description="stator resistance per phase, ohm")
     l_d_h: float = Field(gt=0, le=10, description="d-axis inductance, H")

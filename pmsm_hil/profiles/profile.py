@@ -23,7 +23,7 @@ __all__ = ["Profile", "Control", "Telemetry", "Link", "Segment", "load_profile",
 TS_MIN_S = 20e-6
 TS_MAX_S = 1e-3
 MAX_TOTAL_DURATION_S = 3600.0
-MAX_SEGMENTS = 256  # size of the firmware's profile table (profile_segment.index is u16)
+MAX_SEGMENTS = 64   # PROFILE_MAX_SEGMENTS, the firmware's profile table (firmware/core/profile_exec.h)
 
 # Serial link budget. Payload octets per frame as in firmware/proto/pmsm_proto.yaml (the test
 # suite checks these against it); each frame adds id, seq, CRC-16 (2), the COBS code octet and

@@ -27,8 +27,10 @@ class Effect(StrictModel):
 
 
 class DeadTime(Effect):
-    """Inverter dead time and device drop: the applied phase voltage falls short by
-    (dead_time_s / ts_s * v_dc + v_drop_v) * sat(i / i_dt_a), against the phase current."""
+    """Inverter non-linearity: on each switching edge of a leg, the leg's voltage follows the phase
+    current's sign for dead_time_s (diodes conduct), and the conducting switch or diode drops
+    v_drop_v; both oppose the phase current, with the sign smoothed over +-i_dt_a.
+    The exact plant model is in docs/plant.md."""
 
     dead_time_s: float = Field(2.0e-6, ge=0, le=20e-6, description="blanking time per switching edge, s")
     v_drop_v: float = Field(1.0, ge=0, le=20, description="switch/diode on-state drop, V")

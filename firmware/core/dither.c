@@ -1,0 +1,22 @@
+#include "dither.h"
+
+void dither_init(dither_t *d, const dither_cfg_t *cfg)
+{
+    d->cfg = *cfg;
+    if (d->cfg.period < 2u) {
+        d->cfg.period = 2u;
+    }
+    d->k = 0u;
+}
+
+float dither_step(dither_t *d, float step_a)
+{
+    float half = 0.5f * (float)d->cfg.period;
+    float x = (float)d->k;
+    float tri = (x < half) ? x / half : 2.0f - x / half;   /* 0 .. 1 .. 0 */
+    d->k++;
+    if (d->k >= d->cfg.period) {
+        d->k = 0u;
+    }
+    return d->cfg.gain * step_a * (tri - 0.5f);
+}
