@@ -15,7 +15,7 @@ setup(
             "pmsm_hil._fw",
             sources=sources,
             include_dirs=["firmware/core", "firmware/sim"],
-            extra_compile_args=["-std=c99", "-O2", "-Wall", "-Wextra"],
+            extra_compile_args=["-std=c99", "-O3", "-fno-math-errno", "-fno-trapping-math", "-Wall", "-Wextra"],
             libraries=["m"],
         )
     ]

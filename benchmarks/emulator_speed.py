@@ -10,6 +10,9 @@ of real time and their ratio.
 from __future__ import annotations
 
 import argparse
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # idle BLAS threads spin on the second core
 import sys
 import time
 from pathlib import Path
@@ -62,35 +65,38 @@ def main() -> None:
     args = ap.parse_args()
 
     rigs = args.rig or [None]
-    ours = {}
-    for rig in rigs:
-        best = None
-        for _ in range(args.repeat):
-            r = emulator_realtime_factor(args.profile, rig)
-            if best is None or r["realtime_factor"] > best["realtime_factor"]:
-                best = r
-        ours[rig] = best
-        print(f"pmsm-hil emulator  rig={best['rig']}: {best['device_s']:.2f} s device time in "
-              f"{best['wall_s']:.3f} s wall = {best['realtime_factor']:.0f}x real time "
-              f"({best['ns_per_period']:.0f} ns per 50 us period, best of {args.repeat})")
-    if args.no_gem:
-        return
-    try:
-        sys.path.insert(0, str(ROOT / "benchmarks"))
-        from gem_fcs import gem_realtime_factor
-    except ImportError as e:
-        print(f"gym-electric-motor not measured: {e} (pip install gym-electric-motor)")
-        return
-    best_gem = None
+    gem = None
+    if not args.no_gem:
+        try:
+            sys.path.insert(0, str(ROOT / "benchmarks"))
+            from gem_fcs import gem_realtime_factor as gem
+        except ImportError as e:
+            print(f"gym-electric-motor not measured: {e} (pip install gym-electric-motor)")
+    # interleaved repeats: ours and GEM's measured under the same machine load
+    ours: dict = {rig: [] for rig in rigs}
+    gems: list = []
     for _ in range(args.repeat):
-        g = gem_realtime_factor(sim_seconds=args.gem_seconds, tau=50e-6)
-        if best_gem is None or g["realtime_factor"] > best_gem["realtime_factor"]:
-            best_gem = g
-    print(f"gym-electric-motor {best_gem.get('env_id', '')}: {best_gem['steps_per_s']:.0f} steps/s "
-          f"= {best_gem['realtime_factor']:.2f}x real time (best of {args.repeat})")
-    for rig, r in ours.items():
-        print(f"ratio pmsm-hil/gym-electric-motor (rig={r['rig']}): "
-              f"{r['realtime_factor'] / best_gem['realtime_factor']:.0f}x")
+        for rig in rigs:
+            ours[rig].append(emulator_realtime_factor(args.profile, rig))
+        if gem is not None:
+            gems.append(gem(sim_seconds=args.gem_seconds, tau=50e-6, repeats=1))
+    for rig, runs in ours.items():
+        best = max(runs, key=lambda r: r["realtime_factor"])
+        med = sorted(r["realtime_factor"] for r in runs)[len(runs) // 2]
+        name = Path(best["rig"]).name
+        print(f"pmsm-hil emulator, rig {name}: {best['device_s']:.2f} s of device time; best "
+              f"{best['realtime_factor']:.0f}x real time ({best['ns_per_period']:.0f} ns per "
+              f"{1e6 * 50e-6:.0f} us period), median {med:.0f}x, over {len(runs)} runs")
+    if not gems:
+        return
+    gbest = max(g["realtime_factor"] for g in gems)
+    gmed = sorted(g["realtime_factor"] for g in gems)[len(gems) // 2]
+    print(f"gym-electric-motor {gems[0].get('env_id', '')} {gems[0].get('version', '')}: best "
+          f"{gbest:.2f}x real time, median {gmed:.2f}x, over {len(gems)} runs")
+    for rig, runs in ours.items():
+        ratios = sorted(r["realtime_factor"] / g["realtime_factor"] for r, g in zip(runs, gems))
+        print(f"ratio pmsm-hil/gym-electric-motor, rig {Path(runs[0]['rig']).name}: median "
+              f"{ratios[len(ratios) // 2]:.0f}x (per-run pairs; range {ratios[0]:.0f}-{ratios[-1]:.0f}x)")
 
 
 if __name__ == "__main__":

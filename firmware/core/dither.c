@@ -7,13 +7,13 @@ void dither_init(dither_t *d, const dither_cfg_t *cfg)
         d->cfg.period = 2u;
     }
     d->k = 0u;
+    d->inv_half = 2.0f / (float)d->cfg.period;
 }
 
 float dither_step(dither_t *d, float step_a)
 {
-    float half = 0.5f * (float)d->cfg.period;
-    float x = (float)d->k;
-    float tri = (x < half) ? x / half : 2.0f - x / half;   /* 0 .. 1 .. 0 */
+    float x = (float)d->k * d->inv_half;
+    float tri = (x < 1.0f) ? x : 2.0f - x;   /* 0 .. 1 .. 0 */
     d->k++;
     if (d->k >= d->cfg.period) {
         d->k = 0u;

@@ -19,6 +19,7 @@ typedef struct {
 typedef struct {
     dither_cfg_t cfg;
     uint16_t k;
+    float inv_half;   /* 2 / period */
 } dither_t;
 
 void dither_init(dither_t *d, const dither_cfg_t *cfg);

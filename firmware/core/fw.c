@@ -345,6 +345,11 @@ bool fw_tx_pop(fw_t *f, uint16_t *octet)
     return txq_pop(&f->tx, octet);
 }
 
+uint16_t fw_tx_pop_n(fw_t *f, uint16_t *out, uint16_t max)
+{
+    return txq_pop_n(&f->tx, out, max);
+}
+
 /* ------------------------------------------------------------------ telemetry */
 
 static void send_status(fw_t *f)

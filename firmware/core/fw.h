@@ -92,6 +92,7 @@ void fw_init(fw_t *f, const fw_cfg_t *cfg);
 void fw_rx_octet(fw_t *f, uint16_t octet);
 void fw_isr(fw_t *f, const fw_meas_t *m, fw_cmd_t *cmd);
 bool fw_tx_pop(fw_t *f, uint16_t *octet);
+uint16_t fw_tx_pop_n(fw_t *f, uint16_t *out, uint16_t max);
 /* Queue a frame from the board (e.g. the sim board's truth frames) on the same link. */
 bool fw_send(fw_t *f, uint16_t msg_id, const uint16_t *payload, uint16_t n);
 bool fw_active(const fw_t *f);   /* running or stopping: the board must run the control ISR */

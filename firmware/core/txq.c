@@ -38,3 +38,16 @@ bool txq_pop(txq_t *q, uint16_t *octet)
     q->level = (uint16_t)(q->level - 1u);
     return true;
 }
+
+uint16_t txq_pop_n(txq_t *q, uint16_t *out, uint16_t max)
+{
+    uint16_t n = (q->level < max) ? q->level : max;
+    uint16_t i, t = q->tail;
+    for (i = 0u; i < n; i++) {
+        out[i] = q->buf[t];
+        t = (uint16_t)((t + 1u) & (TXQ_SIZE - 1u));
+    }
+    q->tail = t;
+    q->level = (uint16_t)(q->level - n);
+    return n;
+}

@@ -20,5 +20,6 @@ void txq_init(txq_t *q);
 uint16_t txq_free(const txq_t *q);
 bool txq_push(txq_t *q, const uint16_t *octets, uint16_t n);   /* false (and counted) if it does not fit */
 bool txq_pop(txq_t *q, uint16_t *octet);
+uint16_t txq_pop_n(txq_t *q, uint16_t *out, uint16_t max);   /* up to max octets; returns how many */
 
 #endif

@@ -120,10 +120,20 @@ static void send_truth(emu_t *e)
 
 static uint32_t drain(emu_t *e, uint8_t *out, uint32_t cap, uint32_t n, uint32_t limit)
 {
-    uint16_t o;
-    while (n < cap && limit > 0u && fw_tx_pop(&e->fw, &o)) {
-        out[n++] = (uint8_t)o;
-        limit--;
+    uint16_t buf[64];
+    while (n < cap && limit > 0u) {
+        uint32_t want = cap - n;
+        uint16_t got, i;
+        if (want > limit) { want = limit; }
+        if (want > 64u) { want = 64u; }
+        got = fw_tx_pop_n(&e->fw, buf, (uint16_t)want);
+        for (i = 0u; i < got; i++) {
+            out[n++] = (uint8_t)buf[i];
+        }
+        limit -= got;
+        if (got < want) {
+            break;
+        }
     }
     return n;
 }
