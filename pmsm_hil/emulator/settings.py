@@ -36,6 +36,7 @@ def emulator_settings(motor, rig, seed: int = 1, baud: int = 921600,
     s["enc_offset_rad"] = getattr(enc, "offset_rad", 0.0) if enc else 0.0
     fr = _eff(rig, "friction")
     if fr is not None:
-        s["b_visc_nms"] = getattr(fr, "viscous_nms", s["b_visc_nms"])
-        s["t_coulomb_nm"] = getattr(fr, "coulomb_nm", s["t_coulomb_nm"])
+        # the rig's friction adds to the motor file's nominal friction (docs/profiles.md)
+        s["b_visc_nms"] += fr.b_visc_nms
+        s["t_coulomb_nm"] += fr.t_coulomb_nm
     return s
