@@ -6,8 +6,8 @@ import time
 from collections import deque
 from dataclasses import dataclass
 
-from pmsm_hil.protocol import codec
 from pmsm_hil.protocol import generated as gen
+from pmsm_hil.protocol.link import as_link
 from pmsm_hil.transport.base import Transport, TransportError
 
 ACK_TEXT = {v: k for k, v in gen.ENUMS["ack_status"].items()}
@@ -29,8 +29,9 @@ class Identity:
 
 class Session:
     def __init__(self, transport: Transport):
-        self.t = transport
-        self.decoder = codec.FrameDecoder()
+        self.link = as_link(transport)
+        self.t = self.link            # .name for messages
+        self.decoder = self.link.decoder   # frame counters (link statistics)
         self.inbox: deque = deque()   # frames that arrived while waiting for something else
         self._seq = 0
         self.identity: Identity | None = None
@@ -39,7 +40,7 @@ class Session:
     def send(self, name: str, **fields) -> int:
         seq = self._seq
         self._seq = (self._seq + 1) & 0xFF
-        self.t.write(codec.encode(name, seq, **fields))
+        self.link.send(name, seq, **fields)
         return seq
 
     # ------------------------------------------------------------------ receiving
@@ -47,9 +48,7 @@ class Session:
         """Frames received now (plus any held back), waiting at most timeout_s for data."""
         frames = list(self.inbox)
         self.inbox.clear()
-        data = self.t.read(0.0 if frames else timeout_s)
-        if data:
-            frames.extend(self.decoder.feed(data))
+        frames.extend(self.link.poll(0.0 if frames else timeout_s))
         return frames
 
     def _wait_for(self, match, timeout_s: float):
@@ -60,10 +59,7 @@ class Session:
             left = deadline - time.monotonic()
             if left <= 0:
                 break
-            data = self.t.read(min(left, 0.05))
-            if not data:
-                continue
-            for fr in self.decoder.feed(data):
+            for fr in self.link.poll(min(left, 0.05)):
                 if found is None and match(fr):
                     found = fr
                 else:

@@ -1,0 +1,36 @@
+"""Links: a transport plus the framing that carries protocol messages over it.
+
+A link sends a message (name, seq, fields) and returns the decoded frames that arrived. The serial
+link frames with COBS + CRC-16 (docs/protocol.md) over any byte transport (a UART, the emulator's
+pty, the in-process emulator); the CAN link maps messages onto CAN frames. The session above sees
+no difference."""
+from __future__ import annotations
+
+from pmsm_hil.protocol import codec
+
+
+class SerialLink:
+    """Protocol messages over a byte transport."""
+
+    def __init__(self, transport):
+        self.transport = transport
+        self.decoder = codec.FrameDecoder()
+        self.name = transport.name
+        self.bit_rate = getattr(transport, "bit_rate", 0.0)
+
+    def send(self, name: str, seq: int, **fields) -> None:
+        self.transport.write(codec.encode(name, seq, **fields))
+
+    def poll(self, timeout_s: float) -> list:
+        data = self.transport.read(timeout_s)
+        return self.decoder.feed(data) if data else []
+
+    def close(self) -> None:
+        self.transport.close()
+
+
+def as_link(transport_or_link):
+    """A link for a byte transport, or the link itself."""
+    if hasattr(transport_or_link, "poll") and hasattr(transport_or_link, "send"):
+        return transport_or_link
+    return SerialLink(transport_or_link)
