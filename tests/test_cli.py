@@ -171,3 +171,19 @@ def test_corrupted_link_is_counted_dropped_and_resynchronised(data, tmp_path):
     # most frames made it, and the ones that did are intact (t_s on the 0.5 ms grid)
     assert len(tel["t_s"]) > 0.9 * profile.total_duration_s * 2000
     assert pytest.approx(0.0, abs=1e-9) == float(max(abs((tel["t_s"] * 2000) - (tel["t_s"] * 2000).round())))
+
+
+def test_port_that_is_busy(data):
+    import serial
+
+    master, slave, path = _pty()
+    holder = serial.Serial(path, exclusive=True)
+    try:
+        r = cli("run", data / "short.yaml", "--port", path, "--no-live", timeout=60)
+    finally:
+        holder.close()
+        os.close(master)
+        os.close(slave)
+    assert r.returncode == 3
+    assert f"serial port {path} is busy" in r.stderr
+    assert "Traceback" not in r.stderr
