@@ -54,7 +54,9 @@ def device_config(profile) -> tuple[dict, dict]:
         kp_d, ki_d = design_speed_pi(m)
         kp = kp_d if kp is None else kp
         ki = ki_d if ki is None else ki
-    dt = _effect(profile.rig, "dead_time") if getattr(c, "dead_time_comp", True) else None
+    # The firmware compensates the inverter with its own nominal values (the motor file's), never
+    # with the rig's: the rig is the plant, which the firmware cannot know (docs/rigs.md).
+    comp = bool(getattr(c, "dead_time_comp", True))
     ctrl_cfg = dict(
         ts_s=c.ts_s, rho=c.rho, speed_kp_a_per_rad_s=kp, speed_ki_a_per_rad=ki,
         speed_div=_div(c.speed_loop_hz, c.ts_s),
@@ -65,7 +67,20 @@ def device_config(profile) -> tuple[dict, dict]:
         status_div=_div(tel.status_hz, c.ts_s),
         enc_counts=encoder_counts(profile.rig), enc_offset_rad=0.0,
         speed_obs_bw_rad_s=getattr(c, "speed_obs_bw_rad_s", None) or DEFAULT_OBSERVER_BW_RAD_S,
-        dead_time_s=getattr(dt, "dead_time_s", 0.0) if dt is not None else 0.0,
-        v_drop_v=getattr(dt, "v_drop_v", 0.0) if dt is not None else 0.0,
+        dead_time_s=float(getattr(m, "dead_time_s", 0.0) or 0.0) if comp else 0.0,
+        v_drop_v=float(getattr(m, "v_drop_v", 0.0) or 0.0) if comp else 0.0,
         capture_pre=CAPTURE_PRE)
+    ctrl_cfg.update(identification_config(profile))
     return motor_cfg, ctrl_cfg
+
+
+def identification_config(profile) -> dict:
+    """config_ctrl fields of the online identification (docs/identification.md)."""
+    c = profile.control
+    sc = getattr(c, "predictor_scale", None)
+    return dict(
+        identify=1 if getattr(c, "identify", False) else 0,
+        predictor=gen.ENUMS["estimator"][getattr(c, "predictor", "nominal")],
+        id_window=max(2, round(getattr(c, "id_window_s", 1e-3) / c.ts_s)),
+        pred_scale_l_d=getattr(sc, "l_d_h", 1.0), pred_scale_l_q=getattr(sc, "l_q_h", 1.0),
+        pred_scale_psi_f=getattr(sc, "psi_f_wb", 1.0), pred_scale_r_s=getattr(sc, "r_s_ohm", 1.0))

@@ -52,6 +52,8 @@ def _metadata(profile, session: Session, options: RunOptions) -> dict[str, dict[
                 "host_version": __version__, "transport": session.t.name,
                 "ts_s": repr(profile.control.ts_s),
                 "segment_names": "|".join(s.name or f"segment {i}" for i, s in enumerate(profile.segments))},
+        # the rig's effects in force and their sizes (docs/rigs.md); the rig yaml is attached too
+        "rig_effects": profile.rig.effective_metadata() if hasattr(profile.rig, "effective_metadata") else {},
         "device": {"board": ident.board, "fw_version": ident.fw_version,
                    "proto_version": str(ident.proto_version),
                    "schema_hash": f"{ident.schema_hash:08x}"},
@@ -74,7 +76,13 @@ def configure(session: Session, profile) -> None:
     for i, s in enumerate(profile.segments):
         session.request("profile_segment", index=i, duration_s=s.duration_s, speed_rpm=s.speed_rpm,
                         ramp_rpm_s=s.ramp_rpm_s, load_nm=s.load_nm,
-                        flags=1 if s.capture else 0)
+                        flags=1 if s.capture else 0,
+                        kind=gen.ENUMS["segment_kind"][getattr(s, "kind", "run")],
+                        inject_a=getattr(s, "inject_a", 0.0), inject_hz=getattr(s, "inject_hz", 0.0))
+    steps = [(i, s.plant) for i, s in enumerate(profile.segments) if getattr(s, "plant", None) is not None]
+    if steps and getattr(session.identity, "board", "") == "emulator":
+        for i, st in steps:   # emulator only: the sim board steps the true R and psi_f
+            session.request("sim_plant", index=i, r_s_scale=st.r_s_scale, psi_f_scale=st.psi_f_scale)
 
 
 def run_profile(profile, session: Session, log_path: Path, options: RunOptions | None = None,

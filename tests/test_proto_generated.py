@@ -15,7 +15,10 @@ ROOT = Path(__file__).resolve().parents[1]
 
 OUTPUTS = {
     "tools.gen_proto": ["firmware/core/proto_gen.h", "firmware/core/proto_gen.c",
-                        "pmsm_hil/protocol/generated.py", "docs/protocol.md"],
+                        "pmsm_hil/protocol/generated.py", "docs/protocol.md",
+                        "firmware/core/proto_can_gen.h", "firmware/core/proto_can_gen.c",
+                        "pmsm_hil/protocol/can_generated.py", "firmware/proto/pmsm_proto.dbc",
+                        "docs/can.md"],
     "tools.gen_golden": ["tests/data/golden_frames.json", "firmware/tests/golden_frames.h"],
 }
 

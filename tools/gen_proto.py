@@ -5,7 +5,7 @@
     python3 -m tools.gen_proto --check         exit 1 if a generated file in the tree is stale
 
 Outputs: firmware/core/proto_gen.h, firmware/core/proto_gen.c, pmsm_hil/protocol/generated.py and the
-tables between the GENERATED markers in docs/protocol.md. This is the only code that reads the yaml.
+tables between the GENERATED markers in docs/protocol.md; the CAN mapping via tools/gen_proto_can.py. This is the only code that reads the yaml.
 The output is deterministic: the same yaml gives the same files, byte for byte.
 """
 from __future__ import annotations
@@ -115,8 +115,9 @@ IDENT = re.compile(r"^[a-z][a-z0-9_]*$")
 
 
 def schema_hash(doc: dict) -> int:
-    """CRC-32 of the canonical JSON of protocol_version, enums and messages (comments do not count)."""
-    canon = {k: doc[k] for k in ("protocol_version", "enums", "messages")}
+    """CRC-32 of the canonical JSON of protocol_version, enums, messages and the CAN mapping
+    (comments do not count)."""
+    canon = {k: doc[k] for k in ("protocol_version", "enums", "messages", "can") if k in doc}
     text = json.dumps(canon, sort_keys=True, separators=(",", ":"), ensure_ascii=True)
     return zlib.crc32(text.encode("ascii")) & 0xFFFFFFFF
 
@@ -489,6 +490,11 @@ def render_all(root: Path) -> dict[str, str]:
     doc = root / DOC
     if doc.exists():
         files[DOC] = splice_doc(doc.read_text(encoding="utf-8"), render_doc_tables(schema))
+    from tools import gen_proto_can   # the CAN mapping: C, Python, DBC, docs/can.md
+    try:
+        files.update(gen_proto_can.render_all(root, YAML_PATH, schema.messages, WIRE_TYPES, BANNER))
+    except gen_proto_can.CanSchemaError as e:
+        raise SchemaError(str(e)) from None
     return files
 
 

@@ -24,6 +24,12 @@
 
 bool fw_send(fw_t *f, uint16_t msg_id, const uint16_t *payload, uint16_t n)
 {
+    if (f->link == FW_LINK_CAN) {   /* docs/can.md: whole messages queued as frames, or dropped */
+        bool ok = can_link_send(&f->can, msg_id, f->tx_seq, payload, n);
+        f->tx_seq = (uint16_t)((f->tx_seq + 1u) & 0xFFu);
+        f->tx.dropped += ok ? 0u : 1u;
+        return ok;
+    }
     uint16_t len = frame_encode(msg_id, f->tx_seq, payload, n, f->frame_buf,
                                 (uint16_t)(sizeof(f->frame_buf) / sizeof(f->frame_buf[0])));
     f->tx_seq = (uint16_t)((f->tx_seq + 1u) & 0xFFu);
@@ -101,6 +107,12 @@ static void send_capture_chunk(fw_t *f, uint16_t offset)
 
 /* ------------------------------------------------------------------ state changes */
 
+void fw_set_board_hook(fw_t *f, fw_board_msg_fn fn, void *ctx)
+{
+    f->board_msg = fn;
+    f->board_ctx = ctx;
+}
+
 bool fw_active(const fw_t *f)
 {
     return f->state == PROTO_STATE_RUNNING || f->state == PROTO_STATE_STOPPING;
@@ -135,6 +147,163 @@ static void trip(fw_t *f, uint16_t fault_bits)
         send_event(f, PROTO_EVENT_CAPTURE_TRIGGERED, -1);
     }
     pwm_off(f, PROTO_STATE_FAULT, FW_STOP_FAULT);
+}
+
+/* ------------------------------------------------------------------ identification */
+
+static void ident_init(fw_t *f)
+{
+    est_cfg_t ec;
+    idw_cfg_t wc;
+    rinj_cfg_t rc;
+    uint16_t i;
+    est_cfg_default(&ec, f->motor.r_s_ohm, f->motor.l_d_h, f->motor.l_q_h, f->motor.psi_f_wb,
+                    f->motor.pole_pairs);
+    est_rls_init(&f->est_rls, &ec);
+    est_adaline_init(&f->est_ada, &ec);
+    est_nlms_init(&f->est_nlms, &ec);
+    memset(f->est_out, 0, sizeof(f->est_out));
+    wc.n_periods = f->ctrl.id_window;
+    wc.ts_s = f->ctrl.ts_s;
+    idw_init(&f->idw, &wc);
+    rc.sep_min = 0.02f;
+    rc.n_window = f->ctrl.id_window >= 2u ? f->ctrl.id_window : 20u;
+    rinj_init(&f->rinj, &rc);
+    memset(&f->rinj_out, 0, sizeof(f->rinj_out));
+    f->have_injection = false;
+    for (i = 0u; i < f->prof.n_declared && i < PROFILE_MAX_SEGMENTS; i++) {
+        if (f->prof.seg[i].kind == PROFILE_KIND_IDENTIFY_R) {
+            f->have_injection = true;
+        }
+    }
+    f->r_identified = false;
+    f->r_injecting = false;
+    f->r_ident_ohm = 0.0f;
+    f->pred_latched = false;
+    f->i_d_base_a = 0.0f;
+    f->seg_kind = PROFILE_KIND_RUN;
+    f->seg_inject_a = 0.0f;
+    f->seg_inject_hz = 0.0f;
+    f->seg_tick = 0u;
+    f->seg_ticks = 0u;
+}
+
+/* The R an estimator reports: the injection's while it runs, 0 before it (R unknown), then the
+ * estimator's own (initialised from the injection, refined online). */
+static float est_r_report(const fw_t *f, uint16_t k)
+{
+    if (f->r_injecting && !f->r_identified) {
+        return f->rinj_out.r_s_ohm;
+    }
+    if (f->have_injection && !f->r_identified) {
+        return 0.0f;
+    }
+    return f->est_out[k].r_s_ohm;
+}
+
+/* Parameters of the MPCC predictor: the chosen estimator once it has converged (R from the
+ * injection until then), else the motor file's values times the profile's mismatch factors. */
+static void predictor_params(fw_t *f, mpcc_in_t *mi)
+{
+    const proto_config_ctrl_t *c = &f->ctrl;
+    mi->r_s_ohm = f->motor.r_s_ohm * c->pred_scale_r_s;
+    mi->l_d_h = f->motor.l_d_h * c->pred_scale_l_d;
+    mi->l_q_h = f->motor.l_q_h * c->pred_scale_l_q;
+    mi->psi_f_wb = f->motor.psi_f_wb * c->pred_scale_psi_f;
+    if (c->identify != 0u && c->predictor != PROTO_ESTIMATOR_NOMINAL &&
+        c->predictor <= PROTO_ESTIMATOR_NLMS_ADALINE) {
+        const est_out_t *o = &f->est_out[c->predictor - 1u];
+        if (f->r_identified) {
+            mi->r_s_ohm = f->r_ident_ohm;
+        }
+        if (!f->pred_latched && o->converged) {
+            f->pred_latched = true;
+        }
+        if (f->pred_latched && o->l_d_h > 0.0f && o->l_q_h > 0.0f) {
+            mi->r_s_ohm = o->r_s_ohm;
+            mi->l_d_h = o->l_d_h;
+            mi->l_q_h = o->l_q_h;
+            mi->psi_f_wb = o->psi_f_wb;
+        }
+    }
+    f->pred_r_s_ohm = mi->r_s_ohm;
+    f->pred_l_d_h = mi->l_d_h;
+    f->pred_l_q_h = mi->l_q_h;
+    f->pred_psi_f_wb = mi->psi_f_wb;
+}
+
+/* d-current reference of this period: identify_r's injection level (two levels: inject_a over
+ * the first half, inject_a / 2 over the second), or the speed loop's plus the square-wave
+ * excitation of the segment. */
+static float d_current_ref(const fw_t *f)
+{
+    if (f->seg_kind == PROFILE_KIND_IDENTIFY_R) {
+        return 2u * f->seg_tick < f->seg_ticks ? f->seg_inject_a : 0.5f * f->seg_inject_a;
+    }
+    if (f->seg_inject_a != 0.0f && f->seg_inject_hz > 0.0f) {
+        const float ph = (float)f->seg_tick * f->ctrl.ts_s * f->seg_inject_hz;
+        const float frac = ph - floorf(ph);
+        return f->i_d_base_a + (frac < 0.5f ? f->seg_inject_a : -f->seg_inject_a);
+    }
+    return f->i_d_base_a;
+}
+
+/* After the MPCC step: feed the R injection or the window averager and the three estimators. */
+static void ident_step(fw_t *f, const fw_meas_t *m, const mpcc_out_t *mo)
+{
+    if (f->seg_kind == PROFILE_KIND_IDENTIFY_R) {
+        const uint32_t half = f->seg_ticks / 2u;
+        const uint32_t t_in = f->seg_tick < half ? f->seg_tick : f->seg_tick - half;
+        const uint32_t len = f->seg_tick < half ? half : f->seg_ticks - half;
+        f->r_injecting = true;
+        if ((float)t_in >= FW_R_SETTLE_FRAC * (float)len) {
+            rinj_in_t ri;
+            ri.i_d_a = f->sig.i_d_a;
+            ri.i_q_a = f->sig.i_q_a;
+            ri.u_d_v = mo->u_d_avg_v;
+            ri.u_q_v = mo->u_q_avg_v;
+            ri.theta_e_rad = f->sig.theta_e_est_rad;
+            ri.i_a_a = m->i_a_a;
+            ri.i_b_a = m->i_b_a;
+            ri.i_c_a = m->i_c_a;
+            rinj_step(&f->rinj, &ri, &f->rinj_out);
+        }
+        if (f->seg_tick + 1u >= f->seg_ticks && f->rinj_out.r_s_ohm > 0.0f) {
+            f->r_ident_ohm = f->rinj_out.r_s_ohm;
+            f->r_identified = true;
+            f->r_injecting = false;
+            est_rls_set_r(&f->est_rls, f->r_ident_ohm);
+            est_adaline_set_r(&f->est_ada, f->r_ident_ohm);
+            est_nlms_set_r(&f->est_nlms, f->r_ident_ohm);
+            f->est_out[FW_EST_RLS].r_s_ohm = f->r_ident_ohm;
+            f->est_out[FW_EST_ADALINE].r_s_ohm = f->r_ident_ohm;
+            f->est_out[FW_EST_NLMS].r_s_ohm = f->r_ident_ohm;
+            send_event(f, PROTO_EVENT_R_IDENTIFIED, (int32_t)(f->r_ident_ohm * 1000.0f + 0.5f));
+        }
+        idw_reset(&f->idw);
+        return;
+    }
+    f->r_injecting = false;
+    if (f->ctrl.identify != 0u) {
+        idw_in_t wi;
+        id_sample_t smp;
+        /* The encoder count is the floor of the angle: on average the true angle is half a count
+         * ahead. The steady-state equations are sensitive to that bias (a rotation by delta moves
+         * delta * u_q ~ 0.1 V into u_d at 1000 r/min, +0.4 % on L_q), so the estimators see u and i
+         * in the frame of the mid-count angle: x(theta + delta) = rot(-delta) x(theta). */
+        const float dl = f->ctrl.enc_counts > 0u ?
+                         FW_PI_F * (float)f->motor.pole_pairs / (float)f->ctrl.enc_counts : 0.0f;
+        wi.i_d_a = f->sig.i_d_a + dl * f->sig.i_q_a;
+        wi.i_q_a = f->sig.i_q_a - dl * f->sig.i_d_a;
+        wi.u_d_v = mo->u_d_avg_v + dl * mo->u_q_avg_v;
+        wi.u_q_v = mo->u_q_avg_v - dl * mo->u_d_avg_v;
+        wi.omega_e_rad_s = f->enc_out.omega_e_rad_s;
+        if (idw_step(&f->idw, &wi, &smp)) {
+            est_rls_step(&f->est_rls, &smp, &f->est_out[FW_EST_RLS]);
+            est_adaline_step(&f->est_ada, &smp, &f->est_out[FW_EST_ADALINE]);
+            est_nlms_step(&f->est_nlms, &smp, &f->est_out[FW_EST_NLMS]);
+        }
+    }
 }
 
 static uint16_t start_run(fw_t *f)
@@ -174,6 +343,7 @@ static uint16_t start_run(fw_t *f)
     dc.gain = FW_DITHER_GAIN;
     dither_init(&f->dither, &dc);
 
+    ident_init(f);
     capture_init(&f->cap, f->ctrl.capture_pre);
     profile_start(&f->prof, f->ctrl.ts_s);
     memset(&f->sig, 0, sizeof(f->sig));
@@ -234,7 +404,12 @@ static uint16_t cmd_config_ctrl(fw_t *f, const uint16_t *p, uint16_t n)
     if (!(c.ts_s >= 1e-5f && c.ts_s <= 1e-3f) || c.speed_div == 0u || !(c.rho > 0.0f) ||
         !(c.heartbeat_timeout_s > 0.0f) || c.enc_counts < 4u || !(c.speed_obs_bw_rad_s > 0.0f) ||
         c.current_ref > PROTO_CURRENT_REF_MTPA || c.current_ctrl != PROTO_CURRENT_CTRL_MPCC ||
-        c.capture_pre >= CAPTURE_LEN || c.speed_kp_a_per_rad_s < 0.0f || c.speed_ki_a_per_rad < 0.0f) {
+        c.capture_pre >= CAPTURE_LEN || c.speed_kp_a_per_rad_s < 0.0f || c.speed_ki_a_per_rad < 0.0f ||
+        c.identify > 1u || c.predictor > PROTO_ESTIMATOR_NLMS_ADALINE ||
+        (c.identify != 0u && c.id_window < 2u) || !(c.pred_scale_l_d > 0.0f) ||
+        !(c.pred_scale_l_q > 0.0f) || !(c.pred_scale_psi_f >= 0.0f) || !(c.pred_scale_r_s >= 0.0f) ||
+        !(c.pred_scale_l_d <= 100.0f && c.pred_scale_l_q <= 100.0f && c.pred_scale_psi_f <= 100.0f &&
+          c.pred_scale_r_s <= 100.0f)) {
         return PROTO_ACK_STATUS_BAD_VALUE;
     }
     f->ctrl = c;
@@ -260,6 +435,16 @@ static uint16_t cmd_profile_segment(fw_t *f, const uint16_t *p, uint16_t n)
     seg.ramp_rpm_s = s.ramp_rpm_s;
     seg.load_nm = s.load_nm;
     seg.flags = s.flags;
+    seg.kind = s.kind;
+    seg.inject_a = s.inject_a;
+    seg.inject_hz = s.inject_hz;
+    if (s.kind > PROFILE_KIND_IDENTIFY_R || !(s.inject_hz >= 0.0f) || !(fabsf(s.inject_a) <= 1e3f) ||
+        (s.kind == PROFILE_KIND_IDENTIFY_R && (s.speed_rpm != 0.0f || !(s.inject_a != 0.0f)))) {
+        return PROTO_ACK_STATUS_BAD_VALUE;
+    }
+    if (f->have_motor && fabsf(s.inject_a) > f->motor.i_max_a) {
+        return PROTO_ACK_STATUS_BAD_VALUE;
+    }
     return profile_set(&f->prof, s.index, &seg) ? PROTO_ACK_STATUS_OK : PROTO_ACK_STATUS_BAD_VALUE;
 }
 
@@ -324,16 +509,28 @@ static void handle_frame(fw_t *f, uint16_t id, uint16_t seq, const uint16_t *p, 
         }
         break;
     default:
-        st = PROTO_ACK_STATUS_UNKNOWN;
+        st = f->board_msg != 0 ? f->board_msg(f->board_ctx, id, p, n) : PROTO_ACK_STATUS_UNKNOWN;
         break;
     }
     send_ack(f, id, seq, st);
+}
+
+void fw_can_rx(fw_t *f, uint16_t id, const uint16_t *data, uint16_t dlc)
+{
+    int16_t r = can_link_rx(&f->can, id, data, dlc);
+    if (r == CAN_RX_MSG) {
+        f->link = f->can.msg_id == PROTO_ID_HELLO ? FW_LINK_CAN : f->link;
+        handle_frame(f, f->can.msg_id, f->can.seq, f->can.payload, f->can.payload_len);
+    } else if (r < 0) {
+        f->rx_bad++;
+    }
 }
 
 void fw_rx_octet(fw_t *f, uint16_t octet)
 {
     int16_t r = frame_parser_push(&f->rx, octet);
     if (r == FRAME_OK) {
+        f->link = f->rx.msg_id == PROTO_ID_HELLO ? FW_LINK_SERIAL : f->link;
         handle_frame(f, f->rx.msg_id, f->rx.seq, f->rx.payload, f->rx.payload_len);
     } else if (r < 0) {
         f->rx_bad++;
@@ -399,15 +596,30 @@ static void send_telemetry(fw_t *f)
     }
     if (c->params_div != 0u && (f->tick % c->params_div) == 0u) {
         proto_params_t pm;
+        uint16_t k;
+        bool nominal_feeds = c->identify == 0u || c->predictor == PROTO_ESTIMATOR_NOMINAL ||
+                             !f->pred_latched;
         pm.tick = f->tick;
-        pm.estimator = PROTO_ESTIMATOR_NOMINAL;
-        pm.flags = 4u;   /* feeds the predictor */
-        pm.l_d_h = f->motor.l_d_h;
-        pm.l_q_h = f->motor.l_q_h;
-        pm.psi_f_wb = f->motor.psi_f_wb;
-        pm.r_s_ohm = f->motor.r_s_ohm;
+        pm.estimator = PROTO_ESTIMATOR_NOMINAL;   /* the motor file's values as the predictor sees them */
+        pm.flags = nominal_feeds ? 4u : 0u;
+        pm.l_d_h = f->motor.l_d_h * c->pred_scale_l_d;
+        pm.l_q_h = f->motor.l_q_h * c->pred_scale_l_q;
+        pm.psi_f_wb = f->motor.psi_f_wb * c->pred_scale_psi_f;
+        pm.r_s_ohm = f->motor.r_s_ohm * c->pred_scale_r_s;
         n = proto_params_pack(&pm, f->payload_buf);
         (void)fw_send(f, PROTO_ID_PARAMS, f->payload_buf, n);
+        for (k = 0u; c->identify != 0u && k < FW_N_EST; k++) {
+            const est_out_t *o = &f->est_out[k];
+            pm.estimator = (uint16_t)(k + 1u);
+            pm.flags = (uint16_t)((o->excited ? 1u : 0u) | (o->converged ? 2u : 0u) |
+                                  ((!nominal_feeds && c->predictor == k + 1u) ? 4u : 0u));
+            pm.l_d_h = o->l_d_h;
+            pm.l_q_h = o->l_q_h;
+            pm.psi_f_wb = o->psi_f_wb;
+            pm.r_s_ohm = est_r_report(f, k);
+            n = proto_params_pack(&pm, f->payload_buf);
+            (void)fw_send(f, PROTO_ID_PARAMS, f->payload_buf, n);
+        }
     }
     if (c->status_div != 0u && (f->tick % c->status_div) == 0u) {
         send_status(f);
@@ -466,9 +678,16 @@ static void reference(fw_t *f, float *speed_ref_rpm, float *load_nm)
         } else {
             *speed_ref_rpm = po.speed_ref_rpm;
             *load_nm = po.load_nm;
+            f->seg_kind = po.kind;
+            f->seg_inject_a = po.inject_a;
+            f->seg_inject_hz = po.inject_hz;
+            f->seg_tick = po.tick_in_seg;
+            f->seg_ticks = po.seg_ticks;
             return;
         }
     }
+    f->seg_kind = PROFILE_KIND_RUN;
+    f->seg_inject_a = 0.0f;
     /* stopping: quick-stop ramp to zero, load released */
     f->stop_ref_rpm = profile_ramp(f->stop_ref_rpm, 0.0f, FW_STOP_RAMP_RPM_S, f->ctrl.ts_s);
     *speed_ref_rpm = f->stop_ref_rpm;
@@ -539,16 +758,22 @@ void fw_isr(fw_t *f, const fw_meas_t *m, fw_cmd_t *cmd)
     f->sig.speed_ref_rpm = speed_ref_rpm;
     f->sig.load_nm = load_nm;
 
-    /* speed loop */
+    /* speed loop (identify_r: off, the d axis carries the injection and the q axis nothing) */
     f->speed_div_count++;
-    if (f->speed_div_count >= f->ctrl.speed_div) {
+    if (f->seg_kind == PROFILE_KIND_IDENTIFY_R) {
+        speed_pi_reset(&f->spi, 0.0f);
+        f->i_s_ref_a = 0.0f;
+        f->i_d_base_a = 0.0f;
+        f->sig.i_q_ref_a = 0.0f;
+    } else if (f->speed_div_count >= f->ctrl.speed_div) {
         f->speed_div_count = 0u;
         f->i_s_ref_a = speed_pi_step(&f->spi, speed_ref_rpm / FW_RPM_PER_RAD_S,
                                      f->enc_out.omega_m_rad_s);
         mtpa_split(&f->motor, f->ctrl.current_ref, f->i_s_ref_a, &idq_ref);
-        f->sig.i_d_ref_a = idq_ref.d;
+        f->i_d_base_a = idq_ref.d;
         f->sig.i_q_ref_a = idq_ref.q;
     }
+    f->sig.i_d_ref_a = d_current_ref(f);
 
     /* current control slot: MPCC */
     mi.i_d_a = f->sig.i_d_a;
@@ -559,11 +784,9 @@ void fw_isr(fw_t *f, const fw_meas_t *m, fw_cmd_t *cmd)
     mi.theta_e_rad = f->sig.theta_e_est_rad;
     mi.omega_e_rad_s = f->enc_out.omega_e_rad_s;
     mi.v_dc_v = m->v_dc_v;
-    mi.r_s_ohm = f->motor.r_s_ohm;
-    mi.l_d_h = f->motor.l_d_h;
-    mi.l_q_h = f->motor.l_q_h;
-    mi.psi_f_wb = f->motor.psi_f_wb;
+    predictor_params(f, &mi);
     mpcc_step(&f->mpcc, &mi, &mo);
+    ident_step(f, m, &mo);
     f->sig.u_d_v = mo.u_d_v;
     f->sig.u_q_v = mo.u_q_v;
     cmd->s_a = mo.s_a;
@@ -598,6 +821,7 @@ void fw_init(fw_t *f, const fw_cfg_t *cfg)
     memset(f, 0, sizeof(*f));
     f->cfg = *cfg;
     frame_parser_init(&f->rx);
+    can_link_init(&f->can, cfg->can_node);
     txq_init(&f->tx);
     capture_init(&f->cap, 0u);
     f->state = PROTO_STATE_IDLE;

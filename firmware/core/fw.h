@@ -14,6 +14,7 @@
 #include "frame.h"
 #include "proto_gen.h"
 #include "txq.h"
+#include "can_link.h"
 #include "capture.h"
 #include "profile_exec.h"
 #include "mpcc.h"
@@ -21,6 +22,11 @@
 #include "mtpa.h"
 #include "enc_angle.h"
 #include "dither.h"
+#include "id_window.h"
+#include "est_rls.h"
+#include "est_adaline.h"
+#include "est_nlms.h"
+#include "r_inject.h"
 
 #define FW_VERSION_MAJOR 0u
 #define FW_VERSION_MINOR 1u
@@ -31,7 +37,19 @@
 
 typedef struct {
     uint16_t board;          /* FW_BOARD_SIM or FW_BOARD_F28335 */
+    uint16_t can_node;       /* CAN node ID 0..15 (docs/can.md) */
 } fw_cfg_t;
+
+/* Online identification: the three estimators, index = PROTO_ESTIMATOR_x - 1. */
+#define FW_N_EST 3u
+#define FW_EST_RLS 0u
+#define FW_EST_ADALINE 1u
+#define FW_EST_NLMS 2u
+#define FW_R_SETTLE_FRAC 0.2f   /* identify_r: part of each current level skipped (settling) */
+
+/* Board hook for messages the core does not know (the sim board's sim-only h2d messages):
+ * returns an ack status (PROTO_ACK_STATUS_*). Set with fw_set_board_hook after fw_init. */
+typedef uint16_t (*fw_board_msg_fn)(void *ctx, uint16_t msg_id, const uint16_t *payload, uint16_t n);
 
 /* Fault limits beyond the motor struct (config_motor). */
 typedef struct {
@@ -78,6 +96,29 @@ typedef struct {
 
     fw_signals_t sig;
 
+    /* online identification (docs/identification.md) */
+    idw_t idw;
+    est_rls_t est_rls;
+    est_adaline_t est_ada;
+    est_nlms_t est_nlms;
+    est_out_t est_out[FW_N_EST];
+    rinj_t rinj;
+    rinj_out_t rinj_out;
+    bool have_injection;     /* the profile has an identify_r segment */
+    bool r_identified;
+    bool r_injecting;        /* an identify_r segment is running */
+    float r_ident_ohm;
+    bool pred_latched;       /* the chosen estimator converged once: it feeds the predictor */
+    float i_d_base_a;        /* d-current reference before the excitation */
+    uint16_t seg_kind;
+    float seg_inject_a, seg_inject_hz;
+    uint32_t seg_tick, seg_ticks;
+    float pred_r_s_ohm, pred_l_d_h, pred_l_q_h, pred_psi_f_wb;   /* what the predictor used last */
+
+    /* board hook */
+    fw_board_msg_fn board_msg;
+    void *board_ctx;
+
     /* link */
     frame_parser_t rx;
     txq_t tx;
@@ -86,6 +127,8 @@ typedef struct {
     uint32_t rx_bad;
     uint16_t frame_buf[2u * PROTO_MAX_PAYLOAD + 16u];
     uint16_t payload_buf[PROTO_MAX_PAYLOAD + 4u];
+    can_link_t can;          /* CAN link (docs/can.md) */
+    uint16_t link;           /* FW_LINK_x: where replies go, the link of the last hello */
 } fw_t;
 
 void fw_init(fw_t *f, const fw_cfg_t *cfg);
@@ -95,6 +138,11 @@ bool fw_tx_pop(fw_t *f, uint16_t *octet);
 uint16_t fw_tx_pop_n(fw_t *f, uint16_t *out, uint16_t max);
 /* Queue a frame from the board (e.g. the sim board's truth frames) on the same link. */
 bool fw_send(fw_t *f, uint16_t msg_id, const uint16_t *payload, uint16_t n);
-bool fw_active(const fw_t *f);   /* running or stopping: the board must run the control ISR */
+bool fw_active(const fw_t *f);
+/* CAN: a received frame (data: dlc octets), and the next frame for the controller to send. */
+#define FW_LINK_SERIAL 0u
+#define FW_LINK_CAN 1u
+void fw_can_rx(fw_t *f, uint16_t id, const uint16_t *data, uint16_t dlc);
+void fw_set_board_hook(fw_t *f, fw_board_msg_fn fn, void *ctx);   /* running or stopping: the board must run the control ISR */
 
 #endif

@@ -79,6 +79,11 @@ void profile_step(profile_exec_t *p, float ts_s, profile_out_t *out)
         out->load_nm = 0.0f;
         out->index = p->index;
         out->flags = 0u;
+        out->kind = PROFILE_KIND_RUN;
+        out->inject_a = 0.0f;
+        out->inject_hz = 0.0f;
+        out->tick_in_seg = 0u;
+        out->seg_ticks = 0u;
         return;
     }
     if (!p->begun) {
@@ -95,6 +100,11 @@ void profile_step(profile_exec_t *p, float ts_s, profile_out_t *out)
                 out->load_nm = 0.0f;
                 out->index = p->index;
                 out->flags = 0u;
+                out->kind = PROFILE_KIND_RUN;
+                out->inject_a = 0.0f;
+                out->inject_hz = 0.0f;
+                out->tick_in_seg = 0u;
+                out->seg_ticks = 0u;
                 return;
             }
             p->index++;
@@ -108,4 +118,9 @@ void profile_step(profile_exec_t *p, float ts_s, profile_out_t *out)
     out->load_nm = s->load_nm;
     out->index = p->index;
     out->flags = s->flags;
+    out->kind = s->kind;
+    out->inject_a = s->inject_a;
+    out->inject_hz = s->inject_hz;
+    out->tick_in_seg = p->tick_in_seg;
+    out->seg_ticks = p->seg_ticks[p->index];
 }

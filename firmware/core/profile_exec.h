@@ -8,6 +8,8 @@
 
 #define PROFILE_MAX_SEGMENTS 64u
 #define PROFILE_FLAG_CAPTURE 1u
+#define PROFILE_KIND_RUN 0u
+#define PROFILE_KIND_IDENTIFY_R 1u
 
 typedef struct {
     float duration_s;
@@ -15,6 +17,9 @@ typedef struct {
     float ramp_rpm_s;   /* 0 = step */
     float load_nm;
     uint16_t flags;
+    uint16_t kind;      /* PROFILE_KIND_* (protocol enum segment_kind) */
+    float inject_a;     /* identify_r: d-axis current; run: i_d excitation amplitude (0: none) */
+    float inject_hz;    /* run: square-wave excitation frequency */
 } profile_segment_t;
 
 typedef struct {
@@ -36,6 +41,10 @@ typedef struct {
     bool finished;        /* true in the period the last segment ends */
     uint16_t index;
     uint16_t flags;
+    uint16_t kind;        /* PROFILE_KIND_* of the running segment */
+    float inject_a, inject_hz;
+    uint32_t tick_in_seg; /* control periods into the running segment */
+    uint32_t seg_ticks;   /* length of the running segment in control periods */
 } profile_out_t;
 
 void profile_clear(profile_exec_t *p, uint16_t n_segments);

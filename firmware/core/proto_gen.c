@@ -140,6 +140,13 @@ uint16_t proto_config_ctrl_pack(const proto_config_ctrl_t *m, uint16_t *buf)
     put_f32(&buf[42], m->dead_time_s);
     put_f32(&buf[46], m->v_drop_v);
     put_u16(&buf[50], m->capture_pre);
+    put_u8(&buf[52], m->identify);
+    put_u8(&buf[53], m->predictor);
+    put_u16(&buf[54], m->id_window);
+    put_f32(&buf[56], m->pred_scale_l_d);
+    put_f32(&buf[60], m->pred_scale_l_q);
+    put_f32(&buf[64], m->pred_scale_psi_f);
+    put_f32(&buf[68], m->pred_scale_r_s);
     return PROTO_LEN_CONFIG_CTRL;
 }
 
@@ -165,6 +172,13 @@ bool proto_config_ctrl_unpack(proto_config_ctrl_t *m, const uint16_t *buf, uint1
     m->dead_time_s = get_f32(&buf[42]);
     m->v_drop_v = get_f32(&buf[46]);
     m->capture_pre = get_u16(&buf[50]);
+    m->identify = get_u8(&buf[52]);
+    m->predictor = get_u8(&buf[53]);
+    m->id_window = get_u16(&buf[54]);
+    m->pred_scale_l_d = get_f32(&buf[56]);
+    m->pred_scale_l_q = get_f32(&buf[60]);
+    m->pred_scale_psi_f = get_f32(&buf[64]);
+    m->pred_scale_r_s = get_f32(&buf[68]);
     return true;
 }
 
@@ -191,6 +205,9 @@ uint16_t proto_profile_segment_pack(const proto_profile_segment_t *m, uint16_t *
     put_f32(&buf[10], m->ramp_rpm_s);
     put_f32(&buf[14], m->load_nm);
     put_u16(&buf[18], m->flags);
+    put_u8(&buf[20], m->kind);
+    put_f32(&buf[21], m->inject_a);
+    put_f32(&buf[25], m->inject_hz);
     return PROTO_LEN_PROFILE_SEGMENT;
 }
 
@@ -205,6 +222,9 @@ bool proto_profile_segment_unpack(proto_profile_segment_t *m, const uint16_t *bu
     m->ramp_rpm_s = get_f32(&buf[10]);
     m->load_nm = get_f32(&buf[14]);
     m->flags = get_u16(&buf[18]);
+    m->kind = get_u8(&buf[20]);
+    m->inject_a = get_f32(&buf[21]);
+    m->inject_hz = get_f32(&buf[25]);
     return true;
 }
 
@@ -286,6 +306,25 @@ bool proto_capture_read_unpack(proto_capture_read_t *m, const uint16_t *buf, uin
         return false;
     }
     m->offset = get_u16(&buf[0]);
+    return true;
+}
+
+uint16_t proto_sim_plant_pack(const proto_sim_plant_t *m, uint16_t *buf)
+{
+    put_u16(&buf[0], m->index);
+    put_f32(&buf[2], m->r_s_scale);
+    put_f32(&buf[6], m->psi_f_scale);
+    return PROTO_LEN_SIM_PLANT;
+}
+
+bool proto_sim_plant_unpack(proto_sim_plant_t *m, const uint16_t *buf, uint16_t len)
+{
+    if (len != PROTO_LEN_SIM_PLANT) {
+        return false;
+    }
+    m->index = get_u16(&buf[0]);
+    m->r_s_scale = get_f32(&buf[2]);
+    m->psi_f_scale = get_f32(&buf[6]);
     return true;
 }
 
@@ -566,6 +605,7 @@ int16_t proto_payload_len(uint16_t msg_id)
     case PROTO_ID_ABORT: return (int16_t)PROTO_LEN_ABORT;
     case PROTO_ID_HEARTBEAT: return (int16_t)PROTO_LEN_HEARTBEAT;
     case PROTO_ID_CAPTURE_READ: return (int16_t)PROTO_LEN_CAPTURE_READ;
+    case PROTO_ID_SIM_PLANT: return (int16_t)PROTO_LEN_SIM_PLANT;
     case PROTO_ID_ACK: return (int16_t)PROTO_LEN_ACK;
     case PROTO_ID_IDENTIFY: return (int16_t)PROTO_LEN_IDENTIFY;
     case PROTO_ID_TELEM_FAST: return (int16_t)PROTO_LEN_TELEM_FAST;

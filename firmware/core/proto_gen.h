@@ -9,10 +9,10 @@
 #include <stdint.h>
 #include <stdbool.h>
 
-#define PROTO_VERSION 1u
-#define PROTO_SCHEMA_HASH 0xA85B90F0UL  /* CRC-32 of the canonical yaml */
+#define PROTO_VERSION 2u
+#define PROTO_SCHEMA_HASH 0xA5B6482BUL  /* CRC-32 of the canonical yaml */
 #define PROTO_MAX_PAYLOAD 111u  /* octets */
-#define PROTO_MSG_COUNT 18u
+#define PROTO_MSG_COUNT 19u
 
 /* enum state */
 #define PROTO_STATE_IDLE 0u
@@ -41,6 +41,10 @@
 #define PROTO_ESTIMATOR_ADALINE 2u
 #define PROTO_ESTIMATOR_NLMS_ADALINE 3u
 
+/* enum segment_kind */
+#define PROTO_SEGMENT_KIND_RUN 0u
+#define PROTO_SEGMENT_KIND_IDENTIFY_R 1u
+
 /* enum event */
 #define PROTO_EVENT_SEGMENT_START 1u
 #define PROTO_EVENT_FAULT 2u
@@ -50,6 +54,7 @@
 #define PROTO_EVENT_CAPTURE_TRIGGERED 6u
 #define PROTO_EVENT_STOPPED 7u
 #define PROTO_EVENT_STARTED 8u
+#define PROTO_EVENT_R_IDENTIFIED 9u
 
 /* enum fault */
 #define PROTO_FAULT_OVER_CURRENT 1u
@@ -89,7 +94,7 @@ bool proto_config_motor_unpack(proto_config_motor_t *m, const uint16_t *buf, uin
 
 /* config_ctrl: 0x03, host -> device */
 #define PROTO_ID_CONFIG_CTRL 0x03u
-#define PROTO_LEN_CONFIG_CTRL 52u
+#define PROTO_LEN_CONFIG_CTRL 72u
 typedef struct {
     float ts_s;                    /* f32 */
     float rho;                     /* f32; MPCC q-axis weighting factor */
@@ -108,6 +113,13 @@ typedef struct {
     float dead_time_s;             /* f32; the firmware's nominal dead time (compensation) */
     float v_drop_v;                /* f32; the firmware's nominal device drop */
     uint16_t capture_pre;          /* u16; samples kept before a capture trigger */
+    uint16_t identify;             /* u8; 1: run the three online estimators (params frames for each) */
+    uint16_t predictor;            /* u8; enum estimator: what feeds the MPCC predictor */
+    uint16_t id_window;            /* u16; control periods per estimator update (window average) */
+    float pred_scale_l_d;          /* f32; predictor = nominal: motor value x this factor */
+    float pred_scale_l_q;          /* f32 */
+    float pred_scale_psi_f;        /* f32 */
+    float pred_scale_r_s;          /* f32 */
 } proto_config_ctrl_t;
 uint16_t proto_config_ctrl_pack(const proto_config_ctrl_t *m, uint16_t *buf);
 bool proto_config_ctrl_unpack(proto_config_ctrl_t *m, const uint16_t *buf, uint16_t len);
@@ -123,7 +135,7 @@ bool proto_profile_clear_unpack(proto_profile_clear_t *m, const uint16_t *buf, u
 
 /* profile_segment: 0x05, host -> device */
 #define PROTO_ID_PROFILE_SEGMENT 0x05u
-#define PROTO_LEN_PROFILE_SEGMENT 20u
+#define PROTO_LEN_PROFILE_SEGMENT 29u
 typedef struct {
     uint16_t index;                /* u16 */
     float duration_s;              /* f32 */
@@ -131,6 +143,9 @@ typedef struct {
     float ramp_rpm_s;              /* f32; 0 = step */
     float load_nm;                 /* f32 */
     uint16_t flags;                /* u16; bit0: capture trigger at segment start */
+    uint16_t kind;                 /* u8; enum segment_kind */
+    float inject_a;                /* f32; identify_r: d current; run: i_d excitation amplitude (0 = none) */
+    float inject_hz;               /* f32; run: frequency of the square-wave i_d excitation */
 } proto_profile_segment_t;
 uint16_t proto_profile_segment_pack(const proto_profile_segment_t *m, uint16_t *buf);
 bool proto_profile_segment_unpack(proto_profile_segment_t *m, const uint16_t *buf, uint16_t len);
@@ -179,6 +194,17 @@ typedef struct {
 } proto_capture_read_t;
 uint16_t proto_capture_read_pack(const proto_capture_read_t *m, uint16_t *buf);
 bool proto_capture_read_unpack(proto_capture_read_t *m, const uint16_t *buf, uint16_t len);
+
+/* sim_plant: 0x20, host -> device, emulator only */
+#define PROTO_ID_SIM_PLANT 0x20u
+#define PROTO_LEN_SIM_PLANT 10u
+typedef struct {
+    uint16_t index;                /* u16; segment at whose start the plant's parameters step */
+    float r_s_scale;               /* f32; true R = motor value x this factor (from then on) */
+    float psi_f_scale;             /* f32; true psi_f = motor value x this factor */
+} proto_sim_plant_t;
+uint16_t proto_sim_plant_pack(const proto_sim_plant_t *m, uint16_t *buf);
+bool proto_sim_plant_unpack(proto_sim_plant_t *m, const uint16_t *buf, uint16_t len);
 
 /* ack: 0x80, device -> host */
 #define PROTO_ID_ACK 0x80u

@@ -7,6 +7,7 @@
 
 #include "fw.h"
 #include "plant.h"
+#include "can_bus_sim.h"
 
 struct emu {
     fw_t fw;
@@ -14,12 +15,60 @@ struct emu {
     plant_cfg_t pcfg;
     fw_cmd_t prev_cmd;
     double baud;
+    double can_bitrate;      /* docs/can.md */
+    uint16_t can_node;
+    can_sim_t can;
     double octet_budget;
     uint32_t truth_div;
     uint32_t truth_count;
     int was_active;
     uint16_t payload[PROTO_MAX_PAYLOAD + 4u];
+    /* sim_plant: per segment, a step of the true R and psi_f at the segment start (drift tests) */
+    float plant_r_scale[PROFILE_MAX_SEGMENTS];
+    float plant_psi_scale[PROFILE_MAX_SEGMENTS];
+    uint64_t plant_step_mask;
+    int plant_seg;           /* segment whose start was last looked at, -1 before the first */
+    /* rig effects (docs/rigs.md): the mask reported in sim_truth, and the saturation flux map */
+    uint32_t effects_mask;
+    int sat_nd, sat_nq;      /* 0: no map */
+    double sat_id0_a, sat_did_a, sat_iq0_a, sat_diq_a;
+    double sat_psi_d_wb[PLANT_MAP_MAX_N * PLANT_MAP_MAX_N];
+    double sat_psi_q_wb[PLANT_MAP_MAX_N * PLANT_MAP_MAX_N];
+    plant_map_t map;
 };
+
+/* Board hook: sim-only h2d messages (fw.c passes the ones it does not know). */
+static uint16_t board_msg(void *ctx, uint16_t msg_id, const uint16_t *payload, uint16_t n)
+{
+    emu_t *e = (emu_t *)ctx;
+    if (msg_id == PROTO_ID_SIM_PLANT) {
+        proto_sim_plant_t m;
+        if (!proto_sim_plant_unpack(&m, payload, n) || m.index >= PROFILE_MAX_SEGMENTS ||
+            !(m.r_s_scale > 0.0f && m.r_s_scale < 10.0f) || !(m.psi_f_scale > 0.0f && m.psi_f_scale < 10.0f)) {
+            return PROTO_ACK_STATUS_BAD_VALUE;
+        }
+        if (fw_active(&e->fw)) {
+            return PROTO_ACK_STATUS_BUSY;
+        }
+        e->plant_r_scale[m.index] = m.r_s_scale;
+        e->plant_psi_scale[m.index] = m.psi_f_scale;
+        e->plant_step_mask |= (uint64_t)1u << m.index;
+        return PROTO_ACK_STATUS_OK;
+    }
+    return PROTO_ACK_STATUS_UNKNOWN;
+}
+
+/* Apply a sim_plant step when its segment starts (after the firmware's ISR of that period). */
+static void plant_steps(emu_t *e)
+{
+    const int seg = (int)e->fw.prof.index;
+    if (seg != e->plant_seg && e->fw.prof.begun) {
+        e->plant_seg = seg;
+        if (seg >= 0 && seg < (int)PROFILE_MAX_SEGMENTS && ((e->plant_step_mask >> seg) & 1u) != 0u) {
+            plant_set_param_scale(&e->plant, &e->pcfg, (double)e->plant_r_scale[seg], (double)e->plant_psi_scale[seg]);
+        }
+    }
+}
 
 size_t emu_size(void) { return sizeof(emu_t); }
 
@@ -28,6 +77,8 @@ void emu_init(emu_t *e)
     memset(e, 0, sizeof(*e));
     plant_cfg_default(&e->pcfg);   /* paper A's IPMSM, 540 V DC link, ideal inverter and sensors */
     e->baud = 921600.0;
+    e->can_bitrate = (double)PROTO_CAN_BITRATE;
+    e->can_node = PROTO_CAN_NODE_DEFAULT;
     e->truth_div = 200u;
     emu_reset(e);
 }
@@ -57,7 +108,48 @@ int emu_set(emu_t *e, const char *key, double value)
     EMU_KEY("substeps", pcfg.substeps, int)
     EMU_KEY("seed", pcfg.seed, uint32_t)
     EMU_KEY("temp_ambient_c", pcfg.temp_ambient_c, double)
+    /* rig effects (pmsm_hil/emulator/settings.py) */
+    EMU_KEY("effects_mask", effects_mask, uint32_t)
+    EMU_KEY("sat_nd", sat_nd, int)
+    EMU_KEY("sat_nq", sat_nq, int)
+    EMU_KEY("sat_id0_a", sat_id0_a, double)
+    EMU_KEY("sat_did_a", sat_did_a, double)
+    EMU_KEY("sat_iq0_a", sat_iq0_a, double)
+    EMU_KEY("sat_diq_a", sat_diq_a, double)
+    EMU_KEY("thermal_on", pcfg.thermal_on, int)
+    EMU_KEY("temp_ref_c", pcfg.temp_ref_c, double)
+    EMU_KEY("temp_winding0_c", pcfg.temp_winding0_c, double)
+    EMU_KEY("temp_magnet0_c", pcfg.temp_magnet0_c, double)
+    EMU_KEY("alpha_r_per_k", pcfg.alpha_r_per_k, double)
+    EMU_KEY("alpha_psi_per_k", pcfg.alpha_psi_per_k, double)
+    EMU_KEY("c_winding_j_k", pcfg.c_winding_j_k, double)
+    EMU_KEY("c_magnet_j_k", pcfg.c_magnet_j_k, double)
+    EMU_KEY("r_wa_k_w", pcfg.r_wa_k_w, double)
+    EMU_KEY("r_wm_k_w", pcfg.r_wm_k_w, double)
+    EMU_KEY("r_ma_k_w", pcfg.r_ma_k_w, double)
+    EMU_KEY("r_fe_heat_ohm", pcfg.r_fe_heat_ohm, double)
+    EMU_KEY("psi5_rel", pcfg.psi5_rel, double)
+    EMU_KEY("psi7_rel", pcfg.psi7_rel, double)
+    EMU_KEY("cog_nm", pcfg.cog_nm, double)
+    EMU_KEY("cog_order_e", pcfg.cog_order_e, int)
+    EMU_KEY("cog_phase_rad", pcfg.cog_phase_rad, double)
+    EMU_KEY("i_offset_a_a", pcfg.i_offset_a[0], double)
+    EMU_KEY("i_offset_b_a", pcfg.i_offset_a[1], double)
+    EMU_KEY("i_offset_c_a", pcfg.i_offset_a[2], double)
+    EMU_KEY("i_gain_a", pcfg.i_gain[0], double)
+    EMU_KEY("i_gain_b", pcfg.i_gain[1], double)
+    EMU_KEY("i_gain_c", pcfg.i_gain[2], double)
+    EMU_KEY("sample_delay_s", pcfg.sample_delay_s, double)
+    EMU_KEY("pwm_delay_periods", pcfg.pwm_delay_periods, int)
+    EMU_KEY("dc_on", pcfg.dc_on, int)
+    EMU_KEY("dc_r_src_ohm", pcfg.dc_r_src_ohm, double)
+    EMU_KEY("dc_c_f", pcfg.dc_c_f, double)
+    EMU_KEY("dc_rectifier", pcfg.dc_rectifier, int)
+    EMU_KEY("dc_grid_hz", pcfg.dc_grid_hz, double)
+    EMU_KEY("r_fe_ohm", pcfg.r_fe_ohm, double)
     EMU_KEY("baud", baud, double)
+    EMU_KEY("can_bitrate", can_bitrate, double)
+    EMU_KEY("can_node", can_node, uint16_t)
     EMU_KEY("truth_div", truth_div, uint32_t)
     return -1;
 }
@@ -70,6 +162,9 @@ int emu_get(const emu_t *e, const char *key, double *value)
     if (strcmp(key, "tick") == 0) { *value = (double)e->fw.tick; return 0; }
     if (strcmp(key, "tx_dropped") == 0) { *value = (double)e->fw.tx.dropped; return 0; }
     if (strcmp(key, "tx_level") == 0) { *value = (double)e->fw.tx.level; return 0; }
+    if (strcmp(key, "can_bits") == 0) { *value = e->can.bits_sent; return 0; }
+    if (strcmp(key, "can_frames") == 0) { *value = (double)e->can.frames_sent; return 0; }
+    if (strcmp(key, "can_level") == 0) { *value = (double)can_link_tx_level(&e->fw.can); return 0; }
     if (strcmp(key, "heartbeat_timeout_s") == 0) {
         *value = e->fw.have_ctrl ? (double)e->fw.ctrl.heartbeat_timeout_s : 0.0;
         return 0;
@@ -81,7 +176,18 @@ void emu_reset(emu_t *e)
 {
     fw_cfg_t cfg;
     cfg.board = FW_BOARD_SIM;
+    cfg.can_node = e->can_node;
     fw_init(&e->fw, &cfg);
+    can_sim_init(&e->can, e->can_bitrate);
+    fw_set_board_hook(&e->fw, board_msg, e);
+    e->plant_step_mask = 0u;
+    e->plant_seg = -1;
+    e->pcfg.map = NULL;   /* saturation: the flux map given by emu_set_array, if any */
+    if (e->sat_nd > 0 && e->sat_nq > 0 &&
+        plant_map_build(&e->map, e->sat_nd, e->sat_nq, e->sat_id0_a, e->sat_did_a, e->sat_iq0_a, e->sat_diq_a,
+                        e->sat_psi_d_wb, e->sat_psi_q_wb) == NULL) {
+        e->pcfg.map = &e->map;
+    }
     plant_init(&e->plant, &e->pcfg);
     memset(&e->prev_cmd, 0, sizeof(e->prev_cmd));
     e->octet_budget = 0.0;
@@ -113,7 +219,7 @@ static void send_truth(emu_t *e)
     m.torque_nm = (float)t.torque_nm;
     m.temp_winding_c = (float)t.temp_winding_c;
     m.temp_magnet_c = (float)t.temp_magnet_c;
-    m.effects = 0u;
+    m.effects = e->effects_mask;
     n = proto_sim_truth_pack(&m, e->payload);
     (void)fw_send(&e->fw, PROTO_ID_SIM_TRUTH, e->payload, n);
 }
@@ -156,14 +262,16 @@ uint32_t emu_run(emu_t *e, uint32_t max_ticks, uint8_t *out, uint32_t cap, uint3
         memset(&e->prev_cmd, 0, sizeof(e->prev_cmd));
         e->octet_budget = 0.0;
         e->truth_count = 0u;
+        e->plant_seg = -1;
     }
-    while (ticks < max_ticks && fw_active(&e->fw) && n + margin <= cap) {
+    while (ticks < max_ticks && fw_active(&e->fw) && n + margin <= cap && can_sim_room(&e->can)) {
         e->was_active = 1;
         plant_sample(&e->plant, &meas);
         if (e->truth_div != 0u && e->truth_count == 0u) {
             send_truth(e);
         }
         fw_isr(&e->fw, &meas, &cmd);
+        plant_steps(e);
         plant_step(&e->plant, &e->prev_cmd);
         e->prev_cmd = cmd;
         e->truth_count++;
@@ -180,12 +288,17 @@ uint32_t emu_run(emu_t *e, uint32_t max_ticks, uint8_t *out, uint32_t cap, uint3
                 e->octet_budget = 0.0;  /* the line was idle: no credit carries over */
             }
         }
+        can_sim_period(&e->can, &e->fw, e->pcfg.ts_s);
         ticks++;
     }
     if (!fw_active(&e->fw)) {
         /* idle link: whatever is queued leaves now */
+        if (e->was_active) {
+            e->plant_step_mask = 0u;   /* sim_plant steps belong to the run that ended */
+        }
         e->was_active = 0;
         n = drain(e, out, cap, n, 0xFFFFFFFFu);
+        can_sim_flush(&e->can, &e->fw);
     }
     *n_out = n;
     return ticks;
@@ -195,3 +308,58 @@ uint32_t emu_isr_count(const emu_t *e) { return e->fw.isr_count; }
 uint32_t emu_heartbeat_isr(const emu_t *e) { return e->fw.hb_isr; }
 int emu_state(const emu_t *e) { return (int)e->fw.state; }
 int emu_active(const emu_t *e) { return fw_active(&e->fw) ? 1 : 0; }
+
+/* CAN (docs/can.md): a frame from the host; the frames the controller sent (see can_sim_take). */
+void emu_can_rx(emu_t *e, uint32_t id, const uint8_t *data, uint32_t dlc)
+{
+    uint16_t d[8], k;
+    for (k = 0u; k < 8u && k < dlc; k++) {
+        d[k] = data[k];
+    }
+    fw_can_rx(&e->fw, (uint16_t)id, d, (uint16_t)(dlc > 8u ? 8u : dlc));
+}
+
+uint32_t emu_can_take(emu_t *e, uint32_t *ids, uint8_t *dlc, uint8_t *data, uint32_t *isr, uint32_t cap)
+{
+    return can_sim_take(&e->can, ids, dlc, data, isr, cap);
+}
+
+int emu_set_array(emu_t *e, const char *key, const double *values, uint32_t n)
+{
+    double *dst = NULL;
+    uint32_t i;
+    if (strcmp(key, "sat_psi_d_wb") == 0) {
+        dst = e->sat_psi_d_wb;
+    } else if (strcmp(key, "sat_psi_q_wb") == 0) {
+        dst = e->sat_psi_q_wb;
+    }
+    if (dst == NULL || n > (uint32_t)(PLANT_MAP_MAX_N * PLANT_MAP_MAX_N)) {
+        return -1;
+    }
+    for (i = 0u; i < n; i++) {
+        dst[i] = values[i];
+    }
+    return 0;
+}
+
+const char *emu_check(const emu_t *e)
+{
+    if (e->sat_nd > 0 && e->pcfg.map == NULL) {
+        return "saturation: the flux map could not be built (grid size or values)";
+    }
+    return plant_cfg_check(&e->pcfg);
+}
+
+void emu_plant_flux(const emu_t *e, double i_d_a, double i_q_a, double theta_e_rad, double out[8])
+{
+    plant_mag_t m;
+    plant_flux(&e->plant, i_d_a, i_q_a, theta_e_rad, &m);
+    out[0] = m.psi_d_wb;
+    out[1] = m.psi_q_wb;
+    out[2] = m.l_dd;
+    out[3] = m.l_dq;
+    out[4] = m.l_qd;
+    out[5] = m.l_qq;
+    out[6] = m.t_extra_nm;
+    out[7] = plant_torque(&e->plant, i_d_a, i_q_a, theta_e_rad);
+}

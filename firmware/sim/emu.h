@@ -22,5 +22,17 @@ uint32_t emu_isr_count(const emu_t *e);
 uint32_t emu_heartbeat_isr(const emu_t *e);
 int emu_state(const emu_t *e);
 int emu_active(const emu_t *e);
+/* Rig effects: array settings (the saturation flux map: "sat_psi_d_wb", "sat_psi_q_wb", nodes with
+ * i_d fastest; 0, or -1 for an unknown key or too many values), applied by emu_reset. */
+int emu_set_array(emu_t *e, const char *key, const double *values, uint32_t n);
+/* NULL when the settings applied by the last emu_reset are usable, else a message. */
+const char *emu_check(const emu_t *e);
+/* The plant's magnetics at a point (tests): psi_d, psi_q, L_dd, L_dq, L_qd, L_qq, extra torque, torque. */
+void emu_plant_flux(const emu_t *e, double i_d_a, double i_q_a, double theta_e_rad, double out[8]);
+/* CAN (docs/can.md; settings can_bitrate, can_node): a frame from the host, and the frames the
+ * sim board's controller sent during emu_run, at most cap: ids, dlc, data (8 octets per frame),
+ * isr (control period at the end of the frame); returns how many. */
+void emu_can_rx(emu_t *e, uint32_t id, const uint8_t *data, uint32_t dlc);
+uint32_t emu_can_take(emu_t *e, uint32_t *ids, uint8_t *dlc, uint8_t *data, uint32_t *isr, uint32_t cap);
 
 #endif

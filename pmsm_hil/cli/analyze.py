@@ -24,8 +24,22 @@ def main(args: argparse.Namespace) -> int:
         summary = summarize_log(path)
     except Exception as e:
         return fail("error", f"{path}: not a readable pmsm-hil log ({e})", 2)
+    ident = None
+    try:
+        from pmsm_hil.analysis.identification import identification_table
+        t = identification_table(path)
+        ident = t if t.cells else None
+    except (KeyError, ValueError):
+        ident = None
     if args.json:
-        print(json.dumps(summary.as_dict(), indent=2))
+        d = summary.as_dict()
+        if ident is not None:
+            d["identification"] = ident.as_dict()
+        print(json.dumps(d, indent=2))
     else:
         print_summary(summary)
+        if ident is not None:
+            from pmsm_hil.analysis.identification import text_table
+            print()
+            print(text_table(ident))
     return 0

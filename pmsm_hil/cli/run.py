@@ -16,6 +16,10 @@ def add_parser(sub) -> None:
     p.add_argument("--out", "-o", default=None,
                    help="MCAP log to write (default: runs/PROFILE-YYYYmmdd-HHMMSS.mcap)")
     p.add_argument("--port", default=None, help="serial port of a rig, e.g. /dev/ttyUSB0")
+    p.add_argument("--can", nargs="?", const="emulator", default=None, metavar="SPEC",
+                   help="use CAN: a python-can SPEC such as socketcand:emu0@127.0.0.1:29536, "
+                        "socketcan:can0, pcan:PCAN_USBBUS1 (options ,bitrate=N,node=N); "
+                        "bare --can or `emulator` starts the emulator on CAN (README, docs/can.md)")
     p.add_argument("--baud", type=int, default=None, help="serial bit rate (default: the profile's)")
     p.add_argument("--rig", default=None, help="rig file for the emulator (default: the profile's)")
     p.add_argument("--seed", type=int, default=1, help="emulator noise seed (default 1)")
@@ -33,6 +37,10 @@ def open_transport(args, profile):
     from pmsm_hil.transport.emulator import EmulatorTransport
     from pmsm_hil.transport.serial_port import SerialTransport
 
+    if getattr(args, "can", None) is not None:   # docs/can.md
+        from pmsm_hil.transport.can_bus import open_for_run
+        rig_path = args.rig or (str(profile.rig.path) if getattr(profile.rig, "path", None) else None)
+        return open_for_run(args.can, profile, rig_path, args.seed)
     baud = args.baud or profile.link.baud
     if args.port:
         return SerialTransport(args.port, baud)
@@ -69,7 +77,8 @@ def main(args: argparse.Namespace) -> int:
     observer = (PlainProgress() if args.no_live
                 else LiveView(f"{profile.name} on {transport.name}", transport.bit_rate, names))
     rig_name = args.rig or str(getattr(profile.rig, "path", "") or "")
-    options = RunOptions(seed=None if args.port else args.seed, rig_name=rig_name,
+    is_rig = args.port or (args.can is not None and not args.can.startswith("emulator"))
+    options = RunOptions(seed=None if is_rig else args.seed, rig_name=rig_name,
                          stop_after_s=args.stop_after)
     try:
         with observer:

@@ -18,6 +18,13 @@ def lib() -> ctypes.CDLL:
     so.emu_get.argtypes = [ctypes.c_void_p, ctypes.c_char_p, ctypes.POINTER(ctypes.c_double)]
     so.emu_get.restype = ctypes.c_int
     so.emu_reset.argtypes = [ctypes.c_void_p]
+    so.emu_set_array.argtypes = [ctypes.c_void_p, ctypes.c_char_p, ctypes.POINTER(ctypes.c_double),
+                                 ctypes.c_uint32]
+    so.emu_set_array.restype = ctypes.c_int
+    so.emu_check.argtypes = [ctypes.c_void_p]
+    so.emu_check.restype = ctypes.c_char_p
+    so.emu_plant_flux.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_double,
+                                  ctypes.POINTER(ctypes.c_double)]
     so.emu_rx.argtypes = [ctypes.c_void_p, ctypes.c_char_p, ctypes.c_uint32]
     so.emu_run.argtypes = [ctypes.c_void_p, ctypes.c_uint32, ctypes.c_void_p, ctypes.c_uint32,
                            ctypes.POINTER(ctypes.c_uint32)]
@@ -25,6 +32,9 @@ def lib() -> ctypes.CDLL:
     for name in ("emu_isr_count", "emu_heartbeat_isr"):
         getattr(so, name).argtypes = [ctypes.c_void_p]
         getattr(so, name).restype = ctypes.c_uint32
+    so.emu_can_rx.argtypes = [ctypes.c_void_p, ctypes.c_uint32, ctypes.c_char_p, ctypes.c_uint32]
+    so.emu_can_take.argtypes = [ctypes.c_void_p] + [ctypes.c_void_p] * 4 + [ctypes.c_uint32]
+    so.emu_can_take.restype = ctypes.c_uint32
     for name in ("emu_state", "emu_active"):
         getattr(so, name).argtypes = [ctypes.c_void_p]
         getattr(so, name).restype = ctypes.c_int
@@ -46,10 +56,26 @@ class EmulatedDevice:
             self.configure(settings)
 
     def configure(self, settings: dict[str, float]) -> None:
+        """Apply settings (numbers, or sequences of numbers for the array keys such as the flux
+        map) and reset; raises KeyError for an unknown key, ValueError for unusable values."""
         for key, value in settings.items():
-            if self._lib.emu_set(self._p, key.encode(), float(value)) != 0:
+            if isinstance(value, (list, tuple)):
+                arr = (ctypes.c_double * len(value))(*[float(v) for v in value])
+                if self._lib.emu_set_array(self._p, key.encode(), arr, len(value)) != 0:
+                    raise KeyError(f"emulator has no array setting {key!r} (or too many values)")
+            elif self._lib.emu_set(self._p, key.encode(), float(value)) != 0:
                 raise KeyError(f"emulator has no setting {key!r}")
         self._lib.emu_reset(self._p)
+        err = self._lib.emu_check(self._p)
+        if err:
+            raise ValueError(f"emulator settings: {err.decode()}")
+
+    def plant_flux(self, i_d_a: float, i_q_a: float, theta_e_rad: float = 0.0) -> dict[str, float]:
+        """The plant's magnetics at one point (flux linkages, incremental inductances, torque)."""
+        out = (ctypes.c_double * 8)()
+        self._lib.emu_plant_flux(self._p, i_d_a, i_q_a, theta_e_rad, out)
+        keys = ("psi_d_wb", "psi_q_wb", "l_dd_h", "l_dq_h", "l_qd_h", "l_qq_h", "t_extra_nm", "torque_nm")
+        return dict(zip(keys, list(out)))
 
     def get(self, key: str) -> float:
         v = ctypes.c_double()
@@ -66,6 +92,22 @@ class EmulatedDevice:
         ticks = self._lib.emu_run(self._p, max(0, int(max_ticks)), self._out, self._out_cap,
                                   ctypes.byref(self._n))
         return ticks, self._out.raw[: self._n.value]
+
+    def can_rx(self, ident: int, data: bytes) -> None:
+        """A CAN frame from the host (docs/can.md)."""
+        self._lib.emu_can_rx(self._p, ident, bytes(data), len(data))
+
+    def can_take(self, cap: int = 4096) -> list[tuple[int, bytes, int]]:
+        """The CAN frames the sim board sent since the last call: [(identifier, data, isr_count)]."""
+        if not hasattr(self, "_can_bufs"):
+            self._can_bufs = ((ctypes.c_uint32 * cap)(), (ctypes.c_uint8 * cap)(),
+                              ctypes.create_string_buffer(8 * cap), (ctypes.c_uint32 * cap)(), cap)
+        ids, dlc, data, isr, cap = self._can_bufs
+        n = self._lib.emu_can_take(self._p, ids, dlc, data, isr, cap)
+        if n == 0:
+            return []
+        raw = data.raw
+        return [(ids[i], raw[8 * i: 8 * i + dlc[i]], isr[i]) for i in range(n)]
 
     @property
     def isr_count(self) -> int:

@@ -39,4 +39,55 @@ def emulator_settings(motor, rig, seed: int = 1, baud: int = 921600,
         # the rig's friction adds to the motor file's nominal friction (docs/profiles.md)
         s["b_visc_nms"] += fr.b_visc_nms
         s["t_coulomb_nm"] += fr.t_coulomb_nm
+    s.update(effect_settings(motor, rig))
+    return s
+
+
+def effect_settings(motor, rig) -> dict:
+    """The sim board's keys for the effects of issue 5 (docs/rigs.md). Every key is set, to its
+    'off' value when the effect is disabled, so that a disabled effect leaves the ideal plant."""
+    s: dict = {"effects_mask": int(getattr(rig, "effects_mask", 0) or 0)}
+    sat = _eff(rig, "saturation")
+    fm = rig.flux_map() if sat is not None else None
+    if fm is not None:
+        s.update(fm.settings())
+    else:
+        s.update({"sat_nd": 0, "sat_nq": 0})
+    th = _eff(rig, "thermal")
+    s["thermal_on"] = 1 if th is not None else 0
+    if th is not None:
+        s.update({"temp_ambient_c": th.temp_ambient_c, "temp_ref_c": th.temp_ref_c,
+                  "temp_winding0_c": th.temp_winding_c, "temp_magnet0_c": th.temp_magnet_c,
+                  "alpha_r_per_k": th.alpha_r_per_k, "alpha_psi_per_k": th.alpha_psi_per_k,
+                  "c_winding_j_k": th.c_winding_j_k, "c_magnet_j_k": th.c_magnet_j_k,
+                  "r_wa_k_w": th.r_wa_k_w, "r_wm_k_w": th.r_wm_k_w, "r_ma_k_w": th.r_ma_k_w,
+                  "r_fe_heat_ohm": th.r_fe_heat_ohm})
+    fh = _eff(rig, "flux_harmonics")
+    # the n-th flux harmonic gives the n-th back-EMF harmonic n times larger (relative to psi_f)
+    s["psi5_rel"] = fh.emf5_rel / 5.0 if fh is not None else 0.0
+    s["psi7_rel"] = fh.emf7_rel / 7.0 if fh is not None else 0.0
+    cg = _eff(rig, "cogging")
+    s["cog_nm"] = cg.amplitude_nm if cg is not None else 0.0
+    if cg is not None:
+        if cg.periods_per_rev % motor.pole_pairs:
+            raise ValueError(f"cogging.periods_per_rev = {cg.periods_per_rev} is not a multiple of the "
+                             f"motor's pole_pairs {motor.pole_pairs}")
+        s["cog_order_e"] = cg.periods_per_rev // motor.pole_pairs
+        s["cog_phase_rad"] = cg.phase_rad
+    so = _eff(rig, "sensor_offset")
+    for ch in "abc":
+        s[f"i_offset_{ch}_a"] = getattr(so, f"i_{ch}_a") if so is not None else 0.0
+    sg = _eff(rig, "sensor_gain")
+    for ch in "abc":
+        s[f"i_gain_{ch}"] = getattr(sg, f"gain_{ch}") if sg is not None else 1.0
+    dl = _eff(rig, "delay")
+    s["sample_delay_s"] = dl.sample_delay_s if dl is not None else 0.0
+    s["pwm_delay_periods"] = dl.pwm_delay_periods if dl is not None else 0
+    dc = _eff(rig, "dc_link")
+    s["dc_on"] = 1 if dc is not None else 0
+    if dc is not None:
+        s.update({"dc_r_src_ohm": dc.r_source_ohm, "dc_c_f": dc.c_dc_f,
+                  "dc_rectifier": 1 if dc.rectifier else 0, "dc_grid_hz": dc.grid_hz})
+    fe = _eff(rig, "iron_loss")
+    s["r_fe_ohm"] = fe.r_fe_ohm if fe is not None else 0.0
     return s

@@ -52,6 +52,10 @@ class Motor(FileModel):
     torque_max_nm: float = Field(gt=0, le=1e6, description="load/torque limit, N m")
     v_dc_min_v: float = Field(gt=0, le=2000, description="DC-link under-voltage trip, V")
     v_dc_max_v: float = Field(gt=0, le=2000, description="DC-link over-voltage trip, V")
+    dead_time_s: float = Field(0.0, ge=0, le=20e-6,
+                               description="nominal inverter dead time that the firmware compensates, s")
+    v_drop_v: float = Field(0.0, ge=0, le=20,
+                            description="nominal switch/diode drop that the firmware compensates, V")
     source: str = Field("", description="where the numbers come from")
 
     # ------------------------------------------------------------------ derived quantities

@@ -49,6 +49,28 @@ class Control(StrictModel):
     speed_loop_hz: float = Field(1000.0, gt=0, le=50_000, description="speed loop rate, Hz")
     heartbeat_timeout_s: float = Field(0.5, ge=0.05, le=60, description="stop when the host is silent, s")
     dead_time_comp: bool = Field(True, description="firmware compensates the inverter dead time")
+    identify: bool = Field(False, description="run the three online estimators (RLS, Adaline, "
+                                              "NLMS-Adaline) and send their params frames")
+    predictor: Literal["nominal", "rls", "adaline", "nlms_adaline"] = Field(
+        "nominal", description="what feeds the MPCC predictor: the motor file (times predictor_scale) "
+                               "or an estimator once it has converged")
+    predictor_scale: "PredictorScale" = Field(default_factory=lambda: PredictorScale(),
+                                              description="mismatch factors on the motor file's values "
+                                                          "in the predictor")
+    id_window_s: float = Field(1e-3, ge=2 * TS_MIN_S, le=0.1,
+                               description="estimator update period: window over which u, i, w are averaged, s")
+
+
+class PredictorScale(StrictModel):
+    l_d_h: float = Field(1.0, gt=0, le=100, description="factor on the motor file's l_d_h")
+    l_q_h: float = Field(1.0, gt=0, le=100, description="factor on l_q_h")
+    psi_f_wb: float = Field(1.0, ge=0, le=100, description="factor on psi_f_wb")
+    r_s_ohm: float = Field(1.0, ge=0, le=100, description="factor on r_s_ohm")
+
+
+class PlantStep(StrictModel):
+    r_s_scale: float = Field(1.0, gt=0, lt=10, description="true R = motor value x this, from the segment start")
+    psi_f_scale: float = Field(1.0, gt=0, lt=10, description="true psi_f = motor value x this")
 
 
 class Telemetry(StrictModel):
@@ -58,8 +80,22 @@ class Telemetry(StrictModel):
     truth_hz: float = Field(100.0, ge=0, le=50_000, description="sim_truth frame rate (emulator), Hz (0: off)")
 
 
+Control.model_rebuild()
+
+
+class CanLinkSettings(StrictModel):
+    """CAN link settings (docs/can.md); a rate left null is the `telemetry` section's."""
+    bitrate: int = Field(1_000_000, ge=10_000, le=1_000_000, description="CAN bit rate, bit/s")
+    node: int = Field(1, ge=0, le=15, description="CAN node ID of the drive")
+    fast_hz: float | None = Field(None, ge=0, le=50_000, description="telem_fast rate on CAN, Hz")
+    params_hz: float | None = Field(None, ge=0, le=50_000, description="params rate on CAN, Hz")
+    status_hz: float | None = Field(None, gt=0, le=50_000, description="status rate on CAN, Hz")
+    truth_hz: float | None = Field(None, ge=0, le=50_000, description="sim_truth rate on CAN, Hz")
+
+
 class Link(StrictModel):
     baud: int = Field(921_600, ge=9_600, le=20_000_000, description="serial bit rate, bit/s")
+    can: CanLinkSettings = Field(default_factory=CanLinkSettings, description="CAN link (docs/can.md)")
 
 
 class Segment(StrictModel):
@@ -69,6 +105,15 @@ class Segment(StrictModel):
     ramp_rpm_s: float = Field(0.0, ge=0, le=1e6, description="ramp rate towards speed_rpm, r/min/s (0: step)")
     load_nm: float = Field(0.0, description="load torque during the segment, N m")
     capture: bool = Field(False, description="trigger a control-rate capture at the segment start")
+    kind: Literal["run", "identify_r"] = Field(
+        "run", description="run: speed/load as given; identify_r: R by d-axis current injection at "
+                           "standstill (speed_rpm must be 0)")
+    inject_a: float = Field(0.0, ge=-1000, le=1000,
+                            description="identify_r: d current (first half; half of it in the second half); "
+                                        "run: amplitude of a square-wave i_d excitation, A")
+    inject_hz: float = Field(10.0, ge=0, le=1000, description="run: frequency of the i_d excitation, Hz")
+    plant: PlantStep | None = Field(None, description="emulator only: step the plant's true R and psi_f "
+                                                      "at the segment start")
 
     _index: int = PrivateAttr(default=0)
     _t_start_s: float = PrivateAttr(default=0.0)
@@ -235,7 +280,11 @@ class Profile:
                 "total_duration_s": meta_value(self.total_duration_s), "segments": str(len(self.segments))}
         for section in ("control", "telemetry", "link"):
             for k, v in getattr(self, section).model_dump().items():
-                prof[f"{section}.{k}"] = meta_value(v)
+                if isinstance(v, dict):
+                    for k2, v2 in v.items():
+                        prof[f"{section}.{k}.{k2}"] = meta_value(v2)
+                else:
+                    prof[f"{section}.{k}"] = meta_value(v)
         return {"profile": prof, "motor": self.motor.metadata(), "rig": self.rig.metadata()}
 
     def link_budget(self, **kw: Any) -> dict:
@@ -244,14 +293,17 @@ class Profile:
 
 # ----------------------------------------------------------------------------------- link budget
 
-def link_budget(profile: Profile, *, emulator: bool = True, n_estimators: int = 1) -> dict:
+def link_budget(profile: Profile, *, emulator: bool = True, n_estimators: int | None = None) -> dict:
     """Octets/s that each telemetry stream needs against the serial link's capacity (baud / 10).
 
     Returns {"capacity_octets_s", "streams": {name: {"rate_hz", "count", "payload_octets",
     "frame_octets", "octets_s", "share"}}, "total_octets_s", "load" (fraction), "headroom_octets_s",
     "warning" (text or None)}. ``sim_truth`` counts only with ``emulator``; ``params`` is sent once
-    per running estimator.
+    per running estimator: the nominal frame, plus RLS, Adaline and NLMS-Adaline when
+    ``control.identify`` is on (``n_estimators`` None: derived from the profile).
     """
+    if n_estimators is None:
+        n_estimators = 4 if getattr(profile.control, "identify", False) else 1
     tel = profile.telemetry
     rates = {"telem_fast": (tel.fast_hz, 1), "params": (tel.params_hz, n_estimators),
              "status": (tel.status_hz, 1), "sim_truth": (tel.truth_hz if emulator else 0.0, 1)}
@@ -350,6 +402,17 @@ def _profile_checks(src: Source, motor: Motor | None) -> tuple[list[Problem], li
         ramp = num(seg, "ramp_rpm_s", 0.0)
         if dur is not None and dur > 0:
             total += dur
+        if seg.get("kind") == "identify_r":
+            if v is not None and v != 0:
+                problems.append(src.problem(("segments", i, "speed_rpm"),
+                                            "must be 0 in an identify_r segment (R is identified at standstill)", v))
+            inj = num(seg, "inject_a", 0.0)
+            if inj is not None and inj == 0:
+                problems.append(src.problem(("segments", i, "inject_a"),
+                                            "must be a non-zero d current in an identify_r segment", inj))
+            if motor is not None and inj is not None and abs(inj) > motor.i_max_a:
+                problems.append(src.problem(("segments", i, "inject_a"),
+                                            f"is beyond the motor's i_max_a {fmt_num(motor.i_max_a)} ({mpath})", inj))
         if motor is not None and v is not None and abs(v) > motor.speed_max_rpm * (1 + 1e-12):
             problems.append(src.problem(("segments", i, "speed_rpm"),
                                         f"is beyond the motor's speed_max_rpm {fmt_num(motor.speed_max_rpm)} "

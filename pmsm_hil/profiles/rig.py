@@ -17,7 +17,8 @@ from ._base import FileModel, StrictModel, default_file, meta_value
 from ._source import Problem, ProfileError, Source, read_source, validation_problems
 
 __all__ = ["Rig", "Effect", "Effects", "DeadTime", "AdcNoise", "AdcQuantisation", "Encoder",
-           "Friction", "EFFECT_BITS", "load_rig"]
+           "Friction", "Saturation", "Thermal", "FluxHarmonics", "Cogging", "SensorOffset",
+           "SensorGain", "Delay", "DcLink", "IronLoss", "EFFECT_BITS", "load_rig"]
 
 
 class Effect(StrictModel):
@@ -72,6 +73,97 @@ class Friction(Effect):
     b_visc_nms: float = Field(2.0e-4, ge=0, le=1e2, description="extra viscous friction, N m s/rad")
 
 
+class Saturation(Effect):
+    """Magnetic saturation and cross-saturation: the flux linkages psi_d(i_d, i_q), psi_q(i_d, i_q)
+    from a flux map on a regular current grid (CSV with columns i_d_a, i_q_a, psi_d_wb, psi_q_wb;
+    nodes outside the measured region are extrapolated, docs/rigs.md). The plant uses the map's
+    incremental inductances in its dynamics and its psi_d(0, 0) as the magnet flux."""
+
+    map: str | None = Field(None, description="flux-map CSV, relative to the rig file")
+
+
+class Thermal(Effect):
+    """Two-node thermal network (winding, magnet) heated by the copper and iron losses; R and psi_f
+    follow the temperatures. The motor file's r_s_ohm and psi_f_wb hold at temp_ref_c."""
+
+    temp_ambient_c: float = Field(25.0, ge=-50, le=200, description="ambient temperature, degC")
+    temp_winding_c: float = Field(25.0, ge=-50, le=250, description="initial winding temperature, degC")
+    temp_magnet_c: float = Field(25.0, ge=-50, le=250, description="initial magnet temperature, degC")
+    temp_ref_c: float = Field(25.0, ge=-50, le=250,
+                              description="temperature at which the motor file's R and psi_f hold, degC")
+    alpha_r_per_k: float = Field(0.00393, ge=0, le=0.01, description="resistance coefficient (copper), 1/K")
+    alpha_psi_per_k: float = Field(-0.001, ge=-0.01, le=0, description="magnet flux coefficient (NdFeB), 1/K")
+    c_winding_j_k: float = Field(1500.0, gt=0, le=1e6, description="heat capacity of winding + stator, J/K")
+    c_magnet_j_k: float = Field(600.0, gt=0, le=1e6, description="heat capacity of rotor + magnets, J/K")
+    r_wa_k_w: float = Field(0.4, gt=0, le=100, description="thermal resistance winding -> ambient, K/W")
+    r_wm_k_w: float = Field(0.5, gt=0, le=100, description="thermal resistance winding -> magnet, K/W")
+    r_ma_k_w: float = Field(1.0, gt=0, le=100, description="thermal resistance magnet -> ambient, K/W")
+    r_fe_heat_ohm: float = Field(0.0, ge=0, le=1e6,
+                                 description="iron-loss resistance for the heating when the iron_loss "
+                                             "effect is off (0: no iron-loss heating), ohm")
+
+
+class FluxHarmonics(Effect):
+    """5th and 7th harmonics of the magnet flux (so of the back-EMF); a 6th harmonic in dq."""
+
+    emf5_rel: float = Field(0.02, ge=-0.5, le=0.5,
+                            description="5th harmonic of the phase back-EMF relative to the fundamental")
+    emf7_rel: float = Field(0.01, ge=-0.5, le=0.5,
+                            description="7th harmonic of the phase back-EMF relative to the fundamental")
+
+
+class Cogging(Effect):
+    """Cogging torque T = amplitude_nm sin(periods_per_rev theta_m + phase_rad)."""
+
+    amplitude_nm: float = Field(0.05, ge=0, le=1e3, description="cogging torque amplitude, N m")
+    periods_per_rev: int = Field(24, ge=1, le=10_000,
+                                 description="cogging periods per mechanical revolution, lcm(slots, 2p); "
+                                             "a multiple of the pole pairs")
+    phase_rad: float = Field(0.0, ge=-math.pi, le=math.pi, description="phase, rad")
+
+
+class SensorOffset(Effect):
+    """DC offset of each phase-current channel."""
+
+    i_a_a: float = Field(0.05, ge=-50, le=50, description="offset of channel a, A")
+    i_b_a: float = Field(-0.03, ge=-50, le=50, description="offset of channel b, A")
+    i_c_a: float = Field(0.0, ge=-50, le=50, description="offset of channel c, A")
+
+
+class SensorGain(Effect):
+    """Gain of each phase-current channel (mismatch between the phases)."""
+
+    gain_a: float = Field(1.0, ge=0.5, le=1.5, description="gain of channel a")
+    gain_b: float = Field(1.02, ge=0.5, le=1.5, description="gain of channel b")
+    gain_c: float = Field(0.99, ge=0.5, le=1.5, description="gain of channel c")
+
+
+class Delay(Effect):
+    """Delays beyond the one control period that the firmware compensates."""
+
+    sample_delay_s: float = Field(0.0, ge=0, le=5e-4,
+                                  description="the currents are sampled this long before the period "
+                                              "boundary (filter and conversion latency), s")
+    pwm_delay_periods: int = Field(1, ge=0, le=16,
+                                   description="the switch command takes effect this many periods later")
+
+
+class DcLink(Effect):
+    """DC link fed by a six-pulse diode rectifier (or a DC source) through a source resistance,
+    buffered by a capacitor; the firmware sees the measured DC voltage."""
+
+    r_source_ohm: float = Field(0.5, gt=0, le=100, description="source resistance (grid, choke, rectifier), ohm")
+    c_dc_f: float = Field(1.0e-3, gt=0, le=1, description="DC-link capacitance, F")
+    rectifier: bool = Field(True, description="six-pulse diode rectifier from the grid (false: a DC source)")
+    grid_hz: float = Field(50.0, ge=0, le=1000, description="grid frequency, Hz")
+
+
+class IronLoss(Effect):
+    """Iron loss as an equivalent resistance across the speed voltage (i_fe = e / R_fe)."""
+
+    r_fe_ohm: float = Field(300.0, gt=0, le=1e6, description="equivalent iron-loss resistance, ohm")
+
+
 # bit of each effect in /sim/truth.effects and the emulator's effect mask
 EFFECT_BITS: dict[str, int] = {
     "dead_time": 0,
@@ -79,6 +171,15 @@ EFFECT_BITS: dict[str, int] = {
     "adc_quantisation": 2,
     "encoder": 3,
     "friction": 4,
+    "saturation": 5,
+    "thermal": 6,
+    "flux_harmonics": 7,
+    "cogging": 8,
+    "sensor_offset": 9,
+    "sensor_gain": 10,
+    "delay": 11,
+    "dc_link": 12,
+    "iron_loss": 13,
 }
 
 
@@ -90,6 +191,15 @@ class Effects(StrictModel):
     adc_quantisation: AdcQuantisation = Field(default_factory=lambda: AdcQuantisation(enabled=False))
     encoder: Encoder = Field(default_factory=lambda: Encoder(enabled=False))
     friction: Friction = Field(default_factory=lambda: Friction(enabled=False))
+    saturation: Saturation = Field(default_factory=lambda: Saturation(enabled=False))
+    thermal: Thermal = Field(default_factory=lambda: Thermal(enabled=False))
+    flux_harmonics: FluxHarmonics = Field(default_factory=lambda: FluxHarmonics(enabled=False))
+    cogging: Cogging = Field(default_factory=lambda: Cogging(enabled=False))
+    sensor_offset: SensorOffset = Field(default_factory=lambda: SensorOffset(enabled=False))
+    sensor_gain: SensorGain = Field(default_factory=lambda: SensorGain(enabled=False))
+    delay: Delay = Field(default_factory=lambda: Delay(enabled=False))
+    dc_link: DcLink = Field(default_factory=lambda: DcLink(enabled=False))
+    iron_loss: IronLoss = Field(default_factory=lambda: IronLoss(enabled=False))
 
     def items(self) -> Iterator[tuple[str, Effect]]:
         for name in type(self).model_fields:
@@ -133,6 +243,23 @@ class Rig(FileModel):
                 mask |= 1 << EFFECT_BITS[name]
         return mask
 
+    def map_path(self) -> str | None:
+        """The saturation flux map's path (relative to the rig file's directory), or None."""
+        sat = self.effects.saturation
+        if not sat.enabled or not sat.map:
+            return None
+        if os.path.isabs(sat.map):
+            return sat.map
+        return os.path.normpath(os.path.join(os.path.dirname(self.path or "."), sat.map))
+
+    def flux_map(self):
+        """The saturation effect's FluxMap (pmsm_hil.profiles.fluxmap), or None when off."""
+        path = self.map_path()
+        if path is None:
+            return None
+        from .fluxmap import load_flux_map
+        return load_flux_map(path)
+
     def metadata(self) -> dict[str, str]:
         """Flat string record for the MCAP metadata ("effect.param": value)."""
         out = {"name": self.name, "file": self.path.replace("\\", "/").rsplit("/", 1)[-1],
@@ -141,6 +268,22 @@ class Rig(FileModel):
         for name, eff in self.effects.items():
             for k, v in eff.model_dump().items():
                 out[f"{name}.{k}"] = meta_value(v)
+        return out
+
+    def effective_metadata(self) -> dict[str, str]:
+        """The effects in force and their sizes, only those enabled ("effect.param": value), with
+        what the flux map resolves to (file, sha256, grid, psi_f): the MCAP record "rig_effects"."""
+        out = {"rig": self.name, "effects": ",".join(self.enabled_effects),
+               "effects_mask": str(self.effects_mask)}
+        for name, eff in self.effects.items():
+            if not eff.enabled:
+                continue
+            for k, v in eff.model_dump().items():
+                if k != "enabled":
+                    out[f"{name}.{k}"] = meta_value(v)
+        fm = self.flux_map() if self.effects.saturation.enabled else None
+        if fm is not None:
+            out.update({f"saturation.{k}": v for k, v in fm.metadata().items()})
         return out
 
 
@@ -154,6 +297,17 @@ def _load_rig_source(src: Source) -> tuple[Rig | None, list[Problem]]:
     if src.soft:
         return None, list(src.soft)
     rig._path, rig._yaml_text = src.path, src.text
+    sat = rig.effects.saturation
+    if sat.enabled:
+        loc = ("effects", "saturation", "map")
+        if not sat.map:
+            return None, [src.problem(("effects", "saturation"),
+                                      "has no map: give map: FILE.csv (a flux map, docs/rigs.md)")]
+        from .fluxmap import FluxMapError, load_flux_map
+        try:
+            load_flux_map(rig.map_path())
+        except (OSError, FluxMapError) as e:
+            return None, [src.problem(loc, f"names a flux map that cannot be used: {e}", sat.map)]
     return rig, []
 
 

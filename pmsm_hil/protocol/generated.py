@@ -5,8 +5,8 @@ Payload layout: fields in order, little-endian, no padding; see docs/protocol.md
 import struct
 from typing import NamedTuple
 
-PROTOCOL_VERSION = 1
-SCHEMA_HASH = 0xA85B90F0
+PROTOCOL_VERSION = 2
+SCHEMA_HASH = 0xA5B6482B
 MAX_PAYLOAD = 111  # octets
 
 # wire type: (struct code, octets, min, max); min/max are None for f32
@@ -70,6 +70,10 @@ ENUMS = {
         'adaline': 2,
         'nlms_adaline': 3,
     },
+    'segment_kind': {
+        'run': 0,
+        'identify_r': 1,
+    },
     'event': {
         'segment_start': 1,
         'fault': 2,
@@ -79,6 +83,7 @@ ENUMS = {
         'capture_triggered': 6,
         'stopped': 7,
         'started': 8,
+        'r_identified': 9,
     },
     'fault': {
         'over_current': 1,
@@ -107,7 +112,7 @@ MESSAGES = (
         FieldSpec('v_dc_min_v', 'f32', 1, None, 38),
         FieldSpec('v_dc_max_v', 'f32', 1, None, 42),
     ), struct.Struct('<Hfffffffffff')),
-    MessageSpec(0x03, 'config_ctrl', 'h2d', False, 52, (
+    MessageSpec(0x03, 'config_ctrl', 'h2d', False, 72, (
         FieldSpec('ts_s', 'f32', 1, None, 0),
         FieldSpec('rho', 'f32', 1, None, 4),
         FieldSpec('speed_kp_a_per_rad_s', 'f32', 1, None, 8),
@@ -125,18 +130,28 @@ MESSAGES = (
         FieldSpec('dead_time_s', 'f32', 1, None, 42),
         FieldSpec('v_drop_v', 'f32', 1, None, 46),
         FieldSpec('capture_pre', 'u16', 1, None, 50),
-    ), struct.Struct('<ffffHBBfHHHIffffH')),
+        FieldSpec('identify', 'u8', 1, None, 52),
+        FieldSpec('predictor', 'u8', 1, None, 53),
+        FieldSpec('id_window', 'u16', 1, None, 54),
+        FieldSpec('pred_scale_l_d', 'f32', 1, None, 56),
+        FieldSpec('pred_scale_l_q', 'f32', 1, None, 60),
+        FieldSpec('pred_scale_psi_f', 'f32', 1, None, 64),
+        FieldSpec('pred_scale_r_s', 'f32', 1, None, 68),
+    ), struct.Struct('<ffffHBBfHHHIffffHBBHffff')),
     MessageSpec(0x04, 'profile_clear', 'h2d', False, 2, (
         FieldSpec('n_segments', 'u16', 1, None, 0),
     ), struct.Struct('<H')),
-    MessageSpec(0x05, 'profile_segment', 'h2d', False, 20, (
+    MessageSpec(0x05, 'profile_segment', 'h2d', False, 29, (
         FieldSpec('index', 'u16', 1, None, 0),
         FieldSpec('duration_s', 'f32', 1, None, 2),
         FieldSpec('speed_rpm', 'f32', 1, None, 6),
         FieldSpec('ramp_rpm_s', 'f32', 1, None, 10),
         FieldSpec('load_nm', 'f32', 1, None, 14),
         FieldSpec('flags', 'u16', 1, None, 18),
-    ), struct.Struct('<HffffH')),
+        FieldSpec('kind', 'u8', 1, None, 20),
+        FieldSpec('inject_a', 'f32', 1, None, 21),
+        FieldSpec('inject_hz', 'f32', 1, None, 25),
+    ), struct.Struct('<HffffHBff')),
     MessageSpec(0x06, 'start', 'h2d', False, 0, (
     ), struct.Struct('<')),
     MessageSpec(0x07, 'stop', 'h2d', False, 0, (
@@ -149,6 +164,11 @@ MESSAGES = (
     MessageSpec(0x0A, 'capture_read', 'h2d', False, 2, (
         FieldSpec('offset', 'u16', 1, None, 0),
     ), struct.Struct('<H')),
+    MessageSpec(0x20, 'sim_plant', 'h2d', True, 10, (
+        FieldSpec('index', 'u16', 1, None, 0),
+        FieldSpec('r_s_scale', 'f32', 1, None, 2),
+        FieldSpec('psi_f_scale', 'f32', 1, None, 6),
+    ), struct.Struct('<Hff')),
     MessageSpec(0x80, 'ack', 'd2h', False, 3, (
         FieldSpec('cmd_id', 'u8', 1, None, 0),
         FieldSpec('cmd_seq', 'u8', 1, None, 1),
@@ -245,6 +265,7 @@ ID_STOP = 0x07
 ID_ABORT = 0x08
 ID_HEARTBEAT = 0x09
 ID_CAPTURE_READ = 0x0A
+ID_SIM_PLANT = 0x20
 ID_ACK = 0x80
 ID_IDENTIFY = 0x81
 ID_TELEM_FAST = 0x90

@@ -1,0 +1,22 @@
+/* NLMS-Adaline estimator of L_d, L_q, psi_f (paper A, section 2.2, eq. (15)), C28x-safe.
+ * Per window (est_common.h for the regressions and guards):
+ *   e_d = y_d - (R i_d + L_q x_lq),            x_lq = -w i_q
+ *   L_q += mu_d e_d x_lq / (delta + x_lq^2)
+ *   e_q = y_q - (L_d x_ld + psi_f w),          x_ld = w i_d
+ *   [L_d psi_f] += mu_q e_q [x_ld w] / (delta + x_ld^2 + w^2)
+ *   R += mu_r e_d i_d / (delta_r + i_d^2)      (online refinement, after convergence)
+ * Weights start at zero (paper); R starts nominal until est_nlms_set_r. */
+#ifndef EST_NLMS_H
+#define EST_NLMS_H
+
+#include "est_common.h"
+
+typedef struct {
+    est_core_t core;
+} est_nlms_t;
+
+void est_nlms_init(est_nlms_t *e, const est_cfg_t *cfg);
+void est_nlms_set_r(est_nlms_t *e, float r_s_ohm);
+void est_nlms_step(est_nlms_t *e, const id_sample_t *s, est_out_t *out);
+
+#endif

@@ -1,0 +1,64 @@
+#include "id_window.h"
+
+void idw_reset(idw_t *w)
+{
+    w->count = 0u;
+    w->started = false;
+    w->s_ud = w->s_uq = w->s_id = w->s_iq = w->s_w = w->s_wid = w->s_wiq = 0.0f;
+    w->id0 = w->iq0 = w->w0 = w->wid0 = w->wiq0 = 0.0f;
+}
+
+void idw_init(idw_t *w, const idw_cfg_t *cfg)
+{
+    w->cfg = *cfg;
+    if (w->cfg.n_periods < 2u) {
+        w->cfg.n_periods = 2u;
+    }
+    if (!(w->cfg.ts_s > 0.0f)) {
+        w->cfg.ts_s = 50e-6f;
+    }
+    idw_reset(w);
+}
+
+bool idw_step(idw_t *w, const idw_in_t *in, id_sample_t *out)
+{
+    bool ready = false;
+    const float wid = in->omega_e_rad_s * in->i_d_a;
+    const float wiq = in->omega_e_rad_s * in->i_q_a;
+    if (w->started && w->count >= w->cfg.n_periods) {
+        const float n = (float)w->count;
+        const float inv_n = 1.0f / n;
+        const float t = n * w->cfg.ts_s;
+        out->t_window_s = t;
+        out->u_d_v = w->s_ud * inv_n;
+        out->u_q_v = w->s_uq * inv_n;
+        /* trapezoid: sum_{j=0}^{n-1} x_j + (x_n - x_0) / 2 */
+        out->i_d_a = (w->s_id + 0.5f * (in->i_d_a - w->id0)) * inv_n;
+        out->i_q_a = (w->s_iq + 0.5f * (in->i_q_a - w->iq0)) * inv_n;
+        out->omega_e_rad_s = (w->s_w + 0.5f * (in->omega_e_rad_s - w->w0)) * inv_n;
+        out->w_i_d_a_rad_s = (w->s_wid + 0.5f * (wid - w->wid0)) * inv_n;
+        out->w_i_q_a_rad_s = (w->s_wiq + 0.5f * (wiq - w->wiq0)) * inv_n;
+        out->di_d_a_s = (in->i_d_a - w->id0) / t;
+        out->di_q_a_s = (in->i_q_a - w->iq0) / t;
+        ready = true;
+        w->count = 0u;
+        w->s_ud = w->s_uq = w->s_id = w->s_iq = w->s_w = w->s_wid = w->s_wiq = 0.0f;
+    }
+    if (w->count == 0u) {
+        w->id0 = in->i_d_a;
+        w->iq0 = in->i_q_a;
+        w->w0 = in->omega_e_rad_s;
+        w->wid0 = wid;
+        w->wiq0 = wiq;
+        w->started = true;
+    }
+    w->s_ud += in->u_d_v;
+    w->s_uq += in->u_q_v;
+    w->s_id += in->i_d_a;
+    w->s_iq += in->i_q_a;
+    w->s_w += in->omega_e_rad_s;
+    w->s_wid += wid;
+    w->s_wiq += wiq;
+    w->count++;
+    return ready;
+}

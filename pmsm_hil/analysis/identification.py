@@ -1,0 +1,215 @@
+"""Identification table (paper A, Table 2) from any log with /pmsm/params: per parameter and
+estimator the final value, its error against the truth, and the convergence time.
+
+Truth: /sim/truth when the log has it (interpolated to each params message, so a drift step in the
+plant is followed), else the motor file's values (metadata "motor").
+Convergence time: from the estimator's first update (the first params message of that estimator
+with a non-zero value of the parameter) to the first moment after which the estimate stays within
++-TOL (2 %) of the truth until the end of the window considered; None if it never settles.
+The final value is the mean over the last FINAL_WINDOW_S (50 ms) of the window.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from pmsm_hil.log.reader import read_log
+
+PARAMS = ("l_d_h", "l_q_h", "psi_f_wb", "r_s_ohm")
+ESTIMATORS = ("rls", "adaline", "nlms_adaline")
+TOL = 0.02
+FINAL_WINDOW_S = 0.05
+UNITS = {"l_d_h": ("L_d", "mH", 1e3), "l_q_h": ("L_q", "mH", 1e3), "psi_f_wb": ("psi_f", "Wb", 1.0),
+         "r_s_ohm": ("R", "ohm", 1.0)}
+
+# Paper A, Table 2: (value, |error|, time s) per parameter and estimator, SI units.
+PAPER_A_TABLE2 = {
+    "rls": {"l_d_h": (4.4e-3, 0.6e-3, 0.8), "l_q_h": (9.31e-3, 2.69e-3, 0.8),
+            "r_s_ohm": (1.42, 0.52, 0.2), "psi_f_wb": (0.194, 0.014, 0.15)},
+    "adaline": {"l_d_h": (5.406e-3, 0.406e-3, 0.55), "l_q_h": (11.44e-3, 0.56e-3, 0.7),
+                "r_s_ohm": (0.982, 0.082, 0.4), "psi_f_wb": (0.22, 0.04, 0.63)},
+    "nlms_adaline": {"l_d_h": (5.013e-3, 0.013e-3, 0.322), "l_q_h": (12.06e-3, 0.06e-3, 0.47),
+                     "r_s_ohm": (0.982, 0.082, 0.32), "psi_f_wb": (0.182, 0.002, 0.37)},
+}
+PAPER_A_TRUE = {"l_d_h": 5e-3, "l_q_h": 12e-3, "psi_f_wb": 0.18, "r_s_ohm": 0.9}
+
+
+@dataclass
+class Cell:
+    estimator: str
+    param: str
+    final: float
+    truth: float
+    error: float            # final - truth
+    error_rel: float        # (final - truth) / truth
+    t_first_s: float | None  # first update (device time)
+    conv_s: float | None     # convergence time from the first update
+    converged_flag: bool     # the firmware's own flag at the end
+
+
+@dataclass
+class IdentTable:
+    path: str
+    truth_source: str
+    t0_s: float
+    t1_s: float
+    cells: list[Cell] = field(default_factory=list)
+
+    def cell(self, estimator: str, param: str) -> Cell | None:
+        for c in self.cells:
+            if c.estimator == estimator and c.param == param:
+                return c
+        return None
+
+    def as_dict(self) -> dict:
+        return {"path": self.path, "truth_source": self.truth_source, "t0_s": self.t0_s,
+                "t1_s": self.t1_s, "cells": [asdict(c) for c in self.cells]}
+
+
+def _truth(log, t: np.ndarray) -> tuple[dict[str, np.ndarray], str]:
+    tr = log.topic("/sim/truth") if "/sim/truth" in log.topics else None
+    if tr is not None and len(tr["t_s"]):
+        return {p: np.interp(t, tr["t_s"], tr[p]) for p in PARAMS}, "/sim/truth"
+    motor = log.metadata.get("motor", {})
+    out = {}
+    for p in PARAMS:
+        v = float(motor[p]) if p in motor else PAPER_A_TRUE[p]
+        out[p] = np.full_like(t, v, dtype=float)
+    return out, "motor file" if motor else "paper A's motor (no motor metadata)"
+
+
+def convergence_time(t: np.ndarray, est: np.ndarray, truth: np.ndarray, t_first: float,
+                     tol: float = TOL) -> float | None:
+    """Time from t_first to the first sample after which |est - truth| <= tol |truth| holds to the end."""
+    ok = np.abs(est - truth) <= tol * np.abs(truth)
+    if not len(ok) or not ok[-1]:
+        return None
+    bad = np.nonzero(~ok)[0]
+    k = 0 if len(bad) == 0 else bad[-1] + 1
+    return max(0.0, float(t[k]) - t_first)
+
+
+def identification_table(path, t0_s: float | None = None, t1_s: float | None = None) -> IdentTable:
+    """The table for the log at `path`, over device time [t0_s, t1_s] (default: the whole log)."""
+    log = read_log(path)
+    par = log.topic("/pmsm/params")
+    t_all = np.asarray(par["t_s"], dtype=float)
+    names = np.asarray(par["estimator"]).astype(str)
+    t0 = float(t_all.min()) if t0_s is None and len(t_all) else (t0_s or 0.0)
+    t1 = float(t_all.max()) if t1_s is None and len(t_all) else (t1_s or 0.0)
+    table = IdentTable(str(path), "", t0, t1)
+    for est in ESTIMATORS:
+        sel = (names == est) & (t_all >= t0) & (t_all <= t1)
+        if not np.any(sel):
+            continue
+        t = t_all[sel]
+        truth, table.truth_source = _truth(log, t)
+        conv_flag = bool(np.asarray(par["converged"])[sel][-1])
+        for p in PARAMS:
+            v = np.asarray(par[p], dtype=float)[sel]
+            nz = np.nonzero(v != 0.0)[0]
+            t_first = float(t[nz[0]]) if len(nz) else None
+            last = t >= t[-1] - FINAL_WINDOW_S
+            final = float(np.mean(v[last]))
+            tr = float(np.mean(truth[p][last]))
+            conv = convergence_time(t[nz[0]:], v[nz[0]:], truth[p][nz[0]:], t_first) if len(nz) else None
+            table.cells.append(Cell(est, p, final, tr, final - tr, (final - tr) / tr if tr else float("nan"),
+                                    t_first, conv, conv_flag))
+    return table
+
+
+def _fmt(p: str, v: float) -> str:
+    _, _, k = UNITS[p]
+    return f"{v * k:.4g}"
+
+
+def markdown_table(table: IdentTable, with_paper: bool = True) -> str:
+    """Paper A's Table 2 beside ours, one row per parameter, as markdown."""
+    ests = [e for e in ESTIMATORS if table.cell(e, "l_d_h") is not None]
+    head = ["parameter", "truth"]
+    for e in ests:
+        head += [f"{e} value", f"{e} error", f"{e} t_conv s"]
+        if with_paper:
+            head += [f"paper {e} value", f"paper error", f"paper t s"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for p in ("l_d_h", "l_q_h", "r_s_ohm", "psi_f_wb"):
+        name, unit, _ = UNITS[p]
+        c0 = table.cell(ests[0], p) if ests else None
+        row = [f"{name} ({unit})", _fmt(p, c0.truth) if c0 else "-"]
+        for e in ests:
+            c = table.cell(e, p)
+            row += [_fmt(p, c.final), f"{100 * c.error_rel:+.2f} %",
+                    "-" if c.conv_s is None else f"{c.conv_s:.3f}"]
+            if with_paper:
+                v, err, ts = PAPER_A_TABLE2[e][p]
+                row += [_fmt(p, v), f"{100 * err / PAPER_A_TRUE[p]:.2f} %", f"{ts:.2f}"]
+        lines.append("| " + " | ".join(row) + " |")
+    return "\n".join(lines)
+
+
+def text_table(table: IdentTable, with_paper: bool = True) -> str:
+    """Plain-text version for the console: one block per estimator."""
+    out = [f"identification ({table.path}, truth: {table.truth_source}, "
+           f"t = {table.t0_s:.3f} .. {table.t1_s:.3f} s; convergence: stays within +-{100 * TOL:.0f} %)"]
+    hdr = f"  {'param':<10}{'truth':>10}{'ours':>11}{'error':>10}{'t_conv s':>10}"
+    if with_paper:
+        hdr += f"   |{'paper':>9}{'error':>9}{'t s':>7}"
+    for e in ESTIMATORS:
+        if table.cell(e, "l_d_h") is None:
+            continue
+        out.append(f"{e}:")
+        out.append(hdr)
+        for p in ("l_d_h", "l_q_h", "r_s_ohm", "psi_f_wb"):
+            c = table.cell(e, p)
+            name, unit, _ = UNITS[p]
+            conv = "never" if c.conv_s is None else f"{c.conv_s:.3f}"
+            line = (f"  {name + ' ' + unit:<10}{_fmt(p, c.truth):>10}{_fmt(p, c.final):>11}"
+                    f"{100 * c.error_rel:>+9.2f}%{conv:>10}")
+            if with_paper:
+                v, err, ts = PAPER_A_TABLE2[e][p]
+                line += f"   |{_fmt(p, v):>9}{100 * err / PAPER_A_TRUE[p]:>8.2f}%{ts:>7.2f}"
+            out.append(line)
+    return "\n".join(out)
+
+
+def convergence_plot(path, out_png, t0_s: float | None = None, t1_s: float | None = None) -> Path:
+    """Per parameter: each estimator against the truth (PNG)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    log = read_log(path)
+    par = log.topic("/pmsm/params")
+    t_all = np.asarray(par["t_s"], dtype=float)
+    names = np.asarray(par["estimator"]).astype(str)
+    fig, axes = plt.subplots(4, 1, figsize=(9, 10), sharex=True)
+    for ax, p in zip(axes, ("l_d_h", "l_q_h", "psi_f_wb", "r_s_ohm")):
+        name, unit, k = UNITS[p]
+        for est in ESTIMATORS + ("nominal",):
+            sel = names == est
+            if t0_s is not None:
+                sel &= t_all >= t0_s
+            if t1_s is not None:
+                sel &= t_all <= t1_s
+            if np.any(sel):
+                ax.plot(t_all[sel], np.asarray(par[p], dtype=float)[sel] * k, label=est,
+                        lw=1.0 if est != "nominal" else 0.8, ls="-" if est != "nominal" else ":")
+        t = t_all[(t_all >= (t0_s or -1)) & (t_all <= (t1_s if t1_s is not None else 1e9))]
+        truth, src = _truth(log, t)
+        ax.plot(t, truth[p] * k, "k--", lw=1.0, label=f"truth ({src})")
+        tr = truth[p] * k
+        if len(tr):
+            lo, hi = float(np.min(tr)), float(np.max(tr))
+            ax.set_ylim(lo * 0.8, hi * 1.2)
+        ax.set_ylabel(f"{name} ({unit})")
+        ax.grid(alpha=0.3)
+    axes[0].legend(loc="lower right", fontsize=8, ncol=3)
+    axes[-1].set_xlabel("device time (s)")
+    fig.suptitle(f"online identification: {Path(path).name}")
+    fig.tight_layout()
+    out_png = Path(out_png)
+    fig.savefig(out_png, dpi=110)
+    plt.close(fig)
+    return out_png

@@ -1,0 +1,197 @@
+"""The emulator on a CAN endpoint: the socketcand protocol (raw mode) on 127.0.0.1, which python-can's
+`socketcand` interface speaks (docs/can.md). No vcan or kernel module needed.
+
+    server: < hi >                      client: < open CHANNEL >    server: < ok >
+    client: < rawmode >                 server: < ok >
+    server: < frame ID SEC.USEC DATA >  (device -> host; time stamps are device time)
+    client: < send ID LEN B0 B1 ... >   (host -> device)
+
+One client at a time (a new connection replaces the old one); when it goes away the device runs on in real time, so its heartbeat timeout
+stops the motor as on a rig, and the next client may connect. Pacing as in server.py.
+"""
+from __future__ import annotations
+
+import select
+import signal
+import socket
+import sys
+import time
+
+from pmsm_hil.emulator.fwlib import EmulatedDevice
+from pmsm_hil.emulator.server import Pacer
+
+MAX_PENDING = 1 << 16     # octets of text waiting for the client before the device pauses
+CHANNEL = "emu0"
+
+
+def format_frames(frames, ts_s: float) -> bytes:
+    out = []
+    for ident, data, isr in frames:
+        t = isr * ts_s
+        sec = int(t)
+        out.append(f"< frame {ident:03X} {sec}.{int(round((t - sec) * 1e6)):06d} {data.hex().upper()} >")
+    return "".join(out).encode("ascii")
+
+
+class SocketcandServer:
+    def __init__(self, device: EmulatedDevice, host: str = "127.0.0.1", port: int = 0,
+                 channel: str = CHANNEL):
+        self.dev = device
+        self.pacer = Pacer()
+        self.channel = channel
+        self.lsock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        self.lsock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        self.lsock.bind((host, port))
+        self.lsock.listen(1)
+        self.lsock.setblocking(False)
+        self.host, self.port = self.lsock.getsockname()[:2]
+        self.client: socket.socket | None = None
+        self._inbuf = ""
+        self._pending = bytearray()
+        self._raw = False           # handshake done
+        self._forward = False       # the client has sent a frame: device output goes to it
+        self._stop = False
+        self.frames_in = 0
+        self.frames_out = 0
+        self.ts_s = device.get("ts_s")
+
+    @property
+    def spec(self) -> str:
+        return f"socketcand:{self.channel}@{self.host}:{self.port}"
+
+    def stop(self, *_args) -> None:
+        self._stop = True
+
+    # ------------------------------------------------------------------ client handling
+    def _drop_client(self) -> None:
+        if self.client is not None:
+            try:
+                self.client.close()
+            except OSError:
+                pass
+        self.client = None
+        self._inbuf = ""
+        self._pending.clear()
+        self._raw = self._forward = False
+
+    def _accept(self) -> None:
+        try:
+            c, _ = self.lsock.accept()
+        except BlockingIOError:
+            return
+        if self.client is not None:   # one client at a time: the newest (the old one is gone, or a probe)
+            self._drop_client()
+        c.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        self.client = c
+        c.sendall(b"< hi >")
+        c.setblocking(False)
+
+    def _handle(self, cmd: str) -> None:
+        parts = cmd.split()
+        if not parts:
+            return
+        if parts[0] == "send" and self._raw and len(parts) >= 3:
+            try:
+                ident = int(parts[1], 16)
+                n = int(parts[2], 16)
+                data = bytes(int(b, 16) for b in parts[3:3 + n])
+            except ValueError:
+                return
+            self.frames_in += 1
+            self._forward = True
+            self.dev.can_rx(ident, data)
+        elif parts[0] == "open":
+            self._reply("< ok >" if len(parts) > 1 else "< error >")
+        elif parts[0] == "rawmode":
+            self._raw = True
+            self._reply("< ok >")
+        elif parts[0] == "echo":
+            self._reply("< echo >")
+
+    def _reply(self, text: str) -> None:
+        try:
+            self.client.sendall(text.encode("ascii"))
+        except OSError:
+            self._drop_client()
+
+    def _read_client(self) -> None:
+        try:
+            data = self.client.recv(65536)
+        except BlockingIOError:
+            return
+        except OSError:
+            data = b""
+        if not data:
+            self._drop_client()
+            return
+        self._inbuf += data.decode("ascii", errors="replace")
+        while self.client is not None:
+            start = self._inbuf.find("<")
+            end = self._inbuf.find(">", start + 1)
+            if start < 0 or end < 0:
+                if start < 0:
+                    self._inbuf = ""
+                break
+            cmd = self._inbuf[start + 1:end]
+            self._inbuf = self._inbuf[end + 1:]
+            self._handle(cmd)
+
+    # ------------------------------------------------------------------ main loop
+    def serve(self) -> None:
+        while not self._stop:
+            now = time.monotonic()
+            active = self.dev.active
+            ticks = self.pacer.allowance(self.dev, now) if active else 0
+            can_run = len(self._pending) < MAX_PENDING
+            busy = active and ticks > 0 and can_run
+            rl = [self.lsock] + ([self.client] if self.client is not None else [])
+            wl = [self.client] if self.client is not None and self._pending else []
+            r, w, _ = select.select(rl, wl, [], 0.0 if busy else 0.002)
+            if self.lsock in r:
+                self._accept()
+            if self.client is not None and self.client in r:
+                self._read_client()
+            if can_run:
+                self.dev.run(ticks if active else 0)
+                frames = self.dev.can_take()
+                if frames:
+                    self.frames_out += len(frames)
+                    if self.client is not None and self._forward:
+                        self._pending += format_frames(frames, self.ts_s)
+            if self.client is not None and self._pending:
+                try:
+                    n = self.client.send(self._pending)
+                    del self._pending[:n]
+                except BlockingIOError:
+                    pass
+                except OSError:
+                    self._drop_client()
+
+    def close(self) -> None:
+        self._drop_client()
+        try:
+            self.lsock.close()
+        except OSError:
+            pass
+
+
+def serve_socketcand(settings: dict[str, float], announce=print, port: int = 0) -> None:
+    """Run the emulator on a socketcand endpoint, printing `can: SPEC`, until SIGINT/SIGTERM."""
+    dev = EmulatedDevice(settings)
+    server = SocketcandServer(dev, port=port)
+    signal.signal(signal.SIGTERM, server.stop)
+    signal.signal(signal.SIGINT, server.stop)
+    spec = server.spec
+    bitrate = int(settings.get("can_bitrate", 1_000_000))
+    node = int(settings.get("can_node", 1))
+    from pmsm_hil.protocol import can_generated as cg
+    if bitrate != cg.BITRATE:
+        spec += f",bitrate={bitrate}"
+    if node != cg.NODE:
+        spec += f",node={node}"
+    announce(f"can: {spec}")
+    sys.stdout.flush()
+    try:
+        server.serve()
+    finally:
+        server.close()

@@ -1,0 +1,160 @@
+"""Flux maps for the saturation effect: psi_d(i_d, i_q), psi_q(i_d, i_q) on a regular current grid.
+
+CSV format (profiles/maps/*.csv): lines starting with ``#`` are comments (source, derivation); a
+header row ``i_d_a,i_q_a,psi_d_wb,psi_q_wb``; one row per grid node, in any order. The nodes must
+lie on a regular grid (constant spacing per axis, at most 64 nodes per axis); nodes may be missing
+(a measured map usually covers only the current circle): they are filled by linear extrapolation
+from their neighbours, repeated outwards until the rectangle is full (``fill_missing``). The plant
+interpolates the rectangle by bicubic Hermite patches (firmware/sim/plant.c, plant_map_build) and
+extends it linearly beyond its edges.
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+MAX_NODES = 64
+COLUMNS = ("i_d_a", "i_q_a", "psi_d_wb", "psi_q_wb")
+
+
+class FluxMapError(ValueError):
+    pass
+
+
+@dataclass
+class FluxMap:
+    """A filled rectangular flux map; arrays indexed [k (i_q), j (i_d)]."""
+
+    i_d_a: np.ndarray          # node currents along i_d (nd,)
+    i_q_a: np.ndarray          # node currents along i_q (nq,)
+    psi_d_wb: np.ndarray       # (nq, nd)
+    psi_q_wb: np.ndarray       # (nq, nd)
+    measured: np.ndarray       # (nq, nd) bool: node given in the file
+    path: str = ""
+    sha256: str = ""
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return len(self.i_d_a), len(self.i_q_a)
+
+    def settings(self) -> dict:
+        """The sim board's keys for this map (emu_set / emu_set_array)."""
+        nd, nq = self.shape
+        return {"sat_nd": nd, "sat_nq": nq,
+                "sat_id0_a": float(self.i_d_a[0]), "sat_did_a": float(self.i_d_a[1] - self.i_d_a[0]),
+                "sat_iq0_a": float(self.i_q_a[0]), "sat_diq_a": float(self.i_q_a[1] - self.i_q_a[0]),
+                "sat_psi_d_wb": [float(x) for x in self.psi_d_wb.ravel()],
+                "sat_psi_q_wb": [float(x) for x in self.psi_q_wb.ravel()]}
+
+    def node(self, i_d: float, i_q: float) -> tuple[float, float]:
+        j = int(np.argmin(np.abs(self.i_d_a - i_d)))
+        k = int(np.argmin(np.abs(self.i_q_a - i_q)))
+        return float(self.psi_d_wb[k, j]), float(self.psi_q_wb[k, j])
+
+    def metadata(self) -> dict[str, str]:
+        nd, nq = self.shape
+        return {"map_file": os.path.basename(self.path), "map_sha256": self.sha256,
+                "map_grid": f"{nd}x{nq} i_d {self.i_d_a[0]:g}..{self.i_d_a[-1]:g} A, "
+                            f"i_q {self.i_q_a[0]:g}..{self.i_q_a[-1]:g} A",
+                "map_nodes_measured": str(int(self.measured.sum())),
+                "map_psi_d_0_0_wb": repr(float(self.node(0.0, 0.0)[0]))}
+
+
+def _axis(values: np.ndarray, name: str) -> np.ndarray:
+    u = np.unique(values)
+    if len(u) < 2:
+        raise FluxMapError(f"{name}: needs at least 2 distinct grid values")
+    if len(u) > MAX_NODES:
+        raise FluxMapError(f"{name}: {len(u)} grid values, at most {MAX_NODES}")
+    steps = np.diff(u)
+    h = steps.min()
+    k = np.rint((u - u[0]) / h)
+    if np.max(np.abs(u - (u[0] + k * h))) > 1e-6 * max(1.0, h):
+        raise FluxMapError(f"{name}: values are not on a regular grid (step {h:g})")
+    n = int(k[-1]) + 1
+    if n > MAX_NODES:
+        raise FluxMapError(f"{name}: the regular grid has {n} nodes, at most {MAX_NODES}")
+    return u[0] + h * np.arange(n)
+
+
+def fill_missing(f: np.ndarray, known: np.ndarray) -> np.ndarray:
+    """Fill the unknown nodes of a 2-D grid by linear extrapolation from known neighbours along the
+    grid lines (2 f[x-1] - f[x-2], averaged over the directions available), repeated outwards."""
+    f = f.copy()
+    known = known.copy()
+    nq, nd = f.shape
+    while not known.all():
+        new_vals = {}
+        for k in range(nq):
+            for j in range(nd):
+                if known[k, j]:
+                    continue
+                est = []
+                for dk, dj in ((0, 1), (0, -1), (1, 0), (-1, 0)):
+                    k1, j1, k2, j2 = k + dk, j + dj, k + 2 * dk, j + 2 * dj
+                    if 0 <= k2 < nq and 0 <= j2 < nd and known[k1, j1] and known[k2, j2]:
+                        est.append(2.0 * f[k1, j1] - f[k2, j2])
+                if not est:
+                    for dk, dj in ((0, 1), (0, -1), (1, 0), (-1, 0)):
+                        k1, j1 = k + dk, j + dj
+                        if 0 <= k1 < nq and 0 <= j1 < nd and known[k1, j1]:
+                            est.append(f[k1, j1])
+                if est:
+                    new_vals[(k, j)] = float(np.mean(est))
+        if not new_vals:
+            raise FluxMapError("flux map has no measured node to extrapolate from")
+        for (k, j), v in new_vals.items():
+            f[k, j] = v
+            known[k, j] = True
+    return f
+
+
+def read_csv(path: str) -> np.ndarray:
+    """Rows of (i_d_a, i_q_a, psi_d_wb, psi_q_wb) from a flux-map CSV."""
+    with open(path, encoding="utf-8") as fh:
+        lines = [ln.strip() for ln in fh if ln.strip() and not ln.lstrip().startswith("#")]
+    if not lines:
+        raise FluxMapError("empty file")
+    head = [h.strip() for h in lines[0].split(",")]
+    missing = [c for c in COLUMNS if c not in head]
+    if missing:
+        raise FluxMapError(f"missing column(s) {', '.join(missing)} (need {', '.join(COLUMNS)})")
+    idx = [head.index(c) for c in COLUMNS]
+    rows = []
+    for n, ln in enumerate(lines[1:], start=2):
+        parts = ln.split(",")
+        try:
+            rows.append([float(parts[i]) for i in idx])
+        except (ValueError, IndexError):
+            raise FluxMapError(f"data row {n}: not four numbers: {ln!r}") from None
+    data = np.array(rows, dtype=float)
+    if data.ndim != 2 or len(data) < 4 or not np.all(np.isfinite(data)):
+        raise FluxMapError("needs at least 4 finite rows")
+    return data
+
+
+def from_points(data: np.ndarray, path: str = "", sha256: str = "") -> FluxMap:
+    i_d = _axis(data[:, 0], "i_d_a")
+    i_q = _axis(data[:, 1], "i_q_a")
+    nd, nq = len(i_d), len(i_q)
+    pd = np.zeros((nq, nd))
+    pq = np.zeros((nq, nd))
+    known = np.zeros((nq, nd), dtype=bool)
+    j = np.rint((data[:, 0] - i_d[0]) / (i_d[1] - i_d[0])).astype(int)
+    k = np.rint((data[:, 1] - i_q[0]) / (i_q[1] - i_q[0])).astype(int)
+    if known[k, j].any() or len(set(zip(k.tolist(), j.tolist()))) != len(data):
+        raise FluxMapError("a grid node is given twice")
+    pd[k, j] = data[:, 2]
+    pq[k, j] = data[:, 3]
+    known[k, j] = True
+    return FluxMap(i_d, i_q, fill_missing(pd, known), fill_missing(pq, known), known, path, sha256)
+
+
+def load_flux_map(path: str) -> FluxMap:
+    """Read, check and fill a flux-map CSV (raises OSError or FluxMapError)."""
+    with open(path, "rb") as fh:
+        sha = hashlib.sha256(fh.read()).hexdigest()
+    return from_points(read_csv(path), path, sha)
