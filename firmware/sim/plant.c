@@ -237,7 +237,7 @@ PL_INLINE void cpow_k(double c, double s, int k, double *ck, double *sk)
 }
 
 /* General magnetics: flux map (or linear), flux harmonics, cogging. */
-static void mag_gen(const plant_t *p, double id, double iq, double c, double s, plant_mag_t *m)
+PL_INLINE void mag_gen(const plant_t *p, double id, double iq, double c, double s, plant_mag_t *m)
 {
     double l[4] = {0.0, 0.0, 0.0, 0.0}, det;
     m->dpsi_d_dth_wb = 0.0;
