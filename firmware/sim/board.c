@@ -363,3 +363,22 @@ void emu_plant_flux(const emu_t *e, double i_d_a, double i_q_a, double theta_e_r
     out[6] = m.t_extra_nm;
     out[7] = plant_torque(&e->plant, i_d_a, i_q_a, theta_e_rad);
 }
+
+int emu_plant_truth(const emu_t *e, double *out, int n)
+{
+    plant_truth_t t;
+    const double v[] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
+    double w[sizeof v / sizeof v[0]];
+    int i, m = (int)(sizeof v / sizeof v[0]);
+    plant_truth(&e->plant, &t);
+    w[0] = t.t_s; w[1] = t.i_d_a; w[2] = t.i_q_a; w[3] = t.theta_e_rad; w[4] = t.theta_m_rad;
+    w[5] = t.omega_m_rad_s; w[6] = t.speed_rpm; w[7] = t.torque_nm; w[8] = t.u_d_v; w[9] = t.u_q_v;
+    w[10] = t.r_s_ohm; w[11] = t.l_d_h; w[12] = t.l_q_h; w[13] = t.psi_f_wb; w[14] = t.temp_winding_c;
+    w[15] = t.temp_magnet_c; w[16] = t.i_a_a; w[17] = t.i_b_a; w[18] = t.i_c_a; w[19] = t.v_dc_v;
+    w[20] = t.load_nm; w[21] = t.psi_d_wb; w[22] = t.psi_q_wb; w[23] = t.p_cu_w; w[24] = t.p_fe_w;
+    w[25] = t.i_dc_a; w[26] = (double)e->fw.tick;
+    for (i = 0; i < n && i < m; i++) {
+        out[i] = w[i];
+    }
+    return m;
+}

@@ -147,7 +147,7 @@ const char *plant_map_build(plant_map_t *m, int nd, int nq, double id0_a, double
                 /* F[a][b]: a = value/derivative in t at t = 0, 1; b likewise in v */
                 double F[4][4], T[4][4];
                 int n00 = k * nd + j, n10 = n00 + 1, n01 = n00 + nd, n11 = n01 + 1;
-                double *co = m->coef[k * (PLANT_MAP_MAX_N - 1) + j][c];
+                double *co = &m->coef[k * (PLANT_MAP_MAX_N - 1) + j][0][0];
                 F[0][0] = f[c][n00]; F[0][1] = f[c][n01]; F[0][2] = fv[c][n00]; F[0][3] = fv[c][n01];
                 F[1][0] = f[c][n10]; F[1][1] = f[c][n11]; F[1][2] = fv[c][n10]; F[1][3] = fv[c][n11];
                 F[2][0] = ft[c][n00]; F[2][1] = ft[c][n01]; F[2][2] = ftv[c][n00]; F[2][3] = ftv[c][n01];
@@ -159,7 +159,7 @@ const char *plant_map_build(plant_map_t *m, int nd, int nq, double id0_a, double
                 }
                 for (a = 0; a < 4; a++) {          /* coefficient of t^a v^b: (HM F HM^T)[a][b] */
                     for (b = 0; b < 4; b++) {
-                        co[a * 4 + b] = T[a][0] * HM[b][0] + T[a][1] * HM[b][1] + T[a][2] * HM[b][2] + T[a][3] * HM[b][3];
+                        co[(a * 4 + b) * 2 + c] = T[a][0] * HM[b][0] + T[a][1] * HM[b][1] + T[a][2] * HM[b][2] + T[a][3] * HM[b][3];
                     }
                 }
             }
@@ -187,21 +187,27 @@ PL_INLINE void map_eval(const plant_map_t *m, double id, double iq, double *pd, 
     v -= (double)k;
     if (u < 0.0) { eu = u; u = 0.0; } else if (u > 1.0) { eu = u - 1.0; u = 1.0; }
     if (v < 0.0) { ev = v; v = 0.0; } else if (v > 1.0) { ev = v - 1.0; v = 1.0; }
-    co = m->coef[k * (PLANT_MAP_MAX_N - 1) + j][0];
-    for (c = 0; c < 2; c++, co += 16) {
-        double b0 = co[0] + v * (co[1] + v * (co[2] + v * co[3]));
-        double b1 = co[4] + v * (co[5] + v * (co[6] + v * co[7]));
-        double b2 = co[8] + v * (co[9] + v * (co[10] + v * co[11]));
-        double b3 = co[12] + v * (co[13] + v * (co[14] + v * co[15]));
-        double v0 = co[1] + v * (2.0 * co[2] + 3.0 * v * co[3]);
-        double v1 = co[5] + v * (2.0 * co[6] + 3.0 * v * co[7]);
-        double v2 = co[9] + v * (2.0 * co[10] + 3.0 * v * co[11]);
-        double v3 = co[13] + v * (2.0 * co[14] + 3.0 * v * co[15]);
-        double fu = b1 + u * (2.0 * b2 + 3.0 * u * b3);
-        double fv = v0 + u * (v1 + u * (v2 + u * v3));
-        val[c] = b0 + u * (b1 + u * (b2 + u * b3)) + fu * eu + fv * ev;
-        l[2 * c] = fu * m->inv_did;
-        l[2 * c + 1] = fv * m->inv_diq;
+    co = &m->coef[k * (PLANT_MAP_MAX_N - 1) + j][0][0];
+    /* both components side by side (coefficient pairs [psi_d, psi_q]): the compiler packs them */
+    {
+        double b[4][2], bv[4][2], fu[2], fv[2];
+        int a;
+        for (a = 0; a < 4; a++) {
+            const double *r = co + 8 * a;
+            for (c = 0; c < 2; c++) {
+                b[a][c] = r[c] + v * (r[2 + c] + v * (r[4 + c] + v * r[6 + c]));
+                bv[a][c] = r[2 + c] + v * (2.0 * r[4 + c] + 3.0 * v * r[6 + c]);
+            }
+        }
+        for (c = 0; c < 2; c++) {
+            fu[c] = b[1][c] + u * (2.0 * b[2][c] + 3.0 * u * b[3][c]);
+            fv[c] = bv[0][c] + u * (bv[1][c] + u * (bv[2][c] + u * bv[3][c]));
+            val[c] = b[0][c] + u * (b[1][c] + u * (b[2][c] + u * b[3][c])) + fu[c] * eu + fv[c] * ev;
+        }
+        l[0] = fu[0] * m->inv_did;
+        l[1] = fv[0] * m->inv_diq;
+        l[2] = fu[1] * m->inv_did;
+        l[3] = fv[1] * m->inv_diq;
     }
     *pd = val[0];
     *pq = val[1];
@@ -590,14 +596,19 @@ static void thermal_params(plant_t *p)
     p->psi_shift_wb = p->cfg.map != NULL ? p->psi_f_wb - p->cfg.map->psi_f_wb : 0.0;   /* added to the map's psi_d */
 }
 
-/* two-node thermal network, explicit Euler over one period (time constants are seconds to minutes):
+/* two-node thermal network, explicit Euler every PLANT_THERMAL_DIV periods (time constants are seconds
+ * to minutes) with the copper loss averaged over those periods and the iron loss at their end:
  * C_w dT_w/dt = P_cu + P_fe - (T_w - T_a)/R_wa - (T_w - T_m)/R_wm,  C_m dT_m/dt = (T_w - T_m)/R_wm - (T_m - T_a)/R_ma */
 static void thermal_step(plant_t *p)
 {
-    const double dt = p->cfg.ts_s, ta = p->cfg.temp_ambient_c;
+    const double dt = p->cfg.ts_s * (double)PLANT_THERMAL_DIV, ta = p->cfg.temp_ambient_c;
     const double tw = p->temp_winding_c, tm = p->temp_magnet_c;
     const double q_wm = (tw - tm) / p->cfg.r_wm_k_w;
-    losses(p, &p->p_cu_w, &p->p_fe_w);
+    double p_cu_now;
+    losses(p, &p_cu_now, &p->p_fe_w);
+    p->p_cu_w = p->th_acc_w * (1.0 / (double)PLANT_THERMAL_DIV);
+    p->th_acc_w = 0.0;
+    p->th_n = 0;
     p->temp_winding_c = tw + dt * (p->p_cu_w + p->p_fe_w - (tw - ta) / p->cfg.r_wa_k_w - q_wm) / p->cfg.c_winding_j_k;
     p->temp_magnet_c = tm + dt * (q_wm - (tm - ta) / p->cfg.r_ma_k_w) / p->cfg.c_magnet_j_k;
     thermal_params(p);
@@ -639,7 +650,10 @@ static void finish_period(plant_t *p, const ctx_t *k, const xs_t *x, double th_t
     p->u_d_avg_v = aud * p->inv_ts;
     p->u_q_avg_v = auq * p->inv_ts;
     if (p->cfg.thermal_on) {
-        thermal_step(p);
+        p->th_acc_w += 1.5 * p->r_s_ohm * (x->id * x->id + x->iq * x->iq);
+        if (++p->th_n >= PLANT_THERMAL_DIV) {
+            thermal_step(p);
+        }
     }
     if (p->delay_n >= 0) {
         hist_push(p);
@@ -1018,8 +1032,11 @@ const char *plant_cfg_check(const plant_cfg_t *cfg)
     if (cfg->thermal_on) {
         if (!(cfg->c_winding_j_k > 0.0) || !(cfg->c_magnet_j_k > 0.0)) return "thermal capacities must be > 0";
         if (!(cfg->r_wa_k_w > 0.0) || !(cfg->r_wm_k_w > 0.0) || !(cfg->r_ma_k_w > 0.0)) return "thermal resistances must be > 0";
-        if (!(cfg->ts_s < 0.5 * cfg->c_winding_j_k * cfg->r_wm_k_w) || !(cfg->ts_s < 0.5 * cfg->c_magnet_j_k * cfg->r_wm_k_w))
-            return "thermal time constants must exceed 2 ts_s";
+        if (!(cfg->ts_s * PLANT_THERMAL_DIV < 0.2 * cfg->c_winding_j_k * cfg->r_wm_k_w) ||
+            !(cfg->ts_s * PLANT_THERMAL_DIV < 0.2 * cfg->c_magnet_j_k * cfg->r_wm_k_w) ||
+            !(cfg->ts_s * PLANT_THERMAL_DIV < 0.2 * cfg->c_winding_j_k * cfg->r_wa_k_w) ||
+            !(cfg->ts_s * PLANT_THERMAL_DIV < 0.2 * cfg->c_magnet_j_k * cfg->r_ma_k_w))
+            return "thermal time constants must exceed 5 thermal steps (16 ts_s each)";
     }
     if (!(cfg->r_fe_heat_ohm >= 0.0)) return "r_fe_heat_ohm must be >= 0";
     if (!(fabs(cfg->psi5_rel) < 1.0) || !(fabs(cfg->psi7_rel) < 1.0)) return "flux harmonics must be < 1";

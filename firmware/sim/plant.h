@@ -38,7 +38,7 @@ typedef struct {
     double did_a, diq_a;         /* node spacing */
     double inv_did, inv_diq;
     double psi_f_wb;             /* psi_d(0, 0) of the map: its magnet flux linkage */
-    double coef[(PLANT_MAP_MAX_N - 1) * (PLANT_MAP_MAX_N - 1)][2][16];   /* per cell: psi_d, psi_q patches */
+    double coef[(PLANT_MAP_MAX_N - 1) * (PLANT_MAP_MAX_N - 1)][16][2];   /* per cell: coefficient of t^a v^b (index a*4+b) for psi_d, psi_q */
 } plant_map_t;
 
 typedef struct {
@@ -93,6 +93,7 @@ typedef struct {
     double r_fe_ohm;         /* iron loss: equivalent resistance across the speed voltage, 0 = off */
 } plant_cfg_t;
 
+#define PLANT_THERMAL_DIV 16  /* the thermal network steps every 16 periods */
 #define PLANT_DELAY_RING 32   /* sample_delay_s < (PLANT_DELAY_RING - 2) ts_s; pwm_delay_periods < PLANT_DELAY_RING */
 
 /* Flux linkages and incremental inductances at one operating point: what plant_flux() returns. */
@@ -135,7 +136,9 @@ typedef struct {
     double psi_f_ref_wb;        /* magnet flux linkage at temp_ref (the map's psi_d(0,0) with saturation) */
     double psi_shift_wb;        /* psi_f in force - psi_f_ref (added to the map's psi_d) */
     double inv_r_fe;            /* 1 / r_fe_ohm, 0 = no iron loss */
-    double p_cu_w, p_fe_w;      /* losses at the end of the last period */
+    double p_cu_w, p_fe_w;      /* thermal: losses of the last thermal step */
+    double th_acc_w;            /* thermal: copper loss summed over the periods of this step */
+    int th_n;                   /* thermal: periods in this step so far */
     double cog_c, cog_s;        /* cos, sin of cog_phase_rad */
     double hist_i[PLANT_DELAY_RING][3];   /* true phase currents at the last period boundaries */
     uint32_t hist_pos;

@@ -46,9 +46,20 @@ def render(live: LiveState, title: str, bit_rate: float, names: list[str]):
     for col in ("L_d mH", "L_q mH", "ψf mWb", "R Ω"):
         par.add_column(col, justify="right")
     for name, p in live.params.items():
-        mark = "" if not p.get("feeds_predictor") else " *"
-        par.add_row(name + mark, f"{p['l_d_h'] * 1e3:.3f}", f"{p['l_q_h'] * 1e3:.3f}",
-                    f"{p['psi_f_wb'] * 1e3:.1f}", f"{p['r_s_ohm']:.3f}")
+        # markers: * feeds the predictor, e excited, c converged (params flags)
+        mark = (" *" if p.get("feeds_predictor") else "") + \
+               ("" if name == "nominal" else " " + ("e" if p.get("excited") else "-") +
+                ("c" if p.get("converged") else "-"))
+        tr = live.truth or {}
+
+        def cell(key, k, fmt):
+            v = p[key] * k
+            ref = tr.get(key)
+            if name != "nominal" and ref:
+                return f"{v:{fmt}} [dim]{100 * (p[key] / ref - 1):+.1f}%[/]"
+            return f"{v:{fmt}}"
+        par.add_row(name + mark, cell("l_d_h", 1e3, ".3f"), cell("l_q_h", 1e3, ".3f"),
+                    cell("psi_f_wb", 1e3, ".1f"), cell("r_s_ohm", 1.0, ".3f"))
     if live.truth:
         tr = live.truth
         par.add_row("[dim]truth[/]", f"[dim]{tr['l_d_h'] * 1e3:.3f}", f"[dim]{tr['l_q_h'] * 1e3:.3f}",

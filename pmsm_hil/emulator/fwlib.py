@@ -25,6 +25,8 @@ def lib() -> ctypes.CDLL:
     so.emu_check.restype = ctypes.c_char_p
     so.emu_plant_flux.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_double,
                                   ctypes.POINTER(ctypes.c_double)]
+    so.emu_plant_truth.argtypes = [ctypes.c_void_p, ctypes.POINTER(ctypes.c_double), ctypes.c_int]
+    so.emu_plant_truth.restype = ctypes.c_int
     so.emu_rx.argtypes = [ctypes.c_void_p, ctypes.c_char_p, ctypes.c_uint32]
     so.emu_run.argtypes = [ctypes.c_void_p, ctypes.c_uint32, ctypes.c_void_p, ctypes.c_uint32,
                            ctypes.POINTER(ctypes.c_uint32)]
@@ -39,6 +41,13 @@ def lib() -> ctypes.CDLL:
         getattr(so, name).argtypes = [ctypes.c_void_p]
         getattr(so, name).restype = ctypes.c_int
     return so
+
+
+# order of emu_plant_truth's values (firmware/sim/board.c)
+TRUTH_KEYS = ("t_s", "i_d_a", "i_q_a", "theta_e_rad", "theta_m_rad", "omega_m_rad_s", "speed_rpm",
+              "torque_nm", "u_d_v", "u_q_v", "r_s_ohm", "l_d_h", "l_q_h", "psi_f_wb", "temp_winding_c",
+              "temp_magnet_c", "i_a_a", "i_b_a", "i_c_a", "v_dc_v", "load_nm", "psi_d_wb", "psi_q_wb",
+              "p_cu_w", "p_fe_w", "i_dc_a", "tick")
 
 
 class EmulatedDevice:
@@ -69,6 +78,12 @@ class EmulatedDevice:
         err = self._lib.emu_check(self._p)
         if err:
             raise ValueError(f"emulator settings: {err.decode()}")
+
+    def plant_truth(self) -> dict[str, float]:
+        """The plant's state now (every field of plant_truth_t, plus the firmware tick)."""
+        out = (ctypes.c_double * len(TRUTH_KEYS))()
+        self._lib.emu_plant_truth(self._p, out, len(TRUTH_KEYS))
+        return dict(zip(TRUTH_KEYS, list(out)))
 
     def plant_flux(self, i_d_a: float, i_q_a: float, theta_e_rad: float = 0.0) -> dict[str, float]:
         """The plant's magnetics at one point (flux linkages, incremental inductances, torque)."""

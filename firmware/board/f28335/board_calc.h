@@ -68,13 +68,16 @@ static inline void calc_pwm_timing(float ts_s, uint32_t dead_ns, uint32_t lead_n
 }
 
 /* PWM-DAC (up count, set at zero, clear at CMPA): duty = CMPA / (TBPRD + 1);
- * 50 % = 0, 0 % = -full_scale, 100 % = +full_scale, clamped. */
+ * 50 % = 0, 0 % = -full_scale, 100 % = +full_scale, clamped; NaN gives 50 %. */
 static inline uint16_t calc_dac_cmpa(float value, float full_scale, uint16_t tbprd)
 {
     const float periods = (float)tbprd + 1.0f;
     float duty = 0.5f + value * (0.5f / full_scale);
-    if (!(duty > 0.0f)) {
-        duty = 0.0f;   /* also NaN */
+    if (duty != duty) {
+        duty = 0.5f;   /* NaN: no torque */
+    }
+    if (duty < 0.0f) {
+        duty = 0.0f;
     }
     if (duty > 1.0f) {
         duty = 1.0f;
