@@ -367,7 +367,7 @@ void emu_plant_flux(const emu_t *e, double i_d_a, double i_q_a, double theta_e_r
 int emu_plant_truth(const emu_t *e, double *out, int n)
 {
     plant_truth_t t;
-    const double v[] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
+    const double v[] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
     double w[sizeof v / sizeof v[0]];
     int i, m = (int)(sizeof v / sizeof v[0]);
     plant_truth(&e->plant, &t);
@@ -377,6 +377,7 @@ int emu_plant_truth(const emu_t *e, double *out, int n)
     w[15] = t.temp_magnet_c; w[16] = t.i_a_a; w[17] = t.i_b_a; w[18] = t.i_c_a; w[19] = t.v_dc_v;
     w[20] = t.load_nm; w[21] = t.psi_d_wb; w[22] = t.psi_q_wb; w[23] = t.p_cu_w; w[24] = t.p_fe_w;
     w[25] = t.i_dc_a; w[26] = (double)e->fw.tick;
+    w[27] = t.v_dist_v[0]; w[28] = t.v_dist_v[1]; w[29] = t.v_dist_v[2];
     for (i = 0; i < n && i < m; i++) {
         out[i] = w[i];
     }

@@ -1246,7 +1246,8 @@ static void step_legs_now(plant_t *p, const double d[3], bool pwm_on, bool carri
             rise = was_on * d[n] * (1.0 - sp);
             fall = was_on * sp * (1.0 - d[n]);
         }
-        v[n] = p->v_dc_v * d[n] + leg_dist(p, i3[n], rise, fall, k_dt_v);
+        p->v_dist_v[n] = leg_dist(p, i3[n], rise, fall, k_dt_v);
+        v[n] = p->v_dc_v * d[n] + p->v_dist_v[n];
         p->s_prev[n] = (uint16_t)(d[n] > 0.5);
     }
     advance_on(p, MODE_KNOWN, (2.0 * v[0] - v[1] - v[2]) * (1.0 / 3.0), (v[1] - v[2]) * PL_INV_SQRT3, t_load);
@@ -1325,6 +1326,9 @@ void plant_truth(const plant_t *p, plant_truth_t *t)
     t->psi_q_wb = m.psi_q_wb;
     losses(p, &t->p_cu_w, &t->p_fe_w);
     t->i_dc_a = p->i_dc_a;
+    t->v_dist_v[0] = p->v_dist_v[0];
+    t->v_dist_v[1] = p->v_dist_v[1];
+    t->v_dist_v[2] = p->v_dist_v[2];
     t->psi_f_wb = p->psi_f_wb;
     t->temp_winding_c = p->temp_winding_c;
     t->temp_magnet_c = p->temp_magnet_c;

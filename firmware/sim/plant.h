@@ -151,6 +151,7 @@ typedef struct {
     double grid_c, grid_s, grid_dc, grid_ds;   /* DC link: grid phasor and its rotation per period */
     double v_src_v;             /* DC link: no-load DC voltage (cfg v_dc_v) */
     double i_dc_a;              /* DC link: inverter input current of the last period */
+    double v_dist_v[3];         /* inverter distortion voltage of each leg in the last period (truth) */
 } plant_t;
 
 typedef struct {
@@ -165,6 +166,7 @@ typedef struct {
     double l_dq_h;                      /* incremental cross inductance d(psi_d)/d(i_q) */
     double p_cu_w, p_fe_w;              /* copper and iron losses */
     double i_dc_a;                      /* DC-link current into the inverter (last period, DC link on) */
+    double v_dist_v[3];                 /* inverter distortion (dead time, drops) of legs a, b, c, last period */
 } plant_truth_t;
 
 /* Paper A's IPMSM (p 4, R 0.9, Ld 5 mH, Lq 12 mH, psi_f 0.18 Wb, J 0.0036) on 540 V, Ts 50 us,

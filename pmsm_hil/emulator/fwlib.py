@@ -47,7 +47,7 @@ def lib() -> ctypes.CDLL:
 TRUTH_KEYS = ("t_s", "i_d_a", "i_q_a", "theta_e_rad", "theta_m_rad", "omega_m_rad_s", "speed_rpm",
               "torque_nm", "u_d_v", "u_q_v", "r_s_ohm", "l_d_h", "l_q_h", "psi_f_wb", "temp_winding_c",
               "temp_magnet_c", "i_a_a", "i_b_a", "i_c_a", "v_dc_v", "load_nm", "psi_d_wb", "psi_q_wb",
-              "p_cu_w", "p_fe_w", "i_dc_a", "tick")
+              "p_cu_w", "p_fe_w", "i_dc_a", "tick", "v_dist_a_v", "v_dist_b_v", "v_dist_c_v")
 
 
 class EmulatedDevice:

@@ -33,7 +33,8 @@ def emulator_settings(motor, rig, seed: int = 1, baud: int = 921600,
     s["adc_lsb_a"] = quant.adc_lsb_a if quant else 0.0
     enc = _eff(rig, "encoder")
     s["enc_counts"] = 4 * int(getattr(enc, "lines", 2500)) if enc else 10000
-    s["enc_offset_rad"] = getattr(enc, "offset_rad", 0.0) if enc else 0.0
+    # the rig gives the offset as an electrical angle; the plant's encoder adds it to theta_m
+    s["enc_offset_rad"] = getattr(enc, "offset_rad", 0.0) / motor.pole_pairs if enc else 0.0
     fr = _eff(rig, "friction")
     if fr is not None:
         # the rig's friction adds to the motor file's nominal friction (docs/profiles.md)

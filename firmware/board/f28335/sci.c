@@ -60,8 +60,9 @@ BOARD_RAMFUNC void sci_tx_kick(void)
 BOARD_RAMFUNC __interrupt void sci_rx_isr(void)
 {
     if (SciaRegs.SCIRXST.bit.RXERROR != 0u) {
-        /* framing, overrun or break: count, and reset the receiver's flags; the damaged frame is
-         * rejected by the core's COBS/CRC/length checks and the host retries */
+        /* framing, overrun or break: count, and clear the flags with a software reset (it can
+         * also cut the octet being sent; the host drops that frame as it drops a line error).
+         * The damaged frame is rejected by the core's COBS/CRC/length checks; the host retries */
         g_diag.sci_rx_errors++;
         SciaRegs.SCICTL1.bit.SWRESET = 0u;
         SciaRegs.SCICTL1.bit.SWRESET = 1u;
