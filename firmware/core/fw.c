@@ -572,6 +572,43 @@ static void send_status(fw_t *f)
     }
 }
 
+/* Parameter frame of slot 0 (the motor file's values as the predictor sees them) or of estimator
+ * slot k (1..FW_N_EST). */
+static void send_params(fw_t *f, uint16_t slot)
+{
+    const proto_config_ctrl_t *c = &f->ctrl;
+    proto_params_t pm;
+    uint16_t n;
+    bool nominal_feeds = c->identify == 0u || c->predictor == PROTO_ESTIMATOR_NOMINAL ||
+                         !f->pred_latched;
+    pm.tick = f->tick;
+    if (slot == 0u) {
+        pm.estimator = PROTO_ESTIMATOR_NOMINAL;
+        pm.flags = nominal_feeds ? 4u : 0u;
+        pm.l_d_h = f->motor.l_d_h * c->pred_scale_l_d;
+        pm.l_q_h = f->motor.l_q_h * c->pred_scale_l_q;
+        pm.psi_f_wb = f->motor.psi_f_wb * c->pred_scale_psi_f;
+        pm.r_s_ohm = f->motor.r_s_ohm * c->pred_scale_r_s;
+    } else {
+        const est_out_t *o = &f->est_out[slot - 1u];
+        pm.estimator = slot;
+        pm.flags = (uint16_t)((o->excited ? 1u : 0u) | (o->converged ? 2u : 0u) |
+                              ((!nominal_feeds && c->predictor == slot) ? 4u : 0u));
+        pm.l_d_h = o->l_d_h;
+        pm.l_q_h = o->l_q_h;
+        pm.psi_f_wb = o->psi_f_wb;
+        pm.r_s_ohm = est_r_report(f, (uint16_t)(slot - 1u));
+    }
+    n = proto_params_pack(&pm, f->payload_buf);
+    (void)fw_send(f, PROTO_ID_PARAMS, f->payload_buf, n);
+}
+
+/* Telemetry streams on staggered phases, so that a control period builds at most one frame with
+ * the default rates (fast at phase 0, parameter slots at 1..4, status at 5): the ISR's worst
+ * case stays within budget on the F28335 (docs/board-f28335.md). */
+#define FW_PHASE_PARAMS 1u
+#define FW_PHASE_STATUS (FW_PHASE_PARAMS + FW_N_EST + 1u)
+
 static void send_telemetry(fw_t *f)
 {
     const proto_config_ctrl_t *c = &f->ctrl;
@@ -594,34 +631,14 @@ static void send_telemetry(fw_t *f)
         n = proto_telem_fast_pack(&t, f->payload_buf);
         (void)fw_send(f, PROTO_ID_TELEM_FAST, f->payload_buf, n);
     }
-    if (c->params_div != 0u && (f->tick % c->params_div) == 0u) {
-        proto_params_t pm;
-        uint16_t k;
-        bool nominal_feeds = c->identify == 0u || c->predictor == PROTO_ESTIMATOR_NOMINAL ||
-                             !f->pred_latched;
-        pm.tick = f->tick;
-        pm.estimator = PROTO_ESTIMATOR_NOMINAL;   /* the motor file's values as the predictor sees them */
-        pm.flags = nominal_feeds ? 4u : 0u;
-        pm.l_d_h = f->motor.l_d_h * c->pred_scale_l_d;
-        pm.l_q_h = f->motor.l_q_h * c->pred_scale_l_q;
-        pm.psi_f_wb = f->motor.psi_f_wb * c->pred_scale_psi_f;
-        pm.r_s_ohm = f->motor.r_s_ohm * c->pred_scale_r_s;
-        n = proto_params_pack(&pm, f->payload_buf);
-        (void)fw_send(f, PROTO_ID_PARAMS, f->payload_buf, n);
-        for (k = 0u; c->identify != 0u && k < FW_N_EST; k++) {
-            const est_out_t *o = &f->est_out[k];
-            pm.estimator = (uint16_t)(k + 1u);
-            pm.flags = (uint16_t)((o->excited ? 1u : 0u) | (o->converged ? 2u : 0u) |
-                                  ((!nominal_feeds && c->predictor == k + 1u) ? 4u : 0u));
-            pm.l_d_h = o->l_d_h;
-            pm.l_q_h = o->l_q_h;
-            pm.psi_f_wb = o->psi_f_wb;
-            pm.r_s_ohm = est_r_report(f, k);
-            n = proto_params_pack(&pm, f->payload_buf);
-            (void)fw_send(f, PROTO_ID_PARAMS, f->payload_buf, n);
+    if (c->params_div != 0u) {
+        uint32_t ph = f->tick % c->params_div;
+        uint16_t slots = (uint16_t)(c->identify != 0u ? FW_N_EST + 1u : 1u);
+        if (ph >= FW_PHASE_PARAMS && ph < FW_PHASE_PARAMS + slots) {
+            send_params(f, (uint16_t)(ph - FW_PHASE_PARAMS));
         }
     }
-    if (c->status_div != 0u && (f->tick % c->status_div) == 0u) {
+    if (c->status_div != 0u && (f->tick % c->status_div) == FW_PHASE_STATUS % c->status_div) {
         send_status(f);
     }
 }
