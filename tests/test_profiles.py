@@ -90,7 +90,7 @@ def test_shipped_rig_effects():
     assert r.effects.get("encoder").offset_rad == 0.0
     assert r.effects.get("no_such_effect") is None
     assert r.v_dc_v is None
-    assert r.effects_mask == sum(1 << b for b in EFFECT_BITS.values())
+    assert r.effects_mask == sum(1 << EFFECT_BITS[n] for n in r.enabled_effects)
 
 
 def test_shipped_defaults_without_paths():
