@@ -6,7 +6,7 @@ import math
 
 from pmsm_hil.protocol import generated as gen
 
-DEFAULT_SPEED_BW_RAD_S = 150.0
+DEFAULT_SPEED_BW_RAD_S = 450.0
 DEFAULT_OBSERVER_BW_RAD_S = 1000.0            # encoder speed observer (docs/control.md)
 CAPTURE_PRE = 256
 
