@@ -28,14 +28,16 @@ void est_adaline_step(est_adaline_t *e, const id_sample_t *s, est_out_t *out)
         if (x.lq) {
             c->w[EST_LQ] += eta_d * e_d * x_lq;
         }
-        if (x.r) {
-            c->w[EST_R] += eta_r * e_d * x_r;
+        if (x.r) {   /* R along the centred i_d (the excitation), as L_d in the q equation */
+            c->w[EST_R] += eta_r * e_d * (x_r - c->i_d_mean);
         }
         e_q = y_q - (c->w[EST_LD] * x_ld + c->w[EST_PSI] * x_psi);
-        if (x.ld) {
-            c->w[EST_LD] += eta_q * e_q * x_ld;
+        {   /* update along the decorrelated inputs (est_common.h): x1 = w (i_d - mean), x2 = w */
+            const float xc = est_core_x_ld_centered(c, s);
+            const float d_ld = x.ld ? eta_q * e_q * xc : 0.0f;
+            c->w[EST_LD] += d_ld;
+            c->w[EST_PSI] += eta_q * e_q * x_psi - c->i_d_mean * d_ld;
         }
-        c->w[EST_PSI] += eta_q * e_q * x_psi;
     }
     est_core_finish(c, &x);
     est_core_out(c, out);

@@ -19,8 +19,8 @@ void est_cfg_default(est_cfg_t *c, float r_s_ohm, float l_d_h, float l_q_h, floa
     c->i_d_min_a = 1.0f;
     c->i_q_min_a = 0.5f;
     c->mu_d = 0.1f;
-    c->mu_q = 0.15f;
-    c->mu_r = 0.0f;    /* online R refinement off: biased by the voltage error (docs/identification.md) */
+    c->mu_q = 0.1f;
+    c->mu_r = 0.025f;  /* online R (drift): time constant about 40 windows */
     c->lambda = 0.995f;
     c->p0 = 100.0f;
     c->x_ref_d2 = i_d_ref * i_d_ref + w_ref * w_ref * i_q_ref * i_q_ref;
@@ -41,6 +41,8 @@ void est_core_init(est_core_t *e, const est_cfg_t *cfg)
     e->w[EST_R] = cfg->nominal[EST_R];
     e->slow[EST_R] = e->w[EST_R];
     e->updates = 0u;
+    e->i_d_mean = 0.0f;
+    e->i_d_mean_set = false;
     e->excited = false;
     e->converged = false;
     e->ever_converged = false;
@@ -110,4 +112,18 @@ void est_core_out(const est_core_t *e, est_out_t *out)
     out->excited = e->excited;
     out->converged = e->converged;
     out->updates = e->updates;
+}
+
+#define EST_ID_MEAN_ALPHA 0.0078125f   /* 1/128 windows: about one 10 Hz excitation period and a bit */
+
+float est_core_x_ld_centered(est_core_t *e, const id_sample_t *s)
+{
+    const float w = s->omega_e_rad_s;
+    if (!e->i_d_mean_set) {
+        e->i_d_mean = s->i_d_a;
+        e->i_d_mean_set = true;
+    } else {
+        e->i_d_mean += EST_ID_MEAN_ALPHA * (s->i_d_a - e->i_d_mean);
+    }
+    return s->w_i_d_a_rad_s - w * e->i_d_mean;
 }

@@ -52,6 +52,8 @@ typedef struct {
     est_cfg_t cfg;
     float w[EST_N];
     float slow[EST_N];
+    float i_d_mean;            /* running mean of i_d over the excitation (LMS/NLMS: decorrelated L_d input) */
+    bool i_d_mean_set;
     uint32_t updates;
     bool excited, converged, ever_converged;
 } est_core_t;
@@ -78,5 +80,12 @@ void est_core_targets(const est_core_t *e, const id_sample_t *s, float *y_d, flo
 /* After an update: clamp, track the slow averages and the converged flag. */
 void est_core_finish(est_core_t *e, const est_excite_t *x);
 void est_core_out(const est_core_t *e, est_out_t *out);
+/* LMS/NLMS on the q equation: L_d and psi_f share it, and the inputs w i_d and w are strongly
+ * correlated (i_d = mean + excitation), which makes plain (N)LMS converge slowly along L_d and
+ * couples the noise of the fast psi_f direction into L_d. The update direction is therefore taken in
+ * the decorrelated inputs x1 = w (i_d - i_d_mean), x2 = w (weights L_d and psi_f + L_d i_d_mean):
+ * the same model output, L_d x1 + (psi_f + L_d m) x2 = L_d w i_d + psi_f w. Returns x1 and updates
+ * the running mean (call once per updating window). */
+float est_core_x_ld_centered(est_core_t *e, const id_sample_t *s);
 
 #endif

@@ -28,13 +28,22 @@ void est_nlms_step(est_nlms_t *e, const id_sample_t *s, est_out_t *out)
         if (x.lq) {
             c->w[EST_LQ] += c->cfg.mu_d * e_d * x_lq / (EST_NLMS_DELTA + x_lq * x_lq);
         }
-        if (x.r) {
-            c->w[EST_R] += c->cfg.mu_r * e_d * x_r / (EST_NLMS_DELTA_R + x_r * x_r);
+        if (x.r) {   /* R along the centred i_d (the excitation), as L_d in the q equation */
+            const float xr = x_r - c->i_d_mean;
+            c->w[EST_R] += c->cfg.mu_r * e_d * xr / (EST_NLMS_DELTA_R + xr * xr);
         }
         e_q = y_q - (c->w[EST_LD] * s->w_i_d_a_rad_s + c->w[EST_PSI] * x_psi);
-        n2 = EST_NLMS_DELTA + x_ld * x_ld + x_psi * x_psi;
-        c->w[EST_LD] += c->cfg.mu_q * e_q * x_ld / n2;
-        c->w[EST_PSI] += c->cfg.mu_q * e_q * x_psi / n2;
+        {   /* update along the decorrelated inputs (est_common.h): x1 = w (i_d - mean), x2 = w */
+            const float xc = est_core_x_ld_centered(c, s);
+            const float x1 = x.ld ? xc : 0.0f;
+            float d_ld, d_th;
+            n2 = EST_NLMS_DELTA + x1 * x1 + x_psi * x_psi;
+            d_ld = c->cfg.mu_q * e_q * x1 / n2;
+            d_th = c->cfg.mu_q * e_q * x_psi / n2;
+            c->w[EST_LD] += d_ld;
+            c->w[EST_PSI] += d_th - c->i_d_mean * d_ld;
+        }
+        (void)x_ld;
     }
     est_core_finish(c, &x);
     est_core_out(c, out);

@@ -168,6 +168,9 @@ static void ident_init(fw_t *f)
     idw_init(&f->idw, &wc);
     rc.sep_min = 0.02f;
     rc.n_window = f->ctrl.id_window >= 2u ? f->ctrl.id_window : 20u;
+    rc.ts_s = f->ctrl.ts_s;
+    rc.l_d_h = f->motor.l_d_h;
+    rc.l_q_h = f->motor.l_q_h;
     rinj_init(&f->rinj, &rc);
     memset(&f->rinj_out, 0, sizeof(f->rinj_out));
     f->have_injection = false;
@@ -181,6 +184,9 @@ static void ident_init(fw_t *f)
     f->r_ident_ohm = 0.0f;
     f->pred_latched = false;
     f->i_d_base_a = 0.0f;
+    f->id_ref_prev_a = 0.0f;
+    f->idw_step_seen = true;
+    f->id_step_hold = 0u;
     f->seg_kind = PROFILE_KIND_RUN;
     f->seg_inject_a = 0.0f;
     f->seg_inject_hz = 0.0f;
@@ -267,6 +273,8 @@ static void ident_step(fw_t *f, const fw_meas_t *m, const mpcc_out_t *mo)
             ri.i_b_a = m->i_b_a;
             ri.i_c_a = m->i_c_a;
             rinj_step(&f->rinj, &ri, &f->rinj_out);
+        } else {
+            rinj_gap(&f->rinj);   /* settling: the windows must not span the level change */
         }
         if (f->seg_tick + 1u >= f->seg_ticks && f->rinj_out.r_s_ohm > 0.0f) {
             f->r_ident_ohm = f->rinj_out.r_s_ohm;
@@ -299,10 +307,23 @@ static void ident_step(fw_t *f, const fw_meas_t *m, const mpcc_out_t *mo)
         wi.u_q_v = mo->u_q_avg_v - dl * mo->u_d_avg_v;
         wi.omega_e_rad_s = f->enc_out.omega_e_rad_s;
         if (idw_step(&f->idw, &wi, &smp)) {
-            est_rls_step(&f->est_rls, &smp, &f->est_out[FW_EST_RLS]);
-            est_adaline_step(&f->est_ada, &smp, &f->est_out[FW_EST_ADALINE]);
-            est_nlms_step(&f->est_nlms, &smp, &f->est_out[FW_EST_NLMS]);
+            /* (6) is a steady-state equation: a window with a step of the i_d reference (the
+             * excitation's edges) carries the current controller's transient and is skipped */
+            if (!f->idw_step_seen) {
+                est_rls_step(&f->est_rls, &smp, &f->est_out[FW_EST_RLS]);
+                est_adaline_step(&f->est_ada, &smp, &f->est_out[FW_EST_ADALINE]);
+                est_nlms_step(&f->est_nlms, &smp, &f->est_out[FW_EST_NLMS]);
+            }
+            f->idw_step_seen = false;
         }
+        if (fabsf(f->sig.i_d_ref_a - f->id_ref_prev_a) > FW_ID_STEP_A) {
+            f->id_step_hold = FW_ID_STEP_HOLD;
+        }
+        if (f->id_step_hold > 0u) {
+            f->idw_step_seen = true;   /* this period belongs to the running window */
+            f->id_step_hold--;
+        }
+        f->id_ref_prev_a = f->sig.i_d_ref_a;
     }
 }
 

@@ -46,6 +46,8 @@ typedef struct {
 #define FW_EST_ADALINE 1u
 #define FW_EST_NLMS 2u
 #define FW_R_SETTLE_FRAC 0.2f   /* identify_r: part of each current level skipped (settling) */
+#define FW_ID_STEP_A 0.5f       /* identification: an i_d reference step above this skips the window */
+#define FW_ID_STEP_HOLD 5u      /* ... and the windows of the next periods (the MPCC transient) */
 
 /* Board hook for messages the core does not know (the sim board's sim-only h2d messages):
  * returns an ack status (PROTO_ACK_STATUS_*). Set with fw_set_board_hook after fw_init. */
@@ -110,6 +112,9 @@ typedef struct {
     float r_ident_ohm;
     bool pred_latched;       /* the chosen estimator converged once: it feeds the predictor */
     float i_d_base_a;        /* d-current reference before the excitation */
+    float id_ref_prev_a;     /* identification: i_d reference of the previous period */
+    bool idw_step_seen;      /* identification: the running window holds an i_d reference step */
+    uint16_t id_step_hold;   /* identification: periods of current transient still to come */
     uint16_t seg_kind;
     float seg_inject_a, seg_inject_hz;
     uint32_t seg_tick, seg_ticks;

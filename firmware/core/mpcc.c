@@ -15,9 +15,6 @@ static const float k_vec_beta[8] = {
     0.0f, 0.0f, TF_INV_SQRT3_F, TF_INV_SQRT3_F, -TF_INV_SQRT3_F, -TF_INV_SQRT3_F, 0.0f, 0.0f
 };
 
-/* All 8 states in the paper's order V0, V1 (100), V2 (110), V3 (010), V4 (011), V5 (001),
- * V6 (101), V7 (111), written as codes (s_a is bit 0). */
-static const uint16_t k_cand_all8[8] = { 0u, 1u, 3u, 2u, 6u, 4u, 5u, 7u };
 
 #define MPCC_L_MIN_H 1.0e-7f
 
@@ -147,6 +144,41 @@ static void rot(float *c, float *s, float cd, float sd)
     *s = *s * cd + c0 * sd;
 }
 
+/* Best candidate so far (mpcc_step's selection). */
+typedef struct {
+    uint16_t best, best_ch;
+    float best_j, best_ed, best_eq;
+} mpcc_pick_t;
+
+/* Cost of candidate cd_ from the per-leg contributions (sab: legs a + b for the four (s_a, s_b)
+ * pairs, pc: leg c), and the selection rule: lower cost wins, NaN never wins against a number, an
+ * exact tie goes to fewer switch changes from prev. first: the first candidate (always taken). */
+static inline void mpcc_consider(mpcc_pick_t *k, bool first, uint16_t prev, uint16_t cd_, float e_d,
+                                 float e_q, float rho, const float sd_ab[4], const float sq_ab[4],
+                                 const float pd_c[2], const float pq_c[2])
+{
+    const uint16_t ab = (uint16_t)(cd_ & 3u), sc = (uint16_t)((cd_ >> 2) & 1u);
+    const float ed = e_d - (sd_ab[ab] + pd_c[sc]);
+    const float eq = e_q - (sq_ab[ab] + pq_c[sc]);
+    const float j = ed * ed + rho * eq * eq;
+    if (first || j < k->best_j || k->best_j != k->best_j) {
+        k->best = cd_;
+        k->best_j = j;
+        k->best_ed = ed;
+        k->best_eq = eq;
+        k->best_ch = n_changes(prev, cd_);
+    } else if (j == k->best_j) {
+        /* exact tie (V0/V7 without a switching dead-time model): fewer switch changes */
+        const uint16_t ch = n_changes(prev, cd_);
+        if (ch < k->best_ch) {
+            k->best = cd_;
+            k->best_ed = ed;
+            k->best_eq = eq;
+            k->best_ch = ch;
+        }
+    }
+}
+
 void mpcc_step(mpcc_t *m, const mpcc_in_t *in, mpcc_out_t *out)
 {
     const float ts = m->cfg.ts_s;
@@ -157,9 +189,9 @@ void mpcc_step(mpcc_t *m, const mpcc_in_t *in, mpcc_out_t *out)
     float c0, s0, c1, s1, ck1, sk1, c2, s2, cd, sd, half, h2;
     float v[3][2], i_abc[3];
     float g_d, g_q, u_al, u_be, u_d1, u_q1, i_d1, i_q1, e_d, e_q;
-    float gd[3], gq[3];
-    uint16_t x, n, n_cand, best, best_ch;
-    uint16_t cand[8];
+    float gd[3], gq[3], pd[3][2], pq[3][2], sd_ab[4], sq_ab[4];
+    uint16_t x, n, best;
+    mpcc_pick_t pk;
     float best_j, best_ed, best_eq, ref_d, ref_q;
 
     /* ---- predictor gains (reciprocals cached: no division unless the parameters change) */
@@ -294,49 +326,48 @@ void mpcc_step(mpcc_t *m, const mpcc_in_t *in, mpcc_out_t *out)
         }
     }
 
-    /* ---- candidates */
+    /* ---- candidates: the contribution of each leg for both switch positions, and the sums of
+     * legs a and b for the four (s_a, s_b) pairs; a candidate then costs two additions per axis.
+     * Same operations in the same order as (va gd[0] + vb gd[1]) + vc gd[2]: the same result bit
+     * for bit. */
+    for (x = 0u; x < 3u; x++) {
+        pd[x][0] = v[x][0] * gd[x];
+        pd[x][1] = v[x][1] * gd[x];
+        pq[x][0] = v[x][0] * gq[x];
+        pq[x][1] = v[x][1] * gq[x];
+    }
+    for (n = 0u; n < 4u; n++) {
+        sd_ab[n] = pd[0][n & 1u] + pd[1][n >> 1];
+        sq_ab[n] = pq[0][n & 1u] + pq[1][n >> 1];
+    }
+    pk.best = 0u;
+    pk.best_ch = 4u;
+    pk.best_j = 0.0f;
+    pk.best_ed = 0.0f;
+    pk.best_eq = 0.0f;
     if (m->cfg.cand_set == MPCC_CAND_ADJACENT) {
-        n_cand = 3u;
-        cand[0] = (uint16_t)(m->sw_prev ^ 1u);
-        cand[1] = (uint16_t)(m->sw_prev ^ 2u);
-        cand[2] = (uint16_t)(m->sw_prev ^ 4u);
+        for (n = 0u; n < 3u; n++) {
+            mpcc_consider(&pk, n == 0u, m->sw_prev, (uint16_t)(m->sw_prev ^ (1u << n)), e_d, e_q,
+                          m->cfg.rho, sd_ab, sq_ab, pd[2], pq[2]);
+        }
     } else {
-        n_cand = 8u;
-        for (n = 0u; n < 8u; n++) {
-            cand[n] = k_cand_all8[n];
-        }
+        /* all 8 states in the paper's order V0, V1 (100), V2 (110), V3 (010), V4 (011), V5 (001),
+         * V6 (101), V7 (111), as codes (s_a is bit 0), written out so that every index is a constant */
+        const uint16_t sp = m->sw_prev;
+        const float rho = m->cfg.rho;
+        mpcc_consider(&pk, true, sp, 0u, e_d, e_q, rho, sd_ab, sq_ab, pd[2], pq[2]);
+        mpcc_consider(&pk, false, sp, 1u, e_d, e_q, rho, sd_ab, sq_ab, pd[2], pq[2]);
+        mpcc_consider(&pk, false, sp, 3u, e_d, e_q, rho, sd_ab, sq_ab, pd[2], pq[2]);
+        mpcc_consider(&pk, false, sp, 2u, e_d, e_q, rho, sd_ab, sq_ab, pd[2], pq[2]);
+        mpcc_consider(&pk, false, sp, 6u, e_d, e_q, rho, sd_ab, sq_ab, pd[2], pq[2]);
+        mpcc_consider(&pk, false, sp, 4u, e_d, e_q, rho, sd_ab, sq_ab, pd[2], pq[2]);
+        mpcc_consider(&pk, false, sp, 5u, e_d, e_q, rho, sd_ab, sq_ab, pd[2], pq[2]);
+        mpcc_consider(&pk, false, sp, 7u, e_d, e_q, rho, sd_ab, sq_ab, pd[2], pq[2]);
     }
-
-    best = cand[0];
-    best_j = 0.0f;
-    best_ed = 0.0f;
-    best_eq = 0.0f;
-    best_ch = 4u;
-    for (n = 0u; n < n_cand; n++) {
-        const uint16_t cd_ = cand[n];
-        const float va = v[0][cd_ & 1u];
-        const float vb = v[1][(cd_ >> 1) & 1u];
-        const float vc = v[2][(cd_ >> 2) & 1u];
-        const float ed = e_d - (va * gd[0] + vb * gd[1] + vc * gd[2]);
-        const float eq = e_q - (va * gq[0] + vb * gq[1] + vc * gq[2]);
-        const float j = ed * ed + m->cfg.rho * eq * eq;
-        if (n == 0u || j < best_j || best_j != best_j) {
-            best = cd_;
-            best_j = j;
-            best_ed = ed;
-            best_eq = eq;
-            best_ch = n_changes(m->sw_prev, cd_);
-        } else if (j == best_j) {
-            /* exact tie (V0/V7 without a switching dead-time model): fewer switch changes */
-            const uint16_t ch = n_changes(m->sw_prev, cd_);
-            if (ch < best_ch) {
-                best = cd_;
-                best_ed = ed;
-                best_eq = eq;
-                best_ch = ch;
-            }
-        }
-    }
+    best = pk.best;
+    best_j = pk.best_j;
+    best_ed = pk.best_ed;
+    best_eq = pk.best_eq;
 
     out->cost = best_j;
     out->i_d_k2_a = ref_d - best_ed;

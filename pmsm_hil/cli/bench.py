@@ -18,6 +18,14 @@ def add_parser(sub) -> None:
     b.add_argument("--until", type=float, default=None, metavar="S",
                    help="evaluate the table up to device time S (default: the end of the last segment "
                         "before any drift step)")
+    b.add_argument("--mismatch", action="store_true",
+                   help="also the mismatch benchmark: i_d/i_q tracking-error RMS at 1000 r/min under load "
+                        "with the predictor at the true parameters, frozen 50 %% off, and fed by NLMS-Adaline")
+    b.add_argument("--per-effect", action="store_true",
+                   help="also the identification results on each rig effect alone (profiles/rigs/effect-*.yaml), "
+                        "as a markdown table (about a minute)")
+    b.add_argument("--only", choices=("mismatch", "per-effect"), default=None,
+                   help="run only that part (skips the Table-2 run)")
 
 
 def _default_profile() -> str:
@@ -41,6 +49,10 @@ def main(args: argparse.Namespace) -> int:
         return fail("error", str(e), 2)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    if args.only == "mismatch":
+        return _mismatch(path, out, args.seed)
+    if args.only == "per-effect":
+        return _per_effect(path, out, args.seed)
     log = out / "identify.mcap"
     settings = emulator_settings(profile.motor, profile.rig, seed=args.seed, baud=profile.link.baud,
                                  ts_s=profile.control.ts_s)
@@ -70,4 +82,144 @@ def main(args: argparse.Namespace) -> int:
         print(text_table(dt, with_paper=False))
         md.write_text(md.read_text() + f"\n## Drift step at {d.t_start_s:g} s\n\n" + markdown_table(dt, False) + "\n")
     print(f"\nlog {log}\nplot {png}\ntable {md}")
+    rc = 0
+    if args.mismatch:
+        rc = max(rc, _mismatch(path, out, args.seed))
+    if args.per_effect:
+        rc = max(rc, _per_effect(path, out, args.seed))
+    return rc
+
+
+# ------------------------------------------------------------------------------- variants
+
+def _variant(path, out: Path, name: str, control: dict | None = None, segments: list[str] | None = None) -> Path:
+    """A copy of the profile at `path` (motor and rig paths made absolute) with control fields
+    replaced or added and, optionally, other segments; written to out/NAME.yaml."""
+    import yaml
+
+    src = Path(path).resolve()
+    data = yaml.safe_load(src.read_text())
+    for key in ("motor", "rig"):
+        if isinstance(data.get(key), str) and not Path(data[key]).is_absolute():
+            data[key] = str((src.parent / data[key]).resolve())
+    data["name"] = f"{data.get('name', 'profile')}-{name}"
+    data.setdefault("control", {}).update(control or {})
+    if segments is not None:
+        data["segments"] = [yaml.safe_load(t) for t in segments]
+    p = out / f"{name}.yaml"
+    p.write_text(yaml.safe_dump(data, sort_keys=False))
+    return p
+
+
+def _run(profile_path, log: Path, seed: int, rig=None):
+    from pmsm_hil.emulator.settings import emulator_settings
+    from pmsm_hil.profiles import load_profile
+    from pmsm_hil.protocol.session import Session
+    from pmsm_hil.runner import RunOptions, run_profile
+    from pmsm_hil.transport.inproc import InProcessTransport
+
+    prof = load_profile(str(profile_path), rig_override=rig)
+    settings = emulator_settings(prof.motor, prof.rig, seed=seed, baud=prof.link.baud, ts_s=prof.control.ts_s)
+    res = run_profile(prof, Session(InProcessTransport(settings)), log, RunOptions(seed=seed))
+    return prof, res
+
+
+# ------------------------------------------------------------------------------- mismatch
+
+MISMATCH_SCALE = 1.5      # "50 % off": L_d, L_q, psi_f of the predictor x 1.5
+MISMATCH_WINDOW = (3.0, 4.0)   # device time evaluated: 1000 r/min, 5 N m, steady
+
+
+def _mismatch(path, out: Path, seed: int) -> int:
+    """i_d/i_q tracking-error RMS at 1000 r/min under load: true parameters, predictor frozen 50 %
+    off, NLMS-Adaline feeding the predictor (from the same 50 % off start)."""
+    import numpy as np
+
+    from pmsm_hil.log.reader import read_log
+
+    segs = ['{name: "R injection", kind: identify_r, duration_s: 0.5, speed_rpm: 0, inject_a: 12.0}',
+            '{name: "spin up, load", duration_s: 1.0, speed_rpm: 1000, ramp_rpm_s: 2000, load_nm: 5.0, inject_a: 2.0, inject_hz: 10}',
+            '{name: "1000 r/min, load", duration_s: 2.5, speed_rpm: 1000, load_nm: 5.0, inject_a: 2.0, inject_hz: 10}',
+            '{name: "stop", duration_s: 0.8, speed_rpm: 0, ramp_rpm_s: 2000, load_nm: 0}']
+    off = {"l_d_h": MISMATCH_SCALE, "l_q_h": MISMATCH_SCALE, "psi_f_wb": MISMATCH_SCALE, "r_s_ohm": 1.0}
+    cases = [("true parameters", {"predictor": "nominal"}),
+             (f"frozen x{MISMATCH_SCALE:g} (L_d, L_q, psi_f)", {"predictor": "nominal", "predictor_scale": off}),
+             ("NLMS-Adaline feeds it", {"predictor": "nlms_adaline", "predictor_scale": off})]
+    rows = []
+    for i, (label, ctrl) in enumerate(cases):
+        p = _variant(path, out, f"mismatch-{i}", ctrl, segs)
+        log = out / f"mismatch-{i}.mcap"
+        _, res = _run(p, log, seed)
+        if res.faults or res.error:
+            return fail("error", f"mismatch run {label!r} failed ({res.error or res.faults}); log {log}", 3)
+        tel = read_log(log).topic("/pmsm/telemetry")
+        t = np.asarray(tel["t_s"], dtype=float)
+        m = (t >= MISMATCH_WINDOW[0]) & (t < MISMATCH_WINDOW[1])
+        ed = np.asarray(tel["i_d_ref_a"])[m] - np.asarray(tel["i_d_a"])[m]
+        eq = np.asarray(tel["i_q_ref_a"])[m] - np.asarray(tel["i_q_a"])[m]
+        rows.append((label, float(np.sqrt(np.mean(ed ** 2))), float(np.sqrt(np.mean(eq ** 2))),
+                     float(np.sqrt(np.mean(ed ** 2 + eq ** 2)))))
+    ref = rows[0][3]
+    lines = ["| predictor | i_d error RMS (A) | i_q error RMS (A) | |i| error RMS (A) | vs true |",
+             "|---|---|---|---|---|"]
+    for label, d, q, tot in rows:
+        lines.append(f"| {label} | {d:.3f} | {q:.3f} | {tot:.3f} | {100 * (tot / ref - 1):+.1f} % |")
+    md = "\n".join(lines)
+    print(f"\nmismatch: tracking error at 1000 r/min, 5 N m, t = {MISMATCH_WINDOW[0]:g}..{MISMATCH_WINDOW[1]:g} s "
+          f"(telemetry samples: the sampled current at k, before the MPCC step)")
+    print(md)
+    (out / "mismatch.md").write_text("# Mismatch: current tracking with the predictor's parameters\n\n" + md + "\n")
+    return 0
+
+
+# ------------------------------------------------------------------------------- per effect
+
+def _fault_names(bits: int) -> str:
+    try:
+        from pmsm_hil.protocol.generated import FAULT_BITS   # type: ignore[attr-defined]
+        return ", ".join(n for n, b in FAULT_BITS.items() if bits & b) or f"faults 0x{bits:x}"
+    except ImportError:
+        return f"faults 0x{bits:x}"
+
+
+def _per_effect(path, out: Path, seed: int) -> int:
+    """The identification run (without its drift step) on the ideal rig, each effect alone and the
+    default rig: errors of RLS and NLMS-Adaline before the drift step, as a markdown table."""
+    import yaml
+
+    from pmsm_hil.analysis.identification import identification_table
+    from pmsm_hil.profiles._base import default_file
+
+    rigs_dir = Path(default_file("rigs/default.yaml")).parent
+    src = yaml.safe_load(Path(path).read_text())
+    segs = [yaml.safe_dump(s, default_flow_style=True).strip() for s in src["segments"] if not s.get("plant")]
+    p = _variant(path, out, "per-effect", None, segs)
+    rigs = ["ideal"] + sorted(f.stem for f in rigs_dir.glob("effect-*.yaml")) + ["default", "lab-typical"]
+    head = ("| rig | " + " | ".join(f"{e} {n}" for e in ("rls", "nlms") for n in ("L_d", "L_q", "psi_f", "R"))
+            + " | nlms t_conv L_d/L_q/psi_f s |")
+    lines = [head, "|" + "---|" * (head.count("|") - 1)]
+    print("\nper effect: identification (before any drift step) on each rig; error against /sim/truth")
+    print(lines[0])
+    print(lines[1])
+    for r in rigs:
+        log = out / f"per-effect-{r}.mcap"
+        prof, res = _run(p, log, seed, rig=str(rigs_dir / f"{r}.yaml"))
+        if res.faults or res.error:
+            row = f"| {r} | run failed: {res.error or _fault_names(res.faults)} |"
+        else:
+            t1 = prof.segments[-1].t_start_s   # before the stop
+            tab = identification_table(log, 0.0, t1)
+            cells = []
+            for e in ("rls", "nlms_adaline"):
+                for q in ("l_d_h", "l_q_h", "psi_f_wb", "r_s_ohm"):
+                    c = tab.cell(e, q)
+                    cells.append("-" if c is None else f"{100 * c.error_rel:+.2f} %")
+            conv = []
+            for q in ("l_d_h", "l_q_h", "psi_f_wb"):
+                c = tab.cell("nlms_adaline", q)
+                conv.append("never" if c is None or c.conv_s is None else f"{c.conv_s:.2f}")
+            row = f"| {r} | " + " | ".join(cells) + " | " + " / ".join(conv) + " |"
+        lines.append(row)
+        print(row, flush=True)
+    (out / "per-effect.md").write_text("# Identification per rig effect\n\n" + "\n".join(lines) + "\n")
     return 0
