@@ -175,11 +175,9 @@ def _mismatch(path, out: Path, seed: int) -> int:
 # ------------------------------------------------------------------------------- per effect
 
 def _fault_names(bits: int) -> str:
-    try:
-        from pmsm_hil.protocol.generated import FAULT_BITS   # type: ignore[attr-defined]
-        return ", ".join(n for n, b in FAULT_BITS.items() if bits & b) or f"faults 0x{bits:x}"
-    except ImportError:
-        return f"faults 0x{bits:x}"
+    from pmsm_hil.protocol import generated
+    names = [n for n, b in getattr(generated, "ENUMS", {}).get("fault", {}).items() if bits & b]
+    return "fault " + (", ".join(names) if names else f"0x{bits:x}")
 
 
 def _per_effect(path, out: Path, seed: int) -> int:
