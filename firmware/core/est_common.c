@@ -39,6 +39,7 @@ void est_core_init(est_core_t *e, const est_cfg_t *cfg)
         e->slow[i] = 0.0f;
     }
     e->w[EST_R] = cfg->nominal[EST_R];
+    e->r_ref = cfg->nominal[EST_R];
     e->slow[EST_R] = e->w[EST_R];
     e->updates = 0u;
     e->i_d_mean = 0.0f;
@@ -54,6 +55,7 @@ void est_core_set_r(est_core_t *e, float r_s_ohm)
     if (r_s_ohm > 0.0f && r_s_ohm <= hi) {
         e->w[EST_R] = r_s_ohm;
         e->slow[EST_R] = r_s_ohm;
+        e->r_ref = r_s_ohm;
     }
 }
 
@@ -78,8 +80,11 @@ void est_core_finish(est_core_t *e, const est_excite_t *x)
     uint16_t i;
     bool settled = true;
     for (i = 0u; i < EST_N; i++) {
-        const float lo = e->cfg.bound_lo * e->cfg.nominal[i];
-        const float hi = e->cfg.bound_hi * e->cfg.nominal[i];
+        /* the online R stays within [1/2, 2] x the standstill injection's (a winding from 25 to
+         * 280 degC changes R by 2x): it comes from the d equation at speed, where an error of the
+         * firmware's dead-time model correlates with the i_d excitation */
+        const float lo = i == EST_R ? 0.5f * e->r_ref : e->cfg.bound_lo * e->cfg.nominal[i];
+        const float hi = i == EST_R ? 2.0f * e->r_ref : e->cfg.bound_hi * e->cfg.nominal[i];
         if (!(e->w[i] >= lo)) {          /* also catches NaN */
             e->w[i] = lo;
         } else if (e->w[i] > hi) {

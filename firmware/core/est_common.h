@@ -52,6 +52,7 @@ typedef struct {
     est_cfg_t cfg;
     float w[EST_N];
     float slow[EST_N];
+    float r_ref;               /* R of the injection (nominal before it): the online R's bounds */
     float i_d_mean;            /* running mean of i_d over the excitation (LMS/NLMS: decorrelated L_d input) */
     bool i_d_mean_set;
     uint32_t updates;

@@ -191,7 +191,6 @@ def _per_effect(path, out: Path, seed: int) -> int:
     rigs_dir = Path(default_file("rigs/default.yaml")).parent
     src = yaml.safe_load(Path(path).read_text())
     segs = [yaml.safe_dump(s, default_flow_style=True).strip() for s in src["segments"] if not s.get("plant")]
-    p = _variant(path, out, "per-effect", None, segs)
     rigs = ["ideal"] + sorted(f.stem for f in rigs_dir.glob("effect-*.yaml")) + ["default", "lab-typical"]
     head = ("| rig | " + " | ".join(f"{e} {n}" for e in ("rls", "nlms") for n in ("L_d", "L_q", "psi_f", "R"))
             + " | nlms t_conv L_d/L_q/psi_f s |")
@@ -201,7 +200,12 @@ def _per_effect(path, out: Path, seed: int) -> int:
     print(lines[1])
     for r in rigs:
         log = out / f"per-effect-{r}.mcap"
-        prof, res = _run(p, log, seed, rig=str(rigs_dir / f"{r}.yaml"))
+        # the firmware compensates the inverter it is told about: the motor file's dead time when the
+        # rig has one (the rig's true one may differ: effect-dead-time, lab-typical), else none
+        from pmsm_hil.profiles import load_rig
+        has_dt = "dead_time" in load_rig(rigs_dir / f"{r}.yaml").enabled_effects
+        pr = _variant(path, out, f"per-effect-{'dt' if has_dt else 'nodt'}", {"dead_time_comp": has_dt}, segs)
+        prof, res = _run(pr, log, seed, rig=str(rigs_dir / f"{r}.yaml"))
         if res.faults or res.error:
             row = f"| {r} | run failed: {res.error or _fault_names(res.faults)} |"
         else:
