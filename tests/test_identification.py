@@ -27,7 +27,9 @@ def test_identify_run_completes_and_streams_every_estimator(ident_run):
     names = set(np.asarray(par["estimator"]).astype(str))
     assert names == {"nominal", "rls", "adaline", "nlms_adaline"}
     ev = read_log(out).topic("/pmsm/events")
-    assert any("r identified" in str(t) for t in ev["text"])
+    r_mohm = [int(a) for t, a in zip(ev["text"], ev["arg"]) if "r identified" in str(t)]
+    # the standstill injection (trapezoidal window means, residual L di/dt removed): within 2 %
+    assert len(r_mohm) == 1 and abs(r_mohm[0] / 900.0 - 1.0) < 0.02, r_mohm
 
 
 def test_nlms_adaline_estimates_within_bounds(ident_run):
@@ -36,7 +38,8 @@ def test_nlms_adaline_estimates_within_bounds(ident_run):
     table = identification_table(out, 0.0, drift.t_start_s)
     c = {p: table.cell("nlms_adaline", p) for p in ("l_d_h", "l_q_h", "psi_f_wb", "r_s_ohm")}
     # measured figures (docs/identification.md): L_q and psi_f within 0.5 %, L_d within 1 %;
-    # R from the injection within 10 % (limited by the firmware's voltage knowledge at standstill)
+    # R is the online one (from the injection, refined from the d equation: -3.4 % on the default
+    # rig, where the firmware's hard-sign dead-time model misses the rig's current-dependent band)
     assert abs(c["l_q_h"].error_rel) < 0.01
     assert abs(c["psi_f_wb"].error_rel) < 0.01
     assert abs(c["l_d_h"].error_rel) < 0.015

@@ -1,5 +1,7 @@
 #include "txq.h"
 
+#include <string.h>
+
 void txq_init(txq_t *q)
 {
     q->head = 0u;
@@ -15,15 +17,19 @@ uint16_t txq_free(const txq_t *q)
 
 bool txq_push(txq_t *q, const uint16_t *octets, uint16_t n)
 {
-    uint16_t i;
+    uint16_t first;
     if (n > txq_free(q)) {
         q->dropped++;
         return false;
     }
-    for (i = 0u; i < n; i++) {
-        q->buf[q->head] = octets[i];
-        q->head = (uint16_t)((q->head + 1u) & (TXQ_SIZE - 1u));
+    /* at most two contiguous pieces: up to the end of the ring, then from its start */
+    first = (uint16_t)(TXQ_SIZE - q->head);
+    if (first > n) {
+        first = n;
     }
+    memcpy(&q->buf[q->head], octets, (size_t)first * sizeof(uint16_t));
+    memcpy(&q->buf[0], &octets[first], (size_t)(n - first) * sizeof(uint16_t));
+    q->head = (uint16_t)((q->head + n) & (TXQ_SIZE - 1u));
     q->level = (uint16_t)(q->level + n);
     return true;
 }
