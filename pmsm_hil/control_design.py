@@ -69,6 +69,7 @@ def device_config(profile) -> tuple[dict, dict]:
         speed_obs_bw_rad_s=getattr(c, "speed_obs_bw_rad_s", None) or DEFAULT_OBSERVER_BW_RAD_S,
         dead_time_s=float(getattr(m, "dead_time_s", 0.0) or 0.0) if comp else 0.0,
         v_drop_v=float(getattr(m, "v_drop_v", 0.0) or 0.0) if comp else 0.0,
+        i_dt_a=float(getattr(m, "i_dt_a", 0.0) or 0.0) if comp else 0.0,
         capture_pre=CAPTURE_PRE)
     ctrl_cfg.update(identification_config(profile))
     return motor_cfg, ctrl_cfg

@@ -344,6 +344,7 @@ static uint16_t start_run(fw_t *f)
     mc.rho = f->ctrl.rho;
     mc.dead_time_s = f->ctrl.dead_time_s;
     mc.v_drop_v = f->ctrl.v_drop_v;
+    mc.i_dt_a = f->ctrl.i_dt_a;
     mpcc_init(&f->mpcc, &mc);
 
     sc.kp_a_per_rad_s = f->ctrl.speed_kp_a_per_rad_s;
@@ -823,7 +824,7 @@ void fw_isr(fw_t *f, const fw_meas_t *m, fw_cmd_t *cmd)
     mi.omega_e_rad_s = f->enc_out.omega_e_rad_s;
     mi.v_dc_v = m->v_dc_v;
     predictor_params(f, &mi);
-    mpcc_step(&f->mpcc, &mi, &mo);
+    mpcc_step_cs(&f->mpcc, &mi, c, s, &mo);   /* c, s: cos, sin of mi.theta_e_rad (above) */
     ident_step(f, m, &mo);
     f->sig.u_d_v = mo.u_d_v;
     f->sig.u_q_v = mo.u_q_v;

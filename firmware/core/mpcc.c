@@ -31,6 +31,7 @@ void mpcc_cfg_default(mpcc_cfg_t *cfg)
     cfg->rho = 1.0f;
     cfg->dead_time_s = 0.0f;
     cfg->v_drop_v = 0.0f;
+    cfg->i_dt_a = 0.0f;
     cfg->cand_set = MPCC_CAND_ALL8;
     cfg->dt_model = MPCC_DT_SWITCHING;
     cfg->delay_comp = MPCC_DELAY_COMP_ON;
@@ -93,6 +94,26 @@ static float sgn3(float x)
     return (x > 0.0f) ? 1.0f : ((x < 0.0f) ? -1.0f : 0.0f);
 }
 
+/* Smooth sign of the inverter's distortion: x (27 + x^2) / (27 + 9 x^2) for |x| < 3, sign beyond
+ * (C1, within 0.025 of tanh): a small current cannot swing a leg within the dead time. With
+ * inv_i_dt = 0 it is the ideal sign. */
+static float smooth_sign(float i, float inv_i_dt)
+{
+    float x, x2;
+    if (!(inv_i_dt > 0.0f)) {
+        return sgn3(i);
+    }
+    x = i * inv_i_dt;
+    if (x >= 3.0f) {
+        return 1.0f;
+    }
+    if (x <= -3.0f) {
+        return -1.0f;
+    }
+    x2 = x * x;
+    return x * (27.0f + x2) / (27.0f + 9.0f * x2);
+}
+
 static uint16_t n_changes(uint16_t a, uint16_t b)
 {
     uint16_t x = (uint16_t)((a ^ b) & 7u);
@@ -108,15 +129,17 @@ static void leg_voltages(const mpcc_t *m, float v_dc_v, uint16_t prev, const flo
 {
     uint16_t x;
     const float v_edge = v_dc_v * m->cfg.dead_time_s / m->cfg.ts_s;
+    const float inv_i_dt = (m->cfg.i_dt_a > 0.0f) ? 1.0f / m->cfg.i_dt_a : 0.0f;
     for (x = 0u; x < 3u; x++) {
-        const float sg = sgn3(i_abc[x]);
+        const float sg = smooth_sign(i_abc[x], inv_i_dt);
         float d0, d1;
         if (m->cfg.dt_model == MPCC_DT_SWITCHING) {
             const uint16_t was_on = (uint16_t)((prev >> x) & 1u);
             /* turned on (0 -> 1) with i > 0: the lower diode carries the dead time, -v_dc Td;
-             * turned off (1 -> 0) with i < 0: the upper diode carries it, +v_dc Td. */
-            d1 = (was_on == 0u && sg > 0.0f) ? -v_edge : 0.0f;
-            d0 = (was_on == 1u && sg < 0.0f) ? v_edge : 0.0f;
+             * turned off (1 -> 0) with i < 0: the upper diode carries it, +v_dc Td; weighted by
+             * (1 +- sigma)/2 near the current's zero crossing. */
+            d1 = (was_on == 0u) ? -v_edge * 0.5f * (1.0f + sg) : 0.0f;
+            d0 = (was_on == 1u) ? v_edge * 0.5f * (1.0f - sg) : 0.0f;
             d1 -= m->cfg.v_drop_v * sg;
             d0 -= m->cfg.v_drop_v * sg;
         } else {
@@ -181,6 +204,11 @@ static inline void mpcc_consider(mpcc_pick_t *k, bool first, uint16_t prev, uint
 
 void mpcc_step(mpcc_t *m, const mpcc_in_t *in, mpcc_out_t *out)
 {
+    mpcc_step_cs(m, in, cosf(in->theta_e_rad), sinf(in->theta_e_rad), out);
+}
+
+void mpcc_step_cs(mpcc_t *m, const mpcc_in_t *in, float cos_th, float sin_th, mpcc_out_t *out)
+{
     const float ts = m->cfg.ts_s;
     const float w = in->omega_e_rad_s;
     const float r = in->r_s_ohm;
@@ -223,9 +251,10 @@ void mpcc_step(mpcc_t *m, const mpcc_in_t *in, mpcc_out_t *out)
     g_q = ts * m->inv_l_q;
 
     /* ---- angles: theta (sample), theta + wTs/2 (mid of [k, k+1)), theta + wTs (k+1),
-     * theta + 3wTs/2 (mid of [k+1, k+2)). One sinf/cosf pair, the rest by small rotations. */
-    c0 = cosf(in->theta_e_rad);
-    s0 = sinf(in->theta_e_rad);
+     * theta + 3wTs/2 (mid of [k+1, k+2)). One sinf/cosf pair (the caller's), the rest by small
+     * rotations. */
+    c0 = cos_th;
+    s0 = sin_th;
     half = 0.5f * w * ts;
     if (half > 0.5f) {
         half = 0.5f;

@@ -47,6 +47,7 @@ typedef struct {
     float rho;           /* q-axis weighting factor of the cost (paper A: 1) */
     float dead_time_s;   /* inverter dead time known to the firmware (0: no compensation) */
     float v_drop_v;      /* device on-state drop known to the firmware (0: none) */
+    float i_dt_a;        /* current band of the smooth sign sigma(i / i_dt) (0: ideal sign) */
     /* Added options. Call mpcc_cfg_default() first, then set the fields above. (A zero-initialised
      * cfg selects the enum defaults but leaves the offset compensation off: plain paper A.)
      * Unknown enum values fall back to the defaults. */
@@ -98,6 +99,9 @@ typedef struct {
 void mpcc_cfg_default(mpcc_cfg_t *cfg);   /* ts 50 us, rho 1, no dead-time compensation */
 void mpcc_init(mpcc_t *m, const mpcc_cfg_t *cfg);
 void mpcc_step(mpcc_t *m, const mpcc_in_t *in, mpcc_out_t *out);
+/* The same with cosf/sinf of in->theta_e_rad given (a caller that has them for its Park transform
+ * saves the pair). */
+void mpcc_step_cs(mpcc_t *m, const mpcc_in_t *in, float cos_th, float sin_th, mpcc_out_t *out);
 void mpcc_reset(mpcc_t *m);   /* forget the applied state (call when the PWM was off) */
 
 /* Normalised alpha/beta voltage of a switch-state code (multiply by v_dc). */

@@ -139,14 +139,15 @@ uint16_t proto_config_ctrl_pack(const proto_config_ctrl_t *m, uint16_t *buf)
     put_f32(&buf[38], m->speed_obs_bw_rad_s);
     put_f32(&buf[42], m->dead_time_s);
     put_f32(&buf[46], m->v_drop_v);
-    put_u16(&buf[50], m->capture_pre);
-    put_u8(&buf[52], m->identify);
-    put_u8(&buf[53], m->predictor);
-    put_u16(&buf[54], m->id_window);
-    put_f32(&buf[56], m->pred_scale_l_d);
-    put_f32(&buf[60], m->pred_scale_l_q);
-    put_f32(&buf[64], m->pred_scale_psi_f);
-    put_f32(&buf[68], m->pred_scale_r_s);
+    put_f32(&buf[50], m->i_dt_a);
+    put_u16(&buf[54], m->capture_pre);
+    put_u8(&buf[56], m->identify);
+    put_u8(&buf[57], m->predictor);
+    put_u16(&buf[58], m->id_window);
+    put_f32(&buf[60], m->pred_scale_l_d);
+    put_f32(&buf[64], m->pred_scale_l_q);
+    put_f32(&buf[68], m->pred_scale_psi_f);
+    put_f32(&buf[72], m->pred_scale_r_s);
     return PROTO_LEN_CONFIG_CTRL;
 }
 
@@ -171,14 +172,15 @@ bool proto_config_ctrl_unpack(proto_config_ctrl_t *m, const uint16_t *buf, uint1
     m->speed_obs_bw_rad_s = get_f32(&buf[38]);
     m->dead_time_s = get_f32(&buf[42]);
     m->v_drop_v = get_f32(&buf[46]);
-    m->capture_pre = get_u16(&buf[50]);
-    m->identify = get_u8(&buf[52]);
-    m->predictor = get_u8(&buf[53]);
-    m->id_window = get_u16(&buf[54]);
-    m->pred_scale_l_d = get_f32(&buf[56]);
-    m->pred_scale_l_q = get_f32(&buf[60]);
-    m->pred_scale_psi_f = get_f32(&buf[64]);
-    m->pred_scale_r_s = get_f32(&buf[68]);
+    m->i_dt_a = get_f32(&buf[50]);
+    m->capture_pre = get_u16(&buf[54]);
+    m->identify = get_u8(&buf[56]);
+    m->predictor = get_u8(&buf[57]);
+    m->id_window = get_u16(&buf[58]);
+    m->pred_scale_l_d = get_f32(&buf[60]);
+    m->pred_scale_l_q = get_f32(&buf[64]);
+    m->pred_scale_psi_f = get_f32(&buf[68]);
+    m->pred_scale_r_s = get_f32(&buf[72]);
     return true;
 }
 

@@ -10,7 +10,7 @@
 #include <stdbool.h>
 
 #define PROTO_VERSION 2u
-#define PROTO_SCHEMA_HASH 0xA5B6482BUL  /* CRC-32 of the canonical yaml */
+#define PROTO_SCHEMA_HASH 0x1C5C371BUL  /* CRC-32 of the canonical yaml */
 #define PROTO_MAX_PAYLOAD 111u  /* octets */
 #define PROTO_MSG_COUNT 19u
 
@@ -94,7 +94,7 @@ bool proto_config_motor_unpack(proto_config_motor_t *m, const uint16_t *buf, uin
 
 /* config_ctrl: 0x03, host -> device */
 #define PROTO_ID_CONFIG_CTRL 0x03u
-#define PROTO_LEN_CONFIG_CTRL 72u
+#define PROTO_LEN_CONFIG_CTRL 76u
 typedef struct {
     float ts_s;                    /* f32 */
     float rho;                     /* f32; MPCC q-axis weighting factor */
@@ -112,6 +112,7 @@ typedef struct {
     float speed_obs_bw_rad_s;      /* f32; encoder speed observer bandwidth */
     float dead_time_s;             /* f32; the firmware's nominal dead time (compensation) */
     float v_drop_v;                /* f32; the firmware's nominal device drop */
+    float i_dt_a;                  /* f32; current band of the firmware's smooth sign in its dead-time model (0: ideal sign) */
     uint16_t capture_pre;          /* u16; samples kept before a capture trigger */
     uint16_t identify;             /* u8; 1: run the three online estimators (params frames for each) */
     uint16_t predictor;            /* u8; enum estimator: what feeds the MPCC predictor */

@@ -56,6 +56,9 @@ class Motor(FileModel):
                                description="nominal inverter dead time that the firmware compensates, s")
     v_drop_v: float = Field(0.0, ge=0, le=20,
                             description="nominal switch/diode drop that the firmware compensates, V")
+    i_dt_a: float = Field(0.0, ge=0, le=20,
+                          description="nominal current band of the dead-time distortion around the "
+                                      "current zero crossing (0: ideal sign), A")
     source: str = Field("", description="where the numbers come from")
 
     # ------------------------------------------------------------------ derived quantities

@@ -6,7 +6,7 @@ import struct
 from typing import NamedTuple
 
 PROTOCOL_VERSION = 2
-SCHEMA_HASH = 0xA5B6482B
+SCHEMA_HASH = 0x1C5C371B
 MAX_PAYLOAD = 111  # octets
 
 # wire type: (struct code, octets, min, max); min/max are None for f32
@@ -112,7 +112,7 @@ MESSAGES = (
         FieldSpec('v_dc_min_v', 'f32', 1, None, 38),
         FieldSpec('v_dc_max_v', 'f32', 1, None, 42),
     ), struct.Struct('<Hfffffffffff')),
-    MessageSpec(0x03, 'config_ctrl', 'h2d', False, 72, (
+    MessageSpec(0x03, 'config_ctrl', 'h2d', False, 76, (
         FieldSpec('ts_s', 'f32', 1, None, 0),
         FieldSpec('rho', 'f32', 1, None, 4),
         FieldSpec('speed_kp_a_per_rad_s', 'f32', 1, None, 8),
@@ -129,15 +129,16 @@ MESSAGES = (
         FieldSpec('speed_obs_bw_rad_s', 'f32', 1, None, 38),
         FieldSpec('dead_time_s', 'f32', 1, None, 42),
         FieldSpec('v_drop_v', 'f32', 1, None, 46),
-        FieldSpec('capture_pre', 'u16', 1, None, 50),
-        FieldSpec('identify', 'u8', 1, None, 52),
-        FieldSpec('predictor', 'u8', 1, None, 53),
-        FieldSpec('id_window', 'u16', 1, None, 54),
-        FieldSpec('pred_scale_l_d', 'f32', 1, None, 56),
-        FieldSpec('pred_scale_l_q', 'f32', 1, None, 60),
-        FieldSpec('pred_scale_psi_f', 'f32', 1, None, 64),
-        FieldSpec('pred_scale_r_s', 'f32', 1, None, 68),
-    ), struct.Struct('<ffffHBBfHHHIffffHBBHffff')),
+        FieldSpec('i_dt_a', 'f32', 1, None, 50),
+        FieldSpec('capture_pre', 'u16', 1, None, 54),
+        FieldSpec('identify', 'u8', 1, None, 56),
+        FieldSpec('predictor', 'u8', 1, None, 57),
+        FieldSpec('id_window', 'u16', 1, None, 58),
+        FieldSpec('pred_scale_l_d', 'f32', 1, None, 60),
+        FieldSpec('pred_scale_l_q', 'f32', 1, None, 64),
+        FieldSpec('pred_scale_psi_f', 'f32', 1, None, 68),
+        FieldSpec('pred_scale_r_s', 'f32', 1, None, 72),
+    ), struct.Struct('<ffffHBBfHHHIfffffHBBHffff')),
     MessageSpec(0x04, 'profile_clear', 'h2d', False, 2, (
         FieldSpec('n_segments', 'u16', 1, None, 0),
     ), struct.Struct('<H')),
