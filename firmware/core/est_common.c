@@ -20,7 +20,7 @@ void est_cfg_default(est_cfg_t *c, float r_s_ohm, float l_d_h, float l_q_h, floa
     c->i_q_min_a = 0.5f;
     c->mu_d = 0.1f;
     c->mu_q = 0.1f;
-    c->mu_r = 0.025f;  /* online R (drift): time constant about 40 windows */
+    c->mu_r = 0.04f;  /* online R (drift): time constant about 40 windows */
     c->lambda = 0.995f;
     c->p0 = 100.0f;
     c->x_ref_d2 = i_d_ref * i_d_ref + w_ref * w_ref * i_q_ref * i_q_ref;

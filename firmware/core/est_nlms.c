@@ -3,9 +3,33 @@
 #define EST_NLMS_DELTA 1.0f      /* regularisation, (V/H)^2: negligible against w^2 >= 1600 */
 #define EST_NLMS_DELTA_R 0.01f   /* A^2 */
 
+/* Variable step of the q regression (L_d, psi_f), after Kwong and Johnston:
+ *   mu(k+1) = clamp(alpha mu(k) + gamma e_q(k)^2, mu_min, mu_max)
+ * A large error (start from zero weights, a parameter step) drives the step to mu_max for fast
+ * convergence; at the noise floor of the window equations (about 0.2 V rms on e_q) it settles
+ * near 2 mu_min, which keeps the L_d estimate quiet. mu_max and mu_min scale with cfg.mu_q. */
+#define EST_NLMS_VSS_ALPHA 0.95f
+#define EST_NLMS_VSS_MAX 4.0f      /* x cfg.mu_q */
+#define EST_NLMS_VSS_MIN 0.05f     /* x cfg.mu_q */
+#define EST_NLMS_VSS_NOISE_V2 0.04f   /* e_q^2 at the noise floor, V^2 */
+
 void est_nlms_init(est_nlms_t *e, const est_cfg_t *cfg)
 {
     est_core_init(&e->core, cfg);
+    e->mu_q = EST_NLMS_VSS_MAX * cfg->mu_q;
+}
+
+static float vss_step(est_nlms_t *e, float err_v)
+{
+    const float mu_max = EST_NLMS_VSS_MAX * e->core.cfg.mu_q;
+    const float mu_min = EST_NLMS_VSS_MIN * e->core.cfg.mu_q;
+    /* gamma puts the noise-floor equilibrium at 2 mu_min */
+    const float gamma = 2.0f * mu_min * (1.0f - EST_NLMS_VSS_ALPHA) / EST_NLMS_VSS_NOISE_V2;
+    float mu = EST_NLMS_VSS_ALPHA * e->mu_q + gamma * err_v * err_v;
+    if (mu > mu_max) { mu = mu_max; }
+    if (mu < mu_min) { mu = mu_min; }
+    e->mu_q = mu;
+    return mu;
 }
 
 void est_nlms_set_r(est_nlms_t *e, float r_s_ohm)
@@ -37,9 +61,10 @@ void est_nlms_step(est_nlms_t *e, const id_sample_t *s, est_out_t *out)
             const float xc = est_core_x_ld_centered(c, s);
             const float x1 = x.ld ? xc : 0.0f;
             float d_ld, d_th;
+            const float mu = vss_step(e, e_q);
             n2 = EST_NLMS_DELTA + x1 * x1 + x_psi * x_psi;
-            d_ld = c->cfg.mu_q * e_q * x1 / n2;
-            d_th = c->cfg.mu_q * e_q * x_psi / n2;
+            d_ld = mu * e_q * x1 / n2;
+            d_th = mu * e_q * x_psi / n2;
             c->w[EST_LD] += d_ld;
             c->w[EST_PSI] += d_th - c->i_d_mean * d_ld;
         }

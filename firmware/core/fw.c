@@ -309,7 +309,7 @@ static void ident_step(fw_t *f, const fw_meas_t *m, const mpcc_out_t *mo)
         if (idw_step(&f->idw, &wi, &smp)) {
             /* (6) is a steady-state equation: a window with a step of the i_d reference (the
              * excitation's edges) carries the current controller's transient and is skipped */
-            if (!f->idw_step_seen) {
+            if (!f->idw_step_seen && (f->seg_flags & PROFILE_FLAG_HOLD_EST) == 0u) {
                 est_rls_step(&f->est_rls, &smp, &f->est_out[FW_EST_RLS]);
                 est_adaline_step(&f->est_ada, &smp, &f->est_out[FW_EST_ADALINE]);
                 est_nlms_step(&f->est_nlms, &smp, &f->est_out[FW_EST_NLMS]);
@@ -718,6 +718,7 @@ static void reference(fw_t *f, float *speed_ref_rpm, float *load_nm)
             *speed_ref_rpm = po.speed_ref_rpm;
             *load_nm = po.load_nm;
             f->seg_kind = po.kind;
+            f->seg_flags = po.flags;
             f->seg_inject_a = po.inject_a;
             f->seg_inject_hz = po.inject_hz;
             f->seg_tick = po.tick_in_seg;
@@ -726,6 +727,7 @@ static void reference(fw_t *f, float *speed_ref_rpm, float *load_nm)
         }
     }
     f->seg_kind = PROFILE_KIND_RUN;
+    f->seg_flags = PROFILE_FLAG_HOLD_EST;   /* no identification while stopping */
     f->seg_inject_a = 0.0f;
     /* stopping: quick-stop ramp to zero, load released */
     f->stop_ref_rpm = profile_ramp(f->stop_ref_rpm, 0.0f, FW_STOP_RAMP_RPM_S, f->ctrl.ts_s);

@@ -116,6 +116,7 @@ typedef struct {
     bool idw_step_seen;      /* identification: the running window holds an i_d reference step */
     uint16_t id_step_hold;   /* identification: periods of current transient still to come */
     uint16_t seg_kind;
+    uint16_t seg_flags;        /* PROFILE_FLAG_* of the running segment */
     float seg_inject_a, seg_inject_hz;
     uint32_t seg_tick, seg_ticks;
     float pred_r_s_ohm, pred_l_d_h, pred_l_q_h, pred_psi_f_wb;   /* what the predictor used last */

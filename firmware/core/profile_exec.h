@@ -8,6 +8,7 @@
 
 #define PROFILE_MAX_SEGMENTS 64u
 #define PROFILE_FLAG_CAPTURE 1u
+#define PROFILE_FLAG_HOLD_EST 2u   /* the online estimators hold their values in this segment */
 #define PROFILE_KIND_RUN 0u
 #define PROFILE_KIND_IDENTIFY_R 1u
 

@@ -105,6 +105,8 @@ class Segment(StrictModel):
     ramp_rpm_s: float = Field(0.0, ge=0, le=1e6, description="ramp rate towards speed_rpm, r/min/s (0: step)")
     load_nm: float = Field(0.0, description="load torque during the segment, N m")
     capture: bool = Field(False, description="trigger a control-rate capture at the segment start")
+    estimate: bool = Field(True, description="the online estimators update in this segment (false holds "
+                                             "them, e.g. while spinning up)")
     kind: Literal["run", "identify_r"] = Field(
         "run", description="run: speed/load as given; identify_r: R by d-axis current injection at "
                            "standstill (speed_rpm must be 0)")
