@@ -42,6 +42,7 @@ void mpcc_cfg_default(mpcc_cfg_t *cfg)
 void mpcc_init(mpcc_t *m, const mpcc_cfg_t *cfg)
 {
     m->cfg = *cfg;
+    m->inv_i_dt = (m->cfg.i_dt_a > 0.0f && m->cfg.i_dt_a < 1.0e6f) ? 1.0f / m->cfg.i_dt_a : 0.0f;
     if (!(m->cfg.ts_s > 0.0f)) {
         m->cfg.ts_s = 50.0e-6f;
     }
@@ -129,7 +130,7 @@ static void leg_voltages(const mpcc_t *m, float v_dc_v, uint16_t prev, const flo
 {
     uint16_t x;
     const float v_edge = v_dc_v * m->cfg.dead_time_s / m->cfg.ts_s;
-    const float inv_i_dt = (m->cfg.i_dt_a > 0.0f) ? 1.0f / m->cfg.i_dt_a : 0.0f;
+    const float inv_i_dt = m->inv_i_dt;
     for (x = 0u; x < 3u; x++) {
         const float sg = smooth_sign(i_abc[x], inv_i_dt);
         float d0, d1;

@@ -68,6 +68,7 @@ typedef struct {
     float int_d_a, int_q_a; /* offset-compensation integrators (reference shift, A) */
     /* cached reciprocals of the predictor inductances (recomputed when they change) */
     float l_d_cached_h, l_q_cached_h, inv_l_d, inv_l_q;
+    float inv_i_dt;      /* 1 / cfg.i_dt_a, 0 for the ideal sign */
 } mpcc_t;
 
 typedef struct {
