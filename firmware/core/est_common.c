@@ -21,7 +21,7 @@ void est_cfg_default(est_cfg_t *c, float r_s_ohm, float l_d_h, float l_q_h, floa
     c->mu_d = 0.1f;
     c->mu_q = 0.1f;
     c->mu_r = 0.04f;  /* online R (drift): time constant about 40 windows */
-    c->lambda = 0.995f;
+    c->lambda = 0.98f;
     c->p0 = 100.0f;
     c->x_ref_d2 = i_d_ref * i_d_ref + w_ref * w_ref * i_q_ref * i_q_ref;
     c->x_ref_q2 = w_ref * w_ref * (1.0f + i_d_ref * i_d_ref);
