@@ -6,7 +6,8 @@ Definitions (docs/analysis.md):
 - band: max(1 % of |setpoint|, 1 r/min), the speed-tracking bound.
 - plateau window: from the end of the segment's ramp plus min(0.5 s, half the plateau) to the
   segment's end; the mean speed error is taken there.
-- recovery (segments whose load differs from the previous segment's): time from the segment start
+- recovery (segments whose load differs from the previous segment's, at a constant speed
+  reference): time from the segment start
   to the moment after which the 20 ms moving average of the speed error stays within the band.
 - ripple: RMS of i_d − i_d* and i_q − i_q* in the plateau window (telemetry rate).
 """
@@ -128,7 +129,8 @@ def summarize(tel: dict, events: dict, names: list[str] | None = None, path: str
                                          - np.interp(tt[tw], t, ref)))
         step = seg_load - prev_load
         rec = rec_ok = None
-        if abs(step) > 1e-6:
+        ramped = abs(float(r[0]) - setpoint) > 1e-6 + 0.001 * abs(setpoint)
+        if abs(step) > 1e-6 and not ramped:   # a load step on a plateau (not during a ramp)
             rec = recovery_time(ts, err, band, t0)
             rec_ok = rec <= RECOVERY_LIMIT_S
         n_faults = sum(1 for ft, _ in fault_events if t0 <= ft < t1)
