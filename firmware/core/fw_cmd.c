@@ -1,0 +1,195 @@
+/* Commands from the host: parsing (serial frames and CAN), validation, acknowledgement. */
+#include "fw_internal.h"
+#include "transforms.h"
+
+#include <math.h>
+#include <string.h>
+
+/* ------------------------------------------------------------------ commands */
+
+static uint16_t cmd_config_motor(fw_t *f, const uint16_t *p, uint16_t n)
+{
+    proto_config_motor_t m;
+    if (!proto_config_motor_unpack(&m, p, n)) {
+        return PROTO_ACK_STATUS_BAD_VALUE;
+    }
+    if (fw_active(f)) {
+        return PROTO_ACK_STATUS_BUSY;
+    }
+    if (m.pole_pairs == 0u || !(m.r_s_ohm > 0.0f) || !(m.l_d_h > 0.0f) || !(m.l_q_h > 0.0f) ||
+        !(m.psi_f_wb >= 0.0f) || !(m.j_kgm2 > 0.0f) || !(m.i_max_a > 0.0f) ||
+        !(m.i_trip_a > m.i_max_a) || !(m.speed_max_rpm > 0.0f) ||
+        !(m.speed_trip_rpm > m.speed_max_rpm) || !(m.v_dc_max_v > m.v_dc_min_v)) {
+        return PROTO_ACK_STATUS_BAD_VALUE;
+    }
+    f->motor.pole_pairs = m.pole_pairs;
+    f->motor.r_s_ohm = m.r_s_ohm;
+    f->motor.l_d_h = m.l_d_h;
+    f->motor.l_q_h = m.l_q_h;
+    f->motor.psi_f_wb = m.psi_f_wb;
+    f->motor.j_kgm2 = m.j_kgm2;
+    f->motor.i_max_a = m.i_max_a;
+    f->motor.speed_max_rpm = m.speed_max_rpm;
+    f->limits.i_trip_a = m.i_trip_a;
+    f->limits.speed_trip_rpm = m.speed_trip_rpm;
+    f->limits.v_dc_min_v = m.v_dc_min_v;
+    f->limits.v_dc_max_v = m.v_dc_max_v;
+    f->have_motor = true;
+    return PROTO_ACK_STATUS_OK;
+}
+
+static uint16_t cmd_config_ctrl(fw_t *f, const uint16_t *p, uint16_t n)
+{
+    proto_config_ctrl_t c;
+    if (!proto_config_ctrl_unpack(&c, p, n)) {
+        return PROTO_ACK_STATUS_BAD_VALUE;
+    }
+    if (fw_active(f)) {
+        return PROTO_ACK_STATUS_BUSY;
+    }
+    if (!(c.ts_s >= 1e-5f && c.ts_s <= 1e-3f) || c.speed_div == 0u || !(c.rho > 0.0f) ||
+        !(c.heartbeat_timeout_s > 0.0f) || c.enc_counts < 4u || !(c.speed_obs_bw_rad_s > 0.0f) ||
+        c.current_ref > PROTO_CURRENT_REF_MTPA || c.current_ctrl != PROTO_CURRENT_CTRL_MPCC ||
+        c.capture_pre >= CAPTURE_LEN || c.speed_kp_a_per_rad_s < 0.0f || c.speed_ki_a_per_rad < 0.0f ||
+        c.identify > 1u || c.predictor > PROTO_ESTIMATOR_NLMS_ADALINE ||
+        (c.identify != 0u && c.id_window < 2u) || !(c.pred_scale_l_d > 0.0f) ||
+        !(c.pred_scale_l_q > 0.0f) || !(c.pred_scale_psi_f >= 0.0f) || !(c.pred_scale_r_s >= 0.0f) ||
+        !(c.pred_scale_l_d <= 100.0f && c.pred_scale_l_q <= 100.0f && c.pred_scale_psi_f <= 100.0f &&
+          c.pred_scale_r_s <= 100.0f)) {
+        return PROTO_ACK_STATUS_BAD_VALUE;
+    }
+    f->ctrl = c;
+    f->have_ctrl = true;
+    return PROTO_ACK_STATUS_OK;
+}
+
+static uint16_t cmd_profile_segment(fw_t *f, const uint16_t *p, uint16_t n)
+{
+    proto_profile_segment_t s;
+    profile_segment_t seg;
+    if (!proto_profile_segment_unpack(&s, p, n)) {
+        return PROTO_ACK_STATUS_BAD_VALUE;
+    }
+    if (fw_active(f)) {
+        return PROTO_ACK_STATUS_BUSY;
+    }
+    if (f->have_motor && (fabsf(s.speed_rpm) > f->motor.speed_max_rpm)) {
+        return PROTO_ACK_STATUS_BAD_VALUE;
+    }
+    seg.duration_s = s.duration_s;
+    seg.speed_rpm = s.speed_rpm;
+    seg.ramp_rpm_s = s.ramp_rpm_s;
+    seg.load_nm = s.load_nm;
+    seg.flags = s.flags;
+    seg.kind = s.kind;
+    seg.inject_a = s.inject_a;
+    seg.inject_hz = s.inject_hz;
+    if (s.kind > PROFILE_KIND_IDENTIFY_R || !(s.inject_hz >= 0.0f) || !(fabsf(s.inject_a) <= 1e3f) ||
+        (s.kind == PROFILE_KIND_IDENTIFY_R && (s.speed_rpm != 0.0f || !(s.inject_a != 0.0f)))) {
+        return PROTO_ACK_STATUS_BAD_VALUE;
+    }
+    if (f->have_motor && fabsf(s.inject_a) > f->motor.i_max_a) {
+        return PROTO_ACK_STATUS_BAD_VALUE;
+    }
+    return profile_set(&f->prof, s.index, &seg) ? PROTO_ACK_STATUS_OK : PROTO_ACK_STATUS_BAD_VALUE;
+}
+
+static void handle_frame(fw_t *f, uint16_t id, uint16_t seq, const uint16_t *p, uint16_t n)
+{
+    uint16_t st = PROTO_ACK_STATUS_OK;
+    f->rx_frames++;
+    switch (id) {
+    case PROTO_ID_HELLO:
+        fw_send_identify(f);
+        return;
+    case PROTO_ID_HEARTBEAT:
+        f->hb_isr = f->isr_count;
+        return;
+    case PROTO_ID_CAPTURE_READ: {
+        proto_capture_read_t r;
+        if (proto_capture_read_unpack(&r, p, n)) {
+            fw_send_capture_chunk(f, r.offset);
+            return;
+        }
+        st = PROTO_ACK_STATUS_BAD_VALUE;
+        break;
+    }
+    case PROTO_ID_CONFIG_MOTOR:
+        st = cmd_config_motor(f, p, n);
+        break;
+    case PROTO_ID_CONFIG_CTRL:
+        st = cmd_config_ctrl(f, p, n);
+        break;
+    case PROTO_ID_PROFILE_CLEAR: {
+        proto_profile_clear_t c;
+        if (!proto_profile_clear_unpack(&c, p, n) || c.n_segments > PROFILE_MAX_SEGMENTS) {
+            st = PROTO_ACK_STATUS_BAD_VALUE;
+        } else if (fw_active(f)) {
+            st = PROTO_ACK_STATUS_BUSY;
+        } else {
+            profile_clear(&f->prof, c.n_segments);
+        }
+        break;
+    }
+    case PROTO_ID_PROFILE_SEGMENT:
+        st = cmd_profile_segment(f, p, n);
+        break;
+    case PROTO_ID_START:
+        st = fw_start_run(f);
+        if (st == PROTO_ACK_STATUS_OK) {
+            fw_send_ack(f, id, seq, st);
+            fw_send_event(f, PROTO_EVENT_STARTED, 0);
+            return;
+        }
+        break;
+    case PROTO_ID_STOP:
+        if (f->state == PROTO_STATE_RUNNING) {
+            fw_enter_stopping(f, FW_STOP_HOST);
+        } else if (!fw_active(f)) {
+            st = PROTO_ACK_STATUS_OK;   /* already stopped: idempotent */
+        }
+        break;
+    case PROTO_ID_ABORT:
+        if (fw_active(f)) {
+            fw_pwm_off(f, PROTO_STATE_IDLE, FW_STOP_ABORT);
+        }
+        break;
+    default:
+        st = f->board_msg != 0 ? f->board_msg(f->board_ctx, id, p, n) : PROTO_ACK_STATUS_UNKNOWN;
+        break;
+    }
+    fw_send_ack(f, id, seq, st);
+}
+
+void fw_can_rx(fw_t *f, uint16_t id, const uint16_t *data, uint16_t dlc)
+{
+    int16_t r = can_link_rx(&f->can, id, data, dlc);
+    if (r == CAN_RX_MSG) {
+        f->link = f->can.msg_id == PROTO_ID_HELLO ? FW_LINK_CAN : f->link;
+        handle_frame(f, f->can.msg_id, f->can.seq, f->can.payload, f->can.payload_len);
+    } else if (r < 0) {
+        f->rx_bad++;
+    }
+}
+
+void fw_rx_octet(fw_t *f, uint16_t octet)
+{
+    int16_t r = frame_parser_push(&f->rx, octet);
+    if (r == FRAME_OK) {
+        f->link = f->rx.msg_id == PROTO_ID_HELLO ? FW_LINK_SERIAL : f->link;
+        handle_frame(f, f->rx.msg_id, f->rx.seq, f->rx.payload, f->rx.payload_len);
+    } else if (r < 0) {
+        f->rx_bad++;
+    }
+}
+
+bool fw_tx_pop(fw_t *f, uint16_t *octet)
+{
+    return txq_pop(&f->tx, octet);
+}
+
+uint16_t fw_tx_pop_n(fw_t *f, uint16_t *out, uint16_t max)
+{
+    return txq_pop_n(&f->tx, out, max);
+}
+

@@ -1,0 +1,189 @@
+/* Messages from the device to the host: acks, events, identify, capture chunks, telemetry. */
+#include "fw_internal.h"
+#include "transforms.h"
+
+#include <math.h>
+#include <string.h>
+
+/* ------------------------------------------------------------------ link helpers */
+
+bool fw_send(fw_t *f, uint16_t msg_id, const uint16_t *payload, uint16_t n)
+{
+    if (f->link == FW_LINK_CAN) {   /* docs/can.md: whole messages queued as frames, or dropped */
+        bool ok = can_link_send(&f->can, msg_id, f->tx_seq, payload, n);
+        f->tx_seq = (uint16_t)((f->tx_seq + 1u) & 0xFFu);
+        f->tx.dropped += ok ? 0u : 1u;
+        return ok;
+    }
+    uint16_t len = frame_encode(msg_id, f->tx_seq, payload, n, f->frame_buf,
+                                (uint16_t)(sizeof(f->frame_buf) / sizeof(f->frame_buf[0])));
+    f->tx_seq = (uint16_t)((f->tx_seq + 1u) & 0xFFu);
+    if (len == 0u) {
+        f->tx.dropped++;
+        return false;
+    }
+    return txq_push(&f->tx, f->frame_buf, len);
+}
+
+void fw_send_ack(fw_t *f, uint16_t cmd_id, uint16_t cmd_seq, uint16_t status)
+{
+    proto_ack_t a;
+    uint16_t n;
+    a.cmd_id = cmd_id;
+    a.cmd_seq = cmd_seq;
+    a.status = status;
+    n = proto_ack_pack(&a, f->payload_buf);
+    (void)fw_send(f, PROTO_ID_ACK, f->payload_buf, n);
+}
+
+void fw_send_event(fw_t *f, uint16_t code, int32_t arg)
+{
+    proto_event_t e;
+    uint16_t n;
+    e.tick = f->tick;
+    e.code = code;
+    e.arg = arg;
+    n = proto_event_pack(&e, f->payload_buf);
+    (void)fw_send(f, PROTO_ID_EVENT, f->payload_buf, n);
+}
+
+void fw_send_identify(fw_t *f)
+{
+    proto_identify_t m;
+    uint16_t n;
+    m.proto_version = PROTO_VERSION;
+    m.schema_hash = PROTO_SCHEMA_HASH;
+    m.fw_major = FW_VERSION_MAJOR;
+    m.fw_minor = FW_VERSION_MINOR;
+    m.fw_patch = FW_VERSION_PATCH;
+    m.board = f->cfg.board;
+    m.tx_buf_octets = TXQ_SIZE;
+    m.capture_len = CAPTURE_LEN;
+    n = proto_identify_pack(&m, f->payload_buf);
+    (void)fw_send(f, PROTO_ID_IDENTIFY, f->payload_buf, n);
+}
+
+void fw_send_capture_chunk(fw_t *f, uint16_t offset)
+{
+    proto_capture_chunk_t c;
+    capture_sample_t s;
+    uint16_t i, n, count = capture_count(&f->cap);
+    memset(&c, 0, sizeof(c));
+    c.offset = offset;
+    c.tick0 = capture_tick0(&f->cap);
+    n = 0u;
+    for (i = 0u; i < 8u; i++) {
+        if ((uint32_t)offset + i >= count || !capture_get(&f->cap, (uint16_t)(offset + i), &s)) {
+            break;
+        }
+        c.i_a_a[i] = s.i_a_a;
+        c.i_b_a[i] = s.i_b_a;
+        c.i_c_a[i] = s.i_c_a;
+        c.s_abc[i] = s.s_abc;
+        c.v_dc_v[i] = s.v_dc_v;
+        c.theta_e_rad[i] = s.theta_e_rad;
+        c.omega_e_rad_s[i] = s.omega_e_rad_s;
+        n++;
+    }
+    c.n_valid = n;
+    n = proto_capture_chunk_pack(&c, f->payload_buf);
+    (void)fw_send(f, PROTO_ID_CAPTURE_CHUNK, f->payload_buf, n);
+}
+
+
+/* ------------------------------------------------------------------ telemetry */
+
+void fw_send_status(fw_t *f)
+{
+    const proto_config_ctrl_t *c = &f->ctrl;
+    uint16_t n;
+    {
+        proto_status_t s;
+        uint32_t age = (f->isr_count - f->hb_isr);
+        float age_ms = (float)age * c->ts_s * 1000.0f;
+        s.tick = f->tick;
+        s.state = f->state;
+        s.segment = f->prof.index;
+        s.faults = f->faults;
+        s.v_dc_v = f->sig.v_dc_v;
+        s.tx_dropped = f->tx.dropped;
+        s.rx_bad = (uint16_t)(f->rx_bad > 0xFFFFu ? 0xFFFFu : f->rx_bad);
+        s.rx_frames = f->rx_frames;
+        s.hb_age_ms = (uint16_t)(age_ms > 65535.0f ? 65535.0f : age_ms);
+        s.capture_count = capture_count(&f->cap);
+        n = proto_status_pack(&s, f->payload_buf);
+        (void)fw_send(f, PROTO_ID_STATUS, f->payload_buf, n);
+    }
+}
+
+/* Parameter frame of slot 0 (the motor file's values as the predictor sees them) or of estimator
+ * slot k (1..FW_N_EST). */
+void fw_send_params(fw_t *f, uint16_t slot)
+{
+    const proto_config_ctrl_t *c = &f->ctrl;
+    proto_params_t pm;
+    uint16_t n;
+    bool nominal_feeds = c->identify == 0u || c->predictor == PROTO_ESTIMATOR_NOMINAL ||
+                         !f->pred_latched;
+    pm.tick = f->tick;
+    if (slot == 0u) {
+        pm.estimator = PROTO_ESTIMATOR_NOMINAL;
+        pm.flags = nominal_feeds ? 4u : 0u;
+        pm.l_d_h = f->motor.l_d_h * c->pred_scale_l_d;
+        pm.l_q_h = f->motor.l_q_h * c->pred_scale_l_q;
+        pm.psi_f_wb = f->motor.psi_f_wb * c->pred_scale_psi_f;
+        pm.r_s_ohm = f->motor.r_s_ohm * c->pred_scale_r_s;
+    } else {
+        const est_out_t *o = &f->est_out[slot - 1u];
+        pm.estimator = slot;
+        pm.flags = (uint16_t)((o->excited ? 1u : 0u) | (o->converged ? 2u : 0u) |
+                              ((!nominal_feeds && c->predictor == slot) ? 4u : 0u));
+        pm.l_d_h = o->l_d_h;
+        pm.l_q_h = o->l_q_h;
+        pm.psi_f_wb = o->psi_f_wb;
+        pm.r_s_ohm = fw_est_r_report(f, (uint16_t)(slot - 1u));
+    }
+    n = proto_params_pack(&pm, f->payload_buf);
+    (void)fw_send(f, PROTO_ID_PARAMS, f->payload_buf, n);
+}
+
+/* Telemetry streams on staggered phases, so that a control period builds at most one frame with
+ * the default rates (fast at phase 0, parameter slots at 1..4, status at 5): the ISR's worst
+ * case stays within budget on the F28335 (docs/board-f28335.md). */
+#define FW_PHASE_PARAMS 1u
+#define FW_PHASE_STATUS (FW_PHASE_PARAMS + FW_N_EST + 1u)
+
+void fw_send_telemetry(fw_t *f)
+{
+    const proto_config_ctrl_t *c = &f->ctrl;
+    uint16_t n;
+    if (c->fast_div != 0u && (f->tick % c->fast_div) == 0u) {
+        proto_telem_fast_t t;
+        t.tick = f->tick;
+        t.speed_ref_rpm = f->sig.speed_ref_rpm;
+        t.speed_rpm = f->sig.speed_rpm;
+        t.speed_est_rpm = f->sig.speed_est_rpm;
+        t.theta_e_rad = f->sig.theta_e_rad;
+        t.theta_e_est_rad = f->sig.theta_e_est_rad;
+        t.i_d_a = f->sig.i_d_a;
+        t.i_q_a = f->sig.i_q_a;
+        t.i_d_ref_a = f->sig.i_d_ref_a;
+        t.i_q_ref_a = f->sig.i_q_ref_a;
+        t.u_d_v = f->sig.u_d_v;
+        t.u_q_v = f->sig.u_q_v;
+        t.load_nm = f->sig.load_nm;
+        n = proto_telem_fast_pack(&t, f->payload_buf);
+        (void)fw_send(f, PROTO_ID_TELEM_FAST, f->payload_buf, n);
+    }
+    if (c->params_div != 0u) {
+        uint32_t ph = f->tick % c->params_div;
+        uint16_t slots = (uint16_t)(c->identify != 0u ? FW_N_EST + 1u : 1u);
+        if (ph >= FW_PHASE_PARAMS && ph < FW_PHASE_PARAMS + slots) {
+            fw_send_params(f, (uint16_t)(ph - FW_PHASE_PARAMS));
+        }
+    }
+    if (c->status_div != 0u && (f->tick % c->status_div) == FW_PHASE_STATUS % c->status_div) {
+        fw_send_status(f);
+    }
+}
+
