@@ -5,219 +5,22 @@
  *                   d(psi)/d(theta), extra torque. The one place for saturation, flux harmonics, cogging.
  *   deriv()         the dq voltage equations and the mechanics, evaluated at one RK4 stage.
  *   leg_dist()      inverter distortion voltage per leg (dead time, device drop).
- *   sensor_*()      phase-current ADC, DC-link voltage, encoder. The one place for offsets, gains,
+ *   sensor_*()      (plant_sensors.c) phase-current ADC, DC-link voltage, encoder: offsets, gains,
  *                   noise, quantisation.
  *   advance_on()    RK4 over one period with a known stationary-frame (or rotor-frame) voltage.
  *   advance_off()   PWM off: diode bridge with current-zero events.
  */
-#include "plant.h"
+#include "plant_internal.h"
 
 #include <math.h>
 #include <stddef.h>
 #include <string.h>
 
-#define PL_PI 3.14159265358979323846
-#define PL_TWO_PI 6.28318530717958647692
-#define PL_SQRT3_2 0.86602540378443864676
-#define PL_INV_SQRT3 0.57735026918962576451
-
 /* unit vectors of the phase axes in the stationary frame (amplitude-invariant Clarke: i_x = e_x . i_ab) */
 static const double EX[3] = {1.0, -0.5, -0.5};
 static const double EY[3] = {0.0, PL_SQRT3_2, -PL_SQRT3_2};
 
-#if defined(__GNUC__)
-#define PL_INLINE static inline __attribute__((always_inline))
-#else
-#define PL_INLINE static inline
-#endif
-
-enum { MODE_KNOWN = 0, MODE_ONE_BLOCKED = 1, MODE_ALL_BLOCKED = 3, MODE_UDQ = 4 };
-
-/* ------------------------------------------------------------------ small helpers */
-
-PL_INLINE double sigm(double x)
-{
-    double x2;
-    x = x < 3.0 ? x : 3.0;    /* branch-free clamp (minsd/maxsd); the rational is exactly +-1 at +-3 */
-    x = x > -3.0 ? x : -3.0;
-    x2 = x * x;
-    return x * (27.0 + x2) / (27.0 + 9.0 * x2);
-}
-
 double plant_sigmoid(double x) { return sigm(x); }
-
-/* cos and sin of a small angle: Taylor to d^8 / d^9 (error < 2e-15 for |d| < 0.15), libm beyond. */
-PL_INLINE void rot_small(double d, double *cd, double *sd)
-{
-    if (fabs(d) < 0.15) {
-        const double d2 = d * d;
-        *sd = d * (1.0 - d2 * (1.0 / 6.0) * (1.0 - d2 * (1.0 / 20.0) * (1.0 - d2 * (1.0 / 42.0) * (1.0 - d2 * (1.0 / 72.0)))));
-        *cd = 1.0 - d2 * 0.5 * (1.0 - d2 * (1.0 / 12.0) * (1.0 - d2 * (1.0 / 30.0) * (1.0 - d2 * (1.0 / 56.0))));
-    } else {
-        *sd = sin(d);
-        *cd = cos(d);
-    }
-}
-
-PL_INLINE void phase_currents(double c, double s, double id, double iq, double i3[3])
-{
-    const double ial = c * id - s * iq, ibe = s * id + c * iq;
-    i3[0] = ial;
-    i3[1] = -0.5 * ial + PL_SQRT3_2 * ibe;
-    i3[2] = -0.5 * ial - PL_SQRT3_2 * ibe;
-}
-
-static inline double wrap_2pi(double a)
-{
-    if (a >= PL_TWO_PI) {
-        a -= PL_TWO_PI;
-    } else if (a < 0.0) {
-        a += PL_TWO_PI;
-    }
-    if (a >= PL_TWO_PI || a < 0.0) {   /* more than one turn per period: only at absurd speeds */
-        a = fmod(a, PL_TWO_PI);
-        if (a < 0.0) {
-            a += PL_TWO_PI;
-        }
-        if (a >= PL_TWO_PI) {
-            a = 0.0;
-        }
-    }
-    return a;
-}
-
-/* ------------------------------------------------------------------ flux map (saturation) */
-
-/* bicubic Hermite basis: p(t) = M [f(0), f(1), f'(0), f'(1)] gives the power coefficients */
-static const double HM[4][4] = {{1.0, 0.0, 0.0, 0.0}, {0.0, 0.0, 1.0, 0.0},
-                                {-3.0, 3.0, -2.0, -1.0}, {2.0, -2.0, 1.0, 1.0}};
-
-/* node derivative along one grid line by finite differences (central inside, one-sided at the ends) */
-static double fd(const double *f, int j, int n, int stride)
-{
-    if (j == 0) {
-        return f[stride] - f[0];
-    }
-    if (j == n - 1) {
-        return f[(size_t)j * (size_t)stride] - f[(size_t)(j - 1) * (size_t)stride];
-    }
-    return 0.5 * (f[(size_t)(j + 1) * (size_t)stride] - f[(size_t)(j - 1) * (size_t)stride]);
-}
-
-const char *plant_map_build(plant_map_t *m, int nd, int nq, double id0_a, double did_a, double iq0_a,
-                            double diq_a, const double *psi_d_wb, const double *psi_q_wb)
-{
-    static double ft[2][PLANT_MAP_MAX_N * PLANT_MAP_MAX_N], fv[2][PLANT_MAP_MAX_N * PLANT_MAP_MAX_N],
-        ftv[2][PLANT_MAP_MAX_N * PLANT_MAP_MAX_N];
-    const double *f[2];
-    int c, j, k, a, b;
-    if (nd < 2 || nq < 2 || nd > PLANT_MAP_MAX_N || nq > PLANT_MAP_MAX_N) return "flux map: 2 to 64 nodes per axis";
-    if (!(did_a > 0.0) || !(diq_a > 0.0)) return "flux map: node spacing must be > 0";
-    if (psi_d_wb == NULL || psi_q_wb == NULL) return "flux map: no data";
-    for (j = 0; j < nd * nq; j++) {
-        if (!(fabs(psi_d_wb[j]) < 1e6) || !(fabs(psi_q_wb[j]) < 1e6)) return "flux map: value not finite";
-    }
-    m->nd = nd;
-    m->nq = nq;
-    m->id0_a = id0_a;
-    m->iq0_a = iq0_a;
-    m->did_a = did_a;
-    m->diq_a = diq_a;
-    m->inv_did = 1.0 / did_a;
-    m->inv_diq = 1.0 / diq_a;
-    f[0] = psi_d_wb;
-    f[1] = psi_q_wb;
-    /* node derivatives in cell units (per node spacing) */
-    for (c = 0; c < 2; c++) {
-        for (k = 0; k < nq; k++) {
-            for (j = 0; j < nd; j++) {
-                ft[c][k * nd + j] = fd(f[c] + k * nd, j, nd, 1);
-                fv[c][k * nd + j] = fd(f[c] + j, k, nq, nd);
-            }
-        }
-        for (k = 0; k < nq; k++) {
-            for (j = 0; j < nd; j++) {
-                ftv[c][k * nd + j] = fd(fv[c] + k * nd, j, nd, 1);
-            }
-        }
-    }
-    for (c = 0; c < 2; c++) {
-        for (k = 0; k < nq - 1; k++) {
-            for (j = 0; j < nd - 1; j++) {
-                /* F[a][b]: a = value/derivative in t at t = 0, 1; b likewise in v */
-                double F[4][4], T[4][4];
-                int n00 = k * nd + j, n10 = n00 + 1, n01 = n00 + nd, n11 = n01 + 1;
-                double *co = &m->coef[k * (PLANT_MAP_MAX_N - 1) + j][0][0];
-                F[0][0] = f[c][n00]; F[0][1] = f[c][n01]; F[0][2] = fv[c][n00]; F[0][3] = fv[c][n01];
-                F[1][0] = f[c][n10]; F[1][1] = f[c][n11]; F[1][2] = fv[c][n10]; F[1][3] = fv[c][n11];
-                F[2][0] = ft[c][n00]; F[2][1] = ft[c][n01]; F[2][2] = ftv[c][n00]; F[2][3] = ftv[c][n01];
-                F[3][0] = ft[c][n10]; F[3][1] = ft[c][n11]; F[3][2] = ftv[c][n10]; F[3][3] = ftv[c][n11];
-                for (a = 0; a < 4; a++) {          /* T = HM F */
-                    for (b = 0; b < 4; b++) {
-                        T[a][b] = HM[a][0] * F[0][b] + HM[a][1] * F[1][b] + HM[a][2] * F[2][b] + HM[a][3] * F[3][b];
-                    }
-                }
-                for (a = 0; a < 4; a++) {          /* coefficient of t^a v^b: (HM F HM^T)[a][b] */
-                    for (b = 0; b < 4; b++) {
-                        co[(a * 4 + b) * 2 + c] = T[a][0] * HM[b][0] + T[a][1] * HM[b][1] + T[a][2] * HM[b][2] + T[a][3] * HM[b][3];
-                    }
-                }
-            }
-        }
-    }
-    m->psi_f_wb = 0.0;
-    {
-        double pq, l[4];
-        plant_map_eval(m, 0.0, 0.0, &m->psi_f_wb, &pq, l);
-    }
-    return NULL;
-}
-
-/* psi_d, psi_q and d(psi)/d(i) = l[dd, dq, qd, qq]; beyond the grid: linear with the boundary slope */
-PL_INLINE void map_eval(const plant_map_t *m, double id, double iq, double *pd, double *pq, double l[4])
-{
-    double u = (id - m->id0_a) * m->inv_did, v = (iq - m->iq0_a) * m->inv_diq, eu = 0.0, ev = 0.0, val[2];
-    int j, k, c;
-    const double *co;
-    j = u < 0.0 ? 0 : (int)u;
-    k = v < 0.0 ? 0 : (int)v;
-    j = j > m->nd - 2 ? m->nd - 2 : j;
-    k = k > m->nq - 2 ? m->nq - 2 : k;
-    u -= (double)j;
-    v -= (double)k;
-    if (u < 0.0) { eu = u; u = 0.0; } else if (u > 1.0) { eu = u - 1.0; u = 1.0; }
-    if (v < 0.0) { ev = v; v = 0.0; } else if (v > 1.0) { ev = v - 1.0; v = 1.0; }
-    co = &m->coef[k * (PLANT_MAP_MAX_N - 1) + j][0][0];
-    /* both components side by side (coefficient pairs [psi_d, psi_q]): the compiler packs them */
-    {
-        double b[4][2], bv[4][2], fu[2], fv[2];
-        int a;
-        for (a = 0; a < 4; a++) {
-            const double *r = co + 8 * a;
-            for (c = 0; c < 2; c++) {
-                b[a][c] = r[c] + v * (r[2 + c] + v * (r[4 + c] + v * r[6 + c]));
-                bv[a][c] = r[2 + c] + v * (2.0 * r[4 + c] + 3.0 * v * r[6 + c]);
-            }
-        }
-        for (c = 0; c < 2; c++) {
-            fu[c] = b[1][c] + u * (2.0 * b[2][c] + 3.0 * u * b[3][c]);
-            fv[c] = bv[0][c] + u * (bv[1][c] + u * (bv[2][c] + u * bv[3][c]));
-            val[c] = b[0][c] + u * (b[1][c] + u * (b[2][c] + u * b[3][c])) + fu[c] * eu + fv[c] * ev;
-        }
-        l[0] = fu[0] * m->inv_did;
-        l[1] = fv[0] * m->inv_diq;
-        l[2] = fu[1] * m->inv_did;
-        l[3] = fv[1] * m->inv_diq;
-    }
-    *pd = val[0];
-    *pq = val[1];
-}
-
-void plant_map_eval(const plant_map_t *m, double i_d_a, double i_q_a, double *psi_d_wb, double *psi_q_wb,
-                    double l[4])
-{
-    map_eval(m, i_d_a, i_q_a, psi_d_wb, psi_q_wb, l);
-}
 
 /* ------------------------------------------------------------------ magnetics (effect seam) */
 
@@ -898,62 +701,6 @@ static void advance_off(plant_t *p, double t_load)
     finish_period(p, &k, &x, th_tot, aud, auq);
 }
 
-/* ------------------------------------------------------------------ sensors (effect seam) */
-
-/* one phase-current channel: true current -> + Gaussian noise -> ADC quantisation (mid-tread).
- * Offsets, gain errors, range clipping, filtering belong here. */
-PL_INLINE double sensor_current(plant_t *p, double i)
-{
-    double v = i;
-    if (p->cfg.i_noise_a > 0.0) {
-        v += p->cfg.i_noise_a * rng_gauss(&p->rng);
-    }
-    if (p->inv_lsb > 0.0) {   /* round to nearest (even) by the 1.5 * 2^52 trick: branch-free, exact */
-        const double q = v * p->inv_lsb;
-        v = ((q + 6755399441055744.0) - 6755399441055744.0) * p->cfg.adc_lsb_a;
-    }
-    return v;
-}
-
-/* the measured phase currents with the sensor effects: sample delay (linear interpolation between
- * the true currents at the period boundaries; exact for a piecewise-linear current), gain, offset,
- * then noise and quantisation */
-static void sample_general(plant_t *p, fw_meas_t *m)
-{
-    double i3[3];
-    int n;
-    if (p->delay_n >= 0) {
-        const double *a = p->hist_i[(p->hist_pos - (uint32_t)p->delay_n) & (PLANT_DELAY_RING - 1u)];
-        const double *b = p->hist_i[(p->hist_pos - (uint32_t)p->delay_n - 1u) & (PLANT_DELAY_RING - 1u)];
-        for (n = 0; n < 3; n++) {
-            i3[n] = a[n] + p->delay_f * (b[n] - a[n]);
-        }
-    } else {
-        phase_currents(p->cos_e, p->sin_e, p->i_d_a, p->i_q_a, i3);
-    }
-    for (n = 0; n < 3; n++) {
-        i3[n] = p->cfg.i_gain[n] * i3[n] + p->cfg.i_offset_a[n];
-    }
-    m->i_a_a = (float)sensor_current(p, i3[0]);
-    m->i_b_a = (float)sensor_current(p, i3[1]);
-    m->i_c_a = (float)sensor_current(p, i3[2]);
-}
-
-/* incremental encoder: floor of the mechanical angle (plus offset) in counts, wrapped to [0, N) */
-PL_INLINE uint32_t sensor_encoder(const plant_t *p)
-{
-    double a = p->theta_m_rad + p->enc_off_w;
-    uint32_t c;
-    if (a >= PL_TWO_PI) {
-        a -= PL_TWO_PI;
-    }
-    c = (uint32_t)(a * p->enc_scale);
-    if (c >= p->cfg.enc_counts) {
-        c -= p->cfg.enc_counts;
-    }
-    return c;
-}
-
 /* ------------------------------------------------------------------ API */
 
 void plant_cfg_default(plant_cfg_t *cfg)
@@ -1126,20 +873,6 @@ void plant_init(plant_t *p, const plant_cfg_t *cfg)
     p->i_dc_a = 0.0;
 }
 
-void plant_sample(plant_t *p, fw_meas_t *m)
-{
-    if (p->sens_general) {
-        sample_general(p, m);
-    } else {
-        double i3[3];
-        phase_currents(p->cos_e, p->sin_e, p->i_d_a, p->i_q_a, i3);
-        m->i_a_a = (float)sensor_current(p, i3[0]);
-        m->i_b_a = (float)sensor_current(p, i3[1]);
-        m->i_c_a = (float)sensor_current(p, i3[2]);
-    }
-    m->v_dc_v = (float)p->v_dc_v;
-    m->enc_count = sensor_encoder(p);
-}
 
 /* DC link over the last period: C dv/dt = i_src - i_dc, i_src = (v_s - v)/R_src while the source
  * conducts (a diode rectifier only forwards), v_s the six-pulse rectified grid (line peak = v_src) or

@@ -1,5 +1,5 @@
 /* Plant speed benchmark (not a unit test: make does not run it). Build and run by hand, from firmware/:
- *   cc -std=c99 -O3 -Wall -Wextra -Werror -Icore -Isim tests/bench_plant.c sim/plant.c sim/rng.c -lm -o bench_plant
+ *   cc -std=c99 -O3 -Wall -Wextra -Werror -Icore -Isim tests/bench_plant.c sim/plant.c sim/plant_map.c sim/plant_sensors.c sim/rng.c -lm -o bench_plant
  *   ./bench_plant [periods]
  * Times plant_sample + plant_step per control period (Ts = 50 us) for paper A's IPMSM at 1000 r/min
  * (speed held by the dyno), replaying the switch sequence of a bang-bang current loop (i_d = 0,
