@@ -2,7 +2,6 @@
 the speed-PI design when the profile leaves the gains to the tool (docs/control.md)."""
 from __future__ import annotations
 
-import math
 
 from pmsm_hil.protocol import generated as gen
 

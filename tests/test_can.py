@@ -22,7 +22,7 @@ from pmsm_hil.protocol.can_link import CanDecoder, encode_message
 from pmsm_hil.protocol.session import Session
 from pmsm_hil.runner import RunOptions, configure, run_profile
 from pmsm_hil.transport.base import TransportError
-from pmsm_hil.transport.can_bus import (InProcessCanBus, apply_can_rates, inprocess_can_link,
+from pmsm_hil.transport.can_bus import (apply_can_rates, inprocess_can_link,
                                         open_can, parse_spec)
 
 STATE = gen.ENUMS["state"]

@@ -85,8 +85,8 @@ def main() -> None:
         f.write("# Note: psi_q(0, 0) = -6 mWb is a measurement artefact, kept. Format: docs/rigs.md.\n")
         f.write(raw)
     id_a, iq_a, pd_a, pq_a, info = derive(sew)
-    hdr = [f"Paper A IPMSM flux map (psi_f 0.18 Wb, L_d 5 mH, L_q 12 mH at small current), derived from",
-           f"the measured SEW CM3C80S map by tools/derive_flux_map.py (method: docs/rigs.md).",
+    hdr = ["Paper A IPMSM flux map (psi_f 0.18 Wb, L_d 5 mH, L_q 12 mH at small current), derived from",
+           "the measured SEW CM3C80S map by tools/derive_flux_map.py (method: docs/rigs.md).",
            f"Source of the measured map: {SOURCE}",
            f"Symmetrised SEW map: psi_f {info['psi_f_s']:.6g} Wb, L_d {info['l_d_s']*1e3:.4g} mH, "
            f"L_q {info['l_q_s']*1e3:.4g} mH (slopes at small current).",

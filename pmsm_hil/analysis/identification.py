@@ -132,7 +132,7 @@ def markdown_table(table: IdentTable, with_paper: bool = True) -> str:
     for e in ests:
         head += [f"{e} value", f"{e} error", f"{e} t_conv s"]
         if with_paper:
-            head += [f"paper {e} value", f"paper error", f"paper t s"]
+            head += [f"paper {e} value", "paper error", "paper t s"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for p in ("l_d_h", "l_q_h", "r_s_ohm", "psi_f_wb"):
         name, unit, _ = UNITS[p]

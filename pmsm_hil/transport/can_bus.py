@@ -8,15 +8,11 @@ SPEC = INTERFACE:CHANNEL[,bitrate=N][,node=N][,key=value...]   (extra keys go to
 """
 from __future__ import annotations
 
-import os
-import select
-import subprocess
-import sys
-import time
 from dataclasses import dataclass, field
 
 from pmsm_hil.protocol import can_generated as cg
 from pmsm_hil.protocol.can_link import CanLink
+from pmsm_hil.emulator import process as emu_process
 from pmsm_hil.transport.base import TransportError
 
 INTERFACES = ("socketcand", "socketcan", "pcan", "kvaser", "slcan", "ixxat", "virtual", "vector",
@@ -140,43 +136,18 @@ class CanEmulator:
 
     def __init__(self, motor_path: str | None, rig_path: str | None, seed: int, bitrate: int = cg.BITRATE,
                  node: int = cg.NODE, start_timeout_s: float = 20.0, extra_args: list[str] | None = None):
-        cmd = [sys.executable, "-m", "pmsm_hil.emulator", "--can", "--seed", str(seed),
-               "--can-bitrate", str(bitrate), "--node", str(node)]
+        args = ["--can", "--seed", str(seed), "--can-bitrate", str(bitrate), "--node", str(node)]
         if motor_path:
-            cmd += ["--motor", str(motor_path)]
+            args += ["--motor", str(motor_path)]
         if rig_path:
-            cmd += ["--rig", str(rig_path)]
-        cmd += extra_args or []
-        self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                     stdin=subprocess.DEVNULL)
-        self.spec_text = self._wait_for_spec(start_timeout_s)
+            args += ["--rig", str(rig_path)]
+        self.proc = emu_process.start(args + (extra_args or []))
+        self.spec_text = emu_process.wait_for_announcement(self.proc, "can: ", start_timeout_s)
         spec = parse_spec(self.spec_text)
         self.link = open_can(spec, on_close=self.close, name=f"emulator CAN {self.spec_text}")
 
-    def _wait_for_spec(self, timeout_s: float) -> str:
-        deadline = time.monotonic() + timeout_s
-        text = b""
-        while time.monotonic() < deadline:
-            if self.proc.poll() is not None:
-                err = self.proc.stderr.read().decode(errors="replace").strip()
-                raise TransportError(f"the emulator exited before serving: {err[-2000:]}")
-            r, _, _ = select.select([self.proc.stdout], [], [], 0.1)
-            if r:
-                text += os.read(self.proc.stdout.fileno(), 4096)
-                for line in text.decode(errors="replace").splitlines():
-                    if line.startswith("can: "):
-                        return line.split(" ", 1)[1].strip()
-        self.close()
-        raise TransportError(f"the emulator did not start within {timeout_s:.0f} s")
-
     def close(self) -> None:
-        if self.proc.poll() is None:
-            self.proc.terminate()
-            try:
-                self.proc.wait(timeout=3)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
+        emu_process.stop(self.proc)
 
 
 class InProcessCanBus:

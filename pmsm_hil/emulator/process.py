@@ -1,0 +1,44 @@
+"""The emulator as a child process: start `python -m pmsm_hil.emulator ...`, wait for the line in
+which it announces where it serves (`serial: PATH` or `can: SPEC`), stop it."""
+from __future__ import annotations
+
+import os
+import select
+import subprocess
+import sys
+import time
+
+from pmsm_hil.transport.base import TransportError
+
+
+def start(args: list[str]) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "pmsm_hil.emulator", *args],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, stdin=subprocess.DEVNULL)
+
+
+def wait_for_announcement(proc: subprocess.Popen, prefix: str, timeout_s: float) -> str:
+    """The text after `prefix` on the emulator's first line that starts with it."""
+    deadline = time.monotonic() + timeout_s
+    seen = b""
+    while time.monotonic() < deadline:
+        if proc.poll() is not None:
+            err = proc.stderr.read().decode(errors="replace").strip()
+            raise TransportError(f"the emulator exited before serving: {err[-2000:]}")
+        ready, _, _ = select.select([proc.stdout], [], [], 0.1)
+        if ready:
+            seen += os.read(proc.stdout.fileno(), 4096)
+            for line in seen.decode(errors="replace").splitlines():
+                if line.startswith(prefix):
+                    return line[len(prefix):].strip()
+    stop(proc)
+    raise TransportError(f"the emulator did not start within {timeout_s:.0f} s")
+
+
+def stop(proc: subprocess.Popen) -> None:
+    if proc.poll() is None:
+        proc.terminate()
+        try:
+            proc.wait(timeout=3)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
