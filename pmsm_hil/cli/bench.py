@@ -15,6 +15,7 @@ def add_parser(sub) -> None:
     b.add_argument("--out", "-o", default="runs/bench-identify",
                    help="directory for the log, the convergence plot (PNG) and the table (markdown)")
     b.add_argument("--seed", type=int, default=1)
+    b.add_argument("--rig", default=None, help="rig file for the emulator (default: the profile's)")
     b.add_argument("--until", type=float, default=None, metavar="S",
                    help="evaluate the table up to device time S (default: the end of the last segment "
                         "before any drift step)")
@@ -44,7 +45,7 @@ def main(args: argparse.Namespace) -> int:
 
     path = args.profile or _default_profile()
     try:
-        profile = load_profile(path)
+        profile = load_profile(path, rig_override=args.rig)
     except ProfileError as e:
         return fail("error", str(e), 2)
     out = Path(args.out)
@@ -66,6 +67,10 @@ def main(args: argparse.Namespace) -> int:
     rig = ", ".join(profile.rig.enabled_effects) if hasattr(profile.rig, "enabled_effects") else ""
     print(f"bench identify: {profile.name} on the emulator (motor {profile.motor.name}, rig "
           f"{profile.rig.name}: {rig}; seed {args.seed}); estimators from zero weights")
+    comp = getattr(profile.control, "dead_time_comp", True) and getattr(profile.motor, "dead_time_s", 0.0)
+    if comp and not profile.rig.enabled("dead_time"):
+        print(f"note: the firmware compensates the motor file's {profile.motor.dead_time_s * 1e6:g} us dead time, "
+              f"which rig {profile.rig.name} does not have: the voltages it assumes are wrong by that much")
     table = identification_table(log, 0.0, t1)
     print(text_table(table))
     md = out / "identify.md"
