@@ -86,3 +86,24 @@ def test_dropped_link_ends_the_run_with_a_readable_log(data, tmp_path):
     log = read_log(tmp_path / "drop.mcap")
     assert log.topic("/pmsm/telemetry")["t_s"].size > 100
     assert any("link error" in t or "silent" in t for t in log.topic("/pmsm/events")["text"])
+
+
+def test_dc_link_over_voltage_trips_at_once(data, tmp_path):
+    out = tmp_path / "ov.mcap"
+    _, result = run_with_plant(data / "short.yaml", out, v_dc_v=800.0)
+    assert result.state == "fault"
+    assert result.faults & FAULT_BITS["dc_over_voltage"]
+    assert not result.faults & FAULT_BITS["dc_under_voltage"]
+
+
+def test_over_speed_trips(data, tmp_path, root):
+    """A plant whose inertia is a hundred times smaller than the motor file's: the speed loop,
+    designed for the nominal inertia, overshoots a step far past the trip speed."""
+    prof = tmp_path / "fast.yaml"
+    prof.write_text(f"name: fast\nmotor: {root}/profiles/motors/paper-a-ipmsm.yaml\n"
+                    f"rig: {root}/profiles/rigs/ideal.yaml\n"
+                    "segments:\n  - {duration_s: 0.5, speed_rpm: 1500, ramp_rpm_s: 0}\n")
+    out = tmp_path / "os.mcap"
+    _, result = run_with_plant(prof, out, j_kgm2=0.0036 / 100.0)
+    assert result.state == "fault"
+    assert result.faults & FAULT_BITS["over_speed"], result.faults
