@@ -9,7 +9,7 @@ from pmsm_hil.analysis.identification import identification_table, markdown_tabl
 from pmsm_hil.cli.main import main as cli_main
 from pmsm_hil.log.reader import read_log
 
-from test_run_emulator import run_inproc
+from emu_helpers import run_inproc
 
 
 @pytest.fixture(scope="module")

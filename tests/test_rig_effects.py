@@ -14,7 +14,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from mcap.reader import make_reader
 
 from pmsm_hil.emulator.fwlib import EmulatedDevice
 from pmsm_hil.emulator.settings import emulator_settings
@@ -26,10 +25,11 @@ from pmsm_hil.protocol.session import Session
 from pmsm_hil.runner import RunOptions, run_profile
 from pmsm_hil.transport.inproc import InProcessTransport
 
+from emu_helpers import raw_messages
+
 ROOT = Path(__file__).resolve().parents[1]
 RIGS = ROOT / "profiles" / "rigs"
 STEADY = ROOT / "tests" / "data" / "effects-steady.yaml"
-DEVICE_TOPICS = ("/pmsm/telemetry", "/pmsm/params", "/pmsm/events", "/pmsm/capture", "/sim/truth")
 WINDOW = (0.70, 1.10)          # loaded steady state: 16 electrical periods at 40 Hz
 
 
@@ -113,12 +113,6 @@ def tru(truth, window=WINDOW):
 def ideal(tmp_path_factory):
     out = tmp_path_factory.mktemp("ideal") / "ideal.mcap"
     return (*run(RIGS / "ideal.yaml", out), out)
-
-
-def raw_messages(path):
-    with open(path, "rb") as f:
-        return [(c.topic, m.log_time, bytes(m.data))
-                for _, c, m in make_reader(f).iter_messages(topics=list(DEVICE_TOPICS))]
 
 
 # ----------------------------------------------------------------------------- rig files

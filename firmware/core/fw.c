@@ -25,7 +25,7 @@ void fw_enter_stopping(fw_t *f, uint16_t reason)
     if (f->state == PROTO_STATE_RUNNING) {
         f->state = PROTO_STATE_STOPPING;
         f->stop_reason = reason;
-        f->stop_ref_rpm = f->sig.speed_ref_rpm;
+        ramp_reset(&f->stop_ramp, f->sig.speed_ref_rpm);
         f->stop_ticks = 0u;
         f->stop_hold_ticks = 0u;
     }
@@ -56,6 +56,7 @@ uint16_t fw_start_run(fw_t *f)
     speed_pi_cfg_t sc;
     enc_cfg_t ec;
     dither_cfg_t dc;
+    ramp_cfg_t sr;
     if (!f->have_motor || !f->have_ctrl || !profile_complete(&f->prof)) {
         return PROTO_ACK_STATUS_BAD_STATE;
     }
@@ -100,7 +101,9 @@ uint16_t fw_start_run(fw_t *f)
     f->hb_lost = false;
     f->state = PROTO_STATE_RUNNING;
     f->stop_reason = 0u;
-    f->stop_ref_rpm = 0.0f;
+    sr.rate_rpm_s = FW_STOP_RAMP_RPM_S;
+    sr.ts_s = f->ctrl.ts_s;
+    ramp_init(&f->stop_ramp, &sr);
     return PROTO_ACK_STATUS_OK;
 }
 
@@ -170,8 +173,7 @@ static void reference(fw_t *f, float *speed_ref_rpm, float *load_nm)
     f->seg_flags = PROFILE_FLAG_HOLD_EST;   /* no identification while stopping */
     f->seg_inject_a = 0.0f;
     /* stopping: quick-stop ramp to zero, load released */
-    f->stop_ref_rpm = profile_ramp(f->stop_ref_rpm, 0.0f, FW_STOP_RAMP_RPM_S, f->ctrl.ts_s);
-    *speed_ref_rpm = f->stop_ref_rpm;
+    *speed_ref_rpm = ramp_step(&f->stop_ramp, 0.0f);
     *load_nm = 0.0f;
 }
 
@@ -282,7 +284,7 @@ void fw_isr(fw_t *f, const fw_meas_t *m, fw_cmd_t *cmd)
     /* end of a stop: reference at zero and the rotor (nearly) still for a while, or too long */
     if (f->state == PROTO_STATE_STOPPING) {
         f->stop_ticks++;
-        if (f->stop_ref_rpm == 0.0f && fabsf(f->enc_out.speed_rpm) < FW_STOP_SPEED_RPM) {
+        if (f->stop_ramp.out_rpm == 0.0f && fabsf(f->enc_out.speed_rpm) < FW_STOP_SPEED_RPM) {
             f->stop_hold_ticks++;
         } else {
             f->stop_hold_ticks = 0u;

@@ -91,7 +91,7 @@ typedef struct {
     enc_out_t enc_out;
     dither_t dither;
     float i_s_ref_a;
-    float stop_ref_rpm;
+    ramp_t stop_ramp;     /* quick-stop speed reference */
     uint32_t stop_ticks;
     uint32_t stop_hold_ticks;
     uint16_t speed_div_count;

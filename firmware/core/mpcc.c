@@ -160,6 +160,24 @@ static void dq_to_abc(float i_d, float i_q, float c, float s, float i_abc[3])
     tf_inv_clarke(al, be, &i_abc[0], &i_abc[1], &i_abc[2]);
 }
 
+/* Pole voltages of each leg for both switch positions, v[leg][s]: with the firmware's dead-time
+ * model (phase currents from i_d, i_q at the angle (c, s)) or ideal (0 and v_dc). */
+static void pole_voltages(const mpcc_t *m, bool dt_on, float v_dc_v, uint16_t prev, float i_d,
+                          float i_q, float c, float s, float v[3][2])
+{
+    uint16_t x;
+    if (dt_on) {
+        float i_abc[3];
+        dq_to_abc(i_d, i_q, c, s, i_abc);
+        leg_voltages(m, v_dc_v, prev, i_abc, v);
+        return;
+    }
+    for (x = 0u; x < 3u; x++) {
+        v[x][0] = 0.0f;
+        v[x][1] = v_dc_v;
+    }
+}
+
 /* Rotate (c, s) forward by the angle whose cos/sin are (cd, sd). */
 static void rot(float *c, float *s, float cd, float sd)
 {
@@ -216,7 +234,7 @@ void mpcc_step_cs(mpcc_t *m, const mpcc_in_t *in, float cos_th, float sin_th, mp
     const bool dt_on = (m->cfg.dead_time_s > 0.0f) || (m->cfg.v_drop_v > 0.0f);
     const bool comp = (m->cfg.delay_comp == MPCC_DELAY_COMP_ON);
     float c0, s0, c1, s1, ck1, sk1, c2, s2, cd, sd, half, h2;
-    float v[3][2], i_abc[3];
+    float v[3][2];
     float g_d, g_q, u_al, u_be, u_d1, u_q1, i_d1, i_q1, e_d, e_q;
     float gd[3], gq[3], pd[3][2], pq[3][2], sd_ab[4], sq_ab[4];
     uint16_t x, n, best;
@@ -279,15 +297,7 @@ void mpcc_step_cs(mpcc_t *m, const mpcc_in_t *in, float cos_th, float sin_th, mp
     {
         const uint16_t p = m->sw_prev;
         float ua = 0.0f, ub = 0.0f;
-        if (dt_on) {
-            dq_to_abc(in->i_d_a, in->i_q_a, c0, s0, i_abc);
-            leg_voltages(m, in->v_dc_v, m->sw_prev2, i_abc, v);
-        } else {
-            for (x = 0u; x < 3u; x++) {
-                v[x][0] = 0.0f;
-                v[x][1] = in->v_dc_v;
-            }
-        }
+        pole_voltages(m, dt_on, in->v_dc_v, m->sw_prev2, in->i_d_a, in->i_q_a, c0, s0, v);
         for (x = 0u; x < 3u; x++) {
             const float vx = v[x][(p >> x) & 1u];
             const uint16_t unit = (uint16_t)(1u << x);
@@ -346,15 +356,7 @@ void mpcc_step_cs(mpcc_t *m, const mpcc_in_t *in, float cos_th, float sin_th, mp
         gd[x] = g_d * ud;
         gq[x] = g_q * uq;
     }
-    if (dt_on) {
-        dq_to_abc(i_d1, i_q1, ck1, sk1, i_abc);
-        leg_voltages(m, in->v_dc_v, m->sw_prev, i_abc, v);
-    } else {
-        for (x = 0u; x < 3u; x++) {
-            v[x][0] = 0.0f;
-            v[x][1] = in->v_dc_v;
-        }
-    }
+    pole_voltages(m, dt_on, in->v_dc_v, m->sw_prev, i_d1, i_q1, ck1, sk1, v);
 
     /* ---- candidates: the contribution of each leg for both switch positions, and the sums of
      * legs a and b for the four (s_a, s_b) pairs; a candidate then costs two additions per axis.

@@ -10,7 +10,7 @@ void profile_clear(profile_exec_t *p, uint16_t n_segments)
     p->index = 0u;
     p->tick_in_seg = 0u;
     p->begun = false;
-    p->speed_ref_rpm = 0.0f;
+    ramp_reset(&p->ramp, 0.0f);
     p->done = false;
 }
 
@@ -41,6 +41,7 @@ bool profile_complete(const profile_exec_t *p)
 
 void profile_start(profile_exec_t *p, float ts_s)
 {
+    ramp_cfg_t rc;
     uint16_t i;
     for (i = 0u; i < p->n_declared && i < PROFILE_MAX_SEGMENTS; i++) {
         float n = p->seg[i].duration_s / ts_s + 0.5f;
@@ -49,24 +50,24 @@ void profile_start(profile_exec_t *p, float ts_s)
     p->index = 0u;
     p->tick_in_seg = 0u;
     p->begun = false;
-    p->speed_ref_rpm = 0.0f;
+    rc.rate_rpm_s = 0.0f;
+    rc.ts_s = ts_s;
+    ramp_init(&p->ramp, &rc);
     p->done = false;
 }
 
-float profile_ramp(float ref, float target, float rate_per_s, float ts_s)
+/* Output when no segment runs (before the start or after the end): the reference holds, no load. */
+static void profile_out_idle(const profile_exec_t *p, profile_out_t *out)
 {
-    float step;
-    if (rate_per_s <= 0.0f) {
-        return target;
-    }
-    step = rate_per_s * ts_s;
-    if (target > ref + step) {
-        return ref + step;
-    }
-    if (target < ref - step) {
-        return ref - step;
-    }
-    return target;
+    out->speed_ref_rpm = p->ramp.out_rpm;
+    out->load_nm = 0.0f;
+    out->index = p->index;
+    out->flags = 0u;
+    out->kind = PROFILE_KIND_RUN;
+    out->inject_a = 0.0f;
+    out->inject_hz = 0.0f;
+    out->tick_in_seg = 0u;
+    out->seg_ticks = 0u;
 }
 
 void profile_step(profile_exec_t *p, float ts_s, profile_out_t *out)
@@ -75,15 +76,7 @@ void profile_step(profile_exec_t *p, float ts_s, profile_out_t *out)
     out->segment_started = false;
     out->finished = false;
     if (p->done || p->n_declared == 0u) {
-        out->speed_ref_rpm = p->speed_ref_rpm;
-        out->load_nm = 0.0f;
-        out->index = p->index;
-        out->flags = 0u;
-        out->kind = PROFILE_KIND_RUN;
-        out->inject_a = 0.0f;
-        out->inject_hz = 0.0f;
-        out->tick_in_seg = 0u;
-        out->seg_ticks = 0u;
+        profile_out_idle(p, out);
         return;
     }
     if (!p->begun) {
@@ -96,15 +89,7 @@ void profile_step(profile_exec_t *p, float ts_s, profile_out_t *out)
             if ((uint16_t)(p->index + 1u) >= p->n_declared) {
                 p->done = true;
                 out->finished = true;
-                out->speed_ref_rpm = p->speed_ref_rpm;
-                out->load_nm = 0.0f;
-                out->index = p->index;
-                out->flags = 0u;
-                out->kind = PROFILE_KIND_RUN;
-                out->inject_a = 0.0f;
-                out->inject_hz = 0.0f;
-                out->tick_in_seg = 0u;
-                out->seg_ticks = 0u;
+                profile_out_idle(p, out);
                 return;
             }
             p->index++;
@@ -113,8 +98,9 @@ void profile_step(profile_exec_t *p, float ts_s, profile_out_t *out)
         }
     }
     s = &p->seg[p->index];
-    p->speed_ref_rpm = profile_ramp(p->speed_ref_rpm, s->speed_rpm, s->ramp_rpm_s, ts_s);
-    out->speed_ref_rpm = p->speed_ref_rpm;
+    p->ramp.cfg.ts_s = ts_s;
+    ramp_set_rate(&p->ramp, s->ramp_rpm_s);
+    out->speed_ref_rpm = ramp_step(&p->ramp, s->speed_rpm);
     out->load_nm = s->load_nm;
     out->index = p->index;
     out->flags = s->flags;

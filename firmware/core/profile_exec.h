@@ -6,6 +6,8 @@
 #include <stdint.h>
 #include <stdbool.h>
 
+#include "ramp.h"
+
 #define PROFILE_MAX_SEGMENTS 64u
 #define PROFILE_FLAG_CAPTURE 1u
 #define PROFILE_FLAG_HOLD_EST 2u   /* the online estimators hold their values in this segment */
@@ -31,7 +33,7 @@ typedef struct {
     uint16_t index;       /* running segment */
     uint32_t tick_in_seg; /* control periods into the running segment */
     bool begun;
-    float speed_ref_rpm;  /* ramped reference */
+    ramp_t ramp;          /* the ramped speed reference */
     bool done;
 } profile_exec_t;
 
@@ -53,6 +55,5 @@ bool profile_set(profile_exec_t *p, uint16_t index, const profile_segment_t *s);
 bool profile_complete(const profile_exec_t *p);
 void profile_start(profile_exec_t *p, float ts_s);
 void profile_step(profile_exec_t *p, float ts_s, profile_out_t *out);
-float profile_ramp(float ref, float target, float rate_per_s, float ts_s);
 
 #endif

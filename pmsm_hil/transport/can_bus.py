@@ -179,6 +179,10 @@ class InProcessCanBus:
         """One chunk of device time: the frames sent meanwhile, [(identifier, data)]."""
         out = self._rx[::-1]
         self._rx = []
+        return out + self._run_chunk()
+
+    def _run_chunk(self) -> list[tuple[int, bytes]]:
+        """Run the device for one chunk; the frames it sent (recorded, then through the fault hook)."""
         self.dev.run(self.chunk_ticks if self.dev.active else 0)
         frames = self.dev.can_take()
         if self.recorded is not None:
@@ -186,19 +190,12 @@ class InProcessCanBus:
         pairs = [(i, d) for i, d, _ in frames]
         if self.fault_d2h is not None:
             pairs = self.fault_d2h(pairs)
-        return out + pairs
+        return pairs
 
     def recv(self, timeout=None):
         import can
         if not self._rx:
-            self.dev.run(self.chunk_ticks if self.dev.active else 0)
-            frames = self.dev.can_take()
-            if self.recorded is not None:
-                self.recorded.extend((isr * self._ts, i, d) for i, d, isr in frames)
-            pairs = [(i, d) for i, d, _ in frames]
-            if self.fault_d2h is not None:
-                pairs = self.fault_d2h(pairs)
-            self._rx = pairs[::-1]
+            self._rx = self._run_chunk()[::-1]
             if not self._rx:
                 return None
         ident, data = self._rx.pop()
