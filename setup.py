@@ -5,11 +5,18 @@ ctypes; its Python module init is only there so that pip builds and installs it 
 """
 from glob import glob
 
-from setuptools import Extension, setup
+from setuptools import Extension, find_packages, setup
 
 sources = sorted(glob("firmware/core/*.c")) + sorted(glob("firmware/sim/*.c")) + ["pmsm_hil/_fw_module.c"]
 
+# The shipped profiles, motor, rig and flux-map files (profiles/) are package data of
+# pmsm_hil.shipped, so that an installed pmsm-hil finds them from any directory (docs/profiles.md).
+SHIPPED = ["*.yaml", "motors/*.yaml", "rigs/*.yaml", "maps/*.csv"]
+
 setup(
+    packages=find_packages(include=["pmsm_hil", "pmsm_hil.*"]) + ["pmsm_hil.shipped"],
+    package_dir={"pmsm_hil.shipped": "profiles"},
+    package_data={"pmsm_hil.shipped": SHIPPED},
     ext_modules=[
         Extension(
             "pmsm_hil._fw",

@@ -2,6 +2,8 @@
 keep the heartbeat, and end safely whatever happens (profile end, Ctrl-C, fault, dropped link)."""
 from __future__ import annotations
 
+import signal
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -41,6 +43,39 @@ class RunResult:
 
 class RunInterrupted(Exception):
     pass
+
+
+class HostError(Exception):
+    """The host failed during a run (e.g. the log could not be written); the motor was stopped."""
+
+
+class _Interrupts:
+    """SIGINT/SIGTERM/SIGHUP during a run: counted, never raised in the middle of a log write.
+
+    The first asks for a controlled stop, the second for an abort. Handlers are installed only in
+    the main thread (Python's rule) and restored afterwards.
+    """
+
+    SIGNALS = tuple(s for s in (getattr(signal, n, None) for n in ("SIGINT", "SIGTERM", "SIGHUP")) if s)
+
+    def __init__(self):
+        self.count = 0
+        self.signal_name = ""
+        self._old: dict = {}
+
+    def _handler(self, signum, _frame) -> None:
+        self.count += 1
+        self.signal_name = signal.Signals(signum).name
+
+    def __enter__(self) -> "_Interrupts":
+        if threading.current_thread() is threading.main_thread():
+            for s in self.SIGNALS:
+                self._old[s] = signal.signal(s, self._handler)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for s, old in self._old.items():
+            signal.signal(s, old)
 
 
 def _metadata(profile, session: Session, options: RunOptions) -> dict[str, dict[str, str]]:
@@ -87,7 +122,10 @@ def configure(session: Session, profile) -> None:
 
 def run_profile(profile, session: Session, log_path: Path, options: RunOptions | None = None,
                 observer=None) -> RunResult:
-    """Run `profile` on the device behind `session`, logging to `log_path` (MCAP)."""
+    """Run `profile` on the device behind `session`, logging to `log_path` (MCAP).
+
+    Whatever ends the run (profile end, a signal, a fault, a dropped link, a host failure), the
+    device is told to stop (then to abort) before this returns, and the log is finalised."""
     options = options or RunOptions()
     log_path = Path(log_path)
     session.hello()
@@ -95,28 +133,34 @@ def run_profile(profile, session: Session, log_path: Path, options: RunOptions |
     names = [s.name or f"segment {i}" for i, s in enumerate(profile.segments)]
     interrupted = False
     error = ""
-    writer = LogWriter(log_path, _metadata(profile, session, options), _attachments(profile))
+    writer = LogWriter(log_path, _metadata(profile, session, options), _attachments(profile),
+                       wall_start_s=time.time())
     rec = Recorder(writer, profile.control.ts_s, names)
     rec.live.total_s = profile.total_duration_s
+    observer = _SafeObserver(observer)
     try:
-        try:
-            session.request("start")
-            rec.event(0.0, "host", 0, 0, f"started {profile.name} on {session.t.name}")
-            interrupted = _stream(session, rec, options, observer)
-        except KeyboardInterrupt:
-            interrupted = True
-            _stop_device(session, rec, observer)
-        except (TransportError, DeviceError) as e:
-            error = str(e)
-            rec.event(rec.live.t_s, "host", 0, 0, f"link error: {error}")
+        with _Interrupts() as sig:
             try:
-                session.send("abort")
-            except TransportError:
-                pass
-        n_cap = 0
-        if options.capture and not error:
-            n_cap = _upload_capture(session, rec, observer)
-        _write_link_stats(writer, session, rec)
+                session.request("start")
+                rec.event(0.0, "host", 0, 0, f"started {profile.name} on {session.t.name}")
+                interrupted = _stream(session, rec, options, observer, sig)
+                if interrupted:
+                    _stop_device(session, rec, observer, sig)
+            except KeyboardInterrupt:    # raised outside the handlers (not the main thread)
+                interrupted = True
+                _stop_device(session, rec, observer, sig)
+            except (TransportError, DeviceError) as e:
+                error = str(e)
+                rec.event(rec.live.t_s, "host", 0, 0, f"link error: {error}")
+                _send_quietly(session, "abort")
+            except Exception as e:       # a host failure: stop the motor, then report it
+                _send_quietly(session, "stop")
+                _send_quietly(session, "abort")
+                raise HostError(f"{type(e).__name__}: {e}; stop and abort were sent to the device") from e
+            n_cap = 0
+            if options.capture and not error and not sig.count > 1:
+                n_cap = _upload_capture(session, rec, observer)
+            _write_link_stats(writer, session, rec)
     finally:
         writer.close()
     live = rec.live
@@ -125,7 +169,36 @@ def run_profile(profile, session: Session, log_path: Path, options: RunOptions |
                      capture_samples=n_cap if not error else 0, live=live)
 
 
-def _stream(session: Session, rec: Recorder, options: RunOptions, observer) -> bool:
+def _send_quietly(session: Session, what: str) -> None:
+    try:
+        session.send(what)
+    except Exception:   # the link is gone too: the device stops on its heartbeat timeout
+        pass
+
+
+class _SafeObserver:
+    """The live view must never end a run: a closed pipe or a terminal error silences it."""
+
+    def __init__(self, observer):
+        self.inner = observer
+
+    def update(self, live) -> None:
+        self._call("update", live)
+
+    def message(self, text: str) -> None:
+        self._call("message", text)
+
+    def _call(self, name: str, arg) -> None:
+        if self.inner is None:
+            return
+        try:
+            getattr(self.inner, name)(arg)
+        except (OSError, ValueError):    # BrokenPipeError, a closed or detached stream
+            self.inner = None
+
+
+def _stream(session: Session, rec: Recorder, options: RunOptions, observer, sig) -> bool:
+    """Stream until the device stops (False) or a signal asks the host to stop (True)."""
     live = rec.live
     last_hb_dev = -1.0
     last_hb_wall = 0.0
@@ -134,6 +207,8 @@ def _stream(session: Session, rec: Recorder, options: RunOptions, observer) -> b
     hb_counter = 0
     stop_sent = False
     while True:
+        if sig.count:
+            return True
         frames = session.poll(0.02)
         now = time.monotonic()
         if frames:
@@ -170,24 +245,35 @@ def _bad_frames(session: Session) -> int:
     return sum(getattr(d, k, 0) for k in ("crc_errors", "cobs_errors", "len_errors", "unknown_id"))
 
 
-def _stop_device(session: Session, rec: Recorder, observer) -> None:
-    """Ctrl-C: ask for a controlled stop, keep logging until the device reports it (or abort)."""
+def _stop_device(session: Session, rec: Recorder, observer, sig) -> None:
+    """A signal: ask for a controlled stop, keep logging until the device reports it; a second
+    signal, or 5 s without the stop, sends abort."""
     live = rec.live
-    rec.event(live.t_s, "host", 0, 0, "interrupted by the user: stop sent")
-    if observer is not None:
-        observer.message("interrupted: stopping the motor (Ctrl-C again to abort)")
+    why = sig.signal_name or "SIGINT"
+    rec.event(live.t_s, "host", 0, 0, f"interrupted by {why}: stop sent")
+    observer.message("interrupted: stopping the motor (Ctrl-C again to abort)")
+    first = sig.count
     try:
         session.send("stop")
         deadline = time.monotonic() + 5.0
         while time.monotonic() < deadline and not live.stopped:
+            if sig.count > max(first, 1):
+                session.send("abort")
+                rec.event(live.t_s, "host", 0, 0, "interrupted twice: abort sent")
+                break
             frames = session.poll(0.02)
             rec.frames(frames)
             session.send("heartbeat", counter=0)
-        if not live.stopped:
-            session.send("abort")
-            rec.event(live.t_s, "host", 0, 0, "device did not stop within 5 s: abort sent")
+        else:
+            if not live.stopped:
+                session.send("abort")
+                rec.event(live.t_s, "host", 0, 0, "device did not stop within 5 s: abort sent")
+        # the status frame that follows the stop
+        end = time.monotonic() + 0.1
+        while time.monotonic() < end:
+            rec.frames(session.poll(0.02))
     except KeyboardInterrupt:
-        session.send("abort")
+        _send_quietly(session, "abort")
         rec.event(live.t_s, "host", 0, 0, "interrupted twice: abort sent")
     except (TransportError, DeviceError) as e:
         rec.event(live.t_s, "host", 0, 0, f"link error while stopping: {e}")

@@ -22,8 +22,15 @@ def run_inproc(profile_path, out, seed=1, rig=None, **opts):
 
 
 def raw_messages(path, topics=DEVICE_TOPICS):
+    """(topic, device time in ns, payload) of every message: log_time is wall-clock (the run's
+    start plus device time), so the run's start, kept in the metadata, is taken off."""
     out = []
     with open(path, "rb") as f:
-        for schema, channel, msg in make_reader(f).iter_messages(topics=list(topics)):
-            out.append((channel.topic, msg.log_time, bytes(msg.data)))
+        reader = make_reader(f)
+        offset = 0
+        for m in reader.iter_metadata():
+            if m.name == "log":
+                offset = int(m.metadata.get("log_time_offset_ns", "0"))
+        for schema, channel, msg in reader.iter_messages(topics=list(topics)):
+            out.append((channel.topic, msg.log_time - offset, bytes(msg.data)))
     return out

@@ -51,14 +51,27 @@ class RunSummary:
     faults: list[str] = field(default_factory=list)
     duration_s: float = 0.0
     frames: int = 0
+    # completeness: what the log holds against what the run was to play
+    expected: list[str] = field(default_factory=list)   # the profile's segment names (metadata)
+    missing: list[int] = field(default_factory=list)    # segments the log never shows starting
+    partial: list[int] = field(default_factory=list)    # segments the log shows cut short
+    ended: str = ""                 # "profile end", "stopped: REASON", or "" (the log just ends)
+    problems: list[str] = field(default_factory=list)   # truncated file, no summary section, ...
+
+    @property
+    def complete(self) -> bool:
+        return self.ended == "profile end" and not self.missing and not self.partial and not self.problems
 
     @property
     def ok(self) -> bool:
-        return all(s.mean_ok and s.recovery_ok is not False for s in self.segments) and not self.faults
+        return (self.complete and not self.faults
+                and all(s.mean_ok and s.recovery_ok is not False for s in self.segments))
 
     def as_dict(self) -> dict:
-        return {"path": self.path, "ok": self.ok, "duration_s": self.duration_s,
-                "faults": self.faults, "segments": [asdict(s) for s in self.segments]}
+        return {"path": self.path, "ok": self.ok, "complete": self.complete, "ended": self.ended,
+                "duration_s": self.duration_s, "faults": self.faults, "missing": self.missing,
+                "partial": self.partial, "problems": self.problems,
+                "segments": [asdict(s) for s in self.segments]}
 
 
 def _moving_average(x: np.ndarray, n: int) -> np.ndarray:
@@ -98,11 +111,29 @@ def summarize(tel: dict, events: dict, names: list[str] | None = None, path: str
     ev_t = np.asarray(events.get("t_s", []), dtype=float)
     ev_arg = np.asarray(events.get("arg", []), dtype=int)
     starts = [(float(ev_t[i]), int(ev_arg[i])) for i, k in enumerate(kinds) if k == "segment_start"]
-    ends = [float(ev_t[i]) for i, k in enumerate(kinds) if k in ("profile_done", "stopped")]
+    texts = [str(x) for x in events.get("text", [])]
+    # the run's end: the profile's end, a stop, or the moment the host asked for one (a partial
+    # segment is judged up to there, not through the quick stop that follows)
+    ends = [float(ev_t[i]) for i, k in enumerate(kinds)
+            if k in ("profile_done", "stopped", "heartbeat_lost")
+            or (k == "host" and texts[i].startswith(("interrupted", "stop requested")))]
     fault_events = [(float(ev_t[i]), str(events["text"][i])) for i, k in enumerate(kinds)
                     if k in ("fault", "heartbeat_lost")]
     summary = RunSummary(path=path, duration_s=float(t[-1]) if len(t) else 0.0, frames=len(t),
-                         faults=[f"{ts:.3f} s {txt}" for ts, txt in fault_events])
+                         faults=[f"{ts:.3f} s {txt}" for ts, txt in fault_events],
+                         expected=list(names or []))
+    done = [i for i, k in enumerate(kinds) if k == "profile_done"]
+    stops = [i for i, k in enumerate(kinds) if k == "stopped"]
+    if done:
+        summary.ended = "profile end"
+    elif stops:
+        text = str(events["text"][stops[0]])
+        summary.ended = text if text.startswith("stopped") else f"stopped: {text}"
+    seen = {idx for _, idx in starts}
+    if names:
+        summary.missing = [i for i in range(len(names)) if i not in seen]
+        if not done and starts:
+            summary.partial = [starts[-1][1]]
     prev_load = 0.0
     for k, (t0, idx) in enumerate(starts):
         t1 = starts[k + 1][0] if k + 1 < len(starts) else (min(ends) if ends else summary.duration_s)
@@ -147,18 +178,36 @@ def summarize(tel: dict, events: dict, names: list[str] | None = None, path: str
     return summary
 
 
+def log_problems(log) -> list[str]:
+    """What is wrong with the file itself: truncation, a missing summary section, no data."""
+    out = []
+    total = sum(log.counts.values())
+    if log.truncated:
+        out.append(f"the file ends inside a record (truncated); {total} messages recovered")
+    elif not log.finalised:
+        out.append(f"the file has no summary section (the writer did not finish); {total} messages "
+                   f"recovered")
+    out += [str(p) for p in getattr(log, "problems", [])]
+    return out
+
+
 def summarize_log(path: Path) -> RunSummary:
+    """The summary of a log file; raises LogFormatError (not MCAP) or ValueError (empty file)."""
+    if Path(path).stat().st_size == 0:
+        raise ValueError(f"{path}: the file is empty (0 octets): no run was recorded")
     log = read_log(path)
     names = None
     meta = log.metadata.get("run", {}) if hasattr(log, "metadata") else {}
     if meta.get("segment_names"):
         names = meta["segment_names"].split("|")
     truth = log.topic("/sim/truth") if "/sim/truth" in log.topics else None
-    return summarize(log.topic("/pmsm/telemetry"), log.topic("/pmsm/events"), names, str(path),
-                     truth)
+    summary = summarize(log.topic("/pmsm/telemetry"), log.topic("/pmsm/events"), names, str(path),
+                        truth)
+    summary.problems = log_problems(log)
+    return summary
 
 
-def print_summary(summary: RunSummary, console=None) -> None:
+def print_summary(summary: RunSummary, console=None, interrupted: bool = False) -> None:
     from rich.console import Console
     from rich.table import Table
 
@@ -187,5 +236,41 @@ def print_summary(summary: RunSummary, console=None) -> None:
     console.print(tab)
     for f in summary.faults:
         console.print(f"[red]fault[/] {f}")
-    verdict = "[green]all plateaus within bounds[/]" if summary.ok else "[red]bounds missed[/]"
-    console.print(f"{len(summary.segments)} segments, {summary.duration_s:.2f} s: {verdict}")
+    for p in summary.problems:
+        console.print(f"[yellow]log[/] {p}")
+    console.print(f"{len(summary.segments)} segments, {summary.duration_s:.2f} s: {verdict_text(summary, interrupted)}")
+
+
+def verdict_text(summary: RunSummary, interrupted: bool = False) -> str:
+    """One line: whether every plateau the run was to play was seen and within its bounds."""
+    names = summary.expected
+
+    def seg_list(idx: list[int]) -> str:
+        if len(idx) == 1:
+            i = idx[0]
+            return f"segment {i} {names[i]!r}" if i < len(names) else f"segment {i}"
+        runs, start = [], idx[0]
+        for a, b in zip(idx, idx[1:] + [None]):
+            if b != a + 1:
+                runs.append(f"{start}" if start == a else f"{start}-{a}")
+                start = b
+        return f"segments {', '.join(runs)} ({len(idx)} of {len(names)})"
+    if summary.complete:
+        return "[green]all plateaus within bounds[/]" if summary.ok else "[red]bounds missed[/]"
+    parts = []
+    if interrupted:
+        parts.append("run interrupted")
+    if summary.ended and summary.ended != "profile end":
+        parts.append(summary.ended)
+    elif not summary.ended:
+        parts.append("the log ends before the run did")
+    if summary.partial:
+        parts.append(f"partial: {seg_list(summary.partial)}")
+    if summary.missing:
+        parts.append(f"missing: {seg_list(summary.missing)}")
+    if summary.problems and not summary.partial and not summary.missing:
+        parts.append("the file is damaged")
+    missed = [s.index for s in summary.segments if not (s.mean_ok and s.recovery_ok is not False)]
+    seen = ("bounds missed in the segments seen" if missed else
+            "segments seen are within bounds")
+    return f"[red]INCOMPLETE[/] ({'; '.join(parts)}): {seen}, the others were not checked"

@@ -9,28 +9,43 @@ from pmsm_hil.cli.errors import fail
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("analyze", help="summarise a run log (per segment: speed error, ripple, faults)")
+    p = sub.add_parser("analyze", help="summarise a run log (per segment: speed error, ripple, faults)",
+                       description="Per-segment summary of a run log, and the identification table "
+                                   "when estimators ran. Exit 0: the whole run is in the log and "
+                                   "within bounds; 1: bounds missed, or the log is incomplete "
+                                   "(truncated, interrupted, segments missing); 2: not a log.")
     p.add_argument("log", help="MCAP log written by `pmsm-hil run`")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
 
 
+def identification(path):
+    """The identification table of a log, or None when no estimator ran."""
+    from pmsm_hil.analysis.identification import identification_table
+    try:
+        t = identification_table(path)
+    except (KeyError, ValueError):
+        return None
+    return t if t.cells else None
+
+
+def print_identification(table) -> None:
+    from pmsm_hil.analysis.identification import text_table
+    print()
+    print(text_table(table))
+
+
 def main(args: argparse.Namespace) -> int:
     from pmsm_hil.analysis.summary import print_summary, summarize_log
+    from pmsm_hil.log.reader import LogFormatError
 
     path = Path(args.log)
-    if not path.exists():
+    if not path.is_file():
         return fail("error", f"{path}: no such file", 2)
     try:
         summary = summarize_log(path)
-    except Exception as e:
+    except (LogFormatError, ValueError, OSError) as e:
         return fail("error", f"{path}: not a readable pmsm-hil log ({e})", 2)
-    ident = None
-    try:
-        from pmsm_hil.analysis.identification import identification_table
-        t = identification_table(path)
-        ident = t if t.cells else None
-    except (KeyError, ValueError):
-        ident = None
+    ident = identification(path)
     if args.json:
         d = summary.as_dict()
         if ident is not None:
@@ -39,7 +54,5 @@ def main(args: argparse.Namespace) -> int:
     else:
         print_summary(summary)
         if ident is not None:
-            from pmsm_hil.analysis.identification import text_table
-            print()
-            print(text_table(ident))
-    return 0
+            print_identification(ident)
+    return 0 if summary.ok else 1

@@ -5,9 +5,9 @@ import argparse
 import sys
 
 from pmsm_hil import __version__
-from pmsm_hil.cli import analyze, bench, emulate, run
+from pmsm_hil.cli import analyze, bench, emulate, profiles, run
 
-COMMANDS = {"run": run, "emulate": emulate, "analyze": analyze, "bench": bench}
+COMMANDS = {"run": run, "emulate": emulate, "analyze": analyze, "bench": bench, "profiles": profiles}
 
 EXIT_USER_ERROR = 2    # bad input: profile, file, option
 EXIT_DEVICE_ERROR = 3  # link or device: no answer, mismatch, dropped link, fault
@@ -25,9 +25,23 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _quiet_libraries() -> None:
+    """python-can's socketcand client logs every partial TCP read as a warning ("Got incomplete
+    message"): normal on a stream, noise on a terminal. Its real errors are raised, not logged."""
+    import logging
+    logging.getLogger("can").setLevel(logging.ERROR)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    return COMMANDS[args.command].main(args)
+    _quiet_libraries()
+    try:
+        return COMMANDS[args.command].main(args)
+    except BrokenPipeError:
+        # the reader of our output went away (`| head`): the work itself has ended cleanly
+        import os
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
 
 
 if __name__ == "__main__":

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
 
@@ -9,10 +10,11 @@ from pmsm_hil.cli.errors import fail, report
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("run", help="run a speed/load profile (on the emulator unless --port)",
+    p = sub.add_parser("run", help="run a speed/load profile (on the emulator unless --port/--can)",
                        description="Downloads PROFILE to the device, runs it, shows a live view and "
                                    "logs everything to MCAP. Without --port the emulator is started.")
-    p.add_argument("profile", help="profile YAML, e.g. profiles/paper-a.yaml")
+    p.add_argument("profile", help="profile YAML, or the name of a shipped profile (`pmsm-hil profiles`), "
+                                   "e.g. profiles/paper-a.yaml or paper-a")
     p.add_argument("--out", "-o", default=None,
                    help="MCAP log to write (default: runs/PROFILE-YYYYmmdd-HHMMSS.mcap)")
     p.add_argument("--port", default=None, help="serial port of a rig, e.g. /dev/ttyUSB0")
@@ -21,8 +23,17 @@ def add_parser(sub) -> None:
                         "socketcan:can0, pcan:PCAN_USBBUS1 (options ,bitrate=N,node=N); "
                         "bare --can or `emulator` starts the emulator on CAN (README, docs/can.md)")
     p.add_argument("--baud", type=int, default=None, help="serial bit rate (default: the profile's)")
-    p.add_argument("--rig", default=None, help="rig file for the emulator (default: the profile's)")
+    p.add_argument("--motor", default=None,
+                   help="motor file (or shipped name) instead of the profile's, e.g. a commissioned one")
+    p.add_argument("--rig", default=None,
+                   help="rig file (or shipped name) for the emulator (default: the profile's)")
     p.add_argument("--seed", type=int, default=1, help="emulator noise seed (default 1)")
+    p.add_argument("--pace", type=float, default=None, metavar="X",
+                   help="run the emulator at X times real time (1 = real time) so the live view can "
+                        "be watched (default: as fast as possible)")
+    p.add_argument("--decimate", action="store_true",
+                   help="when the link cannot carry the profile's telemetry, lower the fast-frame "
+                        "rate to what fits (default: refuse the run and show the budget)")
     p.add_argument("--no-live", action="store_true", help="plain progress lines instead of the live view")
     p.add_argument("--stop-after", type=float, default=None, metavar="S",
                    help="ask the device to stop after S seconds of device time")
@@ -33,66 +44,149 @@ def default_log_path(profile_path: str) -> Path:
     return Path("runs") / f"{stem}-{time.strftime('%Y%m%d-%H%M%S')}.mcap"
 
 
+def _rig_path(args, profile) -> str | None:
+    return args.rig or (str(profile.rig.path) if profile.rig.path else None)
+
+
 def open_transport(args, profile):
     from pmsm_hil.transport.emulator import EmulatorTransport
     from pmsm_hil.transport.serial_port import SerialTransport
 
-    if getattr(args, "can", None) is not None:   # docs/can.md
+    if args.can is not None:   # docs/can.md
         from pmsm_hil.transport.can_bus import open_for_run
-        rig_path = args.rig or (str(profile.rig.path) if getattr(profile.rig, "path", None) else None)
-        return open_for_run(args.can, profile, rig_path, args.seed)
+        return open_for_run(args.can, profile, _rig_path(args, profile), args.seed, pace=args.pace)
     baud = args.baud or profile.link.baud
     if args.port:
         return SerialTransport(args.port, baud)
-    rig_path = args.rig or (str(profile.rig.path) if getattr(profile.rig, "path", None) else None)
-    return EmulatorTransport(str(profile.motor.path), rig_path, args.seed, baud)
+    return EmulatorTransport(str(profile.motor.path), _rig_path(args, profile), args.seed, baud,
+                             pace=args.pace)
+
+
+def budget_text(budget: dict, baud: int) -> str:
+    lines = [f"link budget at {baud} baud ({budget['capacity_octets_s']:.0f} octets/s):"]
+    for name, st in budget["streams"].items():
+        if st["octets_s"]:
+            lines.append(f"  {name:<10} {st['rate_hz'] * st['count']:8.1f} frames/s x {st['frame_octets']:3d} "
+                         f"octets = {st['octets_s']:8.0f} octets/s ({100 * st['share']:5.1f} %)")
+    lines.append(f"  total {budget['total_octets_s']:.0f} octets/s = {100 * budget['load']:.0f} % of the link")
+    return "\n".join(lines)
+
+
+def check_link_budget(args, profile) -> int | None:
+    """Serial links: refuse telemetry that the link cannot carry, or decimate it (--decimate)."""
+    from pmsm_hil.profiles import link_budget
+
+    if args.can is not None:
+        return None          # CAN rates are fitted to the bus in open_for_run (docs/can.md)
+    baud = args.baud or profile.link.baud
+    profile.link = profile.link.model_copy(update={"baud": baud})
+    budget = link_budget(profile, emulator=not args.port)
+    if budget["load"] <= 1.0:
+        return None
+    if not args.decimate or budget["fast_hz_fit"] <= 0:
+        why = ("no fast-frame rate fits beside the other streams; lower telemetry.params_hz/status_hz "
+               "or raise the bit rate" if budget["fast_hz_fit"] <= 0 else
+               f"lower telemetry.fast_hz to {budget['fast_hz_fit']:g} Hz, raise --baud, or pass "
+               f"--decimate to run at {budget['fast_hz_fit']:g} Hz")
+        return fail("error", f"{profile.path}: the link cannot carry this telemetry; {why}\n"
+                             f"{budget_text(budget, baud)}", 2)
+    old = profile.telemetry.fast_hz
+    profile.telemetry = profile.telemetry.model_copy(update={"fast_hz": budget["fast_hz_fit"]})
+    report("note", f"telemetry.fast_hz decimated from {old:g} Hz to {budget['fast_hz_fit']:g} Hz to fit "
+                   f"{baud} baud (--decimate)")
+    return None
+
+
+def _check_out(out: Path) -> int | None:
+    if out.suffix != ".mcap":
+        return fail("error", f"--out {out}: the log is MCAP, name it *.mcap", 2)
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        with open(out, "ab"):
+            pass
+    except OSError as e:
+        return fail("error", f"--out {out}: cannot write the log there ({e.strerror or e})", 2)
+    return None
+
+
+def _load(args):
+    from pmsm_hil.profiles import load_profile
+    from pmsm_hil.profiles.shipped import resolve
+
+    path = resolve(args.profile, "profile")
+    rig = resolve(args.rig, "rig") if args.rig else None
+    motor = resolve(args.motor, "motor") if args.motor else None
+    args.rig = rig
+    return load_profile(path, rig_override=rig, motor_override=motor)
 
 
 def main(args: argparse.Namespace) -> int:
     from pmsm_hil.analysis.summary import print_summary, summarize_log
     from pmsm_hil.cli.live import LiveView, PlainProgress
-    from pmsm_hil.profiles import ProfileError, load_profile
+    from pmsm_hil.profiles import ProfileError
     from pmsm_hil.protocol.session import DeviceError, Session
-    from pmsm_hil.runner import RunOptions, run_profile
-    from pmsm_hil.transport.base import TransportError
+    from pmsm_hil.runner import HostError, RunOptions, run_profile
+    from pmsm_hil.transport.base import TransportError, TransportSpecError
 
     try:
-        profile = load_profile(args.profile, rig_override=args.rig)
+        profile = _load(args)
     except ProfileError as e:
         return fail("error", str(e), 2)
-    except FileNotFoundError as e:
-        return fail("error", f"{e.filename}: no such file", 2)
     if args.baud is not None and args.baud <= 0:
         return fail("error", f"--baud {args.baud}: must be a positive bit rate", 2)
+    if args.pace is not None and not 0.001 <= args.pace <= 1000:
+        return fail("error", f"--pace {args.pace}: must be between 0.001 and 1000 (times real time)", 2)
+    if args.pace is not None and (args.port or (args.can not in (None, "emulator", ""))):
+        return fail("error", "--pace sets the emulator's speed; a rig runs in real time", 2)
+    for w in profile.warnings:
+        report("warning", w)
+    code = check_link_budget(args, profile)
+    if code is not None:
+        return code
     out = Path(args.out) if args.out else default_log_path(args.profile)
-    if out.suffix != ".mcap":
-        return fail("error", f"--out {out}: the log is MCAP, name it *.mcap", 2)
-    out.parent.mkdir(parents=True, exist_ok=True)
+    existed = out.exists()
+    code = _check_out(out)
+    if code is not None:
+        return code
 
     try:
         transport = open_transport(args, profile)
     except TransportError as e:
-        return fail("error", str(e), 3)
+        if not existed:
+            out.unlink(missing_ok=True)
+        return fail("error", str(e), 2 if isinstance(e, TransportSpecError) else 3)
     names = [s.name or f"segment {i}" for i, s in enumerate(profile.segments)]
-    observer = (PlainProgress() if args.no_live
-                else LiveView(f"{profile.name} on {transport.name}", transport.bit_rate, names))
-    rig_name = args.rig or str(getattr(profile.rig, "path", "") or "")
+    live_view = not args.no_live and sys.stdout.isatty()
+    observer = (LiveView(f"{profile.name} on {transport.name}", transport.bit_rate, names) if live_view
+                else PlainProgress())
     is_rig = args.port or (args.can is not None and not args.can.startswith("emulator"))
-    options = RunOptions(seed=None if is_rig else args.seed, rig_name=rig_name,
+    options = RunOptions(seed=None if is_rig else args.seed, rig_name=args.rig or str(profile.rig.path or ""),
                          stop_after_s=args.stop_after)
     try:
         with observer:
             result = run_profile(profile, Session(transport), out, options, observer)
     except (DeviceError, TransportError) as e:
         return fail("error", str(e), 3)
+    except HostError as e:
+        return fail("error", f"{e} (log: {out})", 3)
     finally:
         transport.close()
+    return _finish(result, print_summary, summarize_log)
 
-    print(f"log: {result.log_path}")
+
+def _finish(result, print_summary, summarize_log) -> int:
     try:
+        print(f"log: {result.log_path}")
         summary = summarize_log(result.log_path)
-        print_summary(summary)
-    except Exception as e:  # the log is written; a summary problem must not hide it
+        print_summary(summary, interrupted=result.interrupted or bool(result.error))
+        from pmsm_hil.cli.analyze import identification, print_identification
+        ident = identification(result.log_path)
+        if ident is not None:
+            print_identification(ident)
+    except BrokenPipeError:   # `| head`: the reader left; the exit code still tells how the run ended
+        import os
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    except (OSError, ValueError, KeyError) as e:   # the log is written; a summary problem must not hide it
         report("warning", f"could not summarise {result.log_path}: {e}")
     if result.error:
         return fail("error", f"{result.error} (log kept: {result.log_path})", 3)

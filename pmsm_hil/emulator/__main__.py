@@ -1,6 +1,6 @@
-"""python -m pmsm_hil.emulator: the same as `pmsm-hil emulate`."""
+"""`python -P -m pmsm_hil.emulator`: the emulator process (see entry.py)."""
 import sys
 
-from pmsm_hil.cli.main import main
+from pmsm_hil.emulator.entry import main
 
-sys.exit(main(["emulate", *sys.argv[1:]]))
+sys.exit(main())

@@ -1,5 +1,11 @@
-"""The emulator as a child process: start `python -m pmsm_hil.emulator ...`, wait for the line in
-which it announces where it serves (`serial: PATH` or `can: SPEC`), stop it."""
+"""The emulator as a child process: start `python -P -m pmsm_hil.emulator ...`, wait for the line
+in which it announces where it serves (`serial: PATH` or `can: SPEC`), stop it.
+
+- `-P` (safe path): the working directory is not put on the child's import path, so it imports the
+  installed package even when started from a source checkout (whose tree has no compiled `_fw`).
+- A session of its own: the terminal's Ctrl-C (SIGINT to the foreground process group) reaches the
+  host only, which stops the motor through the link and then ends the child itself.
+"""
 from __future__ import annotations
 
 import os
@@ -12,8 +18,9 @@ from pmsm_hil.transport.base import TransportError
 
 
 def start(args: list[str]) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "pmsm_hil.emulator", *args],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, stdin=subprocess.DEVNULL)
+    return subprocess.Popen([sys.executable, "-P", "-m", "pmsm_hil.emulator", *args],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, stdin=subprocess.DEVNULL,
+                            start_new_session=True)
 
 
 def wait_for_announcement(proc: subprocess.Popen, prefix: str, timeout_s: float) -> str:

@@ -3,6 +3,7 @@
 Device time runs as fast as the host keeps up, but never more than half the firmware's heartbeat
 timeout ahead of the last heartbeat it received. When the host falls silent the emulator falls back
 to real time, so the firmware's heartbeat timeout fires after the same wall time as on a rig.
+With a pace X (`--pace`), device time never runs faster than X times wall time either.
 """
 from __future__ import annotations
 
@@ -26,12 +27,28 @@ class Pacer:
     """Decides how many control periods may run now (see the module docstring)."""
 
     lead_fraction: float = 0.5
+    pace: float | None = None          # at most this many times real time (None: no limit)
     _last_hb: int = -1
     _anchor: tuple[float, int] | None = field(default=None)
+    _pace_anchor: tuple[float, int] | None = field(default=None)
 
     def allowance(self, dev: EmulatedDevice, now: float) -> int:
-        timeout = dev.get("heartbeat_timeout_s") or 0.5
         ts_s = dev.get("ts_s")
+        n = self._heartbeat_allowance(dev, now, ts_s)
+        if self.pace is None:
+            return n
+        isr = dev.isr_count
+        if self._pace_anchor is None or isr < self._pace_anchor[1]:
+            self._pace_anchor = (now, isr)
+        paced = int((now - self._pace_anchor[0]) * self.pace / ts_s) - (isr - self._pace_anchor[1])
+        return max(0, min(n, paced))
+
+    def idle(self) -> None:
+        """The device is not running: the pace restarts from the next start."""
+        self._pace_anchor = None
+
+    def _heartbeat_allowance(self, dev: EmulatedDevice, now: float, ts_s: float) -> int:
+        timeout = dev.get("heartbeat_timeout_s") or 0.5
         lead_ticks = int(self.lead_fraction * timeout / ts_s)
         hb, isr = dev.heartbeat_isr, dev.isr_count
         if hb != self._last_hb:
@@ -67,9 +84,10 @@ class LinkCorrupter:
 class PtyServer:
     """Serves one EmulatedDevice on a pty until stopped."""
 
-    def __init__(self, device: EmulatedDevice, corrupt_ppm: float = 0.0, seed: int = 1):
+    def __init__(self, device: EmulatedDevice, corrupt_ppm: float = 0.0, seed: int = 1,
+                 pace: float | None = None):
         self.dev = device
-        self.pacer = Pacer()
+        self.pacer = Pacer(pace=pace)
         self.corrupt = LinkCorrupter(corrupt_ppm, seed) if corrupt_ppm > 0 else None
         self.master, self.slave = os.openpty()
         tty.setraw(self.slave)
@@ -84,7 +102,11 @@ class PtyServer:
     def serve(self) -> None:
         while not self._stop:
             now = time.monotonic()
-            ticks_allowed = self.pacer.allowance(self.dev, now) if self.dev.active else 0
+            if self.dev.active:
+                ticks_allowed = self.pacer.allowance(self.dev, now)
+            else:
+                ticks_allowed = 0
+                self.pacer.idle()
             can_run = len(self._pending) < MAX_PENDING
             busy = self.dev.active and ticks_allowed > 0 and can_run
             wait = 0.0 if busy else 0.002
@@ -119,10 +141,11 @@ class PtyServer:
                 pass
 
 
-def serve_pty(settings: dict[str, float], announce=print, corrupt_ppm: float = 0.0) -> None:
+def serve_pty(settings: dict[str, float], announce=print, corrupt_ppm: float = 0.0,
+              pace: float | None = None) -> None:
     """Run the emulator on a pty, printing `serial: PATH`, until SIGINT/SIGTERM."""
     dev = EmulatedDevice(settings)
-    server = PtyServer(dev, corrupt_ppm, int(settings.get("seed", 1)))
+    server = PtyServer(dev, corrupt_ppm, int(settings.get("seed", 1)), pace=pace)
     signal.signal(signal.SIGTERM, server.stop)
     signal.signal(signal.SIGINT, server.stop)
     announce(f"serial: {server.path}")

@@ -35,9 +35,9 @@ def format_frames(frames, ts_s: float) -> bytes:
 
 class SocketcandServer:
     def __init__(self, device: EmulatedDevice, host: str = "127.0.0.1", port: int = 0,
-                 channel: str = CHANNEL):
+                 channel: str = CHANNEL, pace: float | None = None):
         self.dev = device
-        self.pacer = Pacer()
+        self.pacer = Pacer(pace=pace)
         self.channel = channel
         self.lsock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
         self.lsock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
@@ -142,6 +142,8 @@ class SocketcandServer:
             now = time.monotonic()
             active = self.dev.active
             ticks = self.pacer.allowance(self.dev, now) if active else 0
+            if not active:
+                self.pacer.idle()
             can_run = len(self._pending) < MAX_PENDING
             busy = active and ticks > 0 and can_run
             rl = [self.lsock] + ([self.client] if self.client is not None else [])
@@ -175,10 +177,11 @@ class SocketcandServer:
             pass
 
 
-def serve_socketcand(settings: dict[str, float], announce=print, port: int = 0) -> None:
+def serve_socketcand(settings: dict[str, float], announce=print, port: int = 0,
+                     pace: float | None = None) -> None:
     """Run the emulator on a socketcand endpoint, printing `can: SPEC`, until SIGINT/SIGTERM."""
     dev = EmulatedDevice(settings)
-    server = SocketcandServer(dev, port=port)
+    server = SocketcandServer(dev, port=port, pace=pace)
     signal.signal(signal.SIGTERM, server.stop)
     signal.signal(signal.SIGINT, server.stop)
     spec = server.spec

@@ -5,7 +5,9 @@
         w.write("/pmsm/telemetry", t_s, {"speed_ref_rpm": 15.0, ...})
         w.write_many("/pmsm/telemetry", {"t_s": t, "speed_rpm": speed, ...})   # columns
 
-- log_time = publish_time = round(t_s * 1e9): device time, so the same messages give the same file.
+- log_time = publish_time = round(t_s * 1e9) + the run's wall-clock start (``wall_start_s``, Unix
+  time; 0 when not given): Foxglove shows real dates, ``t_s`` in every message stays device time.
+  Without ``wall_start_s`` the same messages give the same file.
 - The MCAP records are written here (not by ``mcap.writer``) so that a telemetry message costs one
   ``struct.pack``; the output is checked against the ``mcap`` reader and ``mcap_ros2`` decoder.
 - A chunk is closed and written (then flushed to the OS) when it holds ``chunk_size`` octets or
@@ -154,8 +156,9 @@ class LogWriter:
     def __init__(self, path: str | os.PathLike, metadata: Mapping[str, Mapping[str, str]] | None = None,
                  attachments: Iterable[tuple[str, str, bytes]] = (), *, compression: str | None = None,
                  chunk_size: int = 1 << 20, chunk_span_s: float = 1.0, fsync: bool = False,
-                 topics: Iterable[TopicDef] = ()):
+                 topics: Iterable[TopicDef] = (), wall_start_s: float | None = None):
         self.path = os.fspath(path)
+        self._off_ns = int(round(wall_start_s * 1e9)) if wall_start_s else 0
         if compression is None:
             compression = available_compressions()[0]
         self._compression = compression
@@ -196,7 +199,8 @@ class LogWriter:
         self._emit(MCAP_MAGIC + _record(OP_HEADER, _s(PROFILE) + _s(LIBRARY)))
         meta = {str(k): {str(a): str(b) for a, b in v.items()} for k, v in (metadata or {}).items()}
         meta.setdefault("log", {"format_version": str(LOG_FORMAT_VERSION), "schema_hash": schema_hash(),
-                                "library": LIBRARY, "compression": compression or "none"})
+                                "library": LIBRARY, "compression": compression or "none",
+                                "log_time_offset_ns": str(self._off_ns)})
         for name, rec in meta.items():
             self.add_metadata(name, rec)
         for att in attachments:
@@ -279,6 +283,7 @@ class LogWriter:
             lt = round(t_s * 1e9)
             if lt < 0:
                 raise ValueError
+            lt += self._off_ns
         except (ValueError, OverflowError, TypeError):
             raise ValueError(f"{topic}: t_s = {t_s!r} is not a device time (finite, >= 0 s)") from None
         rec = None
@@ -388,7 +393,7 @@ class LogWriter:
                 self.write(topic, float(t[i]), {nm: (c[i].item() if hasattr(c[i], "item") else c[i])
                                                 for nm, c in present})
             return count
-        lt = np.rint(t * 1e9).astype(np.uint64)
+        lt = np.rint(t * 1e9).astype(np.uint64) + np.uint64(self._off_ns)
         if np.any(t < 0) or not np.all(np.isfinite(t)):
             raise ValueError(f"{topic}: t_s must be finite and >= 0")
         recs = np.zeros(count, dtype=ch.rec_dtype)

@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import hashlib
 import math
-import os
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict, PrivateAttr
@@ -64,12 +63,6 @@ def meta_value(v: Any) -> str:
 
 
 def default_file(rel: str) -> str:
-    """A shipped file under profiles/ (``rel`` like "rigs/default.yaml"): in the source tree
-    beside the package, else under ./profiles of the working directory."""
-    here = os.path.dirname(os.path.abspath(__file__))
-    candidates = [os.path.join(os.path.dirname(os.path.dirname(here)), "profiles", rel),
-                  os.path.join("profiles", rel)]
-    for c in candidates:
-        if os.path.isfile(c):
-            return c
-    return candidates[-1]
+    """A shipped file by its path in the shipped tree (``rel`` like "rigs/default.yaml")."""
+    from .shipped import shipped_file
+    return shipped_file(rel)

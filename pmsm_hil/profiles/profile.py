@@ -320,19 +320,20 @@ def link_budget(profile: Profile, *, emulator: bool = True, n_estimators: int | 
                          "frame_octets": frame, "octets_s": octets, "share": octets / capacity}
     load = total / capacity
     warning = None
+    others = total - streams["telem_fast"]["octets_s"]
+    frame = streams["telem_fast"]["frame_octets"]
+    fit = max((capacity - others) / frame, 0.0)
+    ctrl = profile.control_hz
+    n = math.ceil(ctrl / fit) if fit > 0 else 0
+    fast_hz_fit = min(tel.fast_hz, round(ctrl / n, 6)) if n else 0.0
     if load > 1.0:
-        others = total - streams["telem_fast"]["octets_s"]
-        frame = streams["telem_fast"]["frame_octets"]
-        fit = max((capacity - others) / frame, 0.0)
-        ctrl = profile.control_hz
-        n = math.ceil(ctrl / fit) if fit > 0 else 0
         hint = (f"lower telemetry.fast_hz to {fmt_num(round(ctrl / n, 6))} Hz or less" if n
                 else "lower the telemetry rates")
         warning = (f"link overloaded: the telemetry needs {total:.0f} octets/s but {profile.link.baud} baud "
                    f"carries {capacity:.0f} octets/s ({100 * load:.0f} %); frames will be dropped. "
                    f"{hint[0].upper() + hint[1:]}, or raise link.baud.")
     return {"capacity_octets_s": capacity, "streams": streams, "total_octets_s": total, "load": load,
-            "headroom_octets_s": capacity - total, "warning": warning}
+            "headroom_octets_s": capacity - total, "warning": warning, "fast_hz_fit": fast_hz_fit}
 
 
 # ----------------------------------------------------------------------------------- loading
@@ -452,10 +453,12 @@ def _rig_checks(rig_src: Source, motor: Motor) -> list[Problem]:
     return []
 
 
-def load_profile(path: str | os.PathLike, rig_override: str | os.PathLike | None = None) -> Profile:
+def load_profile(path: str | os.PathLike, rig_override: str | os.PathLike | None = None,
+                 motor_override: str | os.PathLike | None = None) -> Profile:
     """Read and validate a profile with its motor and rig files.
 
-    ``rig_override``: a rig file (relative to the working directory) used instead of the profile's.
+    ``rig_override``/``motor_override``: a rig/motor file (relative to the working directory) used
+    instead of the profile's (e.g. a commissioned motor file).
     Raises ProfileError listing every problem found (file:line: field = value message).
     """
     path = os.fspath(path)
@@ -472,7 +475,12 @@ def load_profile(path: str | os.PathLike, rig_override: str | os.PathLike | None
     d = src.data
     motor: Motor | None = None
     motor_path = None
-    if isinstance(d.get("motor"), str) and d["motor"]:
+    if motor_override is not None:
+        motor_path = os.fspath(motor_override)
+        msrc = read_source(motor_path, what="motor file")
+        motor, mprobs = _load_motor_source(msrc)
+        problems += mprobs
+    elif isinstance(d.get("motor"), str) and d["motor"]:
         motor_path = resolve_ref(path, d["motor"])
         msrc = read_source(motor_path, what="motor file", referenced_by=(src, ("motor",), d["motor"]))
         motor, mprobs = _load_motor_source(msrc)

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from pmsm_hil.protocol import can_generated as cg
 from pmsm_hil.protocol.can_link import CanLink
 from pmsm_hil.emulator import process as emu_process
-from pmsm_hil.transport.base import TransportError
+from pmsm_hil.transport.base import TransportError, TransportSpecError
 
 INTERFACES = ("socketcand", "socketcan", "pcan", "kvaser", "slcan", "ixxat", "virtual", "vector",
               "serial", "usb2can", "nican", "iscan", "neovi", "gs_usb", "cantact", "udp_multicast",
@@ -51,7 +51,7 @@ def _number(key: str, value: str, spec: str) -> int:
     try:
         return int(float(value)) if key == "bitrate" else int(value, 0)
     except ValueError:
-        raise TransportError(f"--can {spec}: {key}={value} is not a number") from None
+        raise TransportSpecError(f"--can {spec}: {key}={value} is not a number") from None
 
 
 def parse_spec(spec: str | None) -> CanSpec:
@@ -62,27 +62,27 @@ def parse_spec(spec: str | None) -> CanSpec:
     if head == "emulator":
         iface, channel = "emulator", ""
     elif ":" not in head:
-        raise TransportError(f"--can {text}: expected {SPEC_HELP}")
+        raise TransportSpecError(f"--can {text}: expected {SPEC_HELP}")
     else:
         iface, channel = head.split(":", 1)
     iface = iface.strip().lower()
     if iface != "emulator" and iface not in INTERFACES:
-        raise TransportError(f"--can {text}: unknown interface {iface!r} (python-can interfaces: "
+        raise TransportSpecError(f"--can {text}: unknown interface {iface!r} (python-can interfaces: "
                              f"{', '.join(INTERFACES[:8])}, ...)")
     out = CanSpec(iface, channel)
     for opt in opts:
         if "=" not in opt:
-            raise TransportError(f"--can {text}: option {opt!r} is not key=value")
+            raise TransportSpecError(f"--can {text}: option {opt!r} is not key=value")
         k, v = (s.strip() for s in opt.split("=", 1))
         if k == "bitrate":
             out.bitrate = _number(k, v, text)
             if not 10_000 <= out.bitrate <= 1_000_000:
-                raise TransportError(f"--can {text}: bitrate {out.bitrate} is outside classic CAN's "
+                raise TransportSpecError(f"--can {text}: bitrate {out.bitrate} is outside classic CAN's "
                                      f"10 kbit/s .. 1 Mbit/s")
         elif k == "node":
             out.node = _number(k, v, text)
             if not 0 <= out.node <= 15:
-                raise TransportError(f"--can {text}: node {out.node} must be 0..15")
+                raise TransportSpecError(f"--can {text}: node {out.node} must be 0..15")
         else:
             out.extra[k] = v
     if iface == "socketcand":
@@ -91,10 +91,10 @@ def parse_spec(spec: str | None) -> CanSpec:
             host, port = hostport.rsplit(":", 1)
             out.channel, out.host, out.port = ch, host, int(port)
         except ValueError:
-            raise TransportError(f"--can {text}: socketcand needs CHANNEL@HOST:PORT, "
+            raise TransportSpecError(f"--can {text}: socketcand needs CHANNEL@HOST:PORT, "
                                  f"e.g. socketcand:emu0@127.0.0.1:29536") from None
     elif iface != "emulator" and not channel:
-        raise TransportError(f"--can {text}: no channel given ({SPEC_HELP})")
+        raise TransportSpecError(f"--can {text}: no channel given ({SPEC_HELP})")
     return out
 
 
@@ -135,8 +135,11 @@ class CanEmulator:
     """Starts `pmsm-hil emulate --can` as a process; `link` talks to it over socketcand."""
 
     def __init__(self, motor_path: str | None, rig_path: str | None, seed: int, bitrate: int = cg.BITRATE,
-                 node: int = cg.NODE, start_timeout_s: float = 20.0, extra_args: list[str] | None = None):
+                 node: int = cg.NODE, start_timeout_s: float = 20.0, extra_args: list[str] | None = None,
+                 pace: float | None = None):
         args = ["--can", "--seed", str(seed), "--can-bitrate", str(bitrate), "--node", str(node)]
+        if pace:
+            args += ["--pace", repr(float(pace))]
         if motor_path:
             args += ["--motor", str(motor_path)]
         if rig_path:
@@ -231,7 +234,8 @@ def apply_can_rates(profile) -> None:
     profile.telemetry = tel
 
 
-def open_for_run(spec_text: str | None, profile, rig_path: str | None, seed: int) -> CanLink:
+def open_for_run(spec_text: str | None, profile, rig_path: str | None, seed: int,
+                 pace: float | None = None) -> CanLink:
     """`run --can SPEC`: a rig's CAN interface, or (SPEC `emulator` or empty) a started emulator."""
     spec = parse_spec(spec_text)
     can_cfg = getattr(profile.link, "can", None)
@@ -241,5 +245,5 @@ def open_for_run(spec_text: str | None, profile, rig_path: str | None, seed: int
         spec.node = getattr(can_cfg, "node", spec.node)
     apply_can_rates(profile)
     if spec.is_emulator:
-        return CanEmulator(str(profile.motor.path), rig_path, seed, spec.bitrate, spec.node).link
+        return CanEmulator(str(profile.motor.path), rig_path, seed, spec.bitrate, spec.node, pace=pace).link
     return open_can(spec)

@@ -7,8 +7,10 @@ from pmsm_hil.transport.serial_port import SerialTransport
 
 class EmulatorTransport(SerialTransport):
     def __init__(self, motor_path: str, rig_path: str | None, seed: int, baud: int,
-                 start_timeout_s: float = 20.0, corrupt_ppm: float = 0.0):
+                 start_timeout_s: float = 20.0, corrupt_ppm: float = 0.0, pace: float | None = None):
         args = ["--motor", str(motor_path), "--seed", str(seed), "--baud", str(baud)]
+        if pace:
+            args += ["--pace", repr(float(pace))]
         if corrupt_ppm:
             args += ["--corrupt-ppm", str(corrupt_ppm)]
         if rig_path:

@@ -1,0 +1,63 @@
+"""The shipped profiles, motor, rig and flux-map files, and how a bare name finds them.
+
+The files live in the repository's `profiles/` folder, which is installed as the package data of
+`pmsm_hil.shipped` (setup.py), so an installed pmsm-hil finds them from any directory:
+
+    resolve("paper-a", "profile")        -> .../shipped/paper-a.yaml
+    resolve("lab-typical", "rig")        -> .../shipped/rigs/lab-typical.yaml
+    resolve("my/own.yaml", "profile")    -> my/own.yaml   (a path that exists always wins)
+"""
+from __future__ import annotations
+
+import importlib.util
+import os
+from pathlib import Path
+
+from ._source import Problem, ProfileError
+
+# kind -> sub-folder of the shipped tree and the files' suffix
+KINDS = {"profile": ("", ".yaml"), "motor": ("motors", ".yaml"), "rig": ("rigs", ".yaml"),
+         "map": ("maps", ".csv")}
+
+
+def shipped_root() -> Path:
+    """The folder of the shipped files (installed package data, or the source tree's profiles/)."""
+    spec = importlib.util.find_spec("pmsm_hil.shipped")
+    for loc in (spec.submodule_search_locations or []) if spec else []:
+        if os.path.isdir(loc):
+            return Path(loc)
+    return Path(__file__).resolve().parents[2] / "profiles"
+
+
+def shipped_file(rel: str) -> str:
+    """A shipped file by its path in the shipped tree, e.g. "rigs/default.yaml"."""
+    return str(shipped_root() / rel)
+
+
+def shipped(kind: str) -> list[Path]:
+    """The shipped files of one kind, sorted by name."""
+    sub, suffix = KINDS[kind]
+    folder = shipped_root() / sub
+    return sorted(p for p in folder.glob(f"*{suffix}") if p.is_file())
+
+
+def resolve(name: str | os.PathLike, kind: str) -> str:
+    """A path given by the user, or the shipped file of that kind and name.
+
+    An existing file wins; otherwise a bare name (no folder), with or without its suffix, is looked
+    up among the shipped files. Anything else is returned unchanged, so the loader reports it.
+    """
+    text = os.fspath(name)
+    if os.path.isfile(text):
+        return text
+    sub, suffix = KINDS[kind]
+    if os.sep not in text and "/" not in text:
+        stem = text[: -len(suffix)] if text.endswith(suffix) else text
+        candidate = shipped_root() / sub / f"{stem}{suffix}"
+        if candidate.is_file():
+            return str(candidate)
+        names = ", ".join(p.stem for p in shipped(kind))
+        raise ProfileError(Problem(text, None, None, None,
+                                   f"is neither a file nor a shipped {kind} (shipped: {names}; "
+                                   f"`pmsm-hil profiles` lists them)", has_value=False))
+    return text
