@@ -109,10 +109,27 @@ def test_protocol_mismatch_is_refused_naming_both_versions(data):
     assert f"version {gen.PROTOCOL_VERSION}" in r.stderr and f"{gen.SCHEMA_HASH:08x}" in r.stderr
 
 
+def _emulator_children(pid: int) -> list[int]:
+    """Emulator processes started by the host `pid` (they run in sessions of their own)."""
+    out = []
+    for d in os.listdir("/proc"):
+        if d.isdigit():
+            try:
+                with open(f"/proc/{d}/stat") as f:
+                    ppid = int(f.read().rsplit(")", 1)[1].split()[1])
+            except OSError:
+                continue
+            if ppid == pid:
+                out.append(int(d))
+    return out
+
+
 def test_ctrl_c_stops_the_motor_and_keeps_the_log(data, tmp_path):
+    """Ctrl-C typed in a terminal: SIGINT goes to the whole foreground process group."""
     out = tmp_path / "int.mcap"
     p = subprocess.Popen([*CLI, "run", str(data / "long.yaml"), "--out", str(out), "--no-live"],
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         start_new_session=True)
     # wait until the run streams (progress lines), then interrupt
     deadline = time.monotonic() + 60
     seen = ""
@@ -122,17 +139,29 @@ def test_ctrl_c_stops_the_motor_and_keeps_the_log(data, tmp_path):
         if line.startswith("t=") and "running" in line:
             break
     time.sleep(0.5)
-    p.send_signal(signal.SIGINT)
+    children = _emulator_children(p.pid)
+    assert children, "the run should have started an emulator process"
+    os.killpg(p.pid, signal.SIGINT)        # the group: what the terminal does
     stdout, stderr = p.communicate(timeout=60)
     assert p.returncode == 130, stderr
-    assert "Traceback" not in stderr
+    assert "Traceback" not in stderr and "link" not in stderr
+    assert "INCOMPLETE" in stdout and "run interrupted" in stdout
+    assert "all plateaus within bounds" not in stdout
     log = read_log(out)
+    assert log.finalised
+    from mcap.reader import make_reader
+    with open(out, "rb") as f:       # the generic reader, through the file's index
+        n_generic = sum(1 for _ in make_reader(f).iter_messages())
+    assert n_generic == sum(log.counts.values())
     kinds = list(log.topic("/pmsm/events")["kind"])
     texts = list(log.topic("/pmsm/events")["text"])
     assert "stopped" in kinds
     assert any("host stop" in t for t in texts)
+    assert any("interrupted by SIGINT" in t for t in texts)
     tel = log.topic("/pmsm/telemetry")
     assert abs(tel["speed_rpm"][-1]) < 5.0
+    for c in children:                       # the host ended its emulator
+        assert not os.path.exists(f"/proc/{c}") or open(f"/proc/{c}/stat").read().split()[2] == "Z"
 
 
 def test_emulate_serves_a_pty_that_run_uses_like_a_rig(data, tmp_path):

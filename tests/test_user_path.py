@@ -1,0 +1,241 @@
+"""The everyday path as a new user meets it: shipped names, the emulator child's imports, bad
+output paths, closed pipes, the link budget, truncated and empty logs, pace, wall-clock log times."""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from mcap.reader import make_reader
+
+from emu_helpers import run_inproc
+from pmsm_hil.emulator.server import Pacer
+from pmsm_hil.log.reader import read_log
+from pmsm_hil.profiles import ProfileError, load_profile
+from pmsm_hil.profiles.shipped import resolve, shipped, shipped_root
+
+CLI = [sys.executable, "-m", "pmsm_hil.cli.main"]
+
+
+def cli(*args, timeout=180, **kw):
+    return subprocess.run([*CLI, *map(str, args)], capture_output=True, text=True, timeout=timeout,
+                          **kw)
+
+
+# ----------------------------------------------------------------------------- shipped files
+
+def test_bare_names_find_the_shipped_files_from_any_directory(tmp_path):
+    assert Path(resolve("paper-a", "profile")).read_text() == (shipped_root() / "paper-a.yaml").read_text()
+    assert resolve("lab-typical", "rig").endswith(os.path.join("rigs", "lab-typical.yaml"))
+    assert resolve("sew-cm3c80s.yaml", "motor").endswith(os.path.join("motors", "sew-cm3c80s.yaml"))
+    profile = load_profile(resolve("paper-a", "profile"), rig_override=resolve("lab-typical", "rig"))
+    assert profile.rig.enabled("dead_time") and profile.motor.name == "paper-a-ipmsm"
+    assert {p.stem for p in shipped("rig")} >= {"default", "lab-typical", "ideal"}
+
+
+def test_a_file_path_wins_over_a_shipped_name(tmp_path):
+    mine = tmp_path / "paper-a.yaml"
+    mine.write_text("name: mine\n")
+    assert resolve("paper-a.yaml", "profile") == "paper-a.yaml"      # the working directory's file
+    assert resolve("paper-a", "profile") != "paper-a"                # no such file: the shipped one
+
+
+def test_an_unknown_name_lists_what_is_shipped(tmp_path):
+    with pytest.raises(ProfileError) as e:
+        resolve("paper-z", "profile")
+    assert "paper-z" in str(e.value) and "paper-a-identify" in str(e.value)
+    r = cli("run", "paper-z")
+    assert r.returncode == 2 and "paper-z" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_profiles_command_lists_the_shipped_files():
+    r = cli("profiles")
+    assert r.returncode == 0, r.stderr
+    for name in ("paper-a", "paper-a-identify", "sew-cm3c80s", "lab-typical", "effect-dead-time"):
+        assert name in r.stdout
+
+
+def test_emulator_child_ignores_a_source_tree_in_the_working_directory(tmp_path, data):
+    """The fresh-clone failure: a `pmsm_hil` folder without the compiled extension in the working
+    directory must not shadow the installed package in the emulator child."""
+    shadow = tmp_path / "pmsm_hil"
+    shadow.mkdir()
+    (shadow / "__init__.py").write_text("raise ImportError('the source tree shadowed the install')\n")
+    (shadow / "emulator").mkdir()
+    (shadow / "emulator" / "__init__.py").write_text("")
+    from pmsm_hil.transport.emulator import EmulatorTransport
+    profile = load_profile(str(data / "short.yaml"))
+    tr = EmulatorTransport(str(profile.motor.path), str(profile.rig.path), seed=1, baud=921600)
+    try:
+        assert tr.name.startswith("emulator /dev/")
+        assert tr.proc.poll() is None
+        assert os.getsid(tr.proc.pid) == tr.proc.pid     # a session of its own: no terminal SIGINT
+    finally:
+        tr.close()
+
+
+def test_emulate_takes_the_plant_from_a_profile():
+    p = subprocess.Popen([*CLI, "emulate", "--profile", "sew-cm3c80s"], stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True)
+    try:
+        assert p.stdout.readline().startswith("serial: /dev/")
+        assert "motor: sew-cm3c80s" in p.stdout.readline()
+    finally:
+        p.terminate()
+        p.wait(timeout=10)
+    r = cli("emulate", "--rig", "no-such-rig")
+    assert r.returncode == 2 and "no-such-rig" in r.stderr and "Traceback" not in r.stderr
+
+
+# ----------------------------------------------------------------------------- user-side errors
+
+def test_unwritable_out_is_bad_input(tmp_path, data):
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    r = cli("run", data / "short.yaml", "--out", blocker / "run.mcap", "--no-live")
+    assert r.returncode == 2
+    assert "cannot write the log" in r.stderr and str(blocker) in r.stderr
+    assert "Traceback" not in r.stderr
+
+
+@pytest.mark.parametrize("spec", ["bogus", "nosuchbus:can0", "socketcand:x"])
+def test_bad_can_spec_is_bad_input(data, spec, tmp_path):
+    r = cli("run", data / "short.yaml", "--can", spec, "--out", tmp_path / "x.mcap", "--no-live")
+    assert r.returncode == 2, r.stderr
+    assert spec in r.stderr and "Traceback" not in r.stderr
+    assert not (tmp_path / "x.mcap").exists()
+
+
+def test_closed_pipe_gives_no_traceback(data, tmp_path):
+    out = tmp_path / "pipe.mcap"
+    sh = f"{sys.executable} -m pmsm_hil.cli.main run {data / 'short.yaml'} --no-live --out {out} | head -n 1"
+    r = subprocess.run(["bash", "-o", "pipefail", "-c", sh], capture_output=True, text=True, timeout=180)
+    assert r.returncode == 0, r.stderr
+    assert "Traceback" not in r.stderr and "BrokenPipe" not in r.stderr
+    assert len(r.stdout.splitlines()) == 1
+    log = read_log(out)
+    assert log.finalised and "profile_done" in list(log.topic("/pmsm/events")["kind"])
+
+
+def test_a_link_that_cannot_carry_the_telemetry_is_refused_with_the_budget(data, tmp_path):
+    out = tmp_path / "slow.mcap"
+    r = cli("run", data / "short.yaml", "--baud", 115200, "--out", out, "--no-live")
+    assert r.returncode == 2
+    assert "cannot carry" in r.stderr and "link budget at 115200 baud" in r.stderr
+    assert "telem_fast" in r.stderr and "--decimate" in r.stderr
+    assert not out.exists()
+    r = cli("run", data / "short.yaml", "--baud", 115200, "--decimate", "--out", out, "--no-live")
+    assert r.returncode == 0, r.stderr
+    assert "decimated from 2000 Hz" in r.stderr
+    tel = read_log(out).topic("/pmsm/telemetry")
+    rate = (len(tel["t_s"]) - 1) / (tel["t_s"][-1] - tel["t_s"][0])
+    assert rate < 115200 / 10 / 27      # fewer fast frames than the link could carry alone
+    assert read_log(out).counts.get("/pmsm/status", 0) > 0
+
+
+# ----------------------------------------------------------------------------- logs
+
+@pytest.fixture(scope="module")
+def short_log(tmp_path_factory):
+    out = tmp_path_factory.mktemp("logs") / "short.mcap"
+    run_inproc(Path(__file__).parent / "data" / "short.yaml", out)
+    return out
+
+
+def test_log_time_is_wall_clock_and_t_s_device_time(short_log):
+    log = read_log(short_log)
+    lt = log.log_times_ns("/pmsm/telemetry").astype("int64")
+    t = log.topic("/pmsm/telemetry")["t_s"]
+    offset = int(log.metadata["log"]["log_time_offset_ns"])
+    assert abs(offset / 1e9 - time.time()) < 3600          # a real date: the run's start
+    assert ((lt - offset) == (t * 1e9).round().astype("int64")).all()
+    with open(short_log, "rb") as f:                        # the generic reader agrees
+        msgs = list(make_reader(f).iter_messages(topics=["/pmsm/telemetry"]))
+    assert msgs[0][2].log_time == lt[0]
+
+
+def test_analyze_a_truncated_log_says_what_is_missing(short_log, tmp_path):
+    data = short_log.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: len(data) // 3])
+    r = cli("analyze", cut)
+    assert r.returncode == 1, r.stdout + r.stderr
+    assert "INCOMPLETE" in r.stdout and "truncated" in r.stdout
+    assert "all plateaus within bounds" not in r.stdout
+    assert "messages recovered" in r.stdout
+    assert "missing" in r.stdout or "partial" in r.stdout
+    import json
+    j = json.loads(cli("analyze", cut, "--json").stdout)
+    assert j["complete"] is False and j["ok"] is False and j["problems"]
+
+
+def test_analyze_an_empty_or_foreign_file_is_an_error(tmp_path):
+    empty = tmp_path / "empty.mcap"
+    empty.write_bytes(b"")
+    r = cli("analyze", empty)
+    assert r.returncode == 2 and "empty" in r.stderr and "Traceback" not in r.stderr
+    junk = tmp_path / "junk.mcap"
+    junk.write_bytes(b"not an mcap file at all")
+    r = cli("analyze", junk)
+    assert r.returncode == 2 and "not an MCAP file" in r.stderr
+
+
+def test_analyze_a_complete_log_passes(short_log):
+    r = cli("analyze", short_log)
+    assert r.returncode == 0, r.stdout
+    assert "all plateaus within bounds" in r.stdout
+
+
+def test_identification_table_in_the_run_summary(tmp_path, root):
+    ident = root / "profiles" / "paper-a-identify.yaml"
+    out = tmp_path / "id.mcap"
+    r = cli("run", ident, "--out", out, "--no-live", "--stop-after", 1.2, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert "NLMS" in r.stdout or "nlms" in r.stdout
+
+
+# ----------------------------------------------------------------------------- pace
+
+class _FakeDevice:
+    def __init__(self, ts_s=50e-6):
+        self.values = {"ts_s": ts_s, "heartbeat_timeout_s": 0.5}
+        self.isr_count = 0
+        self.heartbeat_isr = 0
+
+    def get(self, key):
+        return self.values[key]
+
+
+@pytest.mark.parametrize("pace", [0.5, 1.0, 4.0])
+def test_pace_holds_device_time_to_x_times_wall_time(pace):
+    dev = _FakeDevice()
+    pacer = Pacer(pace=pace)
+    now = 100.0
+    for _ in range(2000):                      # 2 s of wall time in 1 ms steps, host always current
+        n = pacer.allowance(dev, now)
+        dev.isr_count += n
+        dev.heartbeat_isr = dev.isr_count
+        now += 0.001
+    device_s = dev.isr_count * dev.get("ts_s")
+    assert device_s == pytest.approx(pace * 2.0, rel=0.01)
+
+
+def test_without_pace_the_heartbeat_lead_is_the_only_limit():
+    dev = _FakeDevice()
+    n = Pacer().allowance(dev, 0.0)
+    assert n == 1000                           # one chunk at once, far faster than real time
+
+
+def test_run_with_pace_one_runs_in_real_time(data, tmp_path):
+    out = tmp_path / "paced.mcap"
+    t0 = time.monotonic()
+    r = cli("run", data / "short.yaml", "--pace", 1, "--stop-after", 1.0, "--out", out, "--no-live")
+    wall = time.monotonic() - t0
+    assert r.returncode == 0, r.stderr
+    device_s = read_log(out).topic("/pmsm/telemetry")["t_s"][-1]
+    assert wall >= 0.9 * device_s      # never faster than real time (slower on a loaded machine)
+    r = cli("run", data / "short.yaml", "--pace", 0)
+    assert r.returncode == 2 and "--pace" in r.stderr
