@@ -239,3 +239,11 @@ def test_run_with_pace_one_runs_in_real_time(data, tmp_path):
     assert wall >= 0.9 * device_s      # never faster than real time (slower on a loaded machine)
     r = cli("run", data / "short.yaml", "--pace", 0)
     assert r.returncode == 2 and "--pace" in r.stderr
+
+
+def test_can_run_keeps_python_can_chatter_off_the_terminal(data, tmp_path):
+    out = tmp_path / "can.mcap"
+    r = cli("run", data / "short.yaml", "--can", "--out", out, "--no-live")
+    assert r.returncode == 0, r.stderr
+    assert "incomplete message" not in r.stderr and "WARNING" not in r.stderr
+    assert read_log(out).finalised

@@ -24,24 +24,41 @@ MAX_PENDING = 1 << 16       # octets waiting for the host before the emulator pa
 
 @dataclass
 class Pacer:
-    """Decides how many control periods may run now (see the module docstring)."""
+    """Decides how many control periods may run now (see the module docstring).
+
+    Unpaced: up to half the heartbeat timeout ahead of the last heartbeat. When the host is silent
+    beyond that, the device waits `grace_s` of wall time (a slow host on a loaded machine is not a
+    lost one; device time does not advance meanwhile), then runs on in real time, so the firmware's
+    heartbeat timeout stops the motor within the same device time as on a rig.
+    Paced (X): device time runs at X times wall time whatever the host does, as a DSP's clock does.
+    """
 
     lead_fraction: float = 0.5
-    pace: float | None = None          # at most this many times real time (None: no limit)
+    pace: float | None = None          # X times real time (None: as fast as the host keeps up)
+    grace_s: float = 1.0
     _last_hb: int = -1
+    _gone: bool = False
     _anchor: tuple[float, int] | None = field(default=None)
     _pace_anchor: tuple[float, int] | None = field(default=None)
 
+    def host_gone(self) -> None:
+        """The host's connection is gone for certain: no grace, real time from now."""
+        self._gone = True
+        self._anchor = None
+
+    def host_back(self) -> None:
+        """A host has connected."""
+        self._gone = False
+
     def allowance(self, dev: EmulatedDevice, now: float) -> int:
         ts_s = dev.get("ts_s")
-        n = self._heartbeat_allowance(dev, now, ts_s)
         if self.pace is None:
-            return n
+            return self._heartbeat_allowance(dev, now, ts_s)
         isr = dev.isr_count
         if self._pace_anchor is None or isr < self._pace_anchor[1]:
             self._pace_anchor = (now, isr)
         paced = int((now - self._pace_anchor[0]) * self.pace / ts_s) - (isr - self._pace_anchor[1])
-        return max(0, min(n, paced))
+        return max(0, min(paced, CHUNK_TICKS))
 
     def idle(self) -> None:
         """The device is not running: the pace restarts from the next start."""
@@ -53,12 +70,13 @@ class Pacer:
         hb, isr = dev.heartbeat_isr, dev.isr_count
         if hb != self._last_hb:
             self._last_hb = hb
-            self._anchor = None
+            if not self._gone:
+                self._anchor = None
         ahead = hb + lead_ticks - isr
-        if ahead > 0:
+        if ahead > 0 and not self._gone:
             return min(ahead, CHUNK_TICKS)
         if self._anchor is None:
-            self._anchor = (now, isr)
+            self._anchor = (now + (0.0 if self._gone else self.grace_s), isr)
         real_time = int((now - self._anchor[0]) / ts_s) - (isr - self._anchor[1])
         return max(0, min(real_time, CHUNK_TICKS))
 
@@ -95,6 +113,8 @@ class PtyServer:
         self.path = os.ttyname(self.slave)
         self._pending = bytearray()
         self._stop = False
+        self.dropped_octets = 0      # the host not reading: what a full UART FIFO loses
+        self._last_drain = time.monotonic()
 
     def stop(self, *_args) -> None:
         self._stop = True
@@ -107,7 +127,13 @@ class PtyServer:
             else:
                 ticks_allowed = 0
                 self.pacer.idle()
-            can_run = len(self._pending) < MAX_PENDING
+            # A device whose host does not read runs on like a DSP whose UART FIFO is full (the
+            # output is dropped): always when paced, else once the backlog has not moved for the
+            # pacer's grace time (a killed or stopped host), so its heartbeat timeout stops the motor.
+            if not self._pending:
+                self._last_drain = now
+            stalled = now - self._last_drain > self.pacer.grace_s
+            can_run = len(self._pending) < MAX_PENDING or self.pacer.pace is not None or stalled
             busy = self.dev.active and ticks_allowed > 0 and can_run
             wait = 0.0 if busy else 0.002
             rlist, wlist, _ = select.select([self.master], [self.master] if self._pending else [],
@@ -124,11 +150,16 @@ class PtyServer:
                 _, out = self.dev.run(ticks_allowed if self.dev.active else 0)
                 if self.corrupt is not None and out:
                     out = self.corrupt(out)
-                self._pending += out
+                if len(self._pending) < MAX_PENDING:
+                    self._pending += out
+                else:
+                    self.dropped_octets += len(out)
             if self._pending:
                 try:
                     n = os.write(self.master, self._pending)
                     del self._pending[:n]
+                    if n:
+                        self._last_drain = now
                 except OSError as e:
                     if e.errno not in (errno.EAGAIN, errno.EIO):
                         raise

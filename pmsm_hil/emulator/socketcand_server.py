@@ -70,6 +70,7 @@ class SocketcandServer:
             except OSError:
                 pass
         self.client = None
+        self.pacer.host_gone()
         self._inbuf = ""
         self._pending.clear()
         self._raw = self._forward = False
@@ -83,6 +84,7 @@ class SocketcandServer:
             self._drop_client()
         c.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         self.client = c
+        self.pacer.host_back()
         c.sendall(b"< hi >")
         c.setblocking(False)
 

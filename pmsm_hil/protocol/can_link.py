@@ -21,6 +21,7 @@ from pmsm_hil.protocol.generated import BY_ID
 CRC_INIT = 0xFFFF
 NODE_MASK = (1 << cg.NODE_BITS) - 1
 TRANSFER_TIMEOUT_S = 1.0   # an unfinished transfer older than this is dropped (and counted)
+POLL_BATCH_S = 0.02        # at most this much wall time spent receiving in one poll
 
 
 def frame_bits_nominal(dlc: int) -> int:
@@ -234,10 +235,12 @@ class CanLink:
             return self.decoder.feed(frames) if frames else []
         try:
             msg = self.bus.recv(timeout_s)
+            # a bounded batch (frames and wall time), so that the caller's heartbeat is never late
+            end = time.monotonic() + POLL_BATCH_S
             while msg is not None:
                 if not (msg.is_error_frame or msg.is_remote_frame or msg.is_extended_id):
                     frames.append((msg.arbitration_id, msg.data))
-                if len(frames) >= 4096:
+                if len(frames) >= 4096 or time.monotonic() > end:
                     break
                 msg = self.bus.recv(0.0)
         except (can.CanError, OSError, ValueError) as e:
