@@ -200,6 +200,8 @@ def test_corrupted_link_is_counted_dropped_and_resynchronised(data, tmp_path):
     # most frames made it, and the ones that did are intact (t_s on the 0.5 ms grid)
     assert len(tel["t_s"]) > 0.9 * profile.total_duration_s * 2000
     assert pytest.approx(0.0, abs=1e-9) == float(max(abs((tel["t_s"] * 2000) - (tel["t_s"] * 2000).round())))
+    a = cli("analyze", tmp_path / "noisy.mcap")      # the loss is reported, not hidden
+    assert a.returncode == 1 and "lost frames on the link" in a.stdout and "INCOMPLETE" in a.stdout
 
 
 def test_port_that_is_busy(data):

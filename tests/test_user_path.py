@@ -247,3 +247,19 @@ def test_can_run_keeps_python_can_chatter_off_the_terminal(data, tmp_path):
     assert r.returncode == 0, r.stderr
     assert "incomplete message" not in r.stderr and "WARNING" not in r.stderr
     assert read_log(out).finalised
+
+
+def test_summary_fits_80_columns_by_leaving_out_columns(short_log):
+    from rich.console import Console
+
+    from pmsm_hil.analysis.summary import print_summary, summarize_log
+    console = Console(width=80, record=True, force_terminal=False)
+    print_summary(summarize_log(short_log), console)
+    text = console.export_text()
+    assert "…" not in text
+    assert max(len(line) for line in text.splitlines()) <= 80
+    assert "load on" in text and "not shown at 80 columns" in text
+    wide = Console(width=200, record=True)
+    print_summary(summarize_log(short_log), wide)
+    wide_text = wide.export_text()
+    assert "not shown" not in wide_text and "ripple d/q A" in wide_text

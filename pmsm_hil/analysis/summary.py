@@ -188,6 +188,15 @@ def log_problems(log) -> list[str]:
         out.append(f"the file has no summary section (the writer did not finish); {total} messages "
                    f"recovered")
     out += [str(p) for p in getattr(log, "problems", [])]
+    status = log.topic("/pmsm/status") if "/pmsm/status" in log.topics else {}
+    dropped = int(np.max(status["tx_dropped"])) if len(status.get("tx_dropped", [])) else 0
+    if dropped:
+        out.append(f"the device dropped {dropped} telemetry frames (the link could not carry them)")
+    link = log.topic("/host/link") if "/host/link" in log.topics else {}
+    gaps = int(np.sum(link.get("seq_gaps", 0)))
+    bad = int(sum(np.sum(link.get(k, 0)) for k in ("crc_errors", "cobs_errors", "len_errors")))
+    if gaps or bad:
+        out.append(f"the host lost frames on the link: {gaps} sequence gaps, {bad} corrupted frames")
     return out
 
 
@@ -207,38 +216,74 @@ def summarize_log(path: Path) -> RunSummary:
     return summary
 
 
+# columns of the printed summary: (header, short header, priority: the lowest goes first when narrow)
+_COLUMNS = (("seg", "seg", 9), ("name", "name", 8), ("setpoint r/min", "set r/min", 7),
+            ("load N·m", "load N·m", 2), ("mean err r/min", "err r/min", 9),
+            ("true err r/min", "true err", 5), ("band", "band", 3), ("recovery s", "rec s", 6),
+            ("ripple d/q A", "ripple d/q A", 1), ("faults", "flt", 4))
+
+
+def _summary_rows(summary: RunSummary) -> list[dict[str, str]]:
+    rows = []
+    for s in summary.segments:
+        ok = "[green]" if s.mean_ok else "[red]"
+        te = s.true_mean_error_rpm
+        rows.append({
+            "seg": str(s.index), "name": s.name, "setpoint r/min": f"{s.setpoint_rpm:.1f}",
+            "load N·m": f"{s.load_nm:.2f}", "mean err r/min": f"{ok}{s.mean_error_rpm:+.3f}",
+            "true err r/min": "" if te is None else
+            f"{'[green]' if abs(te) <= s.band_rpm else '[red]'}{te:+.3f}",
+            "band": f"±{s.band_rpm:.2f}",
+            "recovery s": "" if s.recovery_s is None else
+            ("[green]" if s.recovery_ok else "[red]") + f"{s.recovery_s:.3f}",
+            "ripple d/q A": f"{s.ripple_d_a:.3f}/{s.ripple_q_a:.3f}", "faults": str(s.faults)})
+    return rows
+
+
 def print_summary(summary: RunSummary, console=None, interrupted: bool = False) -> None:
+    """The per-segment table, fitted to the terminal: on a narrow one the least important columns
+    are left out (and named) rather than cut short."""
+    from rich import box
     from rich.console import Console
+    from rich.measure import Measurement
     from rich.table import Table
 
     if console is None:
         console = Console()
         if not console.is_terminal:
             console = Console(width=max(console.width, 160))
-    tab = Table(title=f"run summary: {summary.path}", header_style="bold")
     has_truth = any(s.true_mean_error_rpm is not None for s in summary.segments)
-    cols = ["seg", "name", "setpoint r/min", "load N·m", "mean err r/min"]
-    cols += ["true err r/min"] if has_truth else []
-    cols += ["band", "recovery s", "ripple d/q A", "faults"]
-    for col in cols:
-        tab.add_column(col, justify="right" if col not in ("name",) else "left")
-    for s in summary.segments:
-        ok = "[green]" if s.mean_ok else "[red]"
-        rec = "" if s.recovery_s is None else (
-            ("[green]" if s.recovery_ok else "[red]") + f"{s.recovery_s:.3f}")
-        row = [str(s.index), s.name, f"{s.setpoint_rpm:.1f}", f"{s.load_nm:.2f}",
-               f"{ok}{s.mean_error_rpm:+.3f}"]
-        if has_truth:
-            te = s.true_mean_error_rpm
-            row.append("" if te is None else f"{'[green]' if abs(te) <= s.band_rpm else '[red]'}{te:+.3f}")
-        row += [f"±{s.band_rpm:.2f}", rec, f"{s.ripple_d_a:.3f}/{s.ripple_q_a:.3f}", str(s.faults)]
-        tab.add_row(*row)
+    cols = [c for c in _COLUMNS if has_truth or c[0] != "true err r/min"]
+    rows = _summary_rows(summary)
+    narrow = console.width < 120
+    hidden = []
+
+    def table(cs):
+        tab = Table(title=f"run summary: {summary.path}", header_style="bold",
+                    box=box.SIMPLE_HEAD if narrow else box.HEAVY_HEAD)
+        for key, short, _ in cs:
+            tab.add_column(short if narrow else key, justify="left" if key == "name" else "right",
+                           no_wrap=True)
+        for r in rows:
+            tab.add_row(*(r[key] for key, _, _ in cs))
+        return tab
+    tab = table(cols)
+    wide = console.options.update_width(10_000)
+    while Measurement.get(console, wide, tab).maximum > console.width and len(cols) > 3:
+        drop = min(cols, key=lambda c: c[2])
+        cols.remove(drop)
+        hidden.append(drop[0])
+        tab = table(cols)
     console.print(tab)
+    if hidden:
+        console.print(f"[dim]not shown at {console.width} columns: {', '.join(hidden)} "
+                      f"(`pmsm-hil analyze LOG --json` has every column)[/]", highlight=False)
     for f in summary.faults:
         console.print(f"[red]fault[/] {f}")
     for p in summary.problems:
         console.print(f"[yellow]log[/] {p}")
-    console.print(f"{len(summary.segments)} segments, {summary.duration_s:.2f} s: {verdict_text(summary, interrupted)}")
+    console.print(f"{len(summary.segments)} segments, {summary.duration_s:.2f} s: "
+                  f"{verdict_text(summary, interrupted)}", highlight=False)
 
 
 def verdict_text(summary: RunSummary, interrupted: bool = False) -> str:
