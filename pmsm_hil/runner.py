@@ -45,6 +45,24 @@ class RunInterrupted(Exception):
     pass
 
 
+class PlantMismatch(DeviceError):
+    """The emulator serves another motor than the profile's (it was started with other files)."""
+
+
+def plant_mismatch(motor, truth: dict) -> str | None:
+    """What differs between the emulator's plant (its first truth frame) and the profile's motor
+    file, beyond what rig effects explain (temperature, saturation); None when they match."""
+    out = []
+    for key, unit, tol in (("psi_f_wb", "Wb", 0.2), ("r_s_ohm", "ohm", 0.6)):
+        nominal, plant = float(getattr(motor, key)), float(truth.get(key, 0.0) or 0.0)
+        if plant and nominal and abs(plant / nominal - 1.0) > tol:
+            out.append(f"{key} {plant:.4g} {unit} in the emulator vs {nominal:.4g} {unit} in {motor.name}")
+    if not out:
+        return None
+    return ("the emulator's plant is not this profile's motor (" + "; ".join(out) + "): start it with "
+            "the same motor, e.g. `pmsm-hil emulate --profile PROFILE` or `--motor MOTOR.yaml`")
+
+
 class HostError(Exception):
     """The host failed during a run (e.g. the log could not be written); the motor was stopped."""
 
@@ -143,12 +161,15 @@ def run_profile(profile, session: Session, log_path: Path, options: RunOptions |
             try:
                 session.request("start")
                 rec.event(0.0, "host", 0, 0, f"started {profile.name} on {session.t.name}")
-                interrupted = _stream(session, rec, options, observer, sig)
+                interrupted = _stream(session, rec, options, observer, sig, profile.motor)
                 if interrupted:
                     _stop_device(session, rec, observer, sig)
             except KeyboardInterrupt:    # raised outside the handlers (not the main thread)
                 interrupted = True
                 _stop_device(session, rec, observer, sig)
+            except PlantMismatch:
+                _send_quietly(session, "abort")
+                raise
             except (TransportError, DeviceError) as e:
                 error = str(e)
                 rec.event(rec.live.t_s, "host", 0, 0, f"link error: {error}")
@@ -197,9 +218,10 @@ class _SafeObserver:
             self.inner = None
 
 
-def _stream(session: Session, rec: Recorder, options: RunOptions, observer, sig) -> bool:
+def _stream(session: Session, rec: Recorder, options: RunOptions, observer, sig, motor=None) -> bool:
     """Stream until the device stops (False) or a signal asks the host to stop (True)."""
     live = rec.live
+    plant_checked = motor is None
     last_hb_dev = -1.0
     last_hb_wall = 0.0
     last_data_wall = time.monotonic()
@@ -214,6 +236,12 @@ def _stream(session: Session, rec: Recorder, options: RunOptions, observer, sig)
         if frames:
             last_data_wall = now
             rec.frames(frames)
+            if not plant_checked and live.truth:
+                plant_checked = True
+                why = plant_mismatch(motor, live.truth)
+                if why:
+                    rec.event(live.t_s, "host", 0, 0, why)
+                    raise PlantMismatch(why)
         live.octets = session.decoder.octets if hasattr(session.decoder, "octets") else live.octets
         live.bad_frames = _bad_frames(session)
         if live.stopped and live.state in ("done", "idle", "fault"):

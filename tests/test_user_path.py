@@ -263,3 +263,20 @@ def test_summary_fits_80_columns_by_leaving_out_columns(short_log):
     print_summary(summarize_log(short_log), wide)
     wide_text = wide.export_text()
     assert "not shown" not in wide_text and "ripple d/q A" in wide_text
+
+
+def test_a_run_against_an_emulator_of_another_motor_says_so(tmp_path):
+    """A SEW profile against an emulator serving paper A's motor: named, not a bare DC-link fault."""
+    emu = subprocess.Popen([*CLI, "emulate"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        port = emu.stdout.readline().split()[1]
+        r = cli("run", "sew-cm3c80s", "--port", port, "--out", tmp_path / "sew.mcap", "--no-live")
+        assert r.returncode == 2, r.stderr
+        assert "not this profile's motor" in r.stderr and "psi_f_wb" in r.stderr
+        assert "emulate --profile" in r.stderr
+        r = cli("run", "paper-a", "--port", port, "--out", tmp_path / "pa.mcap", "--no-live",
+                "--stop-after", 0.3)
+        assert r.returncode == 0, r.stderr       # the emulator serves on, and its own motor runs
+    finally:
+        emu.terminate()
+        emu.wait(timeout=10)

@@ -125,7 +125,7 @@ def main(args: argparse.Namespace) -> int:
     from pmsm_hil.cli.live import LiveView, PlainProgress
     from pmsm_hil.profiles import ProfileError
     from pmsm_hil.protocol.session import DeviceError, Session
-    from pmsm_hil.runner import HostError, RunOptions, run_profile
+    from pmsm_hil.runner import HostError, PlantMismatch, RunOptions, run_profile
     from pmsm_hil.transport.base import TransportError, TransportSpecError
 
     try:
@@ -165,6 +165,8 @@ def main(args: argparse.Namespace) -> int:
     try:
         with observer:
             result = run_profile(profile, Session(transport), out, options, observer)
+    except PlantMismatch as e:
+        return fail("error", f"{e} (the run was aborted; log: {out})", 2)
     except (DeviceError, TransportError) as e:
         return fail("error", str(e), 3)
     except HostError as e:
