@@ -24,6 +24,9 @@ def add_parser(sub) -> None:
     p.add_argument("--rig", default=None, help="rig file for the emulator (default: the profile's)")
     p.add_argument("--seed", type=int, default=1, help="emulator noise seed (default 1)")
     p.add_argument("--no-live", action="store_true", help="plain progress lines instead of the live view")
+    p.add_argument("--foxglove", nargs="?", type=int, const=8765, default=None, metavar="PORT",
+                   help="also serve the live streams to Foxglove on ws://127.0.0.1:PORT "
+                        "(default 8765; docs/foxglove.md)")
     p.add_argument("--stop-after", type=float, default=None, metavar="S",
                    help="ask the device to stop after S seconds of device time")
 
@@ -69,9 +72,19 @@ def main(args: argparse.Namespace) -> int:
         return fail("error", f"--out {out}: the log is MCAP, name it *.mcap", 2)
     out.parent.mkdir(parents=True, exist_ok=True)
 
+    sinks = []
+    if args.foxglove is not None:   # docs/foxglove.md
+        from pmsm_hil.live.foxglove import FoxgloveError, FoxgloveSink
+        try:
+            sinks.append(FoxgloveSink(args.foxglove))
+        except FoxgloveError as e:
+            return fail("error", str(e), 2)
+        print(f"foxglove: {sinks[0].url} (layout: docs/foxglove-layout.json)", flush=True)
     try:
         transport = open_transport(args, profile)
     except TransportError as e:
+        for s in sinks:
+            s.close()
         return fail("error", str(e), 3)
     names = [s.name or f"segment {i}" for i, s in enumerate(profile.segments)]
     observer = (PlainProgress() if args.no_live
@@ -79,7 +92,7 @@ def main(args: argparse.Namespace) -> int:
     rig_name = args.rig or str(getattr(profile.rig, "path", "") or "")
     is_rig = args.port or (args.can is not None and not args.can.startswith("emulator"))
     options = RunOptions(seed=None if is_rig else args.seed, rig_name=rig_name,
-                         stop_after_s=args.stop_after)
+                         stop_after_s=args.stop_after, sinks=sinks)
     try:
         with observer:
             result = run_profile(profile, Session(transport), out, options, observer)
@@ -87,6 +100,8 @@ def main(args: argparse.Namespace) -> int:
         return fail("error", str(e), 3)
     finally:
         transport.close()
+        for s in sinks:
+            s.close()
 
     print(f"log: {result.log_path}")
     try:
