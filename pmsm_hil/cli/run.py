@@ -53,7 +53,7 @@ def open_transport(args, profile):
 
 def main(args: argparse.Namespace) -> int:
     from pmsm_hil.analysis.summary import print_summary, summarize_log
-    from pmsm_hil.cli.live import LiveView, PlainProgress
+    from pmsm_hil.cli.live import make_observer
     from pmsm_hil.profiles import ProfileError, load_profile
     from pmsm_hil.protocol.session import DeviceError, Session
     from pmsm_hil.runner import RunOptions, run_profile
@@ -87,8 +87,7 @@ def main(args: argparse.Namespace) -> int:
             s.close()
         return fail("error", str(e), 3)
     names = [s.name or f"segment {i}" for i, s in enumerate(profile.segments)]
-    observer = (PlainProgress() if args.no_live
-                else LiveView(f"{profile.name} on {transport.name}", transport.bit_rate, names))
+    observer = make_observer(args.no_live, f"{profile.name} on {transport.name}", transport.bit_rate, names)
     rig_name = args.rig or str(getattr(profile.rig, "path", "") or "")
     is_rig = args.port or (args.can is not None and not args.can.startswith("emulator"))
     options = RunOptions(seed=None if is_rig else args.seed, rig_name=rig_name,
