@@ -77,12 +77,17 @@ def test_run_serves_the_live_streams_to_a_foxglove_client(root, tmp_path):
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     proc = subprocess.Popen(
         [sys.executable, "-m", "pmsm_hil.cli.main", "run", str(root / "tests" / "data" / "long.yaml"),
-         "--no-live", "--foxglove", str(port), "--stop-after", "4", "--out", str(out)],
+         "--no-live", "--foxglove", str(port), "--stop-after", "10", "--out", str(out)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     try:
-        first = proc.stdout.readline()
-        assert first.strip() == f"foxglove: ws://127.0.0.1:{port} (layout: docs/foxglove-layout.json)"
-        channels, got = asyncio.run(_listen(port, 3.0))
+        for line in proc.stdout:            # the address is printed before the run starts
+            if line.startswith("foxglove:"):
+                break
+        assert line.strip() == f"foxglove: ws://127.0.0.1:{port} (layout: docs/foxglove-layout.json)"
+        t0 = time.monotonic()
+        channels, got = asyncio.run(_listen(port, 30.0))   # until the run ends
+        print(f"listened {time.monotonic() - t0:.2f} s: " +
+              ", ".join(f"{k} {len(v)}" for k, v in sorted(got.items())))
     finally:
         stdout, stderr = proc.communicate(timeout=120)
     assert proc.returncode == 0, stderr
@@ -108,7 +113,7 @@ def test_run_serves_the_live_streams_to_a_foxglove_client(root, tmp_path):
     ts = [m["t_s"] for _, m in sent]
     assert min(b - a for a, b in zip(ts, ts[1:])) >= 1 / 200 - 1e-9
     # the log itself is complete: the sink decimates only what it sends
-    assert len(tel["t_s"]) >= 4 * 2000 - 2
+    assert len(tel["t_s"]) >= 10 * 2000 - 2
 
 
 def test_sink_decimates_per_topic_and_never_raises(monkeypatch):
@@ -167,3 +172,15 @@ def test_layout_file_is_generated(root):
     r = subprocess.run([sys.executable, "-m", "tools.gen_foxglove_layout", "--check"], cwd=root,
                        capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
+
+
+def test_run_with_a_taken_port_is_bad_input(data, capsys):
+    from pmsm_hil.cli.main import main
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        s.listen()
+        port = s.getsockname()[1]
+        assert main(["run", str(data / "short.yaml"), "--no-live", "--foxglove", str(port)]) == 2
+    err = capsys.readouterr().err
+    assert f"--foxglove {port}: cannot listen on 127.0.0.1:{port}" in err and "Traceback" not in err
