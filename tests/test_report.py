@@ -61,6 +61,8 @@ def test_report_writes_the_panels_and_one_self_contained_page(short_log, tmp_pat
     for name in ("up to 500 r/min", "load on", "load off"):
         assert f"{name}</td>" in html
     assert "No estimator ran" in html
+    # a complete run carries no warning note
+    assert 'class="note"' not in html
 
 
 def test_estimators_give_the_identification_table_and_the_error_panel(tmp_path):
@@ -137,3 +139,21 @@ def test_default_directory_is_beside_the_log(short_log, tmp_path):
     rep = build_report(log)
     assert rep.out_dir == tmp_path / "run1-report"
     assert rep.html.is_file()
+
+
+def test_truncated_log_is_reported_as_such(short_log, tmp_path):
+    data = short_log.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: len(data) * 6 // 10])
+    rep = build_report(cut, tmp_path / "out")
+    html = rep.html.read_text()
+    assert "not finalised" in html
+    assert "speed" in rep.pngs                 # what was recovered is plotted
+
+
+def test_a_stopped_run_says_it_did_not_reach_the_end(data, tmp_path):
+    out = tmp_path / "stopped.mcap"
+    run_inproc(data / "long.yaml", out, stop_after_s=1.2)
+    html = build_report(out, tmp_path / "out").html.read_text()
+    assert "did not reach the profile&#x27;s end" in html and "host stop" in html
+    assert "not finalised" not in html

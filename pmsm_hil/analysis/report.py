@@ -29,7 +29,8 @@ PANELS = (
     ("estimation_error", "Angle and speed estimation error", report_signals.estimation_error,
      "Electrical angle and speed the firmware uses minus the encoder's."),
     ("capture", "Capture waveforms", report_capture.capture,
-     "Phase currents, switch states and DC-link voltage at the control rate."),
+     "At the control rate: phase currents; each leg's duty (its switch state averaged over 20 "
+     "control periods); the DC-link voltage; the switch states of the first 60 periods."),
 )
 
 

@@ -55,13 +55,25 @@ def run_context(log: Log, path: Path) -> RunContext:
     ctx = RunContext(log=log, path=Path(path), profile=run.get("profile", ""), rig=_rig_name(meta),
                      seed=run.get("seed", ""), board=meta.get("device", {}).get("board", ""))
     names = run.get("segment_names", "").split("|") if run.get("segment_names") else []
+    stops = []
     if ctx.has("/pmsm/events"):
         ev = log.topic("/pmsm/events")
-        for t, kind, arg in zip(ev["t_s"], ev["kind"], ev["arg"]):
+        for t, kind, arg, text in zip(ev["t_s"], ev["kind"], ev["arg"], ev["text"]):
             if str(kind) == "segment_start":
                 i = int(arg)
                 ctx.segments.append(Segment(i, names[i] if 0 <= i < len(names) else f"segment {i}",
                                             float(t)))
+            elif str(kind) == "stopped":
+                stops.append(f"{float(t):.3f} s {text}")
+    if not stops:
+        ctx.notes.append("The log has no `stopped` event: the run was cut off before the device "
+                         "reported its end.")
+    elif not stops[-1].endswith("profile end"):
+        ctx.notes.append(f"The run did not reach the profile's end: {stops[-1]}.")
+    if names and ctx.segments and len({s.index for s in ctx.segments}) < len(names):
+        seen = {s.index for s in ctx.segments}
+        missing = [f"{i} {n}" for i, n in enumerate(names) if i not in seen]
+        ctx.notes.append("Segments not reached: " + ", ".join(missing) + ".")
     if log.truncated or not log.finalised:
         ctx.notes.append("The log is not finalised (the run was killed or the file is truncated): "
                          "the report shows what could be recovered.")
