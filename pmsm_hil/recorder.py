@@ -60,18 +60,24 @@ class LiveState:
 class Recorder:
     """Feeds frames to the log writer (device topics) and to the live state."""
 
-    def __init__(self, writer, ts_s: float, segment_names: list[str]):
+    def __init__(self, writer, ts_s: float, segment_names: list[str], sinks=()):
         self.w = writer
+        self.sinks = list(sinks)   # extra consumers, e.g. pmsm_hil.live.foxglove.FoxgloveSink
         self.ts_s = ts_s
         self.names = segment_names
         self.live = LiveState()
         self._last_seq: int | None = None
 
+    def _write(self, topic: str, t_s: float, row: dict) -> None:
+        self.w.write(topic, t_s, row)
+        for sink in self.sinks:
+            sink.publish(topic, t_s, row)
+
     def _t(self, tick: int) -> float:
         return tick * self.ts_s
 
     def event(self, t_s: float, kind: str, code: int, arg: int, text: str) -> None:
-        self.w.write("/pmsm/events", t_s, {"kind": kind, "code": code, "arg": arg, "text": text})
+        self._write("/pmsm/events", t_s, {"kind": kind, "code": code, "arg": arg, "text": text})
         self.live.events.append((t_s, kind, arg, text))
 
     def frames(self, frames) -> None:
@@ -89,7 +95,7 @@ class Recorder:
     def _on_telem_fast(self, f: dict) -> None:
         t = self._t(f["tick"])
         row = {k: f[k] for k in TELEMETRY_FIELDS}
-        self.w.write("/pmsm/telemetry", t, row)
+        self._write("/pmsm/telemetry", t, row)
         self.live.t_s = t
         self.live.telemetry = row
 
@@ -100,14 +106,14 @@ class Recorder:
         row = {"estimator": name, "l_d_h": f["l_d_h"], "l_q_h": f["l_q_h"],
                "psi_f_wb": f["psi_f_wb"], "r_s_ohm": f["r_s_ohm"], "excited": bool(flags & 1),
                "converged": bool(flags & 2), "feeds_predictor": bool(flags & 4)}
-        self.w.write("/pmsm/params", t, row)
+        self._write("/pmsm/params", t, row)
         self.live.params[name] = row
 
     def _on_status(self, f: dict) -> None:
         t = self._t(f["tick"])
         state = STATE_NAMES.get(f["state"], str(f["state"]))
         row = {"state": state, **{k: f[k] for k in STATUS_FIELDS}}
-        self.w.write("/pmsm/status", t, row)
+        self._write("/pmsm/status", t, row)
         live = self.live
         live.status = row
         live.state = state
@@ -141,7 +147,7 @@ class Recorder:
     def _on_sim_truth(self, f: dict) -> None:
         t = self._t(f["tick"])
         row = {k: f[k] for k in TRUTH_FIELDS}
-        self.w.write("/sim/truth", t, row)
+        self._write("/sim/truth", t, row)
         self.live.truth = row
 
     def capture(self, chunks: list[dict]) -> int:

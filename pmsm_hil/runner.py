@@ -27,6 +27,7 @@ class RunOptions:
     seed: int | None = None               # recorded in the metadata (the emulator's seed)
     rig_name: str = ""
     on_update_s: float = 0.1              # wall time between observer updates
+    sinks: list = field(default_factory=list)  # extra consumers of each logged device message
 
 
 @dataclass
@@ -153,7 +154,7 @@ def run_profile(profile, session: Session, log_path: Path, options: RunOptions |
     error = ""
     writer = LogWriter(log_path, _metadata(profile, session, options), _attachments(profile),
                        wall_start_s=time.time())
-    rec = Recorder(writer, profile.control.ts_s, names)
+    rec = Recorder(writer, profile.control.ts_s, names, options.sinks)
     rec.live.total_s = profile.total_duration_s
     observer = _SafeObserver(observer)
     try:

@@ -5,7 +5,9 @@ import io
 
 from rich.console import Console
 
-from pmsm_hil.cli.live import PlainProgress, render
+import pytest
+
+from pmsm_hil.cli.live import FLAGS_LEGEND, LiveView, PlainProgress, make_observer, render
 from pmsm_hil.recorder import LiveState
 
 
@@ -44,3 +46,72 @@ def test_plain_progress_prints_a_line_per_period():
     lines = out.getvalue().splitlines()
     assert lines[0].startswith("t=  12.50/32.50 s") and "speed   240.0/  239.7 r/min" in lines[0]
     assert lines[1] == "uploading capture"
+
+
+def identifying_state() -> LiveState:
+    live = sample_state()
+    for name, k, flags in (("rls", 1.02, {"excited": True}),
+                           ("adaline", 0.99, {"excited": True, "converged": True}),
+                           ("nlms_adaline", 1.001, {"excited": True, "converged": True,
+                                                    "feeds_predictor": True})):
+        live.params[name] = {"l_d_h": 0.005 * k, "l_q_h": 0.012 * k, "psi_f_wb": 0.18 * k,
+                             "r_s_ohm": 0.9 * k, **flags}
+    live.params["nominal"]["feeds_predictor"] = False
+    for i in range(6):
+        live.events.append((12.1 + 0.1 * i, "host", 0, f"event number {i}"))
+    return live
+
+
+def draw(live: LiveState, width: int, height: int) -> str:
+    con = Console(file=io.StringIO(), width=width, height=height, color_system=None)
+    con.print(render(live, "paper-a-identify on emulator (serial 921600)", 921600.0,
+                     [f"s{i}" for i in range(13)]))
+    return con.file.getvalue()
+
+
+def test_live_panel_fits_80_by_24_without_ellipsis():
+    text = draw(identifying_state(), 80, 24)
+    lines = text.splitlines()
+    assert len(lines) <= 24
+    assert all(len(line) <= 80 for line in lines)
+    assert "…" not in text
+    # the key values are all there: progress, state, speed, currents, every estimator, link use
+    assert "12.50 / 32.50 s" in text and "running" in text and "segment 4 s4" in text
+    assert "240.0" in text and "239.7" in text and "4.50" in text and "4.52" in text
+    assert "nlms_adaline * ec" in text and "adaline ec" in text and "rls e-" in text
+    assert "truth" in text and "86.8 %" in text
+    # ... and the flags are explained on screen
+    assert "* feeds predictor" in text and "c converged" in text and "e excited" in text
+    # the most recent event is shown, older ones make room
+    assert "event number 5" in text
+
+
+@pytest.mark.parametrize("width,height", [(60, 40), (100, 30), (200, 50)])
+def test_live_panel_never_truncates_with_ellipsis(width, height):
+    text = draw(identifying_state(), width, height)
+    assert "…" not in text
+    assert all(len(line) <= width for line in text.splitlines())
+    assert "nlms_adaline" in text and "239.7" in text
+
+
+def test_wide_terminal_shows_errors_against_truth_and_the_full_legend():
+    text = draw(identifying_state(), 200, 50)
+    assert "+2.0%" in text            # rls L_d against the truth
+    assert FLAGS_LEGEND in text
+
+
+class FakeTerminal(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+def test_piped_output_gets_plain_lines():
+    out = io.StringIO()              # not a terminal
+    obs = make_observer(False, "short on emulator", 921600.0, ["a"], stream=out)
+    assert isinstance(obs, PlainProgress)
+    obs.period_s = 0.0
+    with obs:
+        obs.update(sample_state())
+    assert out.getvalue().startswith("t=  12.50/32.50 s")
+    assert isinstance(make_observer(True, "x", 1.0, [], stream=out), PlainProgress)
+    assert isinstance(make_observer(False, "x", 1.0, [], stream=FakeTerminal()), LiveView)

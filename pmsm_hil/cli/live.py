@@ -1,14 +1,17 @@
-"""Live view of a run (rich), and the plain progress printer used with --no-live."""
+"""Live view of a run (rich), and the plain progress printer used with --no-live or when the
+output is not a terminal (a pipe, a file, CI)."""
 from __future__ import annotations
 
 import sys
 import time
 
-from rich.console import Group
+from rich.console import Console, Group
 from rich.live import Live
+from rich.measure import Measurement
 from rich.panel import Panel
 from rich.progress_bar import ProgressBar
 from rich.table import Table
+from rich.text import Text
 
 from pmsm_hil.recorder import LiveState, fault_text
 
@@ -20,64 +23,137 @@ def _link_use(live: LiveState, bit_rate: float) -> float:
     return live.octets * 10.0 / (bit_rate * live.t_s)
 
 
-def render(live: LiveState, title: str, bit_rate: float, names: list[str]):
-    t = live.telemetry
-    seg = names[live.segment] if 0 <= live.segment < len(names) else ""
-    head = Table.grid(padding=(0, 2))
-    head.add_row(f"[bold]{title}[/]", f"state [bold]{live.state}[/]",
-                 f"segment {live.segment} {seg}",
-                 f"faults [{'red' if live.faults else 'green'}]{fault_text(live.faults)}[/]")
-    prog = ProgressBar(total=max(live.total_s, 1e-9), completed=min(live.t_s, live.total_s), width=50)
-    prog_row = Table.grid(padding=(0, 2))
-    prog_row.add_row(prog, f"{live.t_s:7.2f} / {live.total_s:.2f} s",
-                     f"{live.realtime_factor:5.1f}x real time")
+FLAGS_LEGEND = ("estimator flags: * feeds the MPCC predictor, e excited (the operating point "
+                "lets it learn), c converged, - not (yet); % = error against the plant's truth")
+FLAGS_LEGEND_SHORT = "flags: * feeds predictor  e excited  c converged  - not yet  %: vs truth"
+FLAGS_LEGEND_TINY = "* feeds predictor, e excited,\nc converged, - not yet"
 
-    sig = Table(title="signals", box=None, show_header=True, header_style="bold")
+
+def _flags(name: str, p: dict) -> str:
+    """`*` feeds the predictor; e/c: excited / converged (params flags), `-` when not."""
+    mark = " *" if p.get("feeds_predictor") else ""
+    if name != "nominal":
+        mark += " " + ("e" if p.get("excited") else "-") + ("c" if p.get("converged") else "-")
+    return name + mark
+
+
+def _signals(t: dict) -> Table:
+    sig = Table(title="signals", box=None, show_header=True, header_style="bold", pad_edge=False)
     for col in ("", "ref", "measured"):
-        sig.add_column(col, justify="right")
+        sig.add_column(col, justify="right", no_wrap=True)
     sig.add_row("speed r/min", f"{t.get('speed_ref_rpm', 0):8.1f}", f"{t.get('speed_rpm', 0):8.1f}")
     sig.add_row("i_d A", f"{t.get('i_d_ref_a', 0):8.2f}", f"{t.get('i_d_a', 0):8.2f}")
     sig.add_row("i_q A", f"{t.get('i_q_ref_a', 0):8.2f}", f"{t.get('i_q_a', 0):8.2f}")
     sig.add_row("load N·m", f"{t.get('load_nm', 0):8.2f}", "")
     sig.add_row("θe rad", "", f"{t.get('theta_e_rad', 0):8.3f}")
+    return sig
 
-    par = Table(title="parameters", box=None, header_style="bold")
-    par.add_column("estimator")
+
+def _parameters(live: LiveState, errors: bool = True, fold: bool = False) -> Table:
+    """errors: the % error against the truth beside each value; fold: wrap cells, never `…`."""
+    par = Table(title="parameters", box=None, header_style="bold", pad_edge=False)
+    par.add_column("estimator", no_wrap=not fold, overflow="fold")
     for col in ("L_d mH", "L_q mH", "ψf mWb", "R Ω"):
-        par.add_column(col, justify="right")
+        par.add_column(col, justify="right", no_wrap=not fold, overflow="fold")
+    tr = live.truth or {}
     for name, p in live.params.items():
-        # markers: * feeds the predictor, e excited, c converged (params flags)
-        mark = (" *" if p.get("feeds_predictor") else "") + \
-               ("" if name == "nominal" else " " + ("e" if p.get("excited") else "-") +
-                ("c" if p.get("converged") else "-"))
-        tr = live.truth or {}
-
         def cell(key, k, fmt):
             v = p[key] * k
             ref = tr.get(key)
-            if name != "nominal" and ref:
+            if errors and name != "nominal" and ref:
                 return f"{v:{fmt}} [dim]{100 * (p[key] / ref - 1):+.1f}%[/]"
             return f"{v:{fmt}}"
-        par.add_row(name + mark, cell("l_d_h", 1e3, ".3f"), cell("l_q_h", 1e3, ".3f"),
+        par.add_row(_flags(name, p), cell("l_d_h", 1e3, ".3f"), cell("l_q_h", 1e3, ".3f"),
                     cell("psi_f_wb", 1e3, ".1f"), cell("r_s_ohm", 1.0, ".3f"))
-    if live.truth:
-        tr = live.truth
+    if tr:
         par.add_row("[dim]truth[/]", f"[dim]{tr['l_d_h'] * 1e3:.3f}", f"[dim]{tr['l_q_h'] * 1e3:.3f}",
                     f"[dim]{tr['psi_f_wb'] * 1e3:.1f}", f"[dim]{tr['r_s_ohm']:.3f}")
+    return par
 
-    link = Table(title="link", box=None, show_header=False)
-    link.add_column(justify="right")
-    link.add_column()
+
+def _link(live: LiveState, bit_rate: float, wide: bool) -> Table:
+    link = Table(title="link", box=None, show_header=False, pad_edge=False)
+    link.add_column(justify="right", no_wrap=True)
+    link.add_column(no_wrap=True)
     link.add_row(f"{live.frames}", "frames")
-    link.add_row(f"{_link_use(live, bit_rate) * 100:.1f} %", "of capacity (device time)")
+    link.add_row(f"{_link_use(live, bit_rate) * 100:.1f} %",
+                 "of capacity (device time)" if wide else "of capacity")
     link.add_row(f"{live.bad_frames}", "bad frames")
     link.add_row(f"{live.seq_gaps}", "sequence gaps")
-    link.add_row(f"{live.tx_dropped}", "dropped by the device (TX full)")
+    link.add_row(f"{live.tx_dropped}", "dropped by the device (TX full)" if wide else "dropped (TX full)")
+    return link
 
-    body = Table.grid(padding=(0, 4))
-    body.add_row(sig, par, link)
-    last = [f"{e[0]:8.3f} s  {e[3]}" for e in live.events[-4:]]
-    return Panel(Group(head, prog_row, body, *last), title="pmsm-hil run", border_style="blue")
+
+def _width(console, options, renderable) -> int:
+    return Measurement.get(console, options.update(width=10_000), renderable).maximum
+
+
+class _Screen:
+    """The live panel, laid out for the console it is drawn on: the three tables side by side
+    when they fit, else stacked; as many recent events as the height leaves room for."""
+
+    def __init__(self, live: LiveState, title: str, bit_rate: float, names: list[str]):
+        self.live, self.title, self.bit_rate, self.names = live, title, bit_rate, names
+
+    def _body(self, console, options, inner: int) -> list:
+        live = self.live
+        t = live.telemetry
+        seg = self.names[live.segment] if 0 <= live.segment < len(self.names) else ""
+        state = (f"state [bold]{live.state}[/]  segment {live.segment} {seg}  "
+                 f"faults [{'red' if live.faults else 'green'}]{fault_text(live.faults)}[/]")
+        head = Text.from_markup(f"[bold]{self.title}[/]  {state}")
+        rows = [head] if head.cell_len <= inner else [Text.from_markup(f"[bold]{self.title}[/]"),
+                                                      Text.from_markup(state)]
+        counts = (f"{live.t_s:7.2f} / {live.total_s:.2f} s  "
+                  f"{live.realtime_factor:5.1f}x real time")
+        bar_w = max(10, min(50, inner - len(counts) - 2))
+        prog = Table.grid(padding=(0, 2))
+        prog.add_row(ProgressBar(total=max(live.total_s, 1e-9), completed=min(live.t_s, live.total_s),
+                                 width=bar_w), counts)
+        rows.append(prog)
+        sig, par = _signals(t), _parameters(live)
+        wide_link = _link(live, self.bit_rate, True)
+        ws, wp, wl = (_width(console, options, x) for x in (sig, par, wide_link))
+        gap = 4
+        if ws + wp + wl + 2 * gap <= inner:
+            body = Table.grid(padding=(0, gap))
+            body.add_row(sig, par, wide_link)
+            rows.append(body)
+        else:
+            link = _link(live, self.bit_rate, False)
+            wl = _width(console, options, link)
+            if ws + wl + gap <= inner:
+                top = Table.grid(padding=(0, gap))
+                top.add_row(sig, link)
+                rows.append(top)
+            else:
+                rows += [sig, link]
+            if _width(console, options, par) > inner:
+                par = _parameters(live, errors=False)
+                if _width(console, options, par) > inner:
+                    par = _parameters(live, errors=False, fold=True)
+            rows.append(par)
+        if any(n != "nominal" or p.get("feeds_predictor") for n, p in live.params.items()):
+            legend = next((x for x in (FLAGS_LEGEND, FLAGS_LEGEND_SHORT) if len(x) <= inner),
+                          FLAGS_LEGEND_TINY)
+            rows.append(Text(legend, style="dim"))
+        return rows
+
+    def __rich_console__(self, console, options):
+        width = options.max_width
+        inner = width - 4                 # panel border and padding
+        rows = self._body(console, options, inner)
+        height = options.height or console.height
+        used = sum(len(console.render_lines(r, options.update(width=inner, height=None), pad=False))
+                   for r in rows) + 2
+        room = max(0, (height or 10_000) - 1 - used)    # one line spare for rich.Live's cursor
+        events = [Text(f"{e[0]:8.3f} s  {e[3]}") for e in self.live.events[-min(4, room):]] if room else []
+        yield Panel(Group(*rows, *events), title="pmsm-hil run", border_style="blue", width=width)
+
+
+def render(live: LiveState, title: str, bit_rate: float, names: list[str]):
+    """The live panel for `live` (a rich renderable that fits the console's width and height)."""
+    return _Screen(live, title, bit_rate, names)
 
 
 class LiveView:
@@ -132,3 +208,11 @@ class PlainProgress:
 
     def message(self, text: str) -> None:
         print(text, file=self.stream, flush=True)
+
+
+def make_observer(no_live: bool, title: str, bit_rate: float, names: list[str], stream=None):
+    """The live view on a terminal; plain lines with --no-live or when the output is piped."""
+    stream = sys.stdout if stream is None else stream
+    if no_live or not Console(file=stream).is_terminal:
+        return PlainProgress(stream=stream)
+    return LiveView(title, bit_rate, names)

@@ -35,6 +35,9 @@ def add_parser(sub) -> None:
                    help="when the link cannot carry the profile's telemetry, lower the fast-frame "
                         "rate to what fits (default: refuse the run and show the budget)")
     p.add_argument("--no-live", action="store_true", help="plain progress lines instead of the live view")
+    p.add_argument("--foxglove", nargs="?", type=int, const=8765, default=None, metavar="PORT",
+                   help="also serve the live streams to Foxglove on ws://127.0.0.1:PORT "
+                        "(default 8765; docs/foxglove.md)")
     p.add_argument("--stop-after", type=float, default=None, metavar="S",
                    help="ask the device to stop after S seconds of device time")
 
@@ -122,7 +125,7 @@ def _load(args):
 
 def main(args: argparse.Namespace) -> int:
     from pmsm_hil.analysis.summary import print_summary, summarize_log
-    from pmsm_hil.cli.live import LiveView, PlainProgress
+    from pmsm_hil.cli.live import make_observer
     from pmsm_hil.profiles import ProfileError
     from pmsm_hil.protocol.session import DeviceError, Session
     from pmsm_hil.runner import HostError, PlantMismatch, RunOptions, run_profile
@@ -149,19 +152,27 @@ def main(args: argparse.Namespace) -> int:
     if code is not None:
         return code
 
+    sinks = []
+    if args.foxglove is not None:   # docs/foxglove.md
+        from pmsm_hil.live.foxglove import FoxgloveError, FoxgloveSink
+        try:
+            sinks.append(FoxgloveSink(args.foxglove))
+        except FoxgloveError as e:
+            return fail("error", str(e), 2)
+        print(f"foxglove: {sinks[0].url} (layout: docs/foxglove-layout.json)", flush=True)
     try:
         transport = open_transport(args, profile)
     except TransportError as e:
+        for s in sinks:
+            s.close()
         if not existed:
             out.unlink(missing_ok=True)
         return fail("error", str(e), 2 if isinstance(e, TransportSpecError) else 3)
     names = [s.name or f"segment {i}" for i, s in enumerate(profile.segments)]
-    live_view = not args.no_live and sys.stdout.isatty()
-    observer = (LiveView(f"{profile.name} on {transport.name}", transport.bit_rate, names) if live_view
-                else PlainProgress())
+    observer = make_observer(args.no_live, f"{profile.name} on {transport.name}", transport.bit_rate, names)
     is_rig = args.port or (args.can is not None and not args.can.startswith("emulator"))
     options = RunOptions(seed=None if is_rig else args.seed, rig_name=args.rig or str(profile.rig.path or ""),
-                         stop_after_s=args.stop_after)
+                         stop_after_s=args.stop_after, sinks=sinks)
     try:
         with observer:
             result = run_profile(profile, Session(transport), out, options, observer)
@@ -173,6 +184,8 @@ def main(args: argparse.Namespace) -> int:
         return fail("error", f"{e} (log: {out})", 3)
     finally:
         transport.close()
+        for s in sinks:
+            s.close()
     return _finish(result, print_summary, summarize_log)
 
 

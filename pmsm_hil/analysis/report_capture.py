@@ -1,0 +1,63 @@
+"""Report panel: the control-rate capture (/pmsm/capture): phase currents, the legs' duty (switch
+states averaged over DUTY_PERIODS control periods), the DC-link voltage, and the raw switch
+states of the first ZOOM_PERIODS periods."""
+from __future__ import annotations
+
+import numpy as np
+
+from pmsm_hil.analysis.report_context import RunContext
+from pmsm_hil.analysis.report_style import figure, legend
+
+CAP = "/pmsm/capture"
+DUTY_PERIODS = 20      # 1 ms at 20 kHz
+ZOOM_PERIODS = 60      # 3 ms at 20 kHz
+LEGS = (("a", "C0"), ("b", "C1"), ("c", "C2"))
+
+
+def _duty(s: np.ndarray, n: int) -> np.ndarray:
+    if len(s) < n:
+        return s.astype(float)
+    return np.convolve(s.astype(float), np.ones(n) / n, mode="same")
+
+
+def capture(ctx: RunContext):
+    if not ctx.has(CAP):
+        return "no /pmsm/capture samples in the log (no segment asked for a capture, or the upload failed)"
+    cap = ctx.topic(CAP)
+    t = np.asarray(cap["t_s"], float)
+    t_ms = (t - t[0]) * 1e3
+    ts_ms = float(np.median(np.diff(t_ms))) if len(t) > 1 else 0.05
+    fig, axes = figure(ctx, f"Capture at the control rate, from t = {t[0]:.4f} s", 4, sharex=False)
+    ax = axes[0]
+    for ph, c in LEGS:
+        ax.plot(t_ms, cap[f"i_{ph}_a"], lw=0.8, color=c, label=f"i_{ph}")
+    ax.set_ylabel("phase current (A)")
+    legend(ax)
+    ax = axes[1]
+    for ph, c in LEGS:
+        ax.plot(t_ms, _duty(np.asarray(cap[f"s_{ph}"]), DUTY_PERIODS), lw=1.0, color=c,
+                label=f"leg {ph}")
+    ax.set_ylabel(f"duty, {DUTY_PERIODS}-period mean")
+    ax.set_ylim(-0.05, 1.05)
+    legend(ax, title="upper switch on")
+    ax = axes[2]
+    ax.plot(t_ms, cap["v_dc_v"], lw=0.8, color="C3", label="V_dc")
+    ax.set_ylabel("DC-link voltage (V)")
+    ax.ticklabel_format(axis="y", useOffset=False)
+    legend(ax)
+    for ax in axes[:3]:
+        ax.set_xlim(t_ms[0], t_ms[-1])
+        ax.set_xlabel("time since the capture's first sample (ms)")
+    ax = axes[3]
+    k = min(len(t_ms), ZOOM_PERIODS)
+    for j, (ph, c) in enumerate(LEGS):
+        base = 2 * (2 - j)           # leg a on top
+        ax.step(np.append(t_ms[:k], t_ms[k - 1] + ts_ms),
+                np.append(np.asarray(cap[f"s_{ph}"][:k], float), cap[f"s_{ph}"][k - 1]) * 0.8 + base,
+                where="post", lw=1.0, color=c, label=f"s_{ph} (leg {ph})")
+    ax.set_yticks([0, 0.8, 2, 2.8, 4, 4.8], ["c off", "c on", "b off", "b on", "a off", "a on"])
+    ax.set_ylim(-0.4, 5.4)
+    ax.set_ylabel("switch state\n(upper switch)")
+    ax.set_xlabel(f"time since the capture's first sample (ms): the first {k} control periods")
+    legend(ax)
+    return fig

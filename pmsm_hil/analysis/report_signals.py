@@ -1,0 +1,123 @@
+"""Report panels of the fast telemetry: speed, dq currents, dq voltages, estimation error.
+Each returns a matplotlib Figure, or a string saying why the panel has nothing to show."""
+from __future__ import annotations
+
+import numpy as np
+
+from pmsm_hil.analysis.report_context import RunContext
+from pmsm_hil.analysis.report_style import figure, legend, segment_markers, time_axis
+
+TEL = "/pmsm/telemetry"
+
+
+def _no_telemetry(ctx: RunContext) -> str | None:
+    return None if ctx.has(TEL) else "no /pmsm/telemetry messages in the log"
+
+
+def speed(ctx: RunContext):
+    why = _no_telemetry(ctx)
+    if why:
+        return why
+    tel = ctx.topic(TEL)
+    fig, (ax,) = figure(ctx, "Speed", 1)
+    t = tel["t_s"]
+    ax.plot(t, tel["speed_rpm"], lw=0.9, color="C0", label="measured (encoder)")
+    if not np.array_equal(tel["speed_est_rpm"], tel["speed_rpm"]):
+        ax.plot(t, tel["speed_est_rpm"], lw=0.8, color="C2", label="estimated (used by the firmware)")
+    ax.plot(t, tel["speed_ref_rpm"], lw=1.2, color="k", ls="--", label="reference")
+    if ctx.has("/sim/truth"):
+        tr = ctx.topic("/sim/truth")
+        ax.plot(tr["t_s"], tr["speed_rpm"], lw=0.8, color="C3", ls=":", label="plant (truth)")
+    segment_markers(ax, ctx, label=True)
+    ax.set_ylabel("speed n (r/min)")
+    time_axis(ax)
+    legend(ax, title="segment starts: dotted,\nindex above the plot")
+    return fig
+
+
+def currents(ctx: RunContext):
+    why = _no_telemetry(ctx)
+    if why:
+        return why
+    tel = ctx.topic(TEL)
+    t = tel["t_s"]
+    fig, axes = figure(ctx, "dq currents", 2)
+    for ax, axis in zip(axes, ("d", "q")):
+        ax.plot(t, tel[f"i_{axis}_a"], lw=0.6, color="C0" if axis == "d" else "C1",
+                label=f"i_{axis} measured")
+        ax.plot(t, tel[f"i_{axis}_ref_a"], lw=1.1, color="k", ls="--", label=f"i_{axis}* reference")
+        segment_markers(ax, ctx, label=axis == "d")
+        ax.set_ylabel(f"i_{axis} (A)")
+        legend(ax)
+    time_axis(axes[-1])
+    return fig
+
+
+def _mean(t: np.ndarray, x: np.ndarray, window_s: float) -> np.ndarray:
+    """Centred moving mean over about window_s (the MPCC applies one switching vector per period,
+    so single samples of u_d, u_q jump between vectors; their mean is the applied voltage)."""
+    if len(t) < 3:
+        return x
+    n = max(1, int(round(window_s / float(np.median(np.diff(t))))))
+    if n <= 1 or len(x) < n:
+        return x
+    return np.convolve(x, np.ones(n) / n, mode="same")
+
+
+VOLTAGE_MEAN_S = 0.02
+
+
+def voltages(ctx: RunContext):
+    why = _no_telemetry(ctx)
+    if why:
+        return why
+    tel = ctx.topic(TEL)
+    t = tel["t_s"]
+    lim = None
+    if ctx.has("/pmsm/status"):
+        st = ctx.topic("/pmsm/status")
+        v = np.asarray(st["v_dc_v"], float) / np.sqrt(3.0)
+        if np.any(np.isfinite(v) & (v > 0)):
+            lim = (st["t_s"], v)
+    fig, axes = figure(ctx, "dq voltages (as commanded)", 2)
+    for ax, axis, c in zip(axes, ("d", "q"), ("C0", "C1")):
+        u = np.asarray(tel[f"u_{axis}_v"], float)
+        ax.plot(t, u, lw=0.4, color=c, alpha=0.25, label=f"u_{axis}, each sample")
+        ax.plot(t, _mean(t, u, VOLTAGE_MEAN_S), lw=1.1, color=c,
+                label=f"u_{axis}, {VOLTAGE_MEAN_S * 1e3:.0f} ms mean")
+        if lim is not None:
+            ax.plot(lim[0], lim[1], lw=1.0, color="0.3", ls="--", label="±V_dc/√3 (linear limit)")
+            ax.plot(lim[0], -lim[1], lw=1.0, color="0.3", ls="--")
+        segment_markers(ax, ctx, label=axis == "d")
+        ax.set_ylabel(f"u_{axis} (V)")
+        legend(ax)
+    time_axis(axes[-1])
+    return fig
+
+
+def _wrap(x: np.ndarray) -> np.ndarray:
+    return (x + np.pi) % (2.0 * np.pi) - np.pi
+
+
+def estimation_error(ctx: RunContext):
+    why = _no_telemetry(ctx)
+    if why:
+        return why
+    tel = ctx.topic(TEL)
+    d_theta = _wrap(np.asarray(tel["theta_e_est_rad"], float) - np.asarray(tel["theta_e_rad"], float))
+    d_speed = np.asarray(tel["speed_est_rpm"], float) - np.asarray(tel["speed_rpm"], float)
+    if not np.any(d_theta) and not np.any(d_speed):
+        return ("the firmware used the encoder's angle and speed throughout (no sensorless "
+                "estimator ran): the estimation error is zero by construction")
+    t = tel["t_s"]
+    fig, axes = figure(ctx, "Angle and speed estimation error (estimate − encoder)", 2)
+    axes[0].plot(t, np.degrees(d_theta), lw=0.6, color="C4", label="θe,est − θe")
+    axes[0].set_ylabel("angle error (° electrical)")
+    axes[1].plot(t, d_speed, lw=0.6, color="C2", label="n_est − n")
+    axes[1].set_ylabel("speed error (r/min)")
+    for i, ax in enumerate(axes):
+        ax.axhline(0.0, color="k", lw=0.6)
+        segment_markers(ax, ctx, label=i == 0)
+        legend(ax)
+    time_axis(axes[-1])
+    return fig

@@ -1,0 +1,159 @@
+"""`pmsm-hil report`: PNGs and one self-contained HTML page for a run, panels without data skipped,
+bad input refused with exit 2."""
+from __future__ import annotations
+
+import base64
+import re
+import struct
+
+import numpy as np
+import pytest
+
+from pmsm_hil.analysis.report import PANELS, build_report
+from pmsm_hil.cli.main import main
+from pmsm_hil.log.writer import LogWriter
+
+from emu_helpers import run_inproc
+
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+
+def png_size(data: bytes) -> tuple[int, int]:
+    assert data[:8] == PNG_MAGIC
+    return struct.unpack(">II", data[16:24])
+
+
+@pytest.fixture(scope="module")
+def short_log(tmp_path_factory, request):
+    out = tmp_path_factory.mktemp("report") / "short.mcap"
+    run_inproc(request.config.rootpath / "tests" / "data" / "short.yaml", out, seed=4,
+               rig=str(request.config.rootpath / "profiles" / "rigs" / "lab-typical.yaml"),
+               rig_name="profiles/rigs/lab-typical.yaml")
+    return out
+
+
+def test_report_writes_the_panels_and_one_self_contained_page(short_log, tmp_path, capsys):
+    out = tmp_path / "rep"
+    assert main(["report", str(short_log), "-o", str(out)]) == 0
+    printed = capsys.readouterr().out
+    expected = {"speed", "currents", "voltages", "parameters", "capture"}
+    for key in expected:
+        png = out / f"{key}.png"
+        assert png.is_file(), key
+        w, h = png_size(png.read_bytes())
+        assert 800 <= w <= 2000 and 300 <= h <= 2000, (key, w, h)
+        assert str(png) in printed
+    html = (out / "report.html").read_text()
+    # the page names the run (profile, rig, seed) and links every drawn panel
+    assert "short · rig lab-typical · seed 4" in html
+    for key in expected:
+        assert f'href="#panel-{key}"' in html and f'id="panel-{key}"' in html
+    # images are embedded, not linked: every <img> is a data URI holding a valid PNG
+    imgs = re.findall(r'<img alt="[^"]*" src="data:image/png;base64,([^"]+)"', html)
+    assert len(imgs) == len(expected)
+    for b in imgs:
+        png_size(base64.b64decode(b))
+    assert "src=\"http" not in html and ".png\"" not in html
+    # no sensorless estimator ran: that panel is skipped, with the reason on the page
+    assert not (out / "estimation_error.png").exists()
+    assert 'id="skipped-estimation_error"' in html and "encoder" in html
+    # the per-segment summary: the three segments of short.yaml
+    for name in ("up to 500 r/min", "load on", "load off"):
+        assert f"{name}</td>" in html
+    assert "No estimator ran" in html
+    # a complete run carries no warning note
+    assert 'class="note"' not in html
+
+
+def test_estimators_give_the_identification_table_and_the_error_panel(tmp_path):
+    """A log written directly: params of three estimators against a truth, and an estimated
+    angle that differs from the encoder's."""
+    log = tmp_path / "synthetic.mcap"
+    meta = {"run": {"profile": "synthetic", "rig": "rigs/bench-x.yaml", "seed": "9",
+                    "segment_names": "a|b"}, "device": {"board": "emulator"}}
+    t = np.arange(0, 2.0, 5e-4)
+    n = len(t)
+    with LogWriter(log, meta) as w:
+        theta = (t * 2 * np.pi * 30) % (2 * np.pi)
+        w.write_many("/pmsm/telemetry", {
+            "t_s": t, "speed_ref_rpm": np.full(n, 450.0), "speed_rpm": np.full(n, 450.0),
+            "speed_est_rpm": 450.0 + np.sin(t), "theta_e_rad": theta,
+            "theta_e_est_rad": (theta + 0.05) % (2 * np.pi), "i_d_a": np.zeros(n),
+            "i_q_a": np.ones(n), "i_d_ref_a": np.zeros(n), "i_q_ref_a": np.ones(n),
+            "u_d_v": np.zeros(n), "u_q_v": np.full(n, 50.0), "load_nm": np.zeros(n)})
+        tp = np.arange(0, 2.0, 0.01)
+        for est, k in (("rls", 1.05), ("adaline", 1.01), ("nlms_adaline", 1.0)):
+            for ti in tp:
+                w.write("/pmsm/params", float(ti), {"estimator": est, "l_d_h": 5e-3 * k, "l_q_h": 12e-3 * k,
+                                                    "psi_f_wb": 0.18 * k, "r_s_ohm": 0.9 * k,
+                                                    "converged": True})
+        w.write_many("/sim/truth", {"t_s": tp, "l_d_h": np.full(len(tp), 5e-3),
+                                    "l_q_h": np.full(len(tp), 12e-3), "psi_f_wb": np.full(len(tp), 0.18),
+                                    "r_s_ohm": np.full(len(tp), 0.9), "speed_rpm": np.full(len(tp), 450.0)})
+        for i, ti in enumerate((0.0, 1.0)):
+            w.write("/pmsm/events", ti, {"kind": "segment_start", "code": 1, "arg": i, "text": ""})
+    rep = build_report(log, tmp_path / "out")
+    assert set(rep.pngs) == {"speed", "currents", "voltages", "parameters", "estimation_error"}
+    assert set(rep.skipped) == {"capture"}
+    html = rep.html.read_text()
+    assert "synthetic · rig bench-x · seed 9" in html
+    # identification table: rls is 5 % off (red), nlms_adaline exact
+    assert "+5.00 %" in html and "+0.00 %" in html
+    assert "nlms_adaline final" in html
+    assert 'id="skipped-capture"' in html
+
+
+def test_every_panel_has_a_title_and_a_caption():
+    keys = [p[0] for p in PANELS]
+    assert keys == ["speed", "currents", "voltages", "parameters", "estimation_error", "capture"]
+    assert all(p[1] and p[3] for p in PANELS)
+
+
+def test_bad_input_exits_2_without_traceback(tmp_path, short_log, capsys):
+    missing = tmp_path / "nope.mcap"
+    assert main(["report", str(missing)]) == 2
+    err = capsys.readouterr().err
+    assert "nope.mcap: no such file" in err and "Traceback" not in err
+
+    not_mcap = tmp_path / "text.mcap"
+    not_mcap.write_text("hello\n")
+    assert main(["report", str(not_mcap)]) == 2
+    assert "not an MCAP file" in capsys.readouterr().err
+
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    assert main(["report", str(short_log), "-o", str(blocker / "sub")]) == 2
+    err = capsys.readouterr().err
+    assert f"-o {blocker / 'sub'}" in err and "Traceback" not in err
+
+    empty = tmp_path / "empty.mcap"
+    LogWriter(empty, {}).close()
+    assert main(["report", str(empty)]) == 2
+    assert "no telemetry" in capsys.readouterr().err
+
+
+def test_default_directory_is_beside_the_log(short_log, tmp_path):
+    import shutil
+    log = tmp_path / "run1.mcap"
+    shutil.copy(short_log, log)
+    rep = build_report(log)
+    assert rep.out_dir == tmp_path / "run1-report"
+    assert rep.html.is_file()
+
+
+def test_truncated_log_is_reported_as_such(short_log, tmp_path):
+    data = short_log.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: len(data) * 6 // 10])
+    rep = build_report(cut, tmp_path / "out")
+    html = rep.html.read_text()
+    assert "not finalised" in html
+    assert "speed" in rep.pngs                 # what was recovered is plotted
+
+
+def test_a_stopped_run_says_it_did_not_reach_the_end(data, tmp_path):
+    out = tmp_path / "stopped.mcap"
+    run_inproc(data / "long.yaml", out, stop_after_s=1.2)
+    html = build_report(out, tmp_path / "out").html.read_text()
+    assert "did not reach the profile&#x27;s end" in html and "host stop" in html
+    assert "not finalised" not in html
