@@ -251,6 +251,13 @@ def _stream(session: Session, rec: Recorder, options: RunOptions, observer, sig,
             # stopped event seen; wait for the status frame that follows, then end
             if now - last_data_wall > 0.3:
                 return False
+        if not live.stopped and not frames and now - last_data_wall > 0.3 and _stop_evident(live):
+            # the stopped event was lost, but the status frames or the profile's end show the stop
+            live.stopped = True
+            live.stop_reason = "profile end" if live.t_s >= live.total_s else "stopped (event lost)"
+            rec.event(live.t_s, "host", 0, 0, f"the device went quiet in state {live.state} at "
+                                              f"{live.t_s:.3f} s; its stopped event did not arrive")
+            return False
         silent = options.silent_after_s is not None and live.t_s >= options.silent_after_s
         if not silent and (live.t_s - last_hb_dev >= options.heartbeat_period_s
                            or now - last_hb_wall >= 0.05):
@@ -267,6 +274,12 @@ def _stream(session: Session, rec: Recorder, options: RunOptions, observer, sig,
         if observer is not None and now - last_update >= options.on_update_s:
             last_update = now
             observer.update(live)
+
+
+def _stop_evident(live) -> bool:
+    """The device's own frames say it was stopping or done (status), or its profile has ended."""
+    seen = live.status.get("state") if live.status else None
+    return seen in ("stopping", "done", "fault") or (live.total_s > 0 and live.t_s >= live.total_s)
 
 
 def _bad_frames(session: Session) -> int:
@@ -317,11 +330,20 @@ def _upload_capture(session: Session, rec: Recorder, observer) -> int:
         return 0
     if observer is not None:
         observer.message(f"uploading capture ({count} samples)")
+    capacity = getattr(session.identity, "capture_len", 0) or 0
+    if count > capacity:      # a device-provided count is checked against what it said at hello
+        rec.event(rec.live.t_s, "warning", 0, 0, f"capture count {count} is implausible: not uploaded")
+        return 0
     try:
         chunks = session.read_capture(count)
     except (DeviceError, TransportError) as e:
         rec.event(rec.live.t_s, "warning", 0, 0, f"capture upload failed: {e}")
         return 0
+    missing = getattr(session, "capture_missing", [])
+    if missing:
+        rec.event(rec.live.t_s, "warning", 0, 0,
+                  f"capture: {len(missing)} chunks did not arrive (offsets {missing[:8]}"
+                  f"{' ...' if len(missing) > 8 else ''}); the {count} samples are kept but for those")
     rec.frames(session.poll(0.0))
     return rec.capture(chunks)
 

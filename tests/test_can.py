@@ -259,3 +259,28 @@ def test_cli_emulate_can_prints_a_spec_that_run_connects_to(data, tmp_path):
     finally:
         emu.terminate()
         emu.wait(timeout=5)
+
+
+def test_a_second_can_client_cannot_take_over_a_running_motor(data, tmp_path):
+    emu = subprocess.Popen([sys.executable, "-m", "pmsm_hil.emulator", "--can"], stdout=subprocess.PIPE,
+                           stderr=subprocess.PIPE, text=True)
+    try:
+        spec = emu.stdout.readline().strip().split(" ", 1)[1]
+        first = subprocess.Popen([sys.executable, "-m", "pmsm_hil.cli.main", "run", str(data / "long.yaml"),
+                                  "--can", spec, "--no-live", "-o", str(tmp_path / "first.mcap")],
+                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and not first.stdout.readline().startswith("t="):
+            pass
+        second = subprocess.run([sys.executable, "-m", "pmsm_hil.cli.main", "run", str(data / "short.yaml"),
+                                 "--can", spec, "--no-live", "-o", str(tmp_path / "second.mcap")],
+                                capture_output=True, text=True, timeout=120)
+        assert second.returncode == 3
+        assert "busy" in second.stderr and "Traceback" not in second.stderr
+        out, err = first.communicate(timeout=180)
+        assert first.returncode == 0, err[-2000:]      # the first session ran to its end undisturbed
+        assert "all plateaus within bounds" in out
+    finally:
+        emu.terminate()
+        _, emu_err = emu.communicate(timeout=10)
+    assert "refused a second CAN client" in emu_err

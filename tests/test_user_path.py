@@ -16,6 +16,7 @@ from pmsm_hil.emulator.server import Pacer
 from pmsm_hil.log.reader import read_log
 from pmsm_hil.profiles import ProfileError, load_profile
 from pmsm_hil.profiles.shipped import resolve, shipped, shipped_root
+from pmsm_hil.protocol import generated as gen
 
 CLI = [sys.executable, "-m", "pmsm_hil.cli.main"]
 
@@ -280,3 +281,31 @@ def test_a_run_against_an_emulator_of_another_motor_says_so(tmp_path):
     finally:
         emu.terminate()
         emu.wait(timeout=10)
+
+
+def test_a_lost_stopped_event_still_ends_the_run_cleanly(tmp_path, monkeypatch):
+    """One lost event frame must not fail a good run: the status frames show the stop."""
+    from pmsm_hil.recorder import Recorder
+    real = Recorder._on_event
+
+    def drop_stopped(self, f):
+        if f["code"] == gen.ENUMS["event"]["stopped"]:
+            return                                    # the frame carrying `stopped` is lost
+        real(self, f)
+    monkeypatch.setattr(Recorder, "_on_event", drop_stopped)
+    out = tmp_path / "lost.mcap"
+    _, result = run_inproc(Path(__file__).parent / "data" / "short.yaml", out)
+    assert not result.error and result.stop_reason == "profile end"
+    assert result.capture_samples > 0                 # the capture was still uploaded
+    texts = list(read_log(out).topic("/pmsm/events")["text"])
+    assert any("stopped event did not arrive" in t for t in texts)
+
+
+def test_a_yaml_alias_bomb_is_refused_at_once(tmp_path):
+    rows = ['a: &a ["x", "x", "x", "x", "x", "x", "x", "x", "x"]']
+    for prev, name in zip("abcdefgh", "bcdefghi"):
+        rows.append(f"{name}: &{name} [" + ", ".join([f"*{prev}"] * 9) + "]")
+    bomb = tmp_path / "bomb.yaml"
+    bomb.write_text("\n".join(rows) + "\n")                  # 9^9 values once expanded
+    r = cli("run", bomb, timeout=30)
+    assert r.returncode == 2 and "alias" in r.stderr and "Traceback" not in r.stderr

@@ -6,7 +6,9 @@
     server: < frame ID SEC.USEC DATA >  (device -> host; time stamps are device time)
     client: < send ID LEN B0 B1 ... >   (host -> device)
 
-One client at a time (a new connection replaces the old one); when it goes away the device runs on in real time, so its heartbeat timeout
+One controlling client at a time: while one has its channel open, a second is refused (`< error busy
+... >`, counted, reported on stderr); a connection that never opened a channel (a probe) is replaced.
+When the client goes away the device runs on in real time, so its heartbeat timeout
 stops the motor as on a rig, and the next client may connect. Pacing as in server.py.
 """
 from __future__ import annotations
@@ -53,6 +55,7 @@ class SocketcandServer:
         self._stop = False
         self.frames_in = 0
         self.frames_out = 0
+        self.refused = 0            # second clients refused while a session was connected
         self.ts_s = device.get("ts_s")
 
     @property
@@ -80,13 +83,34 @@ class SocketcandServer:
             c, _ = self.lsock.accept()
         except BlockingIOError:
             return
-        if self.client is not None:   # one client at a time: the newest (the old one is gone, or a probe)
+        if self.client is not None and self._raw and self._alive():
+            # one controlling session at a time: a second client may not take over a running
+            # motor (its heartbeats would keep it running unsupervised); refused, and said so
+            self.refused += 1
+            try:
+                c.sendall(b"< error busy: another host controls this drive >")
+            except OSError:
+                pass
+            c.close()
+            print(f"refused a second CAN client: a controlling session is connected "
+                  f"({self.refused} refused)", file=sys.stderr, flush=True)
+            return
+        if self.client is not None:   # the old one is gone, or a probe that never opened a channel
             self._drop_client()
         c.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         self.client = c
         self.pacer.host_back()
         c.sendall(b"< hi >")
         c.setblocking(False)
+
+    def _alive(self) -> bool:
+        """Whether the current client's connection is still open (a peek, nothing consumed)."""
+        try:
+            return self.client.recv(1, socket.MSG_PEEK) != b""
+        except BlockingIOError:
+            return True
+        except OSError:
+            return False
 
     def _handle(self, cmd: str) -> None:
         parts = cmd.split()

@@ -524,7 +524,8 @@ def rewrite_log(src: str | os.PathLike, dst: str | os.PathLike) -> Log:
             extra.append(codec.topic)
     meta = {k: v for k, v in log.metadata.items() if k != "log"}
     atts = [(a.name, a.media_type, a.data) for a in log.attachments]
-    with LogWriter(dst, meta, atts, topics=extra) as w:
+    offset_ns = int(log.metadata.get("log", {}).get("log_time_offset_ns", "0") or 0)
+    with LogWriter(dst, meta, atts, topics=extra, wall_start_s=offset_ns / 1e9 or None) as w:
         for topic in log.topics:
             if log._codec(log._by_topic[topic]) is None:
                 log.problems.append(f"{topic}: schema is not flat; not rewritten")

@@ -185,6 +185,29 @@ class Source:
                        has_value=value is not _NO_VALUE)
 
 
+MAX_NODES = 100_000          # a profile has a few hundred; aliases may not expand beyond this
+
+
+def expanded_size(node: yaml.Node) -> int:
+    """Nodes of the document with every alias expanded (memoised: linear in the distinct nodes),
+    so an alias bomb is measured before anything expands it."""
+    memo: dict[int, int] = {}
+
+    def size(n: yaml.Node) -> int:
+        if id(n) in memo:
+            return memo[id(n)]
+        memo[id(n)] = 1                  # a recursive alias counts once
+        if isinstance(n, yaml.MappingNode):
+            total = 1 + sum(size(k) + size(v) for k, v in n.value)
+        elif isinstance(n, yaml.SequenceNode):
+            total = 1 + sum(size(v) for v in n.value)
+        else:
+            total = 1
+        memo[id(n)] = min(total, 1 << 62)
+        return memo[id(n)]
+    return size(node)
+
+
 def _walk(node: yaml.Node, path: tuple, src: Source) -> None:
     if isinstance(node, yaml.MappingNode):
         seen: dict[Any, int] = {}
@@ -238,6 +261,11 @@ def read_source(path: str, *, what: str = "file",
     loader = _Loader(src.text)
     try:
         node = loader.get_single_node()
+        if node is not None and expanded_size(node) > MAX_NODES:
+            src.problems.append(Problem(path, None, None, None,
+                                        f"is too large: its YAML aliases expand to more than "
+                                        f"{MAX_NODES} values (an alias bomb?)", has_value=False))
+            return src
         data = loader.construct_document(node) if node is not None else None
     except yaml.MarkedYAMLError as e:
         mark = e.problem_mark or e.context_mark

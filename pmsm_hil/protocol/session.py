@@ -109,19 +109,33 @@ class Session:
         return self.identity
 
     def read_capture(self, count: int, timeout_s: float = 0.5, retries: int = 3) -> list[dict]:
-        """Upload the capture buffer chunk by chunk (8 samples each), retrying lost chunks."""
+        """Upload the capture buffer chunk by chunk, retrying lost chunks.
+
+        A chunk that does not arrive after `retries` tries is skipped (its offset is listed in
+        `capture_missing`) and the upload goes on: what arrived is kept. A chunk whose `n_valid`
+        exceeds its capacity or what is left of the buffer is refused as corrupt (counted in
+        `capture_rejected`) and asked for again."""
         chunks = []
+        self.capture_missing: list[int] = []
+        self.capture_rejected = 0
+        per_chunk = next(f.count for f in gen.BY_NAME["capture_chunk"].fields if f.name == "i_a_a")
         offset = 0
         while offset < count:
+            fr = None
             for _attempt in range(retries):
                 self.send("capture_read", offset=offset)
                 fr = self._wait_for(lambda f, o=offset: f.name == "capture_chunk"
                                     and f.fields["offset"] == o, timeout_s)
+                if fr is not None and fr.fields["n_valid"] > min(per_chunk, count - offset):
+                    self.capture_rejected += 1
+                    fr = None
+                    continue
                 if fr is not None:
                     break
-            else:
-                raise DeviceError(f"capture chunk at offset {offset} not received after "
-                                  f"{retries} tries")
+            if fr is None:
+                self.capture_missing.append(offset)
+                offset += per_chunk
+                continue
             n = fr.fields["n_valid"]
             if n == 0:
                 break
