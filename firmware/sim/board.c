@@ -61,8 +61,9 @@ static uint16_t board_msg(void *ctx, uint16_t msg_id, const uint16_t *payload, u
 /* Apply a sim_plant step when its segment starts (after the firmware's ISR of that period). */
 static void plant_steps(emu_t *e)
 {
-    const int seg = (int)e->fw.prof.index;
-    if (seg != e->plant_seg && e->fw.prof.begun) {
+    bool begun;
+    const int seg = (int)fw_segment(&e->fw, &begun);
+    if (seg != e->plant_seg && begun) {
         e->plant_seg = seg;
         if (seg >= 0 && seg < (int)PROFILE_MAX_SEGMENTS && ((e->plant_step_mask >> seg) & 1u) != 0u) {
             plant_set_param_scale(&e->plant, &e->pcfg, (double)e->plant_r_scale[seg], (double)e->plant_psi_scale[seg]);
@@ -159,14 +160,15 @@ int emu_get(const emu_t *e, const char *key, double *value)
     if (strcmp(key, "ts_s") == 0) { *value = e->pcfg.ts_s; return 0; }
     if (strcmp(key, "baud") == 0) { *value = e->baud; return 0; }
     if (strcmp(key, "seed") == 0) { *value = (double)e->pcfg.seed; return 0; }
-    if (strcmp(key, "tick") == 0) { *value = (double)e->fw.tick; return 0; }
-    if (strcmp(key, "tx_dropped") == 0) { *value = (double)e->fw.tx.dropped; return 0; }
-    if (strcmp(key, "tx_level") == 0) { *value = (double)e->fw.tx.level; return 0; }
+    if (strcmp(key, "tick") == 0) { *value = (double)fw_tick(&e->fw); return 0; }
+    if (strcmp(key, "tx_dropped") == 0) { *value = (double)fw_tx_dropped(&e->fw); return 0; }
+    if (strcmp(key, "tx_level") == 0) { *value = (double)fw_tx_level(&e->fw); return 0; }
     if (strcmp(key, "can_bits") == 0) { *value = e->can.bits_sent; return 0; }
     if (strcmp(key, "can_frames") == 0) { *value = (double)e->can.frames_sent; return 0; }
-    if (strcmp(key, "can_level") == 0) { *value = (double)can_link_tx_level(&e->fw.can); return 0; }
+    if (strcmp(key, "can_level") == 0) { *value = (double)fw_can_tx_level(&e->fw); return 0; }
     if (strcmp(key, "heartbeat_timeout_s") == 0) {
-        *value = e->fw.have_ctrl ? (double)e->fw.ctrl.heartbeat_timeout_s : 0.0;
+        const proto_config_ctrl_t *c = fw_ctrl(&e->fw);
+        *value = c != NULL ? (double)c->heartbeat_timeout_s : 0.0;
         return 0;
     }
     return -1;
@@ -209,7 +211,7 @@ static void send_truth(emu_t *e)
     proto_sim_truth_t m;
     uint16_t n;
     plant_truth(&e->plant, &t);
-    m.tick = e->fw.tick;
+    m.tick = fw_tick(&e->fw);
     m.l_d_h = (float)t.l_d_h;
     m.l_q_h = (float)t.l_q_h;
     m.psi_f_wb = (float)t.psi_f_wb;
@@ -255,7 +257,7 @@ uint32_t emu_run(emu_t *e, uint32_t max_ticks, uint8_t *out, uint32_t cap, uint3
     if (fw_active(&e->fw) && !e->was_active) {
         /* a new run: the rig starts from rest, with its noise sequence from the seed, and the
          * PWM period the firmware configured (as the F28335 board sets its PWM timer) */
-        e->pcfg.ts_s = (double)e->fw.ctrl.ts_s;
+        e->pcfg.ts_s = (double)fw_ctrl(&e->fw)->ts_s;
         per_tick = e->baud / 10.0 * e->pcfg.ts_s;
         margin = (uint32_t)per_tick + 2u;
         plant_init(&e->plant, &e->pcfg);
@@ -304,9 +306,9 @@ uint32_t emu_run(emu_t *e, uint32_t max_ticks, uint8_t *out, uint32_t cap, uint3
     return ticks;
 }
 
-uint32_t emu_isr_count(const emu_t *e) { return e->fw.isr_count; }
-uint32_t emu_heartbeat_isr(const emu_t *e) { return e->fw.hb_isr; }
-int emu_state(const emu_t *e) { return (int)e->fw.state; }
+uint32_t emu_isr_count(const emu_t *e) { return fw_isr_count(&e->fw); }
+uint32_t emu_heartbeat_isr(const emu_t *e) { return fw_heartbeat_isr(&e->fw); }
+int emu_state(const emu_t *e) { return (int)fw_state(&e->fw); }
 int emu_active(const emu_t *e) { return fw_active(&e->fw) ? 1 : 0; }
 
 /* CAN (docs/can.md): a frame from the host; the frames the controller sent (see can_sim_take). */
@@ -376,7 +378,7 @@ int emu_plant_truth(const emu_t *e, double *out, int n)
     w[10] = t.r_s_ohm; w[11] = t.l_d_h; w[12] = t.l_q_h; w[13] = t.psi_f_wb; w[14] = t.temp_winding_c;
     w[15] = t.temp_magnet_c; w[16] = t.i_a_a; w[17] = t.i_b_a; w[18] = t.i_c_a; w[19] = t.v_dc_v;
     w[20] = t.load_nm; w[21] = t.psi_d_wb; w[22] = t.psi_q_wb; w[23] = t.p_cu_w; w[24] = t.p_fe_w;
-    w[25] = t.i_dc_a; w[26] = (double)e->fw.tick;
+    w[25] = t.i_dc_a; w[26] = (double)fw_tick(&e->fw);
     w[27] = t.v_dist_v[0]; w[28] = t.v_dist_v[1]; w[29] = t.v_dist_v[2];
     for (i = 0; i < n && i < m; i++) {
         out[i] = w[i];
