@@ -1,4 +1,4 @@
-/* Unit tests of the emulator's plant (firmware/sim/plant.c) and its PRNG (firmware/sim/rng.c). */
+/* Unit tests of the emulator's plant (firmware/sim/plant*.c) and its PRNG (firmware/sim/rng.c). */
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
