@@ -13,8 +13,9 @@
 #include <stdbool.h>
 
 #include "enc_angle.h"
+#include "proto_gen.h"
 
-#define ANGLE_SRC_ENCODER 0u   /* = the protocol's angle_src encoder */
+#define ANGLE_SRC_ENCODER PROTO_ANGLE_SRC_ENCODER   /* config_ctrl angle_src */
 
 typedef struct {
     uint16_t src;              /* ANGLE_SRC_* */

@@ -13,8 +13,9 @@
 #include <stdbool.h>
 
 #include "mpcc.h"
+#include "proto_gen.h"
 
-#define CC_KIND_MPCC 0u      /* = the protocol's current_ctrl mpcc */
+#define CC_KIND_MPCC PROTO_CURRENT_CTRL_MPCC   /* config_ctrl current_ctrl */
 
 #define CC_OUT_STATES 0u     /* s_a, s_b, s_c: upper switches forced for the whole period */
 #define CC_OUT_DUTIES 1u     /* duty_a, duty_b, duty_c: upper-switch on-time fractions, [0, 1] */

@@ -73,7 +73,7 @@ void fw_trip(fw_t *f, uint16_t fault_bits)
     if (capture_freeze(&f->cap)) {   /* the whole buffer leads up to the fault */
         fw_raise(f, PROTO_EVENT_CAPTURE_TRIGGERED, -1);
     }
-    fw_pwm_off(f, PROTO_STATE_FAULT, FW_STOP_FAULT);
+    fw_pwm_off(f, PROTO_STATE_FAULT, PROTO_STOP_REASON_FAULT);
 }
 
 /* ------------------------------------------------------------------ start of a run */
@@ -91,13 +91,13 @@ static void init_stages(fw_t *f)
 
     ec.counts = c->enc_counts;
     ec.pole_pairs = f->motor.pole_pairs;
-    ec.offset_rad = c->enc_offset_rad;
+    ec.offset_e_rad = c->enc_offset_e_rad;
     ec.bw_rad_s = c->speed_obs_bw_rad_s;
     ec.ts_s = c->ts_s;
     enc_init(&f->enc, &ec);
     memset(&f->enc_out, 0, sizeof(f->enc_out));
 
-    ac.src = ANGLE_SRC_ENCODER;
+    ac.src = c->angle_src;
     ac.pole_pairs = f->motor.pole_pairs;
     ac.ts_s = c->ts_s;
     angle_init(&f->angle, &ac);
@@ -208,7 +208,7 @@ static void check_heartbeat(fw_t *f)
         f->hb_lost = true;
         f->faults = (uint16_t)(f->faults | PROTO_FAULT_HEARTBEAT);
         fw_raise(f, PROTO_EVENT_HEARTBEAT_LOST, (int32_t)(age_s * 1000.0f));
-        fw_enter_stopping(f, FW_STOP_HEARTBEAT);
+        fw_enter_stopping(f, PROTO_STOP_REASON_HEARTBEAT_LOST);
     }
 }
 
@@ -286,7 +286,7 @@ static void stage_profile(fw_t *f, float *speed_ref_rpm, float *load_nm)
         }
         if (po.finished) {
             fw_raise(f, PROTO_EVENT_PROFILE_DONE, (int32_t)po.index);
-            fw_enter_stopping(f, FW_STOP_PROFILE_END);
+            fw_enter_stopping(f, PROTO_STOP_REASON_PROFILE_END);
         } else {
             *speed_ref_rpm = po.speed_ref_rpm;
             *load_nm = po.load_nm;
@@ -433,7 +433,7 @@ static void period(fw_t *f, const fw_meas_t *m, fw_cmd_t *cmd)
     f->tick++;
     if (stop_finished(f)) {
         cmd->pwm_on = false;
-        fw_pwm_off(f, f->stop_reason == FW_STOP_PROFILE_END ? PROTO_STATE_DONE : PROTO_STATE_IDLE,
+        fw_pwm_off(f, f->stop_reason == PROTO_STOP_REASON_PROFILE_END ? PROTO_STATE_DONE : PROTO_STATE_IDLE,
                    f->stop_reason);
     }
 }

@@ -33,11 +33,8 @@
 #define FW_VERSION_MINOR 1u
 #define FW_VERSION_PATCH 0u
 
-#define FW_BOARD_SIM 0u
-#define FW_BOARD_F28335 1u
-
 typedef struct {
-    uint16_t board;          /* FW_BOARD_SIM or FW_BOARD_F28335 */
+    uint16_t board;          /* PROTO_BOARD_* */
     uint16_t can_node;       /* CAN node ID 0..15 (docs/can.md) */
 } fw_cfg_t;
 

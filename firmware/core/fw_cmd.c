@@ -49,7 +49,7 @@ static uint16_t cmd_config_ctrl(fw_t *f, const uint16_t *p, uint16_t n)
     }
     if (!(c.ts_s >= 1e-5f && c.ts_s <= 1e-3f) || c.speed_div == 0u || !(c.rho > 0.0f) ||
         !(c.heartbeat_timeout_s > 0.0f) || c.enc_counts < 4u || !(c.speed_obs_bw_rad_s > 0.0f) ||
-        c.current_ref > PROTO_CURRENT_REF_MTPA || !cc_kind_known(c.current_ctrl) ||
+        c.current_ref > PROTO_CURRENT_REF_MTPA || !cc_kind_known(c.current_ctrl) || !angle_src_known(c.angle_src) ||
         c.capture_pre >= CAPTURE_LEN || c.speed_kp_a_per_rad_s < 0.0f || c.speed_ki_a_per_rad < 0.0f ||
         c.identify > 1u || c.predictor > PROTO_ESTIMATOR_NLMS_ADALINE ||
         (c.identify != 0u && c.id_window < 2u) || !(c.pred_scale_l_d > 0.0f) ||
@@ -145,14 +145,14 @@ static void handle_frame(fw_t *f, uint16_t id, uint16_t seq, const uint16_t *p, 
         break;
     case PROTO_ID_STOP:
         if (f->state == PROTO_STATE_RUNNING) {
-            fw_enter_stopping(f, FW_STOP_HOST);
+            fw_enter_stopping(f, PROTO_STOP_REASON_HOST_STOP);
         } else if (!fw_active(f)) {
             st = PROTO_ACK_STATUS_OK;   /* already stopped: idempotent */
         }
         break;
     case PROTO_ID_ABORT:
         if (fw_active(f)) {
-            fw_pwm_off(f, PROTO_STATE_IDLE, FW_STOP_ABORT);
+            fw_pwm_off(f, PROTO_STATE_IDLE, PROTO_STOP_REASON_ABORT);
         }
         break;
     default:

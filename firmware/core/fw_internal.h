@@ -16,13 +16,6 @@
 #define FW_DITHER_PERIOD 22u         /* q-current dither: not a divisor of the speed-loop period */
 #define FW_DITHER_GAIN 0.6f          /* peak-to-peak, as a fraction of one vector's current step */
 
-/* stop reasons (arg of the stopped event) */
-#define FW_STOP_HOST 0
-#define FW_STOP_ABORT 1
-#define FW_STOP_FAULT 2
-#define FW_STOP_HEARTBEAT 3
-#define FW_STOP_PROFILE_END 4
-
 /* fw.c */
 void fw_raise(fw_t *f, uint16_t code, int32_t arg);   /* an event, sent at the end of the period */
 void fw_enter_stopping(fw_t *f, uint16_t reason);

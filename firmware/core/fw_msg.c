@@ -141,7 +141,7 @@ void fw_send_params(fw_t *f, uint16_t slot)
     pm.tick = f->tick;
     if (slot == 0u) {
         pm.estimator = PROTO_ESTIMATOR_NOMINAL;
-        pm.flags = nominal_feeds ? 4u : 0u;
+        pm.flags = nominal_feeds ? PROTO_PARAMS_FLAG_FEEDS_PREDICTOR : 0u;
         pm.l_d_h = f->motor.l_d_h * c->pred_scale_l_d;
         pm.l_q_h = f->motor.l_q_h * c->pred_scale_l_q;
         pm.psi_f_wb = f->motor.psi_f_wb * c->pred_scale_psi_f;
@@ -150,8 +150,9 @@ void fw_send_params(fw_t *f, uint16_t slot)
         est_out_t o;
         ident_report(&f->ident, (uint16_t)(slot - 1u), &o);
         pm.estimator = slot;
-        pm.flags = (uint16_t)((o.excited ? 1u : 0u) | (o.converged ? 2u : 0u) |
-                              ((!nominal_feeds && c->predictor == slot) ? 4u : 0u));
+        pm.flags = (uint16_t)((o.excited ? PROTO_PARAMS_FLAG_EXCITED : 0u) |
+                              (o.converged ? PROTO_PARAMS_FLAG_CONVERGED : 0u) |
+                              ((!nominal_feeds && c->predictor == slot) ? PROTO_PARAMS_FLAG_FEEDS_PREDICTOR : 0u));
         pm.l_d_h = o.l_d_h;
         pm.l_q_h = o.l_q_h;
         pm.psi_f_wb = o.psi_f_wb;

@@ -39,7 +39,7 @@ void plant_cfg_default(plant_cfg_t *cfg)
     cfg->i_noise_a = 0.0;
     cfg->adc_lsb_a = 0.0;
     cfg->enc_counts = 10000u;
-    cfg->enc_offset_rad = 0.0;
+    cfg->enc_offset_m_rad = 0.0;
     cfg->ts_s = 50e-6;
     cfg->substeps = 1;
     cfg->seed = 1u;
@@ -146,7 +146,7 @@ void plant_init(plant_t *p, const plant_cfg_t *cfg)
     p->dist_on = p->inv_i_dt > 0.0 && (cfg->v_drop_v > 0.0 || cfg->dead_time_s > 0.0);
     p->inv_lsb = cfg->adc_lsb_a > 0.0 ? 1.0 / cfg->adc_lsb_a : 0.0;
     p->enc_scale = (double)p->cfg.enc_counts / PL_TWO_PI;
-    p->enc_off_w = wrap_2pi(fmod(cfg->enc_offset_rad, PL_TWO_PI));
+    p->enc_off_w = wrap_2pi(fmod(cfg->enc_offset_m_rad, PL_TWO_PI));
     p->h_s = cfg->ts_s / (double)p->cfg.substeps;
     p->inv_ts = 1.0 / cfg->ts_s;
     p->cos_e = 1.0;

@@ -60,7 +60,7 @@ typedef struct {
     double i_noise_a;        /* standard deviation of the Gaussian current-sensor noise, 0 = off */
     double adc_lsb_a;        /* current quantisation step, 0 = off */
     uint32_t enc_counts;     /* encoder counts per mechanical revolution (lines * 4) */
-    double enc_offset_rad;   /* encoder reads wrap(theta_m + enc_offset_rad) */
+    double enc_offset_m_rad;   /* encoder reads wrap(theta_m + enc_offset_m_rad) */
     /* integration */
     double ts_s;             /* control period */
     int substeps;            /* RK4 sub-steps per period (1: within ~3e-5 A of a 1000-step reference, docs/plant.md) */

@@ -552,13 +552,13 @@ static void test_encoder(void)
     plant_sample(&p, &m);
     CHECK(m.enc_count == 0u, "encoder after whole turns");
 
-    cfg.enc_offset_rad = PI;
+    cfg.enc_offset_m_rad = PI;
     plant_init(&p, &cfg);
     plant_sample(&p, &m);
     CHECK(m.enc_count == 500u, "encoder offset pi: half a turn");
 
     /* turning backwards through zero: counts wrap from 0 to N - 1 and decrease */
-    cfg.enc_offset_rad = 0.0;
+    cfg.enc_offset_m_rad = 0.0;
     plant_init(&p, &cfg);
     plant_set_mech(&p, 0.6 * TWO_PI / 1000.0, -TWO_PI / 1000.0 / 50e-6 / 4.0, true); /* -1/4 count per period */
     cmd_set(&off, 0, 0, 0, false, 0.0);
