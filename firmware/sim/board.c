@@ -165,18 +165,6 @@ static void send_truth(emu_t *e)
     (void)fw_send(&e->fw, PROTO_ID_SIM_TRUTH, e->payload, n);
 }
 
-/* The inverter runs one period with the command of the previous one: forced switch states, or
- * duties (averaged PWM, plant_step_duty). */
-static void apply_cmd(emu_t *e, const fw_cmd_t *cmd)
-{
-    if (cmd->mode == FW_CMD_DUTIES) {
-        const double duty[3] = { (double)cmd->duty_a, (double)cmd->duty_b, (double)cmd->duty_c };
-        plant_step_duty(&e->plant, duty, cmd->pwm_on, (double)cmd->load_nm);
-    } else {
-        plant_step(&e->plant, cmd);
-    }
-}
-
 static uint32_t drain(emu_t *e, uint8_t *out, uint32_t cap, uint32_t n, uint32_t limit)
 {
     uint16_t buf[64];
@@ -225,7 +213,7 @@ uint32_t emu_run(emu_t *e, uint32_t max_ticks, uint8_t *out, uint32_t cap, uint3
         }
         fw_isr(&e->fw, &meas, &cmd);
         plant_steps(e);
-        apply_cmd(e, &e->prev_cmd);
+        plant_step(&e->plant, &e->prev_cmd);   /* switch states or duties (plant_step_duty) */
         e->prev_cmd = cmd;
         e->truth_count++;
         if (e->truth_count >= e->truth_div) {

@@ -177,7 +177,7 @@ const char *plant_cfg_check(const plant_cfg_t *cfg);
 
 void plant_init(plant_t *p, const plant_cfg_t *cfg);        /* standstill, i = 0, theta_m = 0 */
 void plant_sample(plant_t *p, fw_meas_t *m);                 /* sensors at the current instant */
-void plant_step(plant_t *p, const fw_cmd_t *cmd);            /* one period, switch states held */
+void plant_step(plant_t *p, const fw_cmd_t *cmd);            /* one period: switch states held, or duties (cmd->mode) */
 void plant_truth(const plant_t *p, plant_truth_t *t);
 
 /* Averaged PWM: one period with leg duties d in [0, 1] (each leg with 0 < d < 1 commutes twice,

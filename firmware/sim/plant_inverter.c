@@ -286,6 +286,13 @@ static void step_legs_now(plant_t *p, const double d[3], bool pwm_on, bool carri
 void plant_step(plant_t *p, const fw_cmd_t *cmd)
 {
     double d[3];
+    if (cmd->mode == FW_CMD_DUTIES) {   /* a modulator's duties: averaged PWM */
+        d[0] = (double)cmd->duty_a;
+        d[1] = (double)cmd->duty_b;
+        d[2] = (double)cmd->duty_c;
+        plant_step_duty(p, d, cmd->pwm_on, (double)cmd->load_nm);
+        return;
+    }
     d[0] = (double)(cmd->s_a != 0);
     d[1] = (double)(cmd->s_b != 0);
     d[2] = (double)(cmd->s_c != 0);
