@@ -10,7 +10,8 @@ STATE_NAMES = {v: k for k, v in gen.ENUMS["state"].items()}
 EVENT_NAMES = {v: k for k, v in gen.ENUMS["event"].items()}
 ESTIMATOR_NAMES = {v: k for k, v in gen.ENUMS["estimator"].items()}
 FAULT_BITS = gen.ENUMS["fault"]
-STOP_REASONS = {0: "host stop", 1: "abort", 2: "fault", 3: "heartbeat lost", 4: "profile end"}
+STOP_REASONS = {v: k.replace("_", " ") for k, v in gen.ENUMS["stop_reason"].items()}
+PARAMS_FLAGS = gen.ENUMS["params_flag"]
 
 TELEMETRY_FIELDS = ("speed_ref_rpm", "speed_rpm", "speed_est_rpm", "theta_e_rad", "theta_e_est_rad",
                     "i_d_a", "i_q_a", "i_d_ref_a", "i_q_ref_a", "u_d_v", "u_q_v", "load_nm")
@@ -104,8 +105,9 @@ class Recorder:
         name = ESTIMATOR_NAMES.get(f["estimator"], str(f["estimator"]))
         flags = f["flags"]
         row = {"estimator": name, "l_d_h": f["l_d_h"], "l_q_h": f["l_q_h"],
-               "psi_f_wb": f["psi_f_wb"], "r_s_ohm": f["r_s_ohm"], "excited": bool(flags & 1),
-               "converged": bool(flags & 2), "feeds_predictor": bool(flags & 4)}
+               "psi_f_wb": f["psi_f_wb"], "r_s_ohm": f["r_s_ohm"], "excited": bool(flags & PARAMS_FLAGS["excited"]),
+               "converged": bool(flags & PARAMS_FLAGS["converged"]),
+               "feeds_predictor": bool(flags & PARAMS_FLAGS["feeds_predictor"])}
         self._write("/pmsm/params", t, row)
         self.live.params[name] = row
 

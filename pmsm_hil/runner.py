@@ -130,7 +130,8 @@ def configure(session: Session, profile) -> None:
     for i, s in enumerate(profile.segments):
         session.request("profile_segment", index=i, duration_s=s.duration_s, speed_rpm=s.speed_rpm,
                         ramp_rpm_s=s.ramp_rpm_s, load_nm=s.load_nm,
-                        flags=(1 if s.capture else 0) | (0 if getattr(s, "estimate", True) else 2),
+                        flags=((gen.ENUMS["segment_flag"]["capture"] if s.capture else 0) |
+                               (0 if getattr(s, "estimate", True) else gen.ENUMS["segment_flag"]["hold_est"])),
                         kind=gen.ENUMS["segment_kind"][getattr(s, "kind", "run")],
                         inject_a=getattr(s, "inject_a", 0.0), inject_hz=getattr(s, "inject_hz", 0.0))
     steps = [(i, s.plant) for i, s in enumerate(profile.segments) if getattr(s, "plant", None) is not None]

@@ -1,6 +1,7 @@
 """The firmware's C unit tests, built with the C28x-strict warnings as errors (firmware/Makefile)."""
 from __future__ import annotations
 
+import re
 import shutil
 import subprocess
 
@@ -26,3 +27,42 @@ def test_f28335_board_sources_compile_against_the_register_stub(root):
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
     assert "all checks passed" in r.stdout
+
+
+
+C_STANDARD_HEADERS = {
+    "assert.h", "complex.h", "ctype.h", "errno.h", "fenv.h", "float.h", "inttypes.h", "iso646.h",
+    "limits.h", "locale.h", "math.h", "setjmp.h", "signal.h", "stdarg.h", "stdbool.h", "stddef.h",
+    "stdint.h", "stdio.h", "stdlib.h", "string.h", "tgmath.h", "time.h", "wchar.h", "wctype.h",
+}
+INCLUDE = re.compile(r'^\s*#\s*include\s*([<"])([^>"]+)[>"]', re.M)
+
+
+def core_includes(core):
+    """(file, header, quoted) for every #include of the firmware core's files."""
+    out = []
+    for path in sorted(list(core.glob("*.c")) + list(core.glob("*.h"))):
+        for m in INCLUDE.finditer(path.read_text()):
+            out.append((path.name, m.group(2), m.group(1) == '"'))
+    return out
+
+
+def stray_includes(core):
+    """Includes of anything but a header of core itself ("x.h") or a C standard header (<x.h>)."""
+    return [(f, h) for f, h, quoted in core_includes(core)
+            if (quoted and ("/" in h or not (core / h).is_file())) or (not quoted and h not in C_STANDARD_HEADERS)]
+
+
+def test_firmware_core_includes_only_core_and_the_c_standard_headers(root):
+    core = root / "firmware" / "core"
+    assert len(core_includes(core)) > 50   # the scan sees the core's includes
+    bad = stray_includes(core)
+    assert not bad, "firmware/core includes outside core and the C standard headers: " + repr(bad)
+
+
+def test_the_include_check_catches_a_stray_include(tmp_path):
+    core = tmp_path / "core"
+    core.mkdir()
+    (core / "a.h").write_text("#include <stdint.h>\n")
+    (core / "a.c").write_text('#include "a.h"\n#include "../sim/plant.h"\n#include "b.h"\n#include <windows.h>\n')
+    assert stray_includes(core) == [("a.c", "../sim/plant.h"), ("a.c", "b.h"), ("a.c", "windows.h")]

@@ -87,7 +87,7 @@ def test_shipped_rig_effects():
     assert r.effects["adc_noise"].i_noise_a == 0.02
     assert r.effects["adc_quantisation"].adc_lsb_a == pytest.approx(100 / 4096)
     assert r.effects["encoder"].lines == 2500 and r.effects["encoder"].counts == 10000
-    assert r.effects.get("encoder").offset_rad == 0.0
+    assert r.effects.get("encoder").offset_e_rad == 0.0
     assert r.effects.get("no_such_effect") is None
     assert r.v_dc_v is None
     assert r.effects_mask == sum(1 << EFFECT_BITS[n] for n in r.enabled_effects)

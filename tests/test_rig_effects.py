@@ -179,7 +179,7 @@ def test_sensor_offset_gives_the_first_harmonic(ideal, tmp_path):
 
 def test_sensor_gain_mismatch_gives_the_second_harmonic(ideal, tmp_path):
     g = 0.05
-    rig = write_rig(tmp_path, "gain", f"  sensor_gain: {{gain_a: 1.0, gain_b: {1 + g}, gain_c: 1.0}}\n")
+    rig = write_rig(tmp_path, "gain", f"  sensor_gain: {{i_a_gain: 1.0, i_b_gain: {1 + g}, i_c_gain: 1.0}}\n")
     _, _, truth = run(rig, tmp_path / "g.mcap")
     t, ti = tru(truth), tru(ideal[2])
     i_s = math.hypot(t["i_d_a"].mean(), t["i_q_a"].mean())
@@ -289,7 +289,7 @@ def test_thermal_drift_moves_r_and_psi_f_by_the_coefficients(ideal, tmp_path):
 
 def test_encoder_offset_rotates_the_measured_dq_frame(ideal, tmp_path):
     delta = 0.15
-    rig = write_rig(tmp_path, "enc", f"  encoder: {{lines: 2500, offset_rad: {delta}}}\n")
+    rig = write_rig(tmp_path, "enc", f"  encoder: {{lines: 2500, offset_e_rad: {delta}}}\n")
     _, log, truth = run(rig, tmp_path / "enc.mcap")
     tl, tt = tel(log), tru(truth)
     # the firmware's angle leads the rotor's by the offset

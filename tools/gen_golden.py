@@ -44,8 +44,8 @@ VECTORS: list[tuple[str, str, int, dict]] = [
         v_dc_min_v=0.0)),
     ("config_ctrl", "config_ctrl", 3, dict(
         ts_s=50e-6, rho=1.0, speed_kp_a_per_rad_s=0.25, speed_ki_a_per_rad=12.5, speed_div=20,
-        current_ref=1, current_ctrl=0, heartbeat_timeout_s=0.5, fast_div=10, params_div=200,
-        status_div=2000, enc_counts=10000, enc_offset_rad=-0.25, speed_obs_bw_rad_s=200.0,
+        current_ref=1, current_ctrl=0, angle_src=0, heartbeat_timeout_s=0.5, fast_div=10, params_div=200,
+        status_div=2000, enc_counts=10000, enc_offset_e_rad=-0.25, speed_obs_bw_rad_s=200.0,
         dead_time_s=2e-6, v_drop_v=1.2, i_dt_a=0.5, capture_pre=256, identify=1, predictor=3, id_window=20,
         pred_scale_l_d=0.5, pred_scale_l_q=0.5, pred_scale_psi_f=1.5, pred_scale_r_s=1.0)),
     ("profile_clear", "profile_clear", 4, dict(n_segments=3)),

@@ -26,7 +26,7 @@ void enc_init(enc_t *e, const enc_cfg_t *cfg)
     if (!(e->cfg.ts_s > 0.0f)) {
         e->cfg.ts_s = 50.0e-6f;
     }
-    e->cfg.offset_rad = (e->cfg.offset_rad == e->cfg.offset_rad) ? tf_wrap_2pi(e->cfg.offset_rad) : 0.0f;
+    e->cfg.offset_e_rad = (e->cfg.offset_e_rad == e->cfg.offset_e_rad) ? tf_wrap_2pi(e->cfg.offset_e_rad) : 0.0f;
     bw = e->cfg.bw_rad_s;
     if (!(bw > 0.0f)) {
         bw = ENC_BW_DEFAULT_RAD_S;
@@ -123,9 +123,9 @@ void enc_step(enc_t *e, uint32_t count, enc_out_t *out)
     /* raw-count angles */
     out->theta_m_rad = (float)c * e->rad_per_count;
     if (e->int_elec) {
-        out->theta_e_rad = wrap_once((float)mul_mod(c, p, n) * e->rad_per_count + e->cfg.offset_rad);
+        out->theta_e_rad = wrap_once((float)mul_mod(c, p, n) * e->rad_per_count + e->cfg.offset_e_rad);
     } else {
-        out->theta_e_rad = tf_wrap_2pi((float)p * out->theta_m_rad + e->cfg.offset_rad);
+        out->theta_e_rad = tf_wrap_2pi((float)p * out->theta_m_rad + e->cfg.offset_e_rad);
     }
 
     /* observer: predict, innovation (wrapped to +-n/2), correct */
@@ -147,9 +147,9 @@ void enc_step(enc_t *e, uint32_t count, enc_out_t *out)
     out->speed_rpm = out->omega_m_rad_s * ENC_RPM_PER_RAD_S;
     if (e->int_elec) {
         obs_counts = (float)mul_mod(e->n_obs, p, n) + e->f_obs * (float)e->cfg.pole_pairs;
-        out->theta_e_obs_rad = wrap_once(obs_counts * e->rad_per_count + e->cfg.offset_rad);
+        out->theta_e_obs_rad = wrap_once(obs_counts * e->rad_per_count + e->cfg.offset_e_rad);
     } else {
         obs_counts = ((float)e->n_obs + e->f_obs) * (float)e->cfg.pole_pairs;
-        out->theta_e_obs_rad = tf_wrap_2pi(obs_counts * e->rad_per_count + e->cfg.offset_rad);
+        out->theta_e_obs_rad = tf_wrap_2pi(obs_counts * e->rad_per_count + e->cfg.offset_e_rad);
     }
 }

@@ -22,7 +22,7 @@
 typedef struct {
     uint32_t counts;        /* counts per mechanical turn (4 x lines); >= 4 */
     uint16_t pole_pairs;
-    float offset_rad;       /* electrical angle at count 0 */
+    float offset_e_rad;       /* electrical angle at count 0 */
     float bw_rad_s;         /* observer bandwidth (speed -3 dB) */
     float ts_s;             /* call period (the control period) */
 } enc_cfg_t;

@@ -1,13 +1,13 @@
-/* The firmware application: state, faults, heartbeat, the profile reference and the control
- * period (fw.h). Host commands are in fw_cmd.c, messages to the host in fw_msg.c, identification
- * in fw_ident.c. */
+/* The firmware application: state, faults, heartbeat, and the control period as a pipeline of
+ * stages (fw.h, docs/architecture.md). Host commands are in fw_cmd.c, messages to the host in
+ * fw_msg.c; the stages only raise events, which fw_flush sends at the end of the period. */
 #include "fw_internal.h"
 #include "transforms.h"
 
 #include <math.h>
 #include <string.h>
 
-/* ------------------------------------------------------------------ state changes */
+/* ------------------------------------------------------------------ accessors */
 
 void fw_set_board_hook(fw_t *f, fw_board_msg_fn fn, void *ctx)
 {
@@ -20,14 +20,41 @@ bool fw_active(const fw_t *f)
     return f->state == PROTO_STATE_RUNNING || f->state == PROTO_STATE_STOPPING;
 }
 
+uint32_t fw_tick(const fw_t *f) { return f->tick; }
+uint32_t fw_isr_count(const fw_t *f) { return f->isr_count; }
+uint32_t fw_heartbeat_isr(const fw_t *f) { return f->hb_isr; }
+uint16_t fw_state(const fw_t *f) { return f->state; }
+uint32_t fw_tx_dropped(const fw_t *f) { return f->link.tx.dropped; }
+uint16_t fw_tx_level(const fw_t *f) { return f->link.tx.level; }
+can_link_t *fw_can(fw_t *f) { return &f->link.can; }
+uint16_t fw_can_tx_level(const fw_t *f) { return can_link_tx_level(&f->link.can); }
+
+uint16_t fw_segment(const fw_t *f, bool *begun)
+{
+    *begun = f->prof.begun;
+    return f->prof.index;
+}
+
+const proto_config_ctrl_t *fw_ctrl(const fw_t *f)
+{
+    return f->have_ctrl ? &f->ctrl : NULL;
+}
+
+/* ------------------------------------------------------------------ state changes */
+
+void fw_raise(fw_t *f, uint16_t code, int32_t arg)
+{
+    (void)evq_push(&f->events, f->tick, code, arg);
+}
+
 void fw_enter_stopping(fw_t *f, uint16_t reason)
 {
     if (f->state == PROTO_STATE_RUNNING) {
         f->state = PROTO_STATE_STOPPING;
         f->stop_reason = reason;
-        ramp_reset(&f->stop_ramp, f->sig.speed_ref_rpm);
-        f->stop_ticks = 0u;
-        f->stop_hold_ticks = 0u;
+        ramp_reset(&f->stop.ramp, f->sig.speed_ref_rpm);
+        f->stop.ticks = 0u;
+        f->stop.hold_ticks = 0u;
     }
 }
 
@@ -35,27 +62,96 @@ void fw_pwm_off(fw_t *f, uint16_t new_state, uint16_t reason)
 {
     f->state = new_state;
     f->stop_reason = reason;
-    fw_send_event(f, PROTO_EVENT_STOPPED, (int32_t)reason);
-    fw_send_status(f);
+    fw_raise(f, PROTO_EVENT_STOPPED, (int32_t)reason);
+    f->status_due = true;
 }
 
 void fw_trip(fw_t *f, uint16_t fault_bits)
 {
     f->faults = (uint16_t)(f->faults | fault_bits);
-    fw_send_event(f, PROTO_EVENT_FAULT, (int32_t)fault_bits);
+    fw_raise(f, PROTO_EVENT_FAULT, (int32_t)fault_bits);
     if (capture_freeze(&f->cap)) {   /* the whole buffer leads up to the fault */
-        fw_send_event(f, PROTO_EVENT_CAPTURE_TRIGGERED, -1);
+        fw_raise(f, PROTO_EVENT_CAPTURE_TRIGGERED, -1);
     }
-    fw_pwm_off(f, PROTO_STATE_FAULT, FW_STOP_FAULT);
+    fw_pwm_off(f, PROTO_STATE_FAULT, PROTO_STOP_REASON_FAULT);
 }
 
+/* ------------------------------------------------------------------ start of a run */
 
-uint16_t fw_start_run(fw_t *f)
+static void init_stages(fw_t *f)
 {
-    mpcc_cfg_t mc;
+    const proto_config_ctrl_t *c = &f->ctrl;
+    cc_cfg_t cc;
+    angle_cfg_t ac;
     speed_pi_cfg_t sc;
     enc_cfg_t ec;
     dither_cfg_t dc;
+    ident_cfg_t ic;
+    uint16_t i;
+
+    ec.counts = c->enc_counts;
+    ec.pole_pairs = f->motor.pole_pairs;
+    ec.offset_e_rad = c->enc_offset_e_rad;
+    ec.bw_rad_s = c->speed_obs_bw_rad_s;
+    ec.ts_s = c->ts_s;
+    enc_init(&f->enc, &ec);
+    memset(&f->enc_out, 0, sizeof(f->enc_out));
+
+    ac.src = c->angle_src;
+    ac.pole_pairs = f->motor.pole_pairs;
+    ac.ts_s = c->ts_s;
+    angle_init(&f->angle, &ac);
+    memset(&f->ang, 0, sizeof(f->ang));
+
+    sc.kp_a_per_rad_s = c->speed_kp_a_per_rad_s;
+    sc.ki_a_per_rad = c->speed_ki_a_per_rad;
+    sc.ts_s = c->ts_s * (float)c->speed_div;
+    sc.out_max_a = f->motor.i_max_a;
+    speed_pi_init(&f->spi, &sc);
+    speed_pi_set_ref_weight(&f->spi, FW_SPEED_REF_WEIGHT);
+
+    dc.period = FW_DITHER_PERIOD;
+    dc.gain = FW_DITHER_GAIN;
+    dither_init(&f->dither, &dc);
+
+    cc.kind = c->current_ctrl;
+    mpcc_cfg_default(&cc.mpcc);
+    cc.mpcc.ts_s = c->ts_s;
+    cc.mpcc.rho = c->rho;
+    cc.mpcc.dead_time_s = c->dead_time_s;
+    cc.mpcc.v_drop_v = c->v_drop_v;
+    cc.mpcc.i_dt_a = c->i_dt_a;
+    cc_init(&f->cc, &cc);
+    memset(&f->cc_out, 0, sizeof(f->cc_out));
+
+    ic.nominal.r_s_ohm = f->motor.r_s_ohm;
+    ic.nominal.l_d_h = f->motor.l_d_h;
+    ic.nominal.l_q_h = f->motor.l_q_h;
+    ic.nominal.psi_f_wb = f->motor.psi_f_wb;
+    ic.pred_scale.r_s_ohm = c->pred_scale_r_s;
+    ic.pred_scale.l_d_h = c->pred_scale_l_d;
+    ic.pred_scale.l_q_h = c->pred_scale_l_q;
+    ic.pred_scale.psi_f_wb = c->pred_scale_psi_f;
+    ic.pole_pairs = f->motor.pole_pairs;
+    ic.ts_s = c->ts_s;
+    ic.id_window = c->id_window;
+    ic.identify = c->identify != 0u;
+    ic.predictor = c->predictor;
+    ic.have_injection = false;
+    for (i = 0u; i < f->prof.n_declared && i < PROFILE_MAX_SEGMENTS; i++) {
+        if (f->prof.seg[i].kind == PROFILE_KIND_IDENTIFY_R) {
+            ic.have_injection = true;
+        }
+    }
+    /* the encoder count is the floor of the angle: half a count (electrical) of mean lag */
+    ic.angle_bias_rad = c->enc_counts > 0u ?
+                        FW_PI_F * (float)f->motor.pole_pairs / (float)c->enc_counts : 0.0f;
+    ident_init(&f->ident, &ic);
+    memset(&f->seg, 0, sizeof(f->seg));
+}
+
+uint16_t fw_start_run(fw_t *f)
+{
     ramp_cfg_t sr;
     if (!f->have_motor || !f->have_ctrl || !profile_complete(&f->prof)) {
         return PROTO_ACK_STATUS_BAD_STATE;
@@ -63,37 +159,12 @@ uint16_t fw_start_run(fw_t *f)
     if (fw_active(f)) {
         return PROTO_ACK_STATUS_BUSY;
     }
-    mpcc_cfg_default(&mc);
-    mc.ts_s = f->ctrl.ts_s;
-    mc.rho = f->ctrl.rho;
-    mc.dead_time_s = f->ctrl.dead_time_s;
-    mc.v_drop_v = f->ctrl.v_drop_v;
-    mc.i_dt_a = f->ctrl.i_dt_a;
-    mpcc_init(&f->mpcc, &mc);
-
-    sc.kp_a_per_rad_s = f->ctrl.speed_kp_a_per_rad_s;
-    sc.ki_a_per_rad = f->ctrl.speed_ki_a_per_rad;
-    sc.ts_s = f->ctrl.ts_s * (float)f->ctrl.speed_div;
-    sc.out_max_a = f->motor.i_max_a;
-    speed_pi_init(&f->spi, &sc);
-    speed_pi_set_ref_weight(&f->spi, FW_SPEED_REF_WEIGHT);
-
-    ec.counts = f->ctrl.enc_counts;
-    ec.pole_pairs = f->motor.pole_pairs;
-    ec.offset_rad = f->ctrl.enc_offset_rad;
-    ec.bw_rad_s = f->ctrl.speed_obs_bw_rad_s;
-    ec.ts_s = f->ctrl.ts_s;
-    enc_init(&f->enc, &ec);
-
-    dc.period = FW_DITHER_PERIOD;
-    dc.gain = FW_DITHER_GAIN;
-    dither_init(&f->dither, &dc);
-
-    fw_ident_init(f);
+    init_stages(f);
     capture_init(&f->cap, f->ctrl.capture_pre);
     profile_start(&f->prof, f->ctrl.ts_s);
     memset(&f->sig, 0, sizeof(f->sig));
     f->i_s_ref_a = 0.0f;
+    f->i_d_base_a = 0.0f;
     f->speed_div_count = 0u;
     f->faults = 0u;
     f->tick = 0u;
@@ -103,12 +174,11 @@ uint16_t fw_start_run(fw_t *f)
     f->stop_reason = 0u;
     sr.rate_rpm_s = FW_STOP_RAMP_RPM_S;
     sr.ts_s = f->ctrl.ts_s;
-    ramp_init(&f->stop_ramp, &sr);
+    ramp_init(&f->stop.ramp, &sr);
     return PROTO_ACK_STATUS_OK;
 }
 
-
-/* ------------------------------------------------------------------ control period */
+/* ------------------------------------------------------------------ supervision */
 
 static void check_faults(fw_t *f, const fw_meas_t *m)
 {
@@ -117,7 +187,7 @@ static void check_faults(fw_t *f, const fw_meas_t *m)
     if (fabsf(m->i_a_a) > it || fabsf(m->i_b_a) > it || fabsf(m->i_c_a) > it) {
         bits |= PROTO_FAULT_OVER_CURRENT;
     }
-    if (fabsf(f->enc_out.speed_rpm) > f->limits.speed_trip_rpm) {
+    if (fabsf(f->ang.speed_rpm) > f->limits.speed_trip_rpm) {
         bits |= PROTO_FAULT_OVER_SPEED;
     }
     if (m->v_dc_v < f->limits.v_dc_min_v) {
@@ -137,176 +207,257 @@ static void check_heartbeat(fw_t *f)
     if (!f->hb_lost && age_s > f->ctrl.heartbeat_timeout_s) {
         f->hb_lost = true;
         f->faults = (uint16_t)(f->faults | PROTO_FAULT_HEARTBEAT);
-        fw_send_event(f, PROTO_EVENT_HEARTBEAT_LOST, (int32_t)(age_s * 1000.0f));
-        fw_enter_stopping(f, FW_STOP_HEARTBEAT);
+        fw_raise(f, PROTO_EVENT_HEARTBEAT_LOST, (int32_t)(age_s * 1000.0f));
+        fw_enter_stopping(f, PROTO_STOP_REASON_HEARTBEAT_LOST);
     }
 }
 
-/* Speed reference and load for this period, from the profile or the stop ramp. */
-static void reference(fw_t *f, float *speed_ref_rpm, float *load_nm)
+/* End of a stop: reference at zero and the rotor (nearly) still for a while, or too long. */
+static bool stop_finished(fw_t *f)
 {
-    if (f->state == PROTO_STATE_RUNNING) {
-        profile_out_t po;
-        profile_step(&f->prof, f->ctrl.ts_s, &po);
-        if (po.segment_started) {
-            fw_send_event(f, PROTO_EVENT_SEGMENT_START, (int32_t)po.index);
-            if ((po.flags & PROFILE_FLAG_CAPTURE) != 0u && capture_trigger(&f->cap)) {
-                fw_send_event(f, PROTO_EVENT_CAPTURE_TRIGGERED, (int32_t)po.index);
-            }
-        }
-        if (po.finished) {
-            fw_send_event(f, PROTO_EVENT_PROFILE_DONE, (int32_t)po.index);
-            fw_enter_stopping(f, FW_STOP_PROFILE_END);
-        } else {
-            *speed_ref_rpm = po.speed_ref_rpm;
-            *load_nm = po.load_nm;
-            f->seg_kind = po.kind;
-            f->seg_flags = po.flags;
-            f->seg_inject_a = po.inject_a;
-            f->seg_inject_hz = po.inject_hz;
-            f->seg_tick = po.tick_in_seg;
-            f->seg_ticks = po.seg_ticks;
-            return;
-        }
+    if (f->state != PROTO_STATE_STOPPING) {
+        return false;
     }
-    f->seg_kind = PROFILE_KIND_RUN;
-    f->seg_flags = PROFILE_FLAG_HOLD_EST;   /* no identification while stopping */
-    f->seg_inject_a = 0.0f;
-    /* stopping: quick-stop ramp to zero, load released */
-    *speed_ref_rpm = ramp_step(&f->stop_ramp, 0.0f);
-    *load_nm = 0.0f;
+    f->stop.ticks++;
+    if (f->stop.ramp.out_rpm == 0.0f && fabsf(f->ang.speed_rpm) < FW_STOP_SPEED_RPM) {
+        f->stop.hold_ticks++;
+    } else {
+        f->stop.hold_ticks = 0u;
+    }
+    return (float)f->stop.hold_ticks * f->ctrl.ts_s >= FW_STOP_HOLD_S ||
+           (float)f->stop.ticks * f->ctrl.ts_s >= FW_STOP_TIMEOUT_S;
 }
 
-void fw_isr(fw_t *f, const fw_meas_t *m, fw_cmd_t *cmd)
+/* ------------------------------------------------------------------ the stages */
+
+/* Measure: the encoder's reading (its observer starts where the rotor is), logged as truth. */
+static void stage_measure(fw_t *f, const fw_meas_t *m)
 {
-    float speed_ref_rpm = 0.0f, load_nm = 0.0f, c, s, i_al, i_be;
-    fw_dq_t idq_ref;
-    mpcc_in_t mi;
-    mpcc_out_t mo;
-    capture_sample_t cs;
-
-    f->isr_count++;
-    f->sig.v_dc_v = m->v_dc_v;
-    cmd->pwm_on = false;
-    cmd->s_a = 0u;
-    cmd->s_b = 0u;
-    cmd->s_c = 0u;
-    cmd->load_nm = 0.0f;
-    if (!fw_active(f)) {
-        return;
-    }
-
-    /* angle and speed slot: the encoder (its observer starts where the rotor is) */
     if (f->tick == 0u) {
         enc_reset(&f->enc, m->enc_count);
     }
     enc_step(&f->enc, m->enc_count, &f->enc_out);
     f->sig.theta_e_rad = f->enc_out.theta_e_rad;
     f->sig.speed_rpm = f->enc_out.speed_rpm;
-    f->sig.theta_e_est_rad = f->enc_out.theta_e_rad;
-    f->sig.speed_est_rpm = f->enc_out.speed_rpm;
-    f->sig.omega_e_rad_s = f->enc_out.omega_e_rad_s;
+}
 
-    c = cosf(f->sig.theta_e_est_rad);
-    s = sinf(f->sig.theta_e_est_rad);
-    i_al = m->i_a_a;
-    i_be = (m->i_a_a + 2.0f * m->i_b_a) * 0.57735026918963f;
-    f->sig.i_d_a = c * i_al + s * i_be;
-    f->sig.i_q_a = -s * i_al + c * i_be;
+/* Angle slot: the angle and speed the control uses. */
+static void stage_angle(fw_t *f, float i_al, float i_be)
+{
+    angle_in_t ai;
+    ai.enc = &f->enc_out;
+    ai.i_alpha_a = i_al;
+    ai.i_beta_a = i_be;
+    ai.u_d_prev_v = f->cc_out.u_d_avg_v;
+    ai.u_q_prev_v = f->cc_out.u_q_avg_v;
+    ai.i_d_pred_a = f->cc_out.i_d_pred_a;
+    ai.i_q_pred_a = f->cc_out.i_q_pred_a;
+    angle_step(&f->angle, &ai, &f->ang);
+    f->sig.theta_e_est_rad = f->ang.theta_e_rad;
+    f->sig.speed_est_rpm = f->ang.speed_rpm;
+    f->sig.omega_e_rad_s = f->ang.omega_e_rad_s;
+}
 
-    /* capture: the sample with the switch state applied while it was taken */
+/* Capture: the sample with the switch state applied while it was taken (encoder angle). */
+static void stage_capture(fw_t *f, const fw_meas_t *m)
+{
+    capture_sample_t cs;
     cs.i_a_a = m->i_a_a;
     cs.i_b_a = m->i_b_a;
     cs.i_c_a = m->i_c_a;
-    cs.s_abc = f->mpcc.sw_prev;
+    cs.s_abc = cc_applied_code(&f->cc);
     cs.v_dc_v = m->v_dc_v;
     cs.theta_e_rad = f->sig.theta_e_rad;
     cs.omega_e_rad_s = f->enc_out.omega_e_rad_s;
     capture_record(&f->cap, f->tick, &cs);
+}
 
-    check_faults(f, m);
-    if (!fw_active(f)) {
-        fw_send_telemetry(f);
-        f->tick++;
-        return;
+/* References: the profile (or the stop ramp) gives speed and load; the segment its kind. */
+static void stage_profile(fw_t *f, float *speed_ref_rpm, float *load_nm)
+{
+    if (f->state == PROTO_STATE_RUNNING) {
+        profile_out_t po;
+        profile_step(&f->prof, f->ctrl.ts_s, &po);
+        if (po.segment_started) {
+            fw_raise(f, PROTO_EVENT_SEGMENT_START, (int32_t)po.index);
+            if ((po.flags & PROFILE_FLAG_CAPTURE) != 0u && capture_trigger(&f->cap)) {
+                fw_raise(f, PROTO_EVENT_CAPTURE_TRIGGERED, (int32_t)po.index);
+            }
+        }
+        if (po.finished) {
+            fw_raise(f, PROTO_EVENT_PROFILE_DONE, (int32_t)po.index);
+            fw_enter_stopping(f, PROTO_STOP_REASON_PROFILE_END);
+        } else {
+            *speed_ref_rpm = po.speed_ref_rpm;
+            *load_nm = po.load_nm;
+            f->seg.identify_r = po.kind == PROFILE_KIND_IDENTIFY_R;
+            f->seg.hold = (po.flags & PROFILE_FLAG_HOLD_EST) != 0u;
+            f->seg.inject_a = po.inject_a;
+            f->seg.inject_hz = po.inject_hz;
+            f->seg.tick = po.tick_in_seg;
+            f->seg.ticks = po.seg_ticks;
+            return;
+        }
     }
-    check_heartbeat(f);
+    f->seg.identify_r = false;
+    f->seg.hold = true;   /* no identification while stopping */
+    f->seg.inject_a = 0.0f;
+    /* stopping: quick-stop ramp to zero, load released */
+    *speed_ref_rpm = ramp_step(&f->stop.ramp, 0.0f);
+    *load_nm = 0.0f;
+}
 
-    reference(f, &speed_ref_rpm, &load_nm);
-    if (!fw_active(f)) {   /* reference() may end the run */
-        fw_send_telemetry(f);
-        f->tick++;
-        return;
-    }
-    f->sig.speed_ref_rpm = speed_ref_rpm;
-    f->sig.load_nm = load_nm;
-
-    /* speed loop (identify_r: off, the d axis carries the injection and the q axis nothing) */
+/* Speed loop and current references (identify_r: off, the d axis carries the injection and the
+ * q axis nothing). */
+static void stage_current_refs(fw_t *f, float speed_ref_rpm)
+{
+    fw_dq_t idq_ref;
     f->speed_div_count++;
-    if (f->seg_kind == PROFILE_KIND_IDENTIFY_R) {
+    if (f->seg.identify_r) {
         speed_pi_reset(&f->spi, 0.0f);
         f->i_s_ref_a = 0.0f;
         f->i_d_base_a = 0.0f;
         f->sig.i_q_ref_a = 0.0f;
     } else if (f->speed_div_count >= f->ctrl.speed_div) {
         f->speed_div_count = 0u;
-        f->i_s_ref_a = speed_pi_step(&f->spi, speed_ref_rpm / FW_RPM_PER_RAD_S,
-                                     f->enc_out.omega_m_rad_s);
+        f->i_s_ref_a = speed_pi_step(&f->spi, speed_ref_rpm / FW_RPM_PER_RAD_S, f->ang.omega_m_rad_s);
         mtpa_split(&f->motor, f->ctrl.current_ref, f->i_s_ref_a, &idq_ref);
         f->i_d_base_a = idq_ref.d;
         f->sig.i_q_ref_a = idq_ref.q;
     }
-    f->sig.i_d_ref_a = fw_d_current_ref(f);
+    f->sig.i_d_ref_a = ident_d_ref(&f->ident, &f->seg, f->i_d_base_a);
+}
 
-    /* current control slot: MPCC */
-    mi.i_d_a = f->sig.i_d_a;
-    mi.i_q_a = f->sig.i_q_a;
-    mi.i_d_ref_a = f->sig.i_d_ref_a;
-    mi.i_q_ref_a = f->sig.i_q_ref_a +
+/* Current-control slot, with the q-current dither and the identification's predictor feed. */
+static void stage_current_control(fw_t *f, const fw_meas_t *m, float c, float s)
+{
+    cc_in_t ci;
+    ci.i_d_a = f->sig.i_d_a;
+    ci.i_q_a = f->sig.i_q_a;
+    ci.i_d_ref_a = f->sig.i_d_ref_a;
+    ci.i_q_ref_a = f->sig.i_q_ref_a +
                    dither_step(&f->dither, 0.6666667f * m->v_dc_v * f->ctrl.ts_s / f->motor.l_q_h);
-    mi.theta_e_rad = f->sig.theta_e_est_rad;
-    mi.omega_e_rad_s = f->enc_out.omega_e_rad_s;
-    mi.v_dc_v = m->v_dc_v;
-    fw_predictor_params(f, &mi);
-    mpcc_step_cs(&f->mpcc, &mi, c, s, &mo);   /* c, s: cos, sin of mi.theta_e_rad (above) */
-    fw_ident_step(f, m, &mo);
-    f->sig.u_d_v = mo.u_d_v;
-    f->sig.u_q_v = mo.u_q_v;
-    cmd->s_a = mo.s_a;
-    cmd->s_b = mo.s_b;
-    cmd->s_c = mo.s_c;
+    ci.theta_e_rad = f->sig.theta_e_est_rad;
+    ci.cos_theta = c;
+    ci.sin_theta = s;
+    ci.omega_e_rad_s = f->ang.omega_e_rad_s;
+    ci.v_dc_v = m->v_dc_v;
+    ident_predictor(&f->ident, &ci.pred);
+    cc_step(&f->cc, &ci, &f->cc_out);
+    f->sig.u_d_v = f->cc_out.u_d_v;
+    f->sig.u_q_v = f->cc_out.u_q_v;
+}
+
+/* Modulation: what the board applies from the next period on. */
+static void stage_modulation(const fw_t *f, float load_nm, fw_cmd_t *cmd)
+{
+    const cc_out_t *o = &f->cc_out;
+    cmd->mode = o->mode == CC_OUT_DUTIES ? FW_CMD_DUTIES : FW_CMD_STATES;
+    cmd->s_a = o->s_a;
+    cmd->s_b = o->s_b;
+    cmd->s_c = o->s_c;
+    cmd->duty_a = o->duty_a;
+    cmd->duty_b = o->duty_b;
+    cmd->duty_c = o->duty_c;
     cmd->pwm_on = true;
     cmd->load_nm = load_nm;
+}
+
+/* Estimators: the identification sees the period's currents and applied voltage. */
+static void stage_estimators(fw_t *f, const fw_meas_t *m)
+{
+    ident_in_t ii;
+    ident_out_t io;
+    ii.i_d_a = f->sig.i_d_a;
+    ii.i_q_a = f->sig.i_q_a;
+    ii.u_d_avg_v = f->cc_out.u_d_avg_v;
+    ii.u_q_avg_v = f->cc_out.u_q_avg_v;
+    ii.theta_e_rad = f->sig.theta_e_est_rad;
+    ii.omega_e_rad_s = f->ang.omega_e_rad_s;
+    ii.i_a_a = m->i_a_a;
+    ii.i_b_a = m->i_b_a;
+    ii.i_c_a = m->i_c_a;
+    ii.i_d_ref_a = f->sig.i_d_ref_a;
+    ident_step(&f->ident, &f->seg, &ii, &io);
+    if (io.r_identified_now) {
+        fw_raise(f, PROTO_EVENT_R_IDENTIFIED, (int32_t)(io.r_s_ohm * 1000.0f + 0.5f));
+    }
+}
+
+static void cmd_safe(fw_cmd_t *cmd)
+{
+    cmd->mode = FW_CMD_STATES;
+    cmd->pwm_on = false;
+    cmd->s_a = 0u;
+    cmd->s_b = 0u;
+    cmd->s_c = 0u;
+    cmd->duty_a = 0.0f;
+    cmd->duty_b = 0.0f;
+    cmd->duty_c = 0.0f;
+    cmd->load_nm = 0.0f;
+}
+
+/* One control period of an active run. */
+static void period(fw_t *f, const fw_meas_t *m, fw_cmd_t *cmd)
+{
+    float speed_ref_rpm = 0.0f, load_nm = 0.0f, c, s, i_al, i_be;
+
+    stage_measure(f, m);
+    i_al = m->i_a_a;
+    i_be = (m->i_a_a + 2.0f * m->i_b_a) * 0.57735026918963f;
+    stage_angle(f, i_al, i_be);
+    c = cosf(f->sig.theta_e_est_rad);
+    s = sinf(f->sig.theta_e_est_rad);
+    f->sig.i_d_a = c * i_al + s * i_be;
+    f->sig.i_q_a = -s * i_al + c * i_be;
+    stage_capture(f, m);
+
+    check_faults(f, m);
+    if (fw_active(f)) {
+        check_heartbeat(f);
+        stage_profile(f, &speed_ref_rpm, &load_nm);
+    }
+    if (!fw_active(f)) {   /* a fault, or the profile's end */
+        fw_send_telemetry(f);
+        f->tick++;
+        return;
+    }
+    f->sig.speed_ref_rpm = speed_ref_rpm;
+    f->sig.load_nm = load_nm;
+    stage_current_refs(f, speed_ref_rpm);
+    stage_current_control(f, m, c, s);
+    stage_estimators(f, m);
+    stage_modulation(f, load_nm, cmd);
 
     fw_send_telemetry(f);
     f->tick++;
-
-    /* end of a stop: reference at zero and the rotor (nearly) still for a while, or too long */
-    if (f->state == PROTO_STATE_STOPPING) {
-        f->stop_ticks++;
-        if (f->stop_ramp.out_rpm == 0.0f && fabsf(f->enc_out.speed_rpm) < FW_STOP_SPEED_RPM) {
-            f->stop_hold_ticks++;
-        } else {
-            f->stop_hold_ticks = 0u;
-        }
-    }
-    if (f->state == PROTO_STATE_STOPPING &&
-        ((float)f->stop_hold_ticks * f->ctrl.ts_s >= FW_STOP_HOLD_S ||
-         (float)f->stop_ticks * f->ctrl.ts_s >= FW_STOP_TIMEOUT_S)) {
+    if (stop_finished(f)) {
         cmd->pwm_on = false;
-        fw_pwm_off(f, f->stop_reason == FW_STOP_PROFILE_END ? PROTO_STATE_DONE : PROTO_STATE_IDLE,
-                f->stop_reason);
+        fw_pwm_off(f, f->stop_reason == PROTO_STOP_REASON_PROFILE_END ? PROTO_STATE_DONE : PROTO_STATE_IDLE,
+                   f->stop_reason);
     }
+}
+
+void fw_isr(fw_t *f, const fw_meas_t *m, fw_cmd_t *cmd)
+{
+    f->isr_count++;
+    f->sig.v_dc_v = m->v_dc_v;
+    cmd_safe(cmd);
+    if (!fw_active(f)) {
+        return;
+    }
+    period(f, m, cmd);
+    fw_flush(f);
 }
 
 void fw_init(fw_t *f, const fw_cfg_t *cfg)
 {
     memset(f, 0, sizeof(*f));
     f->cfg = *cfg;
-    frame_parser_init(&f->rx);
-    can_link_init(&f->can, cfg->can_node);
-    txq_init(&f->tx);
+    frame_parser_init(&f->link.rx);
+    can_link_init(&f->link.can, cfg->can_node);
+    txq_init(&f->link.tx);
     capture_init(&f->cap, 0u);
+    evq_init(&f->events);
     f->state = PROTO_STATE_IDLE;
 }
-

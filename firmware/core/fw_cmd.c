@@ -49,7 +49,7 @@ static uint16_t cmd_config_ctrl(fw_t *f, const uint16_t *p, uint16_t n)
     }
     if (!(c.ts_s >= 1e-5f && c.ts_s <= 1e-3f) || c.speed_div == 0u || !(c.rho > 0.0f) ||
         !(c.heartbeat_timeout_s > 0.0f) || c.enc_counts < 4u || !(c.speed_obs_bw_rad_s > 0.0f) ||
-        c.current_ref > PROTO_CURRENT_REF_MTPA || c.current_ctrl != PROTO_CURRENT_CTRL_MPCC ||
+        c.current_ref > PROTO_CURRENT_REF_MTPA || !cc_kind_known(c.current_ctrl) || !angle_src_known(c.angle_src) ||
         c.capture_pre >= CAPTURE_LEN || c.speed_kp_a_per_rad_s < 0.0f || c.speed_ki_a_per_rad < 0.0f ||
         c.identify > 1u || c.predictor > PROTO_ESTIMATOR_NLMS_ADALINE ||
         (c.identify != 0u && c.id_window < 2u) || !(c.pred_scale_l_d > 0.0f) ||
@@ -97,7 +97,7 @@ static uint16_t cmd_profile_segment(fw_t *f, const uint16_t *p, uint16_t n)
 static void handle_frame(fw_t *f, uint16_t id, uint16_t seq, const uint16_t *p, uint16_t n)
 {
     uint16_t st = PROTO_ACK_STATUS_OK;
-    f->rx_frames++;
+    f->link.rx_frames++;
     switch (id) {
     case PROTO_ID_HELLO:
         fw_send_identify(f);
@@ -138,58 +138,60 @@ static void handle_frame(fw_t *f, uint16_t id, uint16_t seq, const uint16_t *p, 
         st = fw_start_run(f);
         if (st == PROTO_ACK_STATUS_OK) {
             fw_send_ack(f, id, seq, st);
-            fw_send_event(f, PROTO_EVENT_STARTED, 0);
+            fw_raise(f, PROTO_EVENT_STARTED, 0);
+            fw_flush(f);
             return;
         }
         break;
     case PROTO_ID_STOP:
         if (f->state == PROTO_STATE_RUNNING) {
-            fw_enter_stopping(f, FW_STOP_HOST);
+            fw_enter_stopping(f, PROTO_STOP_REASON_HOST_STOP);
         } else if (!fw_active(f)) {
             st = PROTO_ACK_STATUS_OK;   /* already stopped: idempotent */
         }
         break;
     case PROTO_ID_ABORT:
         if (fw_active(f)) {
-            fw_pwm_off(f, PROTO_STATE_IDLE, FW_STOP_ABORT);
+            fw_pwm_off(f, PROTO_STATE_IDLE, PROTO_STOP_REASON_ABORT);
         }
         break;
     default:
         st = f->board_msg != 0 ? f->board_msg(f->board_ctx, id, p, n) : PROTO_ACK_STATUS_UNKNOWN;
         break;
     }
+    fw_flush(f);   /* what the command raised (abort: the stopped event and status) precedes its ack */
     fw_send_ack(f, id, seq, st);
 }
 
 void fw_can_rx(fw_t *f, uint16_t id, const uint16_t *data, uint16_t dlc)
 {
-    int16_t r = can_link_rx(&f->can, id, data, dlc);
+    int16_t r = can_link_rx(&f->link.can, id, data, dlc);
     if (r == CAN_RX_MSG) {
-        f->link = f->can.msg_id == PROTO_ID_HELLO ? FW_LINK_CAN : f->link;
-        handle_frame(f, f->can.msg_id, f->can.seq, f->can.payload, f->can.payload_len);
+        f->link.link = f->link.can.msg_id == PROTO_ID_HELLO ? FW_LINK_CAN : f->link.link;
+        handle_frame(f, f->link.can.msg_id, f->link.can.seq, f->link.can.payload, f->link.can.payload_len);
     } else if (r < 0) {
-        f->rx_bad++;
+        f->link.rx_bad++;
     }
 }
 
 void fw_rx_octet(fw_t *f, uint16_t octet)
 {
-    int16_t r = frame_parser_push(&f->rx, octet);
+    int16_t r = frame_parser_push(&f->link.rx, octet);
     if (r == FRAME_OK) {
-        f->link = f->rx.msg_id == PROTO_ID_HELLO ? FW_LINK_SERIAL : f->link;
-        handle_frame(f, f->rx.msg_id, f->rx.seq, f->rx.payload, f->rx.payload_len);
+        f->link.link = f->link.rx.msg_id == PROTO_ID_HELLO ? FW_LINK_SERIAL : f->link.link;
+        handle_frame(f, f->link.rx.msg_id, f->link.rx.seq, f->link.rx.payload, f->link.rx.payload_len);
     } else if (r < 0) {
-        f->rx_bad++;
+        f->link.rx_bad++;
     }
 }
 
 bool fw_tx_pop(fw_t *f, uint16_t *octet)
 {
-    return txq_pop(&f->tx, octet);
+    return txq_pop(&f->link.tx, octet);
 }
 
 uint16_t fw_tx_pop_n(fw_t *f, uint16_t *out, uint16_t max)
 {
-    return txq_pop_n(&f->tx, out, max);
+    return txq_pop_n(&f->link.tx, out, max);
 }
 

@@ -1,6 +1,7 @@
 /* Internal interface between the firmware application's files (fw.c: state and control period,
- * fw_cmd.c: host commands, fw_msg.c: messages to the host, fw_ident.c: online identification).
- * Not for boards: they use fw.h. */
+ * fw_cmd.c: host commands, fw_msg.c: messages to the host). Stages of the control period only
+ * raise events (fw_raise) and ask for a status frame (status_due); fw_flush sends them once at
+ * the end of the period or of the command. Not for boards: they use fw.h. */
 #ifndef FW_INTERNAL_H
 #define FW_INTERNAL_H
 
@@ -15,26 +16,18 @@
 #define FW_DITHER_PERIOD 22u         /* q-current dither: not a divisor of the speed-loop period */
 #define FW_DITHER_GAIN 0.6f          /* peak-to-peak, as a fraction of one vector's current step */
 
-/* stop reasons (arg of the stopped event) */
-#define FW_STOP_HOST 0
-#define FW_STOP_ABORT 1
-#define FW_STOP_FAULT 2
-#define FW_STOP_HEARTBEAT 3
-#define FW_STOP_PROFILE_END 4
-
-void fw_send_ack(fw_t *f, uint16_t cmd_id, uint16_t cmd_seq, uint16_t status);
-void fw_send_event(fw_t *f, uint16_t code, int32_t arg);
-void fw_send_identify(fw_t *f);
-void fw_send_capture_chunk(fw_t *f, uint16_t offset);
+/* fw.c */
+void fw_raise(fw_t *f, uint16_t code, int32_t arg);   /* an event, sent at the end of the period */
 void fw_enter_stopping(fw_t *f, uint16_t reason);
 void fw_pwm_off(fw_t *f, uint16_t new_state, uint16_t reason);
 void fw_trip(fw_t *f, uint16_t fault_bits);
-void fw_ident_init(fw_t *f);
-float fw_est_r_report(const fw_t *f, uint16_t k);
-void fw_predictor_params(fw_t *f, mpcc_in_t *mi);
-float fw_d_current_ref(const fw_t *f);
-void fw_ident_step(fw_t *f, const fw_meas_t *m, const mpcc_out_t *mo);
 uint16_t fw_start_run(fw_t *f);
+
+/* fw_msg.c */
+void fw_flush(fw_t *f);   /* the raised events in order, then the status frame if one is due */
+void fw_send_ack(fw_t *f, uint16_t cmd_id, uint16_t cmd_seq, uint16_t status);
+void fw_send_identify(fw_t *f);
+void fw_send_capture_chunk(fw_t *f, uint16_t offset);
 void fw_send_status(fw_t *f);
 void fw_send_params(fw_t *f, uint16_t slot);
 void fw_send_telemetry(fw_t *f);

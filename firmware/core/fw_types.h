@@ -30,11 +30,20 @@ typedef struct {
     uint32_t enc_count;   /* incremental encoder count, 0 .. enc_counts-1 per mechanical turn */
 } fw_meas_t;
 
-/* What the core asks the board to do for the next control period. */
+/* What the core asks the board to do for the next control period: forced switch states for the
+ * whole period (finite-control-set control, FW_CMD_STATES) or three duties that the board's
+ * compare-based PWM modulates with its dead band (FW_CMD_DUTIES). */
+#define FW_CMD_STATES 0u
+#define FW_CMD_DUTIES 1u
+
 typedef struct {
-    uint16_t s_a;         /* upper switch of leg a on (1) or off (0) */
+    uint16_t mode;        /* FW_CMD_STATES or FW_CMD_DUTIES */
+    uint16_t s_a;         /* FW_CMD_STATES: upper switch of leg a on (1) or off (0) */
     uint16_t s_b;
     uint16_t s_c;
+    float duty_a;         /* FW_CMD_DUTIES: upper switch of leg a on for this fraction, [0, 1] */
+    float duty_b;
+    float duty_c;
     bool pwm_on;          /* false: all six switches off (safe state) */
     float load_nm;        /* load torque the profile asks the rig's load machine for */
 } fw_cmd_t;

@@ -7,12 +7,13 @@
 #include <stdbool.h>
 
 #include "ramp.h"
+#include "proto_gen.h"
 
 #define PROFILE_MAX_SEGMENTS 64u
-#define PROFILE_FLAG_CAPTURE 1u
-#define PROFILE_FLAG_HOLD_EST 2u   /* the online estimators hold their values in this segment */
-#define PROFILE_KIND_RUN 0u
-#define PROFILE_KIND_IDENTIFY_R 1u
+#define PROFILE_FLAG_CAPTURE PROTO_SEGMENT_FLAG_CAPTURE
+#define PROFILE_FLAG_HOLD_EST PROTO_SEGMENT_FLAG_HOLD_EST   /* the online estimators hold their values in this segment */
+#define PROFILE_KIND_RUN PROTO_SEGMENT_KIND_RUN
+#define PROFILE_KIND_IDENTIFY_R PROTO_SEGMENT_KIND_IDENTIFY_R
 
 typedef struct {
     float duration_s;

@@ -10,7 +10,7 @@
 #include <stdbool.h>
 
 #define PROTO_VERSION 2u
-#define PROTO_SCHEMA_HASH 0x1C5C371BUL  /* CRC-32 of the canonical yaml */
+#define PROTO_SCHEMA_HASH 0xA20B0D51UL  /* CRC-32 of the canonical yaml */
 #define PROTO_MAX_PAYLOAD 111u  /* octets */
 #define PROTO_MSG_COUNT 19u
 
@@ -34,6 +34,29 @@
 
 /* enum current_ctrl */
 #define PROTO_CURRENT_CTRL_MPCC 0u
+
+/* enum angle_src */
+#define PROTO_ANGLE_SRC_ENCODER 0u
+
+/* enum board */
+#define PROTO_BOARD_EMULATOR 0u
+#define PROTO_BOARD_F28335 1u
+
+/* enum stop_reason */
+#define PROTO_STOP_REASON_HOST_STOP 0u
+#define PROTO_STOP_REASON_ABORT 1u
+#define PROTO_STOP_REASON_FAULT 2u
+#define PROTO_STOP_REASON_HEARTBEAT_LOST 3u
+#define PROTO_STOP_REASON_PROFILE_END 4u
+
+/* enum segment_flag */
+#define PROTO_SEGMENT_FLAG_CAPTURE 1u
+#define PROTO_SEGMENT_FLAG_HOLD_EST 2u
+
+/* enum params_flag */
+#define PROTO_PARAMS_FLAG_EXCITED 1u
+#define PROTO_PARAMS_FLAG_CONVERGED 2u
+#define PROTO_PARAMS_FLAG_FEEDS_PREDICTOR 4u
 
 /* enum estimator */
 #define PROTO_ESTIMATOR_NOMINAL 0u
@@ -94,7 +117,7 @@ bool proto_config_motor_unpack(proto_config_motor_t *m, const uint16_t *buf, uin
 
 /* config_ctrl: 0x03, host -> device */
 #define PROTO_ID_CONFIG_CTRL 0x03u
-#define PROTO_LEN_CONFIG_CTRL 76u
+#define PROTO_LEN_CONFIG_CTRL 77u
 typedef struct {
     float ts_s;                    /* f32 */
     float rho;                     /* f32; MPCC q-axis weighting factor */
@@ -103,12 +126,13 @@ typedef struct {
     uint16_t speed_div;            /* u16; control periods per speed-loop period */
     uint16_t current_ref;          /* u8; enum current_ref */
     uint16_t current_ctrl;         /* u8; enum current_ctrl */
+    uint16_t angle_src;            /* u8; enum angle_src: what gives the control its angle */
     float heartbeat_timeout_s;     /* f32 */
     uint16_t fast_div;             /* u16; control periods per fast telemetry frame (0 = off) */
     uint16_t params_div;           /* u16 */
     uint16_t status_div;           /* u16 */
     uint32_t enc_counts;           /* u32; encoder counts per mechanical revolution */
-    float enc_offset_rad;          /* f32; electrical angle at count 0 */
+    float enc_offset_e_rad;        /* f32; electrical angle at count 0 */
     float speed_obs_bw_rad_s;      /* f32; encoder speed observer bandwidth */
     float dead_time_s;             /* f32; the firmware's nominal dead time (compensation) */
     float v_drop_v;                /* f32; the firmware's nominal device drop */
@@ -143,7 +167,7 @@ typedef struct {
     float speed_rpm;               /* f32 */
     float ramp_rpm_s;              /* f32; 0 = step */
     float load_nm;                 /* f32 */
-    uint16_t flags;                /* u16; bit0: capture trigger at segment start */
+    uint16_t flags;                /* u16; enum segment_flag bits */
     uint16_t kind;                 /* u8; enum segment_kind */
     float inject_a;                /* f32; identify_r: d current; run: i_d excitation amplitude (0 = none) */
     float inject_hz;               /* f32; run: frequency of the square-wave i_d excitation */
@@ -227,7 +251,7 @@ typedef struct {
     uint16_t fw_major;             /* u8 */
     uint16_t fw_minor;             /* u8 */
     uint16_t fw_patch;             /* u8 */
-    uint16_t board;                /* u8; 0 = emulator (sim board), 1 = F28335 */
+    uint16_t board;                /* u8; enum board */
     uint16_t tx_buf_octets;        /* u16 */
     uint16_t capture_len;          /* u16 */
 } proto_identify_t;
@@ -261,7 +285,7 @@ bool proto_telem_fast_unpack(proto_telem_fast_t *m, const uint16_t *buf, uint16_
 typedef struct {
     uint32_t tick;                 /* u32 */
     uint16_t estimator;            /* u8; enum estimator */
-    uint16_t flags;                /* u8; bit0 excited, bit1 converged, bit2 feeds predictor */
+    uint16_t flags;                /* u8; enum params_flag bits */
     float l_d_h;                   /* f32 */
     float l_q_h;                   /* f32 */
     float psi_f_wb;                /* f32 */

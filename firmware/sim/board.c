@@ -8,6 +8,7 @@
 #include "fw.h"
 #include "plant.h"
 #include "can_bus_sim.h"
+#include "emu_table.h"
 
 struct emu {
     fw_t fw;
@@ -61,8 +62,9 @@ static uint16_t board_msg(void *ctx, uint16_t msg_id, const uint16_t *payload, u
 /* Apply a sim_plant step when its segment starts (after the firmware's ISR of that period). */
 static void plant_steps(emu_t *e)
 {
-    const int seg = (int)e->fw.prof.index;
-    if (seg != e->plant_seg && e->fw.prof.begun) {
+    bool begun;
+    const int seg = (int)fw_segment(&e->fw, &begun);
+    if (seg != e->plant_seg && begun) {
         e->plant_seg = seg;
         if (seg >= 0 && seg < (int)PROFILE_MAX_SEGMENTS && ((e->plant_step_mask >> seg) & 1u) != 0u) {
             plant_set_param_scale(&e->plant, &e->pcfg, (double)e->plant_r_scale[seg], (double)e->plant_psi_scale[seg]);
@@ -83,74 +85,12 @@ void emu_init(emu_t *e)
     emu_reset(e);
 }
 
-#define EMU_KEY(name, field, type) \
-    if (strcmp(key, name) == 0) { e->field = (type)value; return 0; }
+#define EMU_SET(key, member, type) \
+    if (strcmp(name, #key) == 0) { e->member = (type)value; return 0; }
 
-int emu_set(emu_t *e, const char *key, double value)
+int emu_set(emu_t *e, const char *name, double value)
 {
-    EMU_KEY("r_s_ohm", pcfg.r_s_ohm, double)
-    EMU_KEY("l_d_h", pcfg.l_d_h, double)
-    EMU_KEY("l_q_h", pcfg.l_q_h, double)
-    EMU_KEY("psi_f_wb", pcfg.psi_f_wb, double)
-    EMU_KEY("pole_pairs", pcfg.pole_pairs, int)
-    EMU_KEY("j_kgm2", pcfg.j_kgm2, double)
-    EMU_KEY("b_visc_nms", pcfg.b_visc_nms, double)
-    EMU_KEY("t_coulomb_nm", pcfg.t_coulomb_nm, double)
-    EMU_KEY("v_dc_v", pcfg.v_dc_v, double)
-    EMU_KEY("dead_time_s", pcfg.dead_time_s, double)
-    EMU_KEY("v_drop_v", pcfg.v_drop_v, double)
-    EMU_KEY("i_dt_a", pcfg.i_dt_a, double)
-    EMU_KEY("i_noise_a", pcfg.i_noise_a, double)
-    EMU_KEY("adc_lsb_a", pcfg.adc_lsb_a, double)
-    EMU_KEY("enc_counts", pcfg.enc_counts, uint32_t)
-    EMU_KEY("enc_offset_rad", pcfg.enc_offset_rad, double)
-    EMU_KEY("ts_s", pcfg.ts_s, double)
-    EMU_KEY("substeps", pcfg.substeps, int)
-    EMU_KEY("seed", pcfg.seed, uint32_t)
-    EMU_KEY("temp_ambient_c", pcfg.temp_ambient_c, double)
-    /* rig effects (pmsm_hil/emulator/settings.py) */
-    EMU_KEY("effects_mask", effects_mask, uint32_t)
-    EMU_KEY("sat_nd", sat_nd, int)
-    EMU_KEY("sat_nq", sat_nq, int)
-    EMU_KEY("sat_id0_a", sat_id0_a, double)
-    EMU_KEY("sat_did_a", sat_did_a, double)
-    EMU_KEY("sat_iq0_a", sat_iq0_a, double)
-    EMU_KEY("sat_diq_a", sat_diq_a, double)
-    EMU_KEY("thermal_on", pcfg.thermal_on, int)
-    EMU_KEY("temp_ref_c", pcfg.temp_ref_c, double)
-    EMU_KEY("temp_winding0_c", pcfg.temp_winding0_c, double)
-    EMU_KEY("temp_magnet0_c", pcfg.temp_magnet0_c, double)
-    EMU_KEY("alpha_r_per_k", pcfg.alpha_r_per_k, double)
-    EMU_KEY("alpha_psi_per_k", pcfg.alpha_psi_per_k, double)
-    EMU_KEY("c_winding_j_k", pcfg.c_winding_j_k, double)
-    EMU_KEY("c_magnet_j_k", pcfg.c_magnet_j_k, double)
-    EMU_KEY("r_wa_k_w", pcfg.r_wa_k_w, double)
-    EMU_KEY("r_wm_k_w", pcfg.r_wm_k_w, double)
-    EMU_KEY("r_ma_k_w", pcfg.r_ma_k_w, double)
-    EMU_KEY("r_fe_heat_ohm", pcfg.r_fe_heat_ohm, double)
-    EMU_KEY("psi5_rel", pcfg.psi5_rel, double)
-    EMU_KEY("psi7_rel", pcfg.psi7_rel, double)
-    EMU_KEY("cog_nm", pcfg.cog_nm, double)
-    EMU_KEY("cog_order_e", pcfg.cog_order_e, int)
-    EMU_KEY("cog_phase_rad", pcfg.cog_phase_rad, double)
-    EMU_KEY("i_offset_a_a", pcfg.i_offset_a[0], double)
-    EMU_KEY("i_offset_b_a", pcfg.i_offset_a[1], double)
-    EMU_KEY("i_offset_c_a", pcfg.i_offset_a[2], double)
-    EMU_KEY("i_gain_a", pcfg.i_gain[0], double)
-    EMU_KEY("i_gain_b", pcfg.i_gain[1], double)
-    EMU_KEY("i_gain_c", pcfg.i_gain[2], double)
-    EMU_KEY("sample_delay_s", pcfg.sample_delay_s, double)
-    EMU_KEY("pwm_delay_periods", pcfg.pwm_delay_periods, int)
-    EMU_KEY("dc_on", pcfg.dc_on, int)
-    EMU_KEY("dc_r_src_ohm", pcfg.dc_r_src_ohm, double)
-    EMU_KEY("dc_c_f", pcfg.dc_c_f, double)
-    EMU_KEY("dc_rectifier", pcfg.dc_rectifier, int)
-    EMU_KEY("dc_grid_hz", pcfg.dc_grid_hz, double)
-    EMU_KEY("r_fe_ohm", pcfg.r_fe_ohm, double)
-    EMU_KEY("baud", baud, double)
-    EMU_KEY("can_bitrate", can_bitrate, double)
-    EMU_KEY("can_node", can_node, uint16_t)
-    EMU_KEY("truth_div", truth_div, uint32_t)
+    EMU_SETTINGS(EMU_SET)
     return -1;
 }
 
@@ -159,14 +99,15 @@ int emu_get(const emu_t *e, const char *key, double *value)
     if (strcmp(key, "ts_s") == 0) { *value = e->pcfg.ts_s; return 0; }
     if (strcmp(key, "baud") == 0) { *value = e->baud; return 0; }
     if (strcmp(key, "seed") == 0) { *value = (double)e->pcfg.seed; return 0; }
-    if (strcmp(key, "tick") == 0) { *value = (double)e->fw.tick; return 0; }
-    if (strcmp(key, "tx_dropped") == 0) { *value = (double)e->fw.tx.dropped; return 0; }
-    if (strcmp(key, "tx_level") == 0) { *value = (double)e->fw.tx.level; return 0; }
+    if (strcmp(key, "tick") == 0) { *value = (double)fw_tick(&e->fw); return 0; }
+    if (strcmp(key, "tx_dropped") == 0) { *value = (double)fw_tx_dropped(&e->fw); return 0; }
+    if (strcmp(key, "tx_level") == 0) { *value = (double)fw_tx_level(&e->fw); return 0; }
     if (strcmp(key, "can_bits") == 0) { *value = e->can.bits_sent; return 0; }
     if (strcmp(key, "can_frames") == 0) { *value = (double)e->can.frames_sent; return 0; }
-    if (strcmp(key, "can_level") == 0) { *value = (double)can_link_tx_level(&e->fw.can); return 0; }
+    if (strcmp(key, "can_level") == 0) { *value = (double)fw_can_tx_level(&e->fw); return 0; }
     if (strcmp(key, "heartbeat_timeout_s") == 0) {
-        *value = e->fw.have_ctrl ? (double)e->fw.ctrl.heartbeat_timeout_s : 0.0;
+        const proto_config_ctrl_t *c = fw_ctrl(&e->fw);
+        *value = c != NULL ? (double)c->heartbeat_timeout_s : 0.0;
         return 0;
     }
     return -1;
@@ -175,7 +116,7 @@ int emu_get(const emu_t *e, const char *key, double *value)
 void emu_reset(emu_t *e)
 {
     fw_cfg_t cfg;
-    cfg.board = FW_BOARD_SIM;
+    cfg.board = PROTO_BOARD_EMULATOR;
     cfg.can_node = e->can_node;
     fw_init(&e->fw, &cfg);
     can_sim_init(&e->can, e->can_bitrate);
@@ -209,7 +150,7 @@ static void send_truth(emu_t *e)
     proto_sim_truth_t m;
     uint16_t n;
     plant_truth(&e->plant, &t);
-    m.tick = e->fw.tick;
+    m.tick = fw_tick(&e->fw);
     m.l_d_h = (float)t.l_d_h;
     m.l_q_h = (float)t.l_q_h;
     m.psi_f_wb = (float)t.psi_f_wb;
@@ -255,7 +196,7 @@ uint32_t emu_run(emu_t *e, uint32_t max_ticks, uint8_t *out, uint32_t cap, uint3
     if (fw_active(&e->fw) && !e->was_active) {
         /* a new run: the rig starts from rest, with its noise sequence from the seed, and the
          * PWM period the firmware configured (as the F28335 board sets its PWM timer) */
-        e->pcfg.ts_s = (double)e->fw.ctrl.ts_s;
+        e->pcfg.ts_s = (double)fw_ctrl(&e->fw)->ts_s;
         per_tick = e->baud / 10.0 * e->pcfg.ts_s;
         margin = (uint32_t)per_tick + 2u;
         plant_init(&e->plant, &e->pcfg);
@@ -272,7 +213,7 @@ uint32_t emu_run(emu_t *e, uint32_t max_ticks, uint8_t *out, uint32_t cap, uint3
         }
         fw_isr(&e->fw, &meas, &cmd);
         plant_steps(e);
-        plant_step(&e->plant, &e->prev_cmd);
+        plant_step(&e->plant, &e->prev_cmd);   /* switch states or duties (plant_step_duty) */
         e->prev_cmd = cmd;
         e->truth_count++;
         if (e->truth_count >= e->truth_div) {
@@ -304,9 +245,9 @@ uint32_t emu_run(emu_t *e, uint32_t max_ticks, uint8_t *out, uint32_t cap, uint3
     return ticks;
 }
 
-uint32_t emu_isr_count(const emu_t *e) { return e->fw.isr_count; }
-uint32_t emu_heartbeat_isr(const emu_t *e) { return e->fw.hb_isr; }
-int emu_state(const emu_t *e) { return (int)e->fw.state; }
+uint32_t emu_isr_count(const emu_t *e) { return fw_isr_count(&e->fw); }
+uint32_t emu_heartbeat_isr(const emu_t *e) { return fw_heartbeat_isr(&e->fw); }
+int emu_state(const emu_t *e) { return (int)fw_state(&e->fw); }
 int emu_active(const emu_t *e) { return fw_active(&e->fw) ? 1 : 0; }
 
 /* CAN (docs/can.md): a frame from the host; the frames the controller sent (see can_sim_take). */
@@ -364,22 +305,34 @@ void emu_plant_flux(const emu_t *e, double i_d_a, double i_q_a, double theta_e_r
     out[7] = plant_torque(&e->plant, i_d_a, i_q_a, theta_e_rad);
 }
 
+#define EMU_TRUTH_NAME(key, expr) #key,
+#define EMU_TRUTH_VALUE(key, expr) expr,
+#define EMU_SETTING_NAME(key, member, type) #key,
+
+static const char *const k_truth_names[] = { EMU_TRUTH(EMU_TRUTH_NAME) };
+static const char *const k_setting_names[] = { EMU_SETTINGS(EMU_SETTING_NAME) };
+
+const char *emu_truth_name(uint32_t i)
+{
+    return i < sizeof k_truth_names / sizeof k_truth_names[0] ? k_truth_names[i] : NULL;
+}
+
+const char *emu_setting_name(uint32_t i)
+{
+    return i < sizeof k_setting_names / sizeof k_setting_names[0] ? k_setting_names[i] : NULL;
+}
+
 int emu_plant_truth(const emu_t *e, double *out, int n)
 {
     plant_truth_t t;
-    const double v[] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
-    double w[sizeof v / sizeof v[0]];
-    int i, m = (int)(sizeof v / sizeof v[0]);
+    int i, m;
     plant_truth(&e->plant, &t);
-    w[0] = t.t_s; w[1] = t.i_d_a; w[2] = t.i_q_a; w[3] = t.theta_e_rad; w[4] = t.theta_m_rad;
-    w[5] = t.omega_m_rad_s; w[6] = t.speed_rpm; w[7] = t.torque_nm; w[8] = t.u_d_v; w[9] = t.u_q_v;
-    w[10] = t.r_s_ohm; w[11] = t.l_d_h; w[12] = t.l_q_h; w[13] = t.psi_f_wb; w[14] = t.temp_winding_c;
-    w[15] = t.temp_magnet_c; w[16] = t.i_a_a; w[17] = t.i_b_a; w[18] = t.i_c_a; w[19] = t.v_dc_v;
-    w[20] = t.load_nm; w[21] = t.psi_d_wb; w[22] = t.psi_q_wb; w[23] = t.p_cu_w; w[24] = t.p_fe_w;
-    w[25] = t.i_dc_a; w[26] = (double)e->fw.tick;
-    w[27] = t.v_dist_v[0]; w[28] = t.v_dist_v[1]; w[29] = t.v_dist_v[2];
-    for (i = 0; i < n && i < m; i++) {
-        out[i] = w[i];
+    {
+        const double w[] = { EMU_TRUTH(EMU_TRUTH_VALUE) };
+        m = (int)(sizeof w / sizeof w[0]);
+        for (i = 0; i < n && i < m; i++) {
+            out[i] = w[i];
+        }
     }
     return m;
 }

@@ -69,7 +69,7 @@ static void put_out(can_sim_t *s, const can_frame_t *fr, uint32_t isr, uint32_t 
 
 void can_sim_period(can_sim_t *s, fw_t *f, double ts_s)
 {
-    const can_frame_t *next = can_link_tx_peek(&f->can);
+    const can_frame_t *next = can_link_tx_peek(fw_can(f));
     if (next == 0) {
         s->budget = 0.0;   /* the bus was idle: no credit carries over */
         return;
@@ -82,9 +82,9 @@ void can_sim_period(can_sim_t *s, fw_t *f, double ts_s)
             return;
         }
         s->budget -= (double)bits;
-        (void)can_link_tx_pop(&f->can, &fr);
-        put_out(s, &fr, f->isr_count, bits);
-        next = can_link_tx_peek(&f->can);
+        (void)can_link_tx_pop(fw_can(f), &fr);
+        put_out(s, &fr, fw_isr_count(f), bits);
+        next = can_link_tx_peek(fw_can(f));
     }
     if (next == 0) {
         s->budget = 0.0;
@@ -94,8 +94,8 @@ void can_sim_period(can_sim_t *s, fw_t *f, double ts_s)
 void can_sim_flush(can_sim_t *s, fw_t *f)
 {
     can_frame_t fr;
-    while (s->n_out < CAN_SIM_OUT && can_link_tx_pop(&f->can, &fr)) {
-        put_out(s, &fr, f->isr_count, can_frame_bits(fr.id, fr.data, fr.dlc));
+    while (s->n_out < CAN_SIM_OUT && can_link_tx_pop(fw_can(f), &fr)) {
+        put_out(s, &fr, fw_isr_count(f), can_frame_bits(fr.id, fr.data, fr.dlc));
     }
     s->budget = 0.0;
 }

@@ -29,9 +29,13 @@ int emu_set_array(emu_t *e, const char *key, const double *values, uint32_t n);
 const char *emu_check(const emu_t *e);
 /* The plant's magnetics at a point (tests): psi_d, psi_q, L_dd, L_dq, L_qd, L_qq, extra torque, torque. */
 void emu_plant_flux(const emu_t *e, double i_d_a, double i_q_a, double theta_e_rad, double out[8]);
-/* The plant's truth now (tests): fills out[0 .. n-1] in the order of pmsm_hil.emulator.fwlib.TRUTH_KEYS
- * and returns how many values there are. */
+/* The plant's truth now (tests): fills out[0 .. n-1] in the order of EMU_TRUTH (emu_table.h) and
+ * returns how many values there are. */
 int emu_plant_truth(const emu_t *e, double *out, int n);
+/* The names of the settings (emu_set keys) and of the truth values, in table order (emu_table.h);
+ * NULL past the end. */
+const char *emu_setting_name(uint32_t i);
+const char *emu_truth_name(uint32_t i);
 /* CAN (docs/can.md; settings can_bitrate, can_node): a frame from the host, and the frames the
  * sim board's controller sent during emu_run, at most cap: ids, dlc, data (8 octets per frame),
  * isr (control period at the end of the frame); returns how many. */

@@ -60,7 +60,7 @@ typedef struct {
     double i_noise_a;        /* standard deviation of the Gaussian current-sensor noise, 0 = off */
     double adc_lsb_a;        /* current quantisation step, 0 = off */
     uint32_t enc_counts;     /* encoder counts per mechanical revolution (lines * 4) */
-    double enc_offset_rad;   /* encoder reads wrap(theta_m + enc_offset_rad) */
+    double enc_offset_m_rad;   /* encoder reads wrap(theta_m + enc_offset_m_rad) */
     /* integration */
     double ts_s;             /* control period */
     int substeps;            /* RK4 sub-steps per period (1: within ~3e-5 A of a 1000-step reference, docs/plant.md) */
@@ -177,7 +177,7 @@ const char *plant_cfg_check(const plant_cfg_t *cfg);
 
 void plant_init(plant_t *p, const plant_cfg_t *cfg);        /* standstill, i = 0, theta_m = 0 */
 void plant_sample(plant_t *p, fw_meas_t *m);                 /* sensors at the current instant */
-void plant_step(plant_t *p, const fw_cmd_t *cmd);            /* one period, switch states held */
+void plant_step(plant_t *p, const fw_cmd_t *cmd);            /* one period: switch states held, or duties (cmd->mode) */
 void plant_truth(const plant_t *p, plant_truth_t *t);
 
 /* Averaged PWM: one period with leg duties d in [0, 1] (each leg with 0 < d < 1 commutes twice,

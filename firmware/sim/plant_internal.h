@@ -1,5 +1,7 @@
-/* Internal to the plant's files (plant.c: dynamics, inverter, PWM off, API; plant_map.c: flux
- * maps; plant_sensors.c: the measurement chain): constants and the small inline helpers they share. */
+/* Internal to the plant's files (plant.c: configuration, state, truth; plant_mag.h/.c and
+ * plant_map.c: magnetics and flux maps; plant_integ.h/.c: the integration; plant_inverter.c: the
+ * inverter and PWM off; plant_thermal.c: thermal network and DC link; plant_sensors.c: the
+ * measurement chain): constants and the small inline helpers they share. */
 #ifndef PLANT_INTERNAL_H
 #define PLANT_INTERNAL_H
 

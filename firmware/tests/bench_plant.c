@@ -1,5 +1,5 @@
 /* Plant speed benchmark (not a unit test: make does not run it). Build and run by hand, from firmware/:
- *   cc -std=c99 -O3 -Wall -Wextra -Werror -Icore -Isim tests/bench_plant.c sim/plant.c sim/plant_map.c sim/plant_sensors.c sim/rng.c -lm -o bench_plant
+ *   cc -std=c99 -O3 -Wall -Wextra -Werror -Icore -Isim tests/bench_plant.c sim/plant*.c sim/rng.c -lm -o bench_plant
  *   ./bench_plant [periods]
  * Times plant_sample + plant_step per control period (Ts = 50 us) for paper A's IPMSM at 1000 r/min
  * (speed held by the dyno), replaying the switch sequence of a bang-bang current loop (i_d = 0,
@@ -46,7 +46,7 @@ static void record(const plant_cfg_t *cfg, unsigned char *seq, long n)
 {
     plant_t p;
     fw_meas_t m;
-    fw_cmd_t c = {0, 0, 0, true, 0.0f};
+    fw_cmd_t c = {FW_CMD_STATES, 0, 0, 0, 0.0f, 0.0f, 0.0f, true, 0.0f};
     long k;
     plant_init(&p, cfg);
     plant_set_mech(&p, 0.0, 1000.0 * 3.14159265358979 / 30.0, true);
@@ -65,7 +65,7 @@ static double replay(const plant_cfg_t *cfg, const unsigned char *seq, long n, d
 {
     plant_t p;
     fw_meas_t m;
-    fw_cmd_t c = {0, 0, 0, true, 0.0f};
+    fw_cmd_t c = {FW_CMD_STATES, 0, 0, 0, 0.0f, 0.0f, 0.0f, true, 0.0f};
     double t0, t1, sink = 0.0;
     long k;
     int prev = 0;

@@ -17,7 +17,7 @@ static enc_cfg_t cfg_paper(void)
     enc_cfg_t c;
     c.counts = N_CNT;
     c.pole_pairs = 4u;
-    c.offset_rad = 0.0f;
+    c.offset_e_rad = 0.0f;
     c.bw_rad_s = ENC_BW_DEFAULT_RAD_S;
     c.ts_s = (float)TS_S;
     return c;
@@ -51,7 +51,7 @@ static void test_angle_map(void)
     enc_out_t o;
     static const uint32_t cnt[6] = { 0u, 1u, 2500u, 1234u, 9999u, 10000u + 17u };
     int n;
-    c.offset_rad = 0.5f;
+    c.offset_e_rad = 0.5f;
     enc_init(&e, &c);
     for (n = 0; n < 6; n++) {
         const double thm = 2.0 * PI_D * (double)(cnt[n] % N_CNT) / N_CNT;

@@ -1,4 +1,4 @@
-/* Unit tests of the emulator's plant (firmware/sim/plant.c) and its PRNG (firmware/sim/rng.c). */
+/* Unit tests of the emulator's plant (firmware/sim/plant*.c) and its PRNG (firmware/sim/rng.c). */
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -97,6 +97,8 @@ static void cfg_base(plant_cfg_t *c)
 
 static void cmd_set(fw_cmd_t *c, int sa, int sb, int sc, bool on, double load)
 {
+    memset(c, 0, sizeof *c);
+    c->mode = FW_CMD_STATES;
     c->s_a = (uint16_t)sa;
     c->s_b = (uint16_t)sb;
     c->s_c = (uint16_t)sc;
@@ -163,6 +165,46 @@ static void test_steady_state(void)
         plant_truth(&p, &t);
         CHECK_NEAR(t.i_d_a, 2.0 / 3.0 * 0.2 * 9.0 / 0.9, 1e-6, "duty PWM: steady i_d");
         CHECK_NEAR(t.i_q_a, 0.0, 1e-9, "duty PWM: i_q = 0");
+    }
+
+    /* the board's command in duty mode takes the same path as plant_step_duty, bit for bit; duties
+     * of exactly 0 and 1 on an ideal inverter are the switch states */
+    {
+        plant_t q, s;
+        plant_truth_t tq, ts;
+        fw_cmd_t c;
+        const double duty[3] = {(double)0.7f, (double)0.25f, (double)0.4f};   /* the command's floats */
+        plant_init(&p, &cfg);
+        plant_init(&q, &cfg);
+        memset(&c, 0, sizeof c);
+        c.mode = FW_CMD_DUTIES;
+        c.duty_a = 0.7f;
+        c.duty_b = 0.25f;
+        c.duty_c = 0.4f;
+        c.pwm_on = true;
+        for (k = 0; k < 200; k++) {
+            plant_step(&p, &c);
+            plant_step_duty(&q, duty, true, 0.0);
+        }
+        plant_truth(&p, &t);
+        plant_truth(&q, &tq);
+        CHECK(t.i_d_a == tq.i_d_a && t.i_q_a == tq.i_q_a && t.u_d_v == tq.u_d_v,
+              "duty command: plant_step applies the duties as plant_step_duty does");
+        plant_init(&p, &cfg);
+        plant_init(&s, &cfg);
+        for (k = 0; k < 200; k++) {
+            fw_cmd_t st;
+            cmd_set(&st, k % 3 == 0, k % 2, k % 5 == 1, true, 0.0);
+            c.duty_a = (float)st.s_a;
+            c.duty_b = (float)st.s_b;
+            c.duty_c = (float)st.s_c;
+            plant_step(&p, &c);
+            plant_step(&s, &st);
+        }
+        plant_truth(&p, &t);
+        plant_truth(&s, &ts);
+        CHECK(t.i_d_a == ts.i_d_a && t.i_q_a == ts.i_q_a,
+              "duty command: duties 0 and 1 on the ideal inverter equal the switch states");
     }
 }
 
@@ -552,13 +594,13 @@ static void test_encoder(void)
     plant_sample(&p, &m);
     CHECK(m.enc_count == 0u, "encoder after whole turns");
 
-    cfg.enc_offset_rad = PI;
+    cfg.enc_offset_m_rad = PI;
     plant_init(&p, &cfg);
     plant_sample(&p, &m);
     CHECK(m.enc_count == 500u, "encoder offset pi: half a turn");
 
     /* turning backwards through zero: counts wrap from 0 to N - 1 and decrease */
-    cfg.enc_offset_rad = 0.0;
+    cfg.enc_offset_m_rad = 0.0;
     plant_init(&p, &cfg);
     plant_set_mech(&p, 0.6 * TWO_PI / 1000.0, -TWO_PI / 1000.0 / 50e-6 / 4.0, true); /* -1/4 count per period */
     cmd_set(&off, 0, 0, 0, false, 0.0);

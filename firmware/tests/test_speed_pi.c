@@ -274,7 +274,7 @@ static loop_t run_loop(double rpm0, double rpm1, double t_step, double t_on, dou
     speed_pi_set_ref_weight(&sp, REF_WEIGHT);
     ec.counts = ENC_COUNTS;
     ec.pole_pairs = POLES;
-    ec.offset_rad = 0.0f;
+    ec.offset_e_rad = 0.0f;
     ec.bw_rad_s = BW_OBS_RAD_S;
     ec.ts_s = (float)TS_S;
     enc_init(&e, &ec);

@@ -40,14 +40,39 @@ def lib() -> ctypes.CDLL:
     for name in ("emu_state", "emu_active"):
         getattr(so, name).argtypes = [ctypes.c_void_p]
         getattr(so, name).restype = ctypes.c_int
+    for name in ("emu_setting_name", "emu_truth_name"):
+        getattr(so, name).argtypes = [ctypes.c_uint32]
+        getattr(so, name).restype = ctypes.c_char_p
     return so
 
 
-# order of emu_plant_truth's values (firmware/sim/board.c)
-TRUTH_KEYS = ("t_s", "i_d_a", "i_q_a", "theta_e_rad", "theta_m_rad", "omega_m_rad_s", "speed_rpm",
-              "torque_nm", "u_d_v", "u_q_v", "r_s_ohm", "l_d_h", "l_q_h", "psi_f_wb", "temp_winding_c",
-              "temp_magnet_c", "i_a_a", "i_b_a", "i_c_a", "v_dc_v", "load_nm", "psi_d_wb", "psi_q_wb",
-              "p_cu_w", "p_fe_w", "i_dc_a", "tick", "v_dist_a_v", "v_dist_b_v", "v_dist_c_v")
+def _names(fn) -> tuple[str, ...]:
+    out, i = [], 0
+    while (name := fn(i)) is not None:
+        out.append(name.decode())
+        i += 1
+    return tuple(out)
+
+
+@lru_cache(maxsize=1)
+def setting_keys() -> tuple[str, ...]:
+    """The sim board's setting keys (firmware/sim/emu_table.h EMU_SETTINGS)."""
+    return _names(lib().emu_setting_name)
+
+
+@lru_cache(maxsize=1)
+def truth_keys() -> tuple[str, ...]:
+    """The order of emu_plant_truth's values (firmware/sim/emu_table.h EMU_TRUTH)."""
+    return _names(lib().emu_truth_name)
+
+
+def __getattr__(name: str):
+    # SETTING_KEYS and TRUTH_KEYS come from the C table, read when first asked for
+    if name == "SETTING_KEYS":
+        return setting_keys()
+    if name == "TRUTH_KEYS":
+        return truth_keys()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 class EmulatedDevice:
@@ -81,9 +106,10 @@ class EmulatedDevice:
 
     def plant_truth(self) -> dict[str, float]:
         """The plant's state now (every field of plant_truth_t, plus the firmware tick)."""
-        out = (ctypes.c_double * len(TRUTH_KEYS))()
-        self._lib.emu_plant_truth(self._p, out, len(TRUTH_KEYS))
-        return dict(zip(TRUTH_KEYS, list(out)))
+        keys = truth_keys()
+        out = (ctypes.c_double * len(keys))()
+        self._lib.emu_plant_truth(self._p, out, len(keys))
+        return dict(zip(keys, list(out)))
 
     def plant_flux(self, i_d_a: float, i_q_a: float, theta_e_rad: float = 0.0) -> dict[str, float]:
         """The plant's magnetics at one point (flux linkages, incremental inductances, torque)."""

@@ -34,7 +34,7 @@ def emulator_settings(motor, rig, seed: int = 1, baud: int = 921600,
     enc = _eff(rig, "encoder")
     s["enc_counts"] = 4 * int(getattr(enc, "lines", 2500)) if enc else 10000
     # the rig gives the offset as an electrical angle; the plant's encoder adds it to theta_m
-    s["enc_offset_rad"] = getattr(enc, "offset_rad", 0.0) / motor.pole_pairs if enc else 0.0
+    s["enc_offset_m_rad"] = getattr(enc, "offset_e_rad", 0.0) / motor.pole_pairs if enc else 0.0
     fr = _eff(rig, "friction")
     if fr is not None:
         # the rig's friction adds to the motor file's nominal friction (docs/profiles.md)
@@ -77,10 +77,10 @@ def effect_settings(motor, rig) -> dict:
         s["cog_phase_rad"] = cg.phase_rad
     so = _eff(rig, "sensor_offset")
     for ch in "abc":
-        s[f"i_offset_{ch}_a"] = getattr(so, f"i_{ch}_a") if so is not None else 0.0
+        s[f"i_{ch}_offset_a"] = getattr(so, f"i_{ch}_a") if so is not None else 0.0
     sg = _eff(rig, "sensor_gain")
     for ch in "abc":
-        s[f"i_gain_{ch}"] = getattr(sg, f"gain_{ch}") if sg is not None else 1.0
+        s[f"i_{ch}_gain"] = getattr(sg, f"i_{ch}_gain") if sg is not None else 1.0
     dl = _eff(rig, "delay")
     s["sample_delay_s"] = dl.sample_delay_s if dl is not None else 0.0
     s["pwm_delay_periods"] = dl.pwm_delay_periods if dl is not None else 0

@@ -57,7 +57,7 @@ class Encoder(Effect):
     misalignment between count 0 and the rotor's d axis."""
 
     lines: int = Field(2500, ge=1, le=1_000_000, description="lines per revolution (counts = 4 lines)")
-    offset_rad: float = Field(0.0, ge=-math.pi, le=math.pi,
+    offset_e_rad: float = Field(0.0, ge=-math.pi, le=math.pi,
                               description="electrical angle error of the encoder zero, rad")
 
     @property
@@ -133,9 +133,9 @@ class SensorOffset(Effect):
 class SensorGain(Effect):
     """Gain of each phase-current channel (mismatch between the phases)."""
 
-    gain_a: float = Field(1.0, ge=0.5, le=1.5, description="gain of channel a")
-    gain_b: float = Field(1.02, ge=0.5, le=1.5, description="gain of channel b")
-    gain_c: float = Field(0.99, ge=0.5, le=1.5, description="gain of channel c")
+    i_a_gain: float = Field(1.0, ge=0.5, le=1.5, description="gain of channel a")
+    i_b_gain: float = Field(1.02, ge=0.5, le=1.5, description="gain of channel b")
+    i_c_gain: float = Field(0.99, ge=0.5, le=1.5, description="gain of channel c")
 
 
 class Delay(Effect):

@@ -25,7 +25,7 @@ class CanLayout(NamedTuple):
 LAYOUTS = {
     0x01: CanLayout(0x01, 'hello', 0x08, False, (3,)),
     0x02: CanLayout(0x02, 'config_motor', 0x0C, True, (6, 8, 8, 8, 8, 8, 8, 5)),
-    0x03: CanLayout(0x03, 'config_ctrl', 0x0C, True, (6, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 7)),
+    0x03: CanLayout(0x03, 'config_ctrl', 0x0C, True, (6, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8)),
     0x04: CanLayout(0x04, 'profile_clear', 0x10, False, (3,)),
     0x05: CanLayout(0x05, 'profile_segment', 0x0C, True, (6, 8, 8, 8, 8, 2)),
     0x06: CanLayout(0x06, 'start', 0x04, False, (1,)),

@@ -6,7 +6,7 @@ import struct
 from typing import NamedTuple
 
 PROTOCOL_VERSION = 2
-SCHEMA_HASH = 0x1C5C371B
+SCHEMA_HASH = 0xA20B0D51
 MAX_PAYLOAD = 111  # octets
 
 # wire type: (struct code, octets, min, max); min/max are None for f32
@@ -64,6 +64,29 @@ ENUMS = {
     'current_ctrl': {
         'mpcc': 0,
     },
+    'angle_src': {
+        'encoder': 0,
+    },
+    'board': {
+        'emulator': 0,
+        'f28335': 1,
+    },
+    'stop_reason': {
+        'host_stop': 0,
+        'abort': 1,
+        'fault': 2,
+        'heartbeat_lost': 3,
+        'profile_end': 4,
+    },
+    'segment_flag': {
+        'capture': 1,
+        'hold_est': 2,
+    },
+    'params_flag': {
+        'excited': 1,
+        'converged': 2,
+        'feeds_predictor': 4,
+    },
     'estimator': {
         'nominal': 0,
         'rls': 1,
@@ -112,7 +135,7 @@ MESSAGES = (
         FieldSpec('v_dc_min_v', 'f32', 1, None, 38),
         FieldSpec('v_dc_max_v', 'f32', 1, None, 42),
     ), struct.Struct('<Hfffffffffff')),
-    MessageSpec(0x03, 'config_ctrl', 'h2d', False, 76, (
+    MessageSpec(0x03, 'config_ctrl', 'h2d', False, 77, (
         FieldSpec('ts_s', 'f32', 1, None, 0),
         FieldSpec('rho', 'f32', 1, None, 4),
         FieldSpec('speed_kp_a_per_rad_s', 'f32', 1, None, 8),
@@ -120,25 +143,26 @@ MESSAGES = (
         FieldSpec('speed_div', 'u16', 1, None, 16),
         FieldSpec('current_ref', 'u8', 1, None, 18),
         FieldSpec('current_ctrl', 'u8', 1, None, 19),
-        FieldSpec('heartbeat_timeout_s', 'f32', 1, None, 20),
-        FieldSpec('fast_div', 'u16', 1, None, 24),
-        FieldSpec('params_div', 'u16', 1, None, 26),
-        FieldSpec('status_div', 'u16', 1, None, 28),
-        FieldSpec('enc_counts', 'u32', 1, None, 30),
-        FieldSpec('enc_offset_rad', 'f32', 1, None, 34),
-        FieldSpec('speed_obs_bw_rad_s', 'f32', 1, None, 38),
-        FieldSpec('dead_time_s', 'f32', 1, None, 42),
-        FieldSpec('v_drop_v', 'f32', 1, None, 46),
-        FieldSpec('i_dt_a', 'f32', 1, None, 50),
-        FieldSpec('capture_pre', 'u16', 1, None, 54),
-        FieldSpec('identify', 'u8', 1, None, 56),
-        FieldSpec('predictor', 'u8', 1, None, 57),
-        FieldSpec('id_window', 'u16', 1, None, 58),
-        FieldSpec('pred_scale_l_d', 'f32', 1, None, 60),
-        FieldSpec('pred_scale_l_q', 'f32', 1, None, 64),
-        FieldSpec('pred_scale_psi_f', 'f32', 1, None, 68),
-        FieldSpec('pred_scale_r_s', 'f32', 1, None, 72),
-    ), struct.Struct('<ffffHBBfHHHIfffffHBBHffff')),
+        FieldSpec('angle_src', 'u8', 1, None, 20),
+        FieldSpec('heartbeat_timeout_s', 'f32', 1, None, 21),
+        FieldSpec('fast_div', 'u16', 1, None, 25),
+        FieldSpec('params_div', 'u16', 1, None, 27),
+        FieldSpec('status_div', 'u16', 1, None, 29),
+        FieldSpec('enc_counts', 'u32', 1, None, 31),
+        FieldSpec('enc_offset_e_rad', 'f32', 1, None, 35),
+        FieldSpec('speed_obs_bw_rad_s', 'f32', 1, None, 39),
+        FieldSpec('dead_time_s', 'f32', 1, None, 43),
+        FieldSpec('v_drop_v', 'f32', 1, None, 47),
+        FieldSpec('i_dt_a', 'f32', 1, None, 51),
+        FieldSpec('capture_pre', 'u16', 1, None, 55),
+        FieldSpec('identify', 'u8', 1, None, 57),
+        FieldSpec('predictor', 'u8', 1, None, 58),
+        FieldSpec('id_window', 'u16', 1, None, 59),
+        FieldSpec('pred_scale_l_d', 'f32', 1, None, 61),
+        FieldSpec('pred_scale_l_q', 'f32', 1, None, 65),
+        FieldSpec('pred_scale_psi_f', 'f32', 1, None, 69),
+        FieldSpec('pred_scale_r_s', 'f32', 1, None, 73),
+    ), struct.Struct('<ffffHBBBfHHHIfffffHBBHffff')),
     MessageSpec(0x04, 'profile_clear', 'h2d', False, 2, (
         FieldSpec('n_segments', 'u16', 1, None, 0),
     ), struct.Struct('<H')),

@@ -11,6 +11,7 @@ from pmsm_hil.protocol.link import as_link
 from pmsm_hil.transport.base import Transport, TransportError
 
 ACK_TEXT = {v: k for k, v in gen.ENUMS["ack_status"].items()}
+BOARD_NAMES = {v: k for k, v in gen.ENUMS["board"].items()}
 
 
 class DeviceError(Exception):
@@ -104,7 +105,7 @@ class Session:
         self.identity = Identity(
             proto_version=f["proto_version"], schema_hash=f["schema_hash"],
             fw_version=f"{f['fw_major']}.{f['fw_minor']}.{f['fw_patch']}",
-            board={0: "emulator", 1: "f28335"}.get(f["board"], str(f["board"])),
+            board=BOARD_NAMES.get(f["board"], str(f["board"])),
             tx_buf_octets=f["tx_buf_octets"], capture_len=f["capture_len"])
         return self.identity
 

@@ -85,4 +85,33 @@ static inline uint16_t calc_dac_cmpa(float value, float full_scale, uint16_t tbp
     return (uint16_t)(duty * periods + 0.5f);
 }
 
+/* Inverter leg with a duty (up-down count, period 2 TBPRD TBCLK; action qualifier: set on CMPA up,
+ * clear on CMPA down, so the upper switch is on for (TBPRD - CMPA) / TBPRD of the period, centred
+ * on CTR = TBPRD). Returns the continuous software force to load with it: CALC_LEG_COMPARE (none:
+ * the compare acts, *cmpa set), or CALC_LEG_LOW / CALC_LEG_HIGH when the on- or off-time would be
+ * shorter than one dead band (the dead-band unit would swallow the pulse) or the duty is not a
+ * number (low). The codes are AQCSFRC.CSFA's. */
+#define CALC_LEG_COMPARE 0u
+#define CALC_LEG_LOW 1u
+#define CALC_LEG_HIGH 2u
+
+static inline uint16_t calc_leg(float duty, uint16_t tbprd, uint16_t dead_tbclk, uint16_t *cmpa)
+{
+    const float period = 2.0f * (float)tbprd;
+    float on;
+    *cmpa = tbprd;
+    if (!(duty == duty)) {
+        return CALC_LEG_LOW;
+    }
+    on = duty * period;
+    if (on < (float)dead_tbclk) {
+        return CALC_LEG_LOW;
+    }
+    if (period - on < (float)dead_tbclk) {
+        return CALC_LEG_HIGH;
+    }
+    *cmpa = (uint16_t)((1.0f - duty) * (float)tbprd + 0.5f);
+    return CALC_LEG_COMPARE;
+}
+
 #endif

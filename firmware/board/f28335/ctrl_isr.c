@@ -10,14 +10,15 @@
  * resolution (the core accepts config_ctrl only while no run is active). */
 static void follow_config(void)
 {
-    if (!g_fw.have_ctrl) {
+    const proto_config_ctrl_t *c = fw_ctrl(&g_fw);
+    if (c == 0) {
         return;
     }
-    if (g_fw.ctrl.ts_s != pwm_period()) {
-        pwm_set_period(g_fw.ctrl.ts_s);
+    if (c->ts_s != pwm_period()) {
+        pwm_set_period(c->ts_s);
     }
-    if (g_fw.ctrl.enc_counts != qep_counts()) {
-        qep_set_counts(g_fw.ctrl.enc_counts);
+    if (c->enc_counts != qep_counts()) {
+        qep_set_counts(c->enc_counts);
     }
 }
 

@@ -21,7 +21,7 @@ int main(void)
 
     /* 4. the core */
     memset(&cfg, 0, sizeof(cfg));
-    cfg.board = FW_BOARD_F28335;
+    cfg.board = PROTO_BOARD_F28335;
     cfg.can_node = BOARD_CAN_NODE;
     fw_init(&g_fw, &cfg);
 

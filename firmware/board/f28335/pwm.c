@@ -1,11 +1,17 @@
 /* Inverter legs on ePWM1-3 (leg a, b, c), the ADC trigger, the trip zone and the gate enable.
  *
  * Up-down counting at the control rate (period = 2 TBPRD TBCLK, CTR = 0 is the period start).
- * FCS-MPC applies one switching state for a whole period, so there are no compare events: each
- * leg's A output is an action-qualifier continuous software force (AQCSFRC: high = upper switch
- * on, low = lower switch on), written to its shadow register in the control ISR and loaded at the
- * next CTR = 0 (AQSFRC.RLDCSF = 0). That is the one-period computation delay the MPCC
- * compensates: the state computed from the samples of period k is applied during [k+1, k+2).
+ * The core's command (fw_cmd_t) is either forced switch states or three duties:
+ *  - states (FCS-MPC: one switching state for a whole period): each leg's A output is an
+ *    action-qualifier continuous software force (AQCSFRC: high = upper switch on, low = lower
+ *    switch on);
+ *  - duties (FOC with SVPWM): the force is released and the compare acts, centre-aligned (set on
+ *    CMPA up, clear on CMPA down: on for (TBPRD - CMPA) / TBPRD); a duty whose on- or off-time is
+ *    shorter than the dead band becomes the force low or high (calc_leg in board_calc.h).
+ * Both AQCSFRC and CMPA are written to their shadow registers in the control ISR and loaded at
+ * the next CTR = 0 (AQSFRC.RLDCSF = 0, CMPCTL.LOADAMODE = zero). That is the one-period
+ * computation delay the controllers compensate: the output computed from the samples of period
+ * k is applied during [k+1, k+2).
  * The dead-band unit makes the complementary B output (active high complementary, both delays
  * BOARD_DEAD_TIME_NS). Off (pwm_on == false) is a one-shot trip-zone force of both outputs low;
  * TZ1 (hardware over-current, active low) trips the same latch.
@@ -115,7 +121,7 @@ void pwm_init(float ts_s)
         p->TBPHS.half.TBPHS = 0u;
         p->TBCTR = 0u;
 
-        /* compare: only CMPB is used (ADC trigger); both shadowed, loaded at CTR = 0 */
+        /* compare: CMPA for duties, CMPB for the ADC trigger; both shadowed, loaded at CTR = 0 */
         p->CMPCTL.all = 0u;
         p->CMPCTL.bit.SHDWAMODE = CC_SHADOW;
         p->CMPCTL.bit.SHDWBMODE = CC_SHADOW;
@@ -123,8 +129,11 @@ void pwm_init(float ts_s)
         p->CMPCTL.bit.LOADBMODE = CC_CTR_ZERO;
         p->CMPA.half.CMPA = 0u;
 
-        /* action qualifier: no compare actions; the state is the continuous software force */
+        /* action qualifier: centre-aligned compare on A (duties); a continuous software force
+         * (states, and off) overrides it */
         p->AQCTLA.all = 0u;
+        p->AQCTLA.bit.CAU = AQ_SET;
+        p->AQCTLA.bit.CAD = AQ_CLEAR;
         p->AQCTLB.all = 0u;
         p->AQSFRC.all = 0u;            /* RLDCSF = 0: AQCSFRC shadow -> active at CTR = 0 */
         p->AQCSFRC.all = PWM_CSF_LOW;
@@ -192,9 +201,19 @@ BOARD_RAMFUNC void pwm_apply(const fw_cmd_t *cmd)
         return;
     }
     /* shadow registers: take effect at the next CTR = 0 */
-    EPwm1Regs.AQCSFRC.all = (cmd->s_a != 0u) ? PWM_CSF_HIGH : PWM_CSF_LOW;
-    EPwm2Regs.AQCSFRC.all = (cmd->s_b != 0u) ? PWM_CSF_HIGH : PWM_CSF_LOW;
-    EPwm3Regs.AQCSFRC.all = (cmd->s_c != 0u) ? PWM_CSF_HIGH : PWM_CSF_LOW;
+    if (cmd->mode == FW_CMD_DUTIES) {
+        const float duty[3] = { cmd->duty_a, cmd->duty_b, cmd->duty_c };
+        uint16_t k, cmpa;
+        for (k = 0u; k < 3u; k++) {
+            const uint16_t force = calc_leg(duty[k], s_pwm.t.tbprd, s_pwm.t.dead_tbclk, &cmpa);
+            k_legs[k]->CMPA.half.CMPA = cmpa;
+            k_legs[k]->AQCSFRC.all = force;
+        }
+    } else {
+        EPwm1Regs.AQCSFRC.all = (cmd->s_a != 0u) ? PWM_CSF_HIGH : PWM_CSF_LOW;
+        EPwm2Regs.AQCSFRC.all = (cmd->s_b != 0u) ? PWM_CSF_HIGH : PWM_CSF_LOW;
+        EPwm3Regs.AQCSFRC.all = (cmd->s_c != 0u) ? PWM_CSF_HIGH : PWM_CSF_LOW;
+    }
     if (!s_pwm.enabled) {
         /* first period of a run: the active force is still 000 (pwm_off), the chosen state
          * follows at the next period start; a TZ1 that is still asserted latches again at once */

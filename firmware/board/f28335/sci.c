@@ -52,7 +52,7 @@ void sci_init(void)
 
 BOARD_RAMFUNC void sci_tx_kick(void)
 {
-    if (g_fw.tx.level != 0u) {
+    if (fw_tx_level(&g_fw) != 0u) {
         SciaRegs.SCIFFTX.bit.TXFFIENA = 1u;
     }
 }

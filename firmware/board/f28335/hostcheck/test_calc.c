@@ -62,6 +62,20 @@ int main(void)
     printf("load PWM-DAC: TBPRD %u, 0 N m -> CMPA %u\n", (unsigned)load_prd,
            (unsigned)calc_dac_cmpa(0.0f, BOARD_LOAD_FULLSCALE_NM, load_prd));
 
+    {   /* duty legs at the 20 kHz default: TBPRD 3750, dead band 300 TBCLK */
+        uint16_t cmpa = 0u;
+        CHECK(calc_leg(0.5f, 3750u, 300u, &cmpa) == CALC_LEG_COMPARE && cmpa == 1875u);
+        CHECK(calc_leg(0.25f, 3750u, 300u, &cmpa) == CALC_LEG_COMPARE && cmpa == 2813u);
+        CHECK(calc_leg(0.9f, 3750u, 300u, &cmpa) == CALC_LEG_COMPARE && cmpa == 375u);
+        CHECK(calc_leg(0.0f, 3750u, 300u, &cmpa) == CALC_LEG_LOW);
+        CHECK(calc_leg(0.03f, 3750u, 300u, &cmpa) == CALC_LEG_LOW);     /* 225 TBCLK on < 300 */
+        CHECK(calc_leg(0.05f, 3750u, 300u, &cmpa) == CALC_LEG_COMPARE); /* 375 TBCLK on */
+        CHECK(calc_leg(0.97f, 3750u, 300u, &cmpa) == CALC_LEG_HIGH);
+        CHECK(calc_leg(1.0f, 3750u, 300u, &cmpa) == CALC_LEG_HIGH);
+        CHECK(calc_leg(-0.2f, 3750u, 300u, &cmpa) == CALC_LEG_LOW);
+        CHECK(calc_leg(NAN, 3750u, 300u, &cmpa) == CALC_LEG_LOW);
+    }
+
     if (failures != 0) {
         printf("%d check(s) failed\n", failures);
         return 1;

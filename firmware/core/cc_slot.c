@@ -1,0 +1,64 @@
+/* The current-control slot (cc_slot.h): dispatch to today's occupant, the MPCC. */
+#include "cc_slot.h"
+
+bool cc_kind_known(uint16_t kind)
+{
+    return kind == CC_KIND_MPCC;
+}
+
+void cc_init(cc_t *c, const cc_cfg_t *cfg)
+{
+    c->kind = cc_kind_known(cfg->kind) ? cfg->kind : CC_KIND_MPCC;
+    mpcc_init(&c->u.mpcc, &cfg->mpcc);
+}
+
+static void step_mpcc(mpcc_t *m, const cc_in_t *in, cc_out_t *out)
+{
+    mpcc_in_t mi;
+    mpcc_out_t mo;
+    mi.i_d_a = in->i_d_a;
+    mi.i_q_a = in->i_q_a;
+    mi.i_d_ref_a = in->i_d_ref_a;
+    mi.i_q_ref_a = in->i_q_ref_a;
+    mi.theta_e_rad = in->theta_e_rad;
+    mi.omega_e_rad_s = in->omega_e_rad_s;
+    mi.v_dc_v = in->v_dc_v;
+    mi.r_s_ohm = in->pred.r_s_ohm;
+    mi.l_d_h = in->pred.l_d_h;
+    mi.l_q_h = in->pred.l_q_h;
+    mi.psi_f_wb = in->pred.psi_f_wb;
+    mpcc_step_cs(m, &mi, in->cos_theta, in->sin_theta, &mo);
+    out->mode = CC_OUT_STATES;
+    out->s_a = mo.s_a;
+    out->s_b = mo.s_b;
+    out->s_c = mo.s_c;
+    out->duty_a = (float)mo.s_a;
+    out->duty_b = (float)mo.s_b;
+    out->duty_c = (float)mo.s_c;
+    out->u_d_v = mo.u_d_v;
+    out->u_q_v = mo.u_q_v;
+    out->u_d_avg_v = mo.u_d_avg_v;
+    out->u_q_avg_v = mo.u_q_avg_v;
+    out->i_d_pred_a = mo.i_d_k1_a;
+    out->i_q_pred_a = mo.i_q_k1_a;
+}
+
+void cc_step(cc_t *c, const cc_in_t *in, cc_out_t *out)
+{
+    switch (c->kind) {
+    case CC_KIND_MPCC:
+    default:
+        step_mpcc(&c->u.mpcc, in, out);
+        break;
+    }
+}
+
+void cc_reset(cc_t *c)
+{
+    mpcc_reset(&c->u.mpcc);
+}
+
+uint16_t cc_applied_code(const cc_t *c)
+{
+    return c->kind == CC_KIND_MPCC ? c->u.mpcc.sw_prev : 0u;
+}
