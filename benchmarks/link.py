@@ -36,7 +36,7 @@ from pmsm_hil.protocol.can_link import CanDecoder  # noqa: E402
 from pmsm_hil.protocol.session import Session  # noqa: E402
 from pmsm_hil.recorder import Recorder  # noqa: E402
 from pmsm_hil.runner import RunOptions, run_profile  # noqa: E402
-from pmsm_hil.transport.can_bus import apply_can_rates, inprocess_can_link  # noqa: E402
+from pmsm_hil.device import apply_can_rates, inprocess_can_link  # noqa: E402
 from pmsm_hil.transport.inproc import InProcessTransport  # noqa: E402
 
 PROFILE = ROOT / "profiles" / "paper-a.yaml"

@@ -26,18 +26,10 @@ def _div(rate_hz: float, ts_s: float) -> int:
     return 0 if not rate_hz else max(1, round(1.0 / (rate_hz * ts_s)))
 
 
-def _effect(rig, name: str):
-    """The rig's effect `name` if it is enabled, else None."""
-    eff = getattr(rig, "effects", {}).get(name) if rig is not None else None
-    if eff is None or not getattr(eff, "enabled", True):
-        return None
-    return eff
-
-
 def encoder_counts(rig) -> int:
-    enc = _effect(rig, "encoder")
-    lines = getattr(enc, "lines", 2500) if enc is not None else 2500
-    return int(4 * lines)
+    """Counts per revolution of the rig's encoder (the model's default when the effect is off)."""
+    enc = rig.effects.encoder
+    return int(4 * (enc.lines if enc.enabled else type(enc).model_fields["lines"].default))
 
 
 def device_config(profile) -> tuple[dict, dict]:
@@ -55,7 +47,7 @@ def device_config(profile) -> tuple[dict, dict]:
         ki = ki_d if ki is None else ki
     # The firmware compensates the inverter with its own nominal values (the motor file's), never
     # with the rig's: the rig is the plant, which the firmware cannot know (docs/rigs.md).
-    comp = bool(getattr(c, "dead_time_comp", True))
+    comp = c.dead_time_comp
     ctrl_cfg = dict(
         ts_s=c.ts_s, rho=c.rho, speed_kp_a_per_rad_s=kp, speed_ki_a_per_rad=ki,
         speed_div=_div(c.speed_loop_hz, c.ts_s),
@@ -65,10 +57,10 @@ def device_config(profile) -> tuple[dict, dict]:
         fast_div=_div(tel.fast_hz, c.ts_s), params_div=_div(tel.params_hz, c.ts_s),
         status_div=_div(tel.status_hz, c.ts_s),
         enc_counts=encoder_counts(profile.rig), enc_offset_e_rad=0.0,
-        speed_obs_bw_rad_s=getattr(c, "speed_obs_bw_rad_s", None) or DEFAULT_OBSERVER_BW_RAD_S,
-        dead_time_s=float(getattr(m, "dead_time_s", 0.0) or 0.0) if comp else 0.0,
-        v_drop_v=float(getattr(m, "v_drop_v", 0.0) or 0.0) if comp else 0.0,
-        i_dt_a=float(getattr(m, "i_dt_a", 0.0) or 0.0) if comp else 0.0,
+        speed_obs_bw_rad_s=c.speed_obs_bw_rad_s or DEFAULT_OBSERVER_BW_RAD_S,
+        dead_time_s=m.dead_time_s if comp else 0.0,
+        v_drop_v=m.v_drop_v if comp else 0.0,
+        i_dt_a=m.i_dt_a if comp else 0.0,
         capture_pre=CAPTURE_PRE)
     ctrl_cfg.update(identification_config(profile))
     return motor_cfg, ctrl_cfg
@@ -77,10 +69,10 @@ def device_config(profile) -> tuple[dict, dict]:
 def identification_config(profile) -> dict:
     """config_ctrl fields of the online identification (docs/identification.md)."""
     c = profile.control
-    sc = getattr(c, "predictor_scale", None)
+    sc = c.predictor_scale
     return dict(
-        identify=1 if getattr(c, "identify", False) else 0,
-        predictor=gen.ENUMS["estimator"][getattr(c, "predictor", "nominal")],
-        id_window=max(2, round(getattr(c, "id_window_s", 1e-3) / c.ts_s)),
-        pred_scale_l_d=getattr(sc, "l_d_h", 1.0), pred_scale_l_q=getattr(sc, "l_q_h", 1.0),
-        pred_scale_psi_f=getattr(sc, "psi_f_wb", 1.0), pred_scale_r_s=getattr(sc, "r_s_ohm", 1.0))
+        identify=1 if c.identify else 0,
+        predictor=gen.ENUMS["estimator"][c.predictor],
+        id_window=max(2, round(c.id_window_s / c.ts_s)),
+        pred_scale_l_d=sc.l_d_h, pred_scale_l_q=sc.l_q_h,
+        pred_scale_psi_f=sc.psi_f_wb, pred_scale_r_s=sc.r_s_ohm)

@@ -12,9 +12,9 @@ from pmsm_hil import __version__
 from pmsm_hil.control_design import device_config
 from pmsm_hil.log.writer import LogWriter
 from pmsm_hil.protocol import generated as gen
-from pmsm_hil.protocol.session import DeviceError, Session
+from pmsm_hil.errors import DeviceError, TransportError
+from pmsm_hil.protocol.session import Session
 from pmsm_hil.recorder import LiveState, Recorder
-from pmsm_hil.transport.base import TransportError
 
 
 @dataclass
@@ -107,7 +107,7 @@ def _metadata(profile, session: Session, options: RunOptions) -> dict[str, dict[
                 "ts_s": repr(profile.control.ts_s),
                 "segment_names": "|".join(s.name or f"segment {i}" for i, s in enumerate(profile.segments))},
         # the rig's effects in force and their sizes (docs/rigs.md); the rig yaml is attached too
-        "rig_effects": profile.rig.effective_metadata() if hasattr(profile.rig, "effective_metadata") else {},
+        "rig_effects": profile.rig.effective_metadata(),
         "device": {"board": ident.board, "fw_version": ident.fw_version,
                    "proto_version": str(ident.proto_version),
                    "schema_hash": f"{ident.schema_hash:08x}"},
@@ -116,7 +116,7 @@ def _metadata(profile, session: Session, options: RunOptions) -> dict[str, dict[
 
 def _attachments(profile) -> list[tuple[str, str, bytes]]:
     out = []
-    for label, text in getattr(profile, "yaml_texts", {}).items():
+    for label, text in profile.yaml_texts.items():
         out.append((label, "application/yaml", text.encode()))
     return out
 
@@ -131,11 +131,11 @@ def configure(session: Session, profile) -> None:
         session.request("profile_segment", index=i, duration_s=s.duration_s, speed_rpm=s.speed_rpm,
                         ramp_rpm_s=s.ramp_rpm_s, load_nm=s.load_nm,
                         flags=((gen.ENUMS["segment_flag"]["capture"] if s.capture else 0) |
-                               (0 if getattr(s, "estimate", True) else gen.ENUMS["segment_flag"]["hold_est"])),
-                        kind=gen.ENUMS["segment_kind"][getattr(s, "kind", "run")],
-                        inject_a=getattr(s, "inject_a", 0.0), inject_hz=getattr(s, "inject_hz", 0.0))
-    steps = [(i, s.plant) for i, s in enumerate(profile.segments) if getattr(s, "plant", None) is not None]
-    if steps and getattr(session.identity, "board", "") == "emulator":
+                               (0 if s.estimate else gen.ENUMS["segment_flag"]["hold_est"])),
+                        kind=gen.ENUMS["segment_kind"][s.kind],
+                        inject_a=s.inject_a, inject_hz=s.inject_hz)
+    steps = [(i, s.plant) for i, s in enumerate(profile.segments) if s.plant is not None]
+    if steps and session.identity.board == "emulator":
         for i, st in steps:   # emulator only: the sim board steps the true R and psi_f
             session.request("sim_plant", index=i, r_s_scale=st.r_s_scale, psi_f_scale=st.psi_f_scale)
 
@@ -244,7 +244,7 @@ def _stream(session: Session, rec: Recorder, options: RunOptions, observer, sig,
                 if why:
                     rec.event(live.t_s, "host", 0, 0, why)
                     raise PlantMismatch(why)
-        live.octets = session.decoder.octets if hasattr(session.decoder, "octets") else live.octets
+        live.octets = session.decoder.octets
         live.bad_frames = _bad_frames(session)
         if live.stopped and live.state in ("done", "idle", "fault"):
             return False
@@ -285,7 +285,7 @@ def _stop_evident(live) -> bool:
 
 def _bad_frames(session: Session) -> int:
     d = session.decoder
-    return sum(getattr(d, k, 0) for k in ("crc_errors", "cobs_errors", "len_errors", "unknown_id"))
+    return d.crc_errors + d.cobs_errors + d.len_errors + d.unknown_id
 
 
 def _stop_device(session: Session, rec: Recorder, observer, sig) -> None:
@@ -331,7 +331,7 @@ def _upload_capture(session: Session, rec: Recorder, observer) -> int:
         return 0
     if observer is not None:
         observer.message(f"uploading capture ({count} samples)")
-    capacity = getattr(session.identity, "capture_len", 0) or 0
+    capacity = session.identity.capture_len
     if count > capacity:      # a device-provided count is checked against what it said at hello
         rec.event(rec.live.t_s, "warning", 0, 0, f"capture count {count} is implausible: not uploaded")
         return 0
@@ -340,7 +340,7 @@ def _upload_capture(session: Session, rec: Recorder, observer) -> int:
     except (DeviceError, TransportError) as e:
         rec.event(rec.live.t_s, "warning", 0, 0, f"capture upload failed: {e}")
         return 0
-    missing = getattr(session, "capture_missing", [])
+    missing = session.capture_missing
     if missing:
         rec.event(rec.live.t_s, "warning", 0, 0,
                   f"capture: {len(missing)} chunks did not arrive (offsets {missing[:8]}"
@@ -353,7 +353,6 @@ def _write_link_stats(writer, session: Session, rec: Recorder) -> None:
     d = session.decoder
     live = rec.live
     writer.write("/host/link", live.t_s, {
-        "wall_s": live.wall_s, "frames_ok": getattr(d, "frames_ok", live.frames),
-        "crc_errors": getattr(d, "crc_errors", 0), "cobs_errors": getattr(d, "cobs_errors", 0),
-        "len_errors": getattr(d, "len_errors", 0), "unknown_id": getattr(d, "unknown_id", 0),
-        "octets": getattr(d, "octets", 0), "seq_gaps": live.seq_gaps})
+        "wall_s": live.wall_s, "frames_ok": d.frames_ok, "crc_errors": d.crc_errors,
+        "cobs_errors": d.cobs_errors, "len_errors": d.len_errors, "unknown_id": d.unknown_id,
+        "octets": d.octets, "seq_gaps": live.seq_gaps})

@@ -22,8 +22,8 @@ from pmsm_hil.protocol.can_link import CanDecoder, encode_message
 from pmsm_hil.protocol.session import Session
 from pmsm_hil.runner import RunOptions, configure, run_profile
 from pmsm_hil.transport.base import TransportError
-from pmsm_hil.transport.can_bus import (apply_can_rates, inprocess_can_link,
-                                        open_can, parse_spec)
+from pmsm_hil.device import apply_can_rates, inprocess_can_link, open_can
+from pmsm_hil.transport.can_bus import parse_spec
 
 STATE = gen.ENUMS["state"]
 
@@ -213,11 +213,11 @@ def test_the_dbc_decodes_recorded_frames(data, root, tmp_path):
 
 
 @pytest.mark.parametrize("text, expect", [
-    ("socketcand:emu0@127.0.0.1:29536", ("socketcand", "emu0", 1_000_000, 1, "127.0.0.1", 29536)),
+    ("socketcand:emu0@127.0.0.1:29536", ("socketcand", "emu0", None, None, "127.0.0.1", 29536)),
     ("socketcan:can0,bitrate=500000,node=3", ("socketcan", "can0", 500_000, 3, None, None)),
-    ("slcan:/dev/ttyACM0", ("slcan", "/dev/ttyACM0", 1_000_000, 1, None, None)),
-    ("emulator", ("emulator", "", 1_000_000, 1, None, None)),
-    (None, ("emulator", "", 1_000_000, 1, None, None)),
+    ("slcan:/dev/ttyACM0", ("slcan", "/dev/ttyACM0", None, None, None, None)),
+    ("emulator", ("emulator", "", None, None, None, None)),
+    (None, ("emulator", "", None, None, None, None)),
 ])
 def test_spec_parsing(text, expect):
     s = parse_spec(text)

@@ -7,43 +7,30 @@ import os
 
 import pytest
 
-from pmsm_hil.emulator.settings import emulator_settings
+from pmsm_hil.device import DeviceSpec, open_device
+from pmsm_hil.errors import DeviceError
 from pmsm_hil.profiles import load_profile
 from pmsm_hil.protocol import generated as gen
-from pmsm_hil.protocol.session import DeviceError, Session
+from pmsm_hil.protocol.session import Session
 from pmsm_hil.runner import RunOptions, configure, run_profile
-from pmsm_hil.transport.can_bus import CanEmulator, apply_can_rates, inprocess_can_link, open_can, parse_spec
-from pmsm_hil.transport.emulator import EmulatorTransport
-from pmsm_hil.transport.inproc import InProcessTransport
-from pmsm_hil.transport.serial_port import SerialTransport
 
 KINDS = ["serial-emulator", "can-emulator", "serial-inprocess", "can-inprocess", "serial-rig", "can-rig"]
 
 
 def open_link(kind: str, profile):
-    motor = str(profile.motor.path)
-    rig = str(profile.rig.path) if getattr(profile.rig, "path", None) else None
-    settings = emulator_settings(profile.motor, profile.rig, seed=1, baud=profile.link.baud,
-                                 ts_s=profile.control.ts_s)
-    if kind.startswith("can"):
-        apply_can_rates(profile)
-    if kind == "serial-emulator":
-        return EmulatorTransport(motor, rig, 1, profile.link.baud)
-    if kind == "can-emulator":
-        return CanEmulator(motor, rig, 1).link
-    if kind == "serial-inprocess":
-        return InProcessTransport(settings)
-    if kind == "can-inprocess":
-        return inprocess_can_link(settings)
+    """Every kind through the one device factory (pmsm_hil.device)."""
     if kind == "serial-rig":
         port = os.environ.get("PMSM_HIL_RIG_PORT")
         if not port:
             pytest.skip("no serial rig configured (PMSM_HIL_RIG_PORT)")
-        return SerialTransport(port, profile.link.baud)
-    spec = os.environ.get("PMSM_HIL_RIG_CAN")
-    if not spec:
-        pytest.skip("no CAN rig configured (PMSM_HIL_RIG_CAN)")
-    return open_can(parse_spec(spec))
+        return open_device(DeviceSpec(port=port), profile)
+    if kind == "can-rig":
+        spec = os.environ.get("PMSM_HIL_RIG_CAN")
+        if not spec:
+            pytest.skip("no CAN rig configured (PMSM_HIL_RIG_CAN)")
+        return open_device(DeviceSpec(can=spec), profile)
+    can = "emulator" if kind.startswith("can") else None
+    return open_device(DeviceSpec(can=can, in_process=kind.endswith("inprocess")), profile)
 
 
 @pytest.fixture(params=KINDS)

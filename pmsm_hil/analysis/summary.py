@@ -187,7 +187,7 @@ def log_problems(log) -> list[str]:
     elif not log.finalised:
         out.append(f"the file has no summary section (the writer did not finish); {total} messages "
                    f"recovered")
-    out += [str(p) for p in getattr(log, "problems", [])]
+    out += [str(p) for p in log.problems]
     status = log.topic("/pmsm/status") if "/pmsm/status" in log.topics else {}
     dropped = int(np.max(status["tx_dropped"])) if len(status.get("tx_dropped", [])) else 0
     if dropped:
@@ -206,7 +206,7 @@ def summarize_log(path: Path) -> RunSummary:
         raise ValueError(f"{path}: the file is empty (0 octets): no run was recorded")
     log = read_log(path)
     names = None
-    meta = log.metadata.get("run", {}) if hasattr(log, "metadata") else {}
+    meta = log.metadata.get("run", {})
     if meta.get("segment_names"):
         names = meta["segment_names"].split("|")
     truth = log.topic("/sim/truth") if "/sim/truth" in log.topics else None

@@ -47,22 +47,10 @@ def default_log_path(profile_path: str) -> Path:
     return Path("runs") / f"{stem}-{time.strftime('%Y%m%d-%H%M%S')}.mcap"
 
 
-def _rig_path(args, profile) -> str | None:
-    return args.rig or (str(profile.rig.path) if profile.rig.path else None)
-
-
-def open_transport(args, profile):
-    from pmsm_hil.transport.emulator import EmulatorTransport
-    from pmsm_hil.transport.serial_port import SerialTransport
-
-    if args.can is not None:   # docs/can.md
-        from pmsm_hil.transport.can_bus import open_for_run
-        return open_for_run(args.can, profile, _rig_path(args, profile), args.seed, pace=args.pace)
-    baud = args.baud or profile.link.baud
-    if args.port:
-        return SerialTransport(args.port, baud)
-    return EmulatorTransport(str(profile.motor.path), _rig_path(args, profile), args.seed, baud,
-                             pace=args.pace)
+def device_spec(args):
+    from pmsm_hil.device import DeviceSpec
+    return DeviceSpec(port=args.port, can=args.can, baud=args.baud, rig_path=args.rig, seed=args.seed,
+                      pace=args.pace)
 
 
 def budget_text(budget: dict, baud: int) -> str:
@@ -129,7 +117,8 @@ def main(args: argparse.Namespace) -> int:
     from pmsm_hil.profiles import ProfileError
     from pmsm_hil.protocol.session import DeviceError, Session
     from pmsm_hil.runner import HostError, PlantMismatch, RunOptions, run_profile
-    from pmsm_hil.transport.base import TransportError, TransportSpecError
+    from pmsm_hil.device import open_device
+    from pmsm_hil.errors import TransportError, TransportSpecError
 
     try:
         profile = _load(args)
@@ -161,7 +150,8 @@ def main(args: argparse.Namespace) -> int:
             return fail("error", str(e), 2)
         print(f"foxglove: {sinks[0].url} (layout: docs/foxglove-layout.json)", flush=True)
     try:
-        transport = open_transport(args, profile)
+        dev = device_spec(args)
+        link = open_device(dev, profile)
     except TransportError as e:
         for s in sinks:
             s.close()
@@ -169,13 +159,12 @@ def main(args: argparse.Namespace) -> int:
             out.unlink(missing_ok=True)
         return fail("error", str(e), 2 if isinstance(e, TransportSpecError) else 3)
     names = [s.name or f"segment {i}" for i, s in enumerate(profile.segments)]
-    observer = make_observer(args.no_live, f"{profile.name} on {transport.name}", transport.bit_rate, names)
-    is_rig = args.port or (args.can is not None and not args.can.startswith("emulator"))
-    options = RunOptions(seed=None if is_rig else args.seed, rig_name=args.rig or str(profile.rig.path or ""),
+    observer = make_observer(args.no_live, f"{profile.name} on {link.name}", link.bit_rate, names)
+    options = RunOptions(seed=None if dev.is_rig else args.seed, rig_name=args.rig or str(profile.rig.path or ""),
                          stop_after_s=args.stop_after, sinks=sinks)
     try:
         with observer:
-            result = run_profile(profile, Session(transport), out, options, observer)
+            result = run_profile(profile, Session(link), out, options, observer)
     except PlantMismatch as e:
         return fail("error", f"{e} (the run was aborted; log: {out})", 2)
     except (DeviceError, TransportError) as e:
@@ -183,7 +172,7 @@ def main(args: argparse.Namespace) -> int:
     except HostError as e:
         return fail("error", f"{e} (log: {out})", 3)
     finally:
-        transport.close()
+        link.close()
         for s in sinks:
             s.close()
     return _finish(result, print_summary, summarize_log)

@@ -67,7 +67,7 @@ def serve(args: argparse.Namespace) -> int:
     if args.pace is not None and not 0.001 <= args.pace <= 1000:
         return _error(f"--pace {args.pace}: must be between 0.001 and 1000 (times real time)")
     settings = emulator_settings(motor, rig, seed=args.seed, baud=args.baud)
-    plant = f"motor: {motor.name}  rig: {getattr(rig, 'name', '') or 'default'}"
+    plant = f"motor: {motor.name}  rig: {rig.name or 'default'}"
     announce = (lambda s: print(f"{s}\n{plant}", flush=True))
     if args.can:   # docs/can.md
         if not 10_000 <= args.can_bitrate <= 1_000_000 or not 0 <= args.node <= 15:

@@ -14,7 +14,7 @@ import subprocess
 import sys
 import time
 
-from pmsm_hil.transport.base import TransportError
+from pmsm_hil.errors import TransportError
 
 
 def start(args: list[str]) -> subprocess.Popen:

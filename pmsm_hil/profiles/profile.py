@@ -305,7 +305,7 @@ def link_budget(profile: Profile, *, emulator: bool = True, n_estimators: int | 
     ``control.identify`` is on (``n_estimators`` None: derived from the profile).
     """
     if n_estimators is None:
-        n_estimators = 4 if getattr(profile.control, "identify", False) else 1
+        n_estimators = 4 if profile.control.identify else 1
     tel = profile.telemetry
     rates = {"telem_fast": (tel.fast_hz, 1), "params": (tel.params_hz, n_estimators),
              "status": (tel.status_hz, 1), "sim_truth": (tel.truth_hz if emulator else 0.0, 1)}

@@ -14,6 +14,7 @@ import time
 from binascii import crc_hqx
 from typing import Iterable
 
+from pmsm_hil.errors import TransportError
 from pmsm_hil.protocol import can_generated as cg
 from pmsm_hil.protocol import codec
 from pmsm_hil.protocol.generated import BY_ID
@@ -217,7 +218,6 @@ class CanLink:
 
     def send(self, name: str, seq: int, **fields) -> None:
         import can
-        from pmsm_hil.transport.base import TransportError
         for ident, data in encode_message(name, seq, self.node, **fields):
             try:
                 self.bus.send(can.Message(arbitration_id=ident, data=data, is_extended_id=False))
@@ -227,7 +227,6 @@ class CanLink:
 
     def poll(self, timeout_s: float) -> list:
         import can
-        from pmsm_hil.transport.base import TransportError
         frames = []
         batch = getattr(self.bus, "recv_batch", None)
         if batch is not None:   # the in-process bus: one chunk of device time per poll

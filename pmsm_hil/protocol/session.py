@@ -6,16 +6,12 @@ import time
 from collections import deque
 from dataclasses import dataclass
 
+from pmsm_hil.errors import DeviceError, TransportError
 from pmsm_hil.protocol import generated as gen
 from pmsm_hil.protocol.link import as_link
-from pmsm_hil.transport.base import Transport, TransportError
 
 ACK_TEXT = {v: k for k, v in gen.ENUMS["ack_status"].items()}
 BOARD_NAMES = {v: k for k, v in gen.ENUMS["board"].items()}
-
-
-class DeviceError(Exception):
-    """The device refused, did not answer, or speaks another protocol; the message says which."""
 
 
 @dataclass
@@ -29,13 +25,16 @@ class Identity:
 
 
 class Session:
-    def __init__(self, transport: Transport):
+    def __init__(self, transport):
+        """`transport`: a link (serial or CAN), or a byte transport that gets the serial framing."""
         self.link = as_link(transport)
         self.t = self.link            # .name for messages
         self.decoder = self.link.decoder   # frame counters (link statistics)
         self.inbox: deque = deque()   # frames that arrived while waiting for something else
         self._seq = 0
         self.identity: Identity | None = None
+        self.capture_missing: list[int] = []   # capture chunks that did not arrive (read_capture)
+        self.capture_rejected = 0              # capture chunks refused as corrupt
 
     # ------------------------------------------------------------------ sending
     def send(self, name: str, **fields) -> int:
@@ -117,7 +116,7 @@ class Session:
         exceeds its capacity or what is left of the buffer is refused as corrupt (counted in
         `capture_rejected`) and asked for again."""
         chunks = []
-        self.capture_missing: list[int] = []
+        self.capture_missing = []
         self.capture_rejected = 0
         per_chunk = next(f.count for f in gen.BY_NAME["capture_chunk"].fields if f.name == "i_a_a")
         offset = 0

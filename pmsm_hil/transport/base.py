@@ -3,13 +3,9 @@ from __future__ import annotations
 
 from typing import Protocol
 
+from pmsm_hil.errors import TransportError, TransportSpecError
 
-class TransportError(Exception):
-    """The link cannot be opened or has dropped; the message says which port and why."""
-
-
-class TransportSpecError(TransportError):
-    """The user named a port or interface in a form that cannot be meant (bad input, exit 2)."""
+__all__ = ["Transport", "TransportError", "TransportSpecError"]
 
 
 class Transport(Protocol):

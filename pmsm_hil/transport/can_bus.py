@@ -1,5 +1,6 @@
-"""CAN transports: `--can SPEC` for any python-can interface, the emulator on a socketcand endpoint,
-and an in-process CAN loopback to the emulated device (docs/can.md).
+"""CAN buses: `--can SPEC` for any python-can interface, the emulator on a socketcand endpoint, and an
+in-process CAN bus to the emulated device (docs/can.md). These are buses, not links: the protocol's
+CAN link (pmsm_hil.protocol.can_link) goes on top of them in pmsm_hil.device.
 
 SPEC = INTERFACE:CHANNEL[,bitrate=N][,node=N][,key=value...]   (extra keys go to can.Bus as is)
     socketcand:emu0@127.0.0.1:29536      python-can's socketcand client (channel@host:port)
@@ -10,10 +11,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from pmsm_hil.protocol import can_generated as cg
-from pmsm_hil.protocol.can_link import CanLink
 from pmsm_hil.emulator import process as emu_process
-from pmsm_hil.transport.base import TransportError, TransportSpecError
+from pmsm_hil.errors import TransportError, TransportSpecError
 
 INTERFACES = ("socketcand", "socketcan", "pcan", "kvaser", "slcan", "ixxat", "virtual", "vector",
               "serial", "usb2can", "nican", "iscan", "neovi", "gs_usb", "cantact", "udp_multicast",
@@ -27,8 +26,8 @@ SPEC_HELP = ("INTERFACE:CHANNEL[,bitrate=N][,node=N], e.g. socketcand:emu0@127.0
 class CanSpec:
     interface: str
     channel: str
-    bitrate: int = cg.BITRATE
-    node: int = cg.NODE
+    bitrate: int | None = None   # None: not given (the device factory fills in the profile's)
+    node: int | None = None
     host: str | None = None      # socketcand only
     port: int | None = None
     extra: dict = field(default_factory=dict)
@@ -40,9 +39,9 @@ class CanSpec:
     def text(self) -> str:
         where = f"{self.channel}@{self.host}:{self.port}" if self.interface == "socketcand" else self.channel
         opts = ""
-        if self.bitrate != cg.BITRATE:
+        if self.bitrate is not None:
             opts += f",bitrate={self.bitrate}"
-        if self.node != cg.NODE:
+        if self.node is not None:
             opts += f",node={self.node}"
         return f"{self.interface}:{where}{opts}"
 
@@ -113,7 +112,7 @@ def open_bus(spec: CanSpec):
         except OSError as e:
             raise TransportError(f"CAN socketcand {spec.host}:{spec.port}: cannot connect ({e}); is "
                                  f"`pmsm-hil emulate --can` (or socketcand) running?") from e
-    elif spec.interface not in ("virtual",):
+    elif spec.interface not in ("virtual",) and spec.bitrate is not None:
         kw.setdefault("bitrate", spec.bitrate)
     try:
         return can.Bus(interface=spec.interface, channel=spec.channel, **kw)
@@ -125,17 +124,12 @@ def open_bus(spec: CanSpec):
         raise TransportError(f"CAN {spec.text()}: cannot open the interface: {type(e).__name__}: {e}") from e
 
 
-def open_can(spec: CanSpec, on_close=None, name: str | None = None) -> CanLink:
-    bus = open_bus(spec)
-    return CanLink(bus, node=spec.node, bit_rate=spec.bitrate,
-                   name=name or f"CAN {spec.text()} node {spec.node}", on_close=on_close)
-
-
 class CanEmulator:
-    """Starts `pmsm-hil emulate --can` as a process; `link` talks to it over socketcand."""
+    """Starts the emulator on CAN (`python -P -m pmsm_hil.emulator --can`) as a process; `spec` is
+    its socketcand endpoint."""
 
-    def __init__(self, motor_path: str | None, rig_path: str | None, seed: int, bitrate: int = cg.BITRATE,
-                 node: int = cg.NODE, start_timeout_s: float = 20.0, extra_args: list[str] | None = None,
+    def __init__(self, motor_path: str | None, rig_path: str | None, seed: int, bitrate: int,
+                 node: int, start_timeout_s: float = 20.0, extra_args: list[str] | None = None,
                  pace: float | None = None):
         args = ["--can", "--seed", str(seed), "--can-bitrate", str(bitrate), "--node", str(node)]
         if pace:
@@ -146,8 +140,8 @@ class CanEmulator:
             args += ["--rig", str(rig_path)]
         self.proc = emu_process.start(args + (extra_args or []))
         self.spec_text = emu_process.wait_for_announcement(self.proc, "can: ", start_timeout_s)
-        spec = parse_spec(self.spec_text)
-        self.link = open_can(spec, on_close=self.close, name=f"emulator CAN {self.spec_text}")
+        self.spec = parse_spec(self.spec_text)
+        self.spec.bitrate, self.spec.node = bitrate, node
 
     def close(self) -> None:
         emu_process.stop(self.proc)
@@ -206,44 +200,3 @@ class InProcessCanBus:
 
     def shutdown(self) -> None:
         pass
-
-
-def inprocess_can_link(settings: dict[str, float], chunk_ticks: int = 400, device=None, **faults) -> CanLink:
-    from pmsm_hil.emulator.fwlib import EmulatedDevice
-    dev = device or EmulatedDevice(settings)
-    bus = InProcessCanBus(dev, chunk_ticks, **faults)
-    return CanLink(bus, node=int(settings.get("can_node", cg.NODE)),
-                   bit_rate=float(settings.get("can_bitrate", cg.BITRATE)), name="in-process emulator (CAN)")
-
-
-def apply_can_rates(profile) -> None:
-    """Use the profile's CAN telemetry rates (link.can.*_hz, where set) for a run over CAN."""
-    can_cfg = getattr(getattr(profile, "link", None), "can", None)
-    if can_cfg is None:
-        return
-    update = {k: getattr(can_cfg, k) for k in ("fast_hz", "params_hz", "status_hz", "truth_hz")
-              if getattr(can_cfg, k, None) is not None}
-    tel = profile.telemetry.model_copy(update=update)
-    if getattr(can_cfg, "fast_hz", None) is None and tel.fast_hz:
-        # not set for CAN: the serial rate, lowered to what fits the bus next to the other streams
-        from pmsm_hil.protocol.can_link import can_fast_hz_max
-        fit = can_fast_hz_max({"params": tel.params_hz, "status": tel.status_hz,
-                               "sim_truth": tel.truth_hz}, profile.control.ts_s,
-                              getattr(can_cfg, "bitrate", 1_000_000))
-        tel = tel.model_copy(update={"fast_hz": min(tel.fast_hz, fit)})
-    profile.telemetry = tel
-
-
-def open_for_run(spec_text: str | None, profile, rig_path: str | None, seed: int,
-                 pace: float | None = None) -> CanLink:
-    """`run --can SPEC`: a rig's CAN interface, or (SPEC `emulator` or empty) a started emulator."""
-    spec = parse_spec(spec_text)
-    can_cfg = getattr(profile.link, "can", None)
-    if spec_text is None or "bitrate=" not in (spec_text or ""):
-        spec.bitrate = getattr(can_cfg, "bitrate", spec.bitrate)
-    if spec_text is None or "node=" not in (spec_text or ""):
-        spec.node = getattr(can_cfg, "node", spec.node)
-    apply_can_rates(profile)
-    if spec.is_emulator:
-        return CanEmulator(str(profile.motor.path), rig_path, seed, spec.bitrate, spec.node, pace=pace).link
-    return open_can(spec)

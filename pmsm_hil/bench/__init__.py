@@ -1,0 +1,1 @@
+"""Benchmarks as a library: the CLI (`pmsm-hil bench`) and scripts call these."""
