@@ -71,8 +71,12 @@ def main(argv: list[str] | None = None) -> int:
         print("usage: python -m tools.compare_device_logs REFERENCE.mcap CANDIDATE.mcap", file=sys.stderr)
         return 2
     diffs = compare(args[0], args[1])
-    for d in diffs:
-        print(d)
+    try:
+        for d in diffs:
+            print(d)
+    except BrokenPipeError:   # the reader (head) has seen enough
+        sys.stdout = None
+        return 1
     if not diffs:
         print(f"identical: {', '.join(DEVICE_TOPICS)}")
     return 1 if diffs else 0

@@ -16,9 +16,9 @@ static void nlms_init(void *e, const est_cfg_t *c) { est_nlms_init((est_nlms_t *
 static void nlms_set_r(void *e, float r) { est_nlms_set_r((est_nlms_t *)e, r); }
 static void nlms_step(void *e, const id_sample_t *s, est_out_t *o) { est_nlms_step((est_nlms_t *)e, s, o); }
 
-static const est_ops_t OPS_RLS = {rls_init, rls_set_r, rls_step};
-static const est_ops_t OPS_ADALINE = {ada_init, ada_set_r, ada_step};
-static const est_ops_t OPS_NLMS = {nlms_init, nlms_set_r, nlms_step};
+static const est_ops_t k_ops_rls = {rls_init, rls_set_r, rls_step};
+static const est_ops_t k_ops_adaline = {ada_init, ada_set_r, ada_step};
+static const est_ops_t k_ops_nlms = {nlms_init, nlms_set_r, nlms_step};
 
 /* ------------------------------------------------------------------ object */
 
@@ -30,11 +30,11 @@ void ident_init(ident_t *id, const ident_cfg_t *cfg)
     uint16_t k;
     memset(id, 0, sizeof(*id));
     id->cfg = *cfg;
-    id->ops[IDENT_EST_RLS] = &OPS_RLS;
+    id->ops[IDENT_EST_RLS] = &k_ops_rls;
     id->est[IDENT_EST_RLS] = &id->rls;
-    id->ops[IDENT_EST_ADALINE] = &OPS_ADALINE;
+    id->ops[IDENT_EST_ADALINE] = &k_ops_adaline;
     id->est[IDENT_EST_ADALINE] = &id->ada;
-    id->ops[IDENT_EST_NLMS] = &OPS_NLMS;
+    id->ops[IDENT_EST_NLMS] = &k_ops_nlms;
     id->est[IDENT_EST_NLMS] = &id->nlms;
     est_cfg_default(&ec, cfg->nominal.r_s_ohm, cfg->nominal.l_d_h, cfg->nominal.l_q_h,
                     cfg->nominal.psi_f_wb, cfg->pole_pairs);
