@@ -280,3 +280,24 @@ def test_sequence_gaps():
     dec = codec.FrameDecoder()
     dec.feed_raw(b"".join(kept))
     assert dec.seq_gaps == len(frames) - len(kept)
+
+
+# Frames worked out by hand from docs/protocol.md (not by the codec under test):
+#   heartbeat (id 0x09), seq 5, counter = 0x01020304 (u32, little-endian):
+#     id seq payload = 09 05 04 03 02 01; CRC-16/CCITT-FALSE over them = 0x8047 (high first)
+#     no 0x00 among the 8 octets: COBS = code 0x09 + the 8 octets; then the delimiter
+#   hello (id 0x01), seq 0, host_proto_version = 2 (u16): 01 00 02 00, CRC 0x9416
+#     COBS blocks at each 0x00: [01] [02] [94 16] -> 02 01 | 02 02 | 03 94 16; delimiter
+HAND_FRAMES = [
+    (("heartbeat", 5, {"counter": 0x01020304}), bytes.fromhex("09 09 05 04 03 02 01 80 47 00")),
+    (("hello", 0, {"host_proto_version": 2}), bytes.fromhex("02 01 02 02 03 94 16 00")),
+]
+
+
+@pytest.mark.parametrize("msg, octets", HAND_FRAMES)
+def test_frames_worked_out_by_hand_from_the_written_rules(msg, octets):
+    name, seq, fields = msg
+    assert codec.encode(name, seq, **fields) == octets
+    dec = codec.FrameDecoder()
+    (fr,) = dec.feed(octets)
+    assert (fr.name, fr.seq, fr.fields) == (name, seq, fields)

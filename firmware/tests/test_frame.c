@@ -243,9 +243,31 @@ static void test_saturation(void)
     CHECK(buf[55] == 0xFFu, "u8 saturates at 255");
 }
 
+/* Frames worked out by hand from docs/protocol.md (the same two as tests/test_codec.py):
+ * heartbeat seq 5 counter 0x01020304 and hello seq 0 host_proto_version 2. */
+static void test_hand_frames(void)
+{
+    static const uint16_t hb[] = {0x09u, 0x09u, 0x05u, 0x04u, 0x03u, 0x02u, 0x01u, 0x80u, 0x47u, 0x00u};
+    static const uint16_t hello[] = {0x02u, 0x01u, 0x02u, 0x02u, 0x03u, 0x94u, 0x16u, 0x00u};
+    static const uint16_t hb_payload[] = {0x04u, 0x03u, 0x02u, 0x01u};
+    static const uint16_t hello_payload[] = {0x02u, 0x00u};
+    uint16_t out[16];
+
+    frame_parser_init(&parser);
+    CHECK(push_all(&parser, hb, 10u) == 1 && parser.msg_id == 0x09u && parser.seq == 5u &&
+          parser.payload_len == 4u && same_octets(parser.payload, hb_payload, 4u), "hand heartbeat parses");
+    CHECK(push_all(&parser, hello, 8u) == 1 && parser.msg_id == 0x01u && parser.seq == 0u &&
+          parser.payload_len == 2u && same_octets(parser.payload, hello_payload, 2u), "hand hello parses");
+    CHECK(frame_encode(0x09u, 5u, hb_payload, 4u, out, 16u) == 10u && same_octets(out, hb, 10u),
+          "heartbeat encodes to the hand frame");
+    CHECK(frame_encode(0x01u, 0u, hello_payload, 2u, out, 16u) == 8u && same_octets(out, hello, 8u),
+          "hello encodes to the hand frame");
+}
+
 int main(void)
 {
     test_crc();
+    test_hand_frames();
     test_golden_pack_encode();
     test_golden_parse();
     test_bit_flips();
