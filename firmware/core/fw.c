@@ -184,16 +184,17 @@ static void check_faults(fw_t *f, const fw_meas_t *m)
 {
     uint16_t bits = 0u;
     float it = f->limits.i_trip_a;
-    if (fabsf(m->i_a_a) > it || fabsf(m->i_b_a) > it || fabsf(m->i_c_a) > it) {
+    /* written as "not within", so that a non-finite measurement (NaN) trips too */
+    if (!(fabsf(m->i_a_a) <= it) || !(fabsf(m->i_b_a) <= it) || !(fabsf(m->i_c_a) <= it)) {
         bits |= PROTO_FAULT_OVER_CURRENT;
     }
-    if (fabsf(f->ang.speed_rpm) > f->limits.speed_trip_rpm) {
+    if (!(fabsf(f->ang.speed_rpm) <= f->limits.speed_trip_rpm)) {
         bits |= PROTO_FAULT_OVER_SPEED;
     }
-    if (m->v_dc_v < f->limits.v_dc_min_v) {
+    if (!(m->v_dc_v >= f->limits.v_dc_min_v)) {
         bits |= PROTO_FAULT_DC_UNDER_VOLTAGE;
     }
-    if (m->v_dc_v > f->limits.v_dc_max_v) {
+    if (!(m->v_dc_v <= f->limits.v_dc_max_v)) {
         bits |= PROTO_FAULT_DC_OVER_VOLTAGE;
     }
     if (bits != 0u) {

@@ -7,6 +7,18 @@
 
 /* ------------------------------------------------------------------ commands */
 
+/* Finite (not NaN, not infinite) without relying on the library's classification macros:
+ * x - x is 0 for every finite x and NaN otherwise. */
+static bool finite_f(float x)
+{
+    return (x - x) == 0.0f;
+}
+
+static bool within(float x, float lo, float hi)
+{
+    return x >= lo && x <= hi;   /* false for NaN */
+}
+
 static uint16_t cmd_config_motor(fw_t *f, const uint16_t *p, uint16_t n)
 {
     proto_config_motor_t m;
@@ -16,10 +28,14 @@ static uint16_t cmd_config_motor(fw_t *f, const uint16_t *p, uint16_t n)
     if (fw_active(f)) {
         return PROTO_ACK_STATUS_BUSY;
     }
-    if (m.pole_pairs == 0u || !(m.r_s_ohm > 0.0f) || !(m.l_d_h > 0.0f) || !(m.l_q_h > 0.0f) ||
-        !(m.psi_f_wb >= 0.0f) || !(m.j_kgm2 > 0.0f) || !(m.i_max_a > 0.0f) ||
-        !(m.i_trip_a > m.i_max_a) || !(m.speed_max_rpm > 0.0f) ||
-        !(m.speed_trip_rpm > m.speed_max_rpm) || !(m.v_dc_max_v > m.v_dc_min_v)) {
+    if (m.pole_pairs == 0u || !within(m.r_s_ohm, 1e-6f, 1e3f) || !within(m.l_d_h, 1e-9f, 10.0f) ||
+        !within(m.l_q_h, 1e-9f, 10.0f) || !within(m.psi_f_wb, 0.0f, 100.0f) ||
+        !within(m.j_kgm2, 1e-9f, 1e3f) || !(m.i_max_a > 0.0f) ||
+        !(m.i_trip_a > m.i_max_a) || !within(m.i_trip_a, 0.0f, FW_I_TRIP_MAX_A) ||
+        !(m.speed_max_rpm > 0.0f) || !(m.speed_trip_rpm > m.speed_max_rpm) ||
+        !within(m.speed_trip_rpm, 0.0f, FW_SPEED_TRIP_MAX_RPM) ||
+        !within(m.v_dc_min_v, 0.0f, FW_V_DC_MAX_V) || !(m.v_dc_max_v > m.v_dc_min_v) ||
+        !within(m.v_dc_max_v, 0.0f, FW_V_DC_MAX_V)) {
         return PROTO_ACK_STATUS_BAD_VALUE;
     }
     f->motor.pole_pairs = m.pole_pairs;
@@ -47,8 +63,12 @@ static uint16_t cmd_config_ctrl(fw_t *f, const uint16_t *p, uint16_t n)
     if (fw_active(f)) {
         return PROTO_ACK_STATUS_BUSY;
     }
-    if (!(c.ts_s >= 1e-5f && c.ts_s <= 1e-3f) || c.speed_div == 0u || !(c.rho > 0.0f) ||
-        !(c.heartbeat_timeout_s > 0.0f) || c.enc_counts < 4u || !(c.speed_obs_bw_rad_s > 0.0f) ||
+    if (!(c.ts_s >= 1e-5f && c.ts_s <= 1e-3f) || c.speed_div == 0u || !within(c.rho, 1e-6f, 1e6f) ||
+        !within(c.heartbeat_timeout_s, 1e-3f, FW_HEARTBEAT_MAX_S) || c.enc_counts < 4u ||
+        !within(c.speed_obs_bw_rad_s, 1e-3f, FW_GAIN_MAX) || !finite_f(c.enc_offset_e_rad) ||
+        !within(c.enc_offset_e_rad, -7.0f, 7.0f) || !within(c.dead_time_s, 0.0f, 1e-4f) ||
+        !within(c.v_drop_v, 0.0f, 100.0f) || !within(c.i_dt_a, 0.0f, 100.0f) ||
+        !within(c.speed_kp_a_per_rad_s, 0.0f, FW_GAIN_MAX) || !within(c.speed_ki_a_per_rad, 0.0f, FW_GAIN_MAX) ||
         c.current_ref > PROTO_CURRENT_REF_MTPA || !cc_kind_known(c.current_ctrl) || !angle_src_known(c.angle_src) ||
         c.capture_pre >= CAPTURE_LEN || c.speed_kp_a_per_rad_s < 0.0f || c.speed_ki_a_per_rad < 0.0f ||
         c.identify > 1u || c.predictor > PROTO_ESTIMATOR_NLMS_ADALINE ||
@@ -73,7 +93,12 @@ static uint16_t cmd_profile_segment(fw_t *f, const uint16_t *p, uint16_t n)
     if (fw_active(f)) {
         return PROTO_ACK_STATUS_BUSY;
     }
-    if (f->have_motor && (fabsf(s.speed_rpm) > f->motor.speed_max_rpm)) {
+    if (!within(s.duration_s, 0.0f, PROFILE_SEGMENT_MAX_S) || !within(s.speed_rpm, -FW_SPEED_TRIP_MAX_RPM, FW_SPEED_TRIP_MAX_RPM) ||
+        !within(s.ramp_rpm_s, 0.0f, 1e7f) || !within(s.load_nm, -FW_LOAD_MAX_NM, FW_LOAD_MAX_NM) ||
+        !within(s.inject_hz, 0.0f, 1e4f) || !finite_f(s.inject_a)) {
+        return PROTO_ACK_STATUS_BAD_VALUE;   /* NaN, infinite or beyond any motor */
+    }
+    if (f->have_motor && !(fabsf(s.speed_rpm) <= f->motor.speed_max_rpm)) {
         return PROTO_ACK_STATUS_BAD_VALUE;
     }
     seg.duration_s = s.duration_s;

@@ -7,6 +7,14 @@
 
 #include "fw.h"
 
+/* Hard ceilings on what the host may configure (fw_cmd.c): whatever it sends, the protection stays on */
+#define FW_HEARTBEAT_MAX_S 10.0f     /* the heartbeat timeout cannot be switched off or made longer */
+#define FW_I_TRIP_MAX_A 2000.0f      /* over-current trip level */
+#define FW_SPEED_TRIP_MAX_RPM 100000.0f
+#define FW_V_DC_MAX_V 2000.0f
+#define FW_LOAD_MAX_NM 10000.0f
+#define FW_GAIN_MAX 1.0e7f           /* speed PI gains, observer bandwidth */
+
 #define FW_STOP_RAMP_RPM_S 3000.0f   /* quick-stop deceleration */
 #define FW_STOP_SPEED_RPM 3.0f       /* below this, with the reference at zero, PWM goes off */
 #define FW_STOP_HOLD_S 0.05f         /* zero reference held this long before PWM off */

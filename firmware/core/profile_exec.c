@@ -17,7 +17,7 @@ void profile_clear(profile_exec_t *p, uint16_t n_segments)
 bool profile_set(profile_exec_t *p, uint16_t index, const profile_segment_t *s)
 {
     if (index >= p->n_declared || index >= PROFILE_MAX_SEGMENTS || !(s->duration_s > 0.0f) ||
-        s->ramp_rpm_s < 0.0f) {
+        !(s->duration_s <= PROFILE_SEGMENT_MAX_S) || !(s->ramp_rpm_s >= 0.0f)) {
         return false;
     }
     p->seg[index] = *s;
@@ -45,7 +45,8 @@ void profile_start(profile_exec_t *p, float ts_s)
     uint16_t i;
     for (i = 0u; i < p->n_declared && i < PROFILE_MAX_SEGMENTS; i++) {
         float n = p->seg[i].duration_s / ts_s + 0.5f;
-        p->seg_ticks[i] = (n < 1.0f) ? 1u : (uint32_t)n;
+        /* a defined conversion whatever the float: at least 1, at most 2^31 ticks */
+        p->seg_ticks[i] = !(n >= 1.0f) ? 1u : (n < 2147483648.0f ? (uint32_t)n : 2147483648u);
     }
     p->index = 0u;
     p->tick_in_seg = 0u;

@@ -47,7 +47,7 @@ class Control(StrictModel):
     speed_obs_bw_rad_s: float | None = Field(
         None, gt=0, le=1e5, description="encoder speed observer bandwidth, rad/s (null: the host's default)")
     speed_loop_hz: float = Field(1000.0, gt=0, le=50_000, description="speed loop rate, Hz")
-    heartbeat_timeout_s: float = Field(0.5, ge=0.05, le=60, description="stop when the host is silent, s")
+    heartbeat_timeout_s: float = Field(0.5, ge=0.05, le=10, description="stop when the host is silent, s (the firmware refuses more than 10 s)")
     dead_time_comp: bool = Field(True, description="firmware compensates the inverter dead time")
     identify: bool = Field(False, description="run the three online estimators (RLS, Adaline, "
                                               "NLMS-Adaline) and send their params frames")
