@@ -309,3 +309,29 @@ def test_a_yaml_alias_bomb_is_refused_at_once(tmp_path):
     bomb.write_text("\n".join(rows) + "\n")                  # 9^9 values once expanded
     r = cli("run", bomb, timeout=30)
     assert r.returncode == 2 and "alias" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_can_run_with_the_live_view_on_a_terminal(data, tmp_path):
+    """The live view renders on a terminal (a pty here) while CAN streams: it must never starve
+    the link (heartbeat) nor end the run."""
+    import pty
+    import select
+    master, slave = pty.openpty()
+    out = tmp_path / "live-can.mcap"
+    p = subprocess.Popen([*CLI, "run", str(data / "short.yaml"), "--can", "--out", str(out)],
+                         stdout=slave, stderr=subprocess.PIPE, stdin=subprocess.DEVNULL, text=True,
+                         env={**os.environ, "COLUMNS": "80", "LINES": "24"})
+    os.close(slave)
+    screen = b""
+    while p.poll() is None:
+        if select.select([master], [], [], 0.1)[0]:
+            try:
+                screen += os.read(master, 65536)
+            except OSError:
+                break
+    p.wait(timeout=180)
+    os.close(master)
+    assert p.returncode == 0, p.stderr.read()
+    assert b"state" in screen                      # the live view was drawn
+    log = read_log(out)
+    assert log.finalised and "profile_done" in list(log.topic("/pmsm/events")["kind"])
