@@ -77,8 +77,21 @@ def main() -> None:
         with LogWriter(path) as w:
             w.write_many("/pmsm/telemetry", cols)
 
+    def ros2_writer(path):
+        # for comparison: mcap_ros2's writer, which encodes from dicts itself
+        from mcap_ros2.writer import Writer as Ros2Writer
+        td = TOPICS["/pmsm/telemetry"]
+        with open(path, "wb") as f:
+            w = Ros2Writer(f)
+            schema = w.register_msgdef(td.schema_name, td.msgdef)
+            for i, r in enumerate(rows):
+                lt = round(i * 5e-4 * 1e9)
+                w.write_message("/pmsm/telemetry", schema, {"t_s": i * 5e-4, **r}, log_time=lt, publish_time=lt)
+            w.finish()
+
     results = {"LogWriter.write": bench(one_by_one, args.n, args.repeat),
-               "LogWriter.write_many": bench(in_bulk, args.n, args.repeat)}
+               "LogWriter.write_many": bench(in_bulk, args.n, args.repeat),
+               "mcap_ros2 Writer (not used)": bench(ros2_writer, args.n, args.repeat)}
     links = link_rates()
     for label, (best, med) in results.items():
         print(f"{label}: best {best:,.0f} messages/s, median {med:,.0f} messages/s "
