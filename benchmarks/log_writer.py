@@ -1,7 +1,15 @@
-"""Log writer throughput: telemetry messages per second through LogWriter.write(), best and median
-of several runs, against the fastest link's message rate (docs/log-format.md).
+"""Log writer throughput (the `mcap` library's Writer with the project's CDR codecs): messages per
+second through LogWriter.write() and LogWriter.write_many(), best and median of several runs, as a
+multiple of the fastest link's message rate (docs/log-format.md, "Writing").
 
     python3 benchmarks/log_writer.py [--repeat 5] [--n 40000]
+
+Link message rates, for profiles/paper-a.yaml (the defaults):
+- serial 921.6 kbaud: the profile's telemetry rates (fast + params per estimator + status + truth),
+  and the bound the link sets: its octets/s over the smallest frame;
+- CAN 1 Mbit/s: the rates the profile runs at over CAN (transport.can_bus.apply_can_rates), and the
+  bound: 8-octet CAN frames (111 bits) back to back, every logged message in the fewest frames any
+  takes (2: an event; telemetry takes 4, firmware/proto/pmsm_proto.yaml, docs/can.md).
 """
 from __future__ import annotations
 
@@ -11,10 +19,43 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+
 from pmsm_hil.log.schemas import TOPICS
 from pmsm_hil.log.writer import LogWriter
+from pmsm_hil.profiles import load_profile
+from pmsm_hil.profiles.profile import FRAME_OVERHEAD_OCTETS, OCTETS_PER_SYMBOL, PAYLOAD_OCTETS
 
-LINK_MESSAGES_S = 2000 + 4 * 100 + 10 + 100   # fast frames + params x4 + status + truth at the defaults
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def link_rates() -> dict[str, float]:
+    """Messages/s of each link: the profile's rates and the bound of the link."""
+    from pmsm_hil.transport.can_bus import apply_can_rates
+
+    out = {}
+    for kind in ("serial", "can"):
+        p = load_profile(ROOT / "profiles" / "paper-a.yaml")
+        if kind == "can":
+            apply_can_rates(p)
+        n_est = 4 if p.control.identify else 1
+        t = p.telemetry
+        out[f"{kind}, paper-a rates"] = t.fast_hz + n_est * t.params_hz + t.status_hz + t.truth_hz
+    p = load_profile(ROOT / "profiles" / "paper-a.yaml")
+    out["serial, bound (921.6 kbaud / smallest frame)"] = (
+        p.link.baud / OCTETS_PER_SYMBOL / (min(PAYLOAD_OCTETS.values()) + FRAME_OVERHEAD_OCTETS))
+    out["CAN, bound (1 Mbit/s / two 111-bit frames)"] = 1e6 / (47 + 64) / 2
+    return out
+
+
+def bench(fn, n: int, repeat: int) -> tuple[float, float]:
+    rates = []
+    with tempfile.TemporaryDirectory() as d:
+        for rep in range(repeat):
+            t0 = time.perf_counter()
+            fn(Path(d) / f"t{rep}.mcap")
+            rates.append(n / (time.perf_counter() - t0))
+    return max(rates), statistics.median(rates)
 
 
 def main() -> None:
@@ -24,19 +65,40 @@ def main() -> None:
     args = ap.parse_args()
     names = TOPICS["/pmsm/telemetry"].names[1:]
     rows = [{k: i * 1e-3 + j for j, k in enumerate(names)} for i in range(args.n)]
-    rates = []
-    with tempfile.TemporaryDirectory() as d:
-        for rep in range(args.repeat):
-            t0 = time.perf_counter()
-            with LogWriter(Path(d) / f"t{rep}.mcap") as w:
-                for i, r in enumerate(rows):
-                    w.write("/pmsm/telemetry", i * 5e-4, r)
-            rates.append(args.n / (time.perf_counter() - t0))
-    best, med = max(rates), statistics.median(rates)
-    print(f"LogWriter.write: best {best:,.0f} messages/s, median {med:,.0f} messages/s "
-          f"({args.repeat} runs of {args.n})")
-    print(f"headroom over the default serial telemetry ({LINK_MESSAGES_S} messages/s): "
-          f"best {best / LINK_MESSAGES_S:.0f}x, median {med / LINK_MESSAGES_S:.0f}x")
+    cols = {"t_s": np.arange(args.n) * 5e-4}
+    cols.update({k: np.array([r[k] for r in rows]) for k in names})
+
+    def one_by_one(path):
+        with LogWriter(path) as w:
+            for i, r in enumerate(rows):
+                w.write("/pmsm/telemetry", i * 5e-4, r)
+
+    def in_bulk(path):
+        with LogWriter(path) as w:
+            w.write_many("/pmsm/telemetry", cols)
+
+    def ros2_writer(path):
+        # for comparison: mcap_ros2's writer, which encodes from dicts itself
+        from mcap_ros2.writer import Writer as Ros2Writer
+        td = TOPICS["/pmsm/telemetry"]
+        with open(path, "wb") as f:
+            w = Ros2Writer(f)
+            schema = w.register_msgdef(td.schema_name, td.msgdef)
+            for i, r in enumerate(rows):
+                lt = round(i * 5e-4 * 1e9)
+                w.write_message("/pmsm/telemetry", schema, {"t_s": i * 5e-4, **r}, log_time=lt, publish_time=lt)
+            w.finish()
+
+    results = {"LogWriter.write": bench(one_by_one, args.n, args.repeat),
+               "LogWriter.write_many": bench(in_bulk, args.n, args.repeat),
+               "mcap_ros2 Writer (not used)": bench(ros2_writer, args.n, args.repeat)}
+    links = link_rates()
+    for label, (best, med) in results.items():
+        print(f"{label}: best {best:,.0f} messages/s, median {med:,.0f} messages/s "
+              f"({args.repeat} runs of {args.n} telemetry messages, zstd)")
+        for link, rate in links.items():
+            print(f"  headroom over {link} ({rate:,.0f} messages/s): best {best / rate:.1f}x, "
+                  f"median {med / rate:.1f}x")
 
 
 if __name__ == "__main__":

@@ -418,3 +418,29 @@ def test_reads_files_of_other_writers(tmp_path):
     assert_columns_equal(log.topic("/pmsm/status"), rows, "/pmsm/status")
     foo = log.topic("/foo")
     assert list(foo["name"]) == ["x"] * 50 and foo["v"][3][2] == pytest.approx(0.3)
+
+
+def test_damaged_chunk_is_skipped_and_reported(tmp_path):
+    rows = sample_rows("/pmsm/telemetry", 6000, dt=5e-4)           # 3 s: at least 3 chunks
+    path = tmp_path / "d.mcap"
+    with LogWriter(path, META, ATTACH, compression="") as w:
+        write_rows(w, "/pmsm/telemetry", rows)
+    data = bytearray(path.read_bytes())
+    p, chunks = 8, []
+    while True:
+        op, ln = struct.unpack_from("<BQ", data, p)
+        if op == 0x06:
+            chunks.append((p, ln))
+        if op == 0x0F:
+            break
+        p += 9 + ln
+    assert len(chunks) >= 3
+    p, ln = chunks[1]                      # the second chunk's records: one octet changed
+    data[p + 9 + ln - 40] ^= 0xFF
+    path.write_bytes(bytes(data))
+    log = read_log(path)
+    assert any("chunk" in pr and "skipped" in pr for pr in log.problems), log.problems
+    t = log.topic("/pmsm/telemetry")["t_s"]
+    assert 0 < len(t) < len(rows)
+    missing = {r["t_s"] for r in rows} - set(t.tolist())
+    assert missing and min(missing) > t[0] and max(missing) < t[-1]      # a middle piece

@@ -70,9 +70,8 @@ def effect_settings(motor, rig) -> dict:
     cg = _eff(rig, "cogging")
     s["cog_nm"] = cg.amplitude_nm if cg is not None else 0.0
     if cg is not None:
-        if cg.periods_per_rev % motor.pole_pairs:
-            raise ValueError(f"cogging.periods_per_rev = {cg.periods_per_rev} is not a multiple of the "
-                             f"motor's pole_pairs {motor.pole_pairs}")
+        # periods_per_rev is a multiple of pole_pairs (checked when the profile is loaded:
+        # pmsm_hil.profiles.rig.plant_problems)
         s["cog_order_e"] = cg.periods_per_rev // motor.pole_pairs
         s["cog_phase_rad"] = cg.phase_rad
     so = _eff(rig, "sensor_offset")

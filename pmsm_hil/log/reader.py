@@ -9,15 +9,25 @@ killed gives every message of every chunk that reached the disk; ``log.finalised
 the summary and footer are there. Flat schemas (primitives and strings: all of ours, and any other
 such ros2msg) are decoded by the project's CDR codec, vectorised with numpy for fixed layouts;
 anything else falls back to ``mcap_ros2``'s decoder.
+
+The records are read by the ``mcap`` library's record classes and chunk decompression; what is
+kept here is what its readers cannot do fast enough (docs/log-format.md, "Reading: the decision";
+benchmarks/log_reader.py): the walk over the top-level records without materialising every
+message-index entry, and the numpy gather and decode of the messages through the chunks' indexes.
 """
 from __future__ import annotations
 
+import io
 import os
 import re
 import struct
 import zlib
 from dataclasses import dataclass, field
+
 import numpy as np
+from mcap import records as mr
+from mcap.data_stream import ReadDataStream
+from mcap.stream_reader import get_chunk_data_stream
 
 from pmsm_hil.log.schemas import (PRIMITIVES, TOPICS, Codec, FieldDef, TopicDef, codec_for)
 from pmsm_hil.log.writer import MCAP_MAGIC
@@ -27,8 +37,12 @@ __all__ = ["read_log", "rewrite_log", "Log", "Attachment", "LogFormatError"]
 _REC = struct.Struct("<BQ")
 _U16 = struct.Struct("<H").unpack_from
 _U32 = struct.Struct("<I").unpack_from
-_U64 = struct.Struct("<Q").unpack_from
 _MSG = struct.Struct("<HIQQ").unpack_from
+
+
+def _read(cls, content) -> object:
+    """One record's content (without opcode and length) parsed by the mcap library."""
+    return cls.read(ReadDataStream(io.BytesIO(content)))
 
 
 class LogFormatError(ValueError):
@@ -67,23 +81,6 @@ class _Schema:
     name: str
     encoding: str
     data: bytes
-
-
-def _str(buf: memoryview, p: int) -> tuple[str, int]:
-    (n,) = _U32(buf, p)
-    return bytes(buf[p + 4:p + 4 + n]).decode("utf-8"), p + 4 + n
-
-
-def _strmap(buf: memoryview, p: int) -> tuple[dict, int]:
-    (n,) = _U32(buf, p)
-    end = p + 4 + n
-    p += 4
-    out = {}
-    while p < end:
-        k, p = _str(buf, p)
-        v, p = _str(buf, p)
-        out[k] = v
-    return out, end
 
 
 _MSG_LINE = re.compile(r"^\s*([A-Za-z][\w/]*)\s+([a-z][a-z0-9_]*)\s*$")
@@ -258,21 +255,15 @@ class _Parser:
 
     # records that may appear in the data section or inside chunks
     def _schema(self, c: memoryview) -> None:
-        (sid,) = _U16(c, 0)
-        name, p = _str(c, 2)
-        enc, p = _str(c, p)
-        (n,) = _U32(c, p)
-        self.log._schemas[sid] = _Schema(sid, name, enc, bytes(c[p + 4:p + 4 + n]))
+        r = _read(mr.Schema, c)
+        self.log._schemas[r.id] = _Schema(r.id, r.name, r.encoding, bytes(r.data))
 
     def _channel(self, c: memoryview) -> None:
-        cid, sid = struct.unpack_from("<HH", c, 0)
-        topic, p = _str(c, 4)
-        enc, p = _str(c, p)
-        meta, p = _strmap(c, p)
-        if cid not in self.log._chans:
-            ch = _Chan(cid, topic, sid, enc, meta)
-            self.log._chans[cid] = ch
-            self.log._by_topic.setdefault(topic, ch)
+        r = _read(mr.Channel, c)
+        if r.id not in self.log._chans:
+            ch = _Chan(r.id, r.topic, r.schema_id, r.message_encoding, dict(r.metadata))
+            self.log._chans[r.id] = ch
+            self.log._by_topic.setdefault(r.topic, ch)
 
     def run(self) -> None:
         log, buf, mv = self.log, self.buf, self.mv
@@ -311,12 +302,11 @@ class _Parser:
             elif op == 0x04:
                 self._channel(c)
             elif op == 0x01:
-                log.profile, q = _str(c, 0)
-                log.library, _ = _str(c, q)
+                r = _read(mr.Header, c)
+                log.profile, log.library = r.profile, r.library
             elif op == 0x0C:
-                name, q = _str(c, 0)
-                meta, _ = _strmap(c, q)
-                log.metadata.setdefault(name, {}).update(meta)
+                r = _read(mr.Metadata, c)
+                log.metadata.setdefault(r.name, {}).update(r.metadata)
             elif op == 0x09:
                 self._attachment(c)
             elif op == 0x0F:                                  # data end: the summary follows
@@ -333,38 +323,25 @@ class _Parser:
         return buf[-8 - 29] == 0x02
 
     def _attachment(self, c: memoryview) -> None:
-        lt, ct = struct.unpack_from("<QQ", c, 0)
-        name, p = _str(c, 16)
-        media, p = _str(c, p)
-        (n,) = _U64(c, p)
-        data = bytes(c[p + 8:p + 8 + n])
-        (crc,) = _U32(c, p + 8 + n)
-        if crc and crc != zlib.crc32(c[:p + 8 + n]):
-            self.log.problems.append(f"attachment {name!r}: CRC mismatch")
-        self.log.attachments.append(Attachment(name, media, data, lt, ct))
+        r = _read(mr.Attachment, c)             # the library skips the CRC: checked here
+        (crc,) = _U32(c, len(c) - 4)
+        if crc and crc != zlib.crc32(c[:len(c) - 4]):
+            self.log.problems.append(f"attachment {r.name!r}: CRC mismatch")
+        self.log.attachments.append(Attachment(r.name, r.media_type, bytes(r.data), r.log_time, r.create_time))
 
     def _open_chunk(self, c: memoryview) -> bytes | None:
-        _, _, usize, crc = struct.unpack_from("<QQQI", c, 0)
-        comp, p = _str(c, 28)
-        (n,) = _U64(c, p)
-        data = c[p + 8:p + 8 + n]
         try:
-            if comp == "":
-                records = bytes(data)
-            elif comp == "zstd":
-                import zstandard
-                records = zstandard.ZstdDecompressor().decompress(data, max_output_size=usize)
-            elif comp == "lz4":
-                import lz4.frame
-                records = lz4.frame.decompress(data)
-            else:
-                self.log.problems.append(f"chunk with unknown compression {comp!r} skipped")
+            chunk = _read(mr.Chunk, c)
+            if chunk.compression not in ("", "zstd", "lz4"):
+                self.log.problems.append(f"chunk with unknown compression {chunk.compression!r} skipped")
                 return None
-        except Exception as e:  # a damaged chunk: keep the rest of the file
-            self.log.problems.append(f"chunk could not be decompressed ({e}); skipped")
+            stream, n = get_chunk_data_stream(chunk, validate_crc=True)
+            records = stream.read(n)
+        except Exception as e:  # a damaged chunk (CRC, compression): keep the rest of the file
+            self.log.problems.append(f"chunk could not be read ({e}); skipped")
             return None
-        if len(records) != usize or (crc and zlib.crc32(records) != crc):
-            self.log.problems.append("chunk CRC or size mismatch; skipped")
+        if len(records) != chunk.uncompressed_size:
+            self.log.problems.append("chunk size mismatch; skipped")
             return None
         return records
 

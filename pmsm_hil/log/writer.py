@@ -8,8 +8,9 @@
 - log_time = publish_time = round(t_s * 1e9) + the run's wall-clock start (``wall_start_s``, Unix
   time; 0 when not given): Foxglove shows real dates, ``t_s`` in every message stays device time.
   Without ``wall_start_s`` the same messages give the same file.
-- The MCAP records are written here (not by ``mcap.writer``) so that a telemetry message costs one
-  ``struct.pack``; the output is checked against the ``mcap`` reader and ``mcap_ros2`` decoder.
+- The MCAP records (chunks, indexes, summary) are written by the ``mcap`` library's ``Writer``;
+  the CDR payloads by the project's codecs (pmsm_hil.log.schemas: one ``struct.pack`` per
+  message, byte-identical to ``mcap_ros2``'s encoder). benchmarks/log_writer.py measures the rate.
 - A chunk is closed and written (then flushed to the OS) when it holds ``chunk_size`` octets or
   spans ``chunk_span_s`` of device time, so a killed process loses at most that much; the reader
   recovers such unfinalised files. ``close()`` is idempotent and may be called from ``finally``
@@ -22,14 +23,13 @@ import contextlib
 import os
 import signal
 import struct
-import sys
 import threading
 import weakref
-import zlib
 from operator import itemgetter
 from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
+from mcap.writer import CompressionType, Writer
 
 from pmsm_hil import __version__
 from pmsm_hil.log.schemas import (LOG_FORMAT_VERSION, MESSAGE_ENCODING, PRIMITIVES, SCHEMA_ENCODING,
@@ -40,34 +40,8 @@ __all__ = ["LogWriter", "MCAP_MAGIC", "available_compressions"]
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 PROFILE = "ros2"
 LIBRARY = f"pmsm-hil {__version__}"
-
-OP_HEADER, OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE = 0x01, 0x02, 0x03, 0x04, 0x05
-OP_CHUNK, OP_MESSAGE_INDEX, OP_CHUNK_INDEX, OP_ATTACHMENT = 0x06, 0x07, 0x08, 0x09
-OP_ATTACHMENT_INDEX, OP_STATISTICS, OP_METADATA, OP_METADATA_INDEX = 0x0A, 0x0B, 0x0C, 0x0D
-OP_SUMMARY_OFFSET, OP_DATA_END = 0x0E, 0x0F
-
-_REC = struct.Struct("<BQ")
-_MSG_HDR = struct.Struct("<BQHIQQ")  # opcode, length, channel, sequence, log_time, publish_time
-_MSG_HDR_SIZE = _MSG_HDR.size        # 31
-_QQ = struct.Struct("<QQ").pack
-_U32 = struct.Struct("<I").pack
-_U64 = struct.Struct("<Q").pack
-_CDR_HEADER_U32 = 0x100              # b"\x00\x01\x00\x00" packed as little-endian uint32
-_LITTLE = sys.byteorder == "little"
-
-
-def _s(text: str) -> bytes:
-    b = text.encode("utf-8")
-    return _U32(len(b)) + b
-
-
-def _map(d: Mapping[str, str]) -> bytes:
-    body = b"".join(_s(str(k)) + _s(str(v)) for k, v in d.items())
-    return _U32(len(body)) + body
-
-
-def _record(op: int, content: bytes) -> bytes:
-    return _REC.pack(op, len(content)) + content
+_MSG_RECORD = 31                      # octets of a message record around its data (opcode .. publish_time)
+_NEVER = 1 << 62                      # the library's own size bound: chunks are closed here
 
 
 def available_compressions() -> list[str]:
@@ -81,17 +55,11 @@ def available_compressions() -> list[str]:
     return out + [""]
 
 
-def _compressor(name: str):
-    if name == "zstd":
-        import zstandard
-        c = zstandard.ZstdCompressor(level=1)
-        return c.compress
-    if name == "lz4":
-        import lz4.frame
-        return lambda b: lz4.frame.compress(b)
-    if name == "":
-        return lambda b: b
-    raise ValueError(f"compression {name!r}: choose one of {available_compressions()}")
+def _compression_type(name: str) -> CompressionType:
+    types = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "": CompressionType.NONE}
+    if name not in types or name not in available_compressions():
+        raise ValueError(f"compression {name!r}: choose one of {available_compressions()}")
+    return types[name]
 
 
 _HELD_SIGNALS = {s for s in (getattr(signal, n, None) for n in ("SIGINT", "SIGTERM", "SIGHUP")) if s}
@@ -115,39 +83,23 @@ def _signals_held():
 
 
 class _Channel:
-    __slots__ = ("id", "schema_id", "topic", "codec", "seq", "count", "index", "getter", "n",
-                 "pack", "reclen", "fixed", "names", "name_set", "rec_dtype")
+    __slots__ = ("id", "topic", "codec", "seq", "count", "getter", "n", "pack", "fixed", "names",
+                 "name_set", "dtype")
 
-    def __init__(self, cid: int, schema_id: int, topic: TopicDef):
+    def __init__(self, cid: int, topic: TopicDef):
         self.id = cid
-        self.schema_id = schema_id
         self.topic = topic.topic
         self.codec: Codec = codec_for(topic)
         self.seq = 0
         self.count = 0
-        self.index = bytearray()     # (log_time, offset) pairs of this channel in the open chunk
         self.names = self.codec.names[1:]          # without t_s
         self.name_set = frozenset(self.codec.names)
         self.n = len(self.names)
         self.getter = itemgetter(*self.names) if self.n > 1 else (lambda d, _k=self.names[0]: (d[_k],))
         self.fixed = self.codec.fixed
-        if self.fixed:
-            self.pack = struct.Struct("<BQHIQQI" + self.codec.body_format).pack
-            self.reclen = 22 + self.codec.size    # record content length
-            names = ["op", "len", "ch", "seq", "lt", "pt", "hdr"]
-            formats = ["u1", "<u8", "<u2", "<u4", "<u8", "<u8", "<u4"]
-            offsets = [0, 1, 9, 11, 15, 23, 31]
-            dt = self.codec.dtype
-            for nm in dt.names:
-                formats.append(dt.fields[nm][0])
-                offsets.append(_MSG_HDR_SIZE + dt.fields[nm][1])
-                names.append("f_" + nm)
-            self.rec_dtype = np.dtype({"names": names, "formats": formats, "offsets": offsets,
-                                       "itemsize": _MSG_HDR_SIZE + self.codec.size})
-        else:
-            self.pack = None
-            self.reclen = None
-            self.rec_dtype = None
+        # fixed layout: the whole CDR data (encapsulation header as a uint32, then the fields)
+        self.pack = struct.Struct("<I" + self.codec.body_format).pack if self.fixed else None
+        self.dtype = self.codec.dtype if self.fixed else None
 
 
 class LogWriter:
@@ -161,8 +113,7 @@ class LogWriter:
         self._off_ns = int(round(wall_start_s * 1e9)) if wall_start_s else 0
         if compression is None:
             compression = available_compressions()[0]
-        self._compression = compression
-        self._compress = _compressor(compression)
+        ctype = _compression_type(compression)
         self._chunk_size = int(chunk_size)
         self._span_ns = int(round(chunk_span_s * 1e9))
         self._fsync = fsync
@@ -173,30 +124,16 @@ class LogWriter:
         self._closed = False
         self._closing = False
         self._f = open(self.path, "wb")
-        self._pos = 0
-        self._crc = 0                     # data section CRC
-        self._schemas: dict[str, tuple[int, bytes]] = {}    # schema name -> (id, record)
+        self._w = Writer(self._f, chunk_size=_NEVER, compression=ctype, enable_data_crcs=True)
+        self._schemas: dict[str, int] = {}
         self._channels: dict[str, _Channel] = {}
-        self._channel_records: list[bytes] = []
-        self._chunk_indexes: list[bytes] = []
-        self._attachment_indexes: list[bytes] = []
-        self._metadata_indexes: list[bytes] = []
-        self._n_metadata = 0
-        self._n_attachments = 0
-        self._n_chunks = 0
         self._msg_count = 0
-        self._t_min: int | None = None
-        self._t_max: int | None = None
-        # open chunk
-        self._parts: list[bytes] = []
+        # the open chunk: octets of its records (as the library counts them), messages, first time
         self._size = 0
         self._n = 0
         self._t0 = 0
-        self._cmin = 0
-        self._cmax = 0
-        self._in_chunk: set[_Channel] = set()
 
-        self._emit(MCAP_MAGIC + _record(OP_HEADER, _s(PROFILE) + _s(LIBRARY)))
+        self._w.start(PROFILE, LIBRARY)
         meta = {str(k): {str(a): str(b) for a, b in v.items()} for k, v in (metadata or {}).items()}
         meta.setdefault("log", {"format_version": str(LOG_FORMAT_VERSION), "schema_hash": schema_hash(),
                                 "library": LIBRARY, "compression": compression or "none",
@@ -210,36 +147,21 @@ class LogWriter:
         self._atexit = lambda: (w := ref()) is not None and w.close()
         atexit.register(self._atexit)
 
-    # ------------------------------------------------------------------ file output
-    def _emit(self, data: bytes) -> None:
-        self._f.write(data)
-        self._pos += len(data)
-        self._crc = zlib.crc32(data, self._crc)
-
     # ------------------------------------------------------------------ records outside chunks
     def add_metadata(self, name: str, data: Mapping[str, str]) -> None:
         """A metadata record (name -> text map); written at once, outside the chunks."""
         with self._lock:
             self._check_open()
-            rec = _record(OP_METADATA, _s(name) + _map({str(k): str(v) for k, v in data.items()}))
-            self._metadata_indexes.append(_record(OP_METADATA_INDEX, _U64(self._pos) + _U64(len(rec)) + _s(name)))
-            self._emit(rec)
-            self._n_metadata += 1
+            self._w.add_metadata(name, {str(k): str(v) for k, v in data.items()})
 
     def add_attachment(self, name: str, media_type: str, data: bytes, log_time_s: float = 0.0,
                        create_time_s: float = 0.0) -> None:
         """An attachment (a file's bytes); written at once, outside the chunks."""
         with self._lock:
             self._check_open()
-            data = bytes(data)
-            lt, ct = int(round(log_time_s * 1e9)), int(round(create_time_s * 1e9))
-            body = _U64(lt) + _U64(ct) + _s(name) + _s(media_type) + _U64(len(data)) + data
-            rec = _record(OP_ATTACHMENT, body + _U32(zlib.crc32(body)))
-            self._attachment_indexes.append(_record(
-                OP_ATTACHMENT_INDEX, _U64(self._pos) + _U64(len(rec)) + _U64(lt) + _U64(ct) + _U64(len(data))
-                + _s(name) + _s(media_type)))
-            self._emit(rec)
-            self._n_attachments += 1
+            self._w.add_attachment(create_time=int(round(create_time_s * 1e9)),
+                                   log_time=int(round(log_time_s * 1e9)), name=name,
+                                   media_type=media_type, data=bytes(data))
 
     def _open_channel(self, topic: str) -> _Channel:
         td = self._topics.get(topic)
@@ -247,21 +169,14 @@ class LogWriter:
             raise KeyError(f"unknown topic {topic!r}: known are {', '.join(self._topics)} "
                            f"(pass a TopicDef in topics= to add one)")
         self._check_open()
-        sch = self._schemas.get(td.schema_name)
-        if sch is None:
-            sid = len(self._schemas) + 1
+        sid = self._schemas.get(td.schema_name)
+        if sid is None:
             text = td.msgdef.encode("utf-8")
-            rec = _record(OP_SCHEMA, struct.pack("<H", sid) + _s(td.schema_name) + _s(SCHEMA_ENCODING)
-                          + _U32(len(text)) + text)
-            self._schemas[td.schema_name] = (sid, rec)
-            self._emit(rec)
-        else:
-            sid = sch[0]
-        cid = len(self._channels) + 1
-        rec = _record(OP_CHANNEL, struct.pack("<HH", cid, sid) + _s(topic) + _s(MESSAGE_ENCODING) + _map({}))
-        self._emit(rec)
-        self._channel_records.append(rec)
-        ch = _Channel(cid, sid, td)
+            sid = self._schemas[td.schema_name] = self._w.register_schema(td.schema_name, SCHEMA_ENCODING, text)
+            self._size += 9 + 2 + 4 + len(td.schema_name.encode()) + 4 + len(SCHEMA_ENCODING) + 4 + len(text)
+        cid = self._w.register_channel(topic, MESSAGE_ENCODING, sid, {})
+        self._size += 9 + 4 + 4 + len(topic.encode()) + 4 + len(MESSAGE_ENCODING) + 4
+        ch = _Channel(cid, td)
         self._channels[topic] = ch
         return ch
 
@@ -286,49 +201,44 @@ class LogWriter:
             lt += self._off_ns
         except (ValueError, OverflowError, TypeError):
             raise ValueError(f"{topic}: t_s = {t_s!r} is not a device time (finite, >= 0 s)") from None
-        rec = None
+        data = None
         if ch.fixed:
             nf = len(fields)
             if nf == ch.n or (nf == ch.n + 1 and "t_s" in fields):
                 try:
-                    rec = ch.pack(5, ch.reclen, ch.id, ch.seq, lt, lt, 0x100, t_s, *ch.getter(fields))
+                    data = ch.pack(0x100, t_s, *ch.getter(fields))
                 except (KeyError, struct.error, TypeError):
-                    rec = None
-            if rec is None:
+                    data = None
+            if data is None:
                 vals = self._values(ch, t_s, fields)
                 try:
-                    rec = ch.pack(5, ch.reclen, ch.id, ch.seq, lt, lt, 0x100, *vals)
+                    data = ch.pack(0x100, *vals)
                 except struct.error as e:
                     raise self._value_error(ch, vals, e) from None
         else:
             vals = self._values(ch, t_s, fields)
             try:
                 data = ch.codec.encode(vals)
-                rec = _MSG_HDR.pack(5, 22 + len(data), ch.id, ch.seq, lt, lt) + data
             except (struct.error, TypeError) as e:
                 raise self._value_error(ch, vals, e) from None
-        ch.seq = (ch.seq + 1) & 0xFFFFFFFF
-        # --- append to the open chunk (data first, then the index: an interruption in between
-        # costs at most this message's index entry)
         with self._lock:
-            if self._n:
-                if lt - self._t0 >= self._span_ns:
-                    self._flush_chunk()
-            if not self._n:
-                self._t0 = self._cmin = self._cmax = lt
-            off = self._size
-            self._parts.append(rec)
-            ch.index += _QQ(lt, off)
-            self._size = off + len(rec)
-            self._n += 1
-            ch.count += 1
-            self._in_chunk.add(ch)
-            if lt < self._cmin:
-                self._cmin = lt
-            elif lt > self._cmax:
-                self._cmax = lt
-            if self._size >= self._chunk_size:
-                self._flush_chunk()
+            self._check_open()
+            self._add(ch, lt, data)
+
+    def _add(self, ch: _Channel, lt: int, data: bytes) -> None:
+        """One message into the open chunk; the chunk is closed before it when it spans
+        chunk_span_s, after it when it holds chunk_size octets. Called with the lock held."""
+        if self._n and lt - self._t0 >= self._span_ns:
+            self._flush_chunk()
+        if not self._n:
+            self._t0 = lt
+        self._w.add_message(ch.id, lt, data, lt, ch.seq)
+        ch.seq = (ch.seq + 1) & 0xFFFFFFFF
+        ch.count += 1
+        self._n += 1
+        self._size += _MSG_RECORD + len(data)
+        if self._size >= self._chunk_size:
+            self._flush_chunk()
 
     @staticmethod
     def _values(ch: _Channel, t_s: float, fields: Mapping[str, Any]) -> list:
@@ -393,22 +303,16 @@ class LogWriter:
                 self.write(topic, float(t[i]), {nm: (c[i].item() if hasattr(c[i], "item") else c[i])
                                                 for nm, c in present})
             return count
-        lt = np.rint(t * 1e9).astype(np.uint64) + np.uint64(self._off_ns)
         if np.any(t < 0) or not np.all(np.isfinite(t)):
             raise ValueError(f"{topic}: t_s must be finite and >= 0")
-        recs = np.zeros(count, dtype=ch.rec_dtype)
-        recs["op"] = 5
-        recs["len"] = ch.reclen
-        recs["ch"] = ch.id
-        recs["seq"] = (np.arange(count, dtype=np.uint64) + ch.seq) & 0xFFFFFFFF
-        recs["lt"] = lt
-        recs["pt"] = lt
-        recs["hdr"] = 0x100
-        recs["f_t_s"] = t
+        lt = (np.rint(t * 1e9).astype(np.uint64) + np.uint64(self._off_ns)).tolist()
+        recs = np.zeros(count, dtype=ch.dtype)
+        recs.view(np.uint8).reshape(count, -1)[:, :4] = np.frombuffer(b"\x00\x01\x00\x00", np.uint8)
+        recs["t_s"] = t
         for nm, f in zip(ch.names, ch.codec.fields[1:]):
             c = cols.get(nm)
             if c is None:
-                recs["f_" + nm] = f.default
+                recs[nm] = f.default
             else:
                 c = np.asarray(c)
                 if c.shape != (count,) and c.ndim != 0:
@@ -416,48 +320,16 @@ class LogWriter:
                 if f.type == "bool":
                     c = c.astype(bool)
                 elif f.type not in ("float32", "float64"):
-                    info = np.iinfo(recs.dtype.fields["f_" + nm][0])
+                    info = np.iinfo(recs.dtype.fields[nm][0])
                     if c.size and (np.any(c < info.min) or np.any(c > info.max)):
                         raise ValueError(f"{topic}.{nm}: values outside the {f.type} range")
-                recs["f_" + nm] = c
-        ch.seq = int((ch.seq + count) & 0xFFFFFFFF)
+                recs[nm] = c
         raw = recs.tobytes()
-        rsize = ch.rec_dtype.itemsize
-        lt_list = lt
-        i = 0
+        size = ch.dtype.itemsize
         with self._lock:
             self._check_open()
-            while i < count:
-                if self._n and int(lt_list[i]) - self._t0 >= self._span_ns:
-                    self._flush_chunk()
-                if not self._n:
-                    self._t0 = int(lt_list[i])
-                    self._cmin = self._cmax = self._t0
-                room = max(1, -(-(self._chunk_size - self._size) // rsize))  # messages until full
-                k = min(room, count - i)
-                window = lt_list[i:i + k].astype(np.int64)
-                late = np.nonzero(window - self._t0 >= self._span_ns)[0]
-                if len(late):
-                    k = int(late[0])     # > 0: element i passed the check above
-                seg = slice(i, i + k)
-                offs = self._size + np.arange(k, dtype=np.uint64) * rsize
-                pairs = np.empty((k, 2), dtype="<u8")
-                pairs[:, 0] = lt_list[seg]
-                pairs[:, 1] = offs
-                self._parts.append(raw[i * rsize:(i + k) * rsize])
-                ch.index += pairs.tobytes()
-                self._size += k * rsize
-                self._n += k
-                ch.count += k
-                self._in_chunk.add(ch)
-                lo, hi = int(window[:k].min()), int(window[:k].max())
-                if lo < self._cmin:
-                    self._cmin = lo
-                if hi > self._cmax:
-                    self._cmax = hi
-                i += k
-                if self._size >= self._chunk_size or len(late):
-                    self._flush_chunk()
+            for i in range(count):
+                self._add(ch, lt[i], raw[i * size:(i + 1) * size])
         return count
 
     # ------------------------------------------------------------------ chunks
@@ -471,39 +343,12 @@ class LogWriter:
         if not self._n or self._f.closed:
             return
         with _signals_held():
-            records = b"".join(self._parts)
-            usize = len(records)
-            comp = self._compress(records)
-            start = self._pos
-            chunk = _record(OP_CHUNK, struct.pack("<QQQI", self._cmin, self._cmax, usize, zlib.crc32(records))
-                            + _s(self._compression) + _U64(len(comp)) + comp)
-            out = [chunk]
-            pos = start + len(chunk)
-            offsets = []
-            for ch in sorted(self._in_chunk, key=lambda c: c.id):
-                idx = bytes(ch.index)
-                rec = _record(OP_MESSAGE_INDEX, struct.pack("<H", ch.id) + _U32(len(idx)) + idx)
-                offsets.append(struct.pack("<HQ", ch.id, pos))
-                pos += len(rec)
-                out.append(rec)
-                ch.index = bytearray()
-            self._emit(b"".join(out))
-            self._f.flush()
+            self._w.flush()            # the chunk, its message indexes; flushed to the OS
             if self._fsync:
                 os.fsync(self._f.fileno())
-            offs = b"".join(offsets)
-            self._chunk_indexes.append(_record(
-                OP_CHUNK_INDEX, struct.pack("<QQQQ", self._cmin, self._cmax, start, len(chunk))
-                + _U32(len(offs)) + offs + _U64(pos - start - len(chunk)) + _s(self._compression)
-                + _U64(len(comp)) + _U64(usize)))
-            self._n_chunks += 1
             self._msg_count += self._n
-            self._t_min = self._cmin if self._t_min is None else min(self._t_min, self._cmin)
-            self._t_max = self._cmax if self._t_max is None else max(self._t_max, self._cmax)
-            self._parts = []
             self._size = 0
             self._n = 0
-            self._in_chunk = set()
 
     # ------------------------------------------------------------------ closing
     def close(self) -> None:
@@ -514,51 +359,18 @@ class LogWriter:
         self._closing = True
         try:
             with self._lock, _signals_held():
-                self._flush_chunk()
-                self._write_summary()
+                if not self._f.closed:
+                    self._flush_chunk()
+                    self._w.finish()
+                    self._f.flush()
+                    if self._fsync:
+                        os.fsync(self._f.fileno())
         finally:
             self._closed = True
             try:
                 self._f.close()
             finally:
                 atexit.unregister(self._atexit)
-
-    def _write_summary(self) -> None:
-        self._emit(_record(OP_DATA_END, _U32(self._crc)))
-        summary_start = self._pos
-        groups: list[tuple[int, list[bytes]]] = [
-            (OP_SCHEMA, [r for _, r in self._schemas.values()]),
-            (OP_CHANNEL, self._channel_records),
-            (OP_STATISTICS, [self._statistics()]),
-            (OP_CHUNK_INDEX, self._chunk_indexes),
-            (OP_ATTACHMENT_INDEX, self._attachment_indexes),
-            (OP_METADATA_INDEX, self._metadata_indexes),
-        ]
-        body = []
-        offsets = []
-        pos = summary_start
-        for op, recs in groups:
-            if not recs:
-                continue
-            data = b"".join(recs)
-            offsets.append(_record(OP_SUMMARY_OFFSET, struct.pack("<BQQ", op, pos, len(data))))
-            body.append(data)
-            pos += len(data)
-        summary = b"".join(body)
-        summary_offset_start = pos
-        tail = b"".join(offsets)
-        footer_head = struct.pack("<BQQQ", OP_FOOTER, 20, summary_start if summary else 0, summary_offset_start)
-        crc = zlib.crc32(footer_head, zlib.crc32(tail, zlib.crc32(summary)))
-        self._f.write(summary + tail + footer_head + _U32(crc) + MCAP_MAGIC)
-        self._f.flush()
-        if self._fsync:
-            os.fsync(self._f.fileno())
-
-    def _statistics(self) -> bytes:
-        counts = b"".join(struct.pack("<HQ", ch.id, ch.count) for ch in self._channels.values())
-        return _record(OP_STATISTICS, struct.pack(
-            "<QHIIIIQQ", self._msg_count, len(self._schemas), len(self._channels), self._n_attachments,
-            self._n_metadata, self._n_chunks, self._t_min or 0, self._t_max or 0) + _U32(len(counts)) + counts)
 
     @property
     def closed(self) -> bool:

@@ -14,7 +14,7 @@ from ._base import StrictModel, meta_value, num
 from ._source import (Problem, ProfileError, Source, fmt_num, read_source, resolve_ref,
                       validation_problems)
 from .motor import Motor, _load_motor_source
-from .rig import Rig, _load_rig_source
+from .rig import Rig, _load_rig_source, plant_problems
 
 __all__ = ["Profile", "Control", "Telemetry", "Link", "Segment", "load_profile", "link_budget",
            "TS_MIN_S", "TS_MAX_S", "MAX_TOTAL_DURATION_S", "MAX_SEGMENTS",
@@ -444,13 +444,19 @@ def _profile_checks(src: Source, motor: Motor | None) -> tuple[list[Problem], li
     return problems, warnings
 
 
-def _rig_checks(rig_src: Source, motor: Motor) -> list[Problem]:
+def _rig_checks(rig_src: Source, rig: Rig, motor: Motor, src: Source) -> list[Problem]:
+    """Checks of the rig file against the motor file and the profile's control period."""
+    problems: list[Problem] = []
     v = num(rig_src.data, "v_dc_v")
     if v is not None and not (motor.v_dc_min_v < v < motor.v_dc_max_v):
-        return [rig_src.problem(("v_dc_v",), f"is outside the motor's DC-link trip limits "
-                                             f"v_dc_min_v {fmt_num(motor.v_dc_min_v)} .. v_dc_max_v "
-                                             f"{fmt_num(motor.v_dc_max_v)} V ({motor.path})", v)]
-    return []
+        problems.append(rig_src.problem(("v_dc_v",), f"is outside the motor's DC-link trip limits "
+                                                     f"v_dc_min_v {fmt_num(motor.v_dc_min_v)} .. v_dc_max_v "
+                                                     f"{fmt_num(motor.v_dc_max_v)} V ({motor.path})", v))
+    control = src.data.get("control") if isinstance(src.data.get("control"), dict) else {}
+    ts = num(control, "ts_s", Control.model_fields["ts_s"].default)
+    if ts is None or not TS_MIN_S <= ts <= TS_MAX_S:
+        ts = None
+    return problems + plant_problems(rig_src, rig, motor.pole_pairs, ts)
 
 
 def load_profile(path: str | os.PathLike, rig_override: str | os.PathLike | None = None,
@@ -507,7 +513,7 @@ def load_profile(path: str | os.PathLike, rig_override: str | os.PathLike | None
         rig, rprobs = _load_rig_source(rsrc)
         problems += rprobs
         if rig is not None and motor is not None:
-            problems += _rig_checks(rsrc, motor)
+            problems += _rig_checks(rsrc, rig, motor, src)
 
     checks, warnings = _profile_checks(src, motor)
     problems += checks

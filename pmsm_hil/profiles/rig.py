@@ -18,7 +18,12 @@ from ._source import Problem, ProfileError, Source, read_source, validation_prob
 
 __all__ = ["Rig", "Effect", "Effects", "DeadTime", "AdcNoise", "AdcQuantisation", "Encoder",
            "Friction", "Saturation", "Thermal", "FluxHarmonics", "Cogging", "SensorOffset",
-           "SensorGain", "Delay", "DcLink", "IronLoss", "EFFECT_BITS", "load_rig"]
+           "SensorGain", "Delay", "DcLink", "IronLoss", "EFFECT_BITS", "load_rig", "plant_problems"]
+
+# limits of the emulated plant (firmware/sim/plant.h; tests/test_rig_checks.py reads the header)
+PLANT_THERMAL_DIV = 16      # the thermal network steps every PLANT_THERMAL_DIV control periods
+PLANT_DELAY_RING = 32       # sample_delay_s <= (PLANT_DELAY_RING - 3) ts_s
+COG_ORDER_MAX = 1000        # cogging periods per electrical revolution (plant_cfg_check)
 
 
 class Effect(StrictModel):
@@ -309,6 +314,50 @@ def _load_rig_source(src: Source) -> tuple[Rig | None, list[Problem]]:
         except (OSError, FluxMapError) as e:
             return None, [src.problem(loc, f"names a flux map that cannot be used: {e}", sat.map)]
     return rig, []
+
+
+def plant_problems(src: Source, rig: Rig, pole_pairs: int, ts_s: float | None) -> list[Problem]:
+    """The checks of the emulated plant (firmware/sim/plant.c plant_cfg_check) that depend on the
+    motor's pole pairs or the profile's control period, as problems of the rig file ``src``
+    (ts_s None: the period is itself wrong, those checks are skipped)."""
+    out: list[Problem] = []
+    eff = rig.effects
+    cg = eff.cogging
+    if cg.enabled:
+        loc = ("effects", "cogging", "periods_per_rev")
+        if cg.periods_per_rev % pole_pairs:
+            out.append(src.problem(loc, f"is not a multiple of the motor's pole_pairs {pole_pairs}",
+                                   cg.periods_per_rev))
+        elif cg.amplitude_nm != 0 and cg.periods_per_rev // pole_pairs > COG_ORDER_MAX:
+            out.append(src.problem(loc, f"gives {cg.periods_per_rev // pole_pairs} periods per electrical "
+                                        f"revolution, above the plant's {COG_ORDER_MAX} "
+                                        f"(pole_pairs {pole_pairs})", cg.periods_per_rev))
+    if ts_s is None:
+        return out
+    dt = eff.dead_time
+    if dt.enabled and not dt.dead_time_s < ts_s:
+        out.append(src.problem(("effects", "dead_time", "dead_time_s"),
+                               f"is not shorter than the control period control.ts_s = {ts_s:g} s",
+                               dt.dead_time_s))
+    dl = eff.delay
+    if dl.enabled and not dl.sample_delay_s <= (PLANT_DELAY_RING - 3) * ts_s:
+        out.append(src.problem(("effects", "delay", "sample_delay_s"),
+                               f"is longer than {PLANT_DELAY_RING - 3} control periods "
+                               f"({(PLANT_DELAY_RING - 3) * ts_s:g} s at control.ts_s = {ts_s:g} s)",
+                               dl.sample_delay_s))
+    th = eff.thermal
+    if th.enabled:
+        step = PLANT_THERMAL_DIV * ts_s
+        for c_name, r_name in (("c_winding_j_k", "r_wm_k_w"), ("c_magnet_j_k", "r_wm_k_w"),
+                               ("c_winding_j_k", "r_wa_k_w"), ("c_magnet_j_k", "r_ma_k_w")):
+            c, r = getattr(th, c_name), getattr(th, r_name)
+            if not step < 0.2 * c * r:
+                out.append(src.problem(("effects", "thermal", c_name),
+                                       f"gives with {r_name} = {r:g} K/W a time constant of {c * r:g} s, "
+                                       f"shorter than 5 thermal steps ({5 * step:g} s: "
+                                       f"{PLANT_THERMAL_DIV} x control.ts_s)", c))
+                break
+    return out
 
 
 def load_rig(path: str | os.PathLike | None = None) -> Rig:
