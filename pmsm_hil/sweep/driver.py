@@ -18,7 +18,7 @@ from .plan import FILES, Run, plan_runs
 from .results import Journal, write_table
 from .spec import Sweep
 
-__all__ = ["SweepOutcome", "run_sweep", "write_inputs", "ALLOWED_FAILURES"]
+__all__ = ["SweepOutcome", "run_sweep", "run_runs", "write_inputs", "ALLOWED_FAILURES", "SCHEDULER_CONFIG"]
 
 ALLOWED_FAILURES = 1   # a task is re-run once after its worker died, then reported failed
 # and a worker holds only the run it executes (no queued second run that its death would also
@@ -88,23 +88,34 @@ def run_sweep(sweep: Sweep, out: Path, *, limit: int | None = None, scheduler: s
               workers: int | None = None, progress: bool = True,
               task_fn: Callable[[dict], dict] = execute_run, runs: list[Run] | None = None) -> SweepOutcome:
     """Run the sweep (its first ``limit`` runs) into ``out``; skip the runs done there before."""
-    from distributed import as_completed
-
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     runs = plan_runs(sweep) if runs is None else runs
     if limit is not None:
         runs = runs[:limit]
-    axes = [a.name for a in sweep.axes]
+    (out / "sweep.json").write_text(json.dumps({
+        "name": sweep.name, "file": str(sweep.path), "profile": str(sweep.profile_path),
+        "axes": [{"name": a.name, "field": a.field, "kind": a.kind, "relative": a.relative}
+                 for a in sweep.axes]}, indent=1) + "\n")
+    return run_runs(runs, out, list(sweep.spec.metrics), keep_logs=sweep.spec.keep_logs,
+                    axes=[a.name for a in sweep.axes], scheduler=scheduler, workers=workers,
+                    progress=progress, task_fn=task_fn)
+
+
+def run_runs(runs: list[Run], out: Path, metrics: list[str], *, keep_logs: bool = False,
+             axes: list[str] | None = None, scheduler: str | None = None, workers: int | None = None,
+             progress: bool = True, task_fn: Callable[[dict], dict] = execute_run) -> SweepOutcome:
+    """Run ``runs`` on Dask into ``out`` (the machinery of a sweep, also for `pmsm-hil test`)."""
+    from distributed import as_completed
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    axes = list(axes or [])
     journal = Journal(out)
     done = journal.done()
     todo = [r for r in runs if r.key not in done]
     res = SweepOutcome(out=out, planned=len(runs), skipped=len(runs) - len(todo))
     by_key = {r.key: r for r in runs}
-    (out / "sweep.json").write_text(json.dumps({
-        "name": sweep.name, "file": str(sweep.path), "profile": str(sweep.profile_path),
-        "axes": [{"name": a.name, "field": a.field, "kind": a.kind, "relative": a.relative}
-                 for a in sweep.axes]}, indent=1) + "\n")
     for r in runs:
         write_inputs(out, r)
     t0 = time.perf_counter()
@@ -114,10 +125,9 @@ def run_sweep(sweep: Sweep, out: Path, *, limit: int | None = None, scheduler: s
         if todo:
             client, cluster = _client(scheduler, workers)
             res.workers = len(client.scheduler_info().get("workers", {}))
-            metrics = list(sweep.spec.metrics)
             futures = []
             for r in todo:
-                log = str((out / "logs" / f"{r.key}.mcap").resolve()) if sweep.spec.keep_logs else None
+                log = str((out / "logs" / f"{r.key}.mcap").resolve()) if keep_logs else None
                 futures.append(client.submit(task_fn, r.task(metrics, log), key=f"pmsm-run-{r.key}",
                                              pure=False))
             with bar:

@@ -68,13 +68,29 @@ def ident_metrics(table) -> dict[str, Any]:
 
 
 def run_metrics(log_path: str | Path, profile, metrics: list[str]) -> dict[str, Any]:
-    """The chosen metrics of the run logged at ``log_path`` (of ``profile``)."""
+    """The chosen metrics of the run logged at ``log_path`` (of ``profile``) and, when the profile
+    has acceptance criteria, ``acceptance_failed`` (the number of checks failed) and
+    ``acceptance_checks`` (every check, as JSON)."""
+    import json
+
     from pmsm_hil.analysis.summary import summarize_log
 
-    out = summary_metrics(summarize_log(Path(log_path)), metrics)
-    if "identification" in metrics and getattr(profile.control, "identify", False):
+    summary = summarize_log(Path(log_path))
+    out = summary_metrics(summary, metrics)
+    acc = getattr(profile, "acceptance", None)
+    wants_ident = acc is not None and acc.run is not None and acc.run.identification
+    table = None
+    if ("identification" in metrics or wants_ident) and getattr(profile.control, "identify", False):
         from pmsm_hil.analysis.identification import identification_table
 
         t0, t1 = identification_window(profile)
-        out.update(ident_metrics(identification_table(Path(log_path), t0, t1)))
+        table = identification_table(Path(log_path), t0, t1)
+        if "identification" in metrics:
+            out.update(ident_metrics(table))
+    if acc is not None:
+        from pmsm_hil.analysis.acceptance import checks_failed, evaluate
+
+        checks = evaluate(acc, summary, table)
+        out["acceptance_failed"] = checks_failed(checks)
+        out["acceptance_checks"] = json.dumps([c.as_dict() for c in checks])
     return out

@@ -25,7 +25,7 @@ from pmsm_hil.profiles._source import Problem, read_source, resolve_ref
 
 from .spec import Axis, Sweep
 
-__all__ = ["Run", "plan_runs", "axis_values", "materialise"]
+__all__ = ["Run", "plan_runs", "profile_run", "axis_values", "materialise"]
 
 FILES = ("profile.yaml", "motor.yaml", "rig.yaml")
 _PART = re.compile(r"([a-z_][a-z0-9_]*)(?:\[(\d+)\])?")
@@ -106,9 +106,8 @@ class _Base:
     """The base profile, motor and rig as data (for editing) and as validated objects (for the
     base value of a field, defaults included)."""
 
-    def __init__(self, sweep: Sweep):
-        self.profile = load_profile(sweep.profile_path, rig_override=sweep.rig_path,
-                                    motor_override=sweep.motor_path)
+    def __init__(self, profile_path: str, rig_path: str | None = None, motor_path: str | None = None):
+        self.profile = load_profile(profile_path, rig_override=rig_path, motor_override=motor_path)
         self.data = {"profile": read_source(self.profile.path).data,
                      "motor": read_source(self.profile.motor.path).data,
                      "rig": read_source(self.profile.rig.path).data}
@@ -156,11 +155,10 @@ def _concrete(value: Any, base_value: Any, relative: bool) -> Any:
     return value
 
 
-def materialise(base: _Base, sweep: Sweep, values: dict[str, Any]) -> tuple[dict[str, str], int]:
+def materialise(base: _Base, axes: list[Axis], values: dict[str, Any], seed: int) -> tuple[dict[str, str], int]:
     """The three YAML texts and the seed of one run (``values``: axis field -> value)."""
     data = copy.deepcopy(base.data)
-    seed = sweep.spec.seed
-    for ax in sweep.axes:
+    for ax in axes:
         v = values[ax.field]
         if ax.field == "seed":
             seed = int(v)
@@ -180,7 +178,7 @@ def run_key(texts: dict[str, str], seed: int) -> str:
 
 def plan_runs(sweep: Sweep) -> list[Run]:
     """Every run of the sweep, in order; raises ProfileError for an axis that names no field."""
-    base = _Base(sweep)
+    base = _Base(sweep.profile_path, sweep.rig_path, sweep.motor_path)
     _check_axes(sweep, base)
     grid = [a for a in sweep.axes if not a.random]
     rand = [a for a in sweep.axes if a.random]
@@ -192,8 +190,16 @@ def plan_runs(sweep: Sweep) -> list[Run]:
         for combo in combos:
             by_field = dict(drawn)
             by_field.update({a.field: v for a, v in zip(grid, combo)})
-            texts, seed = materialise(base, sweep, by_field)
+            texts, seed = materialise(base, sweep.axes, by_field, sweep.spec.seed)
             values = {a.name: by_field[a.field] for a in sweep.axes}
             runs.append(Run(index=len(runs), values=values, seed=seed, texts=texts,
                             key=run_key(texts, seed)))
     return runs
+
+
+def profile_run(profile_path: str, index: int = 0, seed: int = 1, rig_path: str | None = None,
+                motor_path: str | None = None) -> Run:
+    """One run of a profile as it is (with another rig or motor file if given): a sweep of one
+    point. Raises ProfileError for an invalid profile."""
+    texts, seed = materialise(_Base(profile_path, rig_path, motor_path), [], {}, seed)
+    return Run(index=index, values={}, seed=seed, texts=texts, key=run_key(texts, seed))

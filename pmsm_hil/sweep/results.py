@@ -15,7 +15,7 @@ from typing import Any, Iterable
 __all__ = ["Journal", "write_table", "read_table", "FIRST_COLUMNS", "LAST_COLUMNS"]
 
 FIRST_COLUMNS = ("index", "key", "status", "seed")
-LAST_COLUMNS = ("state", "stop_reason", "log_path", "error", "wall_s")
+LAST_COLUMNS = ("state", "stop_reason", "log_path", "error", "acceptance_checks", "wall_s")
 
 
 class Journal:
