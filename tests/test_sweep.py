@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from pmsm_hil.profiles import ProfileError
-from pmsm_hil.sweep import Journal, load_sweep, plan_runs, read_table, run_sweep
+from pmsm_hil.sweep import load_sweep, plan_runs, read_table, run_sweep
 
 from emu_helpers import DEVICE_TOPICS, raw_messages
 
@@ -79,6 +79,19 @@ def test_cli_reports_a_bad_sweep_file_without_traceback(tmp_path):
     assert r.returncode == 2
     assert f"{p}:3: draws = 0 is outside the allowed range [1, 100000]" in r.stderr.replace("\n", "")
     assert "Traceback" not in r.stderr
+
+
+def test_cli_sweep_limit_runs_the_first_runs(tmp_path, data):
+    p = short_sweep(tmp_path, data, "  - {field: seed, values: [1, 2, 3]}\n", extra="metrics: [faults]\n")
+    out = tmp_path / "o"
+    r = subprocess.run([*CLI, "sweep", str(p), "--out", str(out), "--limit", "1", "--workers", "1",
+                        "--no-progress"], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert "3 runs of short.yaml, the first 1" in r.stdout and "1 ok, 0 failed, 0 done before" in r.stdout
+    rows = read_table(out)
+    assert [(x["index"], x["seed"], x["status"], x["faults"]) for x in rows] == [(0, 1, "ok", 0)]
+    r = subprocess.run([*CLI, "sweep", str(p), "--out", str(out), "--limit", "0"], capture_output=True, text=True)
+    assert r.returncode == 2 and "--limit = 0 must be >= 1" in r.stderr
 
 
 # ------------------------------------------------------------------------------- plan

@@ -135,11 +135,9 @@ def _check_axes(sweep: Sweep, base: _Base) -> None:
             continue
         if hasattr(type(value), "model_fields") or isinstance(value, (list, dict)):
             problems.append(sweep.src.problem(("axes", i, "field"), "names a section, not a value", ax.field))
-        elif ax.relative and (isinstance(value, bool) or not isinstance(value, (int, float)) or value is None):
+        elif ax.relative and (isinstance(value, bool) or not isinstance(value, (int, float))):
             problems.append(sweep.src.problem(("axes", i, "relative"), f"needs a number in the base file, "
                                               f"which has {value!r}", True))
-        elif value is None and ax.relative:
-            problems.append(sweep.src.problem(("axes", i, "relative"), "has no base value", True))
     if problems:
         raise ProfileError(problems)
 
