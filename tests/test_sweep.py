@@ -226,3 +226,24 @@ def test_report_plots_each_metric_and_a_pass_map_for_a_2d_grid(tmp_path, data):
     assert "| speed_error_max_rpm | 4 |" in summary
     r = subprocess.run([*CLI, "sweep", "report", str(tmp_path)], capture_output=True, text=True)
     assert r.returncode == 2 and "no results.parquet" in r.stderr
+
+
+def test_random_draws_stay_in_their_ranges_and_overrides_apply(tmp_path, data):
+    p = write_sweep(tmp_path, f"name: t\nprofile: {data / 'short.yaml'}\nrig: ideal\ndraws: 50\naxes:\n"
+                              "  - {field: rig.effects.dead_time.dead_time_s, uniform: {low: 1.0e-6, high: 2.0e-6}}\n"
+                              "  - {field: motor.j_kgm2, log_uniform: {low: 0.001, high: 0.1}}\n")
+    runs = plan_runs(load_sweep(p))
+    dt = [r.values["rig_effects_dead_time_dead_time_s"] for r in runs]
+    j = [r.values["motor_j_kgm2"] for r in runs]
+    assert all(1e-6 <= x <= 2e-6 for x in dt) and all(1e-3 <= x <= 0.1 for x in j)
+    assert min(j) < 0.01 < max(j)            # log-uniform: a decade each side
+    assert "name: ideal" in runs[0].texts["rig.yaml"]          # the sweep's rig, not the profile's
+    assert "dead_time:\n    dead_time_s:" in runs[0].texts["rig.yaml"]   # an effect the rig lacked, added
+
+
+def test_relative_axis_on_a_field_without_a_number_is_an_error(tmp_path):
+    p = write_sweep(tmp_path, "name: t\nprofile: paper-a\naxes:\n  - {field: rig.v_dc_v, values: [0.9], "
+                              "relative: true}\n")
+    with pytest.raises(ProfileError) as e:
+        plan_runs(load_sweep(p))
+    assert str(e.value).startswith(f"{p}:4: axes[0].relative = true needs a number in the base file, which has None")
