@@ -13,6 +13,7 @@ from pydantic import Field, PrivateAttr, ValidationError
 from ._base import StrictModel, meta_value, num
 from ._source import (Problem, ProfileError, Source, fmt_num, read_source, resolve_ref,
                       validation_problems)
+from .acceptance import Acceptance, acceptance_problems
 from .motor import Motor, _load_motor_source
 from .rig import Rig, _load_rig_source, plant_problems
 
@@ -170,6 +171,8 @@ class ProfileFile(StrictModel):
     link: Link = Field(default_factory=Link)
     segments: list[Segment] = Field(min_length=1, max_length=MAX_SEGMENTS,
                                     description="list of segments played in order")
+    acceptance: Acceptance | None = Field(None, description="bounds a run must meet for `pmsm-hil test` "
+                                                            "(nothing on the device)")
 
 
 # ----------------------------------------------------------------------------------- the profile
@@ -192,6 +195,7 @@ class Profile:
         self.telemetry: Telemetry = spec.telemetry
         self.link: Link = spec.link
         self.segments: list[Segment] = list(spec.segments)
+        self.acceptance: Acceptance | None = spec.acceptance
         t = 0.0
         speed = 0.0
         for i, seg in enumerate(self.segments):
@@ -516,7 +520,7 @@ def load_profile(path: str | os.PathLike, rig_override: str | os.PathLike | None
             problems += _rig_checks(rsrc, rig, motor, src)
 
     checks, warnings = _profile_checks(src, motor)
-    problems += checks
+    problems += checks + acceptance_problems(src)
     if problems:
         raise ProfileError(_ordered(problems))
     assert spec is not None and motor is not None and rig is not None

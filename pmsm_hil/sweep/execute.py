@@ -1,0 +1,69 @@
+"""One run of a sweep, in the calling process: the emulator in process (no pty, no child), the log
+written directly, the metrics computed from it. This is what a Dask worker executes.
+
+A run that cannot be made (invalid inputs, a host or device error) is returned with status
+"failed" and its error, never raised: one bad run does not end the sweep.
+"""
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+__all__ = ["execute_run", "run_in_process"]
+
+
+def run_in_process(profile, log_path: str | os.PathLike, seed: int):
+    """Run ``profile`` on the in-process emulator with ``seed``, logging to ``log_path``: the same
+    device data as `pmsm-hil run PROFILE --seed SEED` on the emulator."""
+    from pmsm_hil.emulator.settings import emulator_settings
+    from pmsm_hil.protocol.session import Session
+    from pmsm_hil.runner import RunOptions, run_profile
+    from pmsm_hil.transport.inproc import InProcessTransport
+
+    settings = emulator_settings(profile.motor, profile.rig, seed=seed, baud=profile.link.baud,
+                                 ts_s=profile.control.ts_s)
+    return run_profile(profile, Session(InProcessTransport(settings)), Path(log_path),
+                       RunOptions(seed=seed, rig_name=profile.rig.name))
+
+
+def execute_run(task: dict[str, Any]) -> dict[str, Any]:
+    """Run one task of ``Run.task()``; return its result row (metrics, status, error, log path)."""
+    from pmsm_hil.profiles import ProfileError, load_profile
+
+    from .metrics import run_metrics
+
+    t_wall = time.perf_counter()
+    row: dict[str, Any] = {"key": task["key"], "status": "failed", "error": "", "log_path": ""}
+    tmp = tempfile.mkdtemp(prefix=f"pmsm-sweep-{task['key']}-")
+    try:
+        for name, text in task["texts"].items():
+            Path(tmp, name).write_text(text, encoding="utf-8")
+        try:
+            profile = load_profile(os.path.join(tmp, "profile.yaml"))
+        except ProfileError as e:
+            row["error"] = "invalid inputs: " + str(e).replace(tmp + os.sep, "").replace("\n", "; ")
+            return row
+        log = Path(tmp, "run.mcap")
+        result = run_in_process(profile, log, task["seed"])
+        if result.error:
+            row["error"] = f"run error: {result.error}"
+        row.update(run_metrics(log, profile, task["metrics"]))
+        row["state"] = result.state
+        row["stop_reason"] = result.stop_reason
+        if task.get("log_path"):
+            dest = Path(task["log_path"])
+            dest.parent.mkdir(parents=True, exist_ok=True)
+            shutil.move(str(log), dest)
+            row["log_path"] = str(dest)
+        row["status"] = "ok" if not result.error else "failed"
+        return row
+    except Exception as e:  # noqa: BLE001 - a run's own failure is a result of the sweep
+        row["error"] = f"{type(e).__name__}: {e}"
+        return row
+    finally:
+        row["wall_s"] = time.perf_counter() - t_wall
+        shutil.rmtree(tmp, ignore_errors=True)

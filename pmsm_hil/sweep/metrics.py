@@ -1,0 +1,96 @@
+"""The metrics of one run, as flat columns, from its log (summary and identification table).
+
+Column names carry their units. Per segment (index i, from the run summary, docs/analysis.md):
+``seg{i}_speed_error_rpm`` (mean error on the plateau), ``seg{i}_ripple_d_a``/``_q_a``,
+``seg{i}_recovery_s`` (load steps only). Whole run: ``speed_error_max_rpm`` (the largest |mean
+error| over the plateaus at a non-zero setpoint), ``ripple_q_max_a``, ``ripple_d_max_a``,
+``recovery_max_s``, ``faults``, ``complete``. Identification (per estimator and parameter, from the
+start to the first plant step, or the whole run): ``id_{estimator}_{param}_error_rel`` and
+``id_{estimator}_{param}_conv_s`` (NaN: never converged).
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+__all__ = ["run_metrics", "identification_window"]
+
+NAN = float("nan")
+
+
+def identification_window(profile) -> tuple[float, float]:
+    """From 0 to the start of the first segment that steps the plant (the drift test), else the end."""
+    steps = [s for s in profile.segments if getattr(s, "plant", None) is not None]
+    return 0.0, (steps[0].t_start_s if steps else profile.total_duration_s)
+
+
+def _num(x: Any) -> float:
+    return NAN if x is None else float(x)
+
+
+def _max_abs(xs: list[float]) -> float:
+    xs = [abs(x) for x in xs if x is not None and not math.isnan(x)]
+    return max(xs) if xs else NAN
+
+
+def summary_metrics(summary, metrics: list[str]) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    plateaus = [s for s in summary.segments if s.setpoint_rpm != 0]
+    if "speed_error" in metrics:
+        for s in summary.segments:
+            out[f"seg{s.index}_speed_error_rpm"] = s.mean_error_rpm
+        out["speed_error_max_rpm"] = _max_abs([s.mean_error_rpm for s in plateaus])
+    if "ripple" in metrics:
+        for s in summary.segments:
+            out[f"seg{s.index}_ripple_d_a"] = s.ripple_d_a
+            out[f"seg{s.index}_ripple_q_a"] = s.ripple_q_a
+        out["ripple_d_max_a"] = _max_abs([s.ripple_d_a for s in plateaus])
+        out["ripple_q_max_a"] = _max_abs([s.ripple_q_a for s in plateaus])
+    if "recovery" in metrics:
+        steps = [s for s in summary.segments if s.recovery_s is not None]
+        for s in steps:
+            out[f"seg{s.index}_recovery_s"] = s.recovery_s
+        out["recovery_max_s"] = _max_abs([s.recovery_s for s in steps])
+    if "faults" in metrics:
+        out["faults"] = len(summary.faults)
+    if "completeness" in metrics:
+        out["complete"] = bool(summary.complete)
+    return out
+
+
+def ident_metrics(table) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for c in table.cells:
+        out[f"id_{c.estimator}_{c.param}_error_rel"] = float(c.error_rel)
+        out[f"id_{c.estimator}_{c.param}_conv_s"] = _num(c.conv_s)
+    return out
+
+
+def run_metrics(log_path: str | Path, profile, metrics: list[str]) -> dict[str, Any]:
+    """The chosen metrics of the run logged at ``log_path`` (of ``profile``) and, when the profile
+    has acceptance criteria, ``acceptance_failed`` (the number of checks failed) and
+    ``acceptance_checks`` (every check, as JSON)."""
+    import json
+
+    from pmsm_hil.analysis.summary import summarize_log
+
+    summary = summarize_log(Path(log_path))
+    out = summary_metrics(summary, metrics)
+    acc = getattr(profile, "acceptance", None)
+    wants_ident = acc is not None and acc.run is not None and acc.run.identification
+    table = None
+    if ("identification" in metrics or wants_ident) and getattr(profile.control, "identify", False):
+        from pmsm_hil.analysis.identification import identification_table
+
+        t0, t1 = identification_window(profile)
+        table = identification_table(Path(log_path), t0, t1)
+        if "identification" in metrics:
+            out.update(ident_metrics(table))
+    if acc is not None:
+        from pmsm_hil.analysis.acceptance import checks_failed, evaluate
+
+        checks = evaluate(acc, summary, table)
+        out["acceptance_failed"] = checks_failed(checks)
+        out["acceptance_checks"] = json.dumps([c.as_dict() for c in checks])
+    return out

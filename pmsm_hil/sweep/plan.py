@@ -1,0 +1,203 @@
+"""The runs of a sweep: the axes expanded (grid product x random draws) and each run's inputs made
+concrete as three YAML texts (profile, motor, rig) and a seed, keyed by a hash of them.
+
+Order: for each random draw (one when no axis is random), the grid axes' Cartesian product in the
+order the axes are written (the last axis varies fastest). The random draws come from one numpy
+generator seeded by ``draw_seed``, so a sweep file always expands to the same runs.
+"""
+from __future__ import annotations
+
+import copy
+import hashlib
+import itertools
+import json
+import math
+import os
+import re
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import yaml
+
+from pmsm_hil.profiles import ProfileError, load_profile
+from pmsm_hil.profiles._source import Problem, read_source, resolve_ref
+
+from .spec import Axis, Sweep
+
+__all__ = ["Run", "plan_runs", "profile_run", "axis_values", "materialise"]
+
+FILES = ("profile.yaml", "motor.yaml", "rig.yaml")
+_PART = re.compile(r"([a-z_][a-z0-9_]*)(?:\[(\d+)\])?")
+
+
+@dataclass
+class Run:
+    index: int
+    values: dict[str, Any]                  # axis column name -> value
+    seed: int
+    texts: dict[str, str] = field(default_factory=dict)   # FILES -> YAML text
+    key: str = ""
+
+    def task(self, metrics: list[str], log_path: str | None) -> dict:
+        """What a worker needs: plain data (picklable, no paths to read)."""
+        return {"key": self.key, "index": self.index, "seed": self.seed, "texts": dict(self.texts),
+                "metrics": list(metrics), "log_path": log_path}
+
+
+def _parts(path: str) -> list[str | int]:
+    out: list[str | int] = []
+    for name in path.split("."):
+        m = _PART.fullmatch(name)
+        assert m is not None
+        out.append(m.group(1))
+        if m.group(2) is not None:
+            out.append(int(m.group(2)))
+    return out
+
+
+def _base_value(obj: Any, parts: list[str | int]) -> Any:
+    """The value at ``parts`` in the loaded (validated, defaults filled) objects; KeyError if the
+    path names nothing there."""
+    for p in parts:
+        if isinstance(p, int):
+            if not isinstance(obj, (list, tuple)) or p >= len(obj):
+                raise KeyError(p)
+            obj = obj[p]
+        elif hasattr(type(obj), "model_fields"):
+            if p not in type(obj).model_fields:
+                raise KeyError(p)
+            obj = getattr(obj, p)
+        else:
+            raise KeyError(p)
+    return obj
+
+
+def _set(data: dict, parts: list[str | int], value: Any) -> None:
+    obj: Any = data
+    for p, nxt in zip(parts, parts[1:]):
+        if isinstance(p, int):
+            obj = obj[p]
+        else:
+            if not isinstance(obj.get(p), (dict, list)):
+                obj[p] = [] if isinstance(nxt, int) else {}
+            obj = obj[p]
+    obj[parts[-1]] = value
+
+
+def axis_values(axis: Axis, rng: np.random.Generator | None = None) -> list[Any]:
+    """A grid axis' values, or one draw of a random axis (from ``rng``)."""
+    if axis.values is not None:
+        return list(axis.values)
+    if axis.linspace is not None:
+        ls = axis.linspace
+        return [float(v) for v in np.linspace(ls.start, ls.stop, ls.num)]
+    assert rng is not None
+    if axis.uniform is not None:
+        return [float(rng.uniform(axis.uniform.low, axis.uniform.high))]
+    if axis.normal is not None:
+        return [float(rng.normal(axis.normal.mean, axis.normal.std))]
+    lu = axis.log_uniform
+    assert lu is not None
+    return [float(math.exp(rng.uniform(math.log(lu.low), math.log(lu.high))))]
+
+
+class _Base:
+    """The base profile, motor and rig as data (for editing) and as validated objects (for the
+    base value of a field, defaults included)."""
+
+    def __init__(self, profile_path: str, rig_path: str | None = None, motor_path: str | None = None):
+        self.profile = load_profile(profile_path, rig_override=rig_path, motor_override=motor_path)
+        self.data = {"profile": read_source(self.profile.path).data,
+                     "motor": read_source(self.profile.motor.path).data,
+                     "rig": read_source(self.profile.rig.path).data}
+        self.objects = {"profile": self.profile.spec, "motor": self.profile.motor, "rig": self.profile.rig}
+        sat = (self.data["rig"].get("effects") or {}).get("saturation")
+        if isinstance(sat, dict) and isinstance(sat.get("map"), str):
+            sat["map"] = os.path.abspath(resolve_ref(self.profile.rig.path, sat["map"]))
+        self.data["profile"]["motor"] = "motor.yaml"
+        self.data["profile"]["rig"] = "rig.yaml"
+
+
+def _check_axes(sweep: Sweep, base: _Base) -> None:
+    problems: list[Problem] = []
+    for i, ax in enumerate(sweep.axes):
+        if ax.field == "seed":
+            continue
+        parts = _parts(ax.field)
+        root, rest = parts[0], parts[1:]
+        try:
+            value = _base_value(base.objects[root], rest)
+        except KeyError as e:
+            problems.append(sweep.src.problem(("axes", i, "field"),
+                                              f"names no field of the {root} ({e.args[0]!r} is unknown)",
+                                              ax.field))
+            continue
+        if hasattr(type(value), "model_fields") or isinstance(value, (list, dict)):
+            problems.append(sweep.src.problem(("axes", i, "field"), "names a section, not a value", ax.field))
+        elif ax.relative and (isinstance(value, bool) or not isinstance(value, (int, float))):
+            problems.append(sweep.src.problem(("axes", i, "relative"), f"needs a number in the base file, "
+                                              f"which has {value!r}", True))
+    if problems:
+        raise ProfileError(problems)
+
+
+def _concrete(value: Any, base_value: Any, relative: bool) -> Any:
+    if relative:
+        value = base_value * value
+    if isinstance(base_value, int) and not isinstance(base_value, bool) and isinstance(value, float) \
+            and value.is_integer():
+        return int(value)
+    if isinstance(base_value, float) and isinstance(value, int) and not isinstance(value, bool):
+        return float(value)
+    return value
+
+
+def materialise(base: _Base, axes: list[Axis], values: dict[str, Any], seed: int) -> tuple[dict[str, str], int]:
+    """The three YAML texts and the seed of one run (``values``: axis field -> value)."""
+    data = copy.deepcopy(base.data)
+    for ax in axes:
+        v = values[ax.field]
+        if ax.field == "seed":
+            seed = int(v)
+            continue
+        parts = _parts(ax.field)
+        root, rest = parts[0], parts[1:]
+        _set(data[root], rest, _concrete(v, _base_value(base.objects[root], rest), ax.relative))
+    texts = {f"{k}.yaml": yaml.safe_dump(data[k], sort_keys=False, width=1_000_000)
+             for k in ("profile", "motor", "rig")}
+    return texts, seed
+
+
+def run_key(texts: dict[str, str], seed: int) -> str:
+    blob = json.dumps({"texts": [texts[f] for f in FILES], "seed": seed}, sort_keys=True)
+    return hashlib.sha256(blob.encode("utf-8")).hexdigest()[:16]
+
+
+def plan_runs(sweep: Sweep) -> list[Run]:
+    """Every run of the sweep, in order; raises ProfileError for an axis that names no field."""
+    base = _Base(sweep.profile_path, sweep.rig_path, sweep.motor_path)
+    _check_axes(sweep, base)
+    grid = [a for a in sweep.axes if not a.random]
+    rand = [a for a in sweep.axes if a.random]
+    rng = np.random.Generator(np.random.PCG64(sweep.spec.draw_seed))
+    combos = list(itertools.product(*(axis_values(a) for a in grid)))
+    runs: list[Run] = []
+    for _ in range(sweep.spec.draws or 1):
+        drawn = {a.field: axis_values(a, rng)[0] for a in rand}
+        for combo in combos:
+            by_field = dict(drawn)
+            by_field.update({a.field: v for a, v in zip(grid, combo)})
+            texts, seed = materialise(base, sweep.axes, by_field, sweep.spec.seed)
+            values = {a.name: by_field[a.field] for a in sweep.axes}
+            runs.append(Run(index=len(runs), values=values, seed=seed, texts=texts,
+                            key=run_key(texts, seed)))
+    return runs
+
+
+def profile_run(profile_path: str, index: int = 0, seed: int = 1, rig_path: str | None = None,
+                motor_path: str | None = None) -> Run:
+    """One run of a profile as it is (with another rig or motor file if given): a sweep of one
+    point. Raises ProfileError for an invalid profile."""
+    texts, seed = materialise(_Base(profile_path, rig_path, motor_path), [], {}, seed)
+    return Run(index=index, values={}, seed=seed, texts=texts, key=run_key(texts, seed))

@@ -1,0 +1,196 @@
+"""Sweep files (sweeps/*.yaml): a base profile, the axes to vary, the metrics to keep.
+
+    name: tolerance
+    profile: paper-a-identify          # a path (relative to the sweep file) or a shipped name
+    rig: lab-typical                   # optional: instead of the profile's rig
+    draws: 16                          # random draws (each draws every random axis once)
+    draw_seed: 1
+    axes:
+      - {field: motor.r_s_ohm, normal: {mean: 1.0, std: 0.05}, relative: true}
+      - {field: rig.effects.dead_time.dead_time_s, uniform: [1.5e-6, 3.0e-6]}
+      - {field: seed, values: [1, 2]}
+    metrics: [speed_error, ripple, identification, faults, completeness]
+    keep_logs: false
+
+Validated with pydantic; every problem is reported as ``file:line: field = value message`` through
+the profile machinery (pmsm_hil/profiles/_source.py). The format is in docs/sweep.md.
+"""
+from __future__ import annotations
+
+import os
+import re
+from typing import Literal
+
+from pydantic import Field, ValidationError, model_validator
+
+from pmsm_hil.profiles._base import StrictModel
+from pmsm_hil.profiles._source import (Problem, ProfileError, Source, read_source, resolve_ref,
+                                       validation_problems)
+
+__all__ = ["Axis", "SweepFile", "Sweep", "load_sweep", "METRICS", "FIELD_RE"]
+
+METRICS = ("speed_error", "ripple", "recovery", "faults", "completeness", "identification")
+# profile.FIELD.PATH / motor.FIELD / rig.FIELD.PATH (list items as [i]) or seed
+FIELD_RE = re.compile(r"^(seed|(profile|motor|rig)(\.[a-z_][a-z0-9_]*(\[\d+\])?)+)$")
+MAX_RUNS = 100_000
+
+
+class Normal(StrictModel):
+    mean: float = Field(description="mean of the normal distribution")
+    std: float = Field(gt=0, description="standard deviation")
+
+
+class Range(StrictModel):
+    low: float = Field(description="lower bound")
+    high: float = Field(description="upper bound")
+
+    @model_validator(mode="after")
+    def _ordered(self):
+        if self.high < self.low:
+            raise ValueError(f"high {self.high:g} is below low {self.low:g}")
+        return self
+
+
+class Linspace(StrictModel):
+    start: float = Field(description="first value")
+    stop: float = Field(description="last value")
+    num: int = Field(ge=1, le=MAX_RUNS, description="number of values")
+
+
+class Axis(StrictModel):
+    """One swept field: a list of values or a linspace (grid), or a distribution (random)."""
+
+    field: str = Field(min_length=1, description="what is varied: seed, profile.PATH, motor.FIELD or "
+                                                 "rig.PATH, e.g. rig.effects.dead_time.dead_time_s")
+    values: list[float | int | bool | str] | None = Field(None, min_length=1, description="grid values")
+    linspace: Linspace | None = Field(None, description="grid: {start, stop, num}")
+    uniform: Range | None = Field(None, description="random: uniform on {low, high}")
+    normal: Normal | None = Field(None, description="random: normal {mean, std}")
+    log_uniform: Range | None = Field(None, description="random: log-uniform on {low, high} (both > 0)")
+    relative: bool = Field(False, description="the values are factors on the base file's value")
+
+    @model_validator(mode="after")
+    def _one_kind(self):
+        given = [k for k in ("values", "linspace", "uniform", "normal", "log_uniform")
+                 if getattr(self, k) is not None]
+        if len(given) != 1:
+            raise ValueError("give exactly one of values, linspace, uniform, normal, log_uniform"
+                             + (f" (given: {', '.join(given)})" if given else ""))
+        return self
+
+    @property
+    def kind(self) -> str:
+        for k in ("values", "linspace", "uniform", "normal", "log_uniform"):
+            if getattr(self, k) is not None:
+                return k
+        raise AssertionError
+
+    @property
+    def random(self) -> bool:
+        return self.kind in ("uniform", "normal", "log_uniform")
+
+    @property
+    def name(self) -> str:
+        """Column name of the axis in the results: the field with dots and brackets as _."""
+        return "seed" if self.field == "seed" else re.sub(r"[.\[\]]+", "_", self.field).strip("_")
+
+
+class SweepFile(StrictModel):
+    """The sweep file as written."""
+
+    name: str = Field(min_length=1, description="sweep name")
+    description: str = Field("", description="text")
+    profile: str = Field(min_length=1, description="base profile: a path relative to the sweep file, "
+                                                   "or a shipped name")
+    motor: str | None = Field(None, description="motor file or shipped name instead of the profile's")
+    rig: str | None = Field(None, description="rig file or shipped name instead of the profile's")
+    seed: int = Field(1, ge=0, le=2**31 - 1, description="emulator seed when no axis sets it")
+    axes: list[Axis] = Field(default_factory=list, description="the fields varied")
+    draws: int | None = Field(None, ge=1, le=MAX_RUNS, description="number of random draws")
+    draw_seed: int = Field(1, ge=0, description="seed of the random draws (not of the emulator)")
+    metrics: list[Literal[METRICS]] = Field(  # type: ignore[valid-type]
+        default_factory=lambda: list(METRICS), min_length=1, description="metrics kept per run")
+    keep_logs: bool = Field(False, description="keep each run's MCAP log in OUT/logs/")
+
+
+class Sweep:
+    """A validated sweep file with its base files resolved to paths."""
+
+    def __init__(self, spec: SweepFile, path: str, src: Source, profile_path: str,
+                 motor_path: str | None, rig_path: str | None):
+        self.spec = spec
+        self.name = spec.name
+        self.path = path
+        self.src = src
+        self.profile_path = profile_path
+        self.motor_path = motor_path
+        self.rig_path = rig_path
+        self.axes: list[Axis] = list(spec.axes)
+
+    def axis_line(self, i: int) -> int | None:
+        return self.src.line(("axes", i, "field"))
+
+
+def _resolve(src: Source, key: str, value: str, kind: str) -> tuple[str | None, list[Problem]]:
+    from pmsm_hil.profiles.shipped import resolve
+
+    rel = resolve_ref(src.path, value)
+    if os.path.isfile(rel):
+        return rel, []
+    try:
+        found = resolve(value, kind)
+    except ProfileError as e:
+        return None, [src.problem((key,), e.problems[0].message, value)]
+    if not os.path.isfile(found):
+        return None, [src.problem((key,), f"names a {kind} file that does not exist: {rel}", value)]
+    return found, []
+
+
+def load_sweep(path: str | os.PathLike) -> Sweep:
+    """Read and validate a sweep file; raises ProfileError (file:line: field = value message)."""
+    path = os.fspath(path)
+    src = read_source(path, what="sweep file")
+    if src.problems:
+        raise ProfileError(src.problems)
+    problems: list[Problem] = list(src.soft)
+    spec = None
+    try:
+        spec = SweepFile.model_validate(src.data)
+    except ValidationError as e:
+        problems += validation_problems(e, src, SweepFile)
+    if spec is None:
+        raise ProfileError(problems)
+    resolved = {}
+    for key, kind in (("profile", "profile"), ("motor", "motor"), ("rig", "rig")):
+        value = getattr(spec, key)
+        resolved[key] = None
+        if value is not None:
+            resolved[key], probs = _resolve(src, key, value, kind)
+            problems += probs
+    seen: dict[str, int] = {}
+    for i, ax in enumerate(spec.axes):
+        if not FIELD_RE.match(ax.field):
+            problems.append(src.problem(("axes", i, "field"), "is not seed, profile.PATH, motor.FIELD or "
+                                        "rig.PATH (e.g. rig.effects.dead_time.dead_time_s, "
+                                        "profile.segments[2].load_nm)", ax.field))
+        if ax.field in seen:
+            problems.append(src.problem(("axes", i, "field"), f"is swept twice (also axes[{seen[ax.field]}])",
+                                        ax.field))
+        seen.setdefault(ax.field, i)
+        if ax.log_uniform is not None and ax.log_uniform.low <= 0:
+            problems.append(src.problem(("axes", i, "log_uniform", "low"), "must be > 0",
+                                        ax.log_uniform.low))
+        if ax.field == "seed" and ax.random:
+            problems.append(src.problem(("axes", i, "field"), "is drawn at random; give the seeds as "
+                                        "values or a linspace", ax.field))
+        if ax.relative and ax.field == "seed":
+            problems.append(src.problem(("axes", i, "relative"), "cannot apply to the seed", True))
+    has_random = any(a.random for a in spec.axes)
+    if has_random and spec.draws is None:
+        problems.append(src.problem(("draws",), "is missing (required when an axis is random: the "
+                                                "number of random draws)"))
+    if not has_random and spec.draws is not None:
+        problems.append(src.problem(("draws",), "is given but no axis is random", spec.draws))
+    if problems:
+        raise ProfileError(problems)
+    return Sweep(spec, path, src, resolved["profile"], resolved["motor"], resolved["rig"])

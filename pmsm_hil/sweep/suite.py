@@ -1,0 +1,115 @@
+"""`pmsm-hil test`: profiles run and judged against their acceptance criteria, as a regression
+suite: one run in this process, several on Dask (the sweep machinery); a pass/fail table with the
+measured value beside each bound; JUnit XML for CI.
+
+A profile without an `acceptance:` section is held to the default: the whole profile played, no
+fault.
+"""
+from __future__ import annotations
+
+import json
+import shutil
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from .execute import execute_run
+from .plan import Run, profile_run, run_key
+
+__all__ = ["SuiteCase", "plan_suite", "run_suite", "junit_xml", "DEFAULT_ACCEPTANCE"]
+
+DEFAULT_ACCEPTANCE = {"run": {"complete": True, "faults": "forbidden"}}
+METRICS = ["speed_error", "ripple", "recovery", "faults", "completeness"]
+
+
+@dataclass
+class SuiteCase:
+    profile: str                 # the path given
+    name: str = ""               # the profile's name
+    run: Run | None = None
+    default_criteria: bool = False
+    status: str = ""             # ok | failed (the run could not be made)
+    error: str = ""
+    checks: list[dict[str, Any]] = field(default_factory=list)
+    log_path: str = ""
+    wall_s: float = 0.0
+
+    @property
+    def passed(self) -> bool:
+        return self.status == "ok" and bool(self.checks) and all(c["passed"] for c in self.checks)
+
+
+def plan_suite(profiles: list[str], seed: int = 1, rig: str | None = None) -> list[SuiteCase]:
+    """One case per profile (validated here: raises ProfileError)."""
+    cases = []
+    for i, p in enumerate(profiles):
+        run = profile_run(p, index=i, seed=seed, rig_path=rig)
+        data = yaml.safe_load(run.texts["profile.yaml"])
+        case = SuiteCase(profile=p, name=str(data.get("name", p)), run=run)
+        if not data.get("acceptance"):
+            data["acceptance"] = DEFAULT_ACCEPTANCE
+            run.texts["profile.yaml"] = yaml.safe_dump(data, sort_keys=False, width=1_000_000)
+            run.key = run_key(run.texts, run.seed)
+            case.default_criteria = True
+        cases.append(case)
+    return cases
+
+
+def run_suite(cases: list[SuiteCase], out: Path, *, workers: int | None = None,
+              scheduler: str | None = None, keep_logs: bool = True, progress: bool = False) -> list[SuiteCase]:
+    """Run every case into ``out`` (fresh: no resume; a firmware change is what is being tested)."""
+    from .driver import run_runs, write_inputs
+
+    out = Path(out)
+    for stale in ("results.jsonl", "results.parquet", "results.csv"):
+        (out / stale).unlink(missing_ok=True)
+    if (out / "logs").is_dir():
+        shutil.rmtree(out / "logs")
+    out.mkdir(parents=True, exist_ok=True)
+    runs = [c.run for c in cases if c.run is not None]
+    if len(runs) == 1 and scheduler is None:
+        write_inputs(out, runs[0])
+        log = str((out / "logs" / f"{runs[0].key}.mcap").resolve()) if keep_logs else None
+        rows = [execute_run(runs[0].task(METRICS, log))]
+    else:
+        res = run_runs(runs, out, METRICS, keep_logs=keep_logs, scheduler=scheduler, workers=workers,
+                       progress=progress)
+        rows = res.rows
+    by_key = {r["key"]: r for r in rows}
+    for c in cases:
+        row = by_key.get(c.run.key, {"status": "failed", "error": "no result"})
+        c.status, c.error = row.get("status", "failed"), row.get("error", "")
+        c.log_path, c.wall_s = row.get("log_path", ""), float(row.get("wall_s", 0.0) or 0.0)
+        c.checks = json.loads(row["acceptance_checks"]) if row.get("acceptance_checks") else []
+    return cases
+
+
+def junit_xml(cases: list[SuiteCase]) -> str:
+    """JUnit XML: a test suite per profile, a test case per check (a failed run: one error case)."""
+    root = ET.Element("testsuites", name="pmsm-hil test")
+    for c in cases:
+        suite = ET.SubElement(root, "testsuite", name=c.name, file=c.profile)
+        n = fails = errors = 0
+        if c.status != "ok":
+            tc = ET.SubElement(suite, "testcase", classname=c.name, name="run", time=f"{c.wall_s:.3f}")
+            ET.SubElement(tc, "error", message=c.error or "the run failed").text = c.error
+            n, errors = 1, 1
+        for ch in c.checks:
+            n += 1
+            tc = ET.SubElement(suite, "testcase", classname=c.name, name=f"{ch['scope']}: {ch['criterion']}")
+            ET.SubElement(tc, "system-out").text = f"measured {ch['measured']}, bound {ch['bound']}"
+            if not ch["passed"]:
+                fails += 1
+                ET.SubElement(tc, "failure", message=f"measured {ch['measured']}, bound {ch['bound']}")
+        suite.set("tests", str(n))
+        suite.set("failures", str(fails))
+        suite.set("errors", str(errors))
+        suite.set("time", f"{c.wall_s:.3f}")
+        if c.log_path:
+            props = ET.SubElement(suite, "properties")
+            ET.SubElement(props, "property", name="log", value=c.log_path)
+    ET.indent(root)
+    return ET.tostring(root, encoding="unicode", xml_declaration=True) + "\n"

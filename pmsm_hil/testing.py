@@ -1,0 +1,172 @@
+"""pytest plugin for HIL tests of your own (loaded by the `pytest11` entry point of pmsm-hil).
+
+    def test_load_step_recovers(hil_device):
+        run = hil_device.run("profiles/my-drive.yaml")
+        run.assert_accepted()                      # the profile's acceptance criteria
+        assert run.summary.segments[2].recovery_s < 0.2
+
+    @pytest.mark.hil_rig                           # only with a real rig: skipped on the emulator
+    def test_on_the_bench(hil_device):
+        hil_device.run("paper-a").assert_accepted()
+
+Options: ``--hil-port /dev/ttyUSB0`` (a rig on a serial port), ``--hil-can SPEC`` (a rig on CAN,
+a python-can spec as for `pmsm-hil run --can`), else the in-process emulator; ``--hil-rig`` (the
+emulator's rig file or shipped name, default each profile's), ``--hil-seed`` (default 1).
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+__all__ = ["HilDevice", "HilRun"]
+
+
+@dataclass
+class HilRun:
+    """One run: the profile, the runner's result, the log, and (lazily) its summary and checks."""
+
+    profile: Any
+    result: Any
+    log_path: Path
+    _summary: Any = field(default=None, repr=False)
+    _checks: Any = field(default=None, repr=False)
+
+    @property
+    def summary(self):
+        if self._summary is None:
+            from pmsm_hil.analysis.summary import summarize_log
+            self._summary = summarize_log(self.log_path)
+        return self._summary
+
+    def identification(self, t0_s: float | None = None, t1_s: float | None = None):
+        """The identification table (default window: up to the first plant step)."""
+        from pmsm_hil.analysis.identification import identification_table
+        from pmsm_hil.sweep.metrics import identification_window
+
+        w0, w1 = identification_window(self.profile)
+        return identification_table(self.log_path, w0 if t0_s is None else t0_s, w1 if t1_s is None else t1_s)
+
+    @property
+    def checks(self) -> list:
+        """The profile's acceptance criteria judged on this run (the default without a section:
+        the whole profile played, no fault)."""
+        if self._checks is None:
+            from pmsm_hil.analysis.acceptance import evaluate
+            from pmsm_hil.profiles.acceptance import Acceptance
+            from pmsm_hil.sweep.suite import DEFAULT_ACCEPTANCE
+
+            acc = self.profile.acceptance or Acceptance.model_validate(DEFAULT_ACCEPTANCE)
+            wants_ident = acc.run is not None and acc.run.identification
+            self._checks = evaluate(acc, self.summary, self.identification() if wants_ident else None)
+        return self._checks
+
+    @property
+    def accepted(self) -> bool:
+        return all(c.passed for c in self.checks)
+
+    def assert_accepted(self) -> None:
+        failed = [c for c in self.checks if not c.passed]
+        if failed:
+            lines = [f"{c.scope}: {c.criterion} measured {c.measured}, bound {c.bound}" for c in failed]
+            raise AssertionError(f"{self.profile.name}: {len(failed)} of {len(self.checks)} acceptance "
+                                 f"checks failed (log {self.log_path}):\n  " + "\n  ".join(lines))
+
+
+class HilDevice:
+    """The device the tests run on: the in-process emulator, or a rig on a serial port or CAN."""
+
+    def __init__(self, port: str | None = None, can: str | None = None, rig: str | None = None,
+                 seed: int = 1, log_dir: Path | None = None):
+        self.port, self.can, self.rig, self.seed = port, can, rig, seed
+        self.log_dir = Path(log_dir) if log_dir is not None else Path.cwd()
+        self._n = 0
+
+    @property
+    def kind(self) -> str:
+        return "serial" if self.port else ("can" if self.can else "emulator")
+
+    @property
+    def is_rig(self) -> bool:
+        return self.kind != "emulator"
+
+    def _transport(self, profile, seed: int):
+        if self.port:
+            from pmsm_hil.transport.serial_port import SerialTransport
+            return SerialTransport(self.port, profile.link.baud)
+        from pmsm_hil.transport.can_bus import open_for_run
+        return open_for_run(self.can, profile, str(profile.rig.path), seed)
+
+    def run(self, profile: str | os.PathLike, out: str | os.PathLike | None = None,
+            seed: int | None = None, rig: str | None = None) -> HilRun:
+        """Run a profile (a path or a shipped name) to the end; the log goes to ``out`` (default: a
+        numbered file in the test's log folder)."""
+        from pmsm_hil.profiles import load_profile
+        from pmsm_hil.profiles.shipped import resolve
+        from pmsm_hil.sweep.execute import run_in_process
+
+        seed = self.seed if seed is None else seed
+        rig = rig or self.rig
+        prof = load_profile(resolve(profile, "profile"), rig_override=resolve(rig, "rig") if rig else None)
+        self._n += 1
+        log = Path(out) if out is not None else self.log_dir / f"{self._n:03d}-{prof.name}.mcap"
+        log.parent.mkdir(parents=True, exist_ok=True)
+        if self.kind == "emulator":
+            result = run_in_process(prof, log, seed)
+        else:
+            from pmsm_hil.protocol.session import Session
+            from pmsm_hil.runner import RunOptions, run_profile
+
+            transport = self._transport(prof, seed)
+            try:
+                on_emulator = bool(self.can) and self.can.startswith("emulator")   # the CAN emulator
+                result = run_profile(prof, Session(transport), log,
+                                     RunOptions(seed=seed if on_emulator else None))
+            finally:
+                transport.close()
+        return HilRun(profile=prof, result=result, log_path=log)
+
+
+# ----------------------------------------------------------------------------------- pytest hooks
+
+def pytest_addoption(parser) -> None:
+    group = parser.getgroup("pmsm-hil", "pmsm-hil hardware-in-the-loop tests")
+    group.addoption("--hil-port", default=None, metavar="PORT",
+                    help="run hil_device on the rig at this serial port (default: the emulator)")
+    group.addoption("--hil-can", default=None, metavar="SPEC",
+                    help="run hil_device on the rig on this CAN interface (python-can spec)")
+    group.addoption("--hil-rig", default=None, metavar="RIG",
+                    help="rig file or shipped name for the emulator (default: each profile's)")
+    group.addoption("--hil-seed", type=int, default=1, metavar="N", help="emulator seed (default 1)")
+
+
+def pytest_configure(config) -> None:
+    config.addinivalue_line("markers", "hil_rig: needs a real rig (--hil-port or --hil-can); "
+                                       "skipped on the emulator")
+
+
+def _has_rig(config) -> bool:
+    return bool(config.getoption("--hil-port") or config.getoption("--hil-can"))
+
+
+def pytest_collection_modifyitems(config, items) -> None:
+    if _has_rig(config):
+        return
+    skip = pytest.mark.skip(reason="needs a real rig: give --hil-port PORT or --hil-can SPEC")
+    for item in items:
+        if "hil_rig" in item.keywords:
+            item.add_marker(skip)
+
+
+@pytest.fixture(scope="session")
+def hil_device(request, tmp_path_factory) -> HilDevice:
+    """The device under test (session-wide): the emulator, or the rig given by --hil-port/--hil-can."""
+    cfg = request.config
+    if cfg.getoption("--hil-port") and cfg.getoption("--hil-can"):
+        raise pytest.UsageError("give --hil-port or --hil-can, not both")
+    return HilDevice(port=cfg.getoption("--hil-port"), can=cfg.getoption("--hil-can"),
+                     rig=cfg.getoption("--hil-rig"), seed=cfg.getoption("--hil-seed"),
+                     log_dir=tmp_path_factory.mktemp("hil-logs"))

@@ -1,0 +1,107 @@
+"""Acceptance criteria in profiles and `pmsm-hil test`: validation, no effect on the device, the
+pass/fail table, JUnit XML, the exit code."""
+from __future__ import annotations
+
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+
+import pytest
+
+from pmsm_hil.profiles import ProfileError, load_profile
+
+from emu_helpers import DEVICE_TOPICS, raw_messages, run_inproc
+
+CLI = [sys.executable, "-m", "pmsm_hil.cli.main"]
+
+
+def with_acceptance(tmp_path, data, text: str, name: str = "p.yaml"):
+    """tests/data/short.yaml with an acceptance section (motor and rig paths made absolute)."""
+    src = (data / "short.yaml").read_text()
+    src = src.replace("../../profiles/", str(data.parent.parent / "profiles") + "/")
+    p = tmp_path / name
+    p.write_text(src + text)
+    return p
+
+
+@pytest.mark.parametrize("text, field, message", [
+    ("acceptance:\n  run:\n    speed_error_max_rpm: wide\n", "acceptance.run.speed_error_max_rpm",
+     "'wide'"),
+    ("acceptance:\n  run:\n    faults: never\n", "acceptance.run.faults", "is not one of"),
+    ("acceptance:\n  run:\n    recovery_max_s: -1\n", "acceptance.run.recovery_max_s", "must be > 0"),
+    ("acceptance:\n  segments:\n    - {segment: \"lod on\", recovery_max_s: 0.3}\n",
+     "acceptance.segments[0].segment", "did you mean 'load on'"),
+    ("acceptance:\n  segments:\n    - {segment: 7, recovery_max_s: 0.3}\n",
+     "acceptance.segments[0].segment", "is not a segment index"),
+    ("acceptance:\n  segments:\n    - {segment: 1}\n", "acceptance.segments[0]", "gives no bound"),
+    ("acceptance:\n  run:\n    identification:\n      - {estimator: nlms, param: l_q_h, error_max_rel: 0.02}\n",
+     "acceptance.run.identification[0].estimator", "is not one of"),
+    ("acceptance:\n  run:\n    recovery_max: 0.3\n", "acceptance.run.recovery_max",
+     "did you mean 'recovery_max_s'"),
+])
+def test_acceptance_errors_name_file_line_field(tmp_path, data, text, field, message):
+    p = with_acceptance(tmp_path, data, text)
+    n_lines = len((data / "short.yaml").read_text().splitlines())
+    with pytest.raises(ProfileError) as e:
+        load_profile(p)
+    msg = str(e.value)
+    assert msg.startswith(f"{p}:"), msg
+    line = int(msg.split(":")[1])
+    assert line > n_lines                     # on a line of the acceptance section
+    assert f" {field}" in msg and message in msg, msg
+
+
+def test_shipped_profiles_load_with_their_criteria(root):
+    a = load_profile(root / "profiles" / "paper-a.yaml")
+    assert a.acceptance.run.speed_error_max_rpm == "band" and a.acceptance.run.recovery_max_s == 0.3
+    ident = load_profile(root / "profiles" / "paper-a-identify.yaml")
+    assert {b.param for b in ident.acceptance.run.identification} == {"l_d_h", "l_q_h", "psi_f_wb", "r_s_ohm"}
+    assert load_profile(root / "profiles" / "sew-cm3c80s.yaml").acceptance is None
+
+
+def test_criteria_change_nothing_on_the_device(tmp_path, data):
+    p = with_acceptance(tmp_path, data, "acceptance:\n  run: {faults: forbidden, recovery_max_s: 0.3}\n")
+    run_inproc(data / "short.yaml", tmp_path / "a.mcap", seed=4)
+    run_inproc(p, tmp_path / "b.mcap", seed=4)
+    a, b = raw_messages(tmp_path / "a.mcap"), raw_messages(tmp_path / "b.mcap", DEVICE_TOPICS)
+    assert len(a) > 5000 and a == b
+
+
+def test_test_passes_and_writes_junit(tmp_path, data):
+    p = with_acceptance(tmp_path, data, "acceptance:\n  run:\n    faults: forbidden\n    "
+                                        "speed_error_max_rpm: band\n    recovery_max_s: 0.3\n")
+    junit = tmp_path / "out.xml"
+    r = subprocess.run([*CLI, "test", str(p), "--junit", str(junit)], capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "PASS short" in r.stdout and "1 of 1 profiles passed" in r.stdout
+    suite = ET.parse(junit).getroot().find("testsuite")
+    # complete, faults, speed error on 3 plateaus, recovery on 2 load steps
+    assert (suite.get("tests"), suite.get("failures"), suite.get("errors")) == ("7", "0", "0")
+
+
+def test_test_fails_with_the_measured_value_beside_the_bound(tmp_path, data):
+    failing = with_acceptance(tmp_path, data, "acceptance:\n  segments:\n    - {segment: \"load on\", "
+                                              "recovery_max_s: 0.001, ripple_q_max_a: 100}\n", "f.yaml")
+    passing = with_acceptance(tmp_path, data, "acceptance:\n  run: {faults: forbidden}\n", "g.yaml")
+    junit = tmp_path / "out.xml"
+    r = subprocess.run([*CLI, "test", str(failing), str(passing), "--junit", str(junit), "--workers", "1",
+                        "--out", str(tmp_path / "o")], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 1, r.stdout + r.stderr
+    assert "FAIL short: 2 of 3 checks passed" in r.stdout
+    assert "PASS short: 2 of 2 checks passed" in r.stdout
+    assert "1 of 2 profiles passed" in r.stdout
+    line = next(x for x in r.stdout.splitlines() if "recovery" in x)
+    assert "<= 0.001 s" in line and "FAIL" in line
+    suites = ET.parse(junit).getroot().findall("testsuite")
+    assert [s.get("failures") for s in suites] == ["1", "0"]
+    failure = suites[0].find("testcase/failure")
+    assert "bound <= 0.001 s" in failure.get("message") and "measured 0.0" in failure.get("message")
+    assert (tmp_path / "o" / "results.parquet").is_file()
+
+
+def test_test_reports_a_bad_profile_without_traceback(tmp_path, data):
+    p = with_acceptance(tmp_path, data, "acceptance:\n  run: {faults: sometimes}\n")
+    r = subprocess.run([*CLI, "test", str(p)], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and "acceptance.run.faults = 'sometimes'" in r.stderr
+    assert "Traceback" not in r.stderr
