@@ -92,3 +92,28 @@ def test_a_killed_hosts_log_is_recovered_for_any_mcap_reader(data, tmp_path):
         assert reader.get_summary() is not None
         assert sum(1 for _ in reader.iter_messages()) == n
     assert read_log(fixed).metadata["log"]["log_time_offset_ns"] == log.metadata["log"]["log_time_offset_ns"]
+
+
+def test_emulate_reports_when_a_killed_host_got_its_motor_stopped(data, tmp_path):
+    """The emulator as a user serves it (`emulate --report-state`), the host killed with -9: the
+    emulator's own report says the motor went to stopping within the heartbeat timeout."""
+    emu = subprocess.Popen([sys.executable, "-m", "pmsm_hil.cli.main", "emulate", "--report-state"],
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        port = emu.stdout.readline().split()[1]
+        emu.stdout.readline()                                   # motor: ... rig: ...
+        host = subprocess.Popen([sys.executable, "-m", "pmsm_hil.cli.main", "run", str(data / "long.yaml"),
+                                 "--port", port, "--out", str(tmp_path / "k.mcap"), "--no-live"],
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        assert emu.stdout.readline().startswith("state: running")
+        time.sleep(1.0)
+        host.kill()
+        host.wait(timeout=10)
+        line = emu.stdout.readline()
+        assert line.startswith("state: stopping"), line
+        since = float(re.search(r"since_heartbeat_s=([0-9.]+)", line).group(1))
+        assert since <= 0.5 + 50e-6 + 1e-9                      # the heartbeat timeout + one period
+        assert emu.stdout.readline().startswith("state: idle")   # brought to rest, PWM off
+    finally:
+        emu.terminate()
+        emu.wait(timeout=10)

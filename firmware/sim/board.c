@@ -29,6 +29,9 @@ struct emu {
     float plant_psi_scale[PROFILE_MAX_SEGMENTS];
     uint64_t plant_step_mask;
     int plant_seg;           /* segment whose start was last looked at, -1 before the first */
+    /* the last change of the firmware's state, seen after each control period (emu_state_change) */
+    int last_state;
+    uint32_t state_isr, state_hb_isr;
     /* rig effects (docs/rigs.md): the mask reported in sim_truth, and the saturation flux map */
     uint32_t effects_mask;
     int sat_nd, sat_nq;      /* 0: no map */
@@ -121,6 +124,8 @@ void emu_reset(emu_t *e)
     fw_init(&e->fw, &cfg);
     can_sim_init(&e->can, e->can_bitrate);
     fw_set_board_hook(&e->fw, board_msg, e);
+    e->last_state = (int)fw_state(&e->fw);
+    e->state_isr = e->state_hb_isr = 0u;
     e->plant_step_mask = 0u;
     e->plant_seg = -1;
     e->pcfg.map = NULL;   /* saturation: the flux map given by emu_set_array, if any */
@@ -212,6 +217,11 @@ uint32_t emu_run(emu_t *e, uint32_t max_ticks, uint8_t *out, uint32_t cap, uint3
             send_truth(e);
         }
         fw_isr(&e->fw, &meas, &cmd);
+        if ((int)fw_state(&e->fw) != e->last_state) {
+            e->last_state = (int)fw_state(&e->fw);
+            e->state_isr = fw_isr_count(&e->fw);
+            e->state_hb_isr = fw_heartbeat_isr(&e->fw);
+        }
         plant_steps(e);
         plant_step(&e->plant, &e->prev_cmd);   /* switch states or duties (plant_step_duty) */
         e->prev_cmd = cmd;
@@ -248,6 +258,11 @@ uint32_t emu_run(emu_t *e, uint32_t max_ticks, uint8_t *out, uint32_t cap, uint3
 uint32_t emu_isr_count(const emu_t *e) { return fw_isr_count(&e->fw); }
 uint32_t emu_heartbeat_isr(const emu_t *e) { return fw_heartbeat_isr(&e->fw); }
 int emu_state(const emu_t *e) { return (int)fw_state(&e->fw); }
+uint32_t emu_state_change(const emu_t *e, uint32_t *hb_isr)
+{
+    *hb_isr = e->state_hb_isr;
+    return e->state_isr;
+}
 int emu_active(const emu_t *e) { return fw_active(&e->fw) ? 1 : 0; }
 
 /* CAN (docs/can.md): a frame from the host; the frames the controller sent (see can_sim_take). */

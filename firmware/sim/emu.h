@@ -20,6 +20,9 @@ void emu_rx(emu_t *e, const uint8_t *data, uint32_t n);     /* octets from the h
 uint32_t emu_run(emu_t *e, uint32_t max_ticks, uint8_t *out, uint32_t cap, uint32_t *n_out);
 uint32_t emu_isr_count(const emu_t *e);
 uint32_t emu_heartbeat_isr(const emu_t *e);
+/* isr count at the last change of the firmware's state (seen after the control period that made
+ * it), and in *hb_isr the isr count of the last heartbeat at that moment */
+uint32_t emu_state_change(const emu_t *e, uint32_t *hb_isr);
 int emu_state(const emu_t *e);
 int emu_active(const emu_t *e);
 /* Rig effects: array settings (the saturation flux map: "sat_psi_d_wb", "sat_psi_q_wb", nodes with

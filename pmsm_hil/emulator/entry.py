@@ -30,6 +30,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--can-port", type=int, default=0, help="TCP port of the CAN endpoint (default: any free)")
     p.add_argument("--can-bitrate", type=int, default=1_000_000, help="emulated CAN bit rate (default 1 Mbit/s)")
     p.add_argument("--node", type=int, default=1, help="CAN node ID of the emulated drive, 0..15 (default 1)")
+    p.add_argument("--report-state", action="store_true",
+                   help="print a line each time the drive's state changes (device time, and the "
+                        "device time since the last heartbeat)")
     p.add_argument("--corrupt-ppm", type=float, default=0.0, metavar="PPM",
                    help="flip bits in this many of a million octets sent (tests the host's framing)")
 
@@ -74,10 +77,12 @@ def serve(args: argparse.Namespace) -> int:
             return _error("--can-bitrate must be 10000..1000000 and --node 0..15")
         from pmsm_hil.emulator.socketcand_server import serve_socketcand
         settings.update(can_bitrate=float(args.can_bitrate), can_node=float(args.node))
-        serve_socketcand(settings, announce=announce, port=args.can_port, pace=args.pace)
+        serve_socketcand(settings, announce=announce, port=args.can_port, pace=args.pace,
+                         report_state=args.report_state)
         return 0
     from pmsm_hil.emulator.server import serve_pty
-    serve_pty(settings, announce=announce, corrupt_ppm=args.corrupt_ppm, pace=args.pace)
+    serve_pty(settings, announce=announce, corrupt_ppm=args.corrupt_ppm, pace=args.pace,
+              report_state=args.report_state)
     return 0
 
 

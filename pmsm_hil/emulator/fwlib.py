@@ -31,6 +31,8 @@ def lib() -> ctypes.CDLL:
     so.emu_run.argtypes = [ctypes.c_void_p, ctypes.c_uint32, ctypes.c_void_p, ctypes.c_uint32,
                            ctypes.POINTER(ctypes.c_uint32)]
     so.emu_run.restype = ctypes.c_uint32
+    so.emu_state_change.argtypes = [ctypes.c_void_p, ctypes.POINTER(ctypes.c_uint32)]
+    so.emu_state_change.restype = ctypes.c_uint32
     for name in ("emu_isr_count", "emu_heartbeat_isr"):
         getattr(so, name).argtypes = [ctypes.c_void_p]
         getattr(so, name).restype = ctypes.c_uint32
@@ -157,6 +159,12 @@ class EmulatedDevice:
     @property
     def heartbeat_isr(self) -> int:
         return self._lib.emu_heartbeat_isr(self._p)
+
+    def state_change(self) -> tuple[int, int]:
+        """(isr count of the last state change, isr count of the last heartbeat then)."""
+        hb = ctypes.c_uint32(0)
+        isr = self._lib.emu_state_change(self._p, ctypes.byref(hb))
+        return int(isr), int(hb.value)
 
     @property
     def active(self) -> bool:

@@ -81,6 +81,29 @@ class Pacer:
         return max(0, min(real_time, CHUNK_TICKS))
 
 
+class StateReporter:
+    """`emulate --report-state`: one line on stdout each time the device's state changes, with
+    the device time and the device time since the last heartbeat, so that whoever started the
+    emulator sees when (in device time) a lost host got its motor stopped."""
+
+    def __init__(self, device: EmulatedDevice, out=None):
+        from pmsm_hil.protocol import generated as gen
+        self.dev = device
+        self.out = out or sys.stdout
+        self.names = {v: k for k, v in gen.ENUMS["state"].items()}
+        self.ts_s = device.get("ts_s")
+        self.last = device.state
+
+    def poll(self) -> None:
+        state = self.dev.state
+        if state == self.last:
+            return
+        self.last = state
+        isr, hb = self.dev.state_change()
+        print(f"state: {self.names.get(state, state)} t_s={isr * self.ts_s:.6f} "
+              f"since_heartbeat_s={(isr - hb) * self.ts_s:.6f}", file=self.out, flush=True)
+
+
 class LinkCorrupter:
     """Flips random bits in the octets sent to the host (a noisy line, for testing the host)."""
 
@@ -119,8 +142,10 @@ class PtyServer:
     def stop(self, *_args) -> None:
         self._stop = True
 
-    def serve(self) -> None:
+    def serve(self, reporter: StateReporter | None = None) -> None:
         while not self._stop:
+            if reporter is not None:
+                reporter.poll()
             now = time.monotonic()
             if self.dev.active:
                 ticks_allowed = self.pacer.allowance(self.dev, now)
@@ -173,7 +198,7 @@ class PtyServer:
 
 
 def serve_pty(settings: dict[str, float], announce=print, corrupt_ppm: float = 0.0,
-              pace: float | None = None) -> None:
+              pace: float | None = None, report_state: bool = False) -> None:
     """Run the emulator on a pty, printing `serial: PATH`, until SIGINT/SIGTERM."""
     dev = EmulatedDevice(settings)
     server = PtyServer(dev, corrupt_ppm, int(settings.get("seed", 1)), pace=pace)
@@ -182,6 +207,6 @@ def serve_pty(settings: dict[str, float], announce=print, corrupt_ppm: float = 0
     announce(f"serial: {server.path}")
     sys.stdout.flush()
     try:
-        server.serve()
+        server.serve(StateReporter(dev) if report_state else None)
     finally:
         server.close()

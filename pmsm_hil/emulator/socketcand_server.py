@@ -20,7 +20,7 @@ import sys
 import time
 
 from pmsm_hil.emulator.fwlib import EmulatedDevice
-from pmsm_hil.emulator.server import Pacer
+from pmsm_hil.emulator.server import Pacer, StateReporter
 
 MAX_PENDING = 1 << 16     # octets of text waiting for the client before the device pauses
 CHANNEL = "emu0"
@@ -163,8 +163,10 @@ class SocketcandServer:
             self._handle(cmd)
 
     # ------------------------------------------------------------------ main loop
-    def serve(self) -> None:
+    def serve(self, reporter=None) -> None:
         while not self._stop:
+            if reporter is not None:
+                reporter.poll()
             now = time.monotonic()
             active = self.dev.active
             ticks = self.pacer.allowance(self.dev, now) if active else 0
@@ -204,7 +206,7 @@ class SocketcandServer:
 
 
 def serve_socketcand(settings: dict[str, float], announce=print, port: int = 0,
-                     pace: float | None = None) -> None:
+                     pace: float | None = None, report_state: bool = False) -> None:
     """Run the emulator on a socketcand endpoint, printing `can: SPEC`, until SIGINT/SIGTERM."""
     dev = EmulatedDevice(settings)
     server = SocketcandServer(dev, port=port, pace=pace)
@@ -221,6 +223,6 @@ def serve_socketcand(settings: dict[str, float], announce=print, port: int = 0,
     announce(f"can: {spec}")
     sys.stdout.flush()
     try:
-        server.serve()
+        server.serve(StateReporter(dev) if report_state else None)
     finally:
         server.close()
