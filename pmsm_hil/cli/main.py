@@ -5,9 +5,10 @@ import argparse
 import sys
 
 from pmsm_hil import __version__
-from pmsm_hil.cli import analyze, bench, emulate, run
+from pmsm_hil.cli import analyze, bench, emulate, gap, import_csv, run
 
-COMMANDS = {"run": run, "emulate": emulate, "analyze": analyze, "bench": bench}
+COMMANDS = {"run": run, "emulate": emulate, "analyze": analyze, "bench": bench,
+            "import": import_csv, "gap": gap}
 
 EXIT_USER_ERROR = 2    # bad input: profile, file, option
 EXIT_DEVICE_ERROR = 3  # link or device: no answer, mismatch, dropped link, fault
