@@ -78,7 +78,7 @@ def diagnose(rec: ControlRecord, motor: MotorModel, holdout: ControlRecord | Non
         for c in candidates:
             if c in chosen:
                 continue
-            f = fit_effects(probe, chosen + [c], tr_sub, warm=warm, max_nfev=40)
+            f = fit_effects(probe, chosen + [c], tr_sub, warm=warm, max_nfev=12 * (len(EFFECTS[c].params) + 1))
             r_te = probe.residual(f.effects(), te_sel)
             st = bootstrap_closure(cur_test, r_te, fl_guess[te_sel], blk[te_sel], n_boot=200, seed=seed)
             rows.append((st["mse_gain"], st["mse_gain_se"], c, f, r_te))
@@ -98,6 +98,9 @@ def diagnose(rec: ControlRecord, motor: MotorModel, holdout: ControlRecord | Non
         chosen.append(c)
         warm = dict(f.x)
         cur_test = r_te
+        if fl is None:          # re-estimate the data floor on the augmented residual
+            fl_guess = floor_arr(probe.residual(f.effects()))
+            floor_mean = float(np.mean(fl_guess))
 
     final = fit_effects(probe, chosen, tr_sel, warm=warm, blocks=blk[tr_sel], max_nfev=80) if chosen else None
     r_aug = probe.residual(final.effects()) if final else r_base

@@ -109,7 +109,7 @@ def _thermal(w: Work, x, m) -> None:
 
 
 def _saturation(w: Work, x, m) -> None:
-    w.sat = (float(x[0]), float(x[1]), float(x[2]))
+    w.sat = tuple(float(v) for v in x)
 
 
 def _iron(w: Work, x, m) -> None:
@@ -138,8 +138,10 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            _thermal, lambda x, m: {"temp_winding_c": 25.0 + float(x[0]), "temp_magnet_c": 25.0 + float(x[1]),
                                   "temp_ref_c": 25.0, "alpha_r_per_k": ALPHA_R_PER_K,
                                   "alpha_psi_per_k": ALPHA_PSI_PER_K}, "d_temp_winding_k"),
-    Effect("saturation", "plant", ("k_d", "k_q", "k_x"), (0.0, 0.0, 0.0), (-0.9, -0.9, -0.9), (0.9, 0.9, 0.9),
-           _saturation, lambda x, m: {"k_d": float(x[0]), "k_q": float(x[1]), "k_x": float(x[2])}, "k_q"),
+    Effect("saturation", "plant", ("k_d", "i_sd_a", "k_q", "i_sq_a", "k_x", "k_c"), (0.05, 5.0, 0.05, 5.0, 0.0, 0.0),
+           (-0.9, 0.5, -0.9, 0.5, -3.0, -3.0), (0.9, 50.0, 0.9, 50.0, 3.0, 3.0), _saturation,
+           lambda x, m: {"k_d": float(x[0]), "i_sd_a": float(x[1]), "k_q": float(x[2]), "i_sq_a": float(x[3]),
+                         "k_x": float(x[4]), "k_c": float(x[5])}, "k_q", starts=((0.3, 3.0, 0.3, 3.0, 0.0, 0.0),)),
     Effect("iron_loss", "plant", ("g_fe_ms",), (1.0,), (0.0,), (100.0,), _iron,
            lambda x, m: {"r_fe_ohm": 1e3 / max(float(x[0]), 1e-9)}, "r_fe_ohm"),
     Effect("flux_harmonics", "plant", ("a5_re", "a5_im", "a7_re", "a7_im"), (0.0,) * 4, (-0.3,) * 4, (0.3,) * 4,

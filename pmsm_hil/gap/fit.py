@@ -62,7 +62,7 @@ def fit_effects(probe: Probe, names, sel: np.ndarray, warm: dict | None = None, 
         x0 = np.clip(x0, lo, hi)
         try:
             r = least_squares(fun, x0, bounds=(lo, hi), x_scale=scale, diff_step=1e-4, max_nfev=max_nfev,
-                              method="trf")
+                              method="trf", tr_solver="lsmr" if len(x0) > 1 else "exact")
         except ValueError:
             continue
         if best is None or r.cost < best.cost:

@@ -55,10 +55,17 @@ class PlantTerms:
     """Departures from the nominal plant used by the predictor (all optional)."""
     r_s_ohm: np.ndarray | float | None = None       # resistance in force
     psi_f_wb: np.ndarray | float | None = None      # magnet flux in force
-    sat: tuple[float, float, float] | None = None   # (k_d, k_q, k_x): relative incremental-L drop at i_max
+    sat: tuple | None = None   # (k_d, i_sd, k_q, i_sq, k_x, k_c): per-axis depth and knee, cross terms
     g_fe_s: float = 0.0                             # iron-loss conductance 1/R_fe
     u_dist_dq: np.ndarray | None = None             # (M, 2) extra voltage over the period, rotor frame
     psi_h_dq: tuple[np.ndarray, np.ndarray] | None = None   # flux harmonic (psi_dq(theta), dpsi_dq/dtheta)
+
+
+def _sat_axis(l0: float, k: float, i_s: float, i):
+    """One axis's saturation: incremental L = L0 (1 - k + k / (1 + (i/i_s)^2)) falls by the fraction k
+    beyond the knee current i_s; psi = L0 ((1 - k) i + k i_s atan(i/i_s))."""
+    x = i / i_s
+    return l0 * (1 - k + k / (1 + x * x)), l0 * ((1 - k) * i + k * i_s * np.arctan(x))
 
 
 def _flux(m: MotorModel, i: np.ndarray, pt: PlantTerms, psi_f):
@@ -66,14 +73,19 @@ def _flux(m: MotorModel, i: np.ndarray, pt: PlantTerms, psi_f):
     id_, iq = i[..., 0], i[..., 1]
     if pt.sat is None:
         return (psi_f + m.l_d_h * id_, m.l_q_h * iq), (m.l_d_h, 0.0, m.l_q_h)
-    kd, kq, kx = pt.sat
+    kd, isd, kq, isq, kx, kc = pt.sat
+    ld_inc, psi_d = _sat_axis(m.l_d_h, kd, isd, id_)
+    lq_inc, psi_q = _sat_axis(m.l_q_h, kq, isq, iq)
+    psi_d = psi_d + psi_f
     i2 = m.i_max_a ** 2
     lx = kx * np.sqrt(m.l_d_h * m.l_q_h) / i2
-    psi_d = psi_f + m.l_d_h * (id_ - kd * id_ ** 3 / (3 * i2)) - lx * id_ * iq ** 2
-    psi_q = m.l_q_h * (iq - kq * iq ** 3 / (3 * i2)) - lx * id_ ** 2 * iq
-    ldd = m.l_d_h * (1 - kd * id_ ** 2 / i2) - lx * iq ** 2
-    lqq = m.l_q_h * (1 - kq * iq ** 2 / i2) - lx * id_ ** 2
-    ldq = -2 * lx * id_ * iq
+    lc = kc * np.sqrt(m.l_d_h * m.l_q_h) / m.i_max_a
+    # cross-saturation from the co-energy terms -lx/2 id^2 iq^2 - lc id iq^2 (reciprocal)
+    psi_d = psi_d - lx * id_ * iq ** 2 - lc * iq ** 2
+    psi_q = psi_q - lx * id_ ** 2 * iq - 2 * lc * id_ * iq
+    ldd = ld_inc - lx * iq ** 2
+    lqq = lq_inc - lx * id_ ** 2 - 2 * lc * id_
+    ldq = -2 * lx * id_ * iq - 2 * lc * iq
     return (psi_d, psi_q), (ldd, ldq, lqq)
 
 

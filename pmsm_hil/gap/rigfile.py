@@ -10,18 +10,18 @@ from pmsm_hil.gap.model import MotorModel
 
 
 def _flux_map_csv(path: str, m: MotorModel, k: dict) -> None:
-    """The fitted saturation as a flux map (the probe's co-energy polynomial on a 15 x 15 grid)."""
-    kd, kq, kx = k["k_d"], k["k_q"], k["k_x"]
+    """The fitted saturation as a flux map (the probe's saturation model on a 15 x 15 grid)."""
+    from pmsm_hil.gap.model import PlantTerms, _flux
+
     i_max = m.i_max_a
     g = np.linspace(-1.2 * i_max, 1.2 * i_max, 15)
-    lx = kx * np.sqrt(m.l_d_h * m.l_q_h) / i_max ** 2
+    pt = PlantTerms(sat=(k["k_d"], k["i_sd_a"], k["k_q"], k["i_sq_a"], k["k_x"], k["k_c"]))
     with open(path, "w") as f:
-        f.write("# flux map fitted by pmsm-hil gap augment (docs/gap.md): polynomial co-energy model\n")
+        f.write("# flux map fitted by pmsm-hil gap augment (docs/gap.md): the probe's saturation model\n")
         f.write("i_d_a,i_q_a,psi_d_wb,psi_q_wb\n")
         for iq in g:
             for id_ in g:
-                pd = m.psi_f_wb + m.l_d_h * (id_ - kd * id_ ** 3 / (3 * i_max ** 2)) - lx * id_ * iq ** 2
-                pq = m.l_q_h * (iq - kq * iq ** 3 / (3 * i_max ** 2)) - lx * id_ ** 2 * iq
+                (pd, pq), _ = _flux(m, np.array([id_, iq]), pt, m.psi_f_wb)
                 f.write(f"{id_:.6g},{iq:.6g},{pd:.8g},{pq:.8g}\n")
 
 

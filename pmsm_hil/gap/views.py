@@ -17,9 +17,13 @@ def _dc_link(rec) -> dict:
         return {"name": "dc_link", "selected": False, "magnitude": None, "quantity": "v_dc_ripple_rms_v",
                 "interval": None, "closure": None, "evidence": "no DC-link voltage in the data"}
     sd = float(np.std(v))
-    nb = max(len(v) // 400, 2)
-    parts = np.array([np.std(p) for p in np.array_split(v, nb)])
-    ci = [float(np.percentile(parts, 2.5)), float(np.percentile(parts, 97.5))]
+    # 95 % interval of the rms deviation: bootstrap over 20 ms blocks of the squared deviation
+    sq = (v - np.mean(v)) ** 2
+    nb = max(len(v) // max(int(round(0.02 / rec.ts_s)), 1), 2)
+    blocks = np.array([p.mean() for p in np.array_split(sq, nb)])
+    rng = np.random.default_rng(0)
+    boot = np.sqrt(blocks[rng.integers(0, nb, size=(400, nb))].mean(1))
+    ci = [float(np.percentile(boot, 2.5)), float(np.percentile(boot, 97.5))]
     rel = sd / max(float(np.mean(v)), 1e-9)
     return {"name": "dc_link", "selected": bool(rel > DC_RIPPLE_REL), "magnitude": sd, "quantity": "v_dc_ripple_rms_v",
             "interval": ci, "closure": None,

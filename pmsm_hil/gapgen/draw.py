@@ -47,7 +47,7 @@ def draw_effect(rng, name: str) -> dict:
         return {"t_coulomb_nm": _lu(rng, 0.02, 0.3), "b_visc_nms": _lu(rng, 1e-4, 1e-3)}
     if name == "cogging":         # 0.3-3 % of 18 N m
         return {"amplitude_nm": _lu(rng, 0.05, 0.5), "periods_per_rev": int(rng.choice([24, 72])),
-                "phase_rad": float(rng.uniform(0, 2 * np.pi))}
+                "phase_rad": float(rng.uniform(-np.pi, np.pi))}
     raise KeyError(name)
 
 

@@ -31,6 +31,7 @@ def _write_inputs(d: str, trial: dict, effects: dict, segs: list, tag: str, outs
         mo["l_d_h"] *= trial["plant_l_scale"]
         mo["l_q_h"] *= trial["plant_l_scale"]
         mo["name"] = "plant"
+        mo["torque_max_nm"] = 15.0      # the MTPA torque at i_max changes with the inductances
         motor = os.path.join(d, "plant-motor.yaml")
         with open(motor, "w") as f:
             yaml.safe_dump(mo, f)
@@ -55,7 +56,15 @@ def _write_inputs(d: str, trial: dict, effects: dict, segs: list, tag: str, outs
 
 
 def run_trial(trial: dict) -> dict:
-    """One trial in a worker: generate, diagnose (from the log only), return the answer."""
+    """One trial in a worker: generate, diagnose (from the log only), return the answer (or the
+    error, as text: a failed trial is reported, not dropped)."""
+    try:
+        return _run_trial(trial)
+    except Exception as e:  # noqa: BLE001 - reported in the scores
+        return {"error": f"{type(e).__name__}: {e}"}
+
+
+def _run_trial(trial: dict) -> dict:
     from pmsm_hil.gap.diagnose import diagnose
     from pmsm_hil.gap.model import MotorModel
     from pmsm_hil.gap.probe import Probe
@@ -104,6 +113,9 @@ def _detectable(trial, out) -> bool:
 
 
 def score(trials: list[dict], outs: list[dict]) -> dict:
+    errors = [o["error"] for o in outs if "error" in o]
+    kept = [(t, o) for t, o in zip(trials, outs) if "error" not in o]
+    trials, outs = [t for t, _ in kept], [o for _, o in kept]
     single = [(t, o) for t, o in zip(trials, outs) if t["kind"] == "one"]
     det = [(t, o) for t, o in single if _detectable(t, o)]
     top1 = [o["selected"][:1] == list(t["effects"]) for t, o in det]
@@ -136,7 +148,7 @@ def score(trials: list[dict], outs: list[dict]) -> dict:
     def frac(x):
         return (float(np.mean(x)), len(x)) if x else (None, 0)
 
-    return {"trials": len(trials),
+    return {"trials": len(trials), "failed_trials": errors,
             "top1_detectable_single": frac(top1), "single_trials": len(single), "detectable_single": len(det),
             "both_found_two": frac(both),
             "false_attribution_null": frac([bool(o["selected"]) for o in null]),
@@ -161,7 +173,7 @@ def run_selftest(n_trials: int, seed: int, workers: int | None = None, progress:
         outs = list(ex.map(run_trial, trials))
     res = score(trials, outs)
     res.update({"seed": seed, "labels_sha256": digest, "library": list(LIBRARY),
-                "labels": json.loads(sealed), "answers": [o["selected"] for o in outs]})
+                "labels": json.loads(sealed), "answers": [o.get("selected", o.get("error")) for o in outs]})
     return res
 
 
@@ -170,6 +182,8 @@ def print_selftest(res: dict) -> None:
         return "-" if v[0] is None else f"{v[0]:.0%} of {v[1]}"
 
     print(f"gap selftest: {res['trials']} trials, seed {res['seed']}, labels sha256 {res['labels_sha256']}")
+    for e in res["failed_trials"]:
+        print(f"  failed trial: {e}")
     print(f"  top-1 on detectable single effects  {f(res['top1_detectable_single'])} "
           f"({res['detectable_single']} of {res['single_trials']} single trials detectable)")
     print(f"  both effects found (two-effect)     {f(res['both_found_two'])}")
