@@ -139,3 +139,19 @@ def test_cli_errors(tmp_path, capsys):
     bad.write_bytes(b"not an mcap")
     assert main(["gap", str(bad), "--motor", MOTOR]) == 2
     assert "Traceback" not in capsys.readouterr().err
+
+
+def test_verify_reruns_the_logs_profile(tmp_path, capsys):
+    from pmsm_hil.gapgen.recorder import record_profile
+    from pmsm_hil.gapgen.verify import verify
+
+    rig = ROOT / "profiles/rigs/effect-dead-time.yaml"
+    real = tmp_path / "real.mcap"
+    record_profile(PROFILE, real, rig_path=rig, seed=4)
+    same = verify(real, rig, seed=4)          # the true rig and seed reproduce the log exactly
+    assert all(s["rms_fitted"] == 0.0 and s["closure"] == 1.0 for s in same["signals"].values())
+    nominal = verify(real, ROOT / "profiles/rigs/ideal.yaml", seed=4)
+    assert all(s["closure"] == 0.0 for s in nominal["signals"].values())
+    assert nominal["signals"]["u_q_v"]["rms_nominal"] > 0.5
+    assert main(["gap", "verify", str(real), "--rig", str(rig), "--seed", "4"]) == 0
+    assert "closure" in capsys.readouterr().out

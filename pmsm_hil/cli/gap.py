@@ -4,6 +4,7 @@
     pmsm-hil gap augment LOG.mcap [--motor M.yaml] -o fitted-rig.yaml
     pmsm-hil gap record PROFILE.yaml --rig RIG.yaml -o real.mcap [--seed N]   (emulator, continuous)
     pmsm-hil gap selftest --trials N --seed S [--workers W] [--json]
+    pmsm-hil gap verify LOG.mcap --rig fitted-rig.yaml [--json]        (re-runs the log's profile)
 """
 from __future__ import annotations
 
@@ -15,7 +16,7 @@ import tempfile
 
 from pmsm_hil.cli.errors import fail
 
-ACTIONS = ("augment", "record", "selftest")
+ACTIONS = ("augment", "record", "selftest", "verify")
 
 
 def add_parser(sub) -> None:
@@ -28,7 +29,7 @@ def add_parser(sub) -> None:
     p.add_argument("--report", metavar="DIR", help="write plots, gap.json and index.html here")
     p.add_argument("--holdout", metavar="LOG", help="a second record of the same rig: held-out closure")
     p.add_argument("-o", "--out", help="output file (augment: rig yaml; record: log)")
-    p.add_argument("--rig", help="record: the rig file")
+    p.add_argument("--rig", help="record, verify: the rig file")
     p.add_argument("--trials", type=int, default=20, help="selftest: number of trials")
     p.add_argument("--seed", type=int, default=1, help="selftest / record: seed")
     p.add_argument("--workers", type=int, default=None, help="selftest: processes (default: CPUs)")
@@ -86,6 +87,22 @@ def main(args: argparse.Namespace) -> int:
                 return fail("error", "gap record PROFILE.yaml [--rig RIG.yaml] -o OUT.mcap", 2)
             cols = record_profile(args.rest[0], args.out, rig_path=args.rig, seed=args.seed)
             print(f"{args.out}: {len(cols['t_s'])} control periods recorded")
+            return 0
+        if args.target == "verify":
+            from pmsm_hil.gapgen.verify import verify
+            if not args.rest or not args.rig:
+                return fail("error", "gap verify LOG.mcap --rig fitted-rig.yaml", 2)
+            for f in (args.rest[0], args.rig):
+                if not os.path.exists(f):
+                    return fail("error", f"{f}: no such file", 2)
+            v = verify(args.rest[0], args.rig, seed=args.seed)
+            if args.json:
+                print(json.dumps(v))
+            else:
+                print(f"gap verify: free-run closure (median over i_d, i_q, u_d, u_q) {v['closure_median']:.2f}")
+                for k, s in v["signals"].items():
+                    print(f"  {k:10s} rms error nominal {s['rms_nominal']:.3g}, fitted {s['rms_fitted']:.3g}, "
+                          f"closure {s['closure']:.2f}")
             return 0
         path = args.rest[0] if args.target == "augment" and args.rest else args.target
         if args.target == "augment" and (not args.rest or not args.out):

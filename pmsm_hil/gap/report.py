@@ -30,6 +30,10 @@ def _fmt(v):
     return f"{v:.3g}"
 
 
+def _clo(v):
+    return "< -1" if v is not None and v < -1 else f"{v:.2f}"
+
+
 def verdict_lines(res: dict) -> list[str]:
     b, d = res["base_gap"], res["discretisation_gap"]
     out = [f"gap: {res['verdict']}",
@@ -37,9 +41,9 @@ def verdict_lines(res: dict) -> list[str]:
            f"({res['noise_floor_source']}); discretisation gap (Euler vs RK4) {d['excess_v2']:.3g} V^2"]
     c = res["closure"]
     if res["selected"]:
-        out.append(f"  held-out closure {c['closure']:.2f} [{c['closure_interval'][0]:.2f}, {c['closure_interval'][1]:.2f}] (test blocks)"
-                   + (f", {res['closure_region']['closure']:.2f} (held-out speed region)" if "closure_region" in res else "")
-                   + (f", {res['closure_record']['closure']:.2f} (held-out record)" if "closure_record" in res else ""))
+        out.append(f"  held-out closure {_clo(c['closure'])} [{_clo(c['closure_interval'][0])}, {_clo(c['closure_interval'][1])}] (test blocks)"
+                   + (f", {_clo(res['closure_region']['closure'])} (held-out speed region)" if "closure_region" in res else "")
+                   + (f", {_clo(res['closure_record']['closure'])} (held-out record)" if "closure_record" in res else ""))
     for e in res["effects"]:
         if e.get("selected"):
             iv = e.get("interval") or [None, None]

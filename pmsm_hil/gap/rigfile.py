@@ -14,7 +14,8 @@ def _flux_map_csv(path: str, m: MotorModel, k: dict) -> None:
     from pmsm_hil.gap.model import PlantTerms, _flux
 
     i_max = m.i_max_a
-    g = np.linspace(-1.2 * i_max, 1.2 * i_max, 15)
+    step = max(0.5, round(1.2 * i_max / 7 * 2) / 2)       # a grid the rig loader sees as regular
+    g = np.arange(-7, 8) * step
     pt = PlantTerms(sat=(k["k_d"], k["i_sd_a"], k["k_q"], k["i_sq_a"], k["k_x"], k["k_c"]))
     with open(path, "w") as f:
         f.write("# flux map fitted by pmsm-hil gap augment (docs/gap.md): the probe's saturation model\n")
@@ -22,7 +23,7 @@ def _flux_map_csv(path: str, m: MotorModel, k: dict) -> None:
         for iq in g:
             for id_ in g:
                 (pd, pq), _ = _flux(m, np.array([id_, iq]), pt, m.psi_f_wb)
-                f.write(f"{id_:.6g},{iq:.6g},{pd:.8g},{pq:.8g}\n")
+                f.write(f"{float(id_)!r},{float(iq)!r},{float(pd):.10g},{float(pq):.10g}\n")
 
 
 def fitted_rig(result: dict, m: MotorModel, out_path, sensor_spec: dict | None = None) -> dict:

@@ -123,15 +123,21 @@ def score(trials: list[dict], outs: list[dict]) -> dict:
     both = [set(t["effects"]) <= set(o["selected"]) for t, o in two]
     null = [o for t, o in zip(trials, outs) if t["kind"] == "none"]
     outside = [o for t, o in zip(trials, outs) if t["kind"] == "outside"]
+    two_det = [(t, o) for t, o in two if _detectable(t, o)]
     confusion: dict[str, dict[str, int]] = {}
     for t, o in single:
         truth = list(t["effects"])[0]
         got = o["selected"][0] if o["selected"] else "none"
         confusion.setdefault(truth, {}).setdefault(got, 0)
         confusion[truth][got] += 1
-    clo = [o["closure"] for t, o in det if o["selected"]] + [o["closure"] for t, o in two if o["selected"]]
-    clo_rec = [o["closure_record"] for t, o in det + two if o.get("closure_record") is not None]
-    mag_err, cover = [], []
+    clo = [o["closure"] for t, o in det + two_det if o["selected"]]
+    clo_rec = [o["closure_record"] for t, o in det + two_det if o.get("closure_record") is not None]
+    mag_err, cover, details = [], [], []
+    for t, o in zip(trials, outs):
+        details.append({"kind": t["kind"], "truth": {n: true_primary(n, p) for n, p in t["effects"].items()},
+                        "selected": o["selected"], "verdict": o["verdict"], "closure": o["closure"],
+                        "closure_record": o.get("closure_record"), "detectable": _detectable(t, o),
+                        "estimates": {e["name"]: [e["magnitude"], e["interval"]] for e in o["effects"] if e["selected"]}})
     for t, o in det:
         name = list(t["effects"])[0]
         tv = true_primary(name, t["effects"][name])
@@ -152,12 +158,13 @@ def score(trials: list[dict], outs: list[dict]) -> dict:
             "top1_detectable_single": frac(top1), "single_trials": len(single), "detectable_single": len(det),
             "both_found_two": frac(both),
             "false_attribution_null": frac([bool(o["selected"]) for o in null]),
-            "outside_flagged": frac([(not o["selected"]) or "unexplained" in o["verdict"] for o in outside]),
+            "outside_flagged": frac([(not o["selected"]) or "unexplained" in o["verdict"] or "parametric" in o["verdict"]
+                                     for o in outside]),
             "median_closure_test_blocks": float(np.median(clo)) if clo else None,
             "median_closure_heldout_record": float(np.median(clo_rec)) if clo_rec else None,
             "median_magnitude_error": float(np.median(mag_err)) if mag_err else None,
             "worst_magnitude_error": float(np.max(mag_err)) if mag_err else None,
-            "interval_coverage": frac(cover), "confusion": confusion}
+            "interval_coverage": frac(cover), "confusion": confusion, "details": details}
 
 
 def run_selftest(n_trials: int, seed: int, workers: int | None = None, progress: bool = True) -> dict:
