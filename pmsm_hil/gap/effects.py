@@ -139,7 +139,7 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
                                   "temp_ref_c": 25.0, "alpha_r_per_k": ALPHA_R_PER_K,
                                   "alpha_psi_per_k": ALPHA_PSI_PER_K}, "d_temp_winding_k"),
     Effect("saturation", "plant", ("k_d", "i_sd_a", "k_q", "i_sq_a", "k_x", "k_c"), (0.05, 5.0, 0.05, 5.0, 0.0, 0.0),
-           (-0.9, 0.5, -0.9, 0.5, -3.0, -3.0), (0.9, 50.0, 0.9, 50.0, 3.0, 3.0), _saturation,
+           (-0.9, 2.0, -0.9, 2.0, -3.0, -3.0), (0.9, 50.0, 0.9, 50.0, 3.0, 3.0), _saturation,
            lambda x, m: {"k_d": float(x[0]), "i_sd_a": float(x[1]), "k_q": float(x[2]), "i_sq_a": float(x[3]),
                          "k_x": float(x[4]), "k_c": float(x[5])}, "k_q", starts=((0.3, 3.0, 0.3, 3.0, 0.0, 0.0),)),
     Effect("iron_loss", "plant", ("g_fe_ms",), (1.0,), (0.0,), (100.0,), _iron,

@@ -160,6 +160,7 @@ def score(trials: list[dict], outs: list[dict]) -> dict:
             "false_attribution_null": frac([bool(o["selected"]) for o in null]),
             "outside_flagged": frac([(not o["selected"]) or "unexplained" in o["verdict"] or "parametric" in o["verdict"]
                                      for o in outside]),
+            "parametric_flag_on_effect_trials": frac(["parametric" in o["verdict"] for t, o in single + two]),
             "median_closure_test_blocks": float(np.median(clo)) if clo else None,
             "median_closure_heldout_record": float(np.median(clo_rec)) if clo_rec else None,
             "median_magnitude_error": float(np.median(mag_err)) if mag_err else None,
