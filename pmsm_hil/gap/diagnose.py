@@ -84,6 +84,8 @@ def diagnose(rec: ControlRecord, motor: MotorModel, holdout: ControlRecord | Non
             if c in chosen:
                 continue
             f = fit_effects(probe, chosen + [c], tr_sub, warm=warm, max_nfev=12 * (len(EFFECTS[c].params) + 1))
+            if not np.isfinite(f.cost):
+                continue
             r_te = probe.residual(f.effects(), te_sel)
             st = bootstrap_closure(cur_test, r_te, fl_guess[te_sel], blk[te_sel], n_boot=200, seed=seed)
             rows.append((st["mse_gain"], st["mse_gain_se"], c, f, r_te))
@@ -184,8 +186,8 @@ def diagnose(rec: ControlRecord, motor: MotorModel, holdout: ControlRecord | Non
     off = [n for n, v in zip(("R", "Ld", "Lq", "psi_f"), par["scale"]) if abs(v - 1) > 0.05]
     # constant inductances off the motor file explain the gap as well as the selected effects: a
     # parametric gap (the knee of `saturation` is kept above 2 A so that it cannot become a constant)
-    parametric = (par["closure"] > 0.5 and par["closure"] > clo["closure"] - 0.05
-                  and any(n in off for n in ("Ld", "Lq")))
+    parametric = (gap_v2 > 0.05 * max(floor_mean, 1e-9) and 0.5 < par["closure"] <= 1.5
+                  and par["closure"] > clo["closure"] - 0.05 and any(n in off for n in ("Ld", "Lq")))
     if not chosen:
         out["verdict"] = ("unexplained residual" if gap_v2 > 0.05 * max(floor_mean, 1e-9) and gap_v2 > 1e-3
                           else "no structural gap found")

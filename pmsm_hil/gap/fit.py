@@ -67,6 +67,9 @@ def fit_effects(probe: Probe, names, sel: np.ndarray, warm: dict | None = None, 
             continue
         if best is None or r.cost < best.cost:
             best = r
+    if best is None:            # every start failed (non-finite residuals): the candidate cannot be fitted
+        x = np.concatenate([np.asarray(warm.get(n, LIB[n].x0), float) for n in names])
+        return Fit(names, _split(names, x), _split(names, np.full(len(x), np.inf)), float("inf"))
     x = best.x
     se = _robust_se(best, blocks, len(sel) if sel is not None else len(probe.idx))
     return Fit(names, _split(names, x), _split(names, se), float(2 * best.cost / best.fun.size))

@@ -68,8 +68,9 @@ class Probe:
         jp = np.maximum(j - 1, rs)
         cmd, prev = w.cmd[j], w.cmd[jp]
         was_off = (~w.pwm_on[jp]) | (jp == j)
-        dist = dead_time_dist(dead, w.kind, cmd, prev.copy(), w.i_abc[rows], w.v_dc[rows], w.pwm_on[j], was_off,
-                              self.ts_s)
+        i_ab = w.i_abc[rows, :2]          # leg c carries -(i_a + i_b): i_c need not be measured
+        i3 = np.column_stack([i_ab, -i_ab.sum(axis=1)])
+        dist = dead_time_dist(dead, w.kind, cmd, prev.copy(), i3, w.v_dc[rows], w.pwm_on[j], was_off, self.ts_s)
         v = cmd * w.v_dc[rows][:, None] + dist
         u = np.stack([(2 * v[:, 0] - v[:, 1] - v[:, 2]) / 3.0, (v[:, 1] - v[:, 2]) / np.sqrt(3.0)], axis=1)
         u[~w.pwm_on[j]] = 0.0
