@@ -132,3 +132,20 @@ def test_steady_state_csv(tmp_path):
     assert isinstance(rec, SteadyRecord)
     assert rec.omega_e_rad_s[0] == pytest.approx(600 * 4 * 2 * np.pi / 60)
     assert np.allclose(rec.u_dq[:, 1], c["u_q_v"])
+
+
+def test_gap_runs_on_the_triggered_capture_alone(lab_log, tmp_path, capsys):
+    from pmsm_hil.gap.record import GAP_TOPICS
+    from pmsm_hil.log.writer import LogWriter
+
+    log = read_log(lab_log)
+    out = tmp_path / "capture-only.mcap"
+    with LogWriter(out, {k: v for k, v in log.metadata.items() if k != "log"},
+                   [(a.name, a.media_type, a.data) for a in log.attachments], topics=GAP_TOPICS) as w:
+        w.write_many("/pmsm/capture", log.topic("/pmsm/capture"))
+    rec = load_record(out)
+    assert rec.n == 1024 and rec.source.endswith("/pmsm/capture")
+    assert main(["gap", str(out), "--json"]) == 0          # the motor from the log's attachment
+    import json
+    res = json.loads(capsys.readouterr().out)
+    assert res["transitions"] == 1022 and res["effects"]

@@ -45,7 +45,7 @@ def diagnose(rec: ControlRecord, motor: MotorModel, holdout: ControlRecord | Non
     k = probe.idx
     if len(k) < 200:
         raise ValueError(f"{rec.source}: only {len(k)} usable control-rate transitions (need >= 200)")
-    blen = max(int(round(BLOCK_S / rec.ts_s)), 20)
+    blen = max(min(int(round(BLOCK_S / rec.ts_s)), len(k) // 10), 20)   # >= 10 blocks on a short capture
     blk = k // blen
     test = (blk % 2) == 1
     train = ~test
