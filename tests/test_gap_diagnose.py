@@ -48,6 +48,7 @@ def logs(tmp_path_factory):
         "null": _record(tmp, "null", {}),
         "dead_time": _record(tmp, "dt", {"dead_time": {"dead_time_s": 1.5e-6, "v_drop_v": 1.0, "i_dt_a": 0.5}}),
         "encoder": _record(tmp, "enc", {"encoder": {"offset_rad": 0.04}}),
+        "delay": _record(tmp, "delay", {"delay": {"sample_delay_s": 4e-6, "pwm_delay_periods": 1}}),
     }
 
 
@@ -109,6 +110,15 @@ def test_encoder_offset_found(logs, motor):
     res = diagnose(load_record(logs["encoder"]), motor)
     assert res["selected"][:1] == ["encoder"]
     assert res["effects"][0]["magnitude"] == pytest.approx(0.04, rel=0.2)
+
+
+def test_delay_quoted_as_the_total_delay(logs, motor):
+    res = diagnose(load_record(logs["delay"]), motor)
+    assert res["selected"][:1] == ["delay"]
+    e = res["effects"][0]
+    assert e["quantity"] == "total_delay_s"
+    assert e["magnitude"] == pytest.approx(54e-6, rel=0.15)
+    assert e["parameters"]["pwm_delay_periods"] == pytest.approx(1.0, abs=0.2)
 
 
 def test_cli_json_report_and_augment(logs, tmp_path, capsys):

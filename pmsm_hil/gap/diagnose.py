@@ -157,9 +157,9 @@ def diagnose(rec: ControlRecord, motor: MotorModel, holdout: ControlRecord | Non
         x = final.x[c]
         null = np.array([1.0 if p in ("gain_b",) else 0.0 for p in e.params])
         se = np.hypot(final.se[c], MODEL_FORM_REL * np.abs(x - null))
-        mag = primary_value(e, x, motor)
-        lo_v = primary_value(e, x - 1.96 * se, motor)
-        hi_v = primary_value(e, x + 1.96 * se, motor)
+        mag = primary_value(e, x, motor, rec.ts_s)
+        lo_v = primary_value(e, x - 1.96 * se, motor, rec.ts_s)
+        hi_v = primary_value(e, x + 1.96 * se, motor, rec.ts_s)
         step = next(s for s in steps if s["effect"] == c)
         effects.append({"name": c, "selected": True, "magnitude": mag, "quantity": e.primary,
                         "interval": sorted([lo_v, hi_v]) if e.primary not in ("offset_norm_a",) else
@@ -174,7 +174,7 @@ def diagnose(rec: ControlRecord, motor: MotorModel, holdout: ControlRecord | Non
         s = singles.get(c)
         e = EFFECTS[c]
         effects.append({"name": c, "selected": False,
-                        "magnitude": primary_value(e, s["x"], motor) if s else None, "quantity": e.primary,
+                        "magnitude": primary_value(e, s["x"], motor, rec.ts_s) if s else None, "quantity": e.primary,
                         "interval": None, "closure": (s["gain"] / excess) if s else None,
                         "evidence": (f"alone: held-out MSE change {s['gain']:.3g} V^2 (± {s['se']:.2g}); "
                                      f"below the threshold") if s else "not tried"})

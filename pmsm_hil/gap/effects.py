@@ -127,7 +127,7 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            "dead_time_s", needs="switch"),
     Effect("delay", "volt", ("sample_delay_s", "pwm_delay_periods"), (5e-6, 0.0), (0.0, 0.0), (4e-5, 3.0), _delay,
            lambda x, m: {"sample_delay_s": float(x[0]), "pwm_delay_periods": float(x[1])},
-           "pwm_delay_periods", starts=((5e-6, 1.0), (5e-6, 2.0))),
+           "total_delay_s", starts=((5e-6, 1.0), (5e-6, 2.0))),
     Effect("encoder", "meas", ("offset_rad",), (0.0,), (-0.5,), (0.5,), _encoder,
            lambda x, m: {"offset_rad": float(x[0])}, "offset_rad"),
     Effect("sensor_offset", "meas", ("i_a_a", "i_b_a"), (0.0, 0.0), (-2.0, -2.0), (2.0, 2.0), _offset,
@@ -168,8 +168,11 @@ ALL_NAMES = tuple(EFFECTS) + VIEW_EFFECTS
 STAGE_ORDER = {"meas": 0, "volt": 1, "plant": 2}
 
 
-def primary_value(eff: Effect, x: np.ndarray, m) -> float:
+def primary_value(eff: Effect, x: np.ndarray, m, ts_s: float = 0.0) -> float:
+    """The number quoted as the effect's magnitude (``eff.primary``)."""
     rep = eff.report(x, m)
+    if eff.primary == "total_delay_s":       # current-sample delay plus the late PWM update
+        return float(x[0] + x[1] * ts_s)
     if eff.primary == "offset_norm_a":
         a, b = rep["i_a_a"], rep["i_b_a"]
         return float(np.hypot(a, (a + 2 * b) / np.sqrt(3.0)))
