@@ -39,6 +39,9 @@ struct emu {
     double sat_psi_d_wb[PLANT_MAP_MAX_N * PLANT_MAP_MAX_N];
     double sat_psi_q_wb[PLANT_MAP_MAX_N * PLANT_MAP_MAX_N];
     plant_map_t map;
+    /* continuous control-rate recording (simulation only; emu_record): EMU_REC_COLS per period */
+    double *rec;
+    uint32_t rec_cap, rec_n;
 };
 
 /* Board hook: sim-only h2d messages (fw.c passes the ones it does not know). */
@@ -190,6 +193,31 @@ static uint32_t drain(emu_t *e, uint8_t *out, uint32_t cap, uint32_t n, uint32_t
     return n;
 }
 
+/* One row of the continuous recording: what the firmware measured at the period start and the
+ * command the board applies over this period (the previous one: one-period computation delay). */
+static void record_period(emu_t *e, const fw_meas_t *m)
+{
+    double *r = e->rec + (size_t)e->rec_n * EMU_REC_COLS;
+    r[0] = ((double)e->fw.tick - 1.0) * e->pcfg.ts_s;   /* the ISR has counted this period: as /pmsm/capture labels it */
+    r[1] = (double)m->i_a_a; r[2] = (double)m->i_b_a; r[3] = (double)m->i_c_a;
+    r[4] = (double)e->prev_cmd.s_a; r[5] = (double)e->prev_cmd.s_b; r[6] = (double)e->prev_cmd.s_c;
+    r[7] = e->prev_cmd.pwm_on ? 1.0 : 0.0;
+    r[8] = (double)m->v_dc_v;
+    r[9] = (double)e->fw.sig.theta_e_rad;
+    r[10] = (double)e->fw.sig.omega_e_rad_s;
+    r[11] = (double)e->prev_cmd.load_nm;
+    e->rec_n++;
+}
+
+void emu_record(emu_t *e, double *buf, uint32_t cap)
+{
+    e->rec = buf;
+    e->rec_cap = buf != NULL ? cap : 0u;
+    e->rec_n = 0u;
+}
+
+uint32_t emu_record_count(const emu_t *e) { return e->rec_n; }
+
 uint32_t emu_run(emu_t *e, uint32_t max_ticks, uint8_t *out, uint32_t cap, uint32_t *n_out)
 {
     uint32_t ticks = 0u, n = 0u;
@@ -221,6 +249,9 @@ uint32_t emu_run(emu_t *e, uint32_t max_ticks, uint8_t *out, uint32_t cap, uint3
             e->last_state = (int)fw_state(&e->fw);
             e->state_isr = fw_isr_count(&e->fw);
             e->state_hb_isr = fw_heartbeat_isr(&e->fw);
+        }
+        if (e->rec != NULL && e->rec_n < e->rec_cap) {
+            record_period(e, &meas);
         }
         plant_steps(e);
         plant_step(&e->plant, &e->prev_cmd);   /* switch states or duties (plant_step_duty) */

@@ -45,4 +45,12 @@ const char *emu_truth_name(uint32_t i);
 void emu_can_rx(emu_t *e, uint32_t id, const uint8_t *data, uint32_t dlc);
 uint32_t emu_can_take(emu_t *e, uint32_t *ids, uint8_t *dlc, uint8_t *data, uint32_t *isr, uint32_t cap);
 
+/* Continuous control-rate recording (simulation only): from now on every control period appends one
+ * row of EMU_REC_COLS values to buf (at most cap rows): t_s, i_a_a, i_b_a, i_c_a (as measured),
+ * s_a, s_b, s_c, pwm_on (the command applied over the period), v_dc_v (measured), theta_e_rad,
+ * omega_e_rad_s (the firmware's encoder angle and speed), load_nm. NULL stops it. */
+#define EMU_REC_COLS 12
+void emu_record(emu_t *e, double *buf, uint32_t cap);
+uint32_t emu_record_count(const emu_t *e);
+
 #endif

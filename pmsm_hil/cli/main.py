@@ -5,10 +5,12 @@ import argparse
 import sys
 
 from pmsm_hil import __version__
-from pmsm_hil.cli import analyze, bench, emulate, log, profiles, report, run, sweep, test
+from pmsm_hil.cli import (analyze, bench, emulate, gap, import_csv, log, profiles, report, run,
+                          sweep, test)
 
 COMMANDS = {"run": run, "emulate": emulate, "analyze": analyze, "report": report, "bench": bench,
-            "profiles": profiles, "log": log, "sweep": sweep, "test": test}
+            "profiles": profiles, "log": log, "sweep": sweep, "test": test, "import": import_csv,
+            "gap": gap}
 
 EXIT_USER_ERROR = 2    # bad input: profile, file, option
 EXIT_DEVICE_ERROR = 3  # link or device: no answer, mismatch, dropped link, fault

@@ -1,0 +1,148 @@
+"""`pmsm-hil import FILE.csv --motor M.yaml -o OUT.mcap`: external data into a log the gap diagnosis
+reads (DESIGN.md, "External data (CSV import)"; docs/gap.md).
+
+A header row, SI units, the project's column names. Control-rate data becomes `/pmsm/control_rate`,
+steady-state dq data `/pmsm/steady_dq`. Nothing is guessed: unknown or missing columns, a value that
+is not a number, time that does not increase, or (control rate) a sampling gap is an error that names
+the file, line and column.
+"""
+from __future__ import annotations
+
+import csv
+import math
+import os
+
+import numpy as np
+
+from pmsm_hil.gap.record import CONTROL_TOPIC, GAP_TOPICS, STEADY_TOPIC
+
+CONTROL_REQUIRED = ("t_s", "i_a_a", "i_b_a", "theta_e_rad")
+CONTROL_VOLTAGE = (("s_a", "s_b", "s_c"), ("d_a", "d_b", "d_c"), ("u_alpha_v", "u_beta_v"))
+CONTROL_OPTIONAL = ("i_c_a", "v_dc_v", "omega_e_rad_s", "load_nm", "temp_winding_c", "temp_magnet_c", "pwm_on")
+STEADY_REQUIRED = ("t_s", "u_d_v", "u_q_v", "i_d_a", "i_q_a")
+STEADY_SPEED = ("omega_e_rad_s", "speed_rpm")
+STEADY_OPTIONAL = ("temp_winding_c", "temp_magnet_c", "torque_nm")
+
+
+class ImportError_(ValueError):
+    """A CSV that cannot be imported; the message names file, line and column."""
+
+
+def _kind(path: str, header: list[str]) -> str:
+    cols = set(header)
+    dup = sorted({c for c in header if header.count(c) > 1})
+    if dup:
+        raise ImportError_(f"{path}: line 1: column(s) {', '.join(dup)} appear more than once")
+    if {"u_d_v", "u_q_v", "i_d_a", "i_q_a"} & cols and not {"i_a_a", "i_b_a"} & cols:
+        missing = [c for c in STEADY_REQUIRED if c not in cols]
+        if not any(c in cols for c in STEADY_SPEED):
+            missing.append("omega_e_rad_s or speed_rpm")
+        known = set(STEADY_REQUIRED) | set(STEADY_SPEED) | set(STEADY_OPTIONAL)
+        kind = "steady-state dq"
+    else:
+        missing = [c for c in CONTROL_REQUIRED if c not in cols]
+        groups = [g for g in CONTROL_VOLTAGE if all(c in cols for c in g)]
+        if not groups:
+            missing.append("the applied voltage (s_a s_b s_c, d_a d_b d_c or u_alpha_v u_beta_v)")
+        elif groups[0] != CONTROL_VOLTAGE[2] and "v_dc_v" not in cols:
+            missing.append("v_dc_v (needed with switch states or duties)")
+        known = set(CONTROL_REQUIRED) | {c for g in CONTROL_VOLTAGE for c in g} | set(CONTROL_OPTIONAL)
+        kind = "control-rate"
+    unknown = [c for c in header if c not in known]
+    problems = []
+    if unknown:
+        problems.append(f"unknown column(s) {', '.join(unknown)}")
+    if missing:
+        problems.append(f"missing column(s) {', '.join(missing)}")
+    if problems:
+        raise ImportError_(f"{path}: line 1: {kind} data: {'; '.join(problems)} "
+                           f"(columns and units: docs/gap.md)")
+    return "steady" if kind.startswith("steady") else "control"
+
+
+def read_csv(path: str | os.PathLike) -> tuple[str, dict[str, np.ndarray]]:
+    """(kind, columns) with kind "control" or "steady"; raises ImportError_."""
+    path = os.fspath(path)
+    try:
+        f = open(path, newline="", encoding="utf-8")
+    except OSError as e:
+        raise ImportError_(f"{path}: cannot read ({e.strerror})") from None
+    with f:
+        rows = [(n, r) for n, r in enumerate(csv.reader(f), start=1) if r and not r[0].lstrip().startswith("#")]
+    if not rows:
+        raise ImportError_(f"{path}: empty file (a header row and data rows are needed)")
+    hline, header = rows[0]
+    header = [h.strip() for h in header]
+    kind = _kind(path, header)
+    data = rows[1:]
+    if len(data) < 3:
+        raise ImportError_(f"{path}: only {len(data)} data row(s); at least 3 are needed")
+    vals = np.empty((len(data), len(header)))
+    for i, (line, r) in enumerate(data):
+        if len(r) != len(header):
+            raise ImportError_(f"{path}: line {line}: {len(r)} values for {len(header)} columns")
+        for j, v in enumerate(r):
+            try:
+                x = float(v)
+            except ValueError:
+                raise ImportError_(f"{path}: line {line}: {header[j]} = {v.strip()!r} is not a number") from None
+            if not math.isfinite(x):
+                raise ImportError_(f"{path}: line {line}: {header[j]} = {v.strip()!r} is not finite")
+            vals[i, j] = x
+    cols = {h: vals[:, j] for j, h in enumerate(header)}
+    lines = [ln for ln, _ in data]
+    t = cols["t_s"]
+    dt = np.diff(t)
+    bad = np.nonzero(dt <= 0)[0]
+    if len(bad):
+        k = int(bad[0]) + 1
+        raise ImportError_(f"{path}: line {lines[k]}: t_s = {t[k]!r} does not increase (previous {t[k - 1]!r})")
+    if kind == "control":
+        ts = float(np.median(dt))
+        gap = np.nonzero(np.abs(dt - ts) > 0.01 * ts)[0]
+        if len(gap):
+            k = int(gap[0]) + 1
+            raise ImportError_(f"{path}: line {lines[k]}: t_s = {t[k]!r} leaves a gap of {dt[k - 1]:.6g} s "
+                               f"after {t[k - 1]!r}; the sample time from t_s is {ts:.6g} s (±1 %) "
+                               f"({len(gap)} such step(s); split the file at the gaps)")
+        for c in ("s_a", "s_b", "s_c"):
+            if c in cols and np.any((cols[c] != 0) & (cols[c] != 1)):
+                k = int(np.nonzero((cols[c] != 0) & (cols[c] != 1))[0][0])
+                raise ImportError_(f"{path}: line {lines[k]}: {c} = {cols[c][k]!r} is not 0 or 1")
+        for c in ("d_a", "d_b", "d_c"):
+            if c in cols and np.any((cols[c] < 0) | (cols[c] > 1)):
+                k = int(np.nonzero((cols[c] < 0) | (cols[c] > 1))[0][0])
+                raise ImportError_(f"{path}: line {lines[k]}: {c} = {cols[c][k]!r} is not in [0, 1]")
+    return kind, cols
+
+
+def import_csv(path, motor_path, out_path) -> dict[str, object]:
+    """Read the CSV, check it against the motor file and write the log; returns a summary."""
+    from pmsm_hil.log.writer import LogWriter
+    from pmsm_hil.profiles import load_motor
+
+    motor = load_motor(motor_path)
+    kind, cols = read_csv(path)
+    n = len(cols["t_s"])
+    meta = {"gap_source": {"kind": "csv", "file": os.path.basename(os.fspath(path)), "motor": motor.name}}
+    with open(motor_path, "rb") as f:
+        atts = [("motor.yaml", "application/yaml", f.read())]
+    if kind == "control":
+        ts = float(np.median(np.diff(cols["t_s"])))
+        meta["gap_source"]["ts_s"] = repr(ts)
+        names = [fd.name for fd in GAP_TOPICS[0].fields]
+        rows = {k: cols.get(k, np.full(n, np.nan)) for k in names}
+        topic = CONTROL_TOPIC
+    else:
+        if "omega_e_rad_s" not in cols:
+            cols["omega_e_rad_s"] = cols["speed_rpm"] * motor.pole_pairs * 2 * np.pi / 60.0
+        names = [fd.name for fd in GAP_TOPICS[1].fields]
+        rows = {k: cols.get(k, np.full(n, np.nan)) for k in names}
+        topic = STEADY_TOPIC
+        ts = None
+    t0 = float(cols["t_s"][0])
+    if t0 < 0:
+        rows["t_s"] = rows["t_s"] - t0
+    with LogWriter(out_path, meta, atts, topics=GAP_TOPICS) as w:
+        w.write_many(topic, rows)
+    return {"kind": kind, "rows": n, "ts_s": ts, "topic": topic}

@@ -1,0 +1,200 @@
+"""The gap diagnosis: base and discretisation gaps, noise floor, parametric gap, forward selection of
+effects on held-out blocks, closure with block-bootstrap intervals (docs/gap.md)."""
+from __future__ import annotations
+
+import numpy as np
+
+from pmsm_hil.gap.effects import EFFECTS, PARAMETERS, VIEW_EFFECTS, primary_value
+from pmsm_hil.gap.fit import bootstrap_closure, fit_effects
+from pmsm_hil.gap.maps import residual_maps
+from pmsm_hil.gap.model import MotorModel
+from pmsm_hil.gap.noise import floor_from_data, floor_from_spec
+from pmsm_hil.gap.probe import Probe, mse
+from pmsm_hil.gap.record import ControlRecord
+from pmsm_hil.gap.views import view_effects
+
+BLOCK_S = 0.02          # block length for train/test splits and the bootstrap
+SIGNIFICANCE_Z = 3.0    # a gain must exceed this many block-bootstrap standard errors ...
+PRACTICAL_REL = 0.003   # ... and this fraction of the noise floor (practical significance)
+AMBIGUOUS_REL = 0.5     # a rival within this fraction of the winner's gain, within its error
+MAX_EFFECTS = 4
+# Model-form uncertainty added to the statistical (cluster-robust) error of every fitted parameter,
+# relative to the parameter's departure from "no effect": the augmentations are approximations of
+# the true physics, so their best fit carries a bias the sampling error does not show (calibrated
+# on self-test seeds 11 and 21, checked on other seeds: docs/gap.md).
+MODEL_FORM_REL = 0.10
+
+# the experiment that separates two effects (unordered pair -> advice)
+SEPARATE = {
+    frozenset({"thermal", "parameters"}): "record the winding/magnet temperature, or repeat cold",
+    frozenset({"delay", "dead_time"}): "run at two DC-link voltages (dead time scales with v_dc) "
+                                       "or with i_d steps at fixed speed",
+    frozenset({"encoder", "sensor_offset"}): "spin at two speeds in both directions at zero current",
+    frozenset({"saturation", "sensor_gain"}): "two current levels at standstill (d-axis steps)",
+    frozenset({"iron_loss", "thermal"}): "the same current at two speeds (iron loss grows with speed)",
+}
+
+
+def _advice(a, b):
+    return SEPARATE.get(frozenset({a, b}), "more current levels and speeds in both directions")
+
+
+def diagnose(rec: ControlRecord, motor: MotorModel, holdout: ControlRecord | None = None,
+             seed: int = 0, candidates=None) -> dict:
+    probe = Probe(rec, motor)
+    k = probe.idx
+    if len(k) < 200:
+        raise ValueError(f"{rec.source}: only {len(k)} usable control-rate transitions (need >= 200)")
+    blen = max(min(int(round(BLOCK_S / rec.ts_s)), len(k) // 10), 20)   # >= 10 blocks on a short capture
+    blk = k // blen
+    test = (blk % 2) == 1
+    train = ~test
+    tr_sel, te_sel = np.nonzero(train)[0], np.nonzero(test)[0]
+    tr_sub = tr_sel[::3]
+    if candidates is None:
+        candidates = [n for n, e in EFFECTS.items() if not (e.needs == "switch" and rec.voltage_kind == "alphabeta")]
+
+    r_base = probe.residual()
+    r_euler = probe.residual(euler=True)
+    fl = floor_from_spec(probe, rec.sensor_spec)
+    floor_src = "sensor specification"
+    if fl is None:
+        fl = None
+        floor_src = "estimated from the data (lag-1 autocovariance of the residual)"
+    out = {"source": rec.source, "samples": int(rec.n), "transitions": int(len(k)), "ts_s": rec.ts_s,
+           "voltage_kind": rec.voltage_kind}
+
+    def floor_arr(r_final):
+        if fl is not None:
+            return fl
+        return np.full(len(k), floor_from_data(r_final, k))
+
+    # forward selection
+    chosen: list[str] = []
+    warm: dict = {}
+    cur_test = r_base[te_sel]
+    steps = []
+    singles: dict[str, dict] = {}
+    ambiguous = []
+    fl_guess = floor_arr(r_base)
+    floor_mean = float(np.mean(fl_guess))
+    while len(chosen) < MAX_EFFECTS:
+        rows = []
+        for c in candidates:
+            if c in chosen:
+                continue
+            f = fit_effects(probe, chosen + [c], tr_sub, warm=warm, max_nfev=12 * (len(EFFECTS[c].params) + 1))
+            if not np.isfinite(f.cost):
+                continue
+            r_te = probe.residual(f.effects(), te_sel)
+            st = bootstrap_closure(cur_test, r_te, fl_guess[te_sel], blk[te_sel], n_boot=200, seed=seed)
+            rows.append((st["mse_gain"], st["mse_gain_se"], c, f, r_te))
+            if not chosen:
+                singles[c] = {"gain": st["mse_gain"], "se": st["mse_gain_se"], "x": f.x[c]}
+        if not rows:
+            break
+        rows.sort(key=lambda r: -r[0])
+        g, se, c, f, r_te = rows[0]
+        thr = max(SIGNIFICANCE_Z * se, PRACTICAL_REL * floor_mean)
+        steps.append({"effect": c, "gain_v2": g, "gain_se_v2": se, "threshold_v2": thr, "accepted": g > thr})
+        if g <= thr:
+            break
+        for g2, se2, c2, _, _ in rows[1:]:
+            if g2 > AMBIGUOUS_REL * g and g - g2 < 2 * np.hypot(se, se2):
+                ambiguous.append({"effects": [c, c2], "experiment": _advice(c, c2)})
+        chosen.append(c)
+        warm = dict(f.x)
+        cur_test = r_te
+        if fl is None:          # re-estimate the data floor on the augmented residual
+            fl_guess = floor_arr(probe.residual(f.effects()))
+            floor_mean = float(np.mean(fl_guess))
+
+    final = fit_effects(probe, chosen, tr_sel, warm=warm, blocks=blk[tr_sel], max_nfev=80) if chosen else None
+    r_aug = probe.residual(final.effects()) if final else r_base
+    floor = floor_arr(r_aug)
+    floor_mean = float(np.mean(floor))
+    mse_b, mse_a = mse(r_base[te_sel]), mse(r_aug[te_sel])
+    clo = bootstrap_closure(r_base[te_sel], r_aug[te_sel], floor[te_sel], blk[te_sel], seed=seed)
+    out.update({
+        "noise_floor_v2": floor_mean, "noise_floor_source": floor_src,
+        "noise_floor_data_v2": floor_from_data(r_aug, k),
+        "base_gap": {"mse_v2": mse_b, "rms_v": float(np.sqrt(mse_b)), "excess_over_floor_v2": mse_b - floor_mean},
+        "discretisation_gap": {"mse_euler_v2": mse(r_euler[te_sel]), "mse_rk4_v2": mse_b,
+                               "excess_v2": mse(r_euler[te_sel]) - mse_b},
+        "selected": chosen,
+        "closure": clo,
+        "steps": steps, "ambiguous": ambiguous,
+    })
+    # parametric gap (separately): best constant R, Ld, Lq, psi_f on the nominal model
+    pf = fit_effects(probe, ["parameters"], tr_sub, blocks=blk[tr_sub], max_nfev=40)
+    r_par = probe.residual(pf.effects(), te_sel)
+    pc = bootstrap_closure(r_base[te_sel], r_par, floor[te_sel], blk[te_sel], n_boot=200, seed=seed)
+    out["parametric_gap"] = {**{kk: v for kk, v in PARAMETERS.report(pf.x["parameters"], motor).items()},
+                             "scale": [float(v) for v in pf.x["parameters"]],
+                             "scale_se": [float(v) for v in pf.se["parameters"]], "closure": pc["closure"]}
+    # held-out operating region: fit below the median speed, test above it
+    if chosen:
+        sp = np.abs(rec.omega_e_rad_s[k])
+        lo_r = np.nonzero(train & (sp <= np.median(sp)))[0]
+        hi_r = np.nonzero(test & (sp > np.median(sp)))[0]
+        if len(lo_r) > 100 and len(hi_r) > 100:
+            fr = fit_effects(probe, chosen, lo_r[::2], warm=final.x, max_nfev=40)
+            cr = bootstrap_closure(r_base[hi_r], probe.residual(fr.effects(), hi_r), floor[hi_r], blk[hi_r],
+                                   n_boot=200, seed=seed)
+            out["closure_region"] = cr
+    if holdout is not None and chosen:
+        hp = Probe(holdout, motor)
+        hb = hp.idx // blen
+        rb, ra = hp.residual(), hp.residual(final.effects())
+        hfl = floor_from_spec(hp, holdout.sensor_spec)
+        hfl = hfl if hfl is not None else np.full(len(hp.idx), floor_from_data(ra, hp.idx))
+        out["closure_record"] = bootstrap_closure(rb, ra, hfl, hb, n_boot=200, seed=seed)
+    # the ranked list
+    excess = max(mse_b - floor_mean, 1e-12)
+    effects = []
+    for c in chosen:
+        e = EFFECTS[c]
+        x = final.x[c]
+        null = np.array([1.0 if p in ("i_b_gain",) else 0.0 for p in e.params])
+        se = np.hypot(final.se[c], MODEL_FORM_REL * np.abs(x - null))
+        mag = primary_value(e, x, motor, rec.ts_s)
+        lo_v = primary_value(e, x - 1.96 * se, motor, rec.ts_s)
+        hi_v = primary_value(e, x + 1.96 * se, motor, rec.ts_s)
+        step = next(s for s in steps if s["effect"] == c)
+        effects.append({"name": c, "selected": True, "magnitude": mag, "quantity": e.primary,
+                        "interval": sorted([lo_v, hi_v]) if e.primary not in ("offset_norm_a",) else
+                        [max(mag - 1.96 * float(np.max(se)) * 1.5, 0.0), mag + 1.96 * float(np.max(se)) * 1.5],
+                        "parameters": e.report(x, motor),
+                        "parameters_se": {p: float(s) for p, s in zip(e.params, se)},
+                        "closure": step["gain_v2"] / excess,
+                        "evidence": f"held-out MSE down {step['gain_v2']:.3g} V^2 "
+                                    f"(± {step['gain_se_v2']:.2g}, threshold {step['threshold_v2']:.2g})"})
+    rest = sorted((c for c in candidates if c not in chosen), key=lambda c: -singles.get(c, {"gain": -1e30})["gain"])
+    for c in rest:
+        s = singles.get(c)
+        e = EFFECTS[c]
+        effects.append({"name": c, "selected": False,
+                        "magnitude": primary_value(e, s["x"], motor, rec.ts_s) if s else None, "quantity": e.primary,
+                        "interval": None, "closure": (s["gain"] / excess) if s else None,
+                        "evidence": (f"alone: held-out MSE change {s['gain']:.3g} V^2 (± {s['se']:.2g}); "
+                                     f"below the threshold") if s else "not tried"})
+    effects.extend(view_effects(rec, motor))
+    out["effects"] = effects
+    out["where"] = residual_maps(probe, r_base, r_aug)
+    gap_v2 = mse_b - floor_mean
+    par = out["parametric_gap"]
+    off = [n for n, v in zip(("R", "Ld", "Lq", "psi_f"), par["scale"]) if abs(v - 1) > 0.05]
+    # constant inductances off the motor file explain the gap as well as the selected effects: a
+    # parametric gap (the knee of `saturation` is kept above 2 A so that it cannot become a constant)
+    parametric = (gap_v2 > 0.05 * max(floor_mean, 1e-9) and 0.5 < par["closure"] <= 1.5
+                  and par["closure"] > clo["closure"] - 0.05 and any(n in off for n in ("Ld", "Lq")))
+    if not chosen:
+        out["verdict"] = ("unexplained residual" if gap_v2 > 0.05 * max(floor_mean, 1e-9) and gap_v2 > 1e-3
+                          else "no structural gap found")
+    else:
+        left = 1.0 - clo["closure"]
+        out["verdict"] = ", ".join(chosen) + (f"; unexplained residual {left:.0%} of the gap" if left > 0.3 else "")
+    if parametric:
+        out["verdict"] += (f"; parametric gap: constant {', '.join(off)} off the motor file close more "
+                           f"({par['closure']:.2f}) than the effects")
+    return out

@@ -1,0 +1,128 @@
+"""Fitting augmentations on training blocks; block-robust intervals (docs/gap.md, "How far")."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from pmsm_hil.gap.effects import EFFECTS, PARAMETERS
+
+LIB = dict(EFFECTS, parameters=PARAMETERS)
+from pmsm_hil.gap.probe import Probe
+
+
+@dataclass
+class Fit:
+    names: tuple[str, ...]
+    x: dict[str, np.ndarray]
+    se: dict[str, np.ndarray]
+    cost: float
+
+    def effects(self):
+        return [(LIB[n], self.x[n]) for n in self.names]
+
+
+def _split(names, v):
+    out, p = {}, 0
+    for n in names:
+        k = len(LIB[n].params)
+        out[n] = v[p:p + k]
+        p += k
+    return out
+
+
+def fit_effects(probe: Probe, names, sel: np.ndarray, warm: dict | None = None, blocks: np.ndarray | None = None,
+                max_nfev: int = 60) -> Fit:
+    """Least-squares fit of the named effects' parameters on the transitions idx[sel]. ``blocks``
+    (block id per selected transition) gives cluster-robust standard errors."""
+    names = tuple(names)
+    if not names:
+        return Fit((), {}, {}, float(np.mean(probe.residual((), sel) ** 2)))
+    warm = warm or {}
+    lo = np.concatenate([LIB[n].lower for n in names])
+    hi = np.concatenate([LIB[n].upper for n in names])
+    scale = np.maximum(np.abs(hi - lo) / 20.0, 1e-12)
+
+    def starts():
+        base = [np.asarray(warm.get(n, LIB[n].x0), float) for n in names]
+        yield np.concatenate(base)
+        for j, n in enumerate(names):
+            if n not in warm:
+                for s in LIB[n].starts:
+                    alt = list(base)
+                    alt[j] = np.asarray(s, float)
+                    yield np.concatenate(alt)
+
+    def fun(z):
+        return probe.residual([(LIB[n], v) for n, v in _split(names, z).items()], sel).ravel()
+
+    best = None
+    for x0 in starts():
+        x0 = np.clip(x0, lo, hi)
+        try:
+            r = least_squares(fun, x0, bounds=(lo, hi), x_scale=scale, diff_step=1e-4, max_nfev=max_nfev,
+                              method="trf", tr_solver="lsmr" if len(x0) > 1 else "exact")
+        except ValueError:
+            continue
+        if best is None or r.cost < best.cost:
+            best = r
+    if best is None:            # every start failed (non-finite residuals): the candidate cannot be fitted
+        x = np.concatenate([np.asarray(warm.get(n, LIB[n].x0), float) for n in names])
+        return Fit(names, _split(names, x), _split(names, np.full(len(x), np.inf)), float("inf"))
+    x = best.x
+    se = _robust_se(best, blocks, len(sel) if sel is not None else len(probe.idx))
+    return Fit(names, _split(names, x), _split(names, se), float(2 * best.cost / best.fun.size))
+
+
+def _robust_se(r, blocks, m) -> np.ndarray:
+    """Cluster-robust (per block) standard errors of a least-squares fit."""
+    J = r.jac
+    J = J.toarray() if hasattr(J, "toarray") else np.asarray(J)
+    f = r.fun
+    try:
+        H = np.linalg.pinv(J.T @ J)
+    except np.linalg.LinAlgError:
+        return np.full(J.shape[1], np.inf)
+    if blocks is None:
+        s2 = float(f @ f) / max(len(f) - J.shape[1], 1)
+        return np.sqrt(np.maximum(np.diag(H) * s2, 0))
+    b2 = np.repeat(blocks, 2)          # two residual components per transition
+    g = J * f[:, None]
+    ub, inv = np.unique(b2, return_inverse=True)
+    G = np.zeros((len(ub), J.shape[1]))
+    np.add.at(G, inv, g)
+    S = G.T @ G * len(ub) / max(len(ub) - 1, 1)
+    return np.sqrt(np.maximum(np.diag(H @ S @ H), 0))
+
+
+def block_mse(r: np.ndarray, blocks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(sum of squared residual per block, samples per block) over the block ids in order."""
+    ub, inv = np.unique(blocks, return_inverse=True)
+    ss = np.zeros(len(ub))
+    np.add.at(ss, inv, np.sum(r * r, axis=1) / 2.0)
+    cnt = np.bincount(inv, minlength=len(ub)).astype(float)
+    return ss, cnt
+
+
+def bootstrap_closure(r_base, r_aug, floor_per_sample, blocks, n_boot=400, seed=0):
+    """Closure (MSE_base - MSE_aug) / (MSE_base - floor) on these samples and a 95 % block-
+    bootstrap interval; also the MSE reduction and its interval."""
+    sb, cnt = block_mse(r_base, blocks)
+    sa, _ = block_mse(r_aug, blocks)
+    ub, inv = np.unique(blocks, return_inverse=True)
+    fl = np.zeros(len(ub))
+    np.add.at(fl, inv, floor_per_sample)
+    rng = np.random.default_rng(seed)
+    idx = rng.integers(0, len(ub), size=(n_boot, len(ub)))
+
+    def stat(i):
+        n = cnt[i].sum(-1)
+        mb, ma, mf = sb[i].sum(-1) / n, sa[i].sum(-1) / n, fl[i].sum(-1) / n
+        return (mb - ma) / np.maximum(mb - mf, 1e-12 * np.maximum(mb, 1e-30)), mb - ma
+
+    c, d = stat(np.arange(len(ub)))
+    cb, db = stat(idx)
+    return {"closure": float(c), "closure_interval": [float(np.percentile(cb, 2.5)), float(np.percentile(cb, 97.5))],
+            "mse_gain": float(d), "mse_gain_se": float(np.std(db)),
+            "mse_gain_interval": [float(np.percentile(db, 2.5)), float(np.percentile(db, 97.5))]}

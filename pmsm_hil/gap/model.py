@@ -1,0 +1,151 @@
+"""The nominal model and the one-step current predictor of the gap probe (docs/gap.md, "Probe").
+
+Sample k: currents measured at t_k, voltage u_alpha_beta held over [t_k, t_k+1] (constant in the
+stationary frame), rotor at theta_k turning at omega_k. The predictor integrates the dq model over
+the period with RK4 (the applied voltage rotated into the rotor frame at every stage), so that its
+discretisation error (~(omega Ts)^5) is far below the firmware's forward-Euler one; the difference
+between the two on the same data is reported as the discretisation gap.
+
+The residual is in volts-equivalent: r = diag(Ld, Lq) (i_dq,meas(k+1) - i_dq,pred(k+1)) / Ts, the
+mean voltage over the period that the model misses.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+SQ3 = np.sqrt(3.0)
+
+
+@dataclass(frozen=True)
+class MotorModel:
+    r_s_ohm: float
+    l_d_h: float
+    l_q_h: float
+    psi_f_wb: float
+    pole_pairs: int
+    j_kgm2: float = 0.0
+    b_visc_nms: float = 0.0
+    t_coulomb_nm: float = 0.0
+    i_max_a: float = 10.0
+    v_dc_v: float = 0.0
+
+    @classmethod
+    def from_motor(cls, m) -> "MotorModel":
+        return cls(float(m.r_s_ohm), float(m.l_d_h), float(m.l_q_h), float(m.psi_f_wb), int(m.pole_pairs),
+                   float(getattr(m, "j_kgm2", 0.0) or 0.0), float(getattr(m, "b_visc_nms", 0.0) or 0.0),
+                   float(getattr(m, "t_coulomb_nm", 0.0) or 0.0), float(getattr(m, "i_max_a", 10.0) or 10.0),
+                   float(getattr(m, "v_dc_v", 0.0) or 0.0))
+
+
+def abc_to_ab(i_abc: np.ndarray) -> np.ndarray:
+    """alpha-beta from phases a and b (as the firmware builds it; i_c is not used)."""
+    return np.stack([i_abc[..., 0], (i_abc[..., 0] + 2.0 * i_abc[..., 1]) / SQ3], axis=-1)
+
+
+def rot(x: np.ndarray, ang: np.ndarray) -> np.ndarray:
+    """Rotate 2-vectors by ang (ab -> dq with ang = -theta)."""
+    c, s = np.cos(ang), np.sin(ang)
+    return np.stack([c * x[..., 0] - s * x[..., 1], s * x[..., 0] + c * x[..., 1]], axis=-1)
+
+
+@dataclass
+class PlantTerms:
+    """Departures from the nominal plant used by the predictor (all optional)."""
+    r_s_ohm: np.ndarray | float | None = None       # resistance in force
+    psi_f_wb: np.ndarray | float | None = None      # magnet flux in force
+    sat: tuple | None = None   # (k_d, i_sd, k_q, i_sq, k_x, k_c): per-axis depth and knee, cross terms
+    g_fe_s: float = 0.0                             # iron-loss conductance 1/R_fe
+    u_dist_dq: np.ndarray | None = None             # (M, 2) extra voltage over the period, rotor frame
+    psi_h_dq: tuple[np.ndarray, np.ndarray] | None = None   # flux harmonic (psi_dq(theta), dpsi_dq/dtheta)
+
+
+def _sat_axis(l0: float, k: float, i_s: float, i):
+    """One axis's saturation: incremental L = L0 (1 - k + k / (1 + (i/i_s)^2)) falls by the fraction k
+    beyond the knee current i_s; psi = L0 ((1 - k) i + k i_s atan(i/i_s))."""
+    x = i / i_s
+    return l0 * (1 - k + k / (1 + x * x)), l0 * ((1 - k) * i + k * i_s * np.arctan(x))
+
+
+def _flux(m: MotorModel, i: np.ndarray, pt: PlantTerms, psi_f):
+    """psi_dq and the incremental inductance matrix (Ldd, Ldq, Lqq) at currents i (M, 2)."""
+    id_, iq = i[..., 0], i[..., 1]
+    if pt.sat is None:
+        return (psi_f + m.l_d_h * id_, m.l_q_h * iq), (m.l_d_h, 0.0, m.l_q_h)
+    kd, isd, kq, isq, kx, kc = pt.sat
+    ld_inc, psi_d = _sat_axis(m.l_d_h, kd, isd, id_)
+    lq_inc, psi_q = _sat_axis(m.l_q_h, kq, isq, iq)
+    psi_d = psi_d + psi_f
+    i2 = m.i_max_a ** 2
+    lx = kx * np.sqrt(m.l_d_h * m.l_q_h) / i2
+    lc = kc * np.sqrt(m.l_d_h * m.l_q_h) / m.i_max_a
+    # cross-saturation from the co-energy terms -lx/2 id^2 iq^2 - lc id iq^2 (reciprocal)
+    psi_d = psi_d - lx * id_ * iq ** 2 - lc * iq ** 2
+    psi_q = psi_q - lx * id_ ** 2 * iq - 2 * lc * id_ * iq
+    ldd = ld_inc - lx * iq ** 2
+    lqq = lq_inc - lx * id_ ** 2 - 2 * lc * id_
+    ldq = -2 * lx * id_ * iq - 2 * lc * iq
+    return (psi_d, psi_q), (ldd, ldq, lqq)
+
+
+def rot_cs(x: np.ndarray, c: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Rotate 2-vectors by the angle whose cosine and sine are c, s."""
+    return np.stack([c * x[..., 0] - s * x[..., 1], s * x[..., 0] + c * x[..., 1]], axis=-1)
+
+
+def _deriv(m: MotorModel, i, u, omega, pt: PlantTerms, r_s, psi_f):
+    if pt.u_dist_dq is not None:
+        u = u + pt.u_dist_dq
+    (psi_d, psi_q), (ldd, ldq, lqq) = _flux(m, i, pt, psi_f)
+    e_d, e_q = -omega * psi_q, omega * psi_d
+    if pt.g_fe_s:
+        # iron loss: i_fe = e / R_fe flows beside the magnetising current; flux from i - i_fe
+        ife_d, ife_q = pt.g_fe_s * e_d, pt.g_fe_s * e_q
+        e_d = e_d + omega * (m.l_q_h * ife_q)
+        e_q = e_q - omega * (m.l_d_h * ife_d)
+    if pt.psi_h_dq is not None:
+        ph, dph = pt.psi_h_dq
+        e_d = e_d - omega * ph[1] + omega * dph[0]
+        e_q = e_q + omega * ph[0] + omega * dph[1]
+    v_d = u[..., 0] - r_s * i[..., 0] - e_d
+    v_q = u[..., 1] - r_s * i[..., 1] - e_q
+    det = ldd * lqq - ldq * ldq
+    return np.stack([(lqq * v_d - ldq * v_q) / det, (ldd * v_q - ldq * v_d) / det], axis=-1)
+
+
+def predict_rk4(m: MotorModel, i0, theta0, omega, u_ab, ts_s: float, pt: PlantTerms | None = None,
+                n_sub: int = 1, cs0: tuple | None = None) -> np.ndarray:
+    """i_dq at t_k + Ts from i0 (M, 2) at t_k (RK4, n_sub steps per period); cs0: cos, sin of theta0
+    if already known."""
+    pt = pt or PlantTerms()
+    r_s = m.r_s_ohm if pt.r_s_ohm is None else pt.r_s_ohm
+    psi_f = m.psi_f_wb if pt.psi_f_wb is None else pt.psi_f_wb
+    h = ts_s / n_sub
+    i = np.asarray(i0, float)
+    c0, s0 = cs0 if cs0 is not None else (np.cos(theta0), np.sin(theta0))
+    u = rot_cs(u_ab, c0, -s0)                       # rotor-frame voltage at the period start
+    ch, sh = np.cos(0.5 * h * omega), np.sin(0.5 * h * omega)
+    for _ in range(n_sub):
+        u_mid = rot_cs(u, ch, -sh)
+        u_end = rot_cs(u_mid, ch, -sh)
+        k1 = _deriv(m, i, u, omega, pt, r_s, psi_f)
+        k2 = _deriv(m, i + 0.5 * h * k1, u_mid, omega, pt, r_s, psi_f)
+        k3 = _deriv(m, i + 0.5 * h * k2, u_mid, omega, pt, r_s, psi_f)
+        k4 = _deriv(m, i + h * k3, u_end, omega, pt, r_s, psi_f)
+        i = i + (h / 6.0) * (k1 + 2 * k2 + 2 * k3 + k4)
+        u = u_end
+    return i
+
+
+def predict_euler(m: MotorModel, i0, theta0, omega, u_ab, ts_s: float) -> np.ndarray:
+    """The firmware's predictor: forward Euler of the dq model, voltage at the period-start angle."""
+    u = rot(u_ab, -theta0)
+    d = (u[..., 0] - m.r_s_ohm * i0[..., 0] + omega * m.l_q_h * i0[..., 1]) / m.l_d_h
+    q = (u[..., 1] - m.r_s_ohm * i0[..., 1] - omega * (m.l_d_h * i0[..., 0] + m.psi_f_wb)) / m.l_q_h
+    return i0 + ts_s * np.stack([d, q], axis=-1)
+
+
+def volts(m: MotorModel, di: np.ndarray, ts_s: float) -> np.ndarray:
+    """A one-step current error (M, 2) in volts-equivalent."""
+    return di * np.array([m.l_d_h, m.l_q_h]) / ts_s

@@ -1,0 +1,139 @@
+"""The probe: one-step residuals of the nominal model, optionally augmented (docs/gap.md)."""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from pmsm_hil.gap.effects import EFFECTS, STAGE_ORDER, Work, dead_time_dist
+from pmsm_hil.gap.model import MotorModel, PlantTerms, abc_to_ab, predict_euler, predict_rk4, rot_cs, volts
+from pmsm_hil.gap.record import ControlRecord
+
+def _shift(x: np.ndarray, n: int, run_start: np.ndarray) -> np.ndarray:
+    """x[k - n], held at the start of each run (run_start[k]: index of k's run start)."""
+    if n <= 0:
+        return x
+    j = np.maximum(np.arange(len(x)) - n, run_start)
+    return x[j]
+
+
+class Probe:
+    """One-step predictor on a control-rate record. ``idx``: the samples k whose k-1 and k+1 are
+    in the same run with the PWM on (the transitions the residual is computed for)."""
+
+    def __init__(self, rec: ControlRecord, motor: MotorModel):
+        self.rec, self.m = rec, motor
+        n = rec.n
+        self.run_start = np.zeros(n, dtype=np.int64)
+        first = np.zeros(n, dtype=bool)
+        ok = np.zeros(n, dtype=bool)
+        for a, b in rec.runs:
+            self.run_start[a:b] = a
+            first[a] = True
+            ok[a + 1:b - 1] = True
+        ok &= rec.pwm_on & np.roll(rec.pwm_on, 1)
+        self.first = first
+        self.idx = np.nonzero(ok)[0]
+        self.ts_s = rec.ts_s
+        self._u0 = rec.u_alpha_beta()
+        self._c, self._s = np.cos(rec.theta_e_rad), np.sin(rec.theta_e_rad)
+        self._iab = abc_to_ab(rec.i_abc)
+
+    # ------------------------------------------------------------------ evaluation
+    def work(self, effects) -> Work:
+        rec = self.rec
+        w = Work(i_abc=rec.i_abc, theta=rec.theta_e_rad, omega=rec.omega_e_rad_s,
+                 cmd=None if rec.voltage_kind == "alphabeta" else rec.v_cmd, kind=rec.voltage_kind,
+                 v_dc=rec.v_dc_v, pwm_on=rec.pwm_on, first=self.first)
+        ctx = _Ctx(self.ts_s, self.m)
+        for eff, x in sorted(effects, key=lambda ex: STAGE_ORDER[ex[0].stage]):
+            eff.apply(w, x, ctx)
+        return w
+
+    def u_at(self, w: Work, rows: np.ndarray) -> np.ndarray:
+        """The applied alpha-beta voltage over the periods starting at rows (M, 2)."""
+        n_int = int(np.floor(w.pwm_delay))
+        frac = w.pwm_delay - n_int
+        u = self._u_int(w, rows, n_int)
+        if frac > 0:
+            u = (1 - frac) * u + frac * self._u_int(w, rows, n_int + 1)
+        return u
+
+    def _u_int(self, w: Work, rows, n):
+        rs = self.run_start[rows]
+        j = np.maximum(rows - n, rs)
+        dead = w.extra.get("dead_time")
+        if w.cmd is None or dead is None:
+            return self._u0[j]
+        jp = np.maximum(j - 1, rs)
+        cmd, prev = w.cmd[j], w.cmd[jp]
+        was_off = (~w.pwm_on[jp]) | (jp == j)
+        i_ab = w.i_abc[rows, :2]          # leg c carries -(i_a + i_b): i_c need not be measured
+        i3 = np.column_stack([i_ab, -i_ab.sum(axis=1)])
+        dist = dead_time_dist(dead, w.kind, cmd, prev.copy(), i3, w.v_dc[rows], w.pwm_on[j], was_off, self.ts_s)
+        v = cmd * w.v_dc[rows][:, None] + dist
+        u = np.stack([(2 * v[:, 0] - v[:, 1] - v[:, 2]) / 3.0, (v[:, 1] - v[:, 2]) / np.sqrt(3.0)], axis=1)
+        u[~w.pwm_on[j]] = 0.0
+        return u
+
+    def residual(self, effects=(), sel: np.ndarray | None = None, euler: bool = False) -> np.ndarray:
+        """Residual (M, 2) in volts-equivalent for idx[sel] (all when None)."""
+        k = self.idx if sel is None else self.idx[sel]
+        w = self.work(effects)
+        m, ts = self.m, self.ts_s
+        th0 = w.theta[k]
+        d = self.rec.theta_e_rad[0] - w.theta[0]      # an encoder correction shifts the angle
+        c0, s0, c1, s1 = self._c[k], self._s[k], self._c[k + 1], self._s[k + 1]
+        if d != 0.0:
+            cd, sd = np.cos(d), np.sin(d)
+            c0, s0 = c0 * cd + s0 * sd, s0 * cd - c0 * sd
+            c1, s1 = c1 * cd + s1 * sd, s1 * cd - c1 * sd
+        i_ab = self._iab if w.i_abc is self.rec.i_abc else None
+        if i_ab is None:
+            kk = np.concatenate([k - 1, k, k + 1])
+            sub = abc_to_ab(w.i_abc[kk])
+            n = len(k)
+            ab_m1, ab_0, ab_1 = sub[:n], sub[n:2 * n], sub[2 * n:]
+        else:
+            ab_m1, ab_0, ab_1 = i_ab[k - 1], i_ab[k], i_ab[k + 1]
+        a = w.sample_frac
+        i0_ab = ab_0 if a == 0 else (ab_0 - a * ab_m1) / (1 - a)
+        i0 = rot_cs(i0_ab, c0, -s0)
+        om = w.omega[k]
+        if euler:
+            pred = predict_euler(m, i0, th0, om, self.u_at(w, k), ts)
+        else:
+            pt = PlantTerms(r_s_ohm=m.r_s_ohm * w.r_scale, psi_f_wb=m.psi_f_wb * w.psi_scale, sat=w.sat,
+                            g_fe_s=w.g_fe_s)
+            if w.harm is not None:
+                pt.psi_h_dq = _harmonic_flux(m.psi_f_wb, w.harm, th0 + 0.5 * om * ts)
+            mp = m
+            if "l_scale" in w.extra:
+                mp = replace(m, l_d_h=m.l_d_h * w.extra["l_scale"][0], l_q_h=m.l_q_h * w.extra["l_scale"][1])
+            pred = predict_rk4(mp, i0, th0, om, self.u_at(w, k), ts, pt, cs0=(c0, s0))
+        if a != 0:
+            pred = rot_cs((1 - a) * rot_cs(pred, c1, s1) + a * i0_ab, c1, -s1)
+        meas1 = rot_cs(ab_1, c1, -s1)
+        return volts(m, meas1 - pred, ts)
+
+
+class _Ctx:
+    def __init__(self, ts_s, m):
+        self.ts_s, self.m = ts_s, m
+
+
+def _harmonic_flux(psi_f, harm, theta):
+    """psi_h in dq and d psi_h / d theta for the 5th/7th harmonics (a5, a7 complex, relative EMF)."""
+    a5, a7 = harm
+    e6p, e6m = np.exp(6j * theta), np.exp(-6j * theta)
+    ph = psi_f * (a7 / 7 * e6p + a5 / 5 * e6m)
+    dph = psi_f * (6j * a7 / 7 * e6p - 6j * a5 / 5 * e6m)
+    return np.stack([ph.real, ph.imag], -1).T, np.stack([dph.real, dph.imag], -1).T
+
+
+def mse(r: np.ndarray) -> float:
+    return float(np.mean(r * r)) if len(r) else float("nan")
+
+
+def effect_list(names_x: dict) -> list:
+    return [(EFFECTS[n], np.asarray(x, float)) for n, x in names_x.items()]

@@ -1,0 +1,167 @@
+"""Gap diagnosis on emulator records with known (hidden to the diagnoser) rig effects: the probe,
+the noise floor, selection, magnitudes, closure, the CLI, and the generator/diagnoser separation."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from pmsm_hil.cli.main import main
+from pmsm_hil.gap.diagnose import diagnose
+from pmsm_hil.gap.model import MotorModel
+from pmsm_hil.gap.noise import floor_from_data, floor_from_spec
+from pmsm_hil.gap.probe import Probe
+from pmsm_hil.gap.record import load_record
+from pmsm_hil.profiles import load_motor, load_rig
+
+ROOT = Path(__file__).resolve().parents[1]
+MOTOR = str(ROOT / "profiles/motors/paper-a-ipmsm.yaml")
+PROFILE = ROOT / "tests/data/gap-short.yaml"
+SENSORS = {"adc_noise": {"i_noise_a": 0.02}, "adc_quantisation": {"adc_lsb_a": 100 / 4096},
+           "encoder": {"lines": 2500, "offset_e_rad": 0.0}}
+SPEC = {"i_noise_a": 0.02, "adc_lsb_a": 100 / 4096, "encoder_lines": 2500.0}
+
+
+def _record(tmp, name, effects, sensors=True, seed=7):
+    from pmsm_hil.gapgen.recorder import record_profile
+
+    eff = dict(SENSORS) if sensors else {}
+    for k, v in effects.items():
+        eff[k] = dict(eff.get(k, {}), **v)
+    rig = tmp / f"{name}.yaml"
+    rig.write_text(yaml.safe_dump({"name": name, "description": "test", "v_dc_v": None, "effects": eff}))
+    out = tmp / f"{name}.mcap"
+    record_profile(PROFILE, out, rig_path=rig, seed=seed, full_log=False, sensors=SPEC if sensors else None)
+    return out
+
+
+@pytest.fixture(scope="module")
+def logs(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("gapdiag")
+    return {
+        "ideal": _record(tmp, "ideal", {}, sensors=False),
+        "null": _record(tmp, "null", {}),
+        "dead_time": _record(tmp, "dt", {"dead_time": {"dead_time_s": 1.5e-6, "v_drop_v": 1.0, "i_dt_a": 0.5}}),
+        "encoder": _record(tmp, "enc", {"encoder": {"offset_e_rad": 0.04}}),
+        "delay": _record(tmp, "delay", {"delay": {"sample_delay_s": 4e-6, "pwm_delay_periods": 1}}),
+    }
+
+
+@pytest.fixture(scope="module")
+def motor():
+    return MotorModel.from_motor(load_motor(MOTOR))
+
+
+def test_diagnoser_never_imports_the_generator():
+    code = ("import sys, pmsm_hil.gap.diagnose, pmsm_hil.gap.csv_import, pmsm_hil.gap.report, "
+            "pmsm_hil.gap.rigfile, pmsm_hil.gap.steady\n"
+            "bad = [m for m in sys.modules if m.startswith(('pmsm_hil.gapgen', 'pmsm_hil.emulator', "
+            "'pmsm_hil.runner', 'pmsm_hil._fw'))]\n"
+            "assert not bad, bad\n")
+    subprocess.run([sys.executable, "-c", code], check=True, cwd=ROOT)
+    for f in (ROOT / "pmsm_hil/gap").glob("*.py"):
+        text = f.read_text()
+        assert "gapgen" not in text and "emulator" not in text.replace("emulator's", ""), f.name
+
+
+def test_rk4_probe_is_exact_on_the_ideal_plant_and_euler_is_not(logs, motor):
+    rec = load_record(logs["ideal"])
+    p = Probe(rec, motor)
+    rk = float(np.mean(p.residual() ** 2))
+    eu = float(np.mean(p.residual(euler=True) ** 2))
+    assert rk < 1.0            # V^2: what is left is the firmware's float32 and its speed estimate
+    assert eu > 5 * rk         # the discretisation gap is reported on its own
+
+
+def test_noise_floor_from_the_spec_agrees_with_the_data(logs, motor):
+    rec = load_record(logs["null"])
+    p = Probe(rec, motor)
+    spec = float(np.mean(floor_from_spec(p, rec.sensor_spec)))
+    data = floor_from_data(p.residual(), p.idx)
+    assert spec > 10.0
+    assert data == pytest.approx(spec, rel=0.2)
+    assert float(np.mean(p.residual() ** 2)) == pytest.approx(spec, rel=0.2)
+
+
+def test_null_record_selects_nothing(logs, motor):
+    res = diagnose(load_record(logs["null"]), motor)
+    assert res["selected"] == []
+    assert res["verdict"] == "no structural gap found"
+    assert not any(e["selected"] for e in res["effects"])
+
+
+def test_dead_time_found_with_its_size_and_closure(logs, motor):
+    res = diagnose(load_record(logs["dead_time"]), motor)
+    assert res["selected"][:1] == ["dead_time"]
+    e = res["effects"][0]
+    assert e["name"] == "dead_time" and e["selected"]
+    assert e["magnitude"] == pytest.approx(1.5e-6, rel=0.15)
+    assert e["interval"][0] <= 1.5e-6 * 1.15 and e["interval"][1] >= 1.5e-6 * 0.85
+    assert res["closure"]["closure"] > 0.8
+    assert res["discretisation_gap"]["excess_v2"] > 0
+
+
+def test_encoder_offset_found(logs, motor):
+    res = diagnose(load_record(logs["encoder"]), motor)
+    assert res["selected"][:1] == ["encoder"]
+    assert res["effects"][0]["magnitude"] == pytest.approx(0.04, rel=0.2)
+
+
+def test_delay_quoted_as_the_total_delay(logs, motor):
+    res = diagnose(load_record(logs["delay"]), motor)
+    assert res["selected"][:1] == ["delay"]
+    e = res["effects"][0]
+    assert e["quantity"] == "total_delay_s"
+    assert e["magnitude"] == pytest.approx(54e-6, rel=0.15)
+    assert e["parameters"]["pwm_delay_periods"] == pytest.approx(1.0, abs=0.2)
+
+
+def test_cli_json_report_and_augment(logs, tmp_path, capsys):
+    assert main(["gap", str(logs["dead_time"]), "--motor", MOTOR, "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    names = [e["name"] for e in out["effects"]]
+    assert names[0] == "dead_time" and out["effects"][0]["selected"]
+    assert set(names) >= {"dead_time", "delay", "encoder", "sensor_offset", "sensor_gain", "saturation", "thermal",
+                          "flux_harmonics", "dc_link", "iron_loss", "friction", "cogging"}
+    for k in ("name", "selected", "magnitude", "interval", "closure", "evidence"):
+        assert k in out["effects"][0]
+    assert "base_gap" in out and "discretisation_gap" in out and "closure" in out
+    assert main(["gap", str(logs["dead_time"]), "--motor", MOTOR, "--report", str(tmp_path / "rep")]) == 0
+    text = capsys.readouterr().out
+    assert "dead_time" in text and (tmp_path / "rep/index.html").exists() and (tmp_path / "rep/gap.json").exists()
+    rig_path = tmp_path / "fitted-rig.yaml"
+    assert main(["gap", "augment", str(logs["dead_time"]), "--motor", MOTOR, "-o", str(rig_path)]) == 0
+    rig = load_rig(rig_path)
+    assert rig.effects.dead_time.enabled
+    assert rig.effects.dead_time.dead_time_s == pytest.approx(1.5e-6, rel=0.15)
+    assert rig.effects.adc_noise.i_noise_a == pytest.approx(0.02)
+
+
+def test_cli_errors(tmp_path, capsys):
+    assert main(["gap", str(tmp_path / "nope.mcap"), "--motor", MOTOR]) == 2
+    assert "no such file" in capsys.readouterr().err
+    bad = tmp_path / "bad.mcap"
+    bad.write_bytes(b"not an mcap")
+    assert main(["gap", str(bad), "--motor", MOTOR]) == 2
+    assert "Traceback" not in capsys.readouterr().err
+
+
+def test_verify_reruns_the_logs_profile(tmp_path, capsys):
+    from pmsm_hil.gapgen.recorder import record_profile
+    from pmsm_hil.gapgen.verify import verify
+
+    rig = ROOT / "profiles/rigs/effect-dead-time.yaml"
+    real = tmp_path / "real.mcap"
+    record_profile(PROFILE, real, rig_path=rig, seed=4)
+    same = verify(real, rig, seed=4)          # the true rig and seed reproduce the log exactly
+    assert all(s["rms_fitted"] == 0.0 and s["closure"] == 1.0 for s in same["signals"].values())
+    nominal = verify(real, ROOT / "profiles/rigs/ideal.yaml", seed=4)
+    assert all(s["closure"] == 0.0 for s in nominal["signals"].values())
+    assert nominal["signals"]["u_q_v"]["rms_nominal"] > 0.5
+    assert main(["gap", "verify", str(real), "--rig", str(rig), "--seed", "4"]) == 0
+    assert "closure" in capsys.readouterr().out
