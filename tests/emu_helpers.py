@@ -1,6 +1,8 @@
 """Helpers shared by the tests that run profiles on the in-process emulator."""
 from __future__ import annotations
 
+import os
+
 from mcap.reader import make_reader
 
 from pmsm_hil.device import DeviceSpec, open_device
@@ -30,4 +32,19 @@ def raw_messages(path, topics=DEVICE_TOPICS):
                 offset = int(m.metadata.get("log_time_offset_ns", "0"))
         for schema, channel, msg in reader.iter_messages(topics=list(topics)):
             out.append((channel.topic, msg.log_time - offset, bytes(msg.data)))
+    return out
+
+
+def emulator_children(pid: int) -> list[int]:
+    """Emulator processes started by the host `pid` (they run in sessions of their own)."""
+    out = []
+    for d in os.listdir("/proc"):
+        if d.isdigit():
+            try:
+                with open(f"/proc/{d}/stat") as f:
+                    ppid = int(f.read().rsplit(")", 1)[1].split()[1])
+            except OSError:
+                continue
+            if ppid == pid:
+                out.append(int(d))
     return out

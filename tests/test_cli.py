@@ -11,6 +11,7 @@ import tty
 
 import pytest
 
+from emu_helpers import emulator_children
 from pmsm_hil.log.reader import read_log
 from pmsm_hil.protocol import codec
 from pmsm_hil.protocol import generated as gen
@@ -109,21 +110,6 @@ def test_protocol_mismatch_is_refused_naming_both_versions(data):
     assert f"version {gen.PROTOCOL_VERSION}" in r.stderr and f"{gen.SCHEMA_HASH:08x}" in r.stderr
 
 
-def _emulator_children(pid: int) -> list[int]:
-    """Emulator processes started by the host `pid` (they run in sessions of their own)."""
-    out = []
-    for d in os.listdir("/proc"):
-        if d.isdigit():
-            try:
-                with open(f"/proc/{d}/stat") as f:
-                    ppid = int(f.read().rsplit(")", 1)[1].split()[1])
-            except OSError:
-                continue
-            if ppid == pid:
-                out.append(int(d))
-    return out
-
-
 def test_ctrl_c_stops_the_motor_and_keeps_the_log(data, tmp_path):
     """Ctrl-C typed in a terminal: SIGINT goes to the whole foreground process group."""
     out = tmp_path / "int.mcap"
@@ -139,7 +125,7 @@ def test_ctrl_c_stops_the_motor_and_keeps_the_log(data, tmp_path):
         if line.startswith("t=") and "running" in line:
             break
     time.sleep(0.5)
-    children = _emulator_children(p.pid)
+    children = emulator_children(p.pid)
     assert children, "the run should have started an emulator process"
     os.killpg(p.pid, signal.SIGINT)        # the group: what the terminal does
     stdout, stderr = p.communicate(timeout=60)

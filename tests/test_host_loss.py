@@ -12,6 +12,7 @@ import threading
 import time
 
 import pytest
+from emu_helpers import emulator_children
 
 from pmsm_hil.emulator.fwlib import EmulatedDevice
 from pmsm_hil.emulator.server import PtyServer
@@ -76,8 +77,14 @@ def test_a_killed_hosts_log_is_recovered_for_any_mcap_reader(data, tmp_path):
         m = re.match(r"t=\s*([0-9.]+)/", line)
         if m and float(m.group(1)) >= 2.5:
             break
+    children = emulator_children(host.pid)
+    assert children
     os.killpg(host.pid, signal.SIGKILL)
     host.wait(timeout=10)
+    deadline = time.monotonic() + 20          # its emulator stops the motor, then ends
+    while time.monotonic() < deadline and any(os.path.exists(f"/proc/{c}") for c in children):
+        time.sleep(0.05)
+    assert not any(os.path.exists(f"/proc/{c}") for c in children), "the emulator outlived its host"
     log = read_log(out)
     assert not log.finalised
     n = sum(log.counts.values())

@@ -7,6 +7,7 @@ settings and serves a pty (or a CAN endpoint) until SIGTERM/SIGINT.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 EXIT_USER_ERROR = 2
@@ -33,6 +34,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--report-state", action="store_true",
                    help="print a line each time the drive's state changes (device time, and the "
                         "device time since the last heartbeat)")
+    p.add_argument("--exit-with-parent", action="store_true",
+                   help="end once the process that started the emulator is gone and the drive is at "
+                        "rest (the host sets this for the emulator it starts)")
     p.add_argument("--corrupt-ppm", type=float, default=0.0, metavar="PPM",
                    help="flip bits in this many of a million octets sent (tests the host's framing)")
 
@@ -70,6 +74,7 @@ def serve(args: argparse.Namespace) -> int:
     if args.pace is not None and not 0.001 <= args.pace <= 1000:
         return _error(f"--pace {args.pace}: must be between 0.001 and 1000 (times real time)")
     settings = emulator_settings(motor, rig, seed=args.seed, baud=args.baud)
+    parent = os.getppid() if args.exit_with_parent else None
     plant = f"motor: {motor.name}  rig: {rig.name or 'default'}"
     announce = (lambda s: print(f"{s}\n{plant}", flush=True))
     if args.can:   # docs/can.md
@@ -78,11 +83,11 @@ def serve(args: argparse.Namespace) -> int:
         from pmsm_hil.emulator.socketcand_server import serve_socketcand
         settings.update(can_bitrate=float(args.can_bitrate), can_node=float(args.node))
         serve_socketcand(settings, announce=announce, port=args.can_port, pace=args.pace,
-                         report_state=args.report_state)
+                         report_state=args.report_state, parent_pid=parent)
         return 0
     from pmsm_hil.emulator.server import serve_pty
     serve_pty(settings, announce=announce, corrupt_ppm=args.corrupt_ppm, pace=args.pace,
-              report_state=args.report_state)
+              report_state=args.report_state, parent_pid=parent)
     return 0
 
 

@@ -18,7 +18,7 @@ from pmsm_hil.errors import TransportError
 
 
 def start(args: list[str]) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-P", "-m", "pmsm_hil.emulator", *args],
+    return subprocess.Popen([sys.executable, "-P", "-m", "pmsm_hil.emulator", "--exit-with-parent", *args],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, stdin=subprocess.DEVNULL,
                             start_new_session=True)
 

@@ -104,6 +104,25 @@ class StateReporter:
               f"since_heartbeat_s={(isr - hb) * self.ts_s:.6f}", file=self.out, flush=True)
 
 
+class ParentWatch:
+    """For an emulator started by a host (`--exit-with-parent`): once that host process is gone
+    (killed, crashed) and the drive is at rest, the emulator ends. Its motor is stopped first, by
+    the heartbeat timeout, as on a rig; a lost host leaves no emulator behind."""
+
+    CHECK_S = 0.2
+
+    def __init__(self, device: EmulatedDevice, parent_pid: int):
+        self.dev = device
+        self.parent_pid = parent_pid
+        self._next = 0.0
+
+    def done(self, now: float) -> bool:
+        if now < self._next:
+            return False
+        self._next = now + self.CHECK_S
+        return os.getppid() != self.parent_pid and not self.dev.active
+
+
 class LinkCorrupter:
     """Flips random bits in the octets sent to the host (a noisy line, for testing the host)."""
 
@@ -142,11 +161,13 @@ class PtyServer:
     def stop(self, *_args) -> None:
         self._stop = True
 
-    def serve(self, reporter: StateReporter | None = None) -> None:
+    def serve(self, reporter: StateReporter | None = None, watch: ParentWatch | None = None) -> None:
         while not self._stop:
             if reporter is not None:
                 reporter.poll()
             now = time.monotonic()
+            if watch is not None and watch.done(now):
+                break
             if self.dev.active:
                 ticks_allowed = self.pacer.allowance(self.dev, now)
             else:
@@ -198,7 +219,8 @@ class PtyServer:
 
 
 def serve_pty(settings: dict[str, float], announce=print, corrupt_ppm: float = 0.0,
-              pace: float | None = None, report_state: bool = False) -> None:
+              pace: float | None = None, report_state: bool = False,
+              parent_pid: int | None = None) -> None:
     """Run the emulator on a pty, printing `serial: PATH`, until SIGINT/SIGTERM."""
     dev = EmulatedDevice(settings)
     server = PtyServer(dev, corrupt_ppm, int(settings.get("seed", 1)), pace=pace)
@@ -207,6 +229,7 @@ def serve_pty(settings: dict[str, float], announce=print, corrupt_ppm: float = 0
     announce(f"serial: {server.path}")
     sys.stdout.flush()
     try:
-        server.serve(StateReporter(dev) if report_state else None)
+        server.serve(StateReporter(dev) if report_state else None,
+                     ParentWatch(dev, parent_pid) if parent_pid else None)
     finally:
         server.close()

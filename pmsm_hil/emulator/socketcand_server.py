@@ -20,7 +20,7 @@ import sys
 import time
 
 from pmsm_hil.emulator.fwlib import EmulatedDevice
-from pmsm_hil.emulator.server import Pacer, StateReporter
+from pmsm_hil.emulator.server import Pacer, ParentWatch, StateReporter
 
 MAX_PENDING = 1 << 16     # octets of text waiting for the client before the device pauses
 CHANNEL = "emu0"
@@ -163,10 +163,12 @@ class SocketcandServer:
             self._handle(cmd)
 
     # ------------------------------------------------------------------ main loop
-    def serve(self, reporter=None) -> None:
+    def serve(self, reporter=None, watch=None) -> None:
         while not self._stop:
             if reporter is not None:
                 reporter.poll()
+            if watch is not None and watch.done(time.monotonic()):
+                break
             now = time.monotonic()
             active = self.dev.active
             ticks = self.pacer.allowance(self.dev, now) if active else 0
@@ -206,7 +208,8 @@ class SocketcandServer:
 
 
 def serve_socketcand(settings: dict[str, float], announce=print, port: int = 0,
-                     pace: float | None = None, report_state: bool = False) -> None:
+                     pace: float | None = None, report_state: bool = False,
+                     parent_pid: int | None = None) -> None:
     """Run the emulator on a socketcand endpoint, printing `can: SPEC`, until SIGINT/SIGTERM."""
     dev = EmulatedDevice(settings)
     server = SocketcandServer(dev, port=port, pace=pace)
@@ -223,6 +226,7 @@ def serve_socketcand(settings: dict[str, float], announce=print, port: int = 0,
     announce(f"can: {spec}")
     sys.stdout.flush()
     try:
-        server.serve(StateReporter(dev) if report_state else None)
+        server.serve(StateReporter(dev) if report_state else None,
+                     ParentWatch(dev, parent_pid) if parent_pid else None)
     finally:
         server.close()
