@@ -6,6 +6,7 @@
 
 #include "check.h"
 #include "plant.h"
+#include "plant_cmd.h"
 #include "rng.h"
 
 #define PI 3.14159265358979323846
@@ -14,22 +15,6 @@
 
 static int finite3(double a, double b, double c) { return isfinite(a) && isfinite(b) && isfinite(c); }
 static double maxd(double a, double b) { return a > b ? a : b; }
-
-static void cfg_base(plant_cfg_t *c)
-{
-    plant_cfg_default(c);   /* paper A's IPMSM, 540 V, Ts 50 us, ideal inverter and sensors */
-}
-
-static void cmd_set(fw_cmd_t *c, int sa, int sb, int sc, bool on, double load)
-{
-    memset(c, 0, sizeof *c);
-    c->mode = FW_CMD_STATES;
-    c->s_a = (uint16_t)sa;
-    c->s_b = (uint16_t)sb;
-    c->s_c = (uint16_t)sc;
-    c->pwm_on = on;
-    c->load_nm = (float)load;
-}
 
 /* ------------------------------------------------------------------ steady state */
 
