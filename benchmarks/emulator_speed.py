@@ -7,6 +7,7 @@ of real time and their ratio.
 
     python3 benchmarks/emulator_speed.py [--profile profiles/paper-a.yaml] [--rig FILE] [--repeat 3]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -29,8 +30,9 @@ from pmsm_hil.transport.inproc import InProcessTransport  # noqa: E402
 
 def emulator_realtime_factor(profile_path: str, rig: str | None = None, seed: int = 1) -> dict:
     profile = load_profile(profile_path, rig_override=rig)
-    settings = emulator_settings(profile.motor, profile.rig, seed=seed, baud=profile.link.baud,
-                                 ts_s=profile.control.ts_s)
+    settings = emulator_settings(
+        profile.motor, profile.rig, seed=seed, baud=profile.link.baud, ts_s=profile.control.ts_s
+    )
     tr = InProcessTransport(settings)
     s = Session(tr)
     s.hello()
@@ -48,19 +50,35 @@ def emulator_realtime_factor(profile_path: str, rig: str | None = None, seed: in
         s.send("heartbeat", counter=ticks)
     wall = time.perf_counter() - t0
     device_s = ticks * profile.control.ts_s
-    return {"device_s": device_s, "wall_s": wall, "ticks": ticks, "octets": octets,
-            "ns_per_period": wall / ticks * 1e9, "realtime_factor": device_s / wall,
-            "rig": rig or str(getattr(profile.rig, "path", "default"))}
+    return {
+        "device_s": device_s,
+        "wall_s": wall,
+        "ticks": ticks,
+        "octets": octets,
+        "ns_per_period": wall / ticks * 1e9,
+        "realtime_factor": device_s / wall,
+        "rig": rig or str(getattr(profile.rig, "path", "default")),
+    }
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("--profile", default=str(ROOT / "profiles" / "paper-a.yaml"))
-    ap.add_argument("--rig", action="append", default=None,
-                    help="rig file(s) to measure (default: the profile's rig)")
+    ap.add_argument(
+        "--rig",
+        action="append",
+        default=None,
+        help="rig file(s) to measure (default: the profile's rig)",
+    )
     ap.add_argument("--repeat", type=int, default=3)
-    ap.add_argument("--gem-seconds", type=float, default=0.5,
-                    help="simulated seconds of gym-electric-motor per repeat")
+    ap.add_argument(
+        "--gem-seconds",
+        type=float,
+        default=0.5,
+        help="simulated seconds of gym-electric-motor per repeat",
+    )
     ap.add_argument("--no-gem", action="store_true")
     args = ap.parse_args()
 
@@ -84,19 +102,25 @@ def main() -> None:
         best = max(runs, key=lambda r: r["realtime_factor"])
         med = sorted(r["realtime_factor"] for r in runs)[len(runs) // 2]
         name = Path(best["rig"]).name
-        print(f"pmsm-hil emulator, rig {name}: {best['device_s']:.2f} s of device time; best "
-              f"{best['realtime_factor']:.0f}x real time ({best['ns_per_period']:.0f} ns per "
-              f"{1e6 * 50e-6:.0f} us period), median {med:.0f}x, over {len(runs)} runs")
+        print(
+            f"pmsm-hil emulator, rig {name}: {best['device_s']:.2f} s of device time; best "
+            f"{best['realtime_factor']:.0f}x real time ({best['ns_per_period']:.0f} ns per "
+            f"{1e6 * 50e-6:.0f} us period), median {med:.0f}x, over {len(runs)} runs"
+        )
     if not gems:
         return
     gbest = max(g["realtime_factor"] for g in gems)
     gmed = sorted(g["realtime_factor"] for g in gems)[len(gems) // 2]
-    print(f"gym-electric-motor {gems[0].get('env_id', '')} {gems[0].get('version', '')}: best "
-          f"{gbest:.2f}x real time, median {gmed:.2f}x, over {len(gems)} runs")
+    print(
+        f"gym-electric-motor {gems[0].get('env_id', '')} {gems[0].get('version', '')}: best "
+        f"{gbest:.2f}x real time, median {gmed:.2f}x, over {len(gems)} runs"
+    )
     for rig, runs in ours.items():
         ratios = sorted(r["realtime_factor"] / g["realtime_factor"] for r, g in zip(runs, gems))
-        print(f"ratio pmsm-hil/gym-electric-motor, rig {Path(runs[0]['rig']).name}: median "
-              f"{ratios[len(ratios) // 2]:.0f}x (per-run pairs; range {ratios[0]:.0f}-{ratios[-1]:.0f}x)")
+        print(
+            f"ratio pmsm-hil/gym-electric-motor, rig {Path(runs[0]['rig']).name}: median "
+            f"{ratios[len(ratios) // 2]:.0f}x (per-run pairs; range {ratios[0]:.0f}-{ratios[-1]:.0f}x)"
+        )
 
 
 if __name__ == "__main__":

@@ -6,6 +6,7 @@ Records a 2 s random profile (pmsm_hil.gapgen.draw) on the in-process emulator w
 (default profiles/rigs/lab-typical.yaml), then times diagnose() on it three times and prints the
 figures: CPU time (what one core spends) and wall time (which a busy machine inflates).
 Target (issue 10): <= 20 s on one core."""
+
 from __future__ import annotations
 
 import argparse
@@ -48,10 +49,14 @@ def main() -> None:
             res = diagnose(rec, m)
             times.append(time.perf_counter() - t0)
             cpu.append(time.process_time() - c0)
-    print(f"record: {rec.n} control periods ({rec.n * rec.ts_s:.2f} s), rig {os.path.basename(a.rig)}")
-    print(f"gap diagnosis: CPU median {np.median(cpu):.1f} s, max {np.max(cpu):.1f} s; wall median "
-          f"{np.median(times):.1f} s, max {np.max(times):.1f} s over {a.repeat} runs "
-          f"(selected: {', '.join(res['selected']) or 'none'})")
+    print(
+        f"record: {rec.n} control periods ({rec.n * rec.ts_s:.2f} s), rig {os.path.basename(a.rig)}"
+    )
+    print(
+        f"gap diagnosis: CPU median {np.median(cpu):.1f} s, max {np.max(cpu):.1f} s; wall median "
+        f"{np.median(times):.1f} s, max {np.max(times):.1f} s over {a.repeat} runs "
+        f"(selected: {', '.join(res['selected']) or 'none'})"
+    )
 
 
 if __name__ == "__main__":

@@ -16,6 +16,7 @@ Our emulator integrates with RK4 and full mechanics, so "default" is the like-fo
 
 Usage: python benchmarks/gem_fcs.py [sim_seconds]     (needs: pip install gym-electric-motor)
 """
+
 from __future__ import annotations
 
 import math
@@ -54,8 +55,15 @@ def _make_env(tau: float, solver: str):
     return gem.make(ENV_ID, **kwargs)
 
 
-def gem_realtime_factor(sim_seconds: float = 1.0, tau: float = 50e-6, *, solver: str = "default",
-                        action: str = "random", seed: int = 0, repeats: int = 3) -> dict:
+def gem_realtime_factor(
+    sim_seconds: float = 1.0,
+    tau: float = 50e-6,
+    *,
+    solver: str = "default",
+    action: str = "random",
+    seed: int = 0,
+    repeats: int = 3,
+) -> dict:
     """Time GEM's Finite-CC-PMSM env.step() over sim_seconds of simulated time at control period tau.
 
     action: "random" (uniform over the 8 switch states, drawn before timing) or "fixed" (the zero
@@ -67,12 +75,15 @@ def gem_realtime_factor(sim_seconds: float = 1.0, tau: float = 50e-6, *, solver:
     import statistics
     import warnings
 
-    warnings.filterwarnings("ignore", module="gymnasium")  # obs-space notes from the passive checker
+    warnings.filterwarnings(
+        "ignore", module="gymnasium"
+    )  # obs-space notes from the passive checker
 
     import gym_electric_motor as gem
 
     try:
         from importlib.metadata import version
+
         gem_version = version("gym-electric-motor")
     except Exception:  # pragma: no cover - metadata missing
         gem_version = getattr(gem, "__version__", "unknown")
@@ -113,7 +124,9 @@ def gem_realtime_factor(sim_seconds: float = 1.0, tau: float = 50e-6, *, solver:
     return {
         "env_id": ENV_ID,
         "gem_version": gem_version,
-        "solver": "scipy dopri5 (GEM default)" if solver == "default" else "GEM EulerSolver, 1 step per tau",
+        "solver": "scipy dopri5 (GEM default)"
+        if solver == "default"
+        else "GEM EulerSolver, 1 step per tau",
         "load": f"ConstantSpeedLoad {SPEED_RPM:.0f} r/min",
         "motor": dict(PAPER_A_MOTOR, u_dc=U_DC_V),
         "action": action,
@@ -133,11 +146,13 @@ def main(argv: list[str]) -> int:
     sim_seconds = float(argv[1]) if len(argv) > 1 else 1.0
     for solver in ("default", "euler"):
         r = gem_realtime_factor(sim_seconds=sim_seconds, solver=solver)
-        print(f"{r['env_id']} (gym-electric-motor {r['gem_version']}), {r['solver']}, {r['load']}, "
-              f"tau {r['tau_s'] * 1e6:.0f} us, {r['action']} actions: {r['steps']} steps in {r['wall_s']:.2f} s "
-              f"-> {r['steps_per_s']:.0f} steps/s, {r['ns_per_step'] / 1e3:.1f} us/step, "
-              f"real-time factor {r['realtime_factor']:.3f} (best of {r['repeats']}; median "
-              f"{r['steps_per_s_median']:.0f} steps/s; {r['resets']} resets excluded)")
+        print(
+            f"{r['env_id']} (gym-electric-motor {r['gem_version']}), {r['solver']}, {r['load']}, "
+            f"tau {r['tau_s'] * 1e6:.0f} us, {r['action']} actions: {r['steps']} steps in {r['wall_s']:.2f} s "
+            f"-> {r['steps_per_s']:.0f} steps/s, {r['ns_per_step'] / 1e3:.1f} us/step, "
+            f"real-time factor {r['realtime_factor']:.3f} (best of {r['repeats']}; median "
+            f"{r['steps_per_s_median']:.0f} steps/s; {r['resets']} resets excluded)"
+        )
     return 0
 
 

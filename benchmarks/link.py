@@ -14,6 +14,7 @@ Host headroom: the recorded link data of the nominal run replayed through the ho
 recorder and the MCAP writer, in frames per second, as a multiple of the most frames the link can
 carry per second (serial: telem_fast frames at 921.6 kbaud; CAN: 8-octet frames at 1 Mbit/s).
 """
+
 from __future__ import annotations
 
 import ctypes
@@ -71,16 +72,26 @@ def run(link_kind: str, full_rate: bool, tmp: Path):
         tel = profile.telemetry
         fast = 2500.0 if link_kind == "serial" else 2000.0
         profile.telemetry = tel.model_copy(update={"fast_hz": fast, "truth_hz": 20.0})
-    settings = emulator_settings(profile.motor, profile.rig, seed=1, baud=profile.link.baud,
-                                 ts_s=profile.control.ts_s, truth_hz=profile.telemetry.truth_hz)
+    settings = emulator_settings(
+        profile.motor,
+        profile.rig,
+        seed=1,
+        baud=profile.link.baud,
+        ts_s=profile.control.ts_s,
+        truth_hz=profile.telemetry.truth_hz,
+    )
     if link_kind == "serial":
         link = Recording(settings)
     else:
         link = inprocess_can_link(settings)
         link.bus.recorded = []
     t0 = time.perf_counter()
-    result = run_profile(profile, Session(link), tmp / f"{link_kind}-{full_rate}.mcap",
-                         RunOptions(seed=1, capture=not full_rate))
+    result = run_profile(
+        profile,
+        Session(link),
+        tmp / f"{link_kind}-{full_rate}.mcap",
+        RunOptions(seed=1, capture=not full_rate),
+    )
     wall = time.perf_counter() - t0
     t_run = profile.total_duration_s
     lost = result.live.seq_gaps + int(result.live.status.get("tx_dropped", 0))
@@ -98,6 +109,7 @@ def run(link_kind: str, full_rate: bool, tmp: Path):
         replay = b"".join(link.chunks)
     else:
         from pmsm_hil.protocol import can_generated as cg
+
         by_func = {f: gen.BY_ID[m].name for f, (m, _k) in cg.BY_FUNC.items()}
         for t, ident, data in link.bus.recorded:
             if t > t_run + 0.5:
@@ -109,8 +121,18 @@ def run(link_kind: str, full_rate: bool, tmp: Path):
             payload[fr.name] += gen.BY_NAME[fr.name].length
         capacity = profile.link.can.bitrate
         replay = [(i, d) for _t, i, d in link.bus.recorded]
-    return dict(profile=profile, result=result, wall=wall, t=t_run, lost=lost, payload=payload,
-                wire_bits=wire_bits, count=count, capacity=capacity, replay=replay)
+    return dict(
+        profile=profile,
+        result=result,
+        wall=wall,
+        t=t_run,
+        lost=lost,
+        payload=payload,
+        wire_bits=wire_bits,
+        count=count,
+        capacity=capacity,
+        replay=replay,
+    )
 
 
 def headroom(link_kind: str, r: dict, tmp: Path) -> tuple[float, float, float]:
@@ -125,7 +147,7 @@ def headroom(link_kind: str, r: dict, tmp: Path) -> tuple[float, float, float]:
         data = r["replay"]
         n = 0
         for at in range(0, len(data), 65536):
-            frames = dec.feed(data[at:at + 65536])
+            frames = dec.feed(data[at : at + 65536])
             n += len(frames)
             rec.frames(frames)
         link_max = profile.link.baud / 10 / (gen.BY_NAME["telem_fast"].length + 6)
@@ -133,8 +155,8 @@ def headroom(link_kind: str, r: dict, tmp: Path) -> tuple[float, float, float]:
         dec = CanDecoder()
         frames_in = r["replay"]
         for at in range(0, len(frames_in), 4096):
-            rec.frames(dec.feed(frames_in[at:at + 4096]))
-        n = len(frames_in)   # CAN frames
+            rec.frames(dec.feed(frames_in[at : at + 4096]))
+        n = len(frames_in)  # CAN frames
         link_max = profile.link.can.bitrate / (47 + 64)
     writer.close()
     rate = n / (time.perf_counter() - t0)
@@ -145,8 +167,10 @@ def main() -> int:
     ok = True
     with tempfile.TemporaryDirectory() as d:
         tmp = Path(d)
-        print(f"{'link':<22} {'plan':<10} {'fast Hz':>8} {'fast wire':>10} {'fast payload':>13} "
-              f"{'all telemetry wire':>19} {'lost':>5} {'run':>14}")
+        print(
+            f"{'link':<22} {'plan':<10} {'fast Hz':>8} {'fast wire':>10} {'fast payload':>13} "
+            f"{'all telemetry wire':>19} {'lost':>5} {'run':>14}"
+        )
         nominal = {}
         for kind, label in (("serial", "serial 921.6 kbaud"), ("can", "CAN 1 Mbit/s")):
             for full in (False, True):
@@ -160,15 +184,22 @@ def main() -> int:
                 res = r["result"]
                 fine = res.state == "done" and r["lost"] == 0
                 ok &= fine
-                print(f"{label:<22} {'full rate' if full else 'nominal':<10} "
-                      f"{r['profile'].telemetry.fast_hz:8.1f} {100 * fast_wire:9.1f}% {100 * fast_payload:12.1f}% "
-                      f"{100 * tel_wire:18.1f}% {r['lost']:5d} {t:6.2f} s {r['wall']:5.1f} s"
-                      + ("" if fine else f"  FAILED ({res.state}, {res.stop_reason})"))
+                print(
+                    f"{label:<22} {'full rate' if full else 'nominal':<10} "
+                    f"{r['profile'].telemetry.fast_hz:8.1f} {100 * fast_wire:9.1f}% {100 * fast_payload:12.1f}% "
+                    f"{100 * tel_wire:18.1f}% {r['lost']:5d} {t:6.2f} s {r['wall']:5.1f} s"
+                    + ("" if fine else f"  FAILED ({res.state}, {res.stop_reason})")
+                )
         print()
-        for kind, label, unit in (("serial", "serial 921.6 kbaud", "messages"), ("can", "CAN 1 Mbit/s", "CAN frames")):
+        for kind, label, unit in (
+            ("serial", "serial 921.6 kbaud", "messages"),
+            ("can", "CAN 1 Mbit/s", "CAN frames"),
+        ):
             rate, link_max, ratio = headroom(kind, nominal[kind], tmp)
-            print(f"host headroom {label:<20} decode + recorder + MCAP {rate:9.0f} {unit}/s, link max "
-                  f"{link_max:6.0f}/s: {ratio:5.1f}x")
+            print(
+                f"host headroom {label:<20} decode + recorder + MCAP {rate:9.0f} {unit}/s, link max "
+                f"{link_max:6.0f}/s: {ratio:5.1f}x"
+            )
             ok &= ratio >= 10
     return 0 if ok else 1
 

@@ -9,6 +9,7 @@ Prints, in µs per message, best and median of the repeats:
   skipped because nobody listens),
 - publish, client listening: JSON encoding and foxglove-sdk's log call for one admitted message.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -38,7 +39,7 @@ def time_recorder(rows: list[dict], sinks, out: Path) -> float:
 def time_publish(sink: FoxgloveSink, n: int) -> float:
     ch = sink._channels["/pmsm/telemetry"]
     row = {k: 0.5 for k in TELEMETRY_FIELDS}
-    sink.rates["/pmsm/telemetry"] = float("inf")   # admit everything: measure the send path
+    sink.rates["/pmsm/telemetry"] = float("inf")  # admit everything: measure the send path
     sink._gates.clear()
     orig = type(ch).has_sinks
     type(ch).has_sinks = lambda self: True
@@ -59,7 +60,7 @@ def main() -> None:
     rows = frames(args.frames)
     base, with_sink, publish = [], [], []
     with tempfile.TemporaryDirectory() as d:
-        for r in range(args.repeat):           # interleaved
+        for r in range(args.repeat):  # interleaved
             base.append(time_recorder(rows, [], Path(d) / f"a{r}.mcap"))
             sink = FoxgloveSink(0)
             try:
@@ -67,11 +68,16 @@ def main() -> None:
                 publish.append(time_publish(sink, args.frames // 4))
             finally:
                 sink.close()
-    for name, xs in (("recorder", base), ("recorder + sink, no client", with_sink),
-                     ("publish, client listening", publish)):
+    for name, xs in (
+        ("recorder", base),
+        ("recorder + sink, no client", with_sink),
+        ("publish, client listening", publish),
+    ):
         print(f"{name:28s} best {min(xs):6.2f} µs/msg   median {statistics.median(xs):6.2f} µs/msg")
-    print(f"sink overhead: {statistics.median(with_sink) / statistics.median(base):.2f}x the recorder "
-          f"alone (median); at 2 kHz telemetry: {2000 * (statistics.median(with_sink) - statistics.median(base)) / 1e4:.3f} % of one core")
+    print(
+        f"sink overhead: {statistics.median(with_sink) / statistics.median(base):.2f}x the recorder "
+        f"alone (median); at 2 kHz telemetry: {2000 * (statistics.median(with_sink) - statistics.median(base)) / 1e4:.3f} % of one core"
+    )
 
 
 if __name__ == "__main__":

@@ -11,6 +11,7 @@ Link message rates, for profiles/paper-a.yaml (the defaults):
   bound: 8-octet CAN frames (111 bits) back to back, every logged message in the fewest frames any
   takes (2: an event; telemetry takes 4, firmware/proto/pmsm_proto.yaml, docs/can.md).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -43,7 +44,8 @@ def link_rates() -> dict[str, float]:
         out[f"{kind}, paper-a rates"] = t.fast_hz + n_est * t.params_hz + t.status_hz + t.truth_hz
     p = load_profile(ROOT / "profiles" / "paper-a.yaml")
     out["serial, bound (921.6 kbaud / smallest frame)"] = (
-        p.link.baud / OCTETS_PER_SYMBOL / (min(PAYLOAD_OCTETS.values()) + FRAME_OVERHEAD_OCTETS))
+        p.link.baud / OCTETS_PER_SYMBOL / (min(PAYLOAD_OCTETS.values()) + FRAME_OVERHEAD_OCTETS)
+    )
     out["CAN, bound (1 Mbit/s / two 111-bit frames)"] = 1e6 / (47 + 64) / 2
     return out
 
@@ -80,25 +82,34 @@ def main() -> None:
     def ros2_writer(path):
         # for comparison: mcap_ros2's writer, which encodes from dicts itself
         from mcap_ros2.writer import Writer as Ros2Writer
+
         td = TOPICS["/pmsm/telemetry"]
         with open(path, "wb") as f:
             w = Ros2Writer(f)
             schema = w.register_msgdef(td.schema_name, td.msgdef)
             for i, r in enumerate(rows):
                 lt = round(i * 5e-4 * 1e9)
-                w.write_message("/pmsm/telemetry", schema, {"t_s": i * 5e-4, **r}, log_time=lt, publish_time=lt)
+                w.write_message(
+                    "/pmsm/telemetry", schema, {"t_s": i * 5e-4, **r}, log_time=lt, publish_time=lt
+                )
             w.finish()
 
-    results = {"LogWriter.write": bench(one_by_one, args.n, args.repeat),
-               "LogWriter.write_many": bench(in_bulk, args.n, args.repeat),
-               "mcap_ros2 Writer (not used)": bench(ros2_writer, args.n, args.repeat)}
+    results = {
+        "LogWriter.write": bench(one_by_one, args.n, args.repeat),
+        "LogWriter.write_many": bench(in_bulk, args.n, args.repeat),
+        "mcap_ros2 Writer (not used)": bench(ros2_writer, args.n, args.repeat),
+    }
     links = link_rates()
     for label, (best, med) in results.items():
-        print(f"{label}: best {best:,.0f} messages/s, median {med:,.0f} messages/s "
-              f"({args.repeat} runs of {args.n} telemetry messages, zstd)")
+        print(
+            f"{label}: best {best:,.0f} messages/s, median {med:,.0f} messages/s "
+            f"({args.repeat} runs of {args.n} telemetry messages, zstd)"
+        )
         for link, rate in links.items():
-            print(f"  headroom over {link} ({rate:,.0f} messages/s): best {best / rate:.1f}x, "
-                  f"median {med / rate:.1f}x")
+            print(
+                f"  headroom over {link} ({rate:,.0f} messages/s): best {best / rate:.1f}x, "
+                f"median {med / rate:.1f}x"
+            )
 
 
 if __name__ == "__main__":

@@ -4,6 +4,7 @@ eight runs and their eight emulators is the load the heartbeat must survive.
 
     python3 benchmarks/parallel_runs.py [--n 8] [--profile tests/data/short.yaml] [--links serial,can]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -19,10 +20,27 @@ ROOT = Path(__file__).resolve().parents[1]
 def batch(n: int, profile: str, link: str, out: Path) -> tuple[int, list[str], float]:
     extra = ["--can"] if link == "can" else []
     t0 = time.monotonic()
-    procs = [subprocess.Popen([sys.executable, "-m", "pmsm_hil.cli.main", "run", profile, "--no-live",
-                               "--seed", str(k + 1), "--out", str(out / f"{link}-{k}.mcap"), *extra],
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-             for k in range(n)]
+    procs = [
+        subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "pmsm_hil.cli.main",
+                "run",
+                profile,
+                "--no-live",
+                "--seed",
+                str(k + 1),
+                "--out",
+                str(out / f"{link}-{k}.mcap"),
+                *extra,
+            ],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for k in range(n)
+    ]
     failures = []
     for k, p in enumerate(procs):
         stdout, stderr = p.communicate(timeout=900)

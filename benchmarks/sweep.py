@@ -9,6 +9,7 @@ The rates include the cluster's start (a few seconds); the rate of the runs alon
 beside them. On a machine shared with other work the scaling ratio measures the machine, not the
 sweep: the load average is printed with the figures.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -30,9 +31,11 @@ SKIP = {"wall_s", "log_path"}
 
 def _sweep_file(d: Path, n: int) -> Path:
     p = d / "ident.yaml"
-    p.write_text("name: bench-ident\nprofile: paper-a-identify\nmetrics: [identification, speed_error, "
-                 "ripple, faults, completeness]\naxes:\n"
-                 f"  - {{field: seed, values: [{', '.join(str(i) for i in range(1, n + 1))}]}}\n")
+    p.write_text(
+        "name: bench-ident\nprofile: paper-a-identify\nmetrics: [identification, speed_error, "
+        "ripple, faults, completeness]\naxes:\n"
+        f"  - {{field: seed, values: [{', '.join(str(i) for i in range(1, n + 1))}]}}\n"
+    )
     return p
 
 
@@ -43,7 +46,9 @@ def _same(a: list[dict], b: list[dict]) -> tuple[bool, str]:
         keys = (set(ra) | set(rb)) - SKIP
         for k in sorted(keys):
             x, y = ra.get(k), rb.get(k)
-            both_nan = isinstance(x, float) and isinstance(y, float) and math.isnan(x) and math.isnan(y)
+            both_nan = (
+                isinstance(x, float) and isinstance(y, float) and math.isnan(x) and math.isnan(y)
+            )
             if x != y and not both_nan:
                 return False, f"run {ra.get('index')}: {k} = {x!r} against {y!r}"
     return True, f"{len(a)} rows equal"
@@ -57,15 +62,37 @@ def _free_port() -> int:
 
 def _cluster(port: int, n_workers: int) -> list[subprocess.Popen]:
     env = dict(os.environ)
-    for key, value in SCHEDULER_CONFIG.items():   # DASK_DISTRIBUTED__SCHEDULER__ALLOWED_FAILURES=1 ...
+    for (
+        key,
+        value,
+    ) in SCHEDULER_CONFIG.items():  # DASK_DISTRIBUTED__SCHEDULER__ALLOWED_FAILURES=1 ...
         env["DASK_" + key.upper().replace(".", "__").replace("-", "_")] = str(value)
     dask = [sys.executable, "-m", "dask"]
     quiet = {"stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL, "env": env}
-    procs = [subprocess.Popen([*dask, "scheduler", "--host", "127.0.0.1", "--port", str(port),
-                               "--no-dashboard"], **quiet)]
+    procs = [
+        subprocess.Popen(
+            [*dask, "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"],
+            **quiet,
+        )
+    ]
     for _ in range(n_workers):
-        procs.append(subprocess.Popen([*dask, "worker", f"tcp://127.0.0.1:{port}", "--nthreads", "1",
-                                       "--nworkers", "1", "--no-dashboard", "--host", "127.0.0.1"], **quiet))
+        procs.append(
+            subprocess.Popen(
+                [
+                    *dask,
+                    "worker",
+                    f"tcp://127.0.0.1:{port}",
+                    "--nthreads",
+                    "1",
+                    "--nworkers",
+                    "1",
+                    "--no-dashboard",
+                    "--host",
+                    "127.0.0.1",
+                ],
+                **quiet,
+            )
+        )
     return procs
 
 
@@ -86,9 +113,11 @@ def _wait_workers(addr: str, n: int, timeout_s: float = 60.0) -> None:
 
 def _line(label: str, res, rows) -> str:
     busy = sum(r.get("wall_s", 0.0) for r in rows)
-    return (f"{label:<28} {res.ok:4d} ok {res.failed:3d} failed  {res.wall_s:7.1f} s  "
-            f"{res.runs_per_min:7.1f} runs/min (with start-up)  "
-            f"{60.0 * len(rows) / busy if busy else 0:6.1f} runs/min per worker busy")
+    return (
+        f"{label:<28} {res.ok:4d} ok {res.failed:3d} failed  {res.wall_s:7.1f} s  "
+        f"{res.runs_per_min:7.1f} runs/min (with start-up)  "
+        f"{60.0 * len(rows) / busy if busy else 0:6.1f} runs/min per worker busy"
+    )
 
 
 def main() -> int:
@@ -102,8 +131,10 @@ def main() -> int:
     tmp.mkdir(parents=True, exist_ok=True)
     sweep = load_sweep(_sweep_file(tmp, args.runs))
     runs = plan_runs(sweep)
-    print(f"sweep benchmark: {len(runs)} runs of paper-a-identify (default rig, seeds 1..{args.runs}); "
-          f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f} at the start")
+    print(
+        f"sweep benchmark: {len(runs)} runs of paper-a-identify (default rig, seeds 1..{args.runs}); "
+        f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f} at the start"
+    )
     rates, local = {}, None
     try:
         for w in args.workers:
@@ -116,8 +147,10 @@ def main() -> int:
             if w == max(args.workers):
                 local = rows
         if 1 in rates and 2 in rates and rates[1] > 0:
-            print(f"scaling 2 workers / 1 worker: {rates[2] / rates[1]:.2f}x "
-                  f"(load average now {os.getloadavg()[0]:.2f})")
+            print(
+                f"scaling 2 workers / 1 worker: {rates[2] / rates[1]:.2f}x "
+                f"(load average now {os.getloadavg()[0]:.2f})"
+            )
         if not args.no_cluster:
             port = _free_port()
             procs = _cluster(port, 2)
@@ -131,7 +164,9 @@ def main() -> int:
                 print(_line("loopback cluster, 2 workers", res, rows))
                 if local is not None:
                     same, why = _same(local, rows)
-                    print(f"cluster results equal the local run's bit for bit: {'yes' if same else 'NO'} ({why})")
+                    print(
+                        f"cluster results equal the local run's bit for bit: {'yes' if same else 'NO'} ({why})"
+                    )
                     if not same:
                         return 1
             finally:

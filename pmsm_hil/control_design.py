@@ -1,12 +1,13 @@
 """From a profile (motor, rig, control, telemetry) to the device's configuration frames, including
 the speed-PI design when the profile leaves the gains to the tool (docs/control.md)."""
+
 from __future__ import annotations
 
 
 from pmsm_hil.protocol import generated as gen
 
 DEFAULT_SPEED_BW_RAD_S = 450.0
-DEFAULT_OBSERVER_BW_RAD_S = 1000.0            # encoder speed observer (docs/control.md)
+DEFAULT_OBSERVER_BW_RAD_S = 1000.0  # encoder speed observer (docs/control.md)
 CAPTURE_PRE = 256
 
 
@@ -35,11 +36,20 @@ def encoder_counts(rig) -> int:
 def device_config(profile) -> tuple[dict, dict]:
     """(config_motor fields, config_ctrl fields) for `profile`."""
     m, c, tel = profile.motor, profile.control, profile.telemetry
-    motor_cfg = dict(pole_pairs=m.pole_pairs, r_s_ohm=m.r_s_ohm, l_d_h=m.l_d_h, l_q_h=m.l_q_h,
-                     psi_f_wb=m.psi_f_wb, j_kgm2=m.j_kgm2, i_max_a=m.i_max_a,
-                     speed_max_rpm=m.speed_max_rpm, i_trip_a=m.i_trip_a,
-                     speed_trip_rpm=m.speed_trip_rpm, v_dc_min_v=m.v_dc_min_v,
-                     v_dc_max_v=m.v_dc_max_v)
+    motor_cfg = dict(
+        pole_pairs=m.pole_pairs,
+        r_s_ohm=m.r_s_ohm,
+        l_d_h=m.l_d_h,
+        l_q_h=m.l_q_h,
+        psi_f_wb=m.psi_f_wb,
+        j_kgm2=m.j_kgm2,
+        i_max_a=m.i_max_a,
+        speed_max_rpm=m.speed_max_rpm,
+        i_trip_a=m.i_trip_a,
+        speed_trip_rpm=m.speed_trip_rpm,
+        v_dc_min_v=m.v_dc_min_v,
+        v_dc_max_v=m.v_dc_max_v,
+    )
     kp, ki = c.speed_kp_a_per_rad_s, c.speed_ki_a_per_rad
     if kp is None or ki is None:
         kp_d, ki_d = design_speed_pi(m)
@@ -49,19 +59,26 @@ def device_config(profile) -> tuple[dict, dict]:
     # with the rig's: the rig is the plant, which the firmware cannot know (docs/rigs.md).
     comp = c.dead_time_comp
     ctrl_cfg = dict(
-        ts_s=c.ts_s, rho=c.rho, speed_kp_a_per_rad_s=kp, speed_ki_a_per_rad=ki,
+        ts_s=c.ts_s,
+        rho=c.rho,
+        speed_kp_a_per_rad_s=kp,
+        speed_ki_a_per_rad=ki,
         speed_div=_div(c.speed_loop_hz, c.ts_s),
         current_ref=gen.ENUMS["current_ref"]["mtpa" if c.current_ref == "mtpa" else "id_zero"],
-        current_ctrl=gen.ENUMS["current_ctrl"]["mpcc"], angle_src=gen.ENUMS["angle_src"]["encoder"],
+        current_ctrl=gen.ENUMS["current_ctrl"]["mpcc"],
+        angle_src=gen.ENUMS["angle_src"]["encoder"],
         heartbeat_timeout_s=c.heartbeat_timeout_s,
-        fast_div=_div(tel.fast_hz, c.ts_s), params_div=_div(tel.params_hz, c.ts_s),
+        fast_div=_div(tel.fast_hz, c.ts_s),
+        params_div=_div(tel.params_hz, c.ts_s),
         status_div=_div(tel.status_hz, c.ts_s),
-        enc_counts=encoder_counts(profile.rig), enc_offset_e_rad=0.0,
+        enc_counts=encoder_counts(profile.rig),
+        enc_offset_e_rad=0.0,
         speed_obs_bw_rad_s=c.speed_obs_bw_rad_s or DEFAULT_OBSERVER_BW_RAD_S,
         dead_time_s=m.dead_time_s if comp else 0.0,
         v_drop_v=m.v_drop_v if comp else 0.0,
         i_dt_a=m.i_dt_a if comp else 0.0,
-        capture_pre=CAPTURE_PRE)
+        capture_pre=CAPTURE_PRE,
+    )
     ctrl_cfg.update(identification_config(profile))
     return motor_cfg, ctrl_cfg
 
@@ -74,5 +91,8 @@ def identification_config(profile) -> dict:
         identify=1 if c.identify else 0,
         predictor=gen.ENUMS["estimator"][c.predictor],
         id_window=max(2, round(c.id_window_s / c.ts_s)),
-        pred_scale_l_d=sc.l_d_h, pred_scale_l_q=sc.l_q_h,
-        pred_scale_psi_f=sc.psi_f_wb, pred_scale_r_s=sc.r_s_ohm)
+        pred_scale_l_d=sc.l_d_h,
+        pred_scale_l_q=sc.l_q_h,
+        pred_scale_psi_f=sc.psi_f_wb,
+        pred_scale_r_s=sc.r_s_ohm,
+    )

@@ -10,6 +10,7 @@ CAN interface, the emulator as a process (pty or CAN), or the emulator in this p
 This is the one place where transports (byte pipes and CAN buses) meet the protocol's links;
 neither of those packages imports the other (docs/architecture.md).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -21,14 +22,14 @@ from pmsm_hil.protocol.link import SerialLink
 
 @dataclass
 class DeviceSpec:
-    port: str | None = None         # serial port of a rig
-    can: str | None = None          # a python-can SPEC, or "emulator"/"" for the emulator on CAN
-    in_process: bool = False        # the emulator in this process (tests, benchmarks, sweeps)
-    baud: int | None = None         # serial bit rate (None: the profile's)
-    rig_path: str | None = None     # the emulator's rig file (None: the profile's)
-    seed: int = 1                   # the emulator's noise seed
-    pace: float | None = None       # the emulator at X times real time (None: as fast as it can)
-    corrupt_ppm: float = 0.0        # the emulator flips bits on its serial output (tests)
+    port: str | None = None  # serial port of a rig
+    can: str | None = None  # a python-can SPEC, or "emulator"/"" for the emulator on CAN
+    in_process: bool = False  # the emulator in this process (tests, benchmarks, sweeps)
+    baud: int | None = None  # serial bit rate (None: the profile's)
+    rig_path: str | None = None  # the emulator's rig file (None: the profile's)
+    seed: int = 1  # the emulator's noise seed
+    pace: float | None = None  # the emulator at X times real time (None: as fast as it can)
+    corrupt_ppm: float = 0.0  # the emulator flips bits on its serial output (tests)
 
     @property
     def is_rig(self) -> bool:
@@ -46,20 +47,33 @@ def open_device(spec: DeviceSpec, profile):
     if spec.can is not None and spec.in_process:
         apply_can_rates(profile)
         settings = emulator_settings_for(profile, spec)
-        settings.update(can_bitrate=float(profile.link.can.bitrate), can_node=float(profile.link.can.node))
+        settings.update(
+            can_bitrate=float(profile.link.can.bitrate), can_node=float(profile.link.can.node)
+        )
         return inprocess_can_link(settings)
     if spec.can is not None:
         return open_can_for_run(spec, profile)
     baud = spec.baud or profile.link.baud
     if spec.in_process:
         from pmsm_hil.transport.inproc import InProcessTransport
+
         return SerialLink(InProcessTransport(emulator_settings_for(profile, spec)))
     if spec.port:
         from pmsm_hil.transport.serial_port import SerialTransport
+
         return SerialLink(SerialTransport(spec.port, baud))
     from pmsm_hil.transport.emulator import EmulatorTransport
-    return SerialLink(EmulatorTransport(str(profile.motor.path), _rig_path(spec, profile), spec.seed,
-                                        baud, corrupt_ppm=spec.corrupt_ppm, pace=spec.pace))
+
+    return SerialLink(
+        EmulatorTransport(
+            str(profile.motor.path),
+            _rig_path(spec, profile),
+            spec.seed,
+            baud,
+            corrupt_ppm=spec.corrupt_ppm,
+            pace=spec.pace,
+        )
+    )
 
 
 def emulator_settings_for(profile, spec: DeviceSpec | None = None) -> dict[str, float]:
@@ -69,11 +83,17 @@ def emulator_settings_for(profile, spec: DeviceSpec | None = None) -> dict[str, 
 
     spec = spec or DeviceSpec()
     rig = load_rig(spec.rig_path) if spec.rig_path else profile.rig
-    return emulator_settings(profile.motor, rig, seed=spec.seed, baud=spec.baud or profile.link.baud,
-                             ts_s=profile.control.ts_s)
+    return emulator_settings(
+        profile.motor,
+        rig,
+        seed=spec.seed,
+        baud=spec.baud or profile.link.baud,
+        ts_s=profile.control.ts_s,
+    )
 
 
 # ----------------------------------------------------------------------------------- CAN
+
 
 def open_can(bus_spec, on_close=None, name: str | None = None) -> CanLink:
     """The protocol's CAN link on a python-can bus named by a parsed CanSpec."""
@@ -83,11 +103,18 @@ def open_can(bus_spec, on_close=None, name: str | None = None) -> CanLink:
     node = bus_spec.node if bus_spec.node is not None else cg.NODE
     bus_spec.bitrate, bus_spec.node = bitrate, node
     bus = open_bus(bus_spec)
-    return CanLink(bus, node=node, bit_rate=bitrate, name=name or f"CAN {bus_spec.text()} node {node}",
-                   on_close=on_close)
+    return CanLink(
+        bus,
+        node=node,
+        bit_rate=bitrate,
+        name=name or f"CAN {bus_spec.text()} node {node}",
+        on_close=on_close,
+    )
 
 
-def inprocess_can_link(settings: dict[str, float], chunk_ticks: int = 400, device=None, **faults) -> CanLink:
+def inprocess_can_link(
+    settings: dict[str, float], chunk_ticks: int = 400, device=None, **faults
+) -> CanLink:
     """The emulated device in this process behind a CAN link (no socket); `faults` as
     InProcessCanBus's fault_d2h/fault_h2d hooks."""
     from pmsm_hil.emulator.fwlib import EmulatedDevice
@@ -95,20 +122,30 @@ def inprocess_can_link(settings: dict[str, float], chunk_ticks: int = 400, devic
 
     dev = device or EmulatedDevice(settings)
     bus = InProcessCanBus(dev, chunk_ticks, **faults)
-    return CanLink(bus, node=int(settings.get("can_node", cg.NODE)),
-                   bit_rate=float(settings.get("can_bitrate", cg.BITRATE)), name="in-process emulator (CAN)")
+    return CanLink(
+        bus,
+        node=int(settings.get("can_node", cg.NODE)),
+        bit_rate=float(settings.get("can_bitrate", cg.BITRATE)),
+        name="in-process emulator (CAN)",
+    )
 
 
 def apply_can_rates(profile) -> None:
     """Use the profile's CAN telemetry rates (link.can.*_hz, where set) for a run over CAN; the
     fast-frame rate left unset is the serial one, lowered to what fits beside the other streams."""
     can_cfg = profile.link.can
-    update = {k: getattr(can_cfg, k) for k in ("fast_hz", "params_hz", "status_hz", "truth_hz")
-              if getattr(can_cfg, k) is not None}
+    update = {
+        k: getattr(can_cfg, k)
+        for k in ("fast_hz", "params_hz", "status_hz", "truth_hz")
+        if getattr(can_cfg, k) is not None
+    }
     tel = profile.telemetry.model_copy(update=update)
     if can_cfg.fast_hz is None and tel.fast_hz:
-        fit = can_fast_hz_max({"params": tel.params_hz, "status": tel.status_hz,
-                               "sim_truth": tel.truth_hz}, profile.control.ts_s, can_cfg.bitrate)
+        fit = can_fast_hz_max(
+            {"params": tel.params_hz, "status": tel.status_hz, "sim_truth": tel.truth_hz},
+            profile.control.ts_s,
+            can_cfg.bitrate,
+        )
         tel = tel.model_copy(update={"fast_hz": min(tel.fast_hz, fit)})
     profile.telemetry = tel
 
@@ -125,8 +162,14 @@ def open_can_for_run(spec: DeviceSpec, profile) -> CanLink:
         bus_spec.node = profile.link.can.node
     apply_can_rates(profile)
     if bus_spec.is_emulator:
-        emu = CanEmulator(str(profile.motor.path), _rig_path(spec, profile), spec.seed,
-                          bus_spec.bitrate, bus_spec.node, pace=spec.pace)
+        emu = CanEmulator(
+            str(profile.motor.path),
+            _rig_path(spec, profile),
+            spec.seed,
+            bus_spec.bitrate,
+            bus_spec.node,
+            pace=spec.pace,
+        )
         try:
             return open_can(emu.spec, on_close=emu.close, name=f"emulator CAN {emu.spec_text}")
         except BaseException:

@@ -1,5 +1,6 @@
 """The errors that cross layers, in a module that depends on nothing: the transports raise
 TransportError, the protocol raises DeviceError, the CLI maps both to exit codes."""
+
 from __future__ import annotations
 
 

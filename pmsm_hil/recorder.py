@@ -1,4 +1,5 @@
 """Turns decoded device frames into log messages (the MCAP contract) and keeps the live state."""
+
 from __future__ import annotations
 
 import time
@@ -13,12 +14,42 @@ FAULT_BITS = gen.ENUMS["fault"]
 STOP_REASONS = {v: k.replace("_", " ") for k, v in gen.ENUMS["stop_reason"].items()}
 PARAMS_FLAGS = gen.ENUMS["params_flag"]
 
-TELEMETRY_FIELDS = ("speed_ref_rpm", "speed_rpm", "speed_est_rpm", "theta_e_rad", "theta_e_est_rad",
-                    "i_d_a", "i_q_a", "i_d_ref_a", "i_q_ref_a", "u_d_v", "u_q_v", "load_nm")
-TRUTH_FIELDS = ("l_d_h", "l_q_h", "psi_f_wb", "r_s_ohm", "theta_e_rad", "speed_rpm", "torque_nm",
-                "temp_winding_c", "temp_magnet_c", "effects")
-STATUS_FIELDS = ("segment", "faults", "v_dc_v", "tx_dropped", "rx_bad", "rx_frames", "hb_age_ms",
-                 "capture_count")
+TELEMETRY_FIELDS = (
+    "speed_ref_rpm",
+    "speed_rpm",
+    "speed_est_rpm",
+    "theta_e_rad",
+    "theta_e_est_rad",
+    "i_d_a",
+    "i_q_a",
+    "i_d_ref_a",
+    "i_q_ref_a",
+    "u_d_v",
+    "u_q_v",
+    "load_nm",
+)
+TRUTH_FIELDS = (
+    "l_d_h",
+    "l_q_h",
+    "psi_f_wb",
+    "r_s_ohm",
+    "theta_e_rad",
+    "speed_rpm",
+    "torque_nm",
+    "temp_winding_c",
+    "temp_magnet_c",
+    "effects",
+)
+STATUS_FIELDS = (
+    "segment",
+    "faults",
+    "v_dc_v",
+    "tx_dropped",
+    "rx_bad",
+    "rx_frames",
+    "hb_age_ms",
+    "capture_count",
+)
 
 
 def fault_text(bits: int) -> str:
@@ -29,13 +60,14 @@ def fault_text(bits: int) -> str:
 @dataclass
 class LiveState:
     """What the live view shows; updated from every frame."""
+
     t_s: float = 0.0
     total_s: float = 0.0
     segment: int = 0
     state: str = "idle"
     faults: int = 0
     telemetry: dict = field(default_factory=dict)
-    params: dict = field(default_factory=dict)      # estimator -> fields
+    params: dict = field(default_factory=dict)  # estimator -> fields
     truth: dict = field(default_factory=dict)
     status: dict = field(default_factory=dict)
     frames: int = 0
@@ -44,7 +76,7 @@ class LiveState:
     bad_frames: int = 0
     tx_dropped: int = 0
     wall_start: float = field(default_factory=time.monotonic)
-    events: list = field(default_factory=list)      # (t_s, kind, arg, text)
+    events: list = field(default_factory=list)  # (t_s, kind, arg, text)
     stopped: bool = False
     stop_reason: str = ""
 
@@ -63,7 +95,7 @@ class Recorder:
 
     def __init__(self, writer, ts_s: float, segment_names: list[str], sinks=()):
         self.w = writer
-        self.sinks = list(sinks)   # extra consumers, e.g. pmsm_hil.live.foxglove.FoxgloveSink
+        self.sinks = list(sinks)  # extra consumers, e.g. pmsm_hil.live.foxglove.FoxgloveSink
         self.ts_s = ts_s
         self.names = segment_names
         self.live = LiveState()
@@ -104,10 +136,16 @@ class Recorder:
         t = self._t(f["tick"])
         name = ESTIMATOR_NAMES.get(f["estimator"], str(f["estimator"]))
         flags = f["flags"]
-        row = {"estimator": name, "l_d_h": f["l_d_h"], "l_q_h": f["l_q_h"],
-               "psi_f_wb": f["psi_f_wb"], "r_s_ohm": f["r_s_ohm"], "excited": bool(flags & PARAMS_FLAGS["excited"]),
-               "converged": bool(flags & PARAMS_FLAGS["converged"]),
-               "feeds_predictor": bool(flags & PARAMS_FLAGS["feeds_predictor"])}
+        row = {
+            "estimator": name,
+            "l_d_h": f["l_d_h"],
+            "l_q_h": f["l_q_h"],
+            "psi_f_wb": f["psi_f_wb"],
+            "r_s_ohm": f["r_s_ohm"],
+            "excited": bool(flags & PARAMS_FLAGS["excited"]),
+            "converged": bool(flags & PARAMS_FLAGS["converged"]),
+            "feeds_predictor": bool(flags & PARAMS_FLAGS["feeds_predictor"]),
+        }
         self._write("/pmsm/params", t, row)
         self.live.params[name] = row
 
@@ -159,10 +197,20 @@ class Recorder:
             for i in range(c["n_valid"]):
                 t = self._t(c["tick0"] + c["offset"] + i)
                 s = c["s_abc"][i]
-                self.w.write("/pmsm/capture", t, {
-                    "i_a_a": c["i_a_a"][i], "i_b_a": c["i_b_a"][i], "i_c_a": c["i_c_a"][i],
-                    "s_a": s & 1, "s_b": (s >> 1) & 1, "s_c": (s >> 2) & 1,
-                    "v_dc_v": c["v_dc_v"][i], "theta_e_rad": c["theta_e_rad"][i],
-                    "omega_e_rad_s": c["omega_e_rad_s"][i]})
+                self.w.write(
+                    "/pmsm/capture",
+                    t,
+                    {
+                        "i_a_a": c["i_a_a"][i],
+                        "i_b_a": c["i_b_a"][i],
+                        "i_c_a": c["i_c_a"][i],
+                        "s_a": s & 1,
+                        "s_b": (s >> 1) & 1,
+                        "s_c": (s >> 2) & 1,
+                        "v_dc_v": c["v_dc_v"][i],
+                        "theta_e_rad": c["theta_e_rad"][i],
+                        "omega_e_rad_s": c["omega_e_rad_s"][i],
+                    },
+                )
                 n += 1
         return n

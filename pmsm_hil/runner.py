@@ -1,5 +1,6 @@
 """Plays a profile on a device (rig or emulator): configure, download, start, stream to the log,
 keep the heartbeat, and end safely whatever happens (profile end, Ctrl-C, fault, dropped link)."""
+
 from __future__ import annotations
 
 import signal
@@ -19,14 +20,16 @@ from pmsm_hil.recorder import LiveState, Recorder
 
 @dataclass
 class RunOptions:
-    heartbeat_period_s: float = 0.02      # device time between heartbeats (also at least every 50 ms wall)
-    silent_after_s: float | None = None   # testing: stop sending heartbeats after this device time
-    stop_after_s: float | None = None     # ask the device to stop after this device time
-    device_timeout_s: float = 3.0         # no data for this long while running: the device is lost
-    capture: bool = True                  # upload the capture buffer at the end
-    seed: int | None = None               # recorded in the metadata (the emulator's seed)
+    heartbeat_period_s: float = (
+        0.02  # device time between heartbeats (also at least every 50 ms wall)
+    )
+    silent_after_s: float | None = None  # testing: stop sending heartbeats after this device time
+    stop_after_s: float | None = None  # ask the device to stop after this device time
+    device_timeout_s: float = 3.0  # no data for this long while running: the device is lost
+    capture: bool = True  # upload the capture buffer at the end
+    seed: int | None = None  # recorded in the metadata (the emulator's seed)
     rig_name: str = ""
-    on_update_s: float = 0.1              # wall time between observer updates
+    on_update_s: float = 0.1  # wall time between observer updates
     sinks: list = field(default_factory=list)  # extra consumers of each logged device message
 
 
@@ -57,11 +60,15 @@ def plant_mismatch(motor, truth: dict) -> str | None:
     for key, unit, tol in (("psi_f_wb", "Wb", 0.2), ("r_s_ohm", "ohm", 0.6)):
         nominal, plant = float(getattr(motor, key)), float(truth.get(key, 0.0) or 0.0)
         if plant and nominal and abs(plant / nominal - 1.0) > tol:
-            out.append(f"{key} {plant:.4g} {unit} in the emulator vs {nominal:.4g} {unit} in {motor.name}")
+            out.append(
+                f"{key} {plant:.4g} {unit} in the emulator vs {nominal:.4g} {unit} in {motor.name}"
+            )
     if not out:
         return None
-    return ("the emulator's plant is not this profile's motor (" + "; ".join(out) + "): start it with "
-            "the same motor, e.g. `pmsm-hil emulate --profile PROFILE` or `--motor MOTOR.yaml`")
+    return (
+        "the emulator's plant is not this profile's motor (" + "; ".join(out) + "): start it with "
+        "the same motor, e.g. `pmsm-hil emulate --profile PROFILE` or `--motor MOTOR.yaml`"
+    )
 
 
 class HostError(Exception):
@@ -75,7 +82,9 @@ class _Interrupts:
     the main thread (Python's rule) and restored afterwards.
     """
 
-    SIGNALS = tuple(s for s in (getattr(signal, n, None) for n in ("SIGINT", "SIGTERM", "SIGHUP")) if s)
+    SIGNALS = tuple(
+        s for s in (getattr(signal, n, None) for n in ("SIGINT", "SIGTERM", "SIGHUP")) if s
+    )
 
     def __init__(self):
         self.count = 0
@@ -100,17 +109,27 @@ class _Interrupts:
 def _metadata(profile, session: Session, options: RunOptions) -> dict[str, dict[str, str]]:
     ident = session.identity
     return {
-        "run": {"profile": profile.name, "profile_path": str(profile.path),
-                "motor": profile.motor.name, "rig": options.rig_name,
-                "seed": "" if options.seed is None else str(options.seed),
-                "host_version": __version__, "transport": session.t.name,
-                "ts_s": repr(profile.control.ts_s),
-                "segment_names": "|".join(s.name or f"segment {i}" for i, s in enumerate(profile.segments))},
+        "run": {
+            "profile": profile.name,
+            "profile_path": str(profile.path),
+            "motor": profile.motor.name,
+            "rig": options.rig_name,
+            "seed": "" if options.seed is None else str(options.seed),
+            "host_version": __version__,
+            "transport": session.t.name,
+            "ts_s": repr(profile.control.ts_s),
+            "segment_names": "|".join(
+                s.name or f"segment {i}" for i, s in enumerate(profile.segments)
+            ),
+        },
         # the rig's effects in force and their sizes (docs/rigs.md); the rig yaml is attached too
         "rig_effects": profile.rig.effective_metadata(),
-        "device": {"board": ident.board, "fw_version": ident.fw_version,
-                   "proto_version": str(ident.proto_version),
-                   "schema_hash": f"{ident.schema_hash:08x}"},
+        "device": {
+            "board": ident.board,
+            "fw_version": ident.fw_version,
+            "proto_version": str(ident.proto_version),
+            "schema_hash": f"{ident.schema_hash:08x}",
+        },
     }
 
 
@@ -128,20 +147,32 @@ def configure(session: Session, profile) -> None:
     session.request("config_ctrl", **ctrl_cfg)
     session.request("profile_clear", n_segments=len(profile.segments))
     for i, s in enumerate(profile.segments):
-        session.request("profile_segment", index=i, duration_s=s.duration_s, speed_rpm=s.speed_rpm,
-                        ramp_rpm_s=s.ramp_rpm_s, load_nm=s.load_nm,
-                        flags=((gen.ENUMS["segment_flag"]["capture"] if s.capture else 0) |
-                               (0 if s.estimate else gen.ENUMS["segment_flag"]["hold_est"])),
-                        kind=gen.ENUMS["segment_kind"][s.kind],
-                        inject_a=s.inject_a, inject_hz=s.inject_hz)
+        session.request(
+            "profile_segment",
+            index=i,
+            duration_s=s.duration_s,
+            speed_rpm=s.speed_rpm,
+            ramp_rpm_s=s.ramp_rpm_s,
+            load_nm=s.load_nm,
+            flags=(
+                (gen.ENUMS["segment_flag"]["capture"] if s.capture else 0)
+                | (0 if s.estimate else gen.ENUMS["segment_flag"]["hold_est"])
+            ),
+            kind=gen.ENUMS["segment_kind"][s.kind],
+            inject_a=s.inject_a,
+            inject_hz=s.inject_hz,
+        )
     steps = [(i, s.plant) for i, s in enumerate(profile.segments) if s.plant is not None]
     if steps and session.identity.board == "emulator":
-        for i, st in steps:   # emulator only: the sim board steps the true R and psi_f
-            session.request("sim_plant", index=i, r_s_scale=st.r_s_scale, psi_f_scale=st.psi_f_scale)
+        for i, st in steps:  # emulator only: the sim board steps the true R and psi_f
+            session.request(
+                "sim_plant", index=i, r_s_scale=st.r_s_scale, psi_f_scale=st.psi_f_scale
+            )
 
 
-def run_profile(profile, session: Session, log_path: Path, options: RunOptions | None = None,
-                observer=None) -> RunResult:
+def run_profile(
+    profile, session: Session, log_path: Path, options: RunOptions | None = None, observer=None
+) -> RunResult:
     """Run `profile` on the device behind `session`, logging to `log_path` (MCAP).
 
     Whatever ends the run (profile end, a signal, a fault, a dropped link, a host failure), the
@@ -153,8 +184,12 @@ def run_profile(profile, session: Session, log_path: Path, options: RunOptions |
     names = [s.name or f"segment {i}" for i, s in enumerate(profile.segments)]
     interrupted = False
     error = ""
-    writer = LogWriter(log_path, _metadata(profile, session, options), _attachments(profile),
-                       wall_start_s=time.time())
+    writer = LogWriter(
+        log_path,
+        _metadata(profile, session, options),
+        _attachments(profile),
+        wall_start_s=time.time(),
+    )
     rec = Recorder(writer, profile.control.ts_s, names, options.sinks)
     rec.live.total_s = profile.total_duration_s
     observer = _SafeObserver(observer)
@@ -166,7 +201,7 @@ def run_profile(profile, session: Session, log_path: Path, options: RunOptions |
                 interrupted = _stream(session, rec, options, observer, sig, profile.motor)
                 if interrupted:
                     _stop_device(session, rec, observer, sig)
-            except KeyboardInterrupt:    # raised outside the handlers (not the main thread)
+            except KeyboardInterrupt:  # raised outside the handlers (not the main thread)
                 interrupted = True
                 _stop_device(session, rec, observer, sig)
             except PlantMismatch:
@@ -176,10 +211,12 @@ def run_profile(profile, session: Session, log_path: Path, options: RunOptions |
                 error = str(e)
                 rec.event(rec.live.t_s, "host", 0, 0, f"link error: {error}")
                 _send_quietly(session, "abort")
-            except Exception as e:       # a host failure: stop the motor, then report it
+            except Exception as e:  # a host failure: stop the motor, then report it
                 _send_quietly(session, "stop")
                 _send_quietly(session, "abort")
-                raise HostError(f"{type(e).__name__}: {e}; stop and abort were sent to the device") from e
+                raise HostError(
+                    f"{type(e).__name__}: {e}; stop and abort were sent to the device"
+                ) from e
             n_cap = 0
             if options.capture and not error and not sig.count > 1:
                 n_cap = _upload_capture(session, rec, observer)
@@ -187,15 +224,22 @@ def run_profile(profile, session: Session, log_path: Path, options: RunOptions |
     finally:
         writer.close()
     live = rec.live
-    return RunResult(log_path=log_path, state=live.state, stop_reason=live.stop_reason,
-                     faults=live.faults, interrupted=interrupted, error=error,
-                     capture_samples=n_cap if not error else 0, live=live)
+    return RunResult(
+        log_path=log_path,
+        state=live.state,
+        stop_reason=live.stop_reason,
+        faults=live.faults,
+        interrupted=interrupted,
+        error=error,
+        capture_samples=n_cap if not error else 0,
+        live=live,
+    )
 
 
 def _send_quietly(session: Session, what: str) -> None:
     try:
         session.send(what)
-    except Exception:   # the link is gone too: the device stops on its heartbeat timeout
+    except Exception:  # the link is gone too: the device stops on its heartbeat timeout
         pass
 
 
@@ -216,11 +260,13 @@ class _SafeObserver:
             return
         try:
             getattr(self.inner, name)(arg)
-        except (OSError, ValueError):    # BrokenPipeError, a closed or detached stream
+        except (OSError, ValueError):  # BrokenPipeError, a closed or detached stream
             self.inner = None
 
 
-def _stream(session: Session, rec: Recorder, options: RunOptions, observer, sig, motor=None) -> bool:
+def _stream(
+    session: Session, rec: Recorder, options: RunOptions, observer, sig, motor=None
+) -> bool:
     """Stream until the device stops (False) or a signal asks the host to stop (True)."""
     live = rec.live
     plant_checked = motor is None
@@ -256,12 +302,19 @@ def _stream(session: Session, rec: Recorder, options: RunOptions, observer, sig,
             # the stopped event was lost, but the status frames or the profile's end show the stop
             live.stopped = True
             live.stop_reason = "profile end" if live.t_s >= live.total_s else "stopped (event lost)"
-            rec.event(live.t_s, "host", 0, 0, f"the device went quiet in state {live.state} at "
-                                              f"{live.t_s:.3f} s; its stopped event did not arrive")
+            rec.event(
+                live.t_s,
+                "host",
+                0,
+                0,
+                f"the device went quiet in state {live.state} at "
+                f"{live.t_s:.3f} s; its stopped event did not arrive",
+            )
             return False
         silent = options.silent_after_s is not None and live.t_s >= options.silent_after_s
-        if not silent and (live.t_s - last_hb_dev >= options.heartbeat_period_s
-                           or now - last_hb_wall >= 0.05):
+        if not silent and (
+            live.t_s - last_hb_dev >= options.heartbeat_period_s or now - last_hb_wall >= 0.05
+        ):
             session.send("heartbeat", counter=hb_counter)
             hb_counter = (hb_counter + 1) & 0xFFFFFFFF
             last_hb_dev, last_hb_wall = live.t_s, now
@@ -270,8 +323,10 @@ def _stream(session: Session, rec: Recorder, options: RunOptions, observer, sig,
             stop_sent = True
             rec.event(live.t_s, "host", 0, 0, "stop requested by the host")
         if now - last_data_wall > options.device_timeout_s:
-            raise DeviceError(f"device fell silent for {options.device_timeout_s:.1f} s on "
-                              f"{session.t.name} while running")
+            raise DeviceError(
+                f"device fell silent for {options.device_timeout_s:.1f} s on "
+                f"{session.t.name} while running"
+            )
         if observer is not None and now - last_update >= options.on_update_s:
             last_update = now
             observer.update(live)
@@ -332,8 +387,10 @@ def _upload_capture(session: Session, rec: Recorder, observer) -> int:
     if observer is not None:
         observer.message(f"uploading capture ({count} samples)")
     capacity = session.identity.capture_len
-    if count > capacity:      # a device-provided count is checked against what it said at hello
-        rec.event(rec.live.t_s, "warning", 0, 0, f"capture count {count} is implausible: not uploaded")
+    if count > capacity:  # a device-provided count is checked against what it said at hello
+        rec.event(
+            rec.live.t_s, "warning", 0, 0, f"capture count {count} is implausible: not uploaded"
+        )
         return 0
     try:
         chunks = session.read_capture(count)
@@ -342,9 +399,14 @@ def _upload_capture(session: Session, rec: Recorder, observer) -> int:
         return 0
     missing = session.capture_missing
     if missing:
-        rec.event(rec.live.t_s, "warning", 0, 0,
-                  f"capture: {len(missing)} chunks did not arrive (offsets {missing[:8]}"
-                  f"{' ...' if len(missing) > 8 else ''}); the {count} samples are kept but for those")
+        rec.event(
+            rec.live.t_s,
+            "warning",
+            0,
+            0,
+            f"capture: {len(missing)} chunks did not arrive (offsets {missing[:8]}"
+            f"{' ...' if len(missing) > 8 else ''}); the {count} samples are kept but for those",
+        )
     rec.frames(session.poll(0.0))
     return rec.capture(chunks)
 
@@ -352,7 +414,17 @@ def _upload_capture(session: Session, rec: Recorder, observer) -> int:
 def _write_link_stats(writer, session: Session, rec: Recorder) -> None:
     d = session.decoder
     live = rec.live
-    writer.write("/host/link", live.t_s, {
-        "wall_s": live.wall_s, "frames_ok": d.frames_ok, "crc_errors": d.crc_errors,
-        "cobs_errors": d.cobs_errors, "len_errors": d.len_errors, "unknown_id": d.unknown_id,
-        "octets": d.octets, "seq_gaps": live.seq_gaps})
+    writer.write(
+        "/host/link",
+        live.t_s,
+        {
+            "wall_s": live.wall_s,
+            "frames_ok": d.frames_ok,
+            "crc_errors": d.crc_errors,
+            "cobs_errors": d.cobs_errors,
+            "len_errors": d.len_errors,
+            "unknown_id": d.unknown_id,
+            "octets": d.octets,
+            "seq_gaps": live.seq_gaps,
+        },
+    )

@@ -13,6 +13,7 @@ Options: ``--hil-port /dev/ttyUSB0`` (a rig on a serial port), ``--hil-can SPEC`
 a python-can spec as for `pmsm-hil run --can`), else the in-process emulator; ``--hil-rig`` (the
 emulator's rig file or shipped name, default each profile's), ``--hil-seed`` (default 1).
 """
+
 from __future__ import annotations
 
 import os
@@ -39,6 +40,7 @@ class HilRun:
     def summary(self):
         if self._summary is None:
             from pmsm_hil.analysis.summary import summarize_log
+
             self._summary = summarize_log(self.log_path)
         return self._summary
 
@@ -48,7 +50,9 @@ class HilRun:
         from pmsm_hil.sweep.metrics import identification_window
 
         w0, w1 = identification_window(self.profile)
-        return identification_table(self.log_path, w0 if t0_s is None else t0_s, w1 if t1_s is None else t1_s)
+        return identification_table(
+            self.log_path, w0 if t0_s is None else t0_s, w1 if t1_s is None else t1_s
+        )
 
     @property
     def checks(self) -> list:
@@ -61,7 +65,9 @@ class HilRun:
 
             acc = self.profile.acceptance or Acceptance.model_validate(DEFAULT_ACCEPTANCE)
             wants_ident = acc.run is not None and acc.run.identification
-            self._checks = evaluate(acc, self.summary, self.identification() if wants_ident else None)
+            self._checks = evaluate(
+                acc, self.summary, self.identification() if wants_ident else None
+            )
         return self._checks
 
     @property
@@ -71,16 +77,26 @@ class HilRun:
     def assert_accepted(self) -> None:
         failed = [c for c in self.checks if not c.passed]
         if failed:
-            lines = [f"{c.scope}: {c.criterion} measured {c.measured}, bound {c.bound}" for c in failed]
-            raise AssertionError(f"{self.profile.name}: {len(failed)} of {len(self.checks)} acceptance "
-                                 f"checks failed (log {self.log_path}):\n  " + "\n  ".join(lines))
+            lines = [
+                f"{c.scope}: {c.criterion} measured {c.measured}, bound {c.bound}" for c in failed
+            ]
+            raise AssertionError(
+                f"{self.profile.name}: {len(failed)} of {len(self.checks)} acceptance "
+                f"checks failed (log {self.log_path}):\n  " + "\n  ".join(lines)
+            )
 
 
 class HilDevice:
     """The device the tests run on: the in-process emulator, or a rig on a serial port or CAN."""
 
-    def __init__(self, port: str | None = None, can: str | None = None, rig: str | None = None,
-                 seed: int = 1, log_dir: Path | None = None):
+    def __init__(
+        self,
+        port: str | None = None,
+        can: str | None = None,
+        rig: str | None = None,
+        seed: int = 1,
+        log_dir: Path | None = None,
+    ):
         self.port, self.can, self.rig, self.seed = port, can, rig, seed
         self.log_dir = Path(log_dir) if log_dir is not None else Path.cwd()
         self._n = 0
@@ -96,12 +112,19 @@ class HilDevice:
     def _transport(self, profile, seed: int):
         if self.port:
             from pmsm_hil.transport.serial_port import SerialTransport
+
             return SerialTransport(self.port, profile.link.baud)
         from pmsm_hil.transport.can_bus import open_for_run
+
         return open_for_run(self.can, profile, str(profile.rig.path), seed)
 
-    def run(self, profile: str | os.PathLike, out: str | os.PathLike | None = None,
-            seed: int | None = None, rig: str | None = None) -> HilRun:
+    def run(
+        self,
+        profile: str | os.PathLike,
+        out: str | os.PathLike | None = None,
+        seed: int | None = None,
+        rig: str | None = None,
+    ) -> HilRun:
         """Run a profile (a path or a shipped name) to the end; the log goes to ``out`` (default: a
         numbered file in the test's log folder)."""
         from pmsm_hil.profiles import load_profile
@@ -110,7 +133,9 @@ class HilDevice:
 
         seed = self.seed if seed is None else seed
         rig = rig or self.rig
-        prof = load_profile(resolve(profile, "profile"), rig_override=resolve(rig, "rig") if rig else None)
+        prof = load_profile(
+            resolve(profile, "profile"), rig_override=resolve(rig, "rig") if rig else None
+        )
         self._n += 1
         log = Path(out) if out is not None else self.log_dir / f"{self._n:03d}-{prof.name}.mcap"
         log.parent.mkdir(parents=True, exist_ok=True)
@@ -122,9 +147,10 @@ class HilDevice:
 
             transport = self._transport(prof, seed)
             try:
-                on_emulator = bool(self.can) and self.can.startswith("emulator")   # the CAN emulator
-                result = run_profile(prof, Session(transport), log,
-                                     RunOptions(seed=seed if on_emulator else None))
+                on_emulator = bool(self.can) and self.can.startswith("emulator")  # the CAN emulator
+                result = run_profile(
+                    prof, Session(transport), log, RunOptions(seed=seed if on_emulator else None)
+                )
             finally:
                 transport.close()
         return HilRun(profile=prof, result=result, log_path=log)
@@ -132,20 +158,36 @@ class HilDevice:
 
 # ----------------------------------------------------------------------------------- pytest hooks
 
+
 def pytest_addoption(parser) -> None:
     group = parser.getgroup("pmsm-hil", "pmsm-hil hardware-in-the-loop tests")
-    group.addoption("--hil-port", default=None, metavar="PORT",
-                    help="run hil_device on the rig at this serial port (default: the emulator)")
-    group.addoption("--hil-can", default=None, metavar="SPEC",
-                    help="run hil_device on the rig on this CAN interface (python-can spec)")
-    group.addoption("--hil-rig", default=None, metavar="RIG",
-                    help="rig file or shipped name for the emulator (default: each profile's)")
-    group.addoption("--hil-seed", type=int, default=1, metavar="N", help="emulator seed (default 1)")
+    group.addoption(
+        "--hil-port",
+        default=None,
+        metavar="PORT",
+        help="run hil_device on the rig at this serial port (default: the emulator)",
+    )
+    group.addoption(
+        "--hil-can",
+        default=None,
+        metavar="SPEC",
+        help="run hil_device on the rig on this CAN interface (python-can spec)",
+    )
+    group.addoption(
+        "--hil-rig",
+        default=None,
+        metavar="RIG",
+        help="rig file or shipped name for the emulator (default: each profile's)",
+    )
+    group.addoption(
+        "--hil-seed", type=int, default=1, metavar="N", help="emulator seed (default 1)"
+    )
 
 
 def pytest_configure(config) -> None:
-    config.addinivalue_line("markers", "hil_rig: needs a real rig (--hil-port or --hil-can); "
-                                       "skipped on the emulator")
+    config.addinivalue_line(
+        "markers", "hil_rig: needs a real rig (--hil-port or --hil-can); skipped on the emulator"
+    )
 
 
 def _has_rig(config) -> bool:
@@ -167,6 +209,10 @@ def hil_device(request, tmp_path_factory) -> HilDevice:
     cfg = request.config
     if cfg.getoption("--hil-port") and cfg.getoption("--hil-can"):
         raise pytest.UsageError("give --hil-port or --hil-can, not both")
-    return HilDevice(port=cfg.getoption("--hil-port"), can=cfg.getoption("--hil-can"),
-                     rig=cfg.getoption("--hil-rig"), seed=cfg.getoption("--hil-seed"),
-                     log_dir=tmp_path_factory.mktemp("hil-logs"))
+    return HilDevice(
+        port=cfg.getoption("--hil-port"),
+        can=cfg.getoption("--hil-can"),
+        rig=cfg.getoption("--hil-rig"),
+        seed=cfg.getoption("--hil-seed"),
+        log_dir=tmp_path_factory.mktemp("hil-logs"),
+    )

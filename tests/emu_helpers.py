@@ -1,4 +1,5 @@
 """Helpers shared by the tests that run profiles on the in-process emulator."""
+
 from __future__ import annotations
 
 import os

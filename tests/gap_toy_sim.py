@@ -2,6 +2,7 @@
 surface-PM motor under dq PI current control with carrier PWM (duties, min-max injection), a hard-
 sign averaged dead time, forward Euler with 20 sub-steps, Gaussian current noise. Writes
 DESIGN.md's control-rate CSV columns."""
+
 from __future__ import annotations
 
 import math
@@ -47,8 +48,15 @@ def simulate(path, dead_time_s=0.0, noise_a=0.02, ts=50e-6, t_end=1.0, v_dc=540.
         for _ in range(sub):
             c, s = math.cos(theta), math.sin(theta)
             i_al, i_be = c * i_d - s * i_q, s * i_d + c * i_q
-            iph = (i_al, -0.5 * i_al + math.sqrt(3) / 2 * i_be, -0.5 * i_al - math.sqrt(3) / 2 * i_be)
-            pole = [dx * v_dc - (dead_time_s / ts) * v_dc * math.copysign(1.0, ix) for dx, ix in zip(d, iph)]
+            iph = (
+                i_al,
+                -0.5 * i_al + math.sqrt(3) / 2 * i_be,
+                -0.5 * i_al - math.sqrt(3) / 2 * i_be,
+            )
+            pole = [
+                dx * v_dc - (dead_time_s / ts) * v_dc * math.copysign(1.0, ix)
+                for dx, ix in zip(d, iph)
+            ]
             u_al = (2 * pole[0] - pole[1] - pole[2]) / 3
             u_be = (pole[1] - pole[2]) / math.sqrt(3)
             u_d, u_q = c * u_al + s * u_be, -s * u_al + c * u_be

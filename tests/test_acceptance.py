@@ -1,5 +1,6 @@
 """Acceptance criteria in profiles and `pmsm-hil test`: validation, no effect on the device, the
 pass/fail table, JUnit XML, the exit code."""
+
 from __future__ import annotations
 
 import subprocess
@@ -24,21 +25,47 @@ def with_acceptance(tmp_path, data, text: str, name: str = "p.yaml"):
     return p
 
 
-@pytest.mark.parametrize("text, field, message", [
-    ("acceptance:\n  run:\n    speed_error_max_rpm: wide\n", "acceptance.run.speed_error_max_rpm",
-     "'wide'"),
-    ("acceptance:\n  run:\n    faults: never\n", "acceptance.run.faults", "is not one of"),
-    ("acceptance:\n  run:\n    recovery_max_s: -1\n", "acceptance.run.recovery_max_s", "must be > 0"),
-    ("acceptance:\n  segments:\n    - {segment: \"lod on\", recovery_max_s: 0.3}\n",
-     "acceptance.segments[0].segment", "did you mean 'load on'"),
-    ("acceptance:\n  segments:\n    - {segment: 7, recovery_max_s: 0.3}\n",
-     "acceptance.segments[0].segment", "is not a segment index"),
-    ("acceptance:\n  segments:\n    - {segment: 1}\n", "acceptance.segments[0]", "gives no bound"),
-    ("acceptance:\n  run:\n    identification:\n      - {estimator: nlms, param: l_q_h, error_max_rel: 0.02}\n",
-     "acceptance.run.identification[0].estimator", "is not one of"),
-    ("acceptance:\n  run:\n    recovery_max: 0.3\n", "acceptance.run.recovery_max",
-     "did you mean 'recovery_max_s'"),
-])
+@pytest.mark.parametrize(
+    "text, field, message",
+    [
+        (
+            "acceptance:\n  run:\n    speed_error_max_rpm: wide\n",
+            "acceptance.run.speed_error_max_rpm",
+            "'wide'",
+        ),
+        ("acceptance:\n  run:\n    faults: never\n", "acceptance.run.faults", "is not one of"),
+        (
+            "acceptance:\n  run:\n    recovery_max_s: -1\n",
+            "acceptance.run.recovery_max_s",
+            "must be > 0",
+        ),
+        (
+            'acceptance:\n  segments:\n    - {segment: "lod on", recovery_max_s: 0.3}\n',
+            "acceptance.segments[0].segment",
+            "did you mean 'load on'",
+        ),
+        (
+            "acceptance:\n  segments:\n    - {segment: 7, recovery_max_s: 0.3}\n",
+            "acceptance.segments[0].segment",
+            "is not a segment index",
+        ),
+        (
+            "acceptance:\n  segments:\n    - {segment: 1}\n",
+            "acceptance.segments[0]",
+            "gives no bound",
+        ),
+        (
+            "acceptance:\n  run:\n    identification:\n      - {estimator: nlms, param: l_q_h, error_max_rel: 0.02}\n",
+            "acceptance.run.identification[0].estimator",
+            "is not one of",
+        ),
+        (
+            "acceptance:\n  run:\n    recovery_max: 0.3\n",
+            "acceptance.run.recovery_max",
+            "did you mean 'recovery_max_s'",
+        ),
+    ],
+)
 def test_acceptance_errors_name_file_line_field(tmp_path, data, text, field, message):
     p = with_acceptance(tmp_path, data, text)
     n_lines = len((data / "short.yaml").read_text().splitlines())
@@ -47,7 +74,7 @@ def test_acceptance_errors_name_file_line_field(tmp_path, data, text, field, mes
     msg = str(e.value)
     assert msg.startswith(f"{p}:"), msg
     line = int(msg.split(":")[1])
-    assert line > n_lines                     # on a line of the acceptance section
+    assert line > n_lines  # on a line of the acceptance section
     assert f" {field}" in msg and message in msg, msg
 
 
@@ -55,12 +82,19 @@ def test_shipped_profiles_load_with_their_criteria(root):
     a = load_profile(root / "profiles" / "paper-a.yaml")
     assert a.acceptance.run.speed_error_max_rpm == "band" and a.acceptance.run.recovery_max_s == 0.3
     ident = load_profile(root / "profiles" / "paper-a-identify.yaml")
-    assert {b.param for b in ident.acceptance.run.identification} == {"l_d_h", "l_q_h", "psi_f_wb", "r_s_ohm"}
+    assert {b.param for b in ident.acceptance.run.identification} == {
+        "l_d_h",
+        "l_q_h",
+        "psi_f_wb",
+        "r_s_ohm",
+    }
     assert load_profile(root / "profiles" / "sew-cm3c80s.yaml").acceptance is None
 
 
 def test_criteria_change_nothing_on_the_device(tmp_path, data):
-    p = with_acceptance(tmp_path, data, "acceptance:\n  run: {faults: forbidden, recovery_max_s: 0.3}\n")
+    p = with_acceptance(
+        tmp_path, data, "acceptance:\n  run: {faults: forbidden, recovery_max_s: 0.3}\n"
+    )
     run_inproc(data / "short.yaml", tmp_path / "a.mcap", seed=4)
     run_inproc(p, tmp_path / "b.mcap", seed=4)
     a, b = raw_messages(tmp_path / "a.mcap"), raw_messages(tmp_path / "b.mcap", DEVICE_TOPICS)
@@ -68,11 +102,16 @@ def test_criteria_change_nothing_on_the_device(tmp_path, data):
 
 
 def test_test_passes_and_writes_junit(tmp_path, data):
-    p = with_acceptance(tmp_path, data, "acceptance:\n  run:\n    faults: forbidden\n    "
-                                        "speed_error_max_rpm: band\n    recovery_max_s: 0.3\n")
+    p = with_acceptance(
+        tmp_path,
+        data,
+        "acceptance:\n  run:\n    faults: forbidden\n    "
+        "speed_error_max_rpm: band\n    recovery_max_s: 0.3\n",
+    )
     junit = tmp_path / "out.xml"
-    r = subprocess.run([*CLI, "test", str(p), "--junit", str(junit)], capture_output=True, text=True,
-                       timeout=300)
+    r = subprocess.run(
+        [*CLI, "test", str(p), "--junit", str(junit)], capture_output=True, text=True, timeout=300
+    )
     assert r.returncode == 0, r.stdout + r.stderr
     assert "PASS short" in r.stdout and "1 of 1 profiles passed" in r.stdout
     suite = ET.parse(junit).getroot().find("testsuite")
@@ -81,12 +120,32 @@ def test_test_passes_and_writes_junit(tmp_path, data):
 
 
 def test_test_fails_with_the_measured_value_beside_the_bound(tmp_path, data):
-    failing = with_acceptance(tmp_path, data, "acceptance:\n  segments:\n    - {segment: \"load on\", "
-                                              "recovery_max_s: 0.001, ripple_q_max_a: 100}\n", "f.yaml")
+    failing = with_acceptance(
+        tmp_path,
+        data,
+        'acceptance:\n  segments:\n    - {segment: "load on", '
+        "recovery_max_s: 0.001, ripple_q_max_a: 100}\n",
+        "f.yaml",
+    )
     passing = with_acceptance(tmp_path, data, "acceptance:\n  run: {faults: forbidden}\n", "g.yaml")
     junit = tmp_path / "out.xml"
-    r = subprocess.run([*CLI, "test", str(failing), str(passing), "--junit", str(junit), "--workers", "1",
-                        "--out", str(tmp_path / "o")], capture_output=True, text=True, timeout=300)
+    r = subprocess.run(
+        [
+            *CLI,
+            "test",
+            str(failing),
+            str(passing),
+            "--junit",
+            str(junit),
+            "--workers",
+            "1",
+            "--out",
+            str(tmp_path / "o"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert r.returncode == 1, r.stdout + r.stderr
     assert "FAIL short: 2 of 3 checks passed" in r.stdout
     assert "PASS short: 2 of 2 checks passed" in r.stdout

@@ -1,5 +1,6 @@
 """The host's layering holds (docs/architecture.md): every import of every module, including the
 ones inside functions, points in the allowed direction."""
+
 from __future__ import annotations
 
 import ast
@@ -12,16 +13,76 @@ PKG = Path(__file__).resolve().parents[1] / "pmsm_hil"
 # package -> packages of pmsm_hil it must never import (directly or inside a function)
 FORBIDDEN = {
     "errors": {"*"},
-    "profiles": {"protocol", "transport", "emulator", "runner", "recorder", "device", "cli", "log",
-                 "analysis", "gap", "live", "bench", "sweep"},
-    "log": {"protocol", "transport", "emulator", "runner", "recorder", "device", "cli", "profiles",
-            "analysis", "gap", "live", "bench", "sweep"},
-    "protocol": {"transport", "emulator", "runner", "recorder", "device", "cli", "log", "analysis",
-                 "gap", "live", "bench", "sweep"},
-    "transport": {"protocol", "runner", "recorder", "device", "cli", "log", "analysis", "gap", "live",
-                  "bench", "sweep"},
-    "emulator": {"transport", "runner", "recorder", "device", "cli", "log", "analysis", "gap", "live",
-                 "bench", "sweep"},
+    "profiles": {
+        "protocol",
+        "transport",
+        "emulator",
+        "runner",
+        "recorder",
+        "device",
+        "cli",
+        "log",
+        "analysis",
+        "gap",
+        "live",
+        "bench",
+        "sweep",
+    },
+    "log": {
+        "protocol",
+        "transport",
+        "emulator",
+        "runner",
+        "recorder",
+        "device",
+        "cli",
+        "profiles",
+        "analysis",
+        "gap",
+        "live",
+        "bench",
+        "sweep",
+    },
+    "protocol": {
+        "transport",
+        "emulator",
+        "runner",
+        "recorder",
+        "device",
+        "cli",
+        "log",
+        "analysis",
+        "gap",
+        "live",
+        "bench",
+        "sweep",
+    },
+    "transport": {
+        "protocol",
+        "runner",
+        "recorder",
+        "device",
+        "cli",
+        "log",
+        "analysis",
+        "gap",
+        "live",
+        "bench",
+        "sweep",
+    },
+    "emulator": {
+        "transport",
+        "runner",
+        "recorder",
+        "device",
+        "cli",
+        "log",
+        "analysis",
+        "gap",
+        "live",
+        "bench",
+        "sweep",
+    },
     "analysis": {"protocol", "transport", "emulator", "runner", "device", "cli"},
     "runner": {"transport", "emulator", "device", "cli", "analysis"},
     "recorder": {"transport", "emulator", "device", "cli", "analysis", "runner"},
@@ -59,8 +120,11 @@ def _imports(path: Path) -> set[str]:
 
 
 def test_the_layering_table_names_real_packages():
-    top = {p.stem if p.is_file() else p.name for p in PKG.iterdir()
-           if (p.is_dir() and (p / "__init__.py").exists()) or p.suffix == ".py"}
+    top = {
+        p.stem if p.is_file() else p.name
+        for p in PKG.iterdir()
+        if (p.is_dir() and (p / "__init__.py").exists()) or p.suffix == ".py"
+    }
     for pkg, bad in FORBIDDEN.items():
         assert pkg in top, pkg
 
@@ -80,6 +144,8 @@ def test_imports_point_in_the_allowed_direction(pkg):
 
 def test_the_checker_sees_imports_inside_functions(tmp_path):
     mod = tmp_path / "m.py"
-    mod.write_text("def f():\n    from pmsm_hil.transport.base import TransportError\n"
-                   "import pmsm_hil.protocol.codec\n")
+    mod.write_text(
+        "def f():\n    from pmsm_hil.transport.base import TransportError\n"
+        "import pmsm_hil.protocol.codec\n"
+    )
     assert _imports(mod) == {"transport", "protocol"}

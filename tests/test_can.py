@@ -1,4 +1,5 @@
 """CAN: layouts, paper-a over CAN, heartbeat over CAN, rejected-and-retried transfers, DBC, SPEC."""
+
 from __future__ import annotations
 
 import subprocess
@@ -29,8 +30,9 @@ STATE = gen.ENUMS["state"]
 
 
 def settings_for(profile, seed=1):
-    return emulator_settings(profile.motor, profile.rig, seed=seed, baud=profile.link.baud,
-                             ts_s=profile.control.ts_s)
+    return emulator_settings(
+        profile.motor, profile.rig, seed=seed, baud=profile.link.baud, ts_s=profile.control.ts_s
+    )
 
 
 def run_can(profile_path, out, seed=1, link_kw=None, **opts):
@@ -106,6 +108,7 @@ def test_silent_host_over_can_stops_the_motor_within_the_heartbeat_time(data, tm
 
 def test_dropped_can_connection_stops_the_motor_within_the_heartbeat_time(data):
     from pmsm_hil.emulator.socketcand_server import SocketcandServer
+
     profile = load_profile(str(data / "long.yaml"))
     apply_can_rates(profile)
     dev = EmulatedDevice(settings_for(profile))
@@ -123,7 +126,7 @@ def test_dropped_can_connection_stops_the_motor_within_the_heartbeat_time(data):
             session.poll(0.02)
             session.send("heartbeat", counter=0)
         assert dev.state == STATE["running"]
-        link.close()                           # the connection drops
+        link.close()  # the connection drops
         t_drop = time.monotonic()
         while dev.state == STATE["running"] and time.monotonic() - t_drop < 3.0:
             time.sleep(0.005)
@@ -132,7 +135,7 @@ def test_dropped_can_connection_stops_the_motor_within_the_heartbeat_time(data):
         assert t_stop <= profile.control.heartbeat_timeout_s + 0.1, t_stop
         while dev.active and time.monotonic() - t_drop < 5.0:
             time.sleep(0.01)
-        assert dev.state == STATE["idle"]      # brought to rest, PWM off
+        assert dev.state == STATE["idle"]  # brought to rest, PWM off
     finally:
         server.stop()
         thread.join(timeout=5)
@@ -158,7 +161,7 @@ class FirstTransferFault:
                     out.append((ident, data[:3] + bytes([data[3] ^ 0x10]) + data[4:]))
                 elif self.kind == "duplicate":
                     out += [(ident, data), (ident, data)]
-                continue   # "missing": dropped
+                continue  # "missing": dropped
             out.append((ident, data))
         return out
 
@@ -170,15 +173,16 @@ def test_corrupted_config_transfer_is_rejected_and_retried(data, kind):
     link = inprocess_can_link(settings_for(profile), fault_h2d=fault)
     session = Session(link)
     session.hello()
-    configure(session, profile)                       # acknowledged in the end
-    assert fault.done and fault.headers == 2          # the first attempt went unanswered: sent again
+    configure(session, profile)  # acknowledged in the end
+    assert fault.done and fault.headers == 2  # the first attempt went unanswered: sent again
 
 
 @pytest.mark.parametrize("kind", ["crc", "missing"])
 def test_corrupted_capture_chunk_is_rejected_and_asked_for_again(data, tmp_path, kind):
     fault = FirstTransferFault(kind, cg.FUNC_TRANSFER_D2H, gen.ID_CAPTURE_CHUNK)
-    _, result, link = run_can(data / "short.yaml", tmp_path / "cap.mcap",
-                              link_kw={"fault_d2h": fault})
+    _, result, link = run_can(
+        data / "short.yaml", tmp_path / "cap.mcap", link_kw={"fault_d2h": fault}
+    )
     assert fault.done
     assert link.decoder.crc_errors + link.decoder.order_errors + link.decoder.len_errors >= 1
     assert result.capture_samples == 1024
@@ -192,8 +196,9 @@ def test_the_dbc_decodes_recorded_frames(data, root, tmp_path):
     apply_can_rates(profile)
     link = inprocess_can_link(settings_for(profile))
     link.bus.recorded = []
-    run_profile(profile, Session(link), tmp_path / "dbc.mcap", RunOptions(stop_after_s=0.3,
-                                                                        capture=False))
+    run_profile(
+        profile, Session(link), tmp_path / "dbc.mcap", RunOptions(stop_after_s=0.3, capture=False)
+    )
     rec = link.bus.recorded
     assert len(rec) > 1000
     by_name: dict[str, list] = {}
@@ -212,13 +217,16 @@ def test_the_dbc_decodes_recorded_frames(data, root, tmp_path):
     assert {"status_0", "params_0", "event_0", "ack", "identify_0"} <= set(by_name)
 
 
-@pytest.mark.parametrize("text, expect", [
-    ("socketcand:emu0@127.0.0.1:29536", ("socketcand", "emu0", None, None, "127.0.0.1", 29536)),
-    ("socketcan:can0,bitrate=500000,node=3", ("socketcan", "can0", 500_000, 3, None, None)),
-    ("slcan:/dev/ttyACM0", ("slcan", "/dev/ttyACM0", None, None, None, None)),
-    ("emulator", ("emulator", "", None, None, None, None)),
-    (None, ("emulator", "", None, None, None, None)),
-])
+@pytest.mark.parametrize(
+    "text, expect",
+    [
+        ("socketcand:emu0@127.0.0.1:29536", ("socketcand", "emu0", None, None, "127.0.0.1", 29536)),
+        ("socketcan:can0,bitrate=500000,node=3", ("socketcan", "can0", 500_000, 3, None, None)),
+        ("slcan:/dev/ttyACM0", ("slcan", "/dev/ttyACM0", None, None, None, None)),
+        ("emulator", ("emulator", "", None, None, None, None)),
+        (None, ("emulator", "", None, None, None, None)),
+    ],
+)
 def test_spec_parsing(text, expect):
     s = parse_spec(text)
     assert (s.interface, s.channel, s.bitrate, s.node, s.host, s.port) == expect
@@ -226,11 +234,17 @@ def test_spec_parsing(text, expect):
         assert parse_spec(s.text()) == s
 
 
-@pytest.mark.parametrize("text, words", [
-    ("can0", "expected INTERFACE:CHANNEL"), ("bogus:can0", "unknown interface"),
-    ("socketcan:can0,node=16", "node 16"), ("socketcan:can0,bitrate=2000000", "bitrate"),
-    ("socketcand:emu0", "CHANNEL@HOST:PORT"), ("socketcan:can0,foo", "key=value"),
-])
+@pytest.mark.parametrize(
+    "text, words",
+    [
+        ("can0", "expected INTERFACE:CHANNEL"),
+        ("bogus:can0", "unknown interface"),
+        ("socketcan:can0,node=16", "node 16"),
+        ("socketcan:can0,bitrate=2000000", "bitrate"),
+        ("socketcand:emu0", "CHANNEL@HOST:PORT"),
+        ("socketcan:can0,foo", "key=value"),
+    ],
+)
 def test_bad_spec_is_refused_clearly(text, words):
     with pytest.raises(TransportError, match=words):
         parse_spec(text)
@@ -244,15 +258,33 @@ def test_unreachable_or_missing_interface_is_a_clear_error():
 
 
 def test_cli_emulate_can_prints_a_spec_that_run_connects_to(data, tmp_path):
-    emu = subprocess.Popen([sys.executable, "-m", "pmsm_hil.emulator", "--can"], stdout=subprocess.PIPE,
-                           stderr=subprocess.PIPE, text=True)
+    emu = subprocess.Popen(
+        [sys.executable, "-m", "pmsm_hil.emulator", "--can"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         line = emu.stdout.readline().strip()
         assert line.startswith("can: socketcand:emu0@127.0.0.1:")
         spec = line.split(" ", 1)[1]
-        r = subprocess.run([sys.executable, "-m", "pmsm_hil.cli.main", "run", str(data / "short.yaml"),
-                            "--can", spec, "--no-live", "-o", str(tmp_path / "c.mcap")],
-                           capture_output=True, text=True, timeout=120)
+        r = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "pmsm_hil.cli.main",
+                "run",
+                str(data / "short.yaml"),
+                "--can",
+                spec,
+                "--no-live",
+                "-o",
+                str(tmp_path / "c.mcap"),
+            ],
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
         assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
         assert "all plateaus within bounds" in r.stdout
         assert "CAN socketcand" in read_log(tmp_path / "c.mcap").metadata["run"]["transport"]
@@ -262,23 +294,55 @@ def test_cli_emulate_can_prints_a_spec_that_run_connects_to(data, tmp_path):
 
 
 def test_a_second_can_client_cannot_take_over_a_running_motor(data, tmp_path):
-    emu = subprocess.Popen([sys.executable, "-m", "pmsm_hil.emulator", "--can"], stdout=subprocess.PIPE,
-                           stderr=subprocess.PIPE, text=True)
+    emu = subprocess.Popen(
+        [sys.executable, "-m", "pmsm_hil.emulator", "--can"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         spec = emu.stdout.readline().strip().split(" ", 1)[1]
-        first = subprocess.Popen([sys.executable, "-m", "pmsm_hil.cli.main", "run", str(data / "long.yaml"),
-                                  "--can", spec, "--no-live", "-o", str(tmp_path / "first.mcap")],
-                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        first = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "pmsm_hil.cli.main",
+                "run",
+                str(data / "long.yaml"),
+                "--can",
+                spec,
+                "--no-live",
+                "-o",
+                str(tmp_path / "first.mcap"),
+            ],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
         deadline = time.monotonic() + 60
         while time.monotonic() < deadline and not first.stdout.readline().startswith("t="):
             pass
-        second = subprocess.run([sys.executable, "-m", "pmsm_hil.cli.main", "run", str(data / "short.yaml"),
-                                 "--can", spec, "--no-live", "-o", str(tmp_path / "second.mcap")],
-                                capture_output=True, text=True, timeout=120)
+        second = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "pmsm_hil.cli.main",
+                "run",
+                str(data / "short.yaml"),
+                "--can",
+                spec,
+                "--no-live",
+                "-o",
+                str(tmp_path / "second.mcap"),
+            ],
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
         assert second.returncode == 3
         assert "busy" in second.stderr and "Traceback" not in second.stderr
         out, err = first.communicate(timeout=180)
-        assert first.returncode == 0, err[-2000:]      # the first session ran to its end undisturbed
+        assert first.returncode == 0, err[-2000:]  # the first session ran to its end undisturbed
         assert "all plateaus within bounds" in out
     finally:
         emu.terminate()

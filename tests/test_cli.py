@@ -1,4 +1,5 @@
 """The command line as a user meets it: runs, bad input, bad links, Ctrl-C."""
+
 from __future__ import annotations
 
 import os
@@ -20,8 +21,9 @@ CLI = [sys.executable, "-m", "pmsm_hil.cli.main"]
 
 
 def cli(*args, timeout=180, **kw):
-    return subprocess.run([*CLI, *map(str, args)], capture_output=True, text=True, timeout=timeout,
-                          **kw)
+    return subprocess.run(
+        [*CLI, *map(str, args)], capture_output=True, text=True, timeout=timeout, **kw
+    )
 
 
 def test_run_on_the_emulator_writes_a_log_and_a_summary(data, tmp_path):
@@ -39,8 +41,10 @@ def test_run_on_the_emulator_writes_a_log_and_a_summary(data, tmp_path):
 
 def test_bad_profile_names_file_line_field(tmp_path, root):
     bad = tmp_path / "bad.yaml"
-    bad.write_text(f"name: bad\nmotor: {root}/profiles/motors/paper-a-ipmsm.yaml\nsegments:\n"
-                   "  - {duration_s: 1.0, speed_rpm: 9000, load_nm: 0}\n")
+    bad.write_text(
+        f"name: bad\nmotor: {root}/profiles/motors/paper-a-ipmsm.yaml\nsegments:\n"
+        "  - {duration_s: 1.0, speed_rpm: 9000, load_nm: 0}\n"
+    )
     r = cli("run", bad, "--no-live")
     assert r.returncode == 2
     assert "Traceback" not in r.stderr
@@ -91,10 +95,21 @@ def test_protocol_mismatch_is_refused_naming_both_versions(data):
                 return
             for fr in dec.feed(chunk):
                 if fr.name == "hello":
-                    os.write(master, codec.encode(
-                        "identify", 0, proto_version=gen.PROTOCOL_VERSION + 1,
-                        schema_hash=0x12345678, fw_major=9, fw_minor=0, fw_patch=0, board=1,
-                        tx_buf_octets=1024, capture_len=1024))
+                    os.write(
+                        master,
+                        codec.encode(
+                            "identify",
+                            0,
+                            proto_version=gen.PROTOCOL_VERSION + 1,
+                            schema_hash=0x12345678,
+                            fw_major=9,
+                            fw_minor=0,
+                            fw_patch=0,
+                            board=1,
+                            tx_buf_octets=1024,
+                            capture_len=1024,
+                        ),
+                    )
 
     th = threading.Thread(target=fake_device, daemon=True)
     th.start()
@@ -113,9 +128,13 @@ def test_protocol_mismatch_is_refused_naming_both_versions(data):
 def test_ctrl_c_stops_the_motor_and_keeps_the_log(data, tmp_path):
     """Ctrl-C typed in a terminal: SIGINT goes to the whole foreground process group."""
     out = tmp_path / "int.mcap"
-    p = subprocess.Popen([*CLI, "run", str(data / "long.yaml"), "--out", str(out), "--no-live"],
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                         start_new_session=True)
+    p = subprocess.Popen(
+        [*CLI, "run", str(data / "long.yaml"), "--out", str(out), "--no-live"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
     # wait until the run streams (progress lines), then interrupt
     deadline = time.monotonic() + 60
     seen = ""
@@ -127,7 +146,7 @@ def test_ctrl_c_stops_the_motor_and_keeps_the_log(data, tmp_path):
     time.sleep(0.5)
     children = emulator_children(p.pid)
     assert children, "the run should have started an emulator process"
-    os.killpg(p.pid, signal.SIGINT)        # the group: what the terminal does
+    os.killpg(p.pid, signal.SIGINT)  # the group: what the terminal does
     stdout, stderr = p.communicate(timeout=60)
     assert p.returncode == 130, stderr
     assert "Traceback" not in stderr and "link" not in stderr
@@ -136,7 +155,8 @@ def test_ctrl_c_stops_the_motor_and_keeps_the_log(data, tmp_path):
     log = read_log(out)
     assert log.finalised
     from mcap.reader import make_reader
-    with open(out, "rb") as f:       # the generic reader, through the file's index
+
+    with open(out, "rb") as f:  # the generic reader, through the file's index
         n_generic = sum(1 for _ in make_reader(f).iter_messages())
     assert n_generic == sum(log.counts.values())
     kinds = list(log.topic("/pmsm/events")["kind"])
@@ -146,13 +166,14 @@ def test_ctrl_c_stops_the_motor_and_keeps_the_log(data, tmp_path):
     assert any("interrupted by SIGINT" in t for t in texts)
     tel = log.topic("/pmsm/telemetry")
     assert abs(tel["speed_rpm"][-1]) < 5.0
-    for c in children:                       # the host ended its emulator
+    for c in children:  # the host ended its emulator
         assert not os.path.exists(f"/proc/{c}") or open(f"/proc/{c}/stat").read().split()[2] == "Z"
 
 
 def test_emulate_serves_a_pty_that_run_uses_like_a_rig(data, tmp_path):
-    emu = subprocess.Popen([*CLI, "emulate", "--seed", "3"], stdout=subprocess.PIPE,
-                           stderr=subprocess.PIPE, text=True)
+    emu = subprocess.Popen(
+        [*CLI, "emulate", "--seed", "3"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
     try:
         line = emu.stdout.readline()
         assert line.startswith("serial: /dev/"), line
@@ -174,8 +195,9 @@ def test_corrupted_link_is_counted_dropped_and_resynchronised(data, tmp_path):
     from pmsm_hil.transport.emulator import EmulatorTransport
 
     profile = load_profile(str(data / "short.yaml"))
-    tr = EmulatorTransport(str(profile.motor.path), str(profile.rig.path), seed=1, baud=921600,
-                           corrupt_ppm=300)
+    tr = EmulatorTransport(
+        str(profile.motor.path), str(profile.rig.path), seed=1, baud=921600, corrupt_ppm=300
+    )
     try:
         result = run_profile(profile, Session(tr), tmp_path / "noisy.mcap", RunOptions())
     finally:
@@ -185,8 +207,10 @@ def test_corrupted_link_is_counted_dropped_and_resynchronised(data, tmp_path):
     tel = read_log(tmp_path / "noisy.mcap").topic("/pmsm/telemetry")
     # most frames made it, and the ones that did are intact (t_s on the 0.5 ms grid)
     assert len(tel["t_s"]) > 0.9 * profile.total_duration_s * 2000
-    assert pytest.approx(0.0, abs=1e-9) == float(max(abs((tel["t_s"] * 2000) - (tel["t_s"] * 2000).round())))
-    a = cli("analyze", tmp_path / "noisy.mcap")      # the loss is reported, not hidden
+    assert pytest.approx(0.0, abs=1e-9) == float(
+        max(abs((tel["t_s"] * 2000) - (tel["t_s"] * 2000).round()))
+    )
+    a = cli("analyze", tmp_path / "noisy.mcap")  # the loss is reported, not hidden
     assert a.returncode == 1 and "lost frames on the link" in a.stdout and "INCOMPLETE" in a.stdout
 
 

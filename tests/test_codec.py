@@ -1,4 +1,5 @@
 """Codec and framing (Python side): golden frames, round trips, streaming decoder, errors, resync."""
+
 from __future__ import annotations
 
 import json
@@ -32,6 +33,7 @@ def random_fields(rng: random.Random, spec, over_range: float = 1.0) -> dict:
             if f.type == "f32":
                 return rng.choice([0.0, -1.5, rng.uniform(-1e3, 1e3), rng.uniform(-1e-3, 1e-3)])
             return rng.randint(lo, hi)
+
         out[f.name] = one() if f.count == 1 else [one() for _ in range(f.count)]
     return out
 
@@ -42,7 +44,9 @@ def random_frames(rng: random.Random, n: int) -> list[tuple[bytes, tuple]]:
     for i in range(n):
         spec = rng.choice(MESSAGES)
         payload = codec.encode_payload(spec.id, **random_fields(rng, spec))
-        frames.append((codec.encode_frame(spec.id, i & 0xFF, payload), (spec.id, i & 0xFF, payload)))
+        frames.append(
+            (codec.encode_frame(spec.id, i & 0xFF, payload), (spec.id, i & 0xFF, payload))
+        )
     return frames
 
 
@@ -56,7 +60,9 @@ def test_crc_is_ccitt_false():
 def test_golden_covers_every_message():
     assert {v["name"] for v in GOLDEN} == set(BY_NAME)
     assert any(len(v["payload"]) // 2 == MAX_PAYLOAD for v in GOLDEN)
-    assert any("00" in [v["payload"][i:i + 2] for i in range(0, len(v["payload"]), 2)] for v in GOLDEN)
+    assert any(
+        "00" in [v["payload"][i : i + 2] for i in range(0, len(v["payload"]), 2)] for v in GOLDEN
+    )
 
 
 @pytest.mark.parametrize("vec", GOLDEN, ids=[v["label"] for v in GOLDEN])
@@ -69,7 +75,12 @@ def test_golden_vector(vec):
     assert {k: list(v) if isinstance(v, tuple) else v for k, v in decoded.items()} == vec["decoded"]
     dec = codec.FrameDecoder()
     (fr,) = dec.feed(frame)
-    assert (fr.msg_id, fr.seq, fr.name, fr.fields) == (vec["msg_id"], vec["seq"], vec["name"], decoded)
+    assert (fr.msg_id, fr.seq, fr.name, fr.fields) == (
+        vec["msg_id"],
+        vec["seq"],
+        vec["name"],
+        decoded,
+    )
 
 
 # -------------------------------------------------------------------------------- round trips
@@ -96,8 +107,9 @@ def test_round_trip_random(spec):
                     assert g == s and isinstance(g, int)
 
 
-@pytest.mark.parametrize("spec", [m for m in MESSAGES if any(f.scale for f in m.fields)],
-                         ids=lambda m: m.name)
+@pytest.mark.parametrize(
+    "spec", [m for m in MESSAGES if any(f.scale for f in m.fields)], ids=lambda m: m.name
+)
 def test_scaled_fields_saturate(spec):
     rng = random.Random(1000 + spec.id)
     for _ in range(50):
@@ -115,13 +127,13 @@ def test_scaled_fields_saturate(spec):
 
 
 def test_quantise_rules():
-    assert codec.quantise(0.003, 0.002, "i16") == 2          # 1.5 LSB: half up
-    assert codec.quantise(-0.003, 0.002, "i16") == -1        # -1.5 LSB: half up
+    assert codec.quantise(0.003, 0.002, "i16") == 2  # 1.5 LSB: half up
+    assert codec.quantise(-0.003, 0.002, "i16") == -1  # -1.5 LSB: half up
     assert codec.quantise(-0.0031, 0.002, "i16") == -2
     assert codec.quantise(float("nan"), 0.1, "i16") == 0
     assert codec.quantise(float("inf"), 0.1, "i16") == 32767
     assert codec.quantise(float("-inf"), 0.1, "u16") == 0
-    assert codec.quantise(2 * math.pi, 2 * math.pi / 65536, "u16") == 65535   # saturates, no wrap
+    assert codec.quantise(2 * math.pi, 2 * math.pi / 65536, "u16") == 65535  # saturates, no wrap
 
 
 def test_decode_payloads_matches_decode_payload():
@@ -132,8 +144,9 @@ def test_decode_payloads_matches_decode_payload():
         for i, p in enumerate(payloads):
             one = codec.decode_payload(spec.id, p)
             for name, value in one.items():
-                assert cols[name][i].tolist() == pytest.approx(list(value) if isinstance(value, tuple)
-                                                               else value, rel=1e-6, abs=1e-12)
+                assert cols[name][i].tolist() == pytest.approx(
+                    list(value) if isinstance(value, tuple) else value, rel=1e-6, abs=1e-12
+                )
 
 
 def test_generated_tables_are_consistent():
@@ -155,7 +168,9 @@ def test_encode_errors_name_the_problem():
         codec.encode("hello", 0)
     with pytest.raises(codec.ProtocolError, match="unknown fields .*colour"):
         codec.encode("hello", 0, colour=3, **good)
-    with pytest.raises(codec.ProtocolError, match=r"hello.host_proto_version=70000 is outside the u16"):
+    with pytest.raises(
+        codec.ProtocolError, match=r"hello.host_proto_version=70000 is outside the u16"
+    ):
         codec.encode("hello", 0, host_proto_version=70000)
     with pytest.raises(codec.ProtocolError, match="expected an integer"):
         codec.encode("hello", 0, host_proto_version=1.5)
@@ -183,7 +198,7 @@ def test_stream_split_at_random_points():
     pos = 0
     while pos < len(data):
         step = rng.choice([1, 2, 3, 7, 50, 300, 4000])
-        got += dec.feed_raw(data[pos:pos + step])
+        got += dec.feed_raw(data[pos : pos + step])
         pos += step
     assert got == [want for _, want in frames]
     assert dec.frames_ok == 600 and dec.bad_frames == 0 and dec.seq_gaps == 0
@@ -208,14 +223,14 @@ def test_corrupted_frames_are_counted_and_dropped():
     for frame, want in frames:
         if rng.random() < 0.3:
             b = bytearray(frame)
-            i = rng.randrange(len(b) - 1)                      # not the delimiter
-            b[i] = rng.choice([x for x in range(1, 256) if x != b[i]])   # never a new 0x00
+            i = rng.randrange(len(b) - 1)  # not the delimiter
+            b[i] = rng.choice([x for x in range(1, 256) if x != b[i]])  # never a new 0x00
             stream.append(bytes(b))
             corrupted += 1
         else:
             stream.append(frame)
             intact.append(want)
-            seen_gaps = corrupted   # a gap shows only when a good frame follows it
+            seen_gaps = corrupted  # a gap shows only when a good frame follows it
     dec = codec.FrameDecoder()
     assert dec.feed_raw(b"".join(stream)) == intact
     assert dec.bad_frames == corrupted
@@ -247,8 +262,8 @@ def test_overflow_is_skipped_to_the_next_delimiter():
     dec = codec.FrameDecoder()
     junk = bytes(rng.randrange(1, 256) for _ in range(3 * codec.MAX_ENCODED))
     out = []
-    for i in range(0, len(junk), 100):          # the run arrives in pieces
-        out += dec.feed_raw(junk[i:i + 100])
+    for i in range(0, len(junk), 100):  # the run arrives in pieces
+        out += dec.feed_raw(junk[i : i + 100])
     out += dec.feed_raw(b"\x00" + b"".join(f for f, _ in frames))
     assert out == [w for _, w in frames]
     assert dec.len_errors == 1 and dec.bad_frames == 1
@@ -276,7 +291,7 @@ def test_unknown_id_and_short_frames():
 def test_sequence_gaps():
     rng = random.Random(13)
     frames = random_frames(rng, 300)
-    kept = [f for i, (f, _) in enumerate(frames) if i % 7 != 3]   # the last frame is kept
+    kept = [f for i, (f, _) in enumerate(frames) if i % 7 != 3]  # the last frame is kept
     dec = codec.FrameDecoder()
     dec.feed_raw(b"".join(kept))
     assert dec.seq_gaps == len(frames) - len(kept)

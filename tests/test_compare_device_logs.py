@@ -1,4 +1,5 @@
 """tools/compare_device_logs.py: device topics compared bit for bit, host entries left out."""
+
 from __future__ import annotations
 
 import math
@@ -19,7 +20,9 @@ def _log(path, speeds, host_text="started on /dev/pts/0", status_v=540.0):
 
 def test_identical_device_topics_pass_whatever_the_host_wrote(tmp_path):
     a = _log(tmp_path / "a.mcap", [0.0, 10.0, 20.0])
-    b = _log(tmp_path / "b.mcap", [0.0, 10.0, 20.0], host_text="started on /dev/pts/7", status_v=1.0)
+    b = _log(
+        tmp_path / "b.mcap", [0.0, 10.0, 20.0], host_text="started on /dev/pts/7", status_v=1.0
+    )
     assert compare(a, b) == []
     assert main([a, b]) == 0
 
@@ -30,7 +33,9 @@ def test_one_ulp_a_signed_zero_or_a_missing_row_is_a_difference(tmp_path, capsys
     neg = _log(tmp_path / "neg.mcap", [-0.0, 10.0, 20.0])
     short = _log(tmp_path / "short.mcap", [0.0, 10.0])
     d = compare(a, ulp)
-    assert len(d) == 1 and d[0].startswith("/pmsm/telemetry.speed_rpm: 1 of 3 rows differ, first at row 1")
+    assert len(d) == 1 and d[0].startswith(
+        "/pmsm/telemetry.speed_rpm: 1 of 3 rows differ, first at row 1"
+    )
     assert [x.split(":")[0] for x in compare(a, neg)] == ["/pmsm/telemetry.speed_rpm"]
     assert any("shape" in x for x in compare(a, short))
     assert main([a, ulp]) == 1

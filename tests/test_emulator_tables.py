@@ -1,6 +1,7 @@
 """The sim board's setting keys and truth order are one table (firmware/sim/emu_table.h), read by
 the Python side through the C API; the settings the host builds for every rig file use only keys
 of that table, and a key outside it is refused."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -14,7 +15,7 @@ from pmsm_hil.profiles import load_rig
 from pmsm_hil.profiles.motor import load_motor
 
 ROOT = Path(__file__).resolve().parents[1]
-ARRAY_KEYS = {"sat_psi_d_wb", "sat_psi_q_wb"}   # emu_set_array, not emu_set
+ARRAY_KEYS = {"sat_psi_d_wb", "sat_psi_q_wb"}  # emu_set_array, not emu_set
 
 
 def test_tables_come_from_the_c_board():
@@ -33,7 +34,7 @@ def test_host_settings_use_only_table_keys(rig):
     s = emulator_settings(motor, load_rig(ROOT / "profiles" / "rigs" / rig))
     unknown = set(s) - set(fwlib.SETTING_KEYS) - ARRAY_KEYS
     assert not unknown, f"{rig}: settings outside firmware/sim/emu_table.h: {sorted(unknown)}"
-    EmulatedDevice(s)   # and the board accepts every one of them
+    EmulatedDevice(s)  # and the board accepts every one of them
 
 
 def test_unknown_key_is_refused():

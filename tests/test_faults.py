@@ -1,4 +1,5 @@
 """Faults and lost links stop the motor safely and still leave a readable log."""
+
 from __future__ import annotations
 
 import subprocess
@@ -57,15 +58,33 @@ def test_cli_reports_a_device_fault(tmp_path, root):
     """A motor file whose over-current trip sits just above the current limit: a heavy load
     drives the current to the limit, the switching ripple crosses the trip level."""
     motor = tmp_path / "tight-trip.yaml"
-    motor.write_text((root / "profiles" / "motors" / "paper-a-ipmsm.yaml").read_text()
-                     .replace("i_trip_a: 25.0", "i_trip_a: 15.1"))
+    motor.write_text(
+        (root / "profiles" / "motors" / "paper-a-ipmsm.yaml")
+        .read_text()
+        .replace("i_trip_a: 25.0", "i_trip_a: 15.1")
+    )
     prof = tmp_path / "heavy.yaml"
-    prof.write_text(f"name: heavy\nmotor: {motor}\nrig: {root}/profiles/rigs/default.yaml\n"
-                    "segments:\n  - {duration_s: 0.5, speed_rpm: 200, ramp_rpm_s: 1000}\n"
-                    "  - {duration_s: 1.0, speed_rpm: 200, load_nm: 17.0}\n")
+    prof.write_text(
+        f"name: heavy\nmotor: {motor}\nrig: {root}/profiles/rigs/default.yaml\n"
+        "segments:\n  - {duration_s: 0.5, speed_rpm: 200, ramp_rpm_s: 1000}\n"
+        "  - {duration_s: 1.0, speed_rpm: 200, load_nm: 17.0}\n"
+    )
     out = tmp_path / "f.mcap"
-    r = subprocess.run([sys.executable, "-m", "pmsm_hil.cli.main", "run", str(prof),
-                        "--out", str(out), "--no-live"], capture_output=True, text=True, timeout=120)
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pmsm_hil.cli.main",
+            "run",
+            str(prof),
+            "--out",
+            str(out),
+            "--no-live",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert r.returncode == 4, r.stderr
     assert "over_current" in r.stderr
     assert "Traceback" not in r.stderr
@@ -100,9 +119,11 @@ def test_over_speed_trips(data, tmp_path, root):
     """A plant whose inertia is a hundred times smaller than the motor file's: the speed loop,
     designed for the nominal inertia, overshoots a step far past the trip speed."""
     prof = tmp_path / "fast.yaml"
-    prof.write_text(f"name: fast\nmotor: {root}/profiles/motors/paper-a-ipmsm.yaml\n"
-                    f"rig: {root}/profiles/rigs/ideal.yaml\n"
-                    "segments:\n  - {duration_s: 0.5, speed_rpm: 1500, ramp_rpm_s: 0}\n")
+    prof.write_text(
+        f"name: fast\nmotor: {root}/profiles/motors/paper-a-ipmsm.yaml\n"
+        f"rig: {root}/profiles/rigs/ideal.yaml\n"
+        "segments:\n  - {duration_s: 0.5, speed_rpm: 1500, ramp_rpm_s: 0}\n"
+    )
     out = tmp_path / "os.mcap"
     _, result = run_with_plant(prof, out, j_kgm2=0.0036 / 100.0)
     assert result.state == "fault"

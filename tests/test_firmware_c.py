@@ -1,4 +1,5 @@
 """The firmware's C unit tests, built with the C28x-strict warnings as errors (firmware/Makefile)."""
+
 from __future__ import annotations
 
 import re
@@ -12,8 +13,12 @@ def test_firmware_core_builds_strict_and_its_c_tests_pass(root, tmp_path):
     if shutil.which("make") is None:
         pytest.fail("make is needed to build the firmware's C tests")
     build = tmp_path / "fwbuild"
-    r = subprocess.run(["make", "-C", str(root / "firmware"), "test", f"BUILD={build}"],
-                       capture_output=True, text=True, timeout=600)
+    r = subprocess.run(
+        ["make", "-C", str(root / "firmware"), "test", f"BUILD={build}"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     print(r.stdout[-5000:])
     assert r.returncode == 0, r.stdout[-5000:] + r.stderr[-5000:]
     assert " 0 failed" in r.stdout
@@ -23,17 +28,41 @@ def test_firmware_core_builds_strict_and_its_c_tests_pass(root, tmp_path):
 def test_f28335_board_sources_compile_against_the_register_stub(root):
     """The board support cannot be built with TI's cl2000 here; it is compile-checked on the PC
     against a stub of the device headers, and its register-free arithmetic is tested."""
-    r = subprocess.run(["make", "-C", str(root / "firmware" / "board" / "f28335"), "hostcheck"],
-                       capture_output=True, text=True, timeout=300)
+    r = subprocess.run(
+        ["make", "-C", str(root / "firmware" / "board" / "f28335"), "hostcheck"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
     assert "all checks passed" in r.stdout
 
 
-
 C_STANDARD_HEADERS = {
-    "assert.h", "complex.h", "ctype.h", "errno.h", "fenv.h", "float.h", "inttypes.h", "iso646.h",
-    "limits.h", "locale.h", "math.h", "setjmp.h", "signal.h", "stdarg.h", "stdbool.h", "stddef.h",
-    "stdint.h", "stdio.h", "stdlib.h", "string.h", "tgmath.h", "time.h", "wchar.h", "wctype.h",
+    "assert.h",
+    "complex.h",
+    "ctype.h",
+    "errno.h",
+    "fenv.h",
+    "float.h",
+    "inttypes.h",
+    "iso646.h",
+    "limits.h",
+    "locale.h",
+    "math.h",
+    "setjmp.h",
+    "signal.h",
+    "stdarg.h",
+    "stdbool.h",
+    "stddef.h",
+    "stdint.h",
+    "stdio.h",
+    "stdlib.h",
+    "string.h",
+    "tgmath.h",
+    "time.h",
+    "wchar.h",
+    "wctype.h",
 }
 INCLUDE = re.compile(r'^\s*#\s*include\s*([<"])([^>"]+)[>"]', re.M)
 
@@ -49,13 +78,17 @@ def core_includes(core):
 
 def stray_includes(core):
     """Includes of anything but a header of core itself ("x.h") or a C standard header (<x.h>)."""
-    return [(f, h) for f, h, quoted in core_includes(core)
-            if (quoted and ("/" in h or not (core / h).is_file())) or (not quoted and h not in C_STANDARD_HEADERS)]
+    return [
+        (f, h)
+        for f, h, quoted in core_includes(core)
+        if (quoted and ("/" in h or not (core / h).is_file()))
+        or (not quoted and h not in C_STANDARD_HEADERS)
+    ]
 
 
 def test_firmware_core_includes_only_core_and_the_c_standard_headers(root):
     core = root / "firmware" / "core"
-    assert len(core_includes(core)) > 50   # the scan sees the core's includes
+    assert len(core_includes(core)) > 50  # the scan sees the core's includes
     bad = stray_includes(core)
     assert not bad, "firmware/core includes outside core and the C standard headers: " + repr(bad)
 
@@ -64,5 +97,7 @@ def test_the_include_check_catches_a_stray_include(tmp_path):
     core = tmp_path / "core"
     core.mkdir()
     (core / "a.h").write_text("#include <stdint.h>\n")
-    (core / "a.c").write_text('#include "a.h"\n#include "../sim/plant.h"\n#include "b.h"\n#include <windows.h>\n')
+    (core / "a.c").write_text(
+        '#include "a.h"\n#include "../sim/plant.h"\n#include "b.h"\n#include <windows.h>\n'
+    )
     assert stray_includes(core) == [("a.c", "../sim/plant.h"), ("a.c", "b.h"), ("a.c", "windows.h")]

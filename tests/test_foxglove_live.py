@@ -1,5 +1,6 @@
 """`pmsm-hil run --foxglove PORT`: the live streams over the Foxglove WebSocket protocol, decimated,
 with JSON schemas that match the log; the layout file plots fields that exist."""
+
 from __future__ import annotations
 
 import asyncio
@@ -53,7 +54,7 @@ async def _listen(port: int, seconds: float) -> tuple[dict, dict]:
                 raw = await asyncio.wait_for(ws.recv(), timeout=0.5)
             except asyncio.TimeoutError:
                 continue
-            except websockets.exceptions.ConnectionClosed:   # the run ended
+            except websockets.exceptions.ConnectionClosed:  # the run ended
                 break
             if isinstance(raw, str):
                 m = json.loads(raw)
@@ -61,10 +62,18 @@ async def _listen(port: int, seconds: float) -> tuple[dict, dict]:
                     for ch in m["channels"]:
                         channels[ch["id"]] = ch
                 if channels and not subscribed:
-                    await ws.send(json.dumps({"op": "subscribe", "subscriptions": [
-                        {"id": cid, "channelId": cid} for cid in channels]}))
+                    await ws.send(
+                        json.dumps(
+                            {
+                                "op": "subscribe",
+                                "subscriptions": [
+                                    {"id": cid, "channelId": cid} for cid in channels
+                                ],
+                            }
+                        )
+                    )
                     subscribed = True
-            elif raw[0] == 0x01:   # message data: op, subscription id, log time, payload
+            elif raw[0] == 0x01:  # message data: op, subscription id, log time, payload
                 sub, log_time = struct.unpack_from("<IQ", raw, 1)
                 topic = channels[sub]["topic"]
                 got.setdefault(topic, []).append((log_time, json.loads(raw[13:])))
@@ -76,18 +85,38 @@ def test_run_serves_the_live_streams_to_a_foxglove_client(root, tmp_path):
     out = tmp_path / "live.mcap"
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     proc = subprocess.Popen(
-        [sys.executable, "-m", "pmsm_hil.cli.main", "run", str(root / "tests" / "data" / "long.yaml"),
-         "--no-live", "--foxglove", str(port), "--stop-after", "10", "--out", str(out)],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+        [
+            sys.executable,
+            "-m",
+            "pmsm_hil.cli.main",
+            "run",
+            str(root / "tests" / "data" / "long.yaml"),
+            "--no-live",
+            "--foxglove",
+            str(port),
+            "--stop-after",
+            "10",
+            "--out",
+            str(out),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
     try:
-        for line in proc.stdout:            # the address is printed before the run starts
+        for line in proc.stdout:  # the address is printed before the run starts
             if line.startswith("foxglove:"):
                 break
-        assert line.strip() == f"foxglove: ws://127.0.0.1:{port} (layout: docs/foxglove-layout.json)"
+        assert (
+            line.strip() == f"foxglove: ws://127.0.0.1:{port} (layout: docs/foxglove-layout.json)"
+        )
         t0 = time.monotonic()
-        channels, got = asyncio.run(_listen(port, 30.0))   # until the run ends
-        print(f"listened {time.monotonic() - t0:.2f} s: " +
-              ", ".join(f"{k} {len(v)}" for k, v in sorted(got.items())))
+        channels, got = asyncio.run(_listen(port, 30.0))  # until the run ends
+        print(
+            f"listened {time.monotonic() - t0:.2f} s: "
+            + ", ".join(f"{k} {len(v)}" for k, v in sorted(got.items()))
+        )
     finally:
         stdout, stderr = proc.communicate(timeout=120)
     assert proc.returncode == 0, stderr
@@ -106,7 +135,7 @@ def test_run_serves_the_live_streams_to_a_foxglove_client(root, tmp_path):
     sent = got["/pmsm/telemetry"]
     for _, msg in sent[:20]:
         assert set(msg) == set(TOPICS["/pmsm/telemetry"].names)
-        i = int(round(msg["t_s"] * 2000))     # long.yaml streams telemetry at 2 kHz
+        i = int(round(msg["t_s"] * 2000))  # long.yaml streams telemetry at 2 kHz
         assert tel["t_s"][i] == pytest.approx(msg["t_s"])
         assert tel["speed_rpm"][i] == pytest.approx(msg["speed_rpm"], rel=1e-12)
     # decimated to <= 200 Hz of device time
@@ -121,13 +150,13 @@ def test_sink_decimates_per_topic_and_never_raises(monkeypatch):
     try:
         for ch in sink._channels.values():
             monkeypatch.setattr(type(ch), "has_sinks", lambda self: True)
-        for i in range(2000):   # one second of 2 kHz telemetry, offered as fast as possible
+        for i in range(2000):  # one second of 2 kHz telemetry, offered as fast as possible
             sink.publish("/pmsm/telemetry", i / 2000, {"speed_rpm": 1.0, "i_d_a": float("nan")})
         # at most the wall-time burst: the host can offer frames far faster than real time
         assert 1 <= sink.published <= 25
         assert sink.published + sink.dropped == 2000
-        sink.publish("/pmsm/unknown", 0.0, {})        # not a live topic: ignored
-        sink.publish("/pmsm/params", 0.0, {})         # malformed: turns the sink off, no exception
+        sink.publish("/pmsm/unknown", 0.0, {})  # not a live topic: ignored
+        sink.publish("/pmsm/params", 0.0, {})  # malformed: turns the sink off, no exception
         n = sink.published
         sink.publish("/pmsm/events", 9.0, {"kind": "host"})
         assert sink.published == n
@@ -157,6 +186,7 @@ def test_layout_plots_only_fields_that_are_streamed(root):
     layout = json.loads((root / "docs" / "foxglove-layout.json").read_text())
     text = json.dumps(layout)
     import re
+
     paths = set(re.findall(r'"(/(?:pmsm|sim)/[a-z_]+)(?:\{[^}]*\})?\.([a-z_]+)', text))
     assert paths, "the layout plots nothing"
     for topic, fld in paths:
@@ -169,8 +199,12 @@ def test_layout_plots_only_fields_that_are_streamed(root):
 
 def test_layout_file_is_generated(root):
     """docs/foxglove-layout.json is the output of tools/gen_foxglove_layout.py, not edited by hand."""
-    r = subprocess.run([sys.executable, "-m", "tools.gen_foxglove_layout", "--check"], cwd=root,
-                       capture_output=True, text=True)
+    r = subprocess.run(
+        [sys.executable, "-m", "tools.gen_foxglove_layout", "--check"],
+        cwd=root,
+        capture_output=True,
+        text=True,
+    )
     assert r.returncode == 0, r.stderr
 
 

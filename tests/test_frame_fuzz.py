@@ -4,6 +4,7 @@ Random octets and corrupted valid frames (bit flips, truncations, insertions, de
 seed: the parser must not crash, every FRAME_OK must be a frame that was sent (in order), every intact
 frame after a delimiter must arrive, and the Python FrameDecoder must accept exactly the same frames.
 """
+
 from __future__ import annotations
 
 import ctypes
@@ -21,15 +22,26 @@ FRAME_ERRORS = {-1, -2, -3, -4}
 
 def load_lib() -> ctypes.CDLL:
     lib = ctypes.CDLL(fw.__file__)
-    for name in ("frame_parser_size", "frame_parser_init", "frame_parser_push", "frame_parser_frame"):
+    for name in (
+        "frame_parser_size",
+        "frame_parser_init",
+        "frame_parser_push",
+        "frame_parser_frame",
+    ):
         if not hasattr(lib, name):
-            pytest.fail(f"{fw.__file__} lacks {name}: rebuild the extension with `pip install -e .`")
+            pytest.fail(
+                f"{fw.__file__} lacks {name}: rebuild the extension with `pip install -e .`"
+            )
     lib.frame_parser_size.restype = ctypes.c_uint16
     lib.frame_parser_init.argtypes = [ctypes.c_void_p]
     lib.frame_parser_init.restype = None
     lib.frame_parser_push.argtypes = [ctypes.c_void_p, ctypes.c_uint16]
     lib.frame_parser_push.restype = ctypes.c_int16
-    lib.frame_parser_frame.argtypes = [ctypes.c_void_p, ctypes.POINTER(ctypes.c_uint16), ctypes.c_uint16]
+    lib.frame_parser_frame.argtypes = [
+        ctypes.c_void_p,
+        ctypes.POINTER(ctypes.c_uint16),
+        ctypes.c_uint16,
+    ]
     lib.frame_parser_frame.restype = ctypes.c_uint16
     return lib
 
@@ -83,18 +95,18 @@ def corrupt(rng: random.Random, frame: bytes) -> bytes:
 def _damage(rng: random.Random, frame: bytes) -> bytes:
     b = bytearray(frame)
     kind = rng.randrange(5)
-    if kind == 0:                                   # 1..3 bit flips anywhere, delimiter included
+    if kind == 0:  # 1..3 bit flips anywhere, delimiter included
         for _ in range(rng.randint(1, 3)):
             i = rng.randrange(len(b))
             b[i] ^= 1 << rng.randrange(8)
-    elif kind == 1:                                 # truncated, delimiter kept
-        b = b[:rng.randrange(1, len(b) - 1)] + b"\x00"
-    elif kind == 2:                                 # truncated, delimiter lost too
-        b = b[:rng.randrange(1, len(b) - 1)]
-    elif kind == 3:                                 # 1..4 random octets inserted inside the frame
-        for _ in range(rng.randint(1, 4)):          # (a 0x00 before or after it would leave it whole)
+    elif kind == 1:  # truncated, delimiter kept
+        b = b[: rng.randrange(1, len(b) - 1)] + b"\x00"
+    elif kind == 2:  # truncated, delimiter lost too
+        b = b[: rng.randrange(1, len(b) - 1)]
+    elif kind == 3:  # 1..4 random octets inserted inside the frame
+        for _ in range(rng.randint(1, 4)):  # (a 0x00 before or after it would leave it whole)
             b.insert(rng.randrange(1, len(b) - 1), rng.randrange(256))
-    else:                                           # 1..3 octets deleted
+    else:  # 1..3 octets deleted
         for _ in range(rng.randint(1, 3)):
             if len(b) > 1:
                 del b[rng.randrange(len(b))]
@@ -105,7 +117,9 @@ def test_random_octets():
     rng = random.Random(20240601)
     parser, dec = CParser(), codec.FrameDecoder()
     for zero_prob in (0.0, 0.01, 0.05, 0.3):
-        data = bytes(0 if rng.random() < zero_prob else rng.randrange(1, 256) for _ in range(40_000))
+        data = bytes(
+            0 if rng.random() < zero_prob else rng.randrange(1, 256) for _ in range(40_000)
+        )
         assert parser.feed(data) == []
         assert dec.feed_raw(data) == []
     assert parser.errors > 0
@@ -119,7 +133,7 @@ def test_corrupted_frames():
         if rng.random() < 0.5:
             parts.append(corrupt(rng, frame))
         else:
-            if not parts or parts[-1].endswith(b"\x00"):   # nothing damaged runs into it
+            if not parts or parts[-1].endswith(b"\x00"):  # nothing damaged runs into it
                 must_arrive.append(want)
             parts.append(frame)
     data = b"".join(parts)
@@ -129,7 +143,9 @@ def test_corrupted_frames():
     # Every accepted frame is one that was sent, in order. (Not only the intact ones: two damaged
     # neighbours can rebuild a frame exactly, e.g. one that lost its delimiter followed by one that
     # lost its first octet, and those octets on the line are then a good frame.)
-    assert is_subsequence(got_c, [want for _, want in frames]), "the C parser accepted a frame never sent"
+    assert is_subsequence(got_c, [want for _, want in frames]), (
+        "the C parser accepted a frame never sent"
+    )
     assert is_subsequence(must_arrive, got_c), "the C parser lost an intact frame after a delimiter"
     assert got_py == got_c, "the C parser and the Python decoder disagree"
     assert len(must_arrive) > 2000
@@ -140,8 +156,10 @@ def test_valid_frames_with_random_chunking_and_junk():
     frames = valid_frames(rng, 500)
     parts, sent = [], []
     for frame, want in frames:
-        if rng.random() < 0.1:                      # junk ending in a delimiter between frames
-            parts.append(bytes(rng.randrange(1, 256) for _ in range(rng.randrange(1, 300))) + b"\x00")
+        if rng.random() < 0.1:  # junk ending in a delimiter between frames
+            parts.append(
+                bytes(rng.randrange(1, 256) for _ in range(rng.randrange(1, 300))) + b"\x00"
+            )
         parts.append(frame)
         sent.append(want)
     parser = CParser()

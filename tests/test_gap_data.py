@@ -1,5 +1,6 @@
 """Gap diagnosis data layer: the emulator's continuous control-rate recording, loading records from
 logs, and `pmsm-hil import` of control-rate and steady-state CSV files."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -21,7 +22,12 @@ def lab_log(tmp_path_factory):
     from pmsm_hil.gapgen.recorder import record_profile
 
     path = tmp_path_factory.mktemp("gap") / "lab.mcap"
-    record_profile(ROOT / "tests/data/gap-short.yaml", path, rig_path=ROOT / "profiles/rigs/lab-typical.yaml", seed=3)
+    record_profile(
+        ROOT / "tests/data/gap-short.yaml",
+        path,
+        rig_path=ROOT / "profiles/rigs/lab-typical.yaml",
+        seed=3,
+    )
     return path
 
 
@@ -44,7 +50,11 @@ def test_load_record_prefers_the_continuous_recording(lab_log):
     rec = load_record(lab_log)
     assert isinstance(rec, ControlRecord)
     assert rec.voltage_kind == "switch" and len(rec.runs) == 1
-    assert rec.sensor_spec == {"i_noise_a": 0.02, "adc_lsb_a": 0.0244140625, "encoder_lines": 2500.0}
+    assert rec.sensor_spec == {
+        "i_noise_a": 0.02,
+        "adc_lsb_a": 0.0244140625,
+        "encoder_lines": 2500.0,
+    }
     ab = rec.u_alpha_beta()
     assert np.max(np.abs(ab)) <= 2 / 3 * np.max(rec.v_dc_v) + 1e-9
 
@@ -61,7 +71,10 @@ def _write_csv(path, cols, n=None):
 def test_control_rate_csv_round_trip(lab_log, tmp_path):
     cr = read_log(lab_log).topic("/pmsm/control_rate")
     sl = slice(1000, 1600)
-    cols = {k: cr[k][sl] for k in ("t_s", "i_a_a", "i_b_a", "s_a", "s_b", "s_c", "v_dc_v", "theta_e_rad")}
+    cols = {
+        k: cr[k][sl]
+        for k in ("t_s", "i_a_a", "i_b_a", "s_a", "s_b", "s_c", "v_dc_v", "theta_e_rad")
+    }
     _write_csv(tmp_path / "scope.csv", cols)
     out = tmp_path / "scope.mcap"
     assert main(["import", str(tmp_path / "scope.csv"), "--motor", MOTOR, "-o", str(out)]) == 0
@@ -69,19 +82,40 @@ def test_control_rate_csv_round_trip(lab_log, tmp_path):
     assert rec.n == 600 and rec.ts_s == pytest.approx(50e-6, rel=1e-3)
     assert np.allclose(rec.i_abc[:, 0], cols["i_a_a"]) and np.all(np.isnan(rec.i_abc[:, 2]))
     assert np.array_equal(rec.v_cmd[:, 1], cols["s_b"])
-    assert rec.sensor_spec == {}          # an imported CSV carries no sensor specification
+    assert rec.sensor_spec == {}  # an imported CSV carries no sensor specification
     # omega from the angle when not given
-    assert np.median(rec.omega_e_rad_s) == pytest.approx(np.median(cr["omega_e_rad_s"][sl]), rel=0.05)
+    assert np.median(rec.omega_e_rad_s) == pytest.approx(
+        np.median(cr["omega_e_rad_s"][sl]), rel=0.05
+    )
 
 
-@pytest.mark.parametrize("cols,needle", [
-    ({"t_s": 1, "i_a_a": 1, "i_b_a": 1, "s_a": 1, "s_b": 1, "s_c": 1, "v_dc_v": 1}, "missing column(s) theta_e_rad"),
-    ({"t_s": 1, "i_a_a": 1, "i_b_a": 1, "theta_e_rad": 1, "v_dc_v": 1}, "the applied voltage"),
-    ({"t_s": 1, "i_a_a": 1, "i_b_a": 1, "theta_e_rad": 1, "s_a": 1, "s_b": 1, "s_c": 1}, "v_dc_v"),
-    ({"t_s": 1, "i_a_a": 1, "i_b_a": 1, "theta_e_rad": 1, "u_alpha_v": 1, "u_beta_v": 1, "i_a_mA": 1},
-     "unknown column(s) i_a_mA"),
-    ({"t_s": 1, "u_d_v": 1, "u_q_v": 1, "i_d_a": 1, "i_q_a": 1}, "omega_e_rad_s or speed_rpm"),
-])
+@pytest.mark.parametrize(
+    "cols,needle",
+    [
+        (
+            {"t_s": 1, "i_a_a": 1, "i_b_a": 1, "s_a": 1, "s_b": 1, "s_c": 1, "v_dc_v": 1},
+            "missing column(s) theta_e_rad",
+        ),
+        ({"t_s": 1, "i_a_a": 1, "i_b_a": 1, "theta_e_rad": 1, "v_dc_v": 1}, "the applied voltage"),
+        (
+            {"t_s": 1, "i_a_a": 1, "i_b_a": 1, "theta_e_rad": 1, "s_a": 1, "s_b": 1, "s_c": 1},
+            "v_dc_v",
+        ),
+        (
+            {
+                "t_s": 1,
+                "i_a_a": 1,
+                "i_b_a": 1,
+                "theta_e_rad": 1,
+                "u_alpha_v": 1,
+                "u_beta_v": 1,
+                "i_a_mA": 1,
+            },
+            "unknown column(s) i_a_mA",
+        ),
+        ({"t_s": 1, "u_d_v": 1, "u_q_v": 1, "i_d_a": 1, "i_q_a": 1}, "omega_e_rad_s or speed_rpm"),
+    ],
+)
 def test_csv_columns_named_in_the_error(tmp_path, capsys, cols, needle):
     n = 5
     data = {k: np.arange(n) * 1e-4 if k == "t_s" else np.zeros(n) for k in cols}
@@ -95,8 +129,14 @@ def test_csv_columns_named_in_the_error(tmp_path, capsys, cols, needle):
 
 
 def _ok_cols(n=6):
-    return {"t_s": np.arange(n) * 1e-4, "i_a_a": np.zeros(n), "i_b_a": np.zeros(n), "u_alpha_v": np.zeros(n),
-            "u_beta_v": np.zeros(n), "theta_e_rad": np.zeros(n)}
+    return {
+        "t_s": np.arange(n) * 1e-4,
+        "i_a_a": np.zeros(n),
+        "i_b_a": np.zeros(n),
+        "u_alpha_v": np.zeros(n),
+        "u_beta_v": np.zeros(n),
+        "theta_e_rad": np.zeros(n),
+    }
 
 
 def test_csv_gap_in_time_and_bad_values(tmp_path):
@@ -123,8 +163,15 @@ def test_csv_gap_in_time_and_bad_values(tmp_path):
 
 def test_steady_state_csv(tmp_path):
     n = 10
-    c = {"t_s": np.arange(n) * 0.5, "u_d_v": -np.ones(n), "u_q_v": 50 + np.arange(n), "i_d_a": np.zeros(n),
-         "i_q_a": np.ones(n) * 3, "speed_rpm": np.full(n, 600.0), "torque_nm": np.ones(n)}
+    c = {
+        "t_s": np.arange(n) * 0.5,
+        "u_d_v": -np.ones(n),
+        "u_q_v": 50 + np.arange(n),
+        "i_d_a": np.zeros(n),
+        "i_q_a": np.ones(n) * 3,
+        "speed_rpm": np.full(n, 600.0),
+        "torque_nm": np.ones(n),
+    }
     _write_csv(tmp_path / "ss.csv", c)
     out = tmp_path / "ss.mcap"
     assert main(["import", str(tmp_path / "ss.csv"), "--motor", MOTOR, "-o", str(out)]) == 0
@@ -140,12 +187,17 @@ def test_gap_runs_on_the_triggered_capture_alone(lab_log, tmp_path, capsys):
 
     log = read_log(lab_log)
     out = tmp_path / "capture-only.mcap"
-    with LogWriter(out, {k: v for k, v in log.metadata.items() if k != "log"},
-                   [(a.name, a.media_type, a.data) for a in log.attachments], topics=GAP_TOPICS) as w:
+    with LogWriter(
+        out,
+        {k: v for k, v in log.metadata.items() if k != "log"},
+        [(a.name, a.media_type, a.data) for a in log.attachments],
+        topics=GAP_TOPICS,
+    ) as w:
         w.write_many("/pmsm/capture", log.topic("/pmsm/capture"))
     rec = load_record(out)
     assert rec.n == 1024 and rec.source.endswith("/pmsm/capture")
-    assert main(["gap", str(out), "--json"]) == 0          # the motor from the log's attachment
+    assert main(["gap", str(out), "--json"]) == 0  # the motor from the log's attachment
     import json
+
     res = json.loads(capsys.readouterr().out)
     assert res["transitions"] == 1022 and res["effects"]

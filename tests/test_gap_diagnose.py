@@ -1,5 +1,6 @@
 """Gap diagnosis on emulator records with known (hidden to the diagnoser) rig effects: the probe,
 the noise floor, selection, magnitudes, closure, the CLI, and the generator/diagnoser separation."""
+
 from __future__ import annotations
 
 import json
@@ -22,8 +23,11 @@ from pmsm_hil.profiles import load_motor, load_rig
 ROOT = Path(__file__).resolve().parents[1]
 MOTOR = str(ROOT / "profiles/motors/paper-a-ipmsm.yaml")
 PROFILE = ROOT / "tests/data/gap-short.yaml"
-SENSORS = {"adc_noise": {"i_noise_a": 0.02}, "adc_quantisation": {"adc_lsb_a": 100 / 4096},
-           "encoder": {"lines": 2500, "offset_e_rad": 0.0}}
+SENSORS = {
+    "adc_noise": {"i_noise_a": 0.02},
+    "adc_quantisation": {"adc_lsb_a": 100 / 4096},
+    "encoder": {"lines": 2500, "offset_e_rad": 0.0},
+}
 SPEC = {"i_noise_a": 0.02, "adc_lsb_a": 100 / 4096, "encoder_lines": 2500.0}
 
 
@@ -34,9 +38,13 @@ def _record(tmp, name, effects, sensors=True, seed=7):
     for k, v in effects.items():
         eff[k] = dict(eff.get(k, {}), **v)
     rig = tmp / f"{name}.yaml"
-    rig.write_text(yaml.safe_dump({"name": name, "description": "test", "v_dc_v": None, "effects": eff}))
+    rig.write_text(
+        yaml.safe_dump({"name": name, "description": "test", "v_dc_v": None, "effects": eff})
+    )
     out = tmp / f"{name}.mcap"
-    record_profile(PROFILE, out, rig_path=rig, seed=seed, full_log=False, sensors=SPEC if sensors else None)
+    record_profile(
+        PROFILE, out, rig_path=rig, seed=seed, full_log=False, sensors=SPEC if sensors else None
+    )
     return out
 
 
@@ -46,7 +54,9 @@ def logs(tmp_path_factory):
     return {
         "ideal": _record(tmp, "ideal", {}, sensors=False),
         "null": _record(tmp, "null", {}),
-        "dead_time": _record(tmp, "dt", {"dead_time": {"dead_time_s": 1.5e-6, "v_drop_v": 1.0, "i_dt_a": 0.5}}),
+        "dead_time": _record(
+            tmp, "dt", {"dead_time": {"dead_time_s": 1.5e-6, "v_drop_v": 1.0, "i_dt_a": 0.5}}
+        ),
         "encoder": _record(tmp, "enc", {"encoder": {"offset_e_rad": 0.04}}),
         "delay": _record(tmp, "delay", {"delay": {"sample_delay_s": 4e-6, "pwm_delay_periods": 1}}),
     }
@@ -58,11 +68,13 @@ def motor():
 
 
 def test_diagnoser_never_imports_the_generator():
-    code = ("import sys, pmsm_hil.gap.diagnose, pmsm_hil.gap.csv_import, pmsm_hil.gap.report, "
-            "pmsm_hil.gap.rigfile, pmsm_hil.gap.steady\n"
-            "bad = [m for m in sys.modules if m.startswith(('pmsm_hil.gapgen', 'pmsm_hil.emulator', "
-            "'pmsm_hil.runner', 'pmsm_hil._fw'))]\n"
-            "assert not bad, bad\n")
+    code = (
+        "import sys, pmsm_hil.gap.diagnose, pmsm_hil.gap.csv_import, pmsm_hil.gap.report, "
+        "pmsm_hil.gap.rigfile, pmsm_hil.gap.steady\n"
+        "bad = [m for m in sys.modules if m.startswith(('pmsm_hil.gapgen', 'pmsm_hil.emulator', "
+        "'pmsm_hil.runner', 'pmsm_hil._fw'))]\n"
+        "assert not bad, bad\n"
+    )
     subprocess.run([sys.executable, "-c", code], check=True, cwd=ROOT)
     for f in (ROOT / "pmsm_hil/gap").glob("*.py"):
         text = f.read_text()
@@ -74,8 +86,8 @@ def test_rk4_probe_is_exact_on_the_ideal_plant_and_euler_is_not(logs, motor):
     p = Probe(rec, motor)
     rk = float(np.mean(p.residual() ** 2))
     eu = float(np.mean(p.residual(euler=True) ** 2))
-    assert rk < 1.0            # V^2: what is left is the firmware's float32 and its speed estimate
-    assert eu > 5 * rk         # the discretisation gap is reported on its own
+    assert rk < 1.0  # V^2: what is left is the firmware's float32 and its speed estimate
+    assert eu > 5 * rk  # the discretisation gap is reported on its own
 
 
 def test_noise_floor_from_the_spec_agrees_with_the_data(logs, motor):
@@ -126,16 +138,37 @@ def test_cli_json_report_and_augment(logs, tmp_path, capsys):
     out = json.loads(capsys.readouterr().out)
     names = [e["name"] for e in out["effects"]]
     assert names[0] == "dead_time" and out["effects"][0]["selected"]
-    assert set(names) >= {"dead_time", "delay", "encoder", "sensor_offset", "sensor_gain", "saturation", "thermal",
-                          "flux_harmonics", "dc_link", "iron_loss", "friction", "cogging"}
+    assert set(names) >= {
+        "dead_time",
+        "delay",
+        "encoder",
+        "sensor_offset",
+        "sensor_gain",
+        "saturation",
+        "thermal",
+        "flux_harmonics",
+        "dc_link",
+        "iron_loss",
+        "friction",
+        "cogging",
+    }
     for k in ("name", "selected", "magnitude", "interval", "closure", "evidence"):
         assert k in out["effects"][0]
     assert "base_gap" in out and "discretisation_gap" in out and "closure" in out
-    assert main(["gap", str(logs["dead_time"]), "--motor", MOTOR, "--report", str(tmp_path / "rep")]) == 0
+    assert (
+        main(["gap", str(logs["dead_time"]), "--motor", MOTOR, "--report", str(tmp_path / "rep")])
+        == 0
+    )
     text = capsys.readouterr().out
-    assert "dead_time" in text and (tmp_path / "rep/index.html").exists() and (tmp_path / "rep/gap.json").exists()
+    assert (
+        "dead_time" in text
+        and (tmp_path / "rep/index.html").exists()
+        and (tmp_path / "rep/gap.json").exists()
+    )
     rig_path = tmp_path / "fitted-rig.yaml"
-    assert main(["gap", "augment", str(logs["dead_time"]), "--motor", MOTOR, "-o", str(rig_path)]) == 0
+    assert (
+        main(["gap", "augment", str(logs["dead_time"]), "--motor", MOTOR, "-o", str(rig_path)]) == 0
+    )
     rig = load_rig(rig_path)
     assert rig.effects.dead_time.enabled
     assert rig.effects.dead_time.dead_time_s == pytest.approx(1.5e-6, rel=0.15)
@@ -158,7 +191,7 @@ def test_verify_reruns_the_logs_profile(tmp_path, capsys):
     rig = ROOT / "profiles/rigs/effect-dead-time.yaml"
     real = tmp_path / "real.mcap"
     record_profile(PROFILE, real, rig_path=rig, seed=4)
-    same = verify(real, rig, seed=4)          # the true rig and seed reproduce the log exactly
+    same = verify(real, rig, seed=4)  # the true rig and seed reproduce the log exactly
     assert all(s["rms_fitted"] == 0.0 and s["closure"] == 1.0 for s in same["signals"].values())
     nominal = verify(real, ROOT / "profiles/rigs/ideal.yaml", seed=4)
     assert all(s["closure"] == 0.0 for s in nominal["signals"].values())

@@ -1,4 +1,5 @@
 """Gap self-test machinery (draws, sealing, scoring) and the steady-state analysis."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -23,8 +24,10 @@ def test_draws_are_reproducible_and_within_the_rig_limits(tmp_path):
     rng = np.random.default_rng(9)
     for name in LIBRARY:
         trial = {"kind": "one", "effects": {name: draw_effect(rng, name)}}
-        prof, rig = _write_inputs(str(tmp_path), trial, trial["effects"], draw_trial(rng)["profile"], name, False)
-        p = load_profile(prof, rig_override=rig)          # raises on anything out of range
+        prof, rig = _write_inputs(
+            str(tmp_path), trial, trial["effects"], draw_trial(rng)["profile"], name, False
+        )
+        p = load_profile(prof, rig_override=rig)  # raises on anything out of range
         assert getattr(p.rig.effects, name).enabled
     t = {"kind": "outside", "plant_l_scale": 1.2, "effects": {}}
     prof, rig = _write_inputs(str(tmp_path), t, {}, draw_trial(rng)["profile"], "out", True)
@@ -33,32 +36,51 @@ def test_draws_are_reproducible_and_within_the_rig_limits(tmp_path):
 
 def _out(selected, mags=None, closure=0.9, d_mse=10.0):
     mags = mags or {}
-    return {"selected": selected, "closure": closure, "closure_record": closure - 0.1, "floor": 40.0, "d_mse": d_mse,
-            "v_dc_rel": 0.0, "d_omega": 0.0, "verdict": ", ".join(selected) or "no structural gap found",
-            "ambiguous": [], "effects": [{"name": n, "selected": True, "magnitude": v[0], "interval": v[1],
-                                          "closure": closure} for n, v in mags.items()]}
+    return {
+        "selected": selected,
+        "closure": closure,
+        "closure_record": closure - 0.1,
+        "floor": 40.0,
+        "d_mse": d_mse,
+        "v_dc_rel": 0.0,
+        "d_omega": 0.0,
+        "verdict": ", ".join(selected) or "no structural gap found",
+        "ambiguous": [],
+        "effects": [
+            {"name": n, "selected": True, "magnitude": v[0], "interval": v[1], "closure": closure}
+            for n, v in mags.items()
+        ],
+    }
 
 
 def test_score_counts_what_it_should():
     dt = {"dead_time_s": 2e-6, "v_drop_v": 1.0, "i_dt_a": 0.5}
-    trials = [{"kind": "one", "effects": {"dead_time": dt}},
-              {"kind": "one", "effects": {"dead_time": dt}},
-              {"kind": "one", "effects": {"encoder": {"lines": 2500, "offset_e_rad": 0.05}}},
-              {"kind": "none", "effects": {}}, {"kind": "none", "effects": {}},
-              {"kind": "two", "effects": {"dead_time": dt, "encoder": {"offset_e_rad": 0.05}}}]
-    outs = [_out(["dead_time"], {"dead_time": [2.2e-6, [1.9e-6, 2.5e-6]]}),
-            _out(["dead_time"], {"dead_time": [1.0e-6, [0.9e-6, 1.1e-6]]}),
-            _out(["sensor_offset"]),
-            _out([]), _out(["thermal"]),
-            _out(["encoder", "dead_time"])]
+    trials = [
+        {"kind": "one", "effects": {"dead_time": dt}},
+        {"kind": "one", "effects": {"dead_time": dt}},
+        {"kind": "one", "effects": {"encoder": {"lines": 2500, "offset_e_rad": 0.05}}},
+        {"kind": "none", "effects": {}},
+        {"kind": "none", "effects": {}},
+        {"kind": "two", "effects": {"dead_time": dt, "encoder": {"offset_e_rad": 0.05}}},
+    ]
+    outs = [
+        _out(["dead_time"], {"dead_time": [2.2e-6, [1.9e-6, 2.5e-6]]}),
+        _out(["dead_time"], {"dead_time": [1.0e-6, [0.9e-6, 1.1e-6]]}),
+        _out(["sensor_offset"]),
+        _out([]),
+        _out(["thermal"]),
+        _out(["encoder", "dead_time"]),
+    ]
     s = score(trials, outs)
     assert s["top1_detectable_single"] == (pytest.approx(2 / 3), 3)
     assert s["false_attribution_null"] == (0.5, 2)
     assert s["both_found_two"] == (1.0, 1)
-    assert s["median_magnitude_error"] == pytest.approx(0.3)      # errors 0.1 and 0.5
+    assert s["median_magnitude_error"] == pytest.approx(0.3)  # errors 0.1 and 0.5
     assert s["interval_coverage"] == (0.5, 2)
     assert s["confusion"]["encoder"] == {"sensor_offset": 1}
-    assert true_primary("delay", {"sample_delay_s": 5e-6, "pwm_delay_periods": 1}) == pytest.approx(55e-6)
+    assert true_primary("delay", {"sample_delay_s": 5e-6, "pwm_delay_periods": 1}) == pytest.approx(
+        55e-6
+    )
 
 
 def test_steady_state_parametric_gap():
@@ -67,7 +89,9 @@ def test_steady_state_parametric_gap():
     w = rng.uniform(50, 600, n)
     idd, iq = rng.uniform(-5, 0, n), rng.uniform(0, 12, n)
     r, ld, lq, psi = 0.9 * 1.2, 0.005, 0.012 * 0.9, 0.18
-    u = np.stack([r * idd - w * lq * iq, r * iq + w * (ld * idd + psi)], 1) + rng.normal(0, 0.05, (n, 2))
+    u = np.stack([r * idd - w * lq * iq, r * iq + w * (ld * idd + psi)], 1) + rng.normal(
+        0, 0.05, (n, 2)
+    )
     res = diagnose_steady(SteadyRecord(np.arange(n) * 0.5, u, np.stack([idd, iq], 1), w), M)
     p = res["parametric_gap"]
     assert p["r_s_ohm"] == pytest.approx(1.08, rel=0.05)

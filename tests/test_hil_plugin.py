@@ -1,5 +1,6 @@
 """The pytest plugin (pmsm_hil.testing): the hil_device fixture on the emulator, acceptance from a
 test, the hil_rig marker and the options, as a user's own test suite meets them."""
+
 from __future__ import annotations
 
 import pytest
@@ -12,7 +13,7 @@ def test_hil_device_runs_a_profile_and_judges_its_criteria(hil_device, data):
     run = hil_device.run(data / "short.yaml", seed=2)
     assert run.result.state == "done" and run.result.faults == 0
     assert run.log_path.is_file()
-    assert [c.criterion for c in run.checks] == ["complete", "faults"]   # the default criteria
+    assert [c.criterion for c in run.checks] == ["complete", "faults"]  # the default criteria
     run.assert_accepted()
     load_on = run.summary.segments[1]
     assert load_on.recovery_s is not None and load_on.recovery_s < 0.3
@@ -21,16 +22,22 @@ def test_hil_device_runs_a_profile_and_judges_its_criteria(hil_device, data):
 def test_paper_a_meets_its_acceptance_criteria(hil_device):
     run = hil_device.run("paper-a")
     run.assert_accepted()
-    assert len(run.checks) == 20   # complete, faults, 12 plateaus, 6 load steps
+    assert len(run.checks) == 20  # complete, faults, 12 plateaus, 6 load steps
 
 
 def test_assert_accepted_names_the_failed_bound(hil_device, data, tmp_path):
     p = tmp_path / "tight.yaml"
-    src = (data / "short.yaml").read_text().replace("../../profiles/", str(data.parent.parent / "profiles") + "/")
+    src = (
+        (data / "short.yaml")
+        .read_text()
+        .replace("../../profiles/", str(data.parent.parent / "profiles") + "/")
+    )
     p.write_text(src + "acceptance:\n  run: {recovery_max_s: 0.001}\n")
     run = hil_device.run(p, out=tmp_path / "tight.mcap")
     assert not run.accepted
-    with pytest.raises(AssertionError, match=r"segment 1 'load on': recovery measured 0\.\d+ s, bound <= 0.001 s"):
+    with pytest.raises(
+        AssertionError, match=r"segment 1 'load on': recovery measured 0\.\d+ s, bound <= 0.001 s"
+    ):
         run.assert_accepted()
 
 
@@ -41,7 +48,8 @@ def test_the_rig_plays_paper_a(hil_device):
 
 
 def test_marker_skips_without_a_rig_and_options_reach_the_fixture(pytester):
-    pytester.makepyfile(test_user="""
+    pytester.makepyfile(
+        test_user="""
         import pytest
 
         @pytest.mark.hil_rig
@@ -50,8 +58,11 @@ def test_marker_skips_without_a_rig_and_options_reach_the_fixture(pytester):
 
         def test_options(hil_device):
             assert (hil_device.kind, hil_device.seed, hil_device.rig) == ("emulator", 5, "ideal")
-    """)
-    r = pytester.runpytest_subprocess("--hil-seed", "5", "--hil-rig", "ideal", "-p", "no:cacheprovider")
+    """
+    )
+    r = pytester.runpytest_subprocess(
+        "--hil-seed", "5", "--hil-rig", "ideal", "-p", "no:cacheprovider"
+    )
     r.assert_outcomes(passed=1, skipped=1)
     r = pytester.runpytest_subprocess("--hil-port", "/dev/ttyNOPE0", "-k", "needs_rig", "-rs")
     r.assert_outcomes(passed=1)

@@ -1,6 +1,7 @@
 """A host that dies or freezes mid-run on the serial emulator: the device's clock runs on (its UART
 output is dropped as a full FIFO would) and its heartbeat timeout stops the motor, measured in
 device time from the emulator's own state."""
+
 from __future__ import annotations
 
 import os
@@ -26,19 +27,34 @@ STATE = gen.ENUMS["state"]
 @pytest.mark.parametrize("how", [signal.SIGKILL, signal.SIGSTOP])
 def test_lost_host_on_serial_stops_the_motor_within_the_heartbeat_time(data, tmp_path, how):
     profile = load_profile(str(data / "long.yaml"))
-    settings = emulator_settings(profile.motor, profile.rig, seed=1, baud=profile.link.baud,
-                                 ts_s=profile.control.ts_s)
+    settings = emulator_settings(
+        profile.motor, profile.rig, seed=1, baud=profile.link.baud, ts_s=profile.control.ts_s
+    )
     dev = EmulatedDevice(settings)
     server = PtyServer(dev)
     thread = threading.Thread(target=server.serve, daemon=True)
     thread.start()
-    host = subprocess.Popen([sys.executable, "-m", "pmsm_hil.cli.main", "run", str(data / "long.yaml"),
-                             "--port", server.path, "--out", str(tmp_path / "lost.mcap"), "--no-live"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    host = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "pmsm_hil.cli.main",
+            "run",
+            str(data / "long.yaml"),
+            "--port",
+            server.path,
+            "--out",
+            str(tmp_path / "lost.mcap"),
+            "--no-live",
+        ],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     try:
         deadline = time.monotonic() + 60
-        while time.monotonic() < deadline and not (dev.state == STATE["running"]
-                                                   and dev.isr_count * profile.control.ts_s > 1.0):
+        while time.monotonic() < deadline and not (
+            dev.state == STATE["running"] and dev.isr_count * profile.control.ts_s > 1.0
+        ):
             time.sleep(0.01)
         assert dev.state == STATE["running"], "the run never started"
         os.kill(host.pid, how)
@@ -47,12 +63,12 @@ def test_lost_host_on_serial_stops_the_motor_within_the_heartbeat_time(data, tmp
             time.sleep(0.002)
         assert dev.state != STATE["running"], "the motor kept running without its host"
         ts = profile.control.ts_s
-        silent_s = (dev.isr_count - dev.heartbeat_isr) * ts      # device time since the last heartbeat
-        assert silent_s <= profile.control.heartbeat_timeout_s + 0.01   # + the sampling of this loop
+        silent_s = (dev.isr_count - dev.heartbeat_isr) * ts  # device time since the last heartbeat
+        assert silent_s <= profile.control.heartbeat_timeout_s + 0.01  # + the sampling of this loop
         deadline = time.monotonic() + 20
         while time.monotonic() < deadline and dev.active:
             time.sleep(0.01)
-        assert dev.state == STATE["idle"]          # brought to rest, PWM off
+        assert dev.state == STATE["idle"]  # brought to rest, PWM off
     finally:
         if how == signal.SIGSTOP:
             os.kill(host.pid, signal.SIGKILL)
@@ -66,11 +82,26 @@ def test_a_killed_hosts_log_is_recovered_for_any_mcap_reader(data, tmp_path):
     from mcap.reader import make_reader
 
     from pmsm_hil.log.reader import read_log
+
     out = tmp_path / "killed.mcap"
-    host = subprocess.Popen([sys.executable, "-m", "pmsm_hil.cli.main", "run", str(data / "long.yaml"),
-                             "--pace", "1", "--out", str(out), "--no-live"],
-                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
-                            start_new_session=True)
+    host = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "pmsm_hil.cli.main",
+            "run",
+            str(data / "long.yaml"),
+            "--pace",
+            "1",
+            "--out",
+            str(out),
+            "--no-live",
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
+        start_new_session=True,
+    )
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline:
         line = host.stdout.readline()
@@ -81,37 +112,61 @@ def test_a_killed_hosts_log_is_recovered_for_any_mcap_reader(data, tmp_path):
     assert children
     os.killpg(host.pid, signal.SIGKILL)
     host.wait(timeout=10)
-    deadline = time.monotonic() + 20          # its emulator stops the motor, then ends
+    deadline = time.monotonic() + 20  # its emulator stops the motor, then ends
     while time.monotonic() < deadline and any(os.path.exists(f"/proc/{c}") for c in children):
         time.sleep(0.05)
     assert not any(os.path.exists(f"/proc/{c}") for c in children), "the emulator outlived its host"
     log = read_log(out)
     assert not log.finalised
     n = sum(log.counts.values())
-    assert log.counts["/pmsm/telemetry"] > 2000      # the chunks flushed each second of device time
-    r = subprocess.run([sys.executable, "-m", "pmsm_hil.cli.main", "log", "recover", str(out)],
-                       capture_output=True, text=True, timeout=60)
+    assert log.counts["/pmsm/telemetry"] > 2000  # the chunks flushed each second of device time
+    r = subprocess.run(
+        [sys.executable, "-m", "pmsm_hil.cli.main", "log", "recover", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert r.returncode == 0, r.stderr
     assert f"{n} messages" in r.stdout
     fixed = out.with_suffix(".recovered.mcap")
-    with open(fixed, "rb") as f:               # the generic reader's default path, through the index
+    with open(fixed, "rb") as f:  # the generic reader's default path, through the index
         reader = make_reader(f)
         assert reader.get_summary() is not None
         assert sum(1 for _ in reader.iter_messages()) == n
-    assert read_log(fixed).metadata["log"]["log_time_offset_ns"] == log.metadata["log"]["log_time_offset_ns"]
+    assert (
+        read_log(fixed).metadata["log"]["log_time_offset_ns"]
+        == log.metadata["log"]["log_time_offset_ns"]
+    )
 
 
 def test_emulate_reports_when_a_killed_host_got_its_motor_stopped(data, tmp_path):
     """The emulator as a user serves it (`emulate --report-state`), the host killed with -9: the
     emulator's own report says the motor went to stopping within the heartbeat timeout."""
-    emu = subprocess.Popen([sys.executable, "-m", "pmsm_hil.cli.main", "emulate", "--report-state"],
-                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    emu = subprocess.Popen(
+        [sys.executable, "-m", "pmsm_hil.cli.main", "emulate", "--report-state"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         port = emu.stdout.readline().split()[1]
-        emu.stdout.readline()                                   # motor: ... rig: ...
-        host = subprocess.Popen([sys.executable, "-m", "pmsm_hil.cli.main", "run", str(data / "long.yaml"),
-                                 "--port", port, "--out", str(tmp_path / "k.mcap"), "--no-live"],
-                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        emu.stdout.readline()  # motor: ... rig: ...
+        host = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "pmsm_hil.cli.main",
+                "run",
+                str(data / "long.yaml"),
+                "--port",
+                port,
+                "--out",
+                str(tmp_path / "k.mcap"),
+                "--no-live",
+            ],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
         assert emu.stdout.readline().startswith("state: running")
         time.sleep(1.0)
         host.kill()
@@ -119,8 +174,8 @@ def test_emulate_reports_when_a_killed_host_got_its_motor_stopped(data, tmp_path
         line = emu.stdout.readline()
         assert line.startswith("state: stopping"), line
         since = float(re.search(r"since_heartbeat_s=([0-9.]+)", line).group(1))
-        assert since <= 0.5 + 50e-6 + 1e-9                      # the heartbeat timeout + one period
-        assert emu.stdout.readline().startswith("state: idle")   # brought to rest, PWM off
+        assert since <= 0.5 + 50e-6 + 1e-9  # the heartbeat timeout + one period
+        assert emu.stdout.readline().startswith("state: idle")  # brought to rest, PWM off
     finally:
         emu.terminate()
         emu.wait(timeout=10)

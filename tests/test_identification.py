@@ -1,5 +1,6 @@
 """Online identification end to end on the in-process emulator (paper A motor, default rig with
 noise and dead time): the R injection, the three estimators, the guards, the table and the CLI."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -76,8 +77,12 @@ def test_guard_freezes_ld_without_d_current(tmp_path, request):
     updated while psi_f and L_q are; L_d moves only in transients where |mean i_d| >= 0.5 A."""
     root = request.config.rootpath
     text = (root / "profiles" / "paper-a-identify.yaml").read_text()
-    text = text.replace("current_ref: mtpa", "current_ref: id_zero").replace("inject_a: 2.0", "inject_a: 0.0")
-    text = text.replace("motor: motors/", f"motor: {root}/profiles/motors/").replace("rig: rigs/", f"rig: {root}/profiles/rigs/")
+    text = text.replace("current_ref: mtpa", "current_ref: id_zero").replace(
+        "inject_a: 2.0", "inject_a: 0.0"
+    )
+    text = text.replace("motor: motors/", f"motor: {root}/profiles/motors/").replace(
+        "rig: rigs/", f"rig: {root}/profiles/rigs/"
+    )
     p = tmp_path / "noexc.yaml"
     p.write_text(text)
     out = tmp_path / "noexc.mcap"

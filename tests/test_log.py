@@ -1,5 +1,6 @@
 """MCAP log: round trip of every topic, Foxglove/mcap_ros2 compatibility of the CDR, metadata and
 attachments, unfinalised (truncated, killed) files, close() safety, write_many, throughput."""
+
 from __future__ import annotations
 
 import io
@@ -27,10 +28,14 @@ from pmsm_hil.log.schemas import TOPICS, codec_for, schema_hash
 from pmsm_hil.log.writer import LogWriter, available_compressions
 
 ROOT = Path(__file__).resolve().parents[1]
-META = {"run": {"profile": "paper-a", "seed": "7", "host_version": "0.1.0"},
-        "device": {"fw_version": "0.1.0", "schema_hash": "deadbeef", "proto_version": "1"}}
-ATTACH = [("profile.yaml", "application/yaml", b"name: paper-a\n"),
-          ("motor.yaml", "application/yaml", "name: m\nsource: \u00b5H\n".encode())]
+META = {
+    "run": {"profile": "paper-a", "seed": "7", "host_version": "0.1.0"},
+    "device": {"fw_version": "0.1.0", "schema_hash": "deadbeef", "proto_version": "1"},
+}
+ATTACH = [
+    ("profile.yaml", "application/yaml", b"name: paper-a\n"),
+    ("motor.yaml", "application/yaml", "name: m\nsource: \u00b5H\n".encode()),
+]
 
 
 def random_value(rnd: random.Random, typ: str):
@@ -52,7 +57,10 @@ def random_value(rnd: random.Random, typ: str):
 def sample_rows(topic: str, n: int, seed: int = 1, t0: float = 0.0, dt: float = 5e-4) -> list[dict]:
     rnd = random.Random(f"{topic}{seed}")
     td = TOPICS[topic]
-    return [{"t_s": t0 + i * dt, **{f.name: random_value(rnd, f.type) for f in td.fields[1:]}} for i in range(n)]
+    return [
+        {"t_s": t0 + i * dt, **{f.name: random_value(rnd, f.type) for f in td.fields[1:]}}
+        for i in range(n)
+    ]
 
 
 def write_rows(w: LogWriter, topic: str, rows: list[dict]) -> None:
@@ -71,7 +79,9 @@ def assert_columns_equal(cols: dict, rows: list[dict], topic: str) -> None:
         if f.type == "string":
             assert list(got) == want, f.name
         else:
-            np.testing.assert_array_equal(got, np.array(want, dtype=got.dtype), err_msg=f"{topic}.{f.name}")
+            np.testing.assert_array_equal(
+                got, np.array(want, dtype=got.dtype), err_msg=f"{topic}.{f.name}"
+            )
 
 
 @pytest.fixture()
@@ -85,6 +95,7 @@ def all_topics_log(tmp_path):
 
 
 # ----------------------------------------------------------------------------------- contract
+
 
 def test_cdr_is_byte_identical_to_mcap_ros2_encoder():
     rnd = random.Random(3)
@@ -101,16 +112,36 @@ def test_cdr_is_byte_identical_to_mcap_ros2_encoder():
 def test_schema_names_and_fields():
     assert TOPICS["/pmsm/telemetry"].schema_name == "pmsm_hil/msg/Telemetry"
     assert TOPICS["/pmsm/telemetry"].names == (
-        "t_s", "speed_ref_rpm", "speed_rpm", "speed_est_rpm", "theta_e_rad", "theta_e_est_rad", "i_d_a", "i_q_a",
-        "i_d_ref_a", "i_q_ref_a", "u_d_v", "u_q_v", "load_nm")
-    assert set(TOPICS) == {"/pmsm/telemetry", "/pmsm/params", "/pmsm/capture", "/pmsm/status", "/pmsm/events",
-                           "/sim/truth", "/host/link"}
+        "t_s",
+        "speed_ref_rpm",
+        "speed_rpm",
+        "speed_est_rpm",
+        "theta_e_rad",
+        "theta_e_est_rad",
+        "i_d_a",
+        "i_q_a",
+        "i_d_ref_a",
+        "i_q_ref_a",
+        "u_d_v",
+        "u_q_v",
+        "load_nm",
+    )
+    assert set(TOPICS) == {
+        "/pmsm/telemetry",
+        "/pmsm/params",
+        "/pmsm/capture",
+        "/pmsm/status",
+        "/pmsm/events",
+        "/sim/truth",
+        "/host/link",
+    }
     for td in TOPICS.values():
         assert td.fields[0].name == "t_s" and td.fields[0].type == "float64"
     assert len(schema_hash()) == 16
 
 
 # ----------------------------------------------------------------------------------- round trip
+
 
 def test_round_trip_every_topic(all_topics_log):
     path, rows = all_topics_log
@@ -132,7 +163,9 @@ def test_mcap_ros2_decoder_gives_the_same_values(all_topics_log):
             assert schema.name == TOPICS[channel.topic].schema_name
             assert message.log_time == message.publish_time
             assert message.log_time == round(decoded.t_s * 1e9)
-            seen[channel.topic].append({n: getattr(decoded, n) for n in TOPICS[channel.topic].names})
+            seen[channel.topic].append(
+                {n: getattr(decoded, n) for n in TOPICS[channel.topic].names}
+            )
     for topic, rs in rows.items():
         got = seen[topic]
         assert len(got) == len(rs)
@@ -145,21 +178,24 @@ def test_valid_mcap_for_the_reference_readers(all_topics_log):
     path, rows = all_topics_log
     data = path.read_bytes()
     # data-section CRC, chunk CRCs and record framing checked by the stream reader
-    n = sum(isinstance(r, Message) for r in StreamReader(io.BytesIO(data), validate_crcs=True).records)
+    n = sum(
+        isinstance(r, Message) for r in StreamReader(io.BytesIO(data), validate_crcs=True).records
+    )
     assert n == sum(len(r) for r in rows.values())
     # summary: statistics, chunk indexes, log-time ordered iteration
     reader = make_reader(io.BytesIO(data))
     summary = reader.get_summary()
     assert summary.statistics.message_count == n
     assert summary.statistics.channel_message_counts == {
-        c.id: len(rows[c.topic]) for c in summary.channels.values()}
+        c.id: len(rows[c.topic]) for c in summary.channels.values()
+    }
     times = [m.log_time for _, _, m in reader.iter_messages(log_time_order=True)]
     assert len(times) == n and times == sorted(times)
     # footer summary CRC
     footer_at = len(data) - 8 - 29
     assert data[footer_at] == 0x02
     summary_start, _, crc = struct.unpack_from("<QQI", data, footer_at + 9)
-    assert crc == zlib.crc32(data[summary_start:footer_at + 9 + 16])
+    assert crc == zlib.crc32(data[summary_start : footer_at + 9 + 16])
 
 
 def test_metadata_and_attachments(all_topics_log):
@@ -174,7 +210,9 @@ def test_metadata_and_attachments(all_topics_log):
     with open(path, "rb") as f:
         reader = make_reader(f)
         assert {m.name: m.metadata for m in reader.iter_metadata()}["run"] == META["run"]
-        assert {a.name: a.data for a in reader.iter_attachments()}["profile.yaml"] == b"name: paper-a\n"
+        assert {a.name: a.data for a in reader.iter_attachments()}[
+            "profile.yaml"
+        ] == b"name: paper-a\n"
 
 
 def test_missing_fields_defaults_and_bad_input(tmp_path):
@@ -197,17 +235,18 @@ def test_missing_fields_defaults_and_bad_input(tmp_path):
     assert tel["speed_rpm"][0] == 12.5 and math.isnan(tel["i_d_a"][0])
     par = log.topic("/pmsm/params")
     assert par["estimator"][0] == "rls" and not par["converged"][0]
-    assert len(log.topic("/sim/truth")["t_s"]) == 0        # contract topic absent: empty columns
+    assert len(log.topic("/sim/truth")["t_s"]) == 0  # contract topic absent: empty columns
     with pytest.raises(KeyError):
         log.topic("/not/there")
 
 
 # ----------------------------------------------------------------------------------- write_many
 
+
 def test_write_many_is_write_in_bulk(tmp_path):
     rows = sample_rows("/pmsm/telemetry", 5000, dt=1e-3)
     ev = sample_rows("/pmsm/events", 3, t0=0.5)
-    kw = dict(chunk_size=64 * 1024, chunk_span_s=0.7)   # chunks close on size and on time
+    kw = dict(chunk_size=64 * 1024, chunk_span_s=0.7)  # chunks close on size and on time
     with LogWriter(tmp_path / "a.mcap", META, ATTACH, **kw) as w:
         write_rows(w, "/pmsm/telemetry", rows[:1000])
         write_rows(w, "/pmsm/events", ev)
@@ -215,11 +254,11 @@ def test_write_many_is_write_in_bulk(tmp_path):
     cols = {n: np.array([r[n] for r in rows]) for n in TOPICS["/pmsm/telemetry"].names}
     with LogWriter(tmp_path / "b.mcap", META, ATTACH, **kw) as w:
         assert w.write_many("/pmsm/telemetry", {k: v[:1000] for k, v in cols.items()}) == 1000
-        w.write_many("/pmsm/events", ev)                                   # iterable of mappings
+        w.write_many("/pmsm/events", ev)  # iterable of mappings
         struct_rows = np.zeros(4000, dtype=[(n, "f8") for n in cols])
         for n in cols:
             struct_rows[n] = cols[n][1000:]
-        w.write_many("/pmsm/telemetry", struct_rows)                      # structured array
+        w.write_many("/pmsm/telemetry", struct_rows)  # structured array
     a, b = (tmp_path / "a.mcap").read_bytes(), (tmp_path / "b.mcap").read_bytes()
     assert a == b
     log = read_log(tmp_path / "b.mcap")
@@ -248,25 +287,26 @@ def test_compressions(tmp_path, compression):
 
 # ----------------------------------------------------------------------------------- crash safety
 
+
 def test_truncated_file_is_readable(tmp_path):
     rows = sample_rows("/pmsm/telemetry", 20000, dt=5e-4)
     st = sample_rows("/pmsm/status", 100, dt=0.1)
     path = tmp_path / "full.mcap"
     with LogWriter(path, META, ATTACH, chunk_size=256 * 1024) as w:
         for i in range(100):
-            write_rows(w, "/pmsm/telemetry", rows[i * 200:(i + 1) * 200])
-            write_rows(w, "/pmsm/status", st[i:i + 1])
+            write_rows(w, "/pmsm/telemetry", rows[i * 200 : (i + 1) * 200])
+            write_rows(w, "/pmsm/status", st[i : i + 1])
     data = path.read_bytes()
     for frac in (0.05, 0.33, 0.5, 0.77, 0.999):
         cut = tmp_path / "cut.mcap"
-        cut.write_bytes(data[:int(len(data) * frac)])
+        cut.write_bytes(data[: int(len(data) * frac)])
         log = read_log(cut)
         assert not log.finalised
         assert log.metadata["run"] == META["run"] and len(log.attachments) == 2
         tel = log.topic("/pmsm/telemetry")
         k = len(tel["t_s"])
         assert k > 0 or frac < 0.1
-        assert_columns_equal(tel, rows[:k], "/pmsm/telemetry")       # a prefix, exactly
+        assert_columns_equal(tel, rows[:k], "/pmsm/telemetry")  # a prefix, exactly
         # mcap's own non-seeking reader recovers the same messages before the end of data
         n = 0
         with pytest.raises(Exception):
@@ -291,7 +331,7 @@ def test_truncated_file_is_readable(tmp_path):
 def test_rewrite_finalises_a_cut_log(all_topics_log, tmp_path):
     path, rows = all_topics_log
     cut = tmp_path / "cut.mcap"
-    cut.write_bytes(path.read_bytes()[:-200])          # summary lost
+    cut.write_bytes(path.read_bytes()[:-200])  # summary lost
     assert not read_log(cut).finalised
     rewrite_log(cut, tmp_path / "fixed.mcap")
     log = read_log(tmp_path / "fixed.mcap")
@@ -306,8 +346,14 @@ def _child(code: str, tmp_path: Path) -> subprocess.CompletedProcess:
     script = tmp_path / "child.py"
     script.write_text(textwrap.dedent(code))
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    return subprocess.run([sys.executable, str(script)], cwd=tmp_path, env=env, capture_output=True,
-                          text=True, timeout=120)
+    return subprocess.run(
+        [sys.executable, str(script)],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
 
 
 CHILD_HEAD = """
@@ -323,13 +369,17 @@ CHILD_HEAD = """
 
 
 def test_killed_process_leaves_a_readable_log(tmp_path):
-    res = _child(CHILD_HEAD + """
+    res = _child(
+        CHILD_HEAD
+        + """
     w = LogWriter("k.mcap", {"run": {"seed": "1"}})
     for i, (t, r) in enumerate(rows()):
         w.write("/pmsm/telemetry", t, r)
         if i == 30000:       # 15 s of device time: 15 chunks flushed (1 s each)
             os.kill(os.getpid(), signal.SIGKILL)
-    """, tmp_path)
+    """,
+        tmp_path,
+    )
     assert res.returncode == -signal.SIGKILL, res.stderr
     log = read_log(tmp_path / "k.mcap")
     assert not log.finalised and log.metadata["run"] == {"seed": "1"}
@@ -339,7 +389,9 @@ def test_killed_process_leaves_a_readable_log(tmp_path):
 
 
 def test_ctrl_c_finalises_the_log(tmp_path):
-    res = _child(CHILD_HEAD + """
+    res = _child(
+        CHILD_HEAD
+        + """
     w = LogWriter("c.mcap")
     try:
         for i, (t, r) in enumerate(rows()):
@@ -351,7 +403,9 @@ def test_ctrl_c_finalises_the_log(tmp_path):
     finally:
         w.close()
         w.close()
-    """, tmp_path)
+    """,
+        tmp_path,
+    )
     assert res.returncode == 0 and "interrupted" in res.stdout, res.stderr
     log = read_log(tmp_path / "c.mcap")
     assert log.finalised and not log.problems
@@ -359,7 +413,9 @@ def test_ctrl_c_finalises_the_log(tmp_path):
 
 
 def test_close_from_a_signal_handler(tmp_path):
-    res = _child(CHILD_HEAD + """
+    res = _child(
+        CHILD_HEAD
+        + """
     w = LogWriter("s.mcap")
     def on_term(signum, frame):
         w.close()
@@ -369,7 +425,9 @@ def test_close_from_a_signal_handler(tmp_path):
         w.write("/pmsm/telemetry", t, r)
         if i == 7000:
             os.kill(os.getpid(), signal.SIGTERM)
-    """, tmp_path)
+    """,
+        tmp_path,
+    )
     assert res.returncode == 3, res.stderr
     log = read_log(tmp_path / "s.mcap")
     assert log.finalised and 7000 <= log.counts["/pmsm/telemetry"] <= 7002
@@ -398,6 +456,7 @@ def test_not_mcap(tmp_path):
 
 # ----------------------------------------------------------------------------------- other files
 
+
 def test_reads_files_of_other_writers(tmp_path):
     """mcap_ros2's writer puts schemas and channels inside chunks; a non-flat schema decodes through
     mcap_ros2."""
@@ -421,7 +480,7 @@ def test_reads_files_of_other_writers(tmp_path):
 
 
 def test_damaged_chunk_is_skipped_and_reported(tmp_path):
-    rows = sample_rows("/pmsm/telemetry", 6000, dt=5e-4)           # 3 s: at least 3 chunks
+    rows = sample_rows("/pmsm/telemetry", 6000, dt=5e-4)  # 3 s: at least 3 chunks
     path = tmp_path / "d.mcap"
     with LogWriter(path, META, ATTACH, compression="") as w:
         write_rows(w, "/pmsm/telemetry", rows)
@@ -435,7 +494,7 @@ def test_damaged_chunk_is_skipped_and_reported(tmp_path):
             break
         p += 9 + ln
     assert len(chunks) >= 3
-    p, ln = chunks[1]                      # the second chunk's records: one octet changed
+    p, ln = chunks[1]  # the second chunk's records: one octet changed
     data[p + 9 + ln - 40] ^= 0xFF
     path.write_bytes(bytes(data))
     log = read_log(path)
@@ -443,4 +502,4 @@ def test_damaged_chunk_is_skipped_and_reported(tmp_path):
     t = log.topic("/pmsm/telemetry")["t_s"]
     assert 0 < len(t) < len(rows)
     missing = {r["t_s"] for r in rows} - set(t.tolist())
-    assert missing and min(missing) > t[0] and max(missing) < t[-1]      # a middle piece
+    assert missing and min(missing) > t[0] and max(missing) < t[-1]  # a middle piece

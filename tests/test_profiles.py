@@ -1,4 +1,5 @@
 """Profiles, motors and rigs: the shipped files, every class of bad input, the link budget."""
+
 from __future__ import annotations
 
 import math
@@ -10,8 +11,20 @@ import numpy as np
 import pytest
 import yaml
 
-from pmsm_hil.profiles import (EFFECT_BITS, FRAME_OVERHEAD_OCTETS, MAX_SEGMENTS, PAYLOAD_OCTETS, Motor, Profile,
-                               ProfileError, Rig, link_budget, load_motor, load_profile, load_rig)
+from pmsm_hil.profiles import (
+    EFFECT_BITS,
+    FRAME_OVERHEAD_OCTETS,
+    MAX_SEGMENTS,
+    PAYLOAD_OCTETS,
+    Motor,
+    Profile,
+    ProfileError,
+    Rig,
+    link_budget,
+    load_motor,
+    load_profile,
+    load_rig,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 PROFILES = ROOT / "profiles"
@@ -21,6 +34,7 @@ RIG = PROFILES / "rigs" / "default.yaml"
 
 
 # ----------------------------------------------------------------------------------- helpers
+
 
 @pytest.fixture()
 def ws(tmp_path, monkeypatch):
@@ -62,10 +76,18 @@ def problems_of(path: str, **kw) -> list[str]:
 
 # ----------------------------------------------------------------------------------- shipped files
 
+
 def test_shipped_motor_is_paper_a():
     m = load_motor(MOTOR)
     assert isinstance(m, Motor)
-    assert (m.pole_pairs, m.r_s_ohm, m.l_d_h, m.l_q_h, m.psi_f_wb, m.j_kgm2) == (4, 0.9, 0.005, 0.012, 0.18, 0.0036)
+    assert (m.pole_pairs, m.r_s_ohm, m.l_d_h, m.l_q_h, m.psi_f_wb, m.j_kgm2) == (
+        4,
+        0.9,
+        0.005,
+        0.012,
+        0.18,
+        0.0036,
+    )
     assert m.v_dc_v == 540 and m.speed_max_rpm == 1500 and m.i_max_a == 15 and m.i_trip_a == 25
     assert m.speed_trip_rpm == 1800 and m.v_dc_min_v < m.v_dc_v < m.v_dc_max_v
     assert 0 < m.b_visc_nms < 0.01
@@ -81,7 +103,13 @@ def test_shipped_motor_is_paper_a():
 def test_shipped_rig_effects():
     r = load_rig(RIG)
     assert isinstance(r, Rig)
-    assert r.enabled_effects == ["dead_time", "adc_noise", "adc_quantisation", "encoder", "friction"]
+    assert r.enabled_effects == [
+        "dead_time",
+        "adc_noise",
+        "adc_quantisation",
+        "encoder",
+        "friction",
+    ]
     dt = r.effects["dead_time"]
     assert (dt.dead_time_s, dt.v_drop_v, dt.i_dt_a) == (2e-6, 1.0, 0.5)
     assert r.effects["adc_noise"].i_noise_a == 0.02
@@ -105,7 +133,12 @@ def test_paper_a_profile():
     assert p.motor.name == "paper-a-ipmsm" and p.rig.name == "default"
     assert p.control.ts_s == 50e-6 and p.control.current_ref == "mtpa"
     assert p.control.speed_kp_a_per_rad_s is None and p.control.speed_ki_a_per_rad is None
-    assert (p.telemetry.fast_hz, p.telemetry.params_hz, p.telemetry.status_hz, p.telemetry.truth_hz) == (2000, 100, 10, 100)
+    assert (
+        p.telemetry.fast_hz,
+        p.telemetry.params_hz,
+        p.telemetry.status_hz,
+        p.telemetry.truth_hz,
+    ) == (2000, 100, 10, 100)
     assert p.link.baud == 921600
     assert p.total_duration_s == pytest.approx(sum(s.duration_s for s in p.segments))
     assert p.total_duration_s <= 3600
@@ -119,14 +152,18 @@ def test_paper_a_profile():
     assert {15, 240, 1000, 50, 500} <= plateaus
     speeds = [s.speed_rpm for s in p.segments]
     i50 = speeds.index(50)
-    assert speeds[i50 + 1:i50 + 3] == [500, 1000] and all(s.ramp_rpm_s > 0 for s in p.segments[i50:i50 + 3])
+    assert speeds[i50 + 1 : i50 + 3] == [500, 1000] and all(
+        s.ramp_rpm_s > 0 for s in p.segments[i50 : i50 + 3]
+    )
     for speed in (240, 1000):
         loads = [s.load_nm for s in p.segments if s.speed_rpm == speed]
         assert max(loads) > 0 and loads[-1] == 0
     # settling: every plateau held >= 1 s after its ramp; every load change followed by >= 1 s
     prev_load = 0.0
     for s in p.segments:
-        ramp_time = 0.0 if s.ramp_rpm_s == 0 else abs(s.speed_rpm - s.speed_start_rpm) / s.ramp_rpm_s
+        ramp_time = (
+            0.0 if s.ramp_rpm_s == 0 else abs(s.speed_rpm - s.speed_start_rpm) / s.ramp_rpm_s
+        )
         assert s.speed_end_rpm == s.speed_rpm
         if s.speed_rpm != 0:
             assert s.duration_s - ramp_time >= 1.0 - 1e-9, s.label
@@ -162,14 +199,14 @@ def test_profile_metadata_and_attachments():
     assert meta["motor"]["l_q_h"] == "0.012" and meta["rig"]["dead_time.dead_time_s"] == "2e-06"
     assert meta["rig"]["effects_mask"] == "31"
     assert all(isinstance(v, str) for rec in meta.values() for v in rec.values())
-    assert not any("/" in meta[k]["file"] for k in meta)   # no paths of the machine in the log
+    assert not any("/" in meta[k]["file"] for k in meta)  # no paths of the machine in the log
 
 
 def test_good_profile_in_workspace(ws):
     p = load_profile(write("good.yaml", GOOD))
-    assert p.rig.path == "rigs/default.yaml"          # default rig beside the motors directory
+    assert p.rig.path == "rigs/default.yaml"  # default rig beside the motors directory
     assert p.motor.path == "motors/paper-a-ipmsm.yaml"
-    assert p.control.ts_s == 50e-6                    # YAML 1.2 float without a dot
+    assert p.control.ts_s == 50e-6  # YAML 1.2 float without a dot
     assert p.segments[1].capture and p.segments[1].flags == 1
     assert p.segments[2].speed_start_rpm == 100 and p.reference_at(3.2) == (-200.0, 0.0)
     assert p.divider(2000) == 10 and p.speed_div == 20
@@ -177,27 +214,35 @@ def test_good_profile_in_workspace(ws):
 
 
 def test_rig_override_and_effect_defaults(ws):
-    write("rigs/ideal.yaml", """
+    write(
+        "rigs/ideal.yaml",
+        """
         name: ideal
         v_dc_v: 500
         effects:
           encoder: {lines: 1024}
-        """)
+        """,
+    )
     p = load_profile(write("good.yaml", GOOD), rig_override="rigs/ideal.yaml")
     assert p.rig.name == "ideal" and p.v_dc_v == 500
-    assert p.rig.enabled_effects == ["encoder"]           # listed -> on; not listed -> off
+    assert p.rig.enabled_effects == ["encoder"]  # listed -> on; not listed -> off
     assert not p.rig.enabled("dead_time") and p.rig.effects["dead_time"].dead_time_s == 2e-6
     assert p.rig.effects["encoder"].counts == 4096
     assert p.rig.effects_mask == 1 << EFFECT_BITS["encoder"]
 
 
 def test_ramp_too_slow_is_a_warning(ws):
-    p = load_profile(write("slow.yaml", """
+    p = load_profile(
+        write(
+            "slow.yaml",
+            """
         name: slow
         motor: motors/paper-a-ipmsm.yaml
         segments:
           - {duration_s: 1.0, speed_rpm: 1000, ramp_rpm_s: 500}
-        """))
+        """,
+        )
+    )
     assert len(p.warnings) == 1
     assert p.warnings[0].startswith("slow.yaml:4: segments[0]: the ramp")
     assert "reaches only 500 of 1000 r/min" in p.warnings[0]
@@ -206,11 +251,14 @@ def test_ramp_too_slow_is_a_warning(ws):
 
 # ----------------------------------------------------------------------------------- bad input
 
+
 def test_out_of_range_speed_names_motor_limit(ws):
     path = write("x.yaml", GOOD.replace("speed_rpm: -200", "speed_rpm: 2400"))
     (msg,) = problems_of(path)
-    assert msg == ("x.yaml:11: segments[2].speed_rpm = 2400 is beyond the motor's speed_max_rpm 1500 "
-                   "(motors/paper-a-ipmsm.yaml)")
+    assert msg == (
+        "x.yaml:11: segments[2].speed_rpm = 2400 is beyond the motor's speed_max_rpm 1500 "
+        "(motors/paper-a-ipmsm.yaml)"
+    )
     with pytest.raises(ProfileError) as ei:
         load_profile(path)
     e = ei.value
@@ -220,17 +268,22 @@ def test_out_of_range_speed_names_motor_limit(ws):
 def test_out_of_range_load_names_motor_limit(ws):
     path = write("x.yaml", GOOD.replace("load_nm: 5.0", "load_nm: -20"))
     (msg,) = problems_of(path)
-    assert msg == ("x.yaml:10: segments[1].load_nm = -20 is beyond the motor's torque_max_nm 18.3 "
-                   "(motors/paper-a-ipmsm.yaml)")
+    assert msg == (
+        "x.yaml:10: segments[1].load_nm = -20 is beyond the motor's torque_max_nm 18.3 "
+        "(motors/paper-a-ipmsm.yaml)"
+    )
 
 
 def test_malformed_yaml_gives_line_and_column(ws):
-    path = write("x.yaml", """
+    path = write(
+        "x.yaml",
+        """
         name: x
         motor: motors/paper-a-ipmsm.yaml
         segments:
           - {duration_s: 1, speed_rpm: 10
-        """)
+        """,
+    )
     (msg,) = problems_of(path)
     assert msg.startswith("x.yaml:5:1: invalid YAML: expected ',' or '}'")
     path = write("y.yaml", "name: x\n  motor: m.yaml\n")
@@ -244,27 +297,42 @@ def test_unknown_field_did_you_mean(ws):
     assert msg == "x.yaml:5: control.rhoo = 1 is not a field of control; did you mean 'rho'?"
     path = write("y.yaml", GOOD.replace("  fast_hz: 2000", "  fast_hz: 2000\n  banana: 3"))
     (msg,) = problems_of(path)
-    assert msg.startswith("y.yaml:8: telemetry.banana = 3 is not a field of telemetry (known: fast_hz,")
+    assert msg.startswith(
+        "y.yaml:8: telemetry.banana = 3 is not a field of telemetry (known: fast_hz,"
+    )
     path = write("z.yaml", GOOD.replace("{name: c,", "{name: c, sped_rpm: 3,"))
     (msg,) = problems_of(path)
-    assert msg == "z.yaml:11: segments[2].sped_rpm = 3 is not a field of segments[2]; did you mean 'speed_rpm'?"
+    assert (
+        msg
+        == "z.yaml:11: segments[2].sped_rpm = 3 is not a field of segments[2]; did you mean 'speed_rpm'?"
+    )
 
 
 def test_missing_required_fields(ws):
-    path = write("x.yaml", """
+    path = write(
+        "x.yaml",
+        """
         motor: motors/paper-a-ipmsm.yaml
         segments:
           - {duration_s: 1.0, speed_rpm: 100}
           - {speed_rpm: 100}
-        """)
+        """,
+    )
     msgs = problems_of(path)
-    assert msgs == ["x.yaml:1: name is missing (required: profile name)",
-                    "x.yaml:4: segments[1].duration_s is missing (required: length of the segment, s)"]
+    assert msgs == [
+        "x.yaml:1: name is missing (required: profile name)",
+        "x.yaml:4: segments[1].duration_s is missing (required: length of the segment, s)",
+    ]
 
 
 def test_wrong_types(ws):
-    path = write("x.yaml", GOOD.replace("rho: 1.0", "rho: fast").replace("capture: true", "capture: 1")
-                 .replace("ts_s: 50e-6", "ts_s: '50e-6'").replace("current_ref", "x"))
+    path = write(
+        "x.yaml",
+        GOOD.replace("rho: 1.0", "rho: fast")
+        .replace("capture: true", "capture: 1")
+        .replace("ts_s: 50e-6", "ts_s: '50e-6'")
+        .replace("current_ref", "x"),
+    )
     msgs = problems_of(path)
     assert msgs == [
         "x.yaml:4: control.ts_s = '50e-6' is not a number (write numbers without quotes)",
@@ -272,22 +340,34 @@ def test_wrong_types(ws):
         "x.yaml:10: segments[1].capture = 1 is not true or false",
     ]
     path = write("y.yaml", GOOD.replace("  rho: 1.0", "  current_ref: mtp"))
-    assert problems_of(path) == ["y.yaml:5: control.current_ref = 'mtp' is not one of 'mtpa' or 'id_zero'"]
+    assert problems_of(path) == [
+        "y.yaml:5: control.current_ref = 'mtp' is not one of 'mtpa' or 'id_zero'"
+    ]
     path = write("z.yaml", GOOD.replace("telemetry:\n  fast_hz: 2000", "telemetry: 2000"))
-    assert problems_of(path) == ["z.yaml:6: telemetry = 2000 must be a mapping of `key: value` lines"]
+    assert problems_of(path) == [
+        "z.yaml:6: telemetry = 2000 must be a mapping of `key: value` lines"
+    ]
 
 
 def test_ranges_and_rates(ws):
-    path = write("x.yaml", GOOD.replace("ts_s: 50e-6", "ts_s: 10e-6").replace("duration_s: 1.0", "duration_s: 0")
-                 .replace("ramp_rpm_s: 200", "ramp_rpm_s: -5"))
+    path = write(
+        "x.yaml",
+        GOOD.replace("ts_s: 50e-6", "ts_s: 10e-6")
+        .replace("duration_s: 1.0", "duration_s: 0")
+        .replace("ramp_rpm_s: 200", "ramp_rpm_s: -5"),
+    )
     msgs = problems_of(path)
     assert msgs == [
         "x.yaml:4: control.ts_s = 1e-05 is outside the allowed range [2e-05, 0.001] s",
         "x.yaml:9: segments[0].duration_s = 0 is outside the allowed range (0, 3600] s",
         "x.yaml:9: segments[0].ramp_rpm_s = -5 is outside the allowed range [0, 1000000] r/min/s",
     ]
-    path = write("y.yaml", GOOD.replace("fast_hz: 2000", "fast_hz: 3000\n  params_hz: 30000")
-                 .replace("rho: 1.0", "rho: 1.0\n  speed_loop_hz: 1500"))
+    path = write(
+        "y.yaml",
+        GOOD.replace("fast_hz: 2000", "fast_hz: 3000\n  params_hz: 30000").replace(
+            "rho: 1.0", "rho: 1.0\n  speed_loop_hz: 1500"
+        ),
+    )
     msgs = problems_of(path)
     assert msgs == [
         "y.yaml:6: control.speed_loop_hz = 1500 does not divide the control rate 20000 Hz (1/control.ts_s); "
@@ -310,7 +390,9 @@ def test_total_duration_limit(ws):
 def test_speed_gains_both_or_neither(ws):
     path = write("x.yaml", GOOD.replace("rho: 1.0", "rho: 1.0\n  speed_kp_a_per_rad_s: 0.5"))
     (msg,) = problems_of(path)
-    assert msg.startswith("x.yaml:6: control.speed_kp_a_per_rad_s = 0.5 is given but control.speed_ki_a_per_rad is not")
+    assert msg.startswith(
+        "x.yaml:6: control.speed_kp_a_per_rad_s = 0.5 is given but control.speed_ki_a_per_rad is not"
+    )
 
 
 def test_duplicate_key(ws):
@@ -321,7 +403,8 @@ def test_duplicate_key(ws):
 def test_empty_and_non_mapping_files(ws):
     assert problems_of(write("x.yaml", "")) == ["x.yaml:1: the profile is empty"]
     assert problems_of(write("y.yaml", "- a\n- b\n")) == [
-        "y.yaml:1: the profile must be a mapping of `key: value` lines, not a list"]
+        "y.yaml:1: the profile must be a mapping of `key: value` lines, not a list"
+    ]
     (msg,) = problems_of("nothing.yaml")
     assert msg.startswith("nothing.yaml: cannot read the profile:")
 
@@ -329,9 +412,11 @@ def test_empty_and_non_mapping_files(ws):
 def test_missing_motor_file_reported_at_the_reference(ws):
     path = write("x.yaml", GOOD.replace("motors/paper-a-ipmsm.yaml", "motors/nope.yaml"))
     msgs = problems_of(path)
-    assert msgs[0].startswith("x.yaml:2: motor = 'motors/nope.yaml' names a motor file that cannot be read: "
-                              "motors/nope.yaml:")
-    assert len(msgs) == 1      # the default rig is found next to motors/ all the same
+    assert msgs[0].startswith(
+        "x.yaml:2: motor = 'motors/nope.yaml' names a motor file that cannot be read: "
+        "motors/nope.yaml:"
+    )
+    assert len(msgs) == 1  # the default rig is found next to motors/ all the same
 
 
 def test_missing_default_rig(ws):
@@ -342,11 +427,18 @@ def test_missing_default_rig(ws):
 
 def test_motor_file_problems_name_the_motor_file(ws):
     text = (ws / "motors" / "paper-a-ipmsm.yaml").read_text()
-    text = (text.replace("i_trip_a: 25.0", "i_trip_a: 12.0").replace("torque_max_nm: 18.3", "torque_max_nm: 25")
-            .replace("j_kgm2: 0.0036", "j_kgm2: 4.5 g m^2").replace("r_s_ohm: 0.9", "r_s_ohms: 0.9"))
+    text = (
+        text.replace("i_trip_a: 25.0", "i_trip_a: 12.0")
+        .replace("torque_max_nm: 18.3", "torque_max_nm: 25")
+        .replace("j_kgm2: 0.0036", "j_kgm2: 4.5 g m^2")
+        .replace("r_s_ohm: 0.9", "r_s_ohms: 0.9")
+    )
     (ws / "motors" / "bad.yaml").write_text(text)
     msgs = problems_of(write("x.yaml", GOOD.replace("paper-a-ipmsm", "bad")))
-    lines = {yaml_line(ws / "motors" / "bad.yaml", k) for k in ("j_kgm2", "r_s_ohms", "i_trip_a", "torque_max_nm")}
+    lines = {
+        yaml_line(ws / "motors" / "bad.yaml", k)
+        for k in ("j_kgm2", "r_s_ohms", "i_trip_a", "torque_max_nm")
+    }
     assert all(m.startswith("motors/bad.yaml:") for m in msgs)
     assert {int(m.split(":")[1]) for m in msgs} >= lines
     joined = "\n".join(msgs)
@@ -354,7 +446,10 @@ def test_motor_file_problems_name_the_motor_file(ws):
     assert "r_s_ohms = 0.9 is not a field of the file; did you mean 'r_s_ohm'?" in joined
     assert "r_s_ohm is missing (required" in joined
     assert "i_trip_a = 12 must be above i_max_a 15 A" in joined
-    assert "torque_max_nm = 25 is more than the 18.31 N m that i_max_a 15 A gives on the MTPA trajectory" in joined
+    assert (
+        "torque_max_nm = 25 is more than the 18.31 N m that i_max_a 15 A gives on the MTPA trajectory"
+        in joined
+    )
     with pytest.raises(ProfileError) as ei:
         load_motor(ws / "motors" / "bad.yaml")
     assert ei.value.file.endswith("bad.yaml") and len(ei.value.problems) >= 4
@@ -368,14 +463,17 @@ def yaml_line(path: Path, key: str) -> int:
 
 
 def test_rig_problems(ws):
-    write("rigs/bad.yaml", """
+    write(
+        "rigs/bad.yaml",
+        """
         name: bad
         v_dc_v: 800
         effects:
           dead_tme: {enabled: true}
           encoder: {lines: 0}
           adc_noise: true
-        """)
+        """,
+    )
     msgs = problems_of(write("x.yaml", GOOD), rig_override="rigs/bad.yaml")
     assert msgs == [
         "rigs/bad.yaml:4: effects.dead_tme = {enabled: true} is not a field of effects; did you mean 'dead_time'?",
@@ -385,12 +483,17 @@ def test_rig_problems(ws):
     write("rigs/hv.yaml", "name: hv\nv_dc_v: 800\n")
     assert problems_of(write("y.yaml", GOOD.replace("motor:", "rig: rigs/hv.yaml\nmotor:"))) == [
         "rigs/hv.yaml:2: v_dc_v = 800 is outside the motor's DC-link trip limits v_dc_min_v 400 .. "
-        "v_dc_max_v 750 V (motors/paper-a-ipmsm.yaml)"]
+        "v_dc_max_v 750 V (motors/paper-a-ipmsm.yaml)"
+    ]
 
 
 def test_several_problems_all_listed(ws):
-    path = write("x.yaml", GOOD.replace("speed_rpm: -200", "speed_rpm: 2400").replace("rho: 1.0", "rho: -1")
-                 .replace("load_nm: 5.0", "load_nm: 50"))
+    path = write(
+        "x.yaml",
+        GOOD.replace("speed_rpm: -200", "speed_rpm: 2400")
+        .replace("rho: 1.0", "rho: -1")
+        .replace("load_nm: 5.0", "load_nm: 50"),
+    )
     with pytest.raises(ProfileError) as ei:
         load_profile(path)
     e = ei.value
@@ -400,6 +503,7 @@ def test_several_problems_all_listed(ws):
 
 
 # ----------------------------------------------------------------------------------- link budget
+
 
 def test_link_budget_numbers():
     p = load_profile(PAPER_A)
@@ -423,7 +527,10 @@ def test_link_budget_overload_warns(ws):
     p = load_profile(write("x.yaml", GOOD.replace("fast_hz: 2000", "fast_hz: 2500")))
     b = link_budget(p)
     assert b["load"] > 1 and b["total_octets_s"] == 2500 * 34 + 2800 + 310 + 5000
-    assert "link overloaded" in b["warning"] and "telemetry.fast_hz to 2222.22 Hz or less" in b["warning"]
+    assert (
+        "link overloaded" in b["warning"]
+        and "telemetry.fast_hz to 2222.22 Hz or less" in b["warning"]
+    )
     assert any("link overloaded" in w for w in p.warnings)
 
 
@@ -443,9 +550,11 @@ def test_segment_limit_matches_the_firmware(ws):
     header = ROOT / "firmware" / "core" / "profile_exec.h"
     if header.exists():
         import re
+
         m = re.search(r"#define\s+PROFILE_MAX_SEGMENTS\s+(\d+)", header.read_text())
         assert m and int(m.group(1)) == MAX_SEGMENTS
     segs = "\n".join("  - {duration_s: 0.1, speed_rpm: 10}" for _ in range(MAX_SEGMENTS + 1))
     path = write("x.yaml", "name: x\nmotor: motors/paper-a-ipmsm.yaml\nsegments:\n" + segs + "\n")
-    assert problems_of(path) == [f"x.yaml:3: segments = [{MAX_SEGMENTS + 1} items] must have at most "
-                                 f"{MAX_SEGMENTS} items"]
+    assert problems_of(path) == [
+        f"x.yaml:3: segments = [{MAX_SEGMENTS + 1} items] must have at most {MAX_SEGMENTS} items"
+    ]

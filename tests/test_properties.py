@@ -2,6 +2,7 @@
 framing round trips whatever the read boundaries, nothing unsent is accepted from a mutated
 stream, payloads round trip through their fields, CAN messages reassemble, and the recorder
 logs whatever valid frames it gets. Derandomised: the same examples on every run."""
+
 from __future__ import annotations
 
 import math
@@ -17,8 +18,12 @@ from pmsm_hil.protocol.can_link import CanDecoder, encode_payload_frames
 from pmsm_hil.protocol.generated import BY_ID, MESSAGES
 from pmsm_hil.recorder import Recorder
 
-SETTINGS = settings(derandomize=True, max_examples=150, deadline=None,
-                    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+SETTINGS = settings(
+    derandomize=True,
+    max_examples=150,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
+)
 D2H = [m for m in MESSAGES if m.dir == "d2h"]
 
 
@@ -43,7 +48,7 @@ def test_frames_round_trip_whatever_the_read_boundaries(msgs, cuts):
     out, pos, k = [], 0, 0
     while pos < len(stream):
         n = cuts[k % len(cuts)]
-        out += dec.feed_raw(stream[pos:pos + n])
+        out += dec.feed_raw(stream[pos : pos + n])
         pos, k = pos + n, k + 1
     assert out == msgs
     assert dec.bad_frames == 0
@@ -59,7 +64,7 @@ def test_a_mutated_stream_never_yields_a_frame_that_was_not_sent(msgs, data):
         if kind == "flip":
             stream[at] ^= 1 << data.draw(st.integers(0, 7))
         elif kind == "drop":
-            del stream[at:at + data.draw(st.integers(1, 8))]
+            del stream[at : at + data.draw(st.integers(1, 8))]
         else:
             stream[at:at] = data.draw(st.binary(min_size=1, max_size=8))
         if not stream:
@@ -102,8 +107,13 @@ def test_the_recorder_logs_any_valid_device_frames(tmp_path_factory, msgs):
         rec.frames(frames)
     log = read_log(path)
     assert log.finalised
-    logged = {"telem_fast": "/pmsm/telemetry", "params": "/pmsm/params", "status": "/pmsm/status",
-              "sim_truth": "/sim/truth", "event": "/pmsm/events"}
+    logged = {
+        "telem_fast": "/pmsm/telemetry",
+        "params": "/pmsm/params",
+        "status": "/pmsm/status",
+        "sim_truth": "/sim/truth",
+        "event": "/pmsm/events",
+    }
     for name, topic in logged.items():
         n = sum(1 for f in frames if f.name == name)
         assert log.counts.get(topic, 0) == n, name

@@ -1,5 +1,6 @@
 """`pmsm-hil report`: PNGs and one self-contained HTML page for a run, panels without data skipped,
 bad input refused with exit 2."""
+
 from __future__ import annotations
 
 import base64
@@ -26,9 +27,13 @@ def png_size(data: bytes) -> tuple[int, int]:
 @pytest.fixture(scope="module")
 def short_log(tmp_path_factory, request):
     out = tmp_path_factory.mktemp("report") / "short.mcap"
-    run_inproc(request.config.rootpath / "tests" / "data" / "short.yaml", out, seed=4,
-               rig=str(request.config.rootpath / "profiles" / "rigs" / "lab-typical.yaml"),
-               rig_name="profiles/rigs/lab-typical.yaml")
+    run_inproc(
+        request.config.rootpath / "tests" / "data" / "short.yaml",
+        out,
+        seed=4,
+        rig=str(request.config.rootpath / "profiles" / "rigs" / "lab-typical.yaml"),
+        rig_name="profiles/rigs/lab-typical.yaml",
+    )
     return out
 
 
@@ -53,7 +58,7 @@ def test_report_writes_the_panels_and_one_self_contained_page(short_log, tmp_pat
     assert len(imgs) == len(expected)
     for b in imgs:
         png_size(base64.b64decode(b))
-    assert "src=\"http" not in html and ".png\"" not in html
+    assert 'src="http' not in html and '.png"' not in html
     # no sensorless estimator ran: that panel is skipped, with the reason on the page
     assert not (out / "estimation_error.png").exists()
     assert 'id="skipped-estimation_error"' in html and "encoder" in html
@@ -69,27 +74,63 @@ def test_estimators_give_the_identification_table_and_the_error_panel(tmp_path):
     """A log written directly: params of three estimators against a truth, and an estimated
     angle that differs from the encoder's."""
     log = tmp_path / "synthetic.mcap"
-    meta = {"run": {"profile": "synthetic", "rig": "rigs/bench-x.yaml", "seed": "9",
-                    "segment_names": "a|b"}, "device": {"board": "emulator"}}
+    meta = {
+        "run": {
+            "profile": "synthetic",
+            "rig": "rigs/bench-x.yaml",
+            "seed": "9",
+            "segment_names": "a|b",
+        },
+        "device": {"board": "emulator"},
+    }
     t = np.arange(0, 2.0, 5e-4)
     n = len(t)
     with LogWriter(log, meta) as w:
         theta = (t * 2 * np.pi * 30) % (2 * np.pi)
-        w.write_many("/pmsm/telemetry", {
-            "t_s": t, "speed_ref_rpm": np.full(n, 450.0), "speed_rpm": np.full(n, 450.0),
-            "speed_est_rpm": 450.0 + np.sin(t), "theta_e_rad": theta,
-            "theta_e_est_rad": (theta + 0.05) % (2 * np.pi), "i_d_a": np.zeros(n),
-            "i_q_a": np.ones(n), "i_d_ref_a": np.zeros(n), "i_q_ref_a": np.ones(n),
-            "u_d_v": np.zeros(n), "u_q_v": np.full(n, 50.0), "load_nm": np.zeros(n)})
+        w.write_many(
+            "/pmsm/telemetry",
+            {
+                "t_s": t,
+                "speed_ref_rpm": np.full(n, 450.0),
+                "speed_rpm": np.full(n, 450.0),
+                "speed_est_rpm": 450.0 + np.sin(t),
+                "theta_e_rad": theta,
+                "theta_e_est_rad": (theta + 0.05) % (2 * np.pi),
+                "i_d_a": np.zeros(n),
+                "i_q_a": np.ones(n),
+                "i_d_ref_a": np.zeros(n),
+                "i_q_ref_a": np.ones(n),
+                "u_d_v": np.zeros(n),
+                "u_q_v": np.full(n, 50.0),
+                "load_nm": np.zeros(n),
+            },
+        )
         tp = np.arange(0, 2.0, 0.01)
         for est, k in (("rls", 1.05), ("adaline", 1.01), ("nlms_adaline", 1.0)):
             for ti in tp:
-                w.write("/pmsm/params", float(ti), {"estimator": est, "l_d_h": 5e-3 * k, "l_q_h": 12e-3 * k,
-                                                    "psi_f_wb": 0.18 * k, "r_s_ohm": 0.9 * k,
-                                                    "converged": True})
-        w.write_many("/sim/truth", {"t_s": tp, "l_d_h": np.full(len(tp), 5e-3),
-                                    "l_q_h": np.full(len(tp), 12e-3), "psi_f_wb": np.full(len(tp), 0.18),
-                                    "r_s_ohm": np.full(len(tp), 0.9), "speed_rpm": np.full(len(tp), 450.0)})
+                w.write(
+                    "/pmsm/params",
+                    float(ti),
+                    {
+                        "estimator": est,
+                        "l_d_h": 5e-3 * k,
+                        "l_q_h": 12e-3 * k,
+                        "psi_f_wb": 0.18 * k,
+                        "r_s_ohm": 0.9 * k,
+                        "converged": True,
+                    },
+                )
+        w.write_many(
+            "/sim/truth",
+            {
+                "t_s": tp,
+                "l_d_h": np.full(len(tp), 5e-3),
+                "l_q_h": np.full(len(tp), 12e-3),
+                "psi_f_wb": np.full(len(tp), 0.18),
+                "r_s_ohm": np.full(len(tp), 0.9),
+                "speed_rpm": np.full(len(tp), 450.0),
+            },
+        )
         for i, ti in enumerate((0.0, 1.0)):
             w.write("/pmsm/events", ti, {"kind": "segment_start", "code": 1, "arg": i, "text": ""})
     rep = build_report(log, tmp_path / "out")
@@ -134,6 +175,7 @@ def test_bad_input_exits_2_without_traceback(tmp_path, short_log, capsys):
 
 def test_default_directory_is_beside_the_log(short_log, tmp_path):
     import shutil
+
     log = tmp_path / "run1.mcap"
     shutil.copy(short_log, log)
     rep = build_report(log)
@@ -148,7 +190,7 @@ def test_truncated_log_is_reported_as_such(short_log, tmp_path):
     rep = build_report(cut, tmp_path / "out")
     html = rep.html.read_text()
     assert "not finalised" in html
-    assert "speed" in rep.pngs                 # what was recovered is plotted
+    assert "speed" in rep.pngs  # what was recovered is plotted
 
 
 def test_a_stopped_run_says_it_did_not_reach_the_end(data, tmp_path):

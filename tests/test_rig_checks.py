@@ -1,5 +1,6 @@
 """Rig values the emulated plant refuses are refused when the profile is loaded: exit 2 with
 file:line, field and value, no traceback (pmsm_hil.profiles.rig.plant_problems)."""
+
 import re
 import subprocess
 import sys
@@ -16,14 +17,30 @@ from pmsm_hil.profiles.rig import PLANT_DELAY_RING, PLANT_THERMAL_DIV
 
 # (file text of the effects section, profile control.ts_s, field named, value named)
 BAD = {
-    "cogging_not_multiple": ("  cogging: {amplitude_nm: 0.1, periods_per_rev: 30}\n", None,
-                             "effects.cogging.periods_per_rev", "30"),
-    "cogging_order": ("  cogging: {amplitude_nm: 0.1, periods_per_rev: 8000}\n", None,
-                      "effects.cogging.periods_per_rev", "8000"),
-    "dead_time": ("  dead_time: {dead_time_s: 2.0e-5}\n", 20e-6,
-                  "effects.dead_time.dead_time_s", "2e-05"),
-    "thermal": ("  thermal: {c_winding_j_k: 0.001}\n", None,
-                "effects.thermal.c_winding_j_k", "0.001"),
+    "cogging_not_multiple": (
+        "  cogging: {amplitude_nm: 0.1, periods_per_rev: 30}\n",
+        None,
+        "effects.cogging.periods_per_rev",
+        "30",
+    ),
+    "cogging_order": (
+        "  cogging: {amplitude_nm: 0.1, periods_per_rev: 8000}\n",
+        None,
+        "effects.cogging.periods_per_rev",
+        "8000",
+    ),
+    "dead_time": (
+        "  dead_time: {dead_time_s: 2.0e-5}\n",
+        20e-6,
+        "effects.dead_time.dead_time_s",
+        "2e-05",
+    ),
+    "thermal": (
+        "  thermal: {c_winding_j_k: 0.001}\n",
+        None,
+        "effects.thermal.c_winding_j_k",
+        "0.001",
+    ),
 }
 
 
@@ -44,9 +61,23 @@ def _write(tmp_path, root, effects: str, ts_s):
 def test_bad_rig_value_exits_2_naming_file_line_field(tmp_path, root, case):
     effects, ts_s, field, value = BAD[case]
     profile, rig = _write(tmp_path, root, effects, ts_s)
-    r = subprocess.run([sys.executable, "-m", "pmsm_hil.cli.main", "run", str(profile), "--rig", str(rig),
-                        "-o", str(tmp_path / "out.mcap")],
-                       capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pmsm_hil.cli.main",
+            "run",
+            str(profile),
+            "--rig",
+            str(rig),
+            "-o",
+            str(tmp_path / "out.mcap"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=tmp_path,
+    )
     out = r.stdout + r.stderr
     assert r.returncode == 2, out
     assert "Traceback" not in out
@@ -58,9 +89,11 @@ def test_bad_rig_value_exits_2_naming_file_line_field(tmp_path, root, case):
 
 
 def test_good_values_next_to_the_limits_load(tmp_path, root):
-    ok = ("  cogging: {amplitude_nm: 0.1, periods_per_rev: 4000}\n"      # order 1000 at 4 pole pairs
-          "  dead_time: {dead_time_s: 1.9e-5}\n"
-          "  thermal: {c_winding_j_k: 1.0, c_magnet_j_k: 1.0, r_wa_k_w: 1.0, r_wm_k_w: 1.0, r_ma_k_w: 1.0}\n")
+    ok = (
+        "  cogging: {amplitude_nm: 0.1, periods_per_rev: 4000}\n"  # order 1000 at 4 pole pairs
+        "  dead_time: {dead_time_s: 1.9e-5}\n"
+        "  thermal: {c_winding_j_k: 1.0, c_magnet_j_k: 1.0, r_wa_k_w: 1.0, r_wm_k_w: 1.0, r_ma_k_w: 1.0}\n"
+    )
     profile, rig = _write(tmp_path, root, ok, 20e-6)
     p = load_profile(profile, rig_override=rig)
     assert p.rig.effects.cogging.periods_per_rev == 4000
@@ -75,7 +108,7 @@ def test_what_the_loader_refuses_the_emulator_refuses(tmp_path, root, case):
     """The loader's checks mirror plant_cfg_check: bypassing them, the emulator's own check fails."""
     effects, ts_s, _, _ = BAD[case]
     _, rig_path = _write(tmp_path, root, effects, None)
-    rig = load_rig(rig_path)                       # the rig alone is well-formed
+    rig = load_rig(rig_path)  # the rig alone is well-formed
     motor = load_motor(root / "profiles" / "motors" / "paper-a-ipmsm.yaml")
     s = emulator_settings(motor, rig, ts_s=ts_s or 50e-6)
     with pytest.raises(ValueError, match="emulator settings"):
@@ -86,4 +119,6 @@ def test_plant_limits_match_the_firmware_header(root):
     h = (root / "firmware" / "sim" / "plant.h").read_text()
     assert re.search(rf"#define PLANT_THERMAL_DIV {PLANT_THERMAL_DIV}\b", h)
     assert re.search(rf"#define PLANT_DELAY_RING {PLANT_DELAY_RING}\b", h)
-    assert re.search(rf"#define PLANT_MAP_MAX_N {MAX_NODES}\b", h)     # flux-map grid, checked by the loader
+    assert re.search(
+        rf"#define PLANT_MAP_MAX_N {MAX_NODES}\b", h
+    )  # flux-map grid, checked by the loader

@@ -6,6 +6,7 @@ The runs are in-process (tests/test_run_emulator.py's way) on tests/data/effects
 currents, angle, temperatures, DC link) every 10 control periods, next to the firmware's telemetry.
 Harmonics are measured by projecting onto the electrical angle over whole electrical periods.
 """
+
 from __future__ import annotations
 
 import math
@@ -30,7 +31,7 @@ from emu_helpers import raw_messages
 ROOT = Path(__file__).resolve().parents[1]
 RIGS = ROOT / "profiles" / "rigs"
 STEADY = ROOT / "tests" / "data" / "effects-steady.yaml"
-WINDOW = (0.70, 1.10)          # loaded steady state: 16 electrical periods at 40 Hz
+WINDOW = (0.70, 1.10)  # loaded steady state: 16 electrical periods at 40 Hz
 
 
 class RecordingDevice(EmulatedDevice):
@@ -55,7 +56,7 @@ class RecordingDevice(EmulatedDevice):
             if len(self._acc) == self.every:
                 rec = {k: float(np.mean([a[k] for a in self._acc])) for k in self._acc[0]}
                 mid = self._acc[len(self._acc) // 2]
-                for k in ("t_s", "tick", "theta_e_rad", "theta_m_rad"):   # angles are not averaged
+                for k in ("t_s", "tick", "theta_e_rad", "theta_m_rad"):  # angles are not averaged
                     rec[k] = mid[k]
                 self.truth.append(rec)
                 self._acc = []
@@ -67,17 +68,19 @@ class RecordingDevice(EmulatedDevice):
 
 def write_rig(tmp_path: Path, name: str, effects_yaml: str) -> Path:
     p = tmp_path / f"{name}.yaml"
-    p.write_text(f"name: \"{name}\"\nv_dc_v: null\neffects:\n{effects_yaml}")
+    p.write_text(f'name: "{name}"\nv_dc_v: null\neffects:\n{effects_yaml}')
     return p
 
 
 def run(rig, out: Path, profile=STEADY, seed=1):
     prof = load_profile(str(profile), rig_override=str(rig))
-    settings = emulator_settings(prof.motor, prof.rig, seed=seed, baud=prof.link.baud,
-                                 ts_s=prof.control.ts_s)
+    settings = emulator_settings(
+        prof.motor, prof.rig, seed=seed, baud=prof.link.baud, ts_s=prof.control.ts_s
+    )
     dev = RecordingDevice(settings)
-    result = run_profile(prof, Session(InProcessTransport(settings, device=dev)), out,
-                         RunOptions(seed=seed))
+    result = run_profile(
+        prof, Session(InProcessTransport(settings, device=dev)), out, RunOptions(seed=seed)
+    )
     assert result.faults == 0 and result.state == "done", result
     truth = {k: np.array([r[k] for r in dev.truth]) for k in dev.truth[0]}
     return prof, read_log(out), truth
@@ -117,6 +120,7 @@ def ideal(tmp_path_factory):
 
 # ----------------------------------------------------------------------------- rig files
 
+
 def test_shipped_rigs_load_and_each_effect_file_has_one_effect():
     names = set(EFFECT_BITS)
     for name in names:
@@ -137,7 +141,9 @@ def test_off_restores_the_ideal_plant_bit_for_bit(ideal, tmp_path):
     rig = tmp_path / "rigs" / "all-off.yaml"
     rig.parent.mkdir()
     rig.write_text(text)
-    os.symlink(ROOT / "profiles" / "maps" / "paper-a-ipmsm.csv", tmp_path / "maps" / "paper-a-ipmsm.csv")
+    os.symlink(
+        ROOT / "profiles" / "maps" / "paper-a-ipmsm.csv", tmp_path / "maps" / "paper-a-ipmsm.csv"
+    )
     assert load_rig(rig).enabled_effects == []
     _, _, truth = run(rig, tmp_path / "off.mcap")
     truth_ideal = ideal[2]
@@ -147,7 +153,9 @@ def test_off_restores_the_ideal_plant_bit_for_bit(ideal, tmp_path):
 
 
 def test_truth_and_metadata_report_the_effects(tmp_path):
-    rig = write_rig(tmp_path, "two", "  sensor_offset: {i_a_a: 0.1}\n  iron_loss: {r_fe_ohm: 250}\n")
+    rig = write_rig(
+        tmp_path, "two", "  sensor_offset: {i_a_a: 0.1}\n  iron_loss: {r_fe_ohm: 250}\n"
+    )
     prof, log, _ = run(rig, tmp_path / "two.mcap")
     mask = (1 << EFFECT_BITS["sensor_offset"]) | (1 << EFFECT_BITS["iron_loss"])
     assert set(log.topic("/sim/truth")["effects"].tolist()) == {mask}
@@ -155,14 +163,17 @@ def test_truth_and_metadata_report_the_effects(tmp_path):
     assert meta["effects"] == "sensor_offset,iron_loss"
     assert meta["effects_mask"] == str(mask)
     assert meta["sensor_offset.i_a_a"] == "0.1" and meta["iron_loss.r_fe_ohm"] == "250.0"
-    assert "dead_time.dead_time_s" not in meta          # only the effects in force
+    assert "dead_time.dead_time_s" not in meta  # only the effects in force
 
 
 # ----------------------------------------------------------------------------- signatures
 
+
 def test_sensor_offset_gives_the_first_harmonic(ideal, tmp_path):
     o_a, o_b = 0.3, -0.2
-    rig = write_rig(tmp_path, "off", f"  sensor_offset: {{i_a_a: {o_a}, i_b_a: {o_b}, i_c_a: 0.0}}\n")
+    rig = write_rig(
+        tmp_path, "off", f"  sensor_offset: {{i_a_a: {o_a}, i_b_a: {o_b}, i_c_a: 0.0}}\n"
+    )
     _, _, truth = run(rig, tmp_path / "o.mcap")
     t, ti = tru(truth), tru(ideal[2])
     # the firmware's Clarke uses channels a and b: an offset vector fixed in the stator frame,
@@ -179,7 +190,9 @@ def test_sensor_offset_gives_the_first_harmonic(ideal, tmp_path):
 
 def test_sensor_gain_mismatch_gives_the_second_harmonic(ideal, tmp_path):
     g = 0.05
-    rig = write_rig(tmp_path, "gain", f"  sensor_gain: {{i_a_gain: 1.0, i_b_gain: {1 + g}, i_c_gain: 1.0}}\n")
+    rig = write_rig(
+        tmp_path, "gain", f"  sensor_gain: {{i_a_gain: 1.0, i_b_gain: {1 + g}, i_c_gain: 1.0}}\n"
+    )
     _, _, truth = run(rig, tmp_path / "g.mcap")
     t, ti = tru(truth), tru(ideal[2])
     i_s = math.hypot(t["i_d_a"].mean(), t["i_q_a"].mean())
@@ -206,14 +219,20 @@ def test_flux_harmonics_give_the_sixth_harmonic(ideal, tmp_path):
     # current loop applies carries them
     w_psi = prof.motor.psi_f_wb * 600 / 60 * 2 * math.pi * prof.motor.pole_pairs
     # (the 8-vector MPCC's own angle-periodic pattern is the same in both runs: compare phasors)
-    ud6 = abs(harmonic_c(t["u_d_v"], t["theta_e_rad"], 6) - harmonic_c(ti["u_d_v"], ti["theta_e_rad"], 6))
-    uq6 = abs(harmonic_c(t["u_q_v"], t["theta_e_rad"], 6) - harmonic_c(ti["u_q_v"], ti["theta_e_rad"], 6))
+    ud6 = abs(
+        harmonic_c(t["u_d_v"], t["theta_e_rad"], 6) - harmonic_c(ti["u_d_v"], ti["theta_e_rad"], 6)
+    )
+    uq6 = abs(
+        harmonic_c(t["u_q_v"], t["theta_e_rad"], 6) - harmonic_c(ti["u_q_v"], ti["theta_e_rad"], 6)
+    )
     assert ud6 == pytest.approx(w_psi * (e5 + e7), rel=0.25)
     assert uq6 == pytest.approx(w_psi * abs(e7 - e5), rel=0.5)
 
 
 def test_dead_time_gives_the_sixth_harmonic_and_follows_the_current_sign(ideal, tmp_path):
-    rig = write_rig(tmp_path, "dt", "  dead_time: {dead_time_s: 3.0e-6, v_drop_v: 1.5, i_dt_a: 0.5}\n")
+    rig = write_rig(
+        tmp_path, "dt", "  dead_time: {dead_time_s: 3.0e-6, v_drop_v: 1.5, i_dt_a: 0.5}\n"
+    )
     _, log, truth = run(rig, tmp_path / "dt.mcap")
     t = tru(truth)
     th = t["theta_e_rad"]
@@ -222,7 +241,9 @@ def test_dead_time_gives_the_sixth_harmonic_and_follows_the_current_sign(ideal, 
     legs = np.stack([t["v_dist_a_v"], t["v_dist_b_v"], t["v_dist_c_v"]])
     ph = legs - legs.mean(axis=0)
     i_al, i_be = c * t["i_d_a"] - s * t["i_q_a"], s * t["i_d_a"] + c * t["i_q_a"]
-    i3 = np.stack([i_al, -0.5 * i_al + math.sqrt(3) / 2 * i_be, -0.5 * i_al - math.sqrt(3) / 2 * i_be])
+    i3 = np.stack(
+        [i_al, -0.5 * i_al + math.sqrt(3) / 2 * i_be, -0.5 * i_al - math.sqrt(3) / 2 * i_be]
+    )
     # it follows the current sign, against the current (volts lost in the current's direction)
     corr = np.corrcoef(ph.ravel(), np.sign(i3).ravel())[0, 1]
     assert corr < -0.85, corr
@@ -233,7 +254,9 @@ def test_dead_time_gives_the_sixth_harmonic_and_follows_the_current_sign(ideal, 
     ud, uq = c * u_al + s * u_be, -s * u_al + c * u_be
     d6 = harmonic(ud, th, 6) + harmonic(uq, th, 6)
     assert d6 > 0.1 * abs(complex(ud.mean(), uq.mean()))
-    assert d6 > 5 * (harmonic(ud, th, 5) + harmonic(uq, th, 5) + harmonic(ud, th, 1) + harmonic(uq, th, 1))
+    assert d6 > 5 * (
+        harmonic(ud, th, 5) + harmonic(uq, th, 5) + harmonic(ud, th, 1) + harmonic(uq, th, 1)
+    )
     assert np.all(tru(ideal[2])["v_dist_a_v"] == 0.0)
 
 
@@ -244,12 +267,12 @@ def test_saturation_lowers_the_incremental_lq_as_in_the_map(tmp_path):
     dev = EmulatedDevice(emulator_settings(prof.motor, prof.rig))
     j0 = int(np.argmin(np.abs(fm.i_d_a)))
     iq = fm.i_q_a
-    lq_map = np.gradient(fm.psi_q_wb[:, j0], iq)          # the map's own incremental L_q at i_d = 0
+    lq_map = np.gradient(fm.psi_q_wb[:, j0], iq)  # the map's own incremental L_q at i_d = 0
     lq_plant = np.array([dev.plant_flux(float(fm.i_d_a[j0]), float(q))["l_qq_h"] for q in iq])
     inner = np.abs(iq) <= 12.5
     assert np.allclose(lq_plant[inner], lq_map[inner], rtol=0.05, atol=2e-4)
     small = dev.plant_flux(0.0, 0.0)["l_qq_h"]
-    assert small == pytest.approx(prof.motor.l_q_h, rel=0.1)   # the nominal value at small current
+    assert small == pytest.approx(prof.motor.l_q_h, rel=0.1)  # the nominal value at small current
     for q in (5.0, 10.0, 15.0):
         lq = dev.plant_flux(0.0, q)["l_qq_h"]
         assert lq < 0.8 * small and lq == pytest.approx(dev.plant_flux(0.0, -q)["l_qq_h"], rel=1e-6)
@@ -265,9 +288,13 @@ def test_saturation_lowers_the_incremental_lq_as_in_the_map(tmp_path):
 
 
 def test_thermal_drift_moves_r_and_psi_f_by_the_coefficients(ideal, tmp_path):
-    rig = write_rig(tmp_path, "th", "  thermal: {temp_ambient_c: 25, temp_winding_c: 100, temp_magnet_c: 80,\n"
-                                    "            c_winding_j_k: 5.0, c_magnet_j_k: 20.0, r_wa_k_w: 2.0,\n"
-                                    "            r_wm_k_w: 2.0, r_ma_k_w: 2.0}\n")
+    rig = write_rig(
+        tmp_path,
+        "th",
+        "  thermal: {temp_ambient_c: 25, temp_winding_c: 100, temp_magnet_c: 80,\n"
+        "            c_winding_j_k: 5.0, c_magnet_j_k: 20.0, r_wa_k_w: 2.0,\n"
+        "            r_wm_k_w: 2.0, r_ma_k_w: 2.0}\n",
+    )
     prof, log, truth = run(rig, tmp_path / "th.mcap")
     m = prof.motor
     r_exp = m.r_s_ohm * (1 + 0.00393 * (truth["temp_winding_c"] - 25.0))
@@ -304,7 +331,11 @@ def test_encoder_offset_rotates_the_measured_dq_frame(ideal, tmp_path):
 
 
 def test_dc_link_ripple_is_what_the_firmware_measures(ideal, tmp_path):
-    rig = write_rig(tmp_path, "dc", "  dc_link: {r_source_ohm: 0.5, c_dc_f: 6.8e-4, rectifier: true, grid_hz: 50}\n")
+    rig = write_rig(
+        tmp_path,
+        "dc",
+        "  dc_link: {r_source_ohm: 0.5, c_dc_f: 6.8e-4, rectifier: true, grid_hz: 50}\n",
+    )
     _, log, truth = run(rig, tmp_path / "dc.mcap")
     tt = tru(truth)
     v = tt["v_dc_v"]
@@ -314,7 +345,7 @@ def test_dc_link_ripple_is_what_the_firmware_measures(ideal, tmp_path):
     f = np.fft.rfftfreq(len(x), np.median(np.diff(tt["t_s"])))
     assert abs(f[np.argmax(np.abs(np.fft.rfft(x)))] - 300.0) < 5.0
     cap = log.topic("/pmsm/capture")
-    assert np.ptp(cap["v_dc_v"]) > 0.5                    # the firmware sees the ripple
+    assert np.ptp(cap["v_dc_v"]) > 0.5  # the firmware sees the ripple
     assert np.ptp(tru(ideal[2])["v_dc_v"]) == 0.0
 
 
@@ -322,7 +353,7 @@ def test_iron_loss_power_and_drag(ideal, tmp_path):
     r_fe = 200.0
     rig = write_rig(tmp_path, "fe", f"  iron_loss: {{r_fe_ohm: {r_fe}}}\n")
     prof, log, truth = run(rig, tmp_path / "fe.mcap")
-    win = (0.25, 0.45)                                   # no load, 600 r/min
+    win = (0.25, 0.45)  # no load, 600 r/min
     tt, ti = tru(truth, win), tru(ideal[2], win)
     m = prof.motor
     we = 600 / 60 * 2 * math.pi * m.pole_pairs
@@ -334,14 +365,17 @@ def test_iron_loss_power_and_drag(ideal, tmp_path):
 
 
 def test_cogging_torque_has_its_period_and_size(tmp_path):
-    rig = write_rig(tmp_path, "cog", "  cogging: {amplitude_nm: 0.2, periods_per_rev: 72, phase_rad: 0.0}\n")
+    rig = write_rig(
+        tmp_path, "cog", "  cogging: {amplitude_nm: 0.2, periods_per_rev: 72, phase_rad: 0.0}\n"
+    )
     prof = load_profile(str(STEADY), rig_override=str(rig))
     dev = EmulatedDevice(emulator_settings(prof.motor, prof.rig))
     th = np.linspace(0, 2 * math.pi, 721)[:-1]
     t = np.array([dev.plant_flux(0.0, 0.0, float(x))["torque_nm"] for x in th])
     assert t.max() == pytest.approx(0.2, rel=1e-3) and t.min() == pytest.approx(-0.2, rel=1e-3)
-    assert harmonic(t, th, 72 // prof.motor.pole_pairs, window=(-1, 1), t=np.zeros_like(th)) == \
-        pytest.approx(0.2, rel=1e-3)
+    assert harmonic(
+        t, th, 72 // prof.motor.pole_pairs, window=(-1, 1), t=np.zeros_like(th)
+    ) == pytest.approx(0.2, rel=1e-3)
 
 
 def test_lab_typical_runs_the_short_profile(tmp_path):

@@ -1,4 +1,5 @@
 """End-to-end runs on the emulated F28335: tracking, determinism, heartbeat, stop, capture."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -42,7 +43,7 @@ def test_paper_a_speed_tracking_within_bounds(paper_a_run):
         # and the plant's own speed agrees (the encoder is not fooling the controller)
         assert abs(s.true_mean_error_rpm) <= s.band_rpm, (s.name, s.true_mean_error_rpm)
     steps = [s for s in summary.segments if s.recovery_s is not None]
-    assert len(steps) == 6   # on and off at 15, 240 and 1000 r/min
+    assert len(steps) == 6  # on and off at 15, 240 and 1000 r/min
     for s in steps:
         assert s.recovery_s <= 0.3, (s.name, s.recovery_s)
 
@@ -50,8 +51,15 @@ def test_paper_a_speed_tracking_within_bounds(paper_a_run):
 def test_paper_a_log_has_the_contract(paper_a_run):
     profile, result, out = paper_a_run
     log = read_log(out)
-    for topic in ("/pmsm/telemetry", "/pmsm/params", "/pmsm/status", "/pmsm/events",
-                  "/pmsm/capture", "/sim/truth", "/host/link"):
+    for topic in (
+        "/pmsm/telemetry",
+        "/pmsm/params",
+        "/pmsm/status",
+        "/pmsm/events",
+        "/pmsm/capture",
+        "/sim/truth",
+        "/host/link",
+    ):
         assert len(log.topic(topic)["t_s"]) > 0, topic
     run = log.metadata["run"]
     assert run["profile"] == "paper-a"
@@ -75,7 +83,9 @@ def test_same_seed_same_payloads_other_seed_differs(data, tmp_path):
     ma, mb, mc = (raw_messages(p, DEVICE_TOPICS) for p in (a, b, c))
     assert len(ma) > 5000
     assert ma == mb
-    assert [m for m in ma if m[0] == "/pmsm/telemetry"] != [m for m in mc if m[0] == "/pmsm/telemetry"]
+    assert [m for m in ma if m[0] == "/pmsm/telemetry"] != [
+        m for m in mc if m[0] == "/pmsm/telemetry"
+    ]
 
 
 def test_heartbeat_loss_stops_the_motor(data, tmp_path):
@@ -90,8 +100,8 @@ def test_heartbeat_loss_stops_the_motor(data, tmp_path):
     # lost within the timeout (plus the host's heartbeat period) after the host fell silent
     assert 1.5 < t_lost <= 1.5 + profile.control.heartbeat_timeout_s + 0.05
     tel = log.topic("/pmsm/telemetry")
-    assert abs(tel["speed_rpm"][-1]) < 5.0           # the motor was brought to rest
-    assert tel["t_s"][-1] < t_lost + 1.0              # quickly
+    assert abs(tel["speed_rpm"][-1]) < 5.0  # the motor was brought to rest
+    assert tel["t_s"][-1] < t_lost + 1.0  # quickly
 
 
 def test_host_stop_ends_the_run_cleanly(data, tmp_path):

@@ -1,5 +1,6 @@
 """Sweeps: the sweep file's validation, the plan, runs on Dask equal to `pmsm-hil run`, resume,
 failed runs as results, the report."""
+
 from __future__ import annotations
 
 import json
@@ -27,7 +28,7 @@ def device_messages(path) -> list:
     events = raw_messages(path, ("/pmsm/events",))
     assert len(kinds) == len(events)
     device = [m for m, k in zip(events, kinds) if k != "host"]
-    assert len(device) >= 4    # segment starts, profile done
+    assert len(device) >= 4  # segment starts, profile done
     return raw_messages(path, [t for t in DEVICE_TOPICS if t != "/pmsm/events"]) + device
 
 
@@ -43,19 +44,44 @@ def short_sweep(tmp_path, data, axes: str, extra: str = "") -> Path:
 
 # ------------------------------------------------------------------------------- validation
 
-@pytest.mark.parametrize("body, line, field, text", [
-    ("name: t\nprofile: paper-a\naxes:\n  - {field: motor.r_s_ohm, values: [1], uniform: {low: 0, high: 1}}\n",
-     4, "axes[0]", "exactly one of"),
-    ("name: t\nprofile: paper-a\naxes:\n  - field: motor.r_s_ohm\n    normal: {mean: 1, std: 0}\n",
-     5, "axes[0].normal.std", "must be > 0"),
-    ("name: t\nprofile: paper-a\naxes:\n  - {field: motor.r_s_ohm, uniform: {low: 0.9, high: 1.1}}\n",
-     1, "draws", "is missing"),
-    ("name: t\nprofile: paper-a\nmetrics: [speed_eror]\n", 3, "metrics[0]", "is not one of"),
-    ("name: t\nprofile: no-such-profile\n", 2, "profile", "neither a file nor a shipped profile"),
-    ("name: t\nprofile: paper-a\naxes:\n  - {field: Motor.r, values: [1]}\n", 4, "axes[0].field",
-     "is not seed"),
-    ("name: t\nprofile: paper-a\nkeep_log: true\n", 3, "keep_log", "did you mean 'keep_logs'"),
-])
+
+@pytest.mark.parametrize(
+    "body, line, field, text",
+    [
+        (
+            "name: t\nprofile: paper-a\naxes:\n  - {field: motor.r_s_ohm, values: [1], uniform: {low: 0, high: 1}}\n",
+            4,
+            "axes[0]",
+            "exactly one of",
+        ),
+        (
+            "name: t\nprofile: paper-a\naxes:\n  - field: motor.r_s_ohm\n    normal: {mean: 1, std: 0}\n",
+            5,
+            "axes[0].normal.std",
+            "must be > 0",
+        ),
+        (
+            "name: t\nprofile: paper-a\naxes:\n  - {field: motor.r_s_ohm, uniform: {low: 0.9, high: 1.1}}\n",
+            1,
+            "draws",
+            "is missing",
+        ),
+        ("name: t\nprofile: paper-a\nmetrics: [speed_eror]\n", 3, "metrics[0]", "is not one of"),
+        (
+            "name: t\nprofile: no-such-profile\n",
+            2,
+            "profile",
+            "neither a file nor a shipped profile",
+        ),
+        (
+            "name: t\nprofile: paper-a\naxes:\n  - {field: Motor.r, values: [1]}\n",
+            4,
+            "axes[0].field",
+            "is not seed",
+        ),
+        ("name: t\nprofile: paper-a\nkeep_log: true\n", 3, "keep_log", "did you mean 'keep_logs'"),
+    ],
+)
 def test_sweep_file_errors_name_file_line_field(tmp_path, body, line, field, text):
     p = write_sweep(tmp_path, body)
     with pytest.raises(ProfileError) as e:
@@ -66,41 +92,77 @@ def test_sweep_file_errors_name_file_line_field(tmp_path, body, line, field, tex
 
 
 def test_an_axis_naming_no_field_is_reported_at_its_line(tmp_path):
-    p = write_sweep(tmp_path, "name: t\nprofile: paper-a\naxes:\n  - {field: seed, values: [1]}\n"
-                              "  - {field: rig.effects.dead_time.dead_tme_s, values: [1e-6]}\n")
+    p = write_sweep(
+        tmp_path,
+        "name: t\nprofile: paper-a\naxes:\n  - {field: seed, values: [1]}\n"
+        "  - {field: rig.effects.dead_time.dead_tme_s, values: [1e-6]}\n",
+    )
     with pytest.raises(ProfileError) as e:
         plan_runs(load_sweep(p))
-    assert str(e.value).startswith(f"{p}:5: axes[1].field = 'rig.effects.dead_time.dead_tme_s' names no field")
+    assert str(e.value).startswith(
+        f"{p}:5: axes[1].field = 'rig.effects.dead_time.dead_tme_s' names no field"
+    )
 
 
 def test_cli_reports_a_bad_sweep_file_without_traceback(tmp_path):
     p = write_sweep(tmp_path, "name: t\nprofile: paper-a\ndraws: 0\n")
-    r = subprocess.run([*CLI, "sweep", str(p), "--out", str(tmp_path / "o")], capture_output=True, text=True)
+    r = subprocess.run(
+        [*CLI, "sweep", str(p), "--out", str(tmp_path / "o")], capture_output=True, text=True
+    )
     assert r.returncode == 2
-    assert f"{p}:3: draws = 0 is outside the allowed range [1, 100000]" in r.stderr.replace("\n", "")
+    assert f"{p}:3: draws = 0 is outside the allowed range [1, 100000]" in r.stderr.replace(
+        "\n", ""
+    )
     assert "Traceback" not in r.stderr
 
 
 def test_cli_sweep_limit_runs_the_first_runs(tmp_path, data):
-    p = short_sweep(tmp_path, data, "  - {field: seed, values: [1, 2, 3]}\n", extra="metrics: [faults]\n")
+    p = short_sweep(
+        tmp_path, data, "  - {field: seed, values: [1, 2, 3]}\n", extra="metrics: [faults]\n"
+    )
     out = tmp_path / "o"
-    r = subprocess.run([*CLI, "sweep", str(p), "--out", str(out), "--limit", "1", "--workers", "1",
-                        "--no-progress"], capture_output=True, text=True, timeout=300)
+    r = subprocess.run(
+        [
+            *CLI,
+            "sweep",
+            str(p),
+            "--out",
+            str(out),
+            "--limit",
+            "1",
+            "--workers",
+            "1",
+            "--no-progress",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert r.returncode == 0, r.stderr
-    assert "3 runs of short.yaml, the first 1" in r.stdout and "1 ok, 0 failed, 0 done before" in r.stdout
+    assert (
+        "3 runs of short.yaml, the first 1" in r.stdout
+        and "1 ok, 0 failed, 0 done before" in r.stdout
+    )
     rows = read_table(out)
     assert [(x["index"], x["seed"], x["status"], x["faults"]) for x in rows] == [(0, 1, "ok", 0)]
-    r = subprocess.run([*CLI, "sweep", str(p), "--out", str(out), "--limit", "0"], capture_output=True, text=True)
+    r = subprocess.run(
+        [*CLI, "sweep", str(p), "--out", str(out), "--limit", "0"], capture_output=True, text=True
+    )
     assert r.returncode == 2 and "--limit = 0 must be >= 1" in r.stderr
 
 
 # ------------------------------------------------------------------------------- plan
 
+
 def test_plan_is_grid_times_draws_and_reproducible(tmp_path, data):
-    p = short_sweep(tmp_path, data, "  - {field: seed, values: [1, 2, 3]}\n"
-                                    "  - {field: motor.r_s_ohm, normal: {mean: 1.0, std: 0.1}, relative: true}\n"
-                                    "  - {field: rig.effects.encoder.lines, linspace: {start: 1000, stop: 2000, num: 2}}\n",
-                    extra="draws: 4\ndraw_seed: 5\n")
+    p = short_sweep(
+        tmp_path,
+        data,
+        "  - {field: seed, values: [1, 2, 3]}\n"
+        "  - {field: motor.r_s_ohm, normal: {mean: 1.0, std: 0.1}, relative: true}\n"
+        "  - {field: rig.effects.encoder.lines, linspace: {start: 1000, stop: 2000, num: 2}}\n",
+        extra="draws: 4\ndraw_seed: 5\n",
+    )
     runs = plan_runs(load_sweep(p))
     assert len(runs) == 4 * 3 * 2
     assert [r.key for r in runs] == [r.key for r in plan_runs(load_sweep(p))]
@@ -117,14 +179,19 @@ def test_plan_is_grid_times_draws_and_reproducible(tmp_path, data):
 
 # ------------------------------------------------------------------------------- runs
 
+
 @pytest.fixture(scope="module")
 def dead_time_sweep(tmp_path_factory):
     """Two runs of tests/data/short.yaml on one worker, logs kept."""
     tmp = tmp_path_factory.mktemp("sweep")
     data = Path(__file__).parent / "data"
-    p = short_sweep(tmp, data, "  - {field: rig.effects.dead_time.dead_time_s, values: [1.0e-6, 3.0e-6]}\n"
-                               "  - {field: seed, values: [3]}\n",
-                    extra="keep_logs: true\nmetrics: [speed_error, recovery, faults, completeness]\n")
+    p = short_sweep(
+        tmp,
+        data,
+        "  - {field: rig.effects.dead_time.dead_time_s, values: [1.0e-6, 3.0e-6]}\n"
+        "  - {field: seed, values: [3]}\n",
+        extra="keep_logs: true\nmetrics: [speed_error, recovery, faults, completeness]\n",
+    )
     sweep = load_sweep(p)
     res = run_sweep(sweep, tmp / "out", workers=1, progress=False)
     return sweep, res
@@ -139,8 +206,21 @@ def test_a_sweep_run_equals_pmsm_hil_run_bit_for_bit(dead_time_sweep, tmp_path):
     inputs = res.out / "runs" / row["key"]
     assert "dead_time_s: 3.0e-06" in (inputs / "rig.yaml").read_text()
     cli_log = tmp_path / "cli.mcap"
-    r = subprocess.run([*CLI, "run", str(inputs / "profile.yaml"), "--seed", "3", "--out", str(cli_log),
-                        "--no-live"], capture_output=True, text=True, timeout=180)
+    r = subprocess.run(
+        [
+            *CLI,
+            "run",
+            str(inputs / "profile.yaml"),
+            "--seed",
+            "3",
+            "--out",
+            str(cli_log),
+            "--no-live",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=180,
+    )
     assert r.returncode == 0, r.stderr
     ours, theirs = device_messages(row["log_path"]), device_messages(cli_log)
     assert len(ours) > 5000
@@ -163,15 +243,16 @@ def test_results_table_has_a_row_per_run_with_inputs_and_metrics(dead_time_sweep
 
 
 def test_resume_skips_the_runs_done(tmp_path, data):
-    p = short_sweep(tmp_path, data, "  - {field: seed, values: [1, 2, 3]}\n",
-                    extra="metrics: [faults]\n")
+    p = short_sweep(
+        tmp_path, data, "  - {field: seed, values: [1, 2, 3]}\n", extra="metrics: [faults]\n"
+    )
     sweep = load_sweep(p)
     first = run_sweep(sweep, tmp_path / "out", limit=1, workers=1, progress=False)
     assert (first.planned, first.ok, first.skipped) == (1, 1, 0)
     again = run_sweep(sweep, tmp_path / "out", workers=1, progress=False)
     assert (again.planned, again.ok, again.skipped) == (3, 2, 1)
     lines = [json.loads(x) for x in (tmp_path / "out" / "results.jsonl").read_text().splitlines()]
-    assert sorted(x["index"] for x in lines) == [0, 1, 2]    # run 0 was not run again
+    assert sorted(x["index"] for x in lines) == [0, 1, 2]  # run 0 was not run again
     assert len(read_table(tmp_path / "out")) == 3
     third = run_sweep(sweep, tmp_path / "out", workers=1, progress=False)
     assert (third.ok, third.skipped) == (0, 3)
@@ -179,8 +260,12 @@ def test_resume_skips_the_runs_done(tmp_path, data):
 
 def test_a_failing_run_is_a_failed_row_not_a_failed_sweep(tmp_path, data):
     # 9000 r/min is beyond the motor's speed_max_rpm: that run cannot be made, the other runs
-    p = short_sweep(tmp_path, data, "  - {field: 'profile.segments[0].speed_rpm', values: [500, 9000]}\n",
-                    extra="metrics: [faults]\n")
+    p = short_sweep(
+        tmp_path,
+        data,
+        "  - {field: 'profile.segments[0].speed_rpm', values: [500, 9000]}\n",
+        extra="metrics: [faults]\n",
+    )
     res = run_sweep(load_sweep(p), tmp_path / "out", workers=1, progress=False)
     assert (res.ok, res.failed) == (1, 1)
     bad = res.rows[1]
@@ -202,18 +287,28 @@ def _crashing_task(task):
 
 
 def test_a_run_whose_worker_dies_is_retried_once_then_failed(tmp_path, data):
-    p = short_sweep(tmp_path, data, "  - {field: seed, values: [1, 2, 3]}\n",
-                    extra="metrics: [faults]\nkeep_logs: true\n")
-    res = run_sweep(load_sweep(p), tmp_path / "out", workers=1, progress=False, task_fn=_crashing_task)
+    p = short_sweep(
+        tmp_path,
+        data,
+        "  - {field: seed, values: [1, 2, 3]}\n",
+        extra="metrics: [faults]\nkeep_logs: true\n",
+    )
+    res = run_sweep(
+        load_sweep(p), tmp_path / "out", workers=1, progress=False, task_fn=_crashing_task
+    )
     status = [r["status"] for r in res.rows]
     assert status == ["ok", "failed", "ok"], [r.get("error") for r in res.rows]
     assert "worker died" in res.rows[1]["error"]
 
 
 def test_report_plots_each_metric_and_a_pass_map_for_a_2d_grid(tmp_path, data):
-    p = short_sweep(tmp_path, data, "  - {field: seed, values: [1, 2]}\n"
-                                    "  - {field: 'profile.segments[1].load_nm', values: [2.0, 5.0]}\n",
-                    extra="metrics: [speed_error, faults, completeness]\n")
+    p = short_sweep(
+        tmp_path,
+        data,
+        "  - {field: seed, values: [1, 2]}\n"
+        "  - {field: 'profile.segments[1].load_nm', values: [2.0, 5.0]}\n",
+        extra="metrics: [speed_error, faults, completeness]\n",
+    )
     out = tmp_path / "out"
     run_sweep(load_sweep(p), out, workers=1, progress=False)
     r = subprocess.run([*CLI, "sweep", "report", str(out)], capture_output=True, text=True)
@@ -229,21 +324,31 @@ def test_report_plots_each_metric_and_a_pass_map_for_a_2d_grid(tmp_path, data):
 
 
 def test_random_draws_stay_in_their_ranges_and_overrides_apply(tmp_path, data):
-    p = write_sweep(tmp_path, f"name: t\nprofile: {data / 'short.yaml'}\nrig: ideal\ndraws: 50\naxes:\n"
-                              "  - {field: rig.effects.dead_time.dead_time_s, uniform: {low: 1.0e-6, high: 2.0e-6}}\n"
-                              "  - {field: motor.j_kgm2, log_uniform: {low: 0.001, high: 0.1}}\n")
+    p = write_sweep(
+        tmp_path,
+        f"name: t\nprofile: {data / 'short.yaml'}\nrig: ideal\ndraws: 50\naxes:\n"
+        "  - {field: rig.effects.dead_time.dead_time_s, uniform: {low: 1.0e-6, high: 2.0e-6}}\n"
+        "  - {field: motor.j_kgm2, log_uniform: {low: 0.001, high: 0.1}}\n",
+    )
     runs = plan_runs(load_sweep(p))
     dt = [r.values["rig_effects_dead_time_dead_time_s"] for r in runs]
     j = [r.values["motor_j_kgm2"] for r in runs]
     assert all(1e-6 <= x <= 2e-6 for x in dt) and all(1e-3 <= x <= 0.1 for x in j)
-    assert min(j) < 0.01 < max(j)            # log-uniform: a decade each side
-    assert "name: ideal" in runs[0].texts["rig.yaml"]          # the sweep's rig, not the profile's
-    assert "dead_time:\n    dead_time_s:" in runs[0].texts["rig.yaml"]   # an effect the rig lacked, added
+    assert min(j) < 0.01 < max(j)  # log-uniform: a decade each side
+    assert "name: ideal" in runs[0].texts["rig.yaml"]  # the sweep's rig, not the profile's
+    assert (
+        "dead_time:\n    dead_time_s:" in runs[0].texts["rig.yaml"]
+    )  # an effect the rig lacked, added
 
 
 def test_relative_axis_on_a_field_without_a_number_is_an_error(tmp_path):
-    p = write_sweep(tmp_path, "name: t\nprofile: paper-a\naxes:\n  - {field: rig.v_dc_v, values: [0.9], "
-                              "relative: true}\n")
+    p = write_sweep(
+        tmp_path,
+        "name: t\nprofile: paper-a\naxes:\n  - {field: rig.v_dc_v, values: [0.9], "
+        "relative: true}\n",
+    )
     with pytest.raises(ProfileError) as e:
         plan_runs(load_sweep(p))
-    assert str(e.value).startswith(f"{p}:4: axes[0].relative = true needs a number in the base file, which has None")
+    assert str(e.value).startswith(
+        f"{p}:4: axes[0].relative = true needs a number in the base file, which has None"
+    )

@@ -1,6 +1,7 @@
 """One test suite for every transport: serial (emulator pty), CAN (emulator socketcand), the in-process
 loopbacks (serial framing and CAN frames), and a rig's serial port or CAN interface when one is
 configured (PMSM_HIL_RIG_PORT=/dev/ttyUSB0, PMSM_HIL_RIG_CAN=SPEC; skipped otherwise)."""
+
 from __future__ import annotations
 
 import os
@@ -14,7 +15,14 @@ from pmsm_hil.protocol import generated as gen
 from pmsm_hil.protocol.session import Session
 from pmsm_hil.runner import RunOptions, configure, run_profile
 
-KINDS = ["serial-emulator", "can-emulator", "serial-inprocess", "can-inprocess", "serial-rig", "can-rig"]
+KINDS = [
+    "serial-emulator",
+    "can-emulator",
+    "serial-inprocess",
+    "can-inprocess",
+    "serial-rig",
+    "can-rig",
+]
 
 
 def open_link(kind: str, profile):

@@ -1,5 +1,6 @@
 """The everyday path as a new user meets it: shipped names, the emulator child's imports, bad
 output paths, closed pipes, the link budget, truncated and empty logs, pace, wall-clock log times."""
+
 from __future__ import annotations
 
 import os
@@ -22,17 +23,24 @@ CLI = [sys.executable, "-m", "pmsm_hil.cli.main"]
 
 
 def cli(*args, timeout=180, **kw):
-    return subprocess.run([*CLI, *map(str, args)], capture_output=True, text=True, timeout=timeout,
-                          **kw)
+    return subprocess.run(
+        [*CLI, *map(str, args)], capture_output=True, text=True, timeout=timeout, **kw
+    )
 
 
 # ----------------------------------------------------------------------------- shipped files
 
+
 def test_bare_names_find_the_shipped_files_from_any_directory(tmp_path):
-    assert Path(resolve("paper-a", "profile")).read_text() == (shipped_root() / "paper-a.yaml").read_text()
+    assert (
+        Path(resolve("paper-a", "profile")).read_text()
+        == (shipped_root() / "paper-a.yaml").read_text()
+    )
     assert resolve("lab-typical", "rig").endswith(os.path.join("rigs", "lab-typical.yaml"))
     assert resolve("sew-cm3c80s.yaml", "motor").endswith(os.path.join("motors", "sew-cm3c80s.yaml"))
-    profile = load_profile(resolve("paper-a", "profile"), rig_override=resolve("lab-typical", "rig"))
+    profile = load_profile(
+        resolve("paper-a", "profile"), rig_override=resolve("lab-typical", "rig")
+    )
     assert profile.rig.enabled("dead_time") and profile.motor.name == "paper-a-ipmsm"
     assert {p.stem for p in shipped("rig")} >= {"default", "lab-typical", "ideal"}
 
@@ -40,8 +48,8 @@ def test_bare_names_find_the_shipped_files_from_any_directory(tmp_path):
 def test_a_file_path_wins_over_a_shipped_name(tmp_path):
     mine = tmp_path / "paper-a.yaml"
     mine.write_text("name: mine\n")
-    assert resolve("paper-a.yaml", "profile") == "paper-a.yaml"      # the working directory's file
-    assert resolve("paper-a", "profile") != "paper-a"                # no such file: the shipped one
+    assert resolve("paper-a.yaml", "profile") == "paper-a.yaml"  # the working directory's file
+    assert resolve("paper-a", "profile") != "paper-a"  # no such file: the shipped one
 
 
 def test_an_unknown_name_lists_what_is_shipped(tmp_path):
@@ -64,23 +72,30 @@ def test_emulator_child_ignores_a_source_tree_in_the_working_directory(tmp_path,
     directory must not shadow the installed package in the emulator child."""
     shadow = tmp_path / "pmsm_hil"
     shadow.mkdir()
-    (shadow / "__init__.py").write_text("raise ImportError('the source tree shadowed the install')\n")
+    (shadow / "__init__.py").write_text(
+        "raise ImportError('the source tree shadowed the install')\n"
+    )
     (shadow / "emulator").mkdir()
     (shadow / "emulator" / "__init__.py").write_text("")
     from pmsm_hil.transport.emulator import EmulatorTransport
+
     profile = load_profile(str(data / "short.yaml"))
     tr = EmulatorTransport(str(profile.motor.path), str(profile.rig.path), seed=1, baud=921600)
     try:
         assert tr.name.startswith("emulator /dev/")
         assert tr.proc.poll() is None
-        assert os.getsid(tr.proc.pid) == tr.proc.pid     # a session of its own: no terminal SIGINT
+        assert os.getsid(tr.proc.pid) == tr.proc.pid  # a session of its own: no terminal SIGINT
     finally:
         tr.close()
 
 
 def test_emulate_takes_the_plant_from_a_profile():
-    p = subprocess.Popen([*CLI, "emulate", "--profile", "sew-cm3c80s"], stdout=subprocess.PIPE,
-                         stderr=subprocess.PIPE, text=True)
+    p = subprocess.Popen(
+        [*CLI, "emulate", "--profile", "sew-cm3c80s"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         assert p.stdout.readline().startswith("serial: /dev/")
         assert "motor: sew-cm3c80s" in p.stdout.readline()
@@ -92,6 +107,7 @@ def test_emulate_takes_the_plant_from_a_profile():
 
 
 # ----------------------------------------------------------------------------- user-side errors
+
 
 def test_unwritable_out_is_bad_input(tmp_path, data):
     blocker = tmp_path / "file"
@@ -113,7 +129,9 @@ def test_bad_can_spec_is_bad_input(data, spec, tmp_path):
 def test_closed_pipe_gives_no_traceback(data, tmp_path):
     out = tmp_path / "pipe.mcap"
     sh = f"{sys.executable} -m pmsm_hil.cli.main run {data / 'short.yaml'} --no-live --out {out} | head -n 1"
-    r = subprocess.run(["bash", "-o", "pipefail", "-c", sh], capture_output=True, text=True, timeout=180)
+    r = subprocess.run(
+        ["bash", "-o", "pipefail", "-c", sh], capture_output=True, text=True, timeout=180
+    )
     assert r.returncode == 0, r.stderr
     assert "Traceback" not in r.stderr and "BrokenPipe" not in r.stderr
     assert len(r.stdout.splitlines()) == 1
@@ -133,11 +151,12 @@ def test_a_link_that_cannot_carry_the_telemetry_is_refused_with_the_budget(data,
     assert "decimated from 2000 Hz" in r.stderr
     tel = read_log(out).topic("/pmsm/telemetry")
     rate = (len(tel["t_s"]) - 1) / (tel["t_s"][-1] - tel["t_s"][0])
-    assert rate < 115200 / 10 / 27      # fewer fast frames than the link could carry alone
+    assert rate < 115200 / 10 / 27  # fewer fast frames than the link could carry alone
     assert read_log(out).counts.get("/pmsm/status", 0) > 0
 
 
 # ----------------------------------------------------------------------------- logs
+
 
 @pytest.fixture(scope="module")
 def short_log(tmp_path_factory):
@@ -151,9 +170,9 @@ def test_log_time_is_wall_clock_and_t_s_device_time(short_log):
     lt = log.log_times_ns("/pmsm/telemetry").astype("int64")
     t = log.topic("/pmsm/telemetry")["t_s"]
     offset = int(log.metadata["log"]["log_time_offset_ns"])
-    assert abs(offset / 1e9 - time.time()) < 3600          # a real date: the run's start
+    assert abs(offset / 1e9 - time.time()) < 3600  # a real date: the run's start
     assert ((lt - offset) == (t * 1e9).round().astype("int64")).all()
-    with open(short_log, "rb") as f:                        # the generic reader agrees
+    with open(short_log, "rb") as f:  # the generic reader agrees
         msgs = list(make_reader(f).iter_messages(topics=["/pmsm/telemetry"]))
     assert msgs[0][2].log_time == lt[0]
 
@@ -169,6 +188,7 @@ def test_analyze_a_truncated_log_says_what_is_missing(short_log, tmp_path):
     assert "messages recovered" in r.stdout
     assert "missing" in r.stdout or "partial" in r.stdout
     import json
+
     j = json.loads(cli("analyze", cut, "--json").stdout)
     assert j["complete"] is False and j["ok"] is False and j["problems"]
 
@@ -200,6 +220,7 @@ def test_identification_table_in_the_run_summary(tmp_path, root):
 
 # ----------------------------------------------------------------------------- pace
 
+
 class _FakeDevice:
     def __init__(self, ts_s=50e-6):
         self.values = {"ts_s": ts_s, "heartbeat_timeout_s": 0.5}
@@ -215,7 +236,7 @@ def test_pace_holds_device_time_to_x_times_wall_time(pace):
     dev = _FakeDevice()
     pacer = Pacer(pace=pace)
     now = 100.0
-    for _ in range(2000):                      # 2 s of wall time in 1 ms steps, host always current
+    for _ in range(2000):  # 2 s of wall time in 1 ms steps, host always current
         n = pacer.allowance(dev, now)
         dev.isr_count += n
         dev.heartbeat_isr = dev.isr_count
@@ -227,7 +248,7 @@ def test_pace_holds_device_time_to_x_times_wall_time(pace):
 def test_without_pace_the_heartbeat_lead_is_the_only_limit():
     dev = _FakeDevice()
     n = Pacer().allowance(dev, 0.0)
-    assert n == 1000                           # one chunk at once, far faster than real time
+    assert n == 1000  # one chunk at once, far faster than real time
 
 
 def test_run_with_pace_one_runs_in_real_time(data, tmp_path):
@@ -237,7 +258,7 @@ def test_run_with_pace_one_runs_in_real_time(data, tmp_path):
     wall = time.monotonic() - t0
     assert r.returncode == 0, r.stderr
     device_s = read_log(out).topic("/pmsm/telemetry")["t_s"][-1]
-    assert wall >= 0.9 * device_s      # never faster than real time (slower on a loaded machine)
+    assert wall >= 0.9 * device_s  # never faster than real time (slower on a loaded machine)
     r = cli("run", data / "short.yaml", "--pace", 0)
     assert r.returncode == 2 and "--pace" in r.stderr
 
@@ -254,6 +275,7 @@ def test_summary_fits_80_columns_by_leaving_out_columns(short_log):
     from rich.console import Console
 
     from pmsm_hil.analysis.summary import print_summary, summarize_log
+
     console = Console(width=80, record=True, force_terminal=False)
     print_summary(summarize_log(short_log), console)
     text = console.export_text()
@@ -268,16 +290,27 @@ def test_summary_fits_80_columns_by_leaving_out_columns(short_log):
 
 def test_a_run_against_an_emulator_of_another_motor_says_so(tmp_path):
     """A SEW profile against an emulator serving paper A's motor: named, not a bare DC-link fault."""
-    emu = subprocess.Popen([*CLI, "emulate"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    emu = subprocess.Popen(
+        [*CLI, "emulate"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
     try:
         port = emu.stdout.readline().split()[1]
         r = cli("run", "sew-cm3c80s", "--port", port, "--out", tmp_path / "sew.mcap", "--no-live")
         assert r.returncode == 2, r.stderr
         assert "not this profile's motor" in r.stderr and "psi_f_wb" in r.stderr
         assert "emulate --profile" in r.stderr
-        r = cli("run", "paper-a", "--port", port, "--out", tmp_path / "pa.mcap", "--no-live",
-                "--stop-after", 0.3)
-        assert r.returncode == 0, r.stderr       # the emulator serves on, and its own motor runs
+        r = cli(
+            "run",
+            "paper-a",
+            "--port",
+            port,
+            "--out",
+            tmp_path / "pa.mcap",
+            "--no-live",
+            "--stop-after",
+            0.3,
+        )
+        assert r.returncode == 0, r.stderr  # the emulator serves on, and its own motor runs
     finally:
         emu.terminate()
         emu.wait(timeout=10)
@@ -286,17 +319,19 @@ def test_a_run_against_an_emulator_of_another_motor_says_so(tmp_path):
 def test_a_lost_stopped_event_still_ends_the_run_cleanly(tmp_path, monkeypatch):
     """One lost event frame must not fail a good run: the status frames show the stop."""
     from pmsm_hil.recorder import Recorder
+
     real = Recorder._on_event
 
     def drop_stopped(self, f):
         if f["code"] == gen.ENUMS["event"]["stopped"]:
-            return                                    # the frame carrying `stopped` is lost
+            return  # the frame carrying `stopped` is lost
         real(self, f)
+
     monkeypatch.setattr(Recorder, "_on_event", drop_stopped)
     out = tmp_path / "lost.mcap"
     _, result = run_inproc(Path(__file__).parent / "data" / "short.yaml", out)
     assert not result.error and result.stop_reason == "profile end"
-    assert result.capture_samples > 0                 # the capture was still uploaded
+    assert result.capture_samples > 0  # the capture was still uploaded
     texts = list(read_log(out).topic("/pmsm/events")["text"])
     assert any("stopped event did not arrive" in t for t in texts)
 
@@ -306,7 +341,7 @@ def test_a_yaml_alias_bomb_is_refused_at_once(tmp_path):
     for prev, name in zip("abcdefgh", "bcdefghi"):
         rows.append(f"{name}: &{name} [" + ", ".join([f"*{prev}"] * 9) + "]")
     bomb = tmp_path / "bomb.yaml"
-    bomb.write_text("\n".join(rows) + "\n")                  # 9^9 values once expanded
+    bomb.write_text("\n".join(rows) + "\n")  # 9^9 values once expanded
     r = cli("run", bomb, timeout=30)
     assert r.returncode == 2 and "alias" in r.stderr and "Traceback" not in r.stderr
 
@@ -316,11 +351,17 @@ def test_can_run_with_the_live_view_on_a_terminal(data, tmp_path):
     the link (heartbeat) nor end the run."""
     import pty
     import select
+
     master, slave = pty.openpty()
     out = tmp_path / "live-can.mcap"
-    p = subprocess.Popen([*CLI, "run", str(data / "short.yaml"), "--can", "--out", str(out)],
-                         stdout=slave, stderr=subprocess.PIPE, stdin=subprocess.DEVNULL, text=True,
-                         env={**os.environ, "COLUMNS": "80", "LINES": "24"})
+    p = subprocess.Popen(
+        [*CLI, "run", str(data / "short.yaml"), "--can", "--out", str(out)],
+        stdout=slave,
+        stderr=subprocess.PIPE,
+        stdin=subprocess.DEVNULL,
+        text=True,
+        env={**os.environ, "COLUMNS": "80", "LINES": "24"},
+    )
     os.close(slave)
     screen = b""
     while p.poll() is None:
@@ -332,6 +373,6 @@ def test_can_run_with_the_live_view_on_a_terminal(data, tmp_path):
     p.wait(timeout=180)
     os.close(master)
     assert p.returncode == 0, p.stderr.read()
-    assert b"state" in screen                      # the live view was drawn
+    assert b"state" in screen  # the live view was drawn
     log = read_log(out)
     assert log.finalised and "profile_done" in list(log.topic("/pmsm/events")["kind"])

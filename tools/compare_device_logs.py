@@ -7,6 +7,7 @@ events, capture, plant truth); host-side topics (/pmsm/status, /host/*) carry wa
 are not compared. Numeric columns are compared as raw bytes (NaN payloads and signed zeros count),
 strings by value; events the host wrote itself (kind "host") are left out. Exit 0 when identical, 1 with a list of the first differences otherwise.
 """
+
 from __future__ import annotations
 
 import sys
@@ -68,13 +69,16 @@ def compare(ref_path: str, new_path: str) -> list[str]:
 def main(argv: list[str] | None = None) -> int:
     args = sys.argv[1:] if argv is None else argv
     if len(args) != 2:
-        print("usage: python -m tools.compare_device_logs REFERENCE.mcap CANDIDATE.mcap", file=sys.stderr)
+        print(
+            "usage: python -m tools.compare_device_logs REFERENCE.mcap CANDIDATE.mcap",
+            file=sys.stderr,
+        )
         return 2
     diffs = compare(args[0], args[1])
     try:
         for d in diffs:
             print(d)
-    except BrokenPipeError:   # the reader (head) has seen enough
+    except BrokenPipeError:  # the reader (head) has seen enough
         sys.stdout = None
         return 1
     if not diffs:

@@ -19,6 +19,7 @@ Paper A map, step by step (docs/rigs.md, "saturation"):
     L_sig,q = L_q,A - c s^2 L_q,S        (an unsaturable q-axis part makes up paper A's saliency);
     the nodes move to i / s.
 """
+
 from __future__ import annotations
 
 import os
@@ -31,11 +32,13 @@ sys.path.insert(0, ROOT)
 
 from pmsm_hil.profiles.fluxmap import load_flux_map  # noqa: E402
 
-PSI_F_A, L_D_A, L_Q_A = 0.18, 5e-3, 12e-3      # paper A (profiles/motors/paper-a-ipmsm.yaml)
-SOURCE = ("Measured flux-linkage map of an SEW CM3C80S servo PMSM (p = 4, current limit 16 A) on the "
-          "Paderborn University (LEA) test bench; from upb-lea/gym-electric-motor, branch "
-          "nonlinearities, examples/environment_features/saturated_pmsm/Reforce_PMSM_LUT.mat "
-          "(MIT licence), converted to CSV with the grid in amperes.")
+PSI_F_A, L_D_A, L_Q_A = 0.18, 5e-3, 12e-3  # paper A (profiles/motors/paper-a-ipmsm.yaml)
+SOURCE = (
+    "Measured flux-linkage map of an SEW CM3C80S servo PMSM (p = 4, current limit 16 A) on the "
+    "Paderborn University (LEA) test bench; from upb-lea/gym-electric-motor, branch "
+    "nonlinearities, examples/environment_features/saturated_pmsm/Reforce_PMSM_LUT.mat "
+    "(MIT licence), converted to CSV with the grid in amperes."
+)
 
 
 def derive(sew_path: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
@@ -82,16 +85,20 @@ def main() -> None:
     with open(os.path.join(out, "sew-cm3c80s.csv"), "w", encoding="utf-8") as f:
         f.write("# SEW CM3C80S flux map, measured, as it is (452 nodes inside the 16 A circle).\n")
         f.write(f"# Source: {SOURCE}\n")
-        f.write("# Note: psi_q(0, 0) = -6 mWb is a measurement artefact, kept. Format: docs/rigs.md.\n")
+        f.write(
+            "# Note: psi_q(0, 0) = -6 mWb is a measurement artefact, kept. Format: docs/rigs.md.\n"
+        )
         f.write(raw)
     id_a, iq_a, pd_a, pq_a, info = derive(sew)
-    hdr = ["Paper A IPMSM flux map (psi_f 0.18 Wb, L_d 5 mH, L_q 12 mH at small current), derived from",
-           "the measured SEW CM3C80S map by tools/derive_flux_map.py (method: docs/rigs.md).",
-           f"Source of the measured map: {SOURCE}",
-           f"Symmetrised SEW map: psi_f {info['psi_f_s']:.6g} Wb, L_d {info['l_d_s']*1e3:.4g} mH, "
-           f"L_q {info['l_q_s']*1e3:.4g} mH (slopes at small current).",
-           f"Co-energy scaling: current scale s = {info['s']:.6g} (node i = i_SEW / s), flux scale "
-           f"c = {info['c']:.6g}, unsaturable q-axis part {info['l_sig_q']*1e3:.4g} mH."]
+    hdr = [
+        "Paper A IPMSM flux map (psi_f 0.18 Wb, L_d 5 mH, L_q 12 mH at small current), derived from",
+        "the measured SEW CM3C80S map by tools/derive_flux_map.py (method: docs/rigs.md).",
+        f"Source of the measured map: {SOURCE}",
+        f"Symmetrised SEW map: psi_f {info['psi_f_s']:.6g} Wb, L_d {info['l_d_s'] * 1e3:.4g} mH, "
+        f"L_q {info['l_q_s'] * 1e3:.4g} mH (slopes at small current).",
+        f"Co-energy scaling: current scale s = {info['s']:.6g} (node i = i_SEW / s), flux scale "
+        f"c = {info['c']:.6g}, unsaturable q-axis part {info['l_sig_q'] * 1e3:.4g} mH.",
+    ]
     write_csv(os.path.join(out, "paper-a-ipmsm.csv"), hdr, id_a, iq_a, pd_a, pq_a)
     for k, v in info.items():
         print(f"{k} = {v:.6g}")

@@ -9,6 +9,7 @@ parameters of every estimator against the plant's truth, and the angle / speed e
 (a user script: the firmware's angle minus the encoder's, wrapped to ±π).
 The fields named here are checked against the log contract in tests/test_foxglove_live.py.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -42,45 +43,92 @@ export default function script(event: Input<"/pmsm/telemetry">): Output {
 
 
 def _plot(title: str, y_label: str, series: list[tuple[str, str, str | None]]) -> fl.PlotPanel:
-    paths = [fl.PlotSeries(value=v, label=label, line_style=style, timestamp_method="receiveTime")
-             for v, label, style in series]
-    return fl.PlotPanel(title=title, config=fl.PlotConfig(
-        paths=paths, y_axis_label=y_label, x_axis_label="time", show_legend=True,
-        legend_display="top", is_synced=True, time_window_mode="sliding",
-        following_view_width=WINDOW_S))
+    paths = [
+        fl.PlotSeries(value=v, label=label, line_style=style, timestamp_method="receiveTime")
+        for v, label, style in series
+    ]
+    return fl.PlotPanel(
+        title=title,
+        config=fl.PlotConfig(
+            paths=paths,
+            y_axis_label=y_label,
+            x_axis_label="time",
+            show_legend=True,
+            legend_display="top",
+            is_synced=True,
+            time_window_mode="sliding",
+            following_view_width=WINDOW_S,
+        ),
+    )
 
 
 def _param(field: str, name: str, unit: str) -> fl.PlotPanel:
-    series = [(f"/sim/truth.{field}", "truth", "dashed"),
-              (f'/pmsm/params{{estimator=="nominal"}}.{field}', "nominal", "dotted")]
+    series = [
+        (f"/sim/truth.{field}", "truth", "dashed"),
+        (f'/pmsm/params{{estimator=="nominal"}}.{field}', "nominal", "dotted"),
+    ]
     series += [(f'/pmsm/params{{estimator=="{e}"}}.{field}', e, None) for e in ESTIMATORS]
     return _plot(f"{name} vs truth", f"{name} ({unit})", series)
 
 
 def layout() -> fl.Layout:
-    speed = _plot("speed", "speed (r/min)", [
-        ("/pmsm/telemetry.speed_ref_rpm", "reference", "dashed"),
-        ("/pmsm/telemetry.speed_rpm", "measured (encoder)", None),
-        ("/pmsm/telemetry.speed_est_rpm", "estimated (firmware)", None)])
-    i_d = _plot("i_d", "i_d (A)", [("/pmsm/telemetry.i_d_ref_a", "i_d reference", "dashed"),
-                                   ("/pmsm/telemetry.i_d_a", "i_d measured", None)])
-    i_q = _plot("i_q", "i_q (A)", [("/pmsm/telemetry.i_q_ref_a", "i_q reference", "dashed"),
-                                   ("/pmsm/telemetry.i_q_a", "i_q measured", None)])
-    err = _plot("angle error (estimate − encoder)", "angle error (rad)", [
-        ("/foxglove_script/estimation_error.theta_err_rad", "θe,est − θe", None)])
-    params = [_param("l_d_h", "L_d", "H"), _param("l_q_h", "L_q", "H"),
-              _param("psi_f_wb", "ψ_f", "Wb"), _param("r_s_ohm", "R_s", "Ω")]
+    speed = _plot(
+        "speed",
+        "speed (r/min)",
+        [
+            ("/pmsm/telemetry.speed_ref_rpm", "reference", "dashed"),
+            ("/pmsm/telemetry.speed_rpm", "measured (encoder)", None),
+            ("/pmsm/telemetry.speed_est_rpm", "estimated (firmware)", None),
+        ],
+    )
+    i_d = _plot(
+        "i_d",
+        "i_d (A)",
+        [
+            ("/pmsm/telemetry.i_d_ref_a", "i_d reference", "dashed"),
+            ("/pmsm/telemetry.i_d_a", "i_d measured", None),
+        ],
+    )
+    i_q = _plot(
+        "i_q",
+        "i_q (A)",
+        [
+            ("/pmsm/telemetry.i_q_ref_a", "i_q reference", "dashed"),
+            ("/pmsm/telemetry.i_q_a", "i_q measured", None),
+        ],
+    )
+    err = _plot(
+        "angle error (estimate − encoder)",
+        "angle error (rad)",
+        [("/foxglove_script/estimation_error.theta_err_rad", "θe,est − θe", None)],
+    )
+    params = [
+        _param("l_d_h", "L_d", "H"),
+        _param("l_q_h", "L_q", "H"),
+        _param("psi_f_wb", "ψ_f", "Wb"),
+        _param("r_s_ohm", "R_s", "Ω"),
+    ]
 
     def col(*panels):
-        return fl.SplitContainer(direction="column", items=[fl.SplitItem(content=p) for p in panels])
+        return fl.SplitContainer(
+            direction="column", items=[fl.SplitItem(content=p) for p in panels]
+        )
 
-    signals = fl.SplitContainer(direction="row", items=[
-        fl.SplitItem(content=col(speed, err)), fl.SplitItem(content=col(i_d, i_q))])
+    signals = fl.SplitContainer(
+        direction="row",
+        items=[fl.SplitItem(content=col(speed, err)), fl.SplitItem(content=col(i_d, i_q))],
+    )
     return fl.Layout(
-        content=fl.TabContainer(tabs=[fl.TabItem(title="signals", content=signals),
-                                      fl.TabItem(title="parameters", content=col(*params))]),
-        user_scripts={"estimation_error": fl.UserScript(name="estimation error",
-                                                        source_code=ERROR_SCRIPT)})
+        content=fl.TabContainer(
+            tabs=[
+                fl.TabItem(title="signals", content=signals),
+                fl.TabItem(title="parameters", content=col(*params)),
+            ]
+        ),
+        user_scripts={
+            "estimation_error": fl.UserScript(name="estimation error", source_code=ERROR_SCRIPT)
+        },
+    )
 
 
 def render() -> str:

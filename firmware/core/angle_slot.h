@@ -15,27 +15,27 @@
 #include "enc_angle.h"
 #include "proto_gen.h"
 
-#define ANGLE_SRC_ENCODER PROTO_ANGLE_SRC_ENCODER   /* config_ctrl angle_src */
+#define ANGLE_SRC_ENCODER PROTO_ANGLE_SRC_ENCODER /* config_ctrl angle_src */
 
 typedef struct {
-    uint16_t src;              /* ANGLE_SRC_* */
+    uint16_t src; /* ANGLE_SRC_* */
     uint16_t pole_pairs;
-    float ts_s;                /* control period */
+    float ts_s; /* control period */
 } angle_cfg_t;
 
 typedef struct {
-    const enc_out_t *enc;      /* the encoder's reading this period; NULL when none is fitted */
-    float i_alpha_a, i_beta_a; /* measured at k */
-    float u_d_prev_v, u_q_prev_v;  /* average dq voltage applied during [k-1, k), previous frame */
-    float i_d_pred_a, i_q_pred_a;  /* the current controller's prediction of i(k), previous frame */
+    const enc_out_t *enc;         /* the encoder's reading this period; NULL when none is fitted */
+    float i_alpha_a, i_beta_a;    /* measured at k */
+    float u_d_prev_v, u_q_prev_v; /* average dq voltage applied during [k-1, k), previous frame */
+    float i_d_pred_a, i_q_pred_a; /* the current controller's prediction of i(k), previous frame */
 } angle_in_t;
 
 typedef struct {
-    float theta_e_rad;         /* electrical angle at k, [0, 2pi) */
+    float theta_e_rad; /* electrical angle at k, [0, 2pi) */
     float omega_e_rad_s;
     float omega_m_rad_s;
     float speed_rpm;
-    bool valid;                /* false: the source cannot tell the angle (no encoder, not locked) */
+    bool valid; /* false: the source cannot tell the angle (no encoder, not locked) */
 } angle_out_t;
 
 typedef struct {
@@ -44,7 +44,8 @@ typedef struct {
 } angle_t;
 
 bool angle_src_known(uint16_t src);
-void angle_init(angle_t *a, const angle_cfg_t *cfg);   /* an unknown source falls back to the encoder */
+void angle_init(angle_t *a,
+                const angle_cfg_t *cfg); /* an unknown source falls back to the encoder */
 void angle_step(angle_t *a, const angle_in_t *in, angle_out_t *out);
 
 #endif

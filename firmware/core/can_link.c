@@ -2,7 +2,7 @@
 
 #include "frame.h"
 
-#define CAN_NONE 0xFFFFu
+#define CAN_NONE      0xFFFFu
 #define CAN_NODE_MASK ((1u << PROTO_CAN_NODE_BITS) - 1u)
 
 void can_link_init(can_link_t *c, uint16_t node)
@@ -47,7 +47,8 @@ static can_frame_t *tx_slot(can_link_t *c, uint16_t func, uint16_t dlc)
     return fr;
 }
 
-bool can_link_send(can_link_t *c, uint16_t msg_id, uint16_t seq, const uint16_t *payload, uint16_t n)
+bool can_link_send(can_link_t *c, uint16_t msg_id, uint16_t seq, const uint16_t *payload,
+                   uint16_t n)
 {
     proto_can_layout_t l;
     uint16_t k, i, at = 0u;
@@ -55,7 +56,8 @@ bool can_link_send(can_link_t *c, uint16_t msg_id, uint16_t seq, const uint16_t 
         return false;
     }
     if (l.transfer != 0u) {
-        uint16_t frames = (uint16_t)(1u + (n + PROTO_CAN_TRANSFER_DATA - 1u) / PROTO_CAN_TRANSFER_DATA);
+        uint16_t frames =
+            (uint16_t)(1u + (n + PROTO_CAN_TRANSFER_DATA - 1u) / PROTO_CAN_TRANSFER_DATA);
         uint16_t crc;
         can_frame_t *fr;
         if (frames > (uint16_t)(CAN_TXQ_FRAMES - c->level)) {
@@ -111,7 +113,10 @@ bool can_link_send(can_link_t *c, uint16_t msg_id, uint16_t seq, const uint16_t 
     }
 }
 
-uint16_t can_link_tx_level(const can_link_t *c) { return c->level; }
+uint16_t can_link_tx_level(const can_link_t *c)
+{
+    return c->level;
+}
 
 const can_frame_t *can_link_tx_peek(const can_link_t *c)
 {
@@ -136,10 +141,18 @@ static int16_t rx_error(can_link_t *c, int16_t err)
     c->rx_msg = CAN_NONE;
     c->x_active = false;
     switch (err) {
-    case CAN_RX_ERR_UNKNOWN: c->err_unknown++; break;
-    case CAN_RX_ERR_LEN: c->err_len++; break;
-    case CAN_RX_ERR_CRC: c->err_crc++; break;
-    default: c->err_order++; break;
+    case CAN_RX_ERR_UNKNOWN:
+        c->err_unknown++;
+        break;
+    case CAN_RX_ERR_LEN:
+        c->err_len++;
+        break;
+    case CAN_RX_ERR_CRC:
+        c->err_crc++;
+        break;
+    default:
+        c->err_order++;
+        break;
     }
     return err;
 }
@@ -160,7 +173,7 @@ static int16_t rx_transfer(can_link_t *c, const uint16_t *data, uint16_t dlc)
     if (dlc == 0u) {
         return rx_error(c, CAN_RX_ERR_LEN);
     }
-    if ((data[0] & 0xFFu) == 0u) {   /* header: a new transfer (an unfinished one is dropped) */
+    if ((data[0] & 0xFFu) == 0u) { /* header: a new transfer (an unfinished one is dropped) */
         int16_t len;
         bool stale = c->x_active;
         if (dlc != PROTO_CAN_TRANSFER_HEADER || data[3] > PROTO_MAX_PAYLOAD) {
@@ -225,19 +238,19 @@ int16_t can_link_rx(can_link_t *c, uint16_t id, const uint16_t *data, uint16_t d
     }
     (void)proto_can_layout((uint16_t)msg, &l);
     if (l.h2d == 0u) {
-        return CAN_RX_NONE;   /* another device's frame */
+        return CAN_RX_NONE; /* another device's frame */
     }
     if (dlc != l.len[k]) {
         return rx_error(c, CAN_RX_ERR_LEN);
     }
     if (k == 0u) {
         if (c->rx_msg != CAN_NONE) {
-            (void)rx_error(c, CAN_RX_ERR_ORDER);   /* the unfinished one is dropped */
+            (void)rx_error(c, CAN_RX_ERR_ORDER); /* the unfinished one is dropped */
         }
         c->rx_msg = (uint16_t)msg;
         c->rx_next = 0u;
         c->rx_n = 0u;
-        c->rx_buf[0] = (uint16_t)(data[0] & 0xFFu);   /* seq, kept in front of the payload */
+        c->rx_buf[0] = (uint16_t)(data[0] & 0xFFu); /* seq, kept in front of the payload */
         start = 1u;
     } else {
         if (c->rx_msg != (uint16_t)msg || c->rx_next != k) {

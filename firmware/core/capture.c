@@ -1,24 +1,32 @@
 #include "capture.h"
 
 /* Scales of the wire (firmware/proto/pmsm_proto.yaml, capture_chunk). */
-#define CAP_I_SCALE 0.002f
-#define CAP_V_SCALE 0.1f
+#define CAP_I_SCALE  0.002f
+#define CAP_V_SCALE  0.1f
 #define CAP_TH_SCALE 9.587379924285257e-05f
-#define CAP_W_SCALE 0.1f
+#define CAP_W_SCALE  0.1f
 
 static int16_t cap_i16(float v, float scale)
 {
     float x = v / scale;
-    if (x > 32767.0f) { x = 32767.0f; }
-    if (x < -32768.0f) { x = -32768.0f; }
+    if (x > 32767.0f) {
+        x = 32767.0f;
+    }
+    if (x < -32768.0f) {
+        x = -32768.0f;
+    }
     return (int16_t)(x >= 0.0f ? x + 0.5f : x - 0.5f);
 }
 
 static uint16_t cap_u16(float v, float scale)
 {
     float x = v / scale + 0.5f;
-    if (x > 65535.0f) { x = 65535.0f; }
-    if (x < 0.0f) { x = 0.0f; }
+    if (x > 65535.0f) {
+        x = 65535.0f;
+    }
+    if (x < 0.0f) {
+        x = 0.0f;
+    }
     return (uint16_t)x;
 }
 

@@ -15,10 +15,10 @@
 #include "mpcc.h"
 #include "proto_gen.h"
 
-#define CC_KIND_MPCC PROTO_CURRENT_CTRL_MPCC   /* config_ctrl current_ctrl */
+#define CC_KIND_MPCC PROTO_CURRENT_CTRL_MPCC /* config_ctrl current_ctrl */
 
-#define CC_OUT_STATES 0u     /* s_a, s_b, s_c: upper switches forced for the whole period */
-#define CC_OUT_DUTIES 1u     /* duty_a, duty_b, duty_c: upper-switch on-time fractions, [0, 1] */
+#define CC_OUT_STATES 0u /* s_a, s_b, s_c: upper switches forced for the whole period */
+#define CC_OUT_DUTIES 1u /* duty_a, duty_b, duty_c: upper-switch on-time fractions, [0, 1] */
 
 /* Parameters of the controller's plant model (nominal, scaled, or identified). */
 typedef struct {
@@ -26,13 +26,13 @@ typedef struct {
 } cc_params_t;
 
 typedef struct {
-    float i_d_a, i_q_a;           /* measured at the sample instant k, in the angle slot's frame */
+    float i_d_a, i_q_a; /* measured at the sample instant k, in the angle slot's frame */
     float i_d_ref_a, i_q_ref_a;
-    float theta_e_rad;            /* angle slot's electrical angle at k */
-    float cos_theta, sin_theta;   /* cosf, sinf of theta_e_rad (computed once per period) */
+    float theta_e_rad;          /* angle slot's electrical angle at k */
+    float cos_theta, sin_theta; /* cosf, sinf of theta_e_rad (computed once per period) */
     float omega_e_rad_s;
     float v_dc_v;
-    cc_params_t pred;             /* the predictor's parameters (identification's output) */
+    cc_params_t pred; /* the predictor's parameters (identification's output) */
 } cc_in_t;
 
 typedef struct {
@@ -45,8 +45,8 @@ typedef struct {
 } cc_out_t;
 
 typedef struct {
-    uint16_t kind;                /* CC_KIND_* */
-    mpcc_cfg_t mpcc;              /* CC_KIND_MPCC */
+    uint16_t kind;   /* CC_KIND_* */
+    mpcc_cfg_t mpcc; /* CC_KIND_MPCC */
 } cc_cfg_t;
 
 typedef struct {
@@ -57,9 +57,9 @@ typedef struct {
 } cc_t;
 
 bool cc_kind_known(uint16_t kind);
-void cc_init(cc_t *c, const cc_cfg_t *cfg);   /* an unknown kind falls back to CC_KIND_MPCC */
+void cc_init(cc_t *c, const cc_cfg_t *cfg); /* an unknown kind falls back to CC_KIND_MPCC */
 void cc_step(cc_t *c, const cc_in_t *in, cc_out_t *out);
-void cc_reset(cc_t *c);                       /* forget the applied output (PWM was off) */
+void cc_reset(cc_t *c); /* forget the applied output (PWM was off) */
 /* Switch-state code applied during the running period (bit0 s_a, bit1 s_b, bit2 s_c; what a
  * capture logs with i(k)); 0 for a duty-cycle occupant. */
 uint16_t cc_applied_code(const cc_t *c);

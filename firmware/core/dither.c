@@ -13,7 +13,7 @@ void dither_init(dither_t *d, const dither_cfg_t *cfg)
 float dither_step(dither_t *d, float step_a)
 {
     float x = (float)d->k * d->inv_half;
-    float tri = (x < 1.0f) ? x : 2.0f - x;   /* 0 .. 1 .. 0 */
+    float tri = (x < 1.0f) ? x : 2.0f - x; /* 0 .. 1 .. 0 */
     d->k++;
     if (d->k >= d->cfg.period) {
         d->k = 0u;

@@ -12,14 +12,14 @@
 #include <stdint.h>
 
 typedef struct {
-    uint16_t period;   /* control periods per triangle (>= 2) */
-    float gain;        /* peak-to-peak amplitude as a fraction of the current step (0 disables) */
+    uint16_t period; /* control periods per triangle (>= 2) */
+    float gain;      /* peak-to-peak amplitude as a fraction of the current step (0 disables) */
 } dither_cfg_t;
 
 typedef struct {
     dither_cfg_t cfg;
     uint16_t k;
-    float inv_half;   /* 2 / period */
+    float inv_half; /* 2 / period */
 } dither_t;
 
 void dither_init(dither_t *d, const dither_cfg_t *cfg);

@@ -7,7 +7,7 @@
 #include <math.h>
 #include "transforms.h"
 
-#define ENC_COUNTS_MAX 0x7FFFFFFFu
+#define ENC_COUNTS_MAX    0x7FFFFFFFu
 #define ENC_RPM_PER_RAD_S 9.54929658551372f
 
 void enc_init(enc_t *e, const enc_cfg_t *cfg)
@@ -26,7 +26,8 @@ void enc_init(enc_t *e, const enc_cfg_t *cfg)
     if (!(e->cfg.ts_s > 0.0f)) {
         e->cfg.ts_s = 50.0e-6f;
     }
-    e->cfg.offset_e_rad = (e->cfg.offset_e_rad == e->cfg.offset_e_rad) ? tf_wrap_2pi(e->cfg.offset_e_rad) : 0.0f;
+    e->cfg.offset_e_rad =
+        (e->cfg.offset_e_rad == e->cfg.offset_e_rad) ? tf_wrap_2pi(e->cfg.offset_e_rad) : 0.0f;
     bw = e->cfg.bw_rad_s;
     if (!(bw > 0.0f)) {
         bw = ENC_BW_DEFAULT_RAD_S;
@@ -70,7 +71,7 @@ static float wrap_once(float x)
         x -= FW_TWO_PI_F;
     }
     if (x >= FW_TWO_PI_F || x < 0.0f) {
-        x = tf_wrap_2pi(x);   /* rounding corner: the general (library) wrap */
+        x = tf_wrap_2pi(x); /* rounding corner: the general (library) wrap */
     }
     return x;
 }
@@ -83,17 +84,17 @@ static void carry(enc_t *e)
     if (e->f_obs >= 0.0f && e->f_obs < 1.0f) {
         return;
     }
-    if (!(e->f_obs > -1.0e9f && e->f_obs < 1.0e9f)) {   /* absurd (or NaN) state: restart here */
+    if (!(e->f_obs > -1.0e9f && e->f_obs < 1.0e9f)) { /* absurd (or NaN) state: restart here */
         e->f_obs = 0.0f;
         e->w_cps = 0.0f;
         return;
     }
-    k = (int32_t)e->f_obs;             /* truncation toward zero */
+    k = (int32_t)e->f_obs; /* truncation toward zero */
     if ((float)k > e->f_obs) {
-        k--;                           /* floor */
+        k--; /* floor */
     }
     e->f_obs -= (float)k;
-    if (e->f_obs >= 1.0f) {            /* rounding */
+    if (e->f_obs >= 1.0f) { /* rounding */
         e->f_obs -= 1.0f;
         k++;
     }
@@ -101,7 +102,7 @@ static void carry(enc_t *e)
         e->f_obs = 0.0f;
     }
     if (k >= (int32_t)n || k <= -(int32_t)n) {
-        k %= (int32_t)n;               /* more than a turn per period: not a real speed */
+        k %= (int32_t)n; /* more than a turn per period: not a real speed */
     }
     if (k < 0) {
         const uint32_t d = (uint32_t)(-k);
@@ -123,7 +124,8 @@ void enc_step(enc_t *e, uint32_t count, enc_out_t *out)
     /* raw-count angles */
     out->theta_m_rad = (float)c * e->rad_per_count;
     if (e->int_elec) {
-        out->theta_e_rad = wrap_once((float)mul_mod(c, p, n) * e->rad_per_count + e->cfg.offset_e_rad);
+        out->theta_e_rad =
+            wrap_once((float)mul_mod(c, p, n) * e->rad_per_count + e->cfg.offset_e_rad);
     } else {
         out->theta_e_rad = tf_wrap_2pi((float)p * out->theta_m_rad + e->cfg.offset_e_rad);
     }
@@ -131,7 +133,7 @@ void enc_step(enc_t *e, uint32_t count, enc_out_t *out)
     /* observer: predict, innovation (wrapped to +-n/2), correct */
     e->f_obs += e->cfg.ts_s * e->w_cps;
     carry(e);
-    diff = (c >= e->n_obs) ? (c - e->n_obs) : (c + (n - e->n_obs));   /* [0, n) */
+    diff = (c >= e->n_obs) ? (c - e->n_obs) : (c + (n - e->n_obs)); /* [0, n) */
     if (diff > n / 2u) {
         err = -(float)(n - diff) - e->f_obs;
     } else {

@@ -17,36 +17,37 @@
 #include "fw_types.h"
 
 #define ENC_ZETA_F 0.70710678f
-#define ENC_BW_DEFAULT_RAD_S 1000.0f   /* recommended for paper A's drive (10000 counts, 1 kHz speed loop) */
+#define ENC_BW_DEFAULT_RAD_S                                                                       \
+    1000.0f /* recommended for paper A's drive (10000 counts, 1 kHz speed loop) */
 
 typedef struct {
-    uint32_t counts;        /* counts per mechanical turn (4 x lines); >= 4 */
+    uint32_t counts; /* counts per mechanical turn (4 x lines); >= 4 */
     uint16_t pole_pairs;
-    float offset_e_rad;       /* electrical angle at count 0 */
-    float bw_rad_s;         /* observer bandwidth (speed -3 dB) */
-    float ts_s;             /* call period (the control period) */
+    float offset_e_rad; /* electrical angle at count 0 */
+    float bw_rad_s;     /* observer bandwidth (speed -3 dB) */
+    float ts_s;         /* call period (the control period) */
 } enc_cfg_t;
 
 typedef struct {
-    float theta_e_rad;      /* raw-count electrical angle, [0, 2pi) */
-    float theta_m_rad;      /* raw-count mechanical angle, [0, 2pi) */
-    float omega_m_rad_s;    /* observer speed */
+    float theta_e_rad;   /* raw-count electrical angle, [0, 2pi) */
+    float theta_m_rad;   /* raw-count mechanical angle, [0, 2pi) */
+    float omega_m_rad_s; /* observer speed */
     float omega_e_rad_s;
     float speed_rpm;
     /* Added outputs */
-    float theta_e_obs_rad;  /* observer electrical angle, [0, 2pi): smoother, lags only by the
+    float theta_e_obs_rad; /* observer electrical angle, [0, 2pi): smoother, lags only by the
                                observer's angle error (zero at constant speed) */
-    float err_counts;       /* observer innovation (count - prediction) */
+    float err_counts;      /* observer innovation (count - prediction) */
 } enc_out_t;
 
 typedef struct {
     enc_cfg_t cfg;
     float rad_per_count;
-    float k1_ts, k2_ts;     /* observer gains times ts */
-    uint32_t n_obs;         /* observer angle, integer counts, 0 .. counts-1 */
-    float f_obs;            /* observer angle, fractional counts, [0, 1) */
-    float w_cps;            /* observer speed, counts/s */
-    bool int_elec;          /* counts * pole_pairs fits 32 bits: exact integer electrical angle */
+    float k1_ts, k2_ts; /* observer gains times ts */
+    uint32_t n_obs;     /* observer angle, integer counts, 0 .. counts-1 */
+    float f_obs;        /* observer angle, fractional counts, [0, 1) */
+    float w_cps;        /* observer speed, counts/s */
+    bool int_elec;      /* counts * pole_pairs fits 32 bits: exact integer electrical angle */
 } enc_t;
 
 void enc_init(enc_t *e, const enc_cfg_t *cfg);

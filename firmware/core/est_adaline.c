@@ -28,11 +28,11 @@ void est_adaline_step(est_adaline_t *e, const id_sample_t *s, est_out_t *out)
         if (x.lq) {
             c->w[EST_LQ] += eta_d * e_d * x_lq;
         }
-        if (x.r) {   /* R along the centred i_d (the excitation), as L_d in the q equation */
+        if (x.r) { /* R along the centred i_d (the excitation), as L_d in the q equation */
             c->w[EST_R] += eta_r * e_d * (x_r - c->i_d_mean);
         }
         e_q = y_q - (c->w[EST_LD] * x_ld + c->w[EST_PSI] * x_psi);
-        {   /* update along the decorrelated inputs (est_common.h): x1 = w (i_d - mean), x2 = w */
+        { /* update along the decorrelated inputs (est_common.h): x1 = w (i_d - mean), x2 = w */
             const float xc = est_core_x_ld_centered(c, s);
             const float d_ld = x.ld ? eta_q * e_q * xc : 0.0f;
             c->w[EST_LD] += d_ld;

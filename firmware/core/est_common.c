@@ -2,12 +2,12 @@
 
 #include <math.h>
 
-#define EST_SLOW_ALPHA 0.03125f   /* slow average over about 32 windows */
+#define EST_SLOW_ALPHA 0.03125f /* slow average over about 32 windows */
 
 void est_cfg_default(est_cfg_t *c, float r_s_ohm, float l_d_h, float l_q_h, float psi_f_wb,
                      uint16_t pole_pairs)
 {
-    const float w_ref = 1000.0f * 0.104719755f * (float)pole_pairs;   /* 1000 r/min, electrical */
+    const float w_ref = 1000.0f * 0.104719755f * (float)pole_pairs; /* 1000 r/min, electrical */
     const float i_q_ref = 5.0f, i_d_ref = 2.0f;
     c->nominal[EST_R] = r_s_ohm;
     c->nominal[EST_LD] = l_d_h;
@@ -20,7 +20,7 @@ void est_cfg_default(est_cfg_t *c, float r_s_ohm, float l_d_h, float l_q_h, floa
     c->i_q_min_a = 0.5f;
     c->mu_d = 0.1f;
     c->mu_q = 0.1f;
-    c->mu_r = 0.04f;  /* online R (drift): time constant about 40 windows */
+    c->mu_r = 0.04f; /* online R (drift): time constant about 40 windows */
     c->lambda = 0.98f;
     c->p0 = 100.0f;
     c->x_ref_d2 = i_d_ref * i_d_ref + w_ref * w_ref * i_q_ref * i_q_ref;
@@ -85,7 +85,7 @@ void est_core_finish(est_core_t *e, const est_excite_t *x)
          * firmware's dead-time model correlates with the i_d excitation */
         const float lo = i == EST_R ? 0.5f * e->r_ref : e->cfg.bound_lo * e->cfg.nominal[i];
         const float hi = i == EST_R ? 2.0f * e->r_ref : e->cfg.bound_hi * e->cfg.nominal[i];
-        if (!(e->w[i] >= lo)) {          /* also catches NaN */
+        if (!(e->w[i] >= lo)) { /* also catches NaN */
             e->w[i] = lo;
         } else if (e->w[i] > hi) {
             e->w[i] = hi;
@@ -119,7 +119,8 @@ void est_core_out(const est_core_t *e, est_out_t *out)
     out->updates = e->updates;
 }
 
-#define EST_ID_MEAN_ALPHA 0.0078125f   /* 1/128 windows: about one 10 Hz excitation period and a bit */
+#define EST_ID_MEAN_ALPHA                                                                          \
+    0.0078125f /* 1/128 windows: about one 10 Hz excitation period and a bit */
 
 float est_core_x_ld_centered(est_core_t *e, const id_sample_t *s)
 {

@@ -1,17 +1,17 @@
 #include "est_nlms.h"
 
-#define EST_NLMS_DELTA 1.0f      /* regularisation, (V/H)^2: negligible against w^2 >= 1600 */
-#define EST_NLMS_DELTA_R 0.01f   /* A^2 */
+#define EST_NLMS_DELTA   1.0f  /* regularisation, (V/H)^2: negligible against w^2 >= 1600 */
+#define EST_NLMS_DELTA_R 0.01f /* A^2 */
 
 /* Variable step of the q regression (L_d, psi_f), after Kwong and Johnston:
  *   mu(k+1) = clamp(alpha mu(k) + gamma e_q(k)^2, mu_min, mu_max)
  * A large error (start from zero weights, a parameter step) drives the step to mu_max for fast
  * convergence; at the noise floor of the window equations (about 0.2 V rms on e_q) it settles
  * near 2 mu_min, which keeps the L_d estimate quiet. mu_max and mu_min scale with cfg.mu_q. */
-#define EST_NLMS_VSS_ALPHA 0.95f
-#define EST_NLMS_VSS_MAX 4.0f      /* x cfg.mu_q */
-#define EST_NLMS_VSS_MIN 0.05f     /* x cfg.mu_q */
-#define EST_NLMS_VSS_NOISE_V2 0.04f   /* e_q^2 at the noise floor, V^2 */
+#define EST_NLMS_VSS_ALPHA    0.95f
+#define EST_NLMS_VSS_MAX      4.0f  /* x cfg.mu_q */
+#define EST_NLMS_VSS_MIN      0.05f /* x cfg.mu_q */
+#define EST_NLMS_VSS_NOISE_V2 0.04f /* e_q^2 at the noise floor, V^2 */
 
 void est_nlms_init(est_nlms_t *e, const est_cfg_t *cfg)
 {
@@ -26,8 +26,12 @@ static float vss_step(est_nlms_t *e, float err_v)
     /* gamma puts the noise-floor equilibrium at 2 mu_min */
     const float gamma = 2.0f * mu_min * (1.0f - EST_NLMS_VSS_ALPHA) / EST_NLMS_VSS_NOISE_V2;
     float mu = EST_NLMS_VSS_ALPHA * e->mu_q + gamma * err_v * err_v;
-    if (mu > mu_max) { mu = mu_max; }
-    if (mu < mu_min) { mu = mu_min; }
+    if (mu > mu_max) {
+        mu = mu_max;
+    }
+    if (mu < mu_min) {
+        mu = mu_min;
+    }
     e->mu_q = mu;
     return mu;
 }
@@ -52,12 +56,12 @@ void est_nlms_step(est_nlms_t *e, const id_sample_t *s, est_out_t *out)
         if (x.lq) {
             c->w[EST_LQ] += c->cfg.mu_d * e_d * x_lq / (EST_NLMS_DELTA + x_lq * x_lq);
         }
-        if (x.r) {   /* R along the centred i_d (the excitation), as L_d in the q equation */
+        if (x.r) { /* R along the centred i_d (the excitation), as L_d in the q equation */
             const float xr = x_r - c->i_d_mean;
             c->w[EST_R] += c->cfg.mu_r * e_d * xr / (EST_NLMS_DELTA_R + xr * xr);
         }
         e_q = y_q - (c->w[EST_LD] * s->w_i_d_a_rad_s + c->w[EST_PSI] * x_psi);
-        {   /* update along the decorrelated inputs (est_common.h): x1 = w (i_d - mean), x2 = w */
+        { /* update along the decorrelated inputs (est_common.h): x1 = w (i_d - mean), x2 = w */
             const float xc = est_core_x_ld_centered(c, s);
             const float x1 = x.ld ? xc : 0.0f;
             float d_ld, d_th;

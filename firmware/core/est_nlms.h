@@ -13,7 +13,7 @@
 
 typedef struct {
     est_core_t core;
-    float mu_q;    /* variable step of the q regression (Kwong-Johnston: grows with the error power) */
+    float mu_q; /* variable step of the q regression (Kwong-Johnston: grows with the error power) */
 } est_nlms_t;
 
 void est_nlms_init(est_nlms_t *e, const est_cfg_t *cfg);

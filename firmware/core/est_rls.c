@@ -2,7 +2,7 @@
 
 #include <math.h>
 
-#define EST_RLS_P_R 1.0e-2f   /* per-unit variance of R after the injection */
+#define EST_RLS_P_R 1.0e-2f /* per-unit variance of R after the injection */
 
 static void p_reset(float p[4], float p0)
 {
@@ -28,7 +28,7 @@ void est_rls_init(est_rls_t *e, const est_cfg_t *cfg)
 void est_rls_set_r(est_rls_t *e, float r_s_ohm)
 {
     est_core_set_r(&e->core, r_s_ohm);
-    e->p_d[0] = EST_RLS_P_R;   /* R is known to a few per cent from the injection */
+    e->p_d[0] = EST_RLS_P_R; /* R is known to a few per cent from the injection */
     e->p_d[1] = 0.0f;
     e->p_d[2] = 0.0f;
 }
@@ -45,7 +45,7 @@ static void rls2(float p[4], float th[2], const float phi_in[2], const bool use[
     }
     phi[0] = use[0] ? phi_in[0] : 0.0f;
     phi[1] = use[1] ? phi_in[1] : 0.0f;
-    if (!use[0] || !use[1]) {   /* decouple the frozen direction */
+    if (!use[0] || !use[1]) { /* decouple the frozen direction */
         p[1] = 0.0f;
         p[2] = 0.0f;
     }
@@ -67,7 +67,7 @@ static void rls2(float p[4], float th[2], const float phi_in[2], const bool use[
         }
     }
     p[1] = p[2] = 0.5f * (p[1] + p[2]);
-    for (i = 0u; i < 2u; i++) {   /* cap the diagonal (no wind-up), keep P positive semidefinite */
+    for (i = 0u; i < 2u; i++) { /* cap the diagonal (no wind-up), keep P positive semidefinite */
         const uint16_t d = (uint16_t)(3u * i);
         if (!(p[d] <= p0)) {
             const float sc = sqrtf(p0 / p[d]);

@@ -12,8 +12,8 @@
 
 typedef struct {
     est_core_t core;
-    float p_d[4];   /* covariance of [R, L_q] (per-unit), row-major 2x2 */
-    float p_q[4];   /* covariance of [L_d, psi_f] */
+    float p_d[4]; /* covariance of [R, L_q] (per-unit), row-major 2x2 */
+    float p_q[4]; /* covariance of [L_d, psi_f] */
 } est_rls_t;
 
 void est_rls_init(est_rls_t *e, const est_cfg_t *cfg);

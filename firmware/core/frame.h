@@ -11,18 +11,19 @@
 
 #include "proto_gen.h"
 
-#define FRAME_CRC_INIT 0xFFFFu
-#define FRAME_MAX_RAW (PROTO_MAX_PAYLOAD + 4u)          /* id, seq, payload, crc_hi, crc_lo */
-#define FRAME_MAX_ENCODED (FRAME_MAX_RAW + FRAME_MAX_RAW / 254u + 2u)  /* + COBS codes + 0x00 */
+#define FRAME_CRC_INIT    0xFFFFu
+#define FRAME_MAX_RAW     (PROTO_MAX_PAYLOAD + 4u) /* id, seq, payload, crc_hi, crc_lo */
+#define FRAME_MAX_ENCODED (FRAME_MAX_RAW + FRAME_MAX_RAW / 254u + 2u) /* + COBS codes + 0x00 */
 
 /* frame_parser_push results */
-#define FRAME_NONE 0          /* nothing complete yet (or an empty frame between two 0x00) */
-#define FRAME_OK 1            /* a good frame: msg_id, seq, payload, payload_len are valid */
-#define FRAME_ERR_CRC (-1)    /* CRC mismatch */
-#define FRAME_ERR_COBS (-2)   /* the frame ended inside a COBS block */
-#define FRAME_ERR_LEN (-3)    /* over FRAME_MAX_RAW octets (skipped up to the next 0x00), or a known
+#define FRAME_NONE     0    /* nothing complete yet (or an empty frame between two 0x00) */
+#define FRAME_OK       1    /* a good frame: msg_id, seq, payload, payload_len are valid */
+#define FRAME_ERR_CRC  (-1) /* CRC mismatch */
+#define FRAME_ERR_COBS (-2) /* the frame ended inside a COBS block */
+#define FRAME_ERR_LEN                                                                              \
+    (-3)                     /* over FRAME_MAX_RAW octets (skipped up to the next 0x00), or a known
                                * message id with a payload length other than PROTO_LEN_x */
-#define FRAME_ERR_SHORT (-4)  /* fewer than 4 decoded octets (id, seq, crc) */
+#define FRAME_ERR_SHORT (-4) /* fewer than 4 decoded octets (id, seq, crc) */
 
 /* CRC-16/CCITT-FALSE of n octets (check value: "123456789" -> 0x29B1). */
 uint16_t frame_crc16(const uint16_t *d, uint16_t n);
@@ -35,20 +36,20 @@ uint16_t frame_encode(uint16_t msg_id, uint16_t seq, const uint16_t *payload, ui
 
 typedef struct {
     /* decoder state */
-    uint16_t buf[FRAME_MAX_RAW];  /* decoded octets of the current frame */
-    uint16_t len;                 /* decoded octets so far */
-    uint16_t block_code;          /* COBS code of the current block; 0 before the first one */
-    uint16_t block_left;          /* data octets left in the current block; 0: next octet is a code */
-    uint16_t crc;                 /* running CRC over buf[0..len) */
-    bool skipping;                /* after an overflow: ignore octets up to the next 0x00 */
+    uint16_t buf[FRAME_MAX_RAW]; /* decoded octets of the current frame */
+    uint16_t len;                /* decoded octets so far */
+    uint16_t block_code;         /* COBS code of the current block; 0 before the first one */
+    uint16_t block_left; /* data octets left in the current block; 0: next octet is a code */
+    uint16_t crc;        /* running CRC over buf[0..len) */
+    bool skipping;       /* after an overflow: ignore octets up to the next 0x00 */
     /* the last good frame: valid after FRAME_OK until the next push */
     uint16_t msg_id;
     uint16_t seq;
-    const uint16_t *payload;      /* points into buf */
+    const uint16_t *payload; /* points into buf */
     uint16_t payload_len;
     /* statistics since init */
     uint32_t frames_ok;
-    uint32_t frames_bad;          /* err_crc + err_cobs + err_len + err_short */
+    uint32_t frames_bad; /* err_crc + err_cobs + err_len + err_short */
     uint32_t err_crc;
     uint32_t err_cobs;
     uint32_t err_len;

@@ -20,14 +20,38 @@ bool fw_active(const fw_t *f)
     return f->state == PROTO_STATE_RUNNING || f->state == PROTO_STATE_STOPPING;
 }
 
-uint32_t fw_tick(const fw_t *f) { return f->tick; }
-uint32_t fw_isr_count(const fw_t *f) { return f->isr_count; }
-uint32_t fw_heartbeat_isr(const fw_t *f) { return f->hb_isr; }
-uint16_t fw_state(const fw_t *f) { return f->state; }
-uint32_t fw_tx_dropped(const fw_t *f) { return f->link.tx.dropped; }
-uint16_t fw_tx_level(const fw_t *f) { return f->link.tx.level; }
-can_link_t *fw_can(fw_t *f) { return &f->link.can; }
-uint16_t fw_can_tx_level(const fw_t *f) { return can_link_tx_level(&f->link.can); }
+uint32_t fw_tick(const fw_t *f)
+{
+    return f->tick;
+}
+uint32_t fw_isr_count(const fw_t *f)
+{
+    return f->isr_count;
+}
+uint32_t fw_heartbeat_isr(const fw_t *f)
+{
+    return f->hb_isr;
+}
+uint16_t fw_state(const fw_t *f)
+{
+    return f->state;
+}
+uint32_t fw_tx_dropped(const fw_t *f)
+{
+    return f->link.tx.dropped;
+}
+uint16_t fw_tx_level(const fw_t *f)
+{
+    return f->link.tx.level;
+}
+can_link_t *fw_can(fw_t *f)
+{
+    return &f->link.can;
+}
+uint16_t fw_can_tx_level(const fw_t *f)
+{
+    return can_link_tx_level(&f->link.can);
+}
 
 uint16_t fw_segment(const fw_t *f, bool *begun)
 {
@@ -70,7 +94,7 @@ void fw_trip(fw_t *f, uint16_t fault_bits)
 {
     f->faults = (uint16_t)(f->faults | fault_bits);
     fw_raise(f, PROTO_EVENT_FAULT, (int32_t)fault_bits);
-    if (capture_freeze(&f->cap)) {   /* the whole buffer leads up to the fault */
+    if (capture_freeze(&f->cap)) { /* the whole buffer leads up to the fault */
         fw_raise(f, PROTO_EVENT_CAPTURE_TRIGGERED, -1);
     }
     fw_pwm_off(f, PROTO_STATE_FAULT, PROTO_STOP_REASON_FAULT);
@@ -144,8 +168,8 @@ static void init_stages(fw_t *f)
         }
     }
     /* the encoder count is the floor of the angle: half a count (electrical) of mean lag */
-    ic.angle_bias_rad = c->enc_counts > 0u ?
-                        FW_PI_F * (float)f->motor.pole_pairs / (float)c->enc_counts : 0.0f;
+    ic.angle_bias_rad =
+        c->enc_counts > 0u ? FW_PI_F * (float)f->motor.pole_pairs / (float)c->enc_counts : 0.0f;
     ident_init(&f->ident, &ic);
     memset(&f->seg, 0, sizeof(f->seg));
 }
@@ -301,7 +325,7 @@ static void stage_profile(fw_t *f, float *speed_ref_rpm, float *load_nm)
         }
     }
     f->seg.identify_r = false;
-    f->seg.hold = true;   /* no identification while stopping */
+    f->seg.hold = true; /* no identification while stopping */
     f->seg.inject_a = 0.0f;
     /* stopping: quick-stop ramp to zero, load released */
     *speed_ref_rpm = ramp_step(&f->stop.ramp, 0.0f);
@@ -321,7 +345,8 @@ static void stage_current_refs(fw_t *f, float speed_ref_rpm)
         f->sig.i_q_ref_a = 0.0f;
     } else if (f->speed_div_count >= f->ctrl.speed_div) {
         f->speed_div_count = 0u;
-        f->i_s_ref_a = speed_pi_step(&f->spi, speed_ref_rpm / FW_RPM_PER_RAD_S, f->ang.omega_m_rad_s);
+        f->i_s_ref_a =
+            speed_pi_step(&f->spi, speed_ref_rpm / FW_RPM_PER_RAD_S, f->ang.omega_m_rad_s);
         mtpa_split(&f->motor, f->ctrl.current_ref, f->i_s_ref_a, &idq_ref);
         f->i_d_base_a = idq_ref.d;
         f->sig.i_q_ref_a = idq_ref.q;
@@ -418,7 +443,7 @@ static void period(fw_t *f, const fw_meas_t *m, fw_cmd_t *cmd)
         check_heartbeat(f);
         stage_profile(f, &speed_ref_rpm, &load_nm);
     }
-    if (!fw_active(f)) {   /* a fault, or the profile's end */
+    if (!fw_active(f)) { /* a fault, or the profile's end */
         fw_send_telemetry(f);
         f->tick++;
         return;
@@ -434,7 +459,9 @@ static void period(fw_t *f, const fw_meas_t *m, fw_cmd_t *cmd)
     f->tick++;
     if (stop_finished(f)) {
         cmd->pwm_on = false;
-        fw_pwm_off(f, f->stop_reason == PROTO_STOP_REASON_PROFILE_END ? PROTO_STATE_DONE : PROTO_STATE_IDLE,
+        fw_pwm_off(f,
+                   f->stop_reason == PROTO_STOP_REASON_PROFILE_END ? PROTO_STATE_DONE
+                                                                   : PROTO_STATE_IDLE,
                    f->stop_reason);
     }
 }

@@ -34,13 +34,14 @@
 #define FW_VERSION_PATCH 0u
 
 typedef struct {
-    uint16_t board;          /* PROTO_BOARD_* */
-    uint16_t can_node;       /* CAN node ID 0..15 (docs/can.md) */
+    uint16_t board;    /* PROTO_BOARD_* */
+    uint16_t can_node; /* CAN node ID 0..15 (docs/can.md) */
 } fw_cfg_t;
 
 /* Board hook for messages the core does not know (the sim board's sim-only h2d messages):
  * returns an ack status (PROTO_ACK_STATUS_*). Set with fw_set_board_hook after fw_init. */
-typedef uint16_t (*fw_board_msg_fn)(void *ctx, uint16_t msg_id, const uint16_t *payload, uint16_t n);
+typedef uint16_t (*fw_board_msg_fn)(void *ctx, uint16_t msg_id, const uint16_t *payload,
+                                    uint16_t n);
 
 /* Fault limits beyond the motor struct (config_motor). */
 typedef struct {
@@ -67,14 +68,14 @@ typedef struct {
     uint16_t frame_buf[2u * PROTO_MAX_PAYLOAD + 16u];
     uint16_t payload_buf[PROTO_MAX_PAYLOAD + 4u];
     can_link_t can;
-    uint16_t link;           /* FW_LINK_x: where replies go, the link of the last hello */
+    uint16_t link; /* FW_LINK_x: where replies go, the link of the last hello */
 } fw_link_t;
 
 /* The quick stop: speed reference ramp to zero, then PWM off. */
 typedef struct {
     ramp_t ramp;
-    uint32_t ticks;          /* periods since the stop began */
-    uint32_t hold_ticks;     /* periods at zero reference and (nearly) zero speed */
+    uint32_t ticks;      /* periods since the stop began */
+    uint32_t hold_ticks; /* periods at zero reference and (nearly) zero speed */
 } fw_stop_t;
 
 typedef struct {
@@ -84,34 +85,34 @@ typedef struct {
     proto_config_ctrl_t ctrl;
     bool have_motor, have_ctrl;
 
-    uint16_t state;          /* PROTO_STATE_* */
-    uint16_t faults;         /* PROTO_FAULT_* bits */
-    uint16_t stop_reason;    /* arg of the stopped event (PROTO_STOP_REASON_*) */
-    uint32_t tick;           /* control periods since start */
-    uint32_t isr_count;      /* free-running */
-    uint32_t hb_isr;         /* isr_count at the last heartbeat */
+    uint16_t state;       /* PROTO_STATE_* */
+    uint16_t faults;      /* PROTO_FAULT_* bits */
+    uint16_t stop_reason; /* arg of the stopped event (PROTO_STOP_REASON_*) */
+    uint32_t tick;        /* control periods since start */
+    uint32_t isr_count;   /* free-running */
+    uint32_t hb_isr;      /* isr_count at the last heartbeat */
     bool hb_lost;
 
     /* the pipeline's stages */
-    profile_exec_t prof;     /* references */
-    ident_seg_t seg;         /* the running segment as the identification sees it */
-    enc_t enc;               /* measure: the encoder (truth), when fitted */
+    profile_exec_t prof; /* references */
+    ident_seg_t seg;     /* the running segment as the identification sees it */
+    enc_t enc;           /* measure: the encoder (truth), when fitted */
     enc_out_t enc_out;
-    angle_t angle;           /* angle slot */
+    angle_t angle; /* angle slot */
     angle_out_t ang;
     speed_pi_t spi;
     float i_s_ref_a;
-    float i_d_base_a;        /* d-current reference before the excitation */
+    float i_d_base_a; /* d-current reference before the excitation */
     uint16_t speed_div_count;
     dither_t dither;
-    cc_t cc;                 /* current-control slot */
+    cc_t cc; /* current-control slot */
     cc_out_t cc_out;
-    ident_t ident;           /* estimators */
+    ident_t ident; /* estimators */
     capture_t cap;
     fw_stop_t stop;
-    fw_signals_t sig;        /* telemetry */
-    evq_t events;            /* raised during the period, sent at its end */
-    bool status_due;         /* a status frame follows the period's events */
+    fw_signals_t sig; /* telemetry */
+    evq_t events;     /* raised during the period, sent at its end */
+    bool status_due;  /* a status frame follows the period's events */
 
     fw_board_msg_fn board_msg;
     void *board_ctx;
@@ -125,23 +126,23 @@ bool fw_tx_pop(fw_t *f, uint16_t *octet);
 uint16_t fw_tx_pop_n(fw_t *f, uint16_t *out, uint16_t max);
 /* Queue a frame from the board (e.g. the sim board's truth frames) on the same link. */
 bool fw_send(fw_t *f, uint16_t msg_id, const uint16_t *payload, uint16_t n);
-bool fw_active(const fw_t *f);   /* running or stopping: the board must run the control ISR */
+bool fw_active(const fw_t *f); /* running or stopping: the board must run the control ISR */
 /* CAN: a received frame (data: dlc octets), and the next frame for the controller to send. */
 #define FW_LINK_SERIAL 0u
-#define FW_LINK_CAN 1u
+#define FW_LINK_CAN    1u
 void fw_can_rx(fw_t *f, uint16_t id, const uint16_t *data, uint16_t dlc);
 void fw_set_board_hook(fw_t *f, fw_board_msg_fn fn, void *ctx);
 
 /* Accessors for boards. */
-uint32_t fw_tick(const fw_t *f);              /* control periods since the run started */
-uint32_t fw_isr_count(const fw_t *f);         /* control periods since fw_init */
-uint32_t fw_heartbeat_isr(const fw_t *f);     /* fw_isr_count at the last heartbeat */
-uint16_t fw_state(const fw_t *f);             /* PROTO_STATE_* */
-uint16_t fw_segment(const fw_t *f, bool *begun);   /* running segment; *begun: the profile started */
+uint32_t fw_tick(const fw_t *f);                 /* control periods since the run started */
+uint32_t fw_isr_count(const fw_t *f);            /* control periods since fw_init */
+uint32_t fw_heartbeat_isr(const fw_t *f);        /* fw_isr_count at the last heartbeat */
+uint16_t fw_state(const fw_t *f);                /* PROTO_STATE_* */
+uint16_t fw_segment(const fw_t *f, bool *begun); /* running segment; *begun: the profile started */
 const proto_config_ctrl_t *fw_ctrl(const fw_t *f); /* the accepted config_ctrl, NULL before one */
-uint32_t fw_tx_dropped(const fw_t *f);        /* messages the link could not queue */
-uint16_t fw_tx_level(const fw_t *f);          /* octets queued for the UART */
-uint16_t fw_can_tx_level(const fw_t *f);      /* CAN frames queued for the controller */
-can_link_t *fw_can(fw_t *f);                  /* the CAN link's transmit side (the board's controller) */
+uint32_t fw_tx_dropped(const fw_t *f);             /* messages the link could not queue */
+uint16_t fw_tx_level(const fw_t *f);               /* octets queued for the UART */
+uint16_t fw_can_tx_level(const fw_t *f);           /* CAN frames queued for the controller */
+can_link_t *fw_can(fw_t *f); /* the CAN link's transmit side (the board's controller) */
 
 #endif

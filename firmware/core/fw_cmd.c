@@ -16,7 +16,7 @@ static bool finite_f(float x)
 
 static bool within(float x, float lo, float hi)
 {
-    return x >= lo && x <= hi;   /* false for NaN */
+    return x >= lo && x <= hi; /* false for NaN */
 }
 
 static uint16_t cmd_config_motor(fw_t *f, const uint16_t *p, uint16_t n)
@@ -30,9 +30,9 @@ static uint16_t cmd_config_motor(fw_t *f, const uint16_t *p, uint16_t n)
     }
     if (m.pole_pairs == 0u || !within(m.r_s_ohm, 1e-6f, 1e3f) || !within(m.l_d_h, 1e-9f, 10.0f) ||
         !within(m.l_q_h, 1e-9f, 10.0f) || !within(m.psi_f_wb, 0.0f, 100.0f) ||
-        !within(m.j_kgm2, 1e-9f, 1e3f) || !(m.i_max_a > 0.0f) ||
-        !(m.i_trip_a > m.i_max_a) || !within(m.i_trip_a, 0.0f, FW_I_TRIP_MAX_A) ||
-        !(m.speed_max_rpm > 0.0f) || !(m.speed_trip_rpm > m.speed_max_rpm) ||
+        !within(m.j_kgm2, 1e-9f, 1e3f) || !(m.i_max_a > 0.0f) || !(m.i_trip_a > m.i_max_a) ||
+        !within(m.i_trip_a, 0.0f, FW_I_TRIP_MAX_A) || !(m.speed_max_rpm > 0.0f) ||
+        !(m.speed_trip_rpm > m.speed_max_rpm) ||
         !within(m.speed_trip_rpm, 0.0f, FW_SPEED_TRIP_MAX_RPM) ||
         !within(m.v_dc_min_v, 0.0f, FW_V_DC_MAX_V) || !(m.v_dc_max_v > m.v_dc_min_v) ||
         !within(m.v_dc_max_v, 0.0f, FW_V_DC_MAX_V)) {
@@ -68,14 +68,16 @@ static uint16_t cmd_config_ctrl(fw_t *f, const uint16_t *p, uint16_t n)
         !within(c.speed_obs_bw_rad_s, 1e-3f, FW_GAIN_MAX) || !finite_f(c.enc_offset_e_rad) ||
         !within(c.enc_offset_e_rad, -7.0f, 7.0f) || !within(c.dead_time_s, 0.0f, 1e-4f) ||
         !within(c.v_drop_v, 0.0f, 100.0f) || !within(c.i_dt_a, 0.0f, 100.0f) ||
-        !within(c.speed_kp_a_per_rad_s, 0.0f, FW_GAIN_MAX) || !within(c.speed_ki_a_per_rad, 0.0f, FW_GAIN_MAX) ||
-        c.current_ref > PROTO_CURRENT_REF_MTPA || !cc_kind_known(c.current_ctrl) || !angle_src_known(c.angle_src) ||
-        c.capture_pre >= CAPTURE_LEN || c.speed_kp_a_per_rad_s < 0.0f || c.speed_ki_a_per_rad < 0.0f ||
-        c.identify > 1u || c.predictor > PROTO_ESTIMATOR_NLMS_ADALINE ||
-        (c.identify != 0u && c.id_window < 2u) || !(c.pred_scale_l_d > 0.0f) ||
-        !(c.pred_scale_l_q > 0.0f) || !(c.pred_scale_psi_f >= 0.0f) || !(c.pred_scale_r_s >= 0.0f) ||
-        !(c.pred_scale_l_d <= 100.0f && c.pred_scale_l_q <= 100.0f && c.pred_scale_psi_f <= 100.0f &&
-          c.pred_scale_r_s <= 100.0f)) {
+        !within(c.speed_kp_a_per_rad_s, 0.0f, FW_GAIN_MAX) ||
+        !within(c.speed_ki_a_per_rad, 0.0f, FW_GAIN_MAX) ||
+        c.current_ref > PROTO_CURRENT_REF_MTPA || !cc_kind_known(c.current_ctrl) ||
+        !angle_src_known(c.angle_src) || c.capture_pre >= CAPTURE_LEN ||
+        c.speed_kp_a_per_rad_s < 0.0f || c.speed_ki_a_per_rad < 0.0f || c.identify > 1u ||
+        c.predictor > PROTO_ESTIMATOR_NLMS_ADALINE || (c.identify != 0u && c.id_window < 2u) ||
+        !(c.pred_scale_l_d > 0.0f) || !(c.pred_scale_l_q > 0.0f) || !(c.pred_scale_psi_f >= 0.0f) ||
+        !(c.pred_scale_r_s >= 0.0f) ||
+        !(c.pred_scale_l_d <= 100.0f && c.pred_scale_l_q <= 100.0f &&
+          c.pred_scale_psi_f <= 100.0f && c.pred_scale_r_s <= 100.0f)) {
         return PROTO_ACK_STATUS_BAD_VALUE;
     }
     f->ctrl = c;
@@ -93,10 +95,11 @@ static uint16_t cmd_profile_segment(fw_t *f, const uint16_t *p, uint16_t n)
     if (fw_active(f)) {
         return PROTO_ACK_STATUS_BUSY;
     }
-    if (!within(s.duration_s, 0.0f, PROFILE_SEGMENT_MAX_S) || !within(s.speed_rpm, -FW_SPEED_TRIP_MAX_RPM, FW_SPEED_TRIP_MAX_RPM) ||
+    if (!within(s.duration_s, 0.0f, PROFILE_SEGMENT_MAX_S) ||
+        !within(s.speed_rpm, -FW_SPEED_TRIP_MAX_RPM, FW_SPEED_TRIP_MAX_RPM) ||
         !within(s.ramp_rpm_s, 0.0f, 1e7f) || !within(s.load_nm, -FW_LOAD_MAX_NM, FW_LOAD_MAX_NM) ||
         !within(s.inject_hz, 0.0f, 1e4f) || !finite_f(s.inject_a)) {
-        return PROTO_ACK_STATUS_BAD_VALUE;   /* NaN, infinite or beyond any motor */
+        return PROTO_ACK_STATUS_BAD_VALUE; /* NaN, infinite or beyond any motor */
     }
     if (f->have_motor && !(fabsf(s.speed_rpm) <= f->motor.speed_max_rpm)) {
         return PROTO_ACK_STATUS_BAD_VALUE;
@@ -109,7 +112,8 @@ static uint16_t cmd_profile_segment(fw_t *f, const uint16_t *p, uint16_t n)
     seg.kind = s.kind;
     seg.inject_a = s.inject_a;
     seg.inject_hz = s.inject_hz;
-    if (s.kind > PROFILE_KIND_IDENTIFY_R || !(s.inject_hz >= 0.0f) || !(fabsf(s.inject_a) <= 1e3f) ||
+    if (s.kind > PROFILE_KIND_IDENTIFY_R || !(s.inject_hz >= 0.0f) ||
+        !(fabsf(s.inject_a) <= 1e3f) ||
         (s.kind == PROFILE_KIND_IDENTIFY_R && (s.speed_rpm != 0.0f || !(s.inject_a != 0.0f)))) {
         return PROTO_ACK_STATUS_BAD_VALUE;
     }
@@ -172,7 +176,7 @@ static void handle_frame(fw_t *f, uint16_t id, uint16_t seq, const uint16_t *p, 
         if (f->state == PROTO_STATE_RUNNING) {
             fw_enter_stopping(f, PROTO_STOP_REASON_HOST_STOP);
         } else if (!fw_active(f)) {
-            st = PROTO_ACK_STATUS_OK;   /* already stopped: idempotent */
+            st = PROTO_ACK_STATUS_OK; /* already stopped: idempotent */
         }
         break;
     case PROTO_ID_ABORT:
@@ -184,7 +188,8 @@ static void handle_frame(fw_t *f, uint16_t id, uint16_t seq, const uint16_t *p, 
         st = f->board_msg != 0 ? f->board_msg(f->board_ctx, id, p, n) : PROTO_ACK_STATUS_UNKNOWN;
         break;
     }
-    fw_flush(f);   /* what the command raised (abort: the stopped event and status) precedes its ack */
+    fw_flush(
+        f); /* what the command raised (abort: the stopped event and status) precedes its ack */
     fw_send_ack(f, id, seq, st);
 }
 
@@ -193,7 +198,8 @@ void fw_can_rx(fw_t *f, uint16_t id, const uint16_t *data, uint16_t dlc)
     int16_t r = can_link_rx(&f->link.can, id, data, dlc);
     if (r == CAN_RX_MSG) {
         f->link.link = f->link.can.msg_id == PROTO_ID_HELLO ? FW_LINK_CAN : f->link.link;
-        handle_frame(f, f->link.can.msg_id, f->link.can.seq, f->link.can.payload, f->link.can.payload_len);
+        handle_frame(f, f->link.can.msg_id, f->link.can.seq, f->link.can.payload,
+                     f->link.can.payload_len);
     } else if (r < 0) {
         f->link.rx_bad++;
     }
@@ -204,7 +210,8 @@ void fw_rx_octet(fw_t *f, uint16_t octet)
     int16_t r = frame_parser_push(&f->link.rx, octet);
     if (r == FRAME_OK) {
         f->link.link = f->link.rx.msg_id == PROTO_ID_HELLO ? FW_LINK_SERIAL : f->link.link;
-        handle_frame(f, f->link.rx.msg_id, f->link.rx.seq, f->link.rx.payload, f->link.rx.payload_len);
+        handle_frame(f, f->link.rx.msg_id, f->link.rx.seq, f->link.rx.payload,
+                     f->link.rx.payload_len);
     } else if (r < 0) {
         f->link.rx_bad++;
     }
@@ -219,4 +226,3 @@ uint16_t fw_tx_pop_n(fw_t *f, uint16_t *out, uint16_t max)
 {
     return txq_pop_n(&f->link.tx, out, max);
 }
-

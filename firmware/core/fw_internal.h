@@ -8,31 +8,31 @@
 #include "fw.h"
 
 /* Hard ceilings on what the host may configure (fw_cmd.c): whatever it sends, the protection stays on */
-#define FW_HEARTBEAT_MAX_S 10.0f     /* the heartbeat timeout cannot be switched off or made longer */
-#define FW_I_TRIP_MAX_A 2000.0f      /* over-current trip level */
+#define FW_HEARTBEAT_MAX_S 10.0f   /* the heartbeat timeout cannot be switched off or made longer */
+#define FW_I_TRIP_MAX_A    2000.0f /* over-current trip level */
 #define FW_SPEED_TRIP_MAX_RPM 100000.0f
-#define FW_V_DC_MAX_V 2000.0f
-#define FW_LOAD_MAX_NM 10000.0f
-#define FW_GAIN_MAX 1.0e7f           /* speed PI gains, observer bandwidth */
+#define FW_V_DC_MAX_V         2000.0f
+#define FW_LOAD_MAX_NM        10000.0f
+#define FW_GAIN_MAX           1.0e7f /* speed PI gains, observer bandwidth */
 
-#define FW_STOP_RAMP_RPM_S 3000.0f   /* quick-stop deceleration */
-#define FW_STOP_SPEED_RPM 3.0f       /* below this, with the reference at zero, PWM goes off */
-#define FW_STOP_HOLD_S 0.05f         /* zero reference held this long before PWM off */
-#define FW_STOP_TIMEOUT_S 3.0f       /* PWM off after this long in any case */
-#define FW_RPM_PER_RAD_S 9.549296585513720f
-#define FW_SPEED_REF_WEIGHT 0.7f     /* set-point weight of the speed PI's proportional path */
-#define FW_DITHER_PERIOD 22u         /* q-current dither: not a divisor of the speed-loop period */
-#define FW_DITHER_GAIN 0.6f          /* peak-to-peak, as a fraction of one vector's current step */
+#define FW_STOP_RAMP_RPM_S  3000.0f /* quick-stop deceleration */
+#define FW_STOP_SPEED_RPM   3.0f    /* below this, with the reference at zero, PWM goes off */
+#define FW_STOP_HOLD_S      0.05f   /* zero reference held this long before PWM off */
+#define FW_STOP_TIMEOUT_S   3.0f    /* PWM off after this long in any case */
+#define FW_RPM_PER_RAD_S    9.549296585513720f
+#define FW_SPEED_REF_WEIGHT 0.7f /* set-point weight of the speed PI's proportional path */
+#define FW_DITHER_PERIOD    22u  /* q-current dither: not a divisor of the speed-loop period */
+#define FW_DITHER_GAIN      0.6f /* peak-to-peak, as a fraction of one vector's current step */
 
 /* fw.c */
-void fw_raise(fw_t *f, uint16_t code, int32_t arg);   /* an event, sent at the end of the period */
+void fw_raise(fw_t *f, uint16_t code, int32_t arg); /* an event, sent at the end of the period */
 void fw_enter_stopping(fw_t *f, uint16_t reason);
 void fw_pwm_off(fw_t *f, uint16_t new_state, uint16_t reason);
 void fw_trip(fw_t *f, uint16_t fault_bits);
 uint16_t fw_start_run(fw_t *f);
 
 /* fw_msg.c */
-void fw_flush(fw_t *f);   /* the raised events in order, then the status frame if one is due */
+void fw_flush(fw_t *f); /* the raised events in order, then the status frame if one is due */
 void fw_send_ack(fw_t *f, uint16_t cmd_id, uint16_t cmd_seq, uint16_t status);
 void fw_send_identify(fw_t *f);
 void fw_send_capture_chunk(fw_t *f, uint16_t offset);

@@ -10,14 +10,16 @@
 
 bool fw_send(fw_t *f, uint16_t msg_id, const uint16_t *payload, uint16_t n)
 {
-    if (f->link.link == FW_LINK_CAN) {   /* docs/can.md: whole messages queued as frames, or dropped */
+    if (f->link.link ==
+        FW_LINK_CAN) { /* docs/can.md: whole messages queued as frames, or dropped */
         bool ok = can_link_send(&f->link.can, msg_id, f->link.tx_seq, payload, n);
         f->link.tx_seq = (uint16_t)((f->link.tx_seq + 1u) & 0xFFu);
         f->link.tx.dropped += ok ? 0u : 1u;
         return ok;
     }
-    uint16_t len = frame_encode(msg_id, f->link.tx_seq, payload, n, f->link.frame_buf,
-                                (uint16_t)(sizeof(f->link.frame_buf) / sizeof(f->link.frame_buf[0])));
+    uint16_t len =
+        frame_encode(msg_id, f->link.tx_seq, payload, n, f->link.frame_buf,
+                     (uint16_t)(sizeof(f->link.frame_buf) / sizeof(f->link.frame_buf[0])));
     f->link.tx_seq = (uint16_t)((f->link.tx_seq + 1u) & 0xFFu);
     if (len == 0u) {
         f->link.tx.dropped++;
@@ -104,7 +106,6 @@ void fw_send_capture_chunk(fw_t *f, uint16_t offset)
     (void)fw_send(f, PROTO_ID_CAPTURE_CHUNK, f->link.payload_buf, n);
 }
 
-
 /* ------------------------------------------------------------------ telemetry */
 
 void fw_send_status(fw_t *f)
@@ -150,9 +151,11 @@ void fw_send_params(fw_t *f, uint16_t slot)
         est_out_t o;
         ident_report(&f->ident, (uint16_t)(slot - 1u), &o);
         pm.estimator = slot;
-        pm.flags = (uint16_t)((o.excited ? PROTO_PARAMS_FLAG_EXCITED : 0u) |
-                              (o.converged ? PROTO_PARAMS_FLAG_CONVERGED : 0u) |
-                              ((!nominal_feeds && c->predictor == slot) ? PROTO_PARAMS_FLAG_FEEDS_PREDICTOR : 0u));
+        pm.flags =
+            (uint16_t)((o.excited ? PROTO_PARAMS_FLAG_EXCITED : 0u) |
+                       (o.converged ? PROTO_PARAMS_FLAG_CONVERGED : 0u) |
+                       ((!nominal_feeds && c->predictor == slot) ? PROTO_PARAMS_FLAG_FEEDS_PREDICTOR
+                                                                 : 0u));
         pm.l_d_h = o.l_d_h;
         pm.l_q_h = o.l_q_h;
         pm.psi_f_wb = o.psi_f_wb;
@@ -201,4 +204,3 @@ void fw_send_telemetry(fw_t *f)
         fw_send_status(f);
     }
 }
-

@@ -17,23 +17,23 @@
 
 /* One regression sample: window means (SI units). */
 typedef struct {
-    float t_window_s;                 /* window length T */
-    float u_d_v, u_q_v;               /* mean period-average voltages */
-    float i_d_a, i_q_a;               /* trapezoidal mean currents */
-    float omega_e_rad_s;              /* mean electrical speed */
+    float t_window_s;                   /* window length T */
+    float u_d_v, u_q_v;                 /* mean period-average voltages */
+    float i_d_a, i_q_a;                 /* trapezoidal mean currents */
+    float omega_e_rad_s;                /* mean electrical speed */
     float w_i_d_a_rad_s, w_i_q_a_rad_s; /* means of w i_d, w i_q */
-    float di_d_a_s, di_q_a_s;         /* (i(end) - i(start)) / T */
+    float di_d_a_s, di_q_a_s;           /* (i(end) - i(start)) / T */
 } id_sample_t;
 
 typedef struct {
-    uint16_t n_periods;   /* periods per window (>= 2) */
-    float ts_s;           /* control period */
+    uint16_t n_periods; /* periods per window (>= 2) */
+    float ts_s;         /* control period */
 } idw_cfg_t;
 
 typedef struct {
-    float i_d_a, i_q_a;       /* sampled at k */
-    float u_d_v, u_q_v;       /* period-average voltage over [k, k+1) (mpcc_out u_d_avg_v/u_q_avg_v) */
-    float omega_e_rad_s;      /* at k */
+    float i_d_a, i_q_a;  /* sampled at k */
+    float u_d_v, u_q_v;  /* period-average voltage over [k, k+1) (mpcc_out u_d_avg_v/u_q_avg_v) */
+    float omega_e_rad_s; /* at k */
 } idw_in_t;
 
 typedef struct {
@@ -45,7 +45,7 @@ typedef struct {
 } idw_t;
 
 void idw_init(idw_t *w, const idw_cfg_t *cfg);
-void idw_reset(idw_t *w);     /* discard the running window (PWM off, mode change) */
+void idw_reset(idw_t *w); /* discard the running window (PWM off, mode change) */
 /* Adds period k; returns true (and fills *out) when a window closed at this sample. */
 bool idw_step(idw_t *w, const idw_in_t *in, id_sample_t *out);
 

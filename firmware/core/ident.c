@@ -6,19 +6,46 @@
 
 /* ------------------------------------------------------------------ operations table */
 
-static void rls_init(void *e, const est_cfg_t *c) { est_rls_init((est_rls_t *)e, c); }
-static void rls_set_r(void *e, float r) { est_rls_set_r((est_rls_t *)e, r); }
-static void rls_step(void *e, const id_sample_t *s, est_out_t *o) { est_rls_step((est_rls_t *)e, s, o); }
-static void ada_init(void *e, const est_cfg_t *c) { est_adaline_init((est_adaline_t *)e, c); }
-static void ada_set_r(void *e, float r) { est_adaline_set_r((est_adaline_t *)e, r); }
-static void ada_step(void *e, const id_sample_t *s, est_out_t *o) { est_adaline_step((est_adaline_t *)e, s, o); }
-static void nlms_init(void *e, const est_cfg_t *c) { est_nlms_init((est_nlms_t *)e, c); }
-static void nlms_set_r(void *e, float r) { est_nlms_set_r((est_nlms_t *)e, r); }
-static void nlms_step(void *e, const id_sample_t *s, est_out_t *o) { est_nlms_step((est_nlms_t *)e, s, o); }
+static void rls_init(void *e, const est_cfg_t *c)
+{
+    est_rls_init((est_rls_t *)e, c);
+}
+static void rls_set_r(void *e, float r)
+{
+    est_rls_set_r((est_rls_t *)e, r);
+}
+static void rls_step(void *e, const id_sample_t *s, est_out_t *o)
+{
+    est_rls_step((est_rls_t *)e, s, o);
+}
+static void ada_init(void *e, const est_cfg_t *c)
+{
+    est_adaline_init((est_adaline_t *)e, c);
+}
+static void ada_set_r(void *e, float r)
+{
+    est_adaline_set_r((est_adaline_t *)e, r);
+}
+static void ada_step(void *e, const id_sample_t *s, est_out_t *o)
+{
+    est_adaline_step((est_adaline_t *)e, s, o);
+}
+static void nlms_init(void *e, const est_cfg_t *c)
+{
+    est_nlms_init((est_nlms_t *)e, c);
+}
+static void nlms_set_r(void *e, float r)
+{
+    est_nlms_set_r((est_nlms_t *)e, r);
+}
+static void nlms_step(void *e, const id_sample_t *s, est_out_t *o)
+{
+    est_nlms_step((est_nlms_t *)e, s, o);
+}
 
-static const est_ops_t k_ops_rls = {rls_init, rls_set_r, rls_step};
-static const est_ops_t k_ops_adaline = {ada_init, ada_set_r, ada_step};
-static const est_ops_t k_ops_nlms = {nlms_init, nlms_set_r, nlms_step};
+static const est_ops_t k_ops_rls = { rls_init, rls_set_r, rls_step };
+static const est_ops_t k_ops_adaline = { ada_init, ada_set_r, ada_step };
+static const est_ops_t k_ops_nlms = { nlms_init, nlms_set_r, nlms_step };
 
 /* ------------------------------------------------------------------ object */
 
@@ -108,7 +135,8 @@ float ident_d_ref(const ident_t *id, const ident_seg_t *seg, float i_d_base_a)
 }
 
 /* identify_r: the injection's windows, settling skipped; R at the segment's end. */
-static void step_injection(ident_t *id, const ident_seg_t *seg, const ident_in_t *in, ident_out_t *out)
+static void step_injection(ident_t *id, const ident_seg_t *seg, const ident_in_t *in,
+                           ident_out_t *out)
 {
     const uint32_t half = seg->ticks / 2u;
     const uint32_t t_in = seg->tick < half ? seg->tick : seg->tick - half;
@@ -127,7 +155,7 @@ static void step_injection(ident_t *id, const ident_seg_t *seg, const ident_in_t
         ri.i_c_a = in->i_c_a;
         rinj_step(&id->rinj, &ri, &id->rinj_out);
     } else {
-        rinj_gap(&id->rinj);   /* settling: the windows must not span the level change */
+        rinj_gap(&id->rinj); /* settling: the windows must not span the level change */
     }
     if (seg->tick + 1u >= seg->ticks && id->rinj_out.r_s_ohm > 0.0f) {
         id->r_ident_ohm = id->rinj_out.r_s_ohm;
@@ -182,7 +210,7 @@ void ident_step(ident_t *id, const ident_seg_t *seg, const ident_in_t *in, ident
             id->id_step_hold = IDENT_STEP_HOLD;
         }
         if (id->id_step_hold > 0u) {
-            id->idw_step_seen = true;   /* this period belongs to the running window */
+            id->idw_step_seen = true; /* this period belongs to the running window */
             id->id_step_hold--;
         }
         id->id_ref_prev_a = in->i_d_ref_a;

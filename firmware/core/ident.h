@@ -21,14 +21,15 @@
 #include "r_inject.h"
 
 /* the estimators, index = PROTO_ESTIMATOR_x - 1 */
-#define IDENT_N_EST 3u
-#define IDENT_EST_RLS 0u
+#define IDENT_N_EST       3u
+#define IDENT_EST_RLS     0u
 #define IDENT_EST_ADALINE 1u
-#define IDENT_EST_NLMS 2u
+#define IDENT_EST_NLMS    2u
 
-#define IDENT_R_SETTLE_FRAC 0.2f   /* identify_r: part of each current level skipped (settling) */
-#define IDENT_STEP_A 0.5f          /* an i_d reference step above this skips the window */
-#define IDENT_STEP_HOLD 5u         /* ... and the windows of the next periods (the controller's transient) */
+#define IDENT_R_SETTLE_FRAC 0.2f /* identify_r: part of each current level skipped (settling) */
+#define IDENT_STEP_A        0.5f /* an i_d reference step above this skips the window */
+#define IDENT_STEP_HOLD                                                                            \
+    5u /* ... and the windows of the next periods (the controller's transient) */
 
 /* One estimator behind the operations table. */
 typedef struct {
@@ -38,15 +39,15 @@ typedef struct {
 } est_ops_t;
 
 typedef struct {
-    cc_params_t nominal;       /* the motor file's values */
-    cc_params_t pred_scale;    /* predictor = nominal: nominal x these factors (profile mismatch) */
+    cc_params_t nominal;    /* the motor file's values */
+    cc_params_t pred_scale; /* predictor = nominal: nominal x these factors (profile mismatch) */
     uint16_t pole_pairs;
     float ts_s;
-    uint16_t id_window;        /* control periods per estimator window */
-    bool identify;             /* run the estimators */
-    uint16_t predictor;        /* 0: nominal; k: estimator k-1 feeds the predictor once converged */
-    bool have_injection;       /* the profile has an identify_r segment */
-    float angle_bias_rad;      /* the angle source's mean lag (the encoder's half count, electrical) */
+    uint16_t id_window;   /* control periods per estimator window */
+    bool identify;        /* run the estimators */
+    uint16_t predictor;   /* 0: nominal; k: estimator k-1 feeds the predictor once converged */
+    bool have_injection;  /* the profile has an identify_r segment */
+    float angle_bias_rad; /* the angle source's mean lag (the encoder's half count, electrical) */
 } ident_cfg_t;
 
 /* The running segment as the identification sees it. */
@@ -58,15 +59,15 @@ typedef struct {
 } ident_seg_t;
 
 typedef struct {
-    float i_d_a, i_q_a;        /* measured at k */
-    float u_d_avg_v, u_q_avg_v;/* average dq voltage applied during [k, k+1) (cc_out_t) */
+    float i_d_a, i_q_a;         /* measured at k */
+    float u_d_avg_v, u_q_avg_v; /* average dq voltage applied during [k, k+1) (cc_out_t) */
     float theta_e_rad, omega_e_rad_s;
     float i_a_a, i_b_a, i_c_a;
-    float i_d_ref_a;           /* this period's d reference (steps skip the window) */
+    float i_d_ref_a; /* this period's d reference (steps skip the window) */
 } ident_in_t;
 
 typedef struct {
-    bool r_identified_now;     /* the injection ended in this period with r_s_ohm */
+    bool r_identified_now; /* the injection ended in this period with r_s_ohm */
     float r_s_ohm;
 } ident_out_t;
 
@@ -82,12 +83,12 @@ typedef struct {
     rinj_t rinj;
     rinj_out_t rinj_out;
     bool r_identified;
-    bool r_injecting;          /* an identify_r segment is running */
+    bool r_injecting; /* an identify_r segment is running */
     float r_ident_ohm;
-    bool pred_latched;         /* the chosen estimator converged once: it feeds the predictor */
+    bool pred_latched; /* the chosen estimator converged once: it feeds the predictor */
     float id_ref_prev_a;
-    bool idw_step_seen;        /* the running window holds an i_d reference step */
-    uint16_t id_step_hold;     /* periods of current transient still to come */
+    bool idw_step_seen;    /* the running window holds an i_d reference step */
+    uint16_t id_step_hold; /* periods of current transient still to come */
 } ident_t;
 
 void ident_init(ident_t *id, const ident_cfg_t *cfg);
@@ -100,6 +101,6 @@ void ident_step(ident_t *id, const ident_seg_t *seg, const ident_in_t *in, ident
 /* Estimator slot k (0 .. IDENT_N_EST-1) as reported: its estimates, with the R the injection
  * knows while it runs, 0 before it (R unknown), then the estimator's own. */
 void ident_report(const ident_t *id, uint16_t k, est_out_t *out);
-bool ident_nominal_feeds(const ident_t *id);   /* the predictor runs on the (scaled) nominal values */
+bool ident_nominal_feeds(const ident_t *id); /* the predictor runs on the (scaled) nominal values */
 
 #endif

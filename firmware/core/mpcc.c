@@ -8,13 +8,11 @@
 
 /* alpha/beta voltage of each code (code = s_a | s_b << 1 | s_c << 2), per volt of v_dc,
  * amplitude-invariant: u_alpha = (2 s_a - s_b - s_c)/3, u_beta = (s_b - s_c)/sqrt(3). */
-static const float k_vec_alpha[8] = {
-    0.0f, 2.0f / 3.0f, -1.0f / 3.0f, 1.0f / 3.0f, -1.0f / 3.0f, 1.0f / 3.0f, -2.0f / 3.0f, 0.0f
-};
+static const float k_vec_alpha[8] = { 0.0f,         2.0f / 3.0f, -1.0f / 3.0f, 1.0f / 3.0f,
+                                      -1.0f / 3.0f, 1.0f / 3.0f, -2.0f / 3.0f, 0.0f };
 static const float k_vec_beta[8] = {
     0.0f, 0.0f, TF_INV_SQRT3_F, TF_INV_SQRT3_F, -TF_INV_SQRT3_F, -TF_INV_SQRT3_F, 0.0f, 0.0f
 };
-
 
 #define MPCC_L_MIN_H 1.0e-7f
 
@@ -316,8 +314,8 @@ void mpcc_step_cs(mpcc_t *m, const mpcc_in_t *in, float cos_th, float sin_th, mp
     /* ---- step k -> k+1 with the applied vector (delay compensation), eq. (2) corrected */
     if (comp) {
         i_d1 = in->i_d_a + g_d * (u_d1 - r * in->i_d_a + w * in->l_q_h * in->i_q_a);
-        i_q1 = in->i_q_a + g_q * (u_q1 - r * in->i_q_a - w * in->l_d_h * in->i_d_a
-                                  - w * in->psi_f_wb);
+        i_q1 =
+            in->i_q_a + g_q * (u_q1 - r * in->i_q_a - w * in->l_d_h * in->i_d_a - w * in->psi_f_wb);
     } else {
         /* uncompensated: pretend the new vector acts at once, i.e. predict one step from i(k) */
         i_d1 = in->i_d_a;

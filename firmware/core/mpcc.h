@@ -23,31 +23,33 @@
 #include "fw_types.h"
 
 /* Candidate set (cfg.cand_set). */
-#define MPCC_CAND_ALL8 0u      /* all 8 switching states (7 distinct vectors), paper A (5) */
-#define MPCC_CAND_ADJACENT 1u  /* paper A Table 1: the 3 states one switch change away */
+#define MPCC_CAND_ALL8     0u /* all 8 switching states (7 distinct vectors), paper A (5) */
+#define MPCC_CAND_ADJACENT 1u /* paper A Table 1: the 3 states one switch change away */
 
 /* Dead-time / device-drop model used in the prediction and in out->u_d_v/u_q_v (cfg.dt_model).
  * Both are off when dead_time_s == 0 and v_drop_v == 0. */
-#define MPCC_DT_SWITCHING 0u   /* default, exact for FCS: per switching event of a leg, turned on
+#define MPCC_DT_SWITCHING                                                                          \
+    0u /* default, exact for FCS: per switching event of a leg, turned on
                                   with i_x > 0 it loses v_dc dead_time, turned off with i_x < 0 it
                                   gains it (averaged over the period); plus -v_drop sign(i_x) */
-#define MPCC_DT_AVERAGE 1u     /* PWM-style average: per phase -V_dt sign(i_x),
+#define MPCC_DT_AVERAGE                                                                            \
+    1u /* PWM-style average: per phase -V_dt sign(i_x),
                                   V_dt = v_dc dead_time/ts + v_drop (assumes one on/off pair per
                                   period: over-compensates FCS switching, see docs/control.md) */
 
 /* Delay compensation (cfg.delay_comp). OFF exists for tests and comparisons only. */
-#define MPCC_DELAY_COMP_ON 0u
+#define MPCC_DELAY_COMP_ON  0u
 #define MPCC_DELAY_COMP_OFF 1u
 
 #define MPCC_K_INT_DEFAULT_RAD_S 2000.0f
-#define MPCC_INT_MAX_DEFAULT_A 1.5f
+#define MPCC_INT_MAX_DEFAULT_A   1.5f
 
 typedef struct {
-    float ts_s;          /* control period */
-    float rho;           /* q-axis weighting factor of the cost (paper A: 1) */
-    float dead_time_s;   /* inverter dead time known to the firmware (0: no compensation) */
-    float v_drop_v;      /* device on-state drop known to the firmware (0: none) */
-    float i_dt_a;        /* current band of the smooth sign sigma(i / i_dt) (0: ideal sign) */
+    float ts_s;        /* control period */
+    float rho;         /* q-axis weighting factor of the cost (paper A: 1) */
+    float dead_time_s; /* inverter dead time known to the firmware (0: no compensation) */
+    float v_drop_v;    /* device on-state drop known to the firmware (0: none) */
+    float i_dt_a;      /* current band of the smooth sign sigma(i / i_dt) (0: ideal sign) */
     /* Added options. Call mpcc_cfg_default() first, then set the fields above. (A zero-initialised
      * cfg selects the enum defaults but leaves the offset compensation off: plain paper A.)
      * Unknown enum values fall back to the defaults. */
@@ -63,47 +65,48 @@ typedef struct {
 
 typedef struct {
     mpcc_cfg_t cfg;
-    uint16_t sw_prev;    /* state chosen by the previous call = applied during the current period */
-    uint16_t sw_prev2;   /* state applied during the previous period (for the switching dead-time model) */
+    uint16_t sw_prev; /* state chosen by the previous call = applied during the current period */
+    uint16_t
+        sw_prev2; /* state applied during the previous period (for the switching dead-time model) */
     float int_d_a, int_q_a; /* offset-compensation integrators (reference shift, A) */
     /* cached reciprocals of the predictor inductances (recomputed when they change) */
     float l_d_cached_h, l_q_cached_h, inv_l_d, inv_l_q;
-    float inv_i_dt;      /* 1 / cfg.i_dt_a, 0 for the ideal sign */
+    float inv_i_dt; /* 1 / cfg.i_dt_a, 0 for the ideal sign */
 } mpcc_t;
 
 typedef struct {
-    float i_d_a, i_q_a;           /* measured at the sample instant k */
+    float i_d_a, i_q_a; /* measured at the sample instant k */
     float i_d_ref_a, i_q_ref_a;
-    float theta_e_rad;            /* electrical angle at k */
-    float omega_e_rad_s;          /* electrical speed, assumed constant over the horizon */
+    float theta_e_rad;   /* electrical angle at k */
+    float omega_e_rad_s; /* electrical speed, assumed constant over the horizon */
     float v_dc_v;
     /* predictor parameters (nominal or identified) */
     float r_s_ohm, l_d_h, l_q_h, psi_f_wb;
 } mpcc_in_t;
 
 typedef struct {
-    uint16_t s_a, s_b, s_c;       /* state chosen now: the caller applies it from k+1 on */
+    uint16_t s_a, s_b, s_c; /* state chosen now: the caller applies it from k+1 on */
     /* dq voltage (at theta_e_rad) of the vector applied during THIS period [k, k+1), i.e. chosen
      * by the previous call, including the dead-time/drop distortion as the firmware models it */
     float u_d_v, u_q_v;
-    float cost;                   /* J of the chosen state */
+    float cost; /* J of the chosen state */
     /* Added outputs */
-    uint16_t s_abc_applied;       /* code of the state applied during THIS period (what a capture
+    uint16_t s_abc_applied;     /* code of the state applied during THIS period (what a capture
                                      should log with i(k)); bit0 s_a, bit1 s_b, bit2 s_c */
-    uint16_t s_abc_next;          /* code of the chosen state (= s_a | s_b << 1 | s_c << 2) */
-    float u_d_avg_v, u_q_avg_v;   /* the same voltage rotated at theta + w Ts / 2: the dq average
+    uint16_t s_abc_next;        /* code of the chosen state (= s_a | s_b << 1 | s_c << 2) */
+    float u_d_avg_v, u_q_avg_v; /* the same voltage rotated at theta + w Ts / 2: the dq average
                                      over [k, k+1) (better for estimators at speed) */
-    float i_d_k1_a, i_q_k1_a;     /* predicted i(k+1) (for the ripple/prediction-error observers) */
-    float i_d_k2_a, i_q_k2_a;     /* predicted i(k+2) with the chosen state */
+    float i_d_k1_a, i_q_k1_a;   /* predicted i(k+1) (for the ripple/prediction-error observers) */
+    float i_d_k2_a, i_q_k2_a;   /* predicted i(k+2) with the chosen state */
 } mpcc_out_t;
 
-void mpcc_cfg_default(mpcc_cfg_t *cfg);   /* ts 50 us, rho 1, no dead-time compensation */
+void mpcc_cfg_default(mpcc_cfg_t *cfg); /* ts 50 us, rho 1, no dead-time compensation */
 void mpcc_init(mpcc_t *m, const mpcc_cfg_t *cfg);
 void mpcc_step(mpcc_t *m, const mpcc_in_t *in, mpcc_out_t *out);
 /* The same with cosf/sinf of in->theta_e_rad given (a caller that has them for its Park transform
  * saves the pair). */
 void mpcc_step_cs(mpcc_t *m, const mpcc_in_t *in, float cos_th, float sin_th, mpcc_out_t *out);
-void mpcc_reset(mpcc_t *m);   /* forget the applied state (call when the PWM was off) */
+void mpcc_reset(mpcc_t *m); /* forget the applied state (call when the PWM was off) */
 
 /* Normalised alpha/beta voltage of a switch-state code (multiply by v_dc). */
 void mpcc_vector(uint16_t code, float *u_alpha_per_vdc, float *u_beta_per_vdc);

@@ -14,7 +14,7 @@ void mtpa_split(const fw_motor_t *m, uint16_t mode, float i_s_a, fw_dq_t *out)
         const float den = psi + sqrtf(psi * psi + 8.0f * dl * dl * is2);
         float i_d, iq2;
         if (!(den > 0.0f)) {
-            return;   /* i_s = 0 and psi_f = 0 */
+            return; /* i_s = 0 and psi_f = 0 */
         }
         i_d = -2.0f * dl * is2 / den;
         iq2 = is2 - i_d * i_d;
@@ -28,6 +28,5 @@ void mtpa_split(const fw_motor_t *m, uint16_t mode, float i_s_a, fw_dq_t *out)
 
 float mtpa_torque_nm(const fw_motor_t *m, const fw_dq_t *i)
 {
-    return 1.5f * (float)m->pole_pairs *
-           (m->psi_f_wb * i->q + (m->l_d_h - m->l_q_h) * i->d * i->q);
+    return 1.5f * (float)m->pole_pairs * (m->psi_f_wb * i->q + (m->l_d_h - m->l_q_h) * i->d * i->q);
 }

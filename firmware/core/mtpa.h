@@ -13,9 +13,9 @@
 #include "fw_types.h"
 
 #define MTPA_MODE_ID_ZERO 0u
-#define MTPA_MODE_MTPA 1u
+#define MTPA_MODE_MTPA    1u
 
-#define MTPA_DL_MIN_H 1.0e-6f   /* |L_q - L_d| below this: treat the motor as non-salient */
+#define MTPA_DL_MIN_H 1.0e-6f /* |L_q - L_d| below this: treat the motor as non-salient */
 
 /* Unknown modes behave as MTPA_MODE_ID_ZERO. */
 void mtpa_split(const fw_motor_t *m, uint16_t mode, float i_s_a, fw_dq_t *out);

@@ -9,33 +9,34 @@
 #include "ramp.h"
 #include "proto_gen.h"
 
-#define PROFILE_MAX_SEGMENTS 64u
-#define PROFILE_SEGMENT_MAX_S 3600.0f   /* one segment; with ts_s >= 10 us its ticks fit a uint32_t */
-#define PROFILE_FLAG_CAPTURE PROTO_SEGMENT_FLAG_CAPTURE
-#define PROFILE_FLAG_HOLD_EST PROTO_SEGMENT_FLAG_HOLD_EST   /* the online estimators hold their values in this segment */
-#define PROFILE_KIND_RUN PROTO_SEGMENT_KIND_RUN
+#define PROFILE_MAX_SEGMENTS  64u
+#define PROFILE_SEGMENT_MAX_S 3600.0f /* one segment; with ts_s >= 10 us its ticks fit a uint32_t */
+#define PROFILE_FLAG_CAPTURE  PROTO_SEGMENT_FLAG_CAPTURE
+#define PROFILE_FLAG_HOLD_EST                                                                      \
+    PROTO_SEGMENT_FLAG_HOLD_EST /* the online estimators hold their values in this segment */
+#define PROFILE_KIND_RUN        PROTO_SEGMENT_KIND_RUN
 #define PROFILE_KIND_IDENTIFY_R PROTO_SEGMENT_KIND_IDENTIFY_R
 
 typedef struct {
     float duration_s;
     float speed_rpm;
-    float ramp_rpm_s;   /* 0 = step */
+    float ramp_rpm_s; /* 0 = step */
     float load_nm;
     uint16_t flags;
-    uint16_t kind;      /* PROFILE_KIND_* (protocol enum segment_kind) */
-    float inject_a;     /* identify_r: d-axis current; run: i_d excitation amplitude (0: none) */
-    float inject_hz;    /* run: square-wave excitation frequency */
+    uint16_t kind;   /* PROFILE_KIND_* (protocol enum segment_kind) */
+    float inject_a;  /* identify_r: d-axis current; run: i_d excitation amplitude (0: none) */
+    float inject_hz; /* run: square-wave excitation frequency */
 } profile_segment_t;
 
 typedef struct {
     profile_segment_t seg[PROFILE_MAX_SEGMENTS];
-    uint16_t n_declared;  /* from profile_clear */
+    uint16_t n_declared; /* from profile_clear */
     uint32_t loaded_mask[(PROFILE_MAX_SEGMENTS + 31u) / 32u];
-    uint32_t seg_ticks[PROFILE_MAX_SEGMENTS];  /* durations in control periods (set at start) */
-    uint16_t index;       /* running segment */
-    uint32_t tick_in_seg; /* control periods into the running segment */
+    uint32_t seg_ticks[PROFILE_MAX_SEGMENTS]; /* durations in control periods (set at start) */
+    uint16_t index;                           /* running segment */
+    uint32_t tick_in_seg;                     /* control periods into the running segment */
     bool begun;
-    ramp_t ramp;          /* the ramped speed reference */
+    ramp_t ramp; /* the ramped speed reference */
     bool done;
 } profile_exec_t;
 
@@ -46,7 +47,7 @@ typedef struct {
     bool finished;        /* true in the period the last segment ends */
     uint16_t index;
     uint16_t flags;
-    uint16_t kind;        /* PROFILE_KIND_* of the running segment */
+    uint16_t kind; /* PROFILE_KIND_* of the running segment */
     float inject_a, inject_hz;
     uint32_t tick_in_seg; /* control periods into the running segment */
     uint32_t seg_ticks;   /* length of the running segment in control periods */

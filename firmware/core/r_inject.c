@@ -39,7 +39,7 @@ void rinj_init(rinj_t *r, const rinj_cfg_t *cfg)
 
 static float sgnf(float x)
 {
-    return x >= 0.0f ? 1.0f : -1.0f;   /* (31) */
+    return x >= 0.0f ? 1.0f : -1.0f; /* (31) */
 }
 
 /* Close the running window at the sample (i_d_end, i_q_end) that follows its last period. */

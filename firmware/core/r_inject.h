@@ -37,29 +37,29 @@
 #include <stdbool.h>
 
 typedef struct {
-    float sep_min;         /* minimum 1 - S_iD^2 / (S_ii S_DD) to solve for V_dead (default 1e-3) */
-    uint16_t n_window;     /* periods averaged before each LS sample (default 20) */
-    float ts_s;            /* control period (default 50 us) */
-    float l_d_h, l_q_h;    /* nominal inductances for the window's residual L di/dt (0: none) */
+    float sep_min;      /* minimum 1 - S_iD^2 / (S_ii S_DD) to solve for V_dead (default 1e-3) */
+    uint16_t n_window;  /* periods averaged before each LS sample (default 20) */
+    float ts_s;         /* control period (default 50 us) */
+    float l_d_h, l_q_h; /* nominal inductances for the window's residual L di/dt (0: none) */
 } rinj_cfg_t;
 
 typedef struct {
-    float i_d_a, i_q_a;         /* sampled at k */
-    float u_d_v, u_q_v;         /* period-average voltage over [k, k+1) */
-    float theta_e_rad;          /* at k */
-    float i_a_a, i_b_a, i_c_a;  /* phase currents at k (unused: D from the window means) */
+    float i_d_a, i_q_a;        /* sampled at k */
+    float u_d_v, u_q_v;        /* period-average voltage over [k, k+1) */
+    float theta_e_rad;         /* at k */
+    float i_a_a, i_b_a, i_c_a; /* phase currents at k (unused: D from the window means) */
 } rinj_in_t;
 
 typedef struct {
-    float r_s_ohm;      /* running estimate (0 until the first window) */
-    float v_dead_v;     /* identified error voltage per phase */
-    bool separable;     /* V_dead was eliminated (two levels or a current off the D direction) */
-    uint32_t n;         /* windows used */
+    float r_s_ohm;  /* running estimate (0 until the first window) */
+    float v_dead_v; /* identified error voltage per phase */
+    bool separable; /* V_dead was eliminated (two levels or a current off the D direction) */
+    uint32_t n;     /* windows used */
 } rinj_out_t;
 
 typedef struct {
     rinj_cfg_t cfg;
-    float s_ii, s_id, s_dd, s_ui, s_ud;   /* LS sums over windows */
+    float s_ii, s_id, s_dd, s_ui, s_ud; /* LS sums over windows */
     uint32_t n;
     /* running window: sums over its periods, and its first sample */
     uint16_t w_count;
@@ -69,7 +69,8 @@ typedef struct {
 
 void rinj_init(rinj_t *r, const rinj_cfg_t *cfg);
 void rinj_reset(rinj_t *r);
-void rinj_gap(rinj_t *r);    /* the next sample does not follow the last one: drop the running window */
+void rinj_gap(
+    rinj_t *r); /* the next sample does not follow the last one: drop the running window */
 void rinj_step(rinj_t *r, const rinj_in_t *in, rinj_out_t *out);
 void rinj_result(const rinj_t *r, rinj_out_t *out);
 

@@ -4,8 +4,8 @@
 #define RAMP_H
 
 typedef struct {
-    float rate_rpm_s;   /* slew limit, rpm/s (0 = step) */
-    float ts_s;         /* call period */
+    float rate_rpm_s; /* slew limit, rpm/s (0 = step) */
+    float ts_s;       /* call period */
 } ramp_cfg_t;
 
 typedef struct {
@@ -13,8 +13,8 @@ typedef struct {
     float out_rpm;
 } ramp_t;
 
-void ramp_init(ramp_t *r, const ramp_cfg_t *cfg);   /* output starts at 0 */
-float ramp_step(ramp_t *r, float target_rpm);       /* returns the limited reference */
-void ramp_reset(ramp_t *r, float out_rpm);          /* jump to a value (e.g. the measured speed) */
-void ramp_set_rate(ramp_t *r, float rate_rpm_s);    /* e.g. per profile segment */
+void ramp_init(ramp_t *r, const ramp_cfg_t *cfg); /* output starts at 0 */
+float ramp_step(ramp_t *r, float target_rpm);     /* returns the limited reference */
+void ramp_reset(ramp_t *r, float out_rpm);        /* jump to a value (e.g. the measured speed) */
+void ramp_set_rate(ramp_t *r, float rate_rpm_s);  /* e.g. per profile segment */
 #endif

@@ -42,8 +42,8 @@ void speed_pi_reset(speed_pi_t *p, float out0_a)
 void speed_pi_preset(speed_pi_t *p, float out0_a, float ref_rad_s, float meas_rad_s)
 {
     const float prop = p->cfg.kp_a_per_rad_s * (p->ref_weight * ref_rad_s - meas_rad_s);
-    const float i_lim = p->cfg.out_max_a +
-                        fabsf(p->cfg.kp_a_per_rad_s * (1.0f - p->ref_weight) * ref_rad_s);
+    const float i_lim =
+        p->cfg.out_max_a + fabsf(p->cfg.kp_a_per_rad_s * (1.0f - p->ref_weight) * ref_rad_s);
     p->integ_a = clampf(clampf(out0_a, p->cfg.out_max_a) - prop, i_lim);
     p->out_a = clampf(out0_a, p->cfg.out_max_a);
     p->saturated = false;
@@ -66,7 +66,7 @@ float speed_pi_step(speed_pi_t *p, float ref_rad_s, float meas_rad_s)
     const float integ_new = clampf(p->integ_a + p->cfg.ki_a_per_rad * p->cfg.ts_s * e, i_lim);
     float u = prop + integ_new;
 
-    if (!(u == u)) {   /* NaN input: hold the last output, keep the state */
+    if (!(u == u)) { /* NaN input: hold the last output, keep the state */
         return p->out_a;
     }
     /* conditional integration: accept the new integrator value unless the output saturates and

@@ -12,19 +12,19 @@
 #include <stdbool.h>
 
 typedef struct {
-    float kp_a_per_rad_s;   /* A per (mechanical rad/s) */
-    float ki_a_per_rad;     /* A per (mechanical rad/s) per s = A/rad */
-    float ts_s;             /* speed-loop period */
-    float out_max_a;        /* output clamp (the current limit) */
+    float kp_a_per_rad_s; /* A per (mechanical rad/s) */
+    float ki_a_per_rad;   /* A per (mechanical rad/s) per s = A/rad */
+    float ts_s;           /* speed-loop period */
+    float out_max_a;      /* output clamp (the current limit) */
 } speed_pi_cfg_t;
 
 typedef struct {
     speed_pi_cfg_t cfg;
-    float ref_weight;       /* set-point weight b of the P term, kp (b ref - meas); 1 after init
+    float ref_weight; /* set-point weight b of the P term, kp (b ref - meas); 1 after init
                                (plain PI), see speed_pi_set_ref_weight */
-    float integ_a;          /* integrator state (A) */
-    float out_a;            /* last output (A) */
-    bool saturated;         /* last output was clamped */
+    float integ_a;    /* integrator state (A) */
+    float out_a;      /* last output (A) */
+    bool saturated;   /* last output was clamped */
 } speed_pi_t;
 
 void speed_pi_init(speed_pi_t *p, const speed_pi_cfg_t *cfg);

@@ -12,8 +12,8 @@
 #include <math.h>
 #include "fw_types.h"
 
-#define TF_SQRT3_F 1.73205080756888f
-#define TF_INV_SQRT3_F 0.577350269189626f
+#define TF_SQRT3_F      1.73205080756888f
+#define TF_INV_SQRT3_F  0.577350269189626f
 #define TF_SQRT3_BY_2_F 0.866025403784439f
 
 /* Three-phase Clarke (no assumption that a + b + c = 0; the zero sequence is dropped). */
@@ -56,7 +56,7 @@ static inline void tf_inv_park(float d, float q, float c, float s, float *alpha,
 static inline float tf_wrap_2pi(float x_rad)
 {
     float r = x_rad - FW_TWO_PI_F * floorf(x_rad * (1.0f / FW_TWO_PI_F));
-    if (r >= FW_TWO_PI_F) {   /* rounding at the top edge */
+    if (r >= FW_TWO_PI_F) { /* rounding at the top edge */
         r -= FW_TWO_PI_F;
     }
     if (r < 0.0f) {

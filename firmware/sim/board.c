@@ -16,7 +16,7 @@ struct emu {
     plant_cfg_t pcfg;
     fw_cmd_t prev_cmd;
     double baud;
-    double can_bitrate;      /* docs/can.md */
+    double can_bitrate; /* docs/can.md */
     uint16_t can_node;
     can_sim_t can;
     double octet_budget;
@@ -28,13 +28,13 @@ struct emu {
     float plant_r_scale[PROFILE_MAX_SEGMENTS];
     float plant_psi_scale[PROFILE_MAX_SEGMENTS];
     uint64_t plant_step_mask;
-    int plant_seg;           /* segment whose start was last looked at, -1 before the first */
+    int plant_seg; /* segment whose start was last looked at, -1 before the first */
     /* the last change of the firmware's state, seen after each control period (emu_state_change) */
     int last_state;
     uint32_t state_isr, state_hb_isr;
     /* rig effects (docs/rigs.md): the mask reported in sim_truth, and the saturation flux map */
     uint32_t effects_mask;
-    int sat_nd, sat_nq;      /* 0: no map */
+    int sat_nd, sat_nq; /* 0: no map */
     double sat_id0_a, sat_did_a, sat_iq0_a, sat_diq_a;
     double sat_psi_d_wb[PLANT_MAP_MAX_N * PLANT_MAP_MAX_N];
     double sat_psi_q_wb[PLANT_MAP_MAX_N * PLANT_MAP_MAX_N];
@@ -51,7 +51,8 @@ static uint16_t board_msg(void *ctx, uint16_t msg_id, const uint16_t *payload, u
     if (msg_id == PROTO_ID_SIM_PLANT) {
         proto_sim_plant_t m;
         if (!proto_sim_plant_unpack(&m, payload, n) || m.index >= PROFILE_MAX_SEGMENTS ||
-            !(m.r_s_scale > 0.0f && m.r_s_scale < 10.0f) || !(m.psi_f_scale > 0.0f && m.psi_f_scale < 10.0f)) {
+            !(m.r_s_scale > 0.0f && m.r_s_scale < 10.0f) ||
+            !(m.psi_f_scale > 0.0f && m.psi_f_scale < 10.0f)) {
             return PROTO_ACK_STATUS_BAD_VALUE;
         }
         if (fw_active(&e->fw)) {
@@ -72,18 +73,23 @@ static void plant_steps(emu_t *e)
     const int seg = (int)fw_segment(&e->fw, &begun);
     if (seg != e->plant_seg && begun) {
         e->plant_seg = seg;
-        if (seg >= 0 && seg < (int)PROFILE_MAX_SEGMENTS && ((e->plant_step_mask >> seg) & 1u) != 0u) {
-            plant_set_param_scale(&e->plant, &e->pcfg, (double)e->plant_r_scale[seg], (double)e->plant_psi_scale[seg]);
+        if (seg >= 0 && seg < (int)PROFILE_MAX_SEGMENTS &&
+            ((e->plant_step_mask >> seg) & 1u) != 0u) {
+            plant_set_param_scale(&e->plant, &e->pcfg, (double)e->plant_r_scale[seg],
+                                  (double)e->plant_psi_scale[seg]);
         }
     }
 }
 
-size_t emu_size(void) { return sizeof(emu_t); }
+size_t emu_size(void)
+{
+    return sizeof(emu_t);
+}
 
 void emu_init(emu_t *e)
 {
     memset(e, 0, sizeof(*e));
-    plant_cfg_default(&e->pcfg);   /* paper A's IPMSM, 540 V DC link, ideal inverter and sensors */
+    plant_cfg_default(&e->pcfg); /* paper A's IPMSM, 540 V DC link, ideal inverter and sensors */
     e->baud = 921600.0;
     e->can_bitrate = (double)PROTO_CAN_BITRATE;
     e->can_node = PROTO_CAN_NODE_DEFAULT;
@@ -91,8 +97,11 @@ void emu_init(emu_t *e)
     emu_reset(e);
 }
 
-#define EMU_SET(key, member, type) \
-    if (strcmp(name, #key) == 0) { e->member = (type)value; return 0; }
+#define EMU_SET(key, member, type)                                                                 \
+    if (strcmp(name, #key) == 0) {                                                                 \
+        e->member = (type)value;                                                                   \
+        return 0;                                                                                  \
+    }
 
 int emu_set(emu_t *e, const char *name, double value)
 {
@@ -102,15 +111,42 @@ int emu_set(emu_t *e, const char *name, double value)
 
 int emu_get(const emu_t *e, const char *key, double *value)
 {
-    if (strcmp(key, "ts_s") == 0) { *value = e->pcfg.ts_s; return 0; }
-    if (strcmp(key, "baud") == 0) { *value = e->baud; return 0; }
-    if (strcmp(key, "seed") == 0) { *value = (double)e->pcfg.seed; return 0; }
-    if (strcmp(key, "tick") == 0) { *value = (double)fw_tick(&e->fw); return 0; }
-    if (strcmp(key, "tx_dropped") == 0) { *value = (double)fw_tx_dropped(&e->fw); return 0; }
-    if (strcmp(key, "tx_level") == 0) { *value = (double)fw_tx_level(&e->fw); return 0; }
-    if (strcmp(key, "can_bits") == 0) { *value = e->can.bits_sent; return 0; }
-    if (strcmp(key, "can_frames") == 0) { *value = (double)e->can.frames_sent; return 0; }
-    if (strcmp(key, "can_level") == 0) { *value = (double)fw_can_tx_level(&e->fw); return 0; }
+    if (strcmp(key, "ts_s") == 0) {
+        *value = e->pcfg.ts_s;
+        return 0;
+    }
+    if (strcmp(key, "baud") == 0) {
+        *value = e->baud;
+        return 0;
+    }
+    if (strcmp(key, "seed") == 0) {
+        *value = (double)e->pcfg.seed;
+        return 0;
+    }
+    if (strcmp(key, "tick") == 0) {
+        *value = (double)fw_tick(&e->fw);
+        return 0;
+    }
+    if (strcmp(key, "tx_dropped") == 0) {
+        *value = (double)fw_tx_dropped(&e->fw);
+        return 0;
+    }
+    if (strcmp(key, "tx_level") == 0) {
+        *value = (double)fw_tx_level(&e->fw);
+        return 0;
+    }
+    if (strcmp(key, "can_bits") == 0) {
+        *value = e->can.bits_sent;
+        return 0;
+    }
+    if (strcmp(key, "can_frames") == 0) {
+        *value = (double)e->can.frames_sent;
+        return 0;
+    }
+    if (strcmp(key, "can_level") == 0) {
+        *value = (double)fw_can_tx_level(&e->fw);
+        return 0;
+    }
     if (strcmp(key, "heartbeat_timeout_s") == 0) {
         const proto_config_ctrl_t *c = fw_ctrl(&e->fw);
         *value = c != NULL ? (double)c->heartbeat_timeout_s : 0.0;
@@ -131,10 +167,10 @@ void emu_reset(emu_t *e)
     e->state_isr = e->state_hb_isr = 0u;
     e->plant_step_mask = 0u;
     e->plant_seg = -1;
-    e->pcfg.map = NULL;   /* saturation: the flux map given by emu_set_array, if any */
+    e->pcfg.map = NULL; /* saturation: the flux map given by emu_set_array, if any */
     if (e->sat_nd > 0 && e->sat_nq > 0 &&
-        plant_map_build(&e->map, e->sat_nd, e->sat_nq, e->sat_id0_a, e->sat_did_a, e->sat_iq0_a, e->sat_diq_a,
-                        e->sat_psi_d_wb, e->sat_psi_q_wb) == NULL) {
+        plant_map_build(&e->map, e->sat_nd, e->sat_nq, e->sat_id0_a, e->sat_did_a, e->sat_iq0_a,
+                        e->sat_diq_a, e->sat_psi_d_wb, e->sat_psi_q_wb) == NULL) {
         e->pcfg.map = &e->map;
     }
     plant_init(&e->plant, &e->pcfg);
@@ -179,8 +215,12 @@ static uint32_t drain(emu_t *e, uint8_t *out, uint32_t cap, uint32_t n, uint32_t
     while (n < cap && limit > 0u) {
         uint32_t want = cap - n;
         uint16_t got, i;
-        if (want > limit) { want = limit; }
-        if (want > 64u) { want = 64u; }
+        if (want > limit) {
+            want = limit;
+        }
+        if (want > 64u) {
+            want = 64u;
+        }
         got = fw_tx_pop_n(&e->fw, buf, (uint16_t)want);
         for (i = 0u; i < got; i++) {
             out[n++] = (uint8_t)buf[i];
@@ -198,9 +238,14 @@ static uint32_t drain(emu_t *e, uint8_t *out, uint32_t cap, uint32_t n, uint32_t
 static void record_period(emu_t *e, const fw_meas_t *m)
 {
     double *r = e->rec + (size_t)e->rec_n * EMU_REC_COLS;
-    r[0] = ((double)e->fw.tick - 1.0) * e->pcfg.ts_s;   /* the ISR has counted this period: as /pmsm/capture labels it */
-    r[1] = (double)m->i_a_a; r[2] = (double)m->i_b_a; r[3] = (double)m->i_c_a;
-    r[4] = (double)e->prev_cmd.s_a; r[5] = (double)e->prev_cmd.s_b; r[6] = (double)e->prev_cmd.s_c;
+    r[0] = ((double)e->fw.tick - 1.0) *
+           e->pcfg.ts_s; /* the ISR has counted this period: as /pmsm/capture labels it */
+    r[1] = (double)m->i_a_a;
+    r[2] = (double)m->i_b_a;
+    r[3] = (double)m->i_c_a;
+    r[4] = (double)e->prev_cmd.s_a;
+    r[5] = (double)e->prev_cmd.s_b;
+    r[6] = (double)e->prev_cmd.s_c;
     r[7] = e->prev_cmd.pwm_on ? 1.0 : 0.0;
     r[8] = (double)m->v_dc_v;
     r[9] = (double)e->fw.sig.theta_e_rad;
@@ -216,7 +261,10 @@ void emu_record(emu_t *e, double *buf, uint32_t cap)
     e->rec_n = 0u;
 }
 
-uint32_t emu_record_count(const emu_t *e) { return e->rec_n; }
+uint32_t emu_record_count(const emu_t *e)
+{
+    return e->rec_n;
+}
 
 uint32_t emu_run(emu_t *e, uint32_t max_ticks, uint8_t *out, uint32_t cap, uint32_t *n_out)
 {
@@ -254,7 +302,7 @@ uint32_t emu_run(emu_t *e, uint32_t max_ticks, uint8_t *out, uint32_t cap, uint3
             record_period(e, &meas);
         }
         plant_steps(e);
-        plant_step(&e->plant, &e->prev_cmd);   /* switch states or duties (plant_step_duty) */
+        plant_step(&e->plant, &e->prev_cmd); /* switch states or duties (plant_step_duty) */
         e->prev_cmd = cmd;
         e->truth_count++;
         if (e->truth_count >= e->truth_div) {
@@ -267,7 +315,7 @@ uint32_t emu_run(emu_t *e, uint32_t max_ticks, uint8_t *out, uint32_t cap, uint3
             n = drain(e, out, cap, n, k);
             e->octet_budget -= (double)k;
             if (n - before < k) {
-                e->octet_budget = 0.0;  /* the line was idle: no credit carries over */
+                e->octet_budget = 0.0; /* the line was idle: no credit carries over */
             }
         }
         can_sim_period(&e->can, &e->fw, e->pcfg.ts_s);
@@ -276,7 +324,7 @@ uint32_t emu_run(emu_t *e, uint32_t max_ticks, uint8_t *out, uint32_t cap, uint3
     if (!fw_active(&e->fw)) {
         /* idle link: whatever is queued leaves now */
         if (e->was_active) {
-            e->plant_step_mask = 0u;   /* sim_plant steps belong to the run that ended */
+            e->plant_step_mask = 0u; /* sim_plant steps belong to the run that ended */
         }
         e->was_active = 0;
         n = drain(e, out, cap, n, 0xFFFFFFFFu);
@@ -286,15 +334,27 @@ uint32_t emu_run(emu_t *e, uint32_t max_ticks, uint8_t *out, uint32_t cap, uint3
     return ticks;
 }
 
-uint32_t emu_isr_count(const emu_t *e) { return fw_isr_count(&e->fw); }
-uint32_t emu_heartbeat_isr(const emu_t *e) { return fw_heartbeat_isr(&e->fw); }
-int emu_state(const emu_t *e) { return (int)fw_state(&e->fw); }
+uint32_t emu_isr_count(const emu_t *e)
+{
+    return fw_isr_count(&e->fw);
+}
+uint32_t emu_heartbeat_isr(const emu_t *e)
+{
+    return fw_heartbeat_isr(&e->fw);
+}
+int emu_state(const emu_t *e)
+{
+    return (int)fw_state(&e->fw);
+}
 uint32_t emu_state_change(const emu_t *e, uint32_t *hb_isr)
 {
     *hb_isr = e->state_hb_isr;
     return e->state_isr;
 }
-int emu_active(const emu_t *e) { return fw_active(&e->fw) ? 1 : 0; }
+int emu_active(const emu_t *e)
+{
+    return fw_active(&e->fw) ? 1 : 0;
+}
 
 /* CAN (docs/can.md): a frame from the host; the frames the controller sent (see can_sim_take). */
 void emu_can_rx(emu_t *e, uint32_t id, const uint8_t *data, uint32_t dlc)
@@ -306,7 +366,8 @@ void emu_can_rx(emu_t *e, uint32_t id, const uint8_t *data, uint32_t dlc)
     fw_can_rx(&e->fw, (uint16_t)id, d, (uint16_t)(dlc > 8u ? 8u : dlc));
 }
 
-uint32_t emu_can_take(emu_t *e, uint32_t *ids, uint8_t *dlc, uint8_t *data, uint32_t *isr, uint32_t cap)
+uint32_t emu_can_take(emu_t *e, uint32_t *ids, uint8_t *dlc, uint8_t *data, uint32_t *isr,
+                      uint32_t cap)
 {
     return can_sim_take(&e->can, ids, dlc, data, isr, cap);
 }
@@ -351,8 +412,8 @@ void emu_plant_flux(const emu_t *e, double i_d_a, double i_q_a, double theta_e_r
     out[7] = plant_torque(&e->plant, i_d_a, i_q_a, theta_e_rad);
 }
 
-#define EMU_TRUTH_NAME(key, expr) #key,
-#define EMU_TRUTH_VALUE(key, expr) expr,
+#define EMU_TRUTH_NAME(key, expr)           #key,
+#define EMU_TRUTH_VALUE(key, expr)          expr,
 #define EMU_SETTING_NAME(key, member, type) #key,
 
 static const char *const k_truth_names[] = { EMU_TRUTH(EMU_TRUTH_NAME) };

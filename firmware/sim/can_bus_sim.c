@@ -11,21 +11,31 @@ uint32_t can_frame_bits(uint16_t id, const uint16_t *data, uint16_t dlc)
     int b;
     uint8_t last = 2u;
     bits[n++] = 0u;
-    for (b = 10; b >= 0; b--) { bits[n++] = (uint8_t)((id >> b) & 1u); }
-    bits[n++] = 0u;
-    bits[n++] = 0u;
-    bits[n++] = 0u;
-    for (b = 3; b >= 0; b--) { bits[n++] = (uint8_t)((dlc >> b) & 1u); }
-    for (k = 0u; k < dlc; k++) {
-        for (b = 7; b >= 0; b--) { bits[n++] = (uint8_t)((data[k] >> b) & 1u); }
+    for (b = 10; b >= 0; b--) {
+        bits[n++] = (uint8_t)((id >> b) & 1u);
     }
-    for (i = 0u; i < n; i++) {   /* CRC-15/CAN, polynomial 0x4599 */
+    bits[n++] = 0u;
+    bits[n++] = 0u;
+    bits[n++] = 0u;
+    for (b = 3; b >= 0; b--) {
+        bits[n++] = (uint8_t)((dlc >> b) & 1u);
+    }
+    for (k = 0u; k < dlc; k++) {
+        for (b = 7; b >= 0; b--) {
+            bits[n++] = (uint8_t)((data[k] >> b) & 1u);
+        }
+    }
+    for (i = 0u; i < n; i++) { /* CRC-15/CAN, polynomial 0x4599 */
         uint16_t nxt = (uint16_t)(bits[i] ^ ((crc >> 14) & 1u));
         crc = (uint16_t)((crc << 1) & 0x7FFFu);
-        if (nxt) { crc ^= 0x4599u; }
+        if (nxt) {
+            crc ^= 0x4599u;
+        }
     }
-    for (b = 14; b >= 0; b--) { bits[n++] = (uint8_t)((crc >> b) & 1u); }
-    for (i = 0u; i < n; i++) {   /* a stuff bit after five equal bits; it counts in the next run */
+    for (b = 14; b >= 0; b--) {
+        bits[n++] = (uint8_t)((crc >> b) & 1u);
+    }
+    for (i = 0u; i < n; i++) { /* a stuff bit after five equal bits; it counts in the next run */
         if (bits[i] == last) {
             run++;
         } else {
@@ -48,7 +58,10 @@ void can_sim_init(can_sim_t *s, double bitrate)
     s->bitrate = bitrate;
 }
 
-int can_sim_room(const can_sim_t *s) { return s->n_out + 64u <= CAN_SIM_OUT; }
+int can_sim_room(const can_sim_t *s)
+{
+    return s->n_out + 64u <= CAN_SIM_OUT;
+}
 
 static void put_out(can_sim_t *s, const can_frame_t *fr, uint32_t isr, uint32_t bits)
 {
@@ -71,7 +84,7 @@ void can_sim_period(can_sim_t *s, fw_t *f, double ts_s)
 {
     const can_frame_t *next = can_link_tx_peek(fw_can(f));
     if (next == 0) {
-        s->budget = 0.0;   /* the bus was idle: no credit carries over */
+        s->budget = 0.0; /* the bus was idle: no credit carries over */
         return;
     }
     s->budget += s->bitrate * ts_s;

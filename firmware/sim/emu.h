@@ -10,11 +10,11 @@
 typedef struct emu emu_t;
 
 size_t emu_size(void);
-void emu_init(emu_t *e);                                  /* defaults: paper A motor, ideal sensors */
-int emu_set(emu_t *e, const char *key, double value);      /* 0, or -1 for an unknown key */
+void emu_init(emu_t *e);                              /* defaults: paper A motor, ideal sensors */
+int emu_set(emu_t *e, const char *key, double value); /* 0, or -1 for an unknown key */
 int emu_get(const emu_t *e, const char *key, double *value);
-void emu_reset(emu_t *e);                                  /* applies the settings: firmware and plant anew */
-void emu_rx(emu_t *e, const uint8_t *data, uint32_t n);     /* octets from the host */
+void emu_reset(emu_t *e); /* applies the settings: firmware and plant anew */
+void emu_rx(emu_t *e, const uint8_t *data, uint32_t n); /* octets from the host */
 /* Runs at most max_ticks control periods (none while the firmware is idle) and writes the octets
  * the UART sent meanwhile into out (at most cap); returns the periods run, *n_out the octets. */
 uint32_t emu_run(emu_t *e, uint32_t max_ticks, uint8_t *out, uint32_t cap, uint32_t *n_out);
@@ -43,7 +43,8 @@ const char *emu_truth_name(uint32_t i);
  * sim board's controller sent during emu_run, at most cap: ids, dlc, data (8 octets per frame),
  * isr (control period at the end of the frame); returns how many. */
 void emu_can_rx(emu_t *e, uint32_t id, const uint8_t *data, uint32_t dlc);
-uint32_t emu_can_take(emu_t *e, uint32_t *ids, uint8_t *dlc, uint8_t *data, uint32_t *isr, uint32_t cap);
+uint32_t emu_can_take(emu_t *e, uint32_t *ids, uint8_t *dlc, uint8_t *data, uint32_t *isr,
+                      uint32_t cap);
 
 /* Continuous control-rate recording (simulation only): from now on every control period appends one
  * row of EMU_REC_COLS values to buf (at most cap rows): t_s, i_a_a, i_b_a, i_c_a (as measured),

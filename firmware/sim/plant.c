@@ -17,7 +17,10 @@
 #include <stddef.h>
 #include <string.h>
 
-double plant_sigmoid(double x) { return sigm(x); }
+double plant_sigmoid(double x)
+{
+    return sigm(x);
+}
 
 /* ------------------------------------------------------------------ API */
 
@@ -77,45 +80,78 @@ void plant_cfg_default(plant_cfg_t *cfg)
 
 const char *plant_cfg_check(const plant_cfg_t *cfg)
 {
-    if (!(cfg->r_s_ohm >= 0.0)) return "r_s_ohm must be >= 0";
-    if (!(cfg->l_d_h > 0.0)) return "l_d_h must be > 0";
-    if (!(cfg->l_q_h > 0.0)) return "l_q_h must be > 0";
-    if (!(cfg->psi_f_wb >= 0.0)) return "psi_f_wb must be >= 0";
-    if (cfg->pole_pairs < 1) return "pole_pairs must be >= 1";
-    if (!(cfg->j_kgm2 > 0.0)) return "j_kgm2 must be > 0";
-    if (!(cfg->b_visc_nms >= 0.0)) return "b_visc_nms must be >= 0";
-    if (!(cfg->t_coulomb_nm >= 0.0)) return "t_coulomb_nm must be >= 0";
-    if (!(cfg->v_dc_v >= 0.0)) return "v_dc_v must be >= 0";
-    if (!(cfg->dead_time_s >= 0.0 && cfg->dead_time_s < cfg->ts_s)) return "dead_time_s must be in [0, ts_s)";
-    if (!(cfg->v_drop_v >= 0.0)) return "v_drop_v must be >= 0";
-    if (!(cfg->i_noise_a >= 0.0)) return "i_noise_a must be >= 0";
-    if (!(cfg->adc_lsb_a >= 0.0)) return "adc_lsb_a must be >= 0";
-    if (cfg->enc_counts < 1u) return "enc_counts must be >= 1";
-    if (!(cfg->ts_s > 0.0)) return "ts_s must be > 0";
-    if (cfg->substeps < 1) return "substeps must be >= 1";
-    if (cfg->map != NULL && (cfg->map->nd < 2 || cfg->map->nq < 2)) return "map is not built (plant_map_build)";
+    if (!(cfg->r_s_ohm >= 0.0))
+        return "r_s_ohm must be >= 0";
+    if (!(cfg->l_d_h > 0.0))
+        return "l_d_h must be > 0";
+    if (!(cfg->l_q_h > 0.0))
+        return "l_q_h must be > 0";
+    if (!(cfg->psi_f_wb >= 0.0))
+        return "psi_f_wb must be >= 0";
+    if (cfg->pole_pairs < 1)
+        return "pole_pairs must be >= 1";
+    if (!(cfg->j_kgm2 > 0.0))
+        return "j_kgm2 must be > 0";
+    if (!(cfg->b_visc_nms >= 0.0))
+        return "b_visc_nms must be >= 0";
+    if (!(cfg->t_coulomb_nm >= 0.0))
+        return "t_coulomb_nm must be >= 0";
+    if (!(cfg->v_dc_v >= 0.0))
+        return "v_dc_v must be >= 0";
+    if (!(cfg->dead_time_s >= 0.0 && cfg->dead_time_s < cfg->ts_s))
+        return "dead_time_s must be in [0, ts_s)";
+    if (!(cfg->v_drop_v >= 0.0))
+        return "v_drop_v must be >= 0";
+    if (!(cfg->i_noise_a >= 0.0))
+        return "i_noise_a must be >= 0";
+    if (!(cfg->adc_lsb_a >= 0.0))
+        return "adc_lsb_a must be >= 0";
+    if (cfg->enc_counts < 1u)
+        return "enc_counts must be >= 1";
+    if (!(cfg->ts_s > 0.0))
+        return "ts_s must be > 0";
+    if (cfg->substeps < 1)
+        return "substeps must be >= 1";
+    if (cfg->map != NULL && (cfg->map->nd < 2 || cfg->map->nq < 2))
+        return "map is not built (plant_map_build)";
     if (cfg->thermal_on) {
-        if (!(cfg->c_winding_j_k > 0.0) || !(cfg->c_magnet_j_k > 0.0)) return "thermal capacities must be > 0";
-        if (!(cfg->r_wa_k_w > 0.0) || !(cfg->r_wm_k_w > 0.0) || !(cfg->r_ma_k_w > 0.0)) return "thermal resistances must be > 0";
+        if (!(cfg->c_winding_j_k > 0.0) || !(cfg->c_magnet_j_k > 0.0))
+            return "thermal capacities must be > 0";
+        if (!(cfg->r_wa_k_w > 0.0) || !(cfg->r_wm_k_w > 0.0) || !(cfg->r_ma_k_w > 0.0))
+            return "thermal resistances must be > 0";
         if (!(cfg->ts_s * PLANT_THERMAL_DIV < 0.2 * cfg->c_winding_j_k * cfg->r_wm_k_w) ||
             !(cfg->ts_s * PLANT_THERMAL_DIV < 0.2 * cfg->c_magnet_j_k * cfg->r_wm_k_w) ||
             !(cfg->ts_s * PLANT_THERMAL_DIV < 0.2 * cfg->c_winding_j_k * cfg->r_wa_k_w) ||
             !(cfg->ts_s * PLANT_THERMAL_DIV < 0.2 * cfg->c_magnet_j_k * cfg->r_ma_k_w))
             return "thermal time constants must exceed 5 thermal steps (16 ts_s each)";
     }
-    if (!(cfg->r_fe_heat_ohm >= 0.0)) return "r_fe_heat_ohm must be >= 0";
-    if (!(fabs(cfg->psi5_rel) < 1.0) || !(fabs(cfg->psi7_rel) < 1.0)) return "flux harmonics must be < 1";
-    if (cfg->cog_nm != 0.0 && (cfg->cog_order_e < 1 || cfg->cog_order_e > 1000)) return "cog_order_e must be in [1, 1000]";
-    if (!(fabs(cfg->i_gain[0]) < 10.0) || !(fabs(cfg->i_gain[1]) < 10.0) || !(fabs(cfg->i_gain[2]) < 10.0)) return "i_gain must be finite";
-    if (!(fabs(cfg->i_offset_a[0]) < 1e6) || !(fabs(cfg->i_offset_a[1]) < 1e6) || !(fabs(cfg->i_offset_a[2]) < 1e6)) return "i_offset_a must be finite";
-    if (!(cfg->sample_delay_s >= 0.0 && cfg->sample_delay_s <= (double)(PLANT_DELAY_RING - 3) * cfg->ts_s)) return "sample_delay_s must be in [0, 29 ts_s]";
-    if (cfg->pwm_delay_periods < 0 || cfg->pwm_delay_periods > PLANT_DELAY_RING - 1) return "pwm_delay_periods must be in [0, 31]";
+    if (!(cfg->r_fe_heat_ohm >= 0.0))
+        return "r_fe_heat_ohm must be >= 0";
+    if (!(fabs(cfg->psi5_rel) < 1.0) || !(fabs(cfg->psi7_rel) < 1.0))
+        return "flux harmonics must be < 1";
+    if (cfg->cog_nm != 0.0 && (cfg->cog_order_e < 1 || cfg->cog_order_e > 1000))
+        return "cog_order_e must be in [1, 1000]";
+    if (!(fabs(cfg->i_gain[0]) < 10.0) || !(fabs(cfg->i_gain[1]) < 10.0) ||
+        !(fabs(cfg->i_gain[2]) < 10.0))
+        return "i_gain must be finite";
+    if (!(fabs(cfg->i_offset_a[0]) < 1e6) || !(fabs(cfg->i_offset_a[1]) < 1e6) ||
+        !(fabs(cfg->i_offset_a[2]) < 1e6))
+        return "i_offset_a must be finite";
+    if (!(cfg->sample_delay_s >= 0.0 &&
+          cfg->sample_delay_s <= (double)(PLANT_DELAY_RING - 3) * cfg->ts_s))
+        return "sample_delay_s must be in [0, 29 ts_s]";
+    if (cfg->pwm_delay_periods < 0 || cfg->pwm_delay_periods > PLANT_DELAY_RING - 1)
+        return "pwm_delay_periods must be in [0, 31]";
     if (cfg->dc_on) {
-        if (!(cfg->dc_r_src_ohm > 0.0)) return "dc_r_src_ohm must be > 0";
-        if (!(cfg->dc_c_f > 0.0)) return "dc_c_f must be > 0";
-        if (!(cfg->dc_grid_hz >= 0.0)) return "dc_grid_hz must be >= 0";
+        if (!(cfg->dc_r_src_ohm > 0.0))
+            return "dc_r_src_ohm must be > 0";
+        if (!(cfg->dc_c_f > 0.0))
+            return "dc_c_f must be > 0";
+        if (!(cfg->dc_grid_hz >= 0.0))
+            return "dc_grid_hz must be >= 0";
     }
-    if (!(cfg->r_fe_ohm >= 0.0)) return "r_fe_ohm must be >= 0";
+    if (!(cfg->r_fe_ohm >= 0.0))
+        return "r_fe_ohm must be >= 0";
     return NULL;
 }
 
@@ -163,8 +199,8 @@ void plant_init(plant_t *p, const plant_cfg_t *cfg)
         pl_thermal_params(p);
     }
     p->inv_r_fe = cfg->r_fe_ohm > 0.0 ? 1.0 / cfg->r_fe_ohm : 0.0;
-    p->mag_general = cfg->map != NULL || cfg->psi5_rel != 0.0 || cfg->psi7_rel != 0.0 || cfg->cog_nm != 0.0 ||
-                     p->inv_r_fe > 0.0;
+    p->mag_general = cfg->map != NULL || cfg->psi5_rel != 0.0 || cfg->psi7_rel != 0.0 ||
+                     cfg->cog_nm != 0.0 || p->inv_r_fe > 0.0;
     p->cog_c = cos(cfg->cog_phase_rad);
     p->cog_s = sin(cfg->cog_phase_rad);
     if (cfg->sample_delay_s > 0.0) {
@@ -208,7 +244,8 @@ void plant_set_currents(plant_t *p, double i_d_a, double i_q_a)
 {
     p->i_d_a = i_d_a;
     p->i_q_a = i_q_a;
-    p->diodes_valid = false;   /* re-derive the diode states from the current signs if PWM is off next */
+    p->diodes_valid =
+        false; /* re-derive the diode states from the current signs if PWM is off next */
     if (p->delay_n >= 0) {
         pl_hist_fill(p);
     }
@@ -219,7 +256,8 @@ void plant_truth(const plant_t *p, plant_truth_t *t)
     plant_mag_t m;
     double i3[3], idm, iqm;
     const double pp = (double)p->cfg.pole_pairs;
-    mag_at(p, p->mag_general ? 1 : 0, p->i_d_a, p->i_q_a, pp * p->omega_m_rad_s, p->cos_e, p->sin_e, &m, &idm, &iqm);
+    mag_at(p, p->mag_general ? 1 : 0, p->i_d_a, p->i_q_a, pp * p->omega_m_rad_s, p->cos_e, p->sin_e,
+           &m, &idm, &iqm);
     phase_currents(p->cos_e, p->sin_e, p->i_d_a, p->i_q_a, i3);
     t->i_d_a = p->i_d_a;
     t->i_q_a = p->i_q_a;
@@ -231,7 +269,8 @@ void plant_truth(const plant_t *p, plant_truth_t *t)
     t->u_d_v = p->u_d_avg_v;
     t->u_q_v = p->u_q_avg_v;
     t->r_s_ohm = p->r_s_ohm;
-    t->l_d_h = m.l_dd;   /* incremental inductances in force (the nominal ones for the linear machine) */
+    t->l_d_h =
+        m.l_dd; /* incremental inductances in force (the nominal ones for the linear machine) */
     t->l_q_h = m.l_qq;
     t->l_dq_h = m.l_dq;
     t->psi_d_wb = m.psi_d_wb;
@@ -253,7 +292,8 @@ void plant_truth(const plant_t *p, plant_truth_t *t)
     t->load_nm = p->load_nm;
 }
 
-void plant_set_param_scale(plant_t *p, const plant_cfg_t *base, double r_s_scale, double psi_f_scale)
+void plant_set_param_scale(plant_t *p, const plant_cfg_t *base, double r_s_scale,
+                           double psi_f_scale)
 {
     const double r_new = base->r_s_ohm * r_s_scale;
     const double psi_old_scale = base->psi_f_wb > 0.0 ? p->cfg.psi_f_wb / base->psi_f_wb : 1.0;

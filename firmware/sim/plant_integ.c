@@ -22,7 +22,8 @@ void pl_hist_fill(plant_t *p)
 
 /* store the period's end state; cos/sin of the electrical angle are carried incrementally
  * (renormalised every period) and recomputed from theta_m every 256 periods */
-void pl_finish_period(plant_t *p, const ctx_t *k, const xs_t *x, double th_tot, double aud, double auq)
+void pl_finish_period(plant_t *p, const ctx_t *k, const xs_t *x, double th_tot, double aud,
+                      double auq)
 {
     p->i_d_a = x->id;
     p->i_q_a = x->iq;
@@ -107,5 +108,5 @@ void pl_advance_on(plant_t *p, int mode, double u1, double u2, double t_load)
 void plant_step_udq(plant_t *p, double u_d_v, double u_q_v, double load_nm)
 {
     pl_advance_on(p, MODE_UDQ, u_d_v, u_q_v, load_nm);
-    p->pwm_prev = false;   /* not an inverter: no switch history */
+    p->pwm_prev = false; /* not an inverter: no switch history */
 }

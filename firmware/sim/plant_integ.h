@@ -7,18 +7,18 @@
 #include "plant_mag.h"
 
 /* unit vectors of the phase axes in the stationary frame (amplitude-invariant Clarke: i_x = e_x . i_ab) */
-static const double EX[3] = {1.0, -0.5, -0.5};
-static const double EY[3] = {0.0, PL_SQRT3_2, -PL_SQRT3_2};
+static const double EX[3] = { 1.0, -0.5, -0.5 };
+static const double EY[3] = { 0.0, PL_SQRT3_2, -PL_SQRT3_2 };
 
 typedef struct {
-    double c0, s0;      /* cos, sin theta_e at the start of the current sub-step (the angle reference) */
-    double u1, u2;      /* known voltage: (alpha, beta) in the stationary frame, or (d, q) in MODE_UDQ */
+    double c0, s0; /* cos, sin theta_e at the start of the current sub-step (the angle reference) */
+    double u1, u2; /* known voltage: (alpha, beta) in the stationary frame, or (d, q) in MODE_UDQ */
     double t_load;
-    double fric;        /* signed Coulomb torque opposing the motion (0 when stuck or frozen) */
-    double t_cog;       /* cogging torque over the sub-step (rk4(), at the mid angle) */
-    int frozen;         /* speed not integrated: stuck in static friction, or held */
-    int blocked;        /* MODE_ONE_BLOCKED: index of the open phase */
-    double lam;         /* MODE_ONE_BLOCKED: multiplier of the last evaluation (v_x = 1.5 lam) */
+    double fric;  /* signed Coulomb torque opposing the motion (0 when stuck or frozen) */
+    double t_cog; /* cogging torque over the sub-step (rk4(), at the mid angle) */
+    int frozen;   /* speed not integrated: stuck in static friction, or held */
+    int blocked;  /* MODE_ONE_BLOCKED: index of the open phase */
+    double lam;   /* MODE_ONE_BLOCKED: multiplier of the last evaluation (v_x = 1.5 lam) */
 } ctx_t;
 
 /* state within a period: currents, speed, and the mechanical angle relative to the sub-step start
@@ -37,16 +37,17 @@ typedef struct {
     double c, s, th;
 } base_t;
 
-PL_INLINE void deriv(const plant_t *p, ctx_t *k, const xs_t *x, dx_t *dx, int mode, int mm, const base_t *b, int first)
+PL_INLINE void deriv(const plant_t *p, ctx_t *k, const xs_t *x, dx_t *dx, int mode, int mm,
+                     const base_t *b, int first)
 {
     const double pp = (double)p->cfg.pole_pairs;
     double c, s, ud, uq, we, rd, rq, te, idm, iqm;
     plant_mag_t m;
 
-    if (first) {   /* the first stage sits at the sub-step start */
+    if (first) { /* the first stage sits at the sub-step start */
         c = b->c;
         s = b->s;
-    } else {       /* e = p (th - th_base) ~ p h^2 dw/dt / 4 is tiny: second order is exact to 1e-16 */
+    } else { /* e = p (th - th_base) ~ p h^2 dw/dt / 4 is tiny: second order is exact to 1e-16 */
         const double e = pp * (x->th - b->th);
         c = b->c - e * (b->s + 0.5 * e * b->c);
         s = b->s + e * (b->c - 0.5 * e * b->s);
@@ -54,7 +55,7 @@ PL_INLINE void deriv(const plant_t *p, ctx_t *k, const xs_t *x, dx_t *dx, int mo
     if (mode == MODE_UDQ) {
         ud = k->u1;
         uq = k->u2;
-    } else {       /* stationary-frame voltage seen in the rotor frame */
+    } else { /* stationary-frame voltage seen in the rotor frame */
         ud = c * k->u1 + s * k->u2;
         uq = -s * k->u1 + c * k->u2;
     }
@@ -83,7 +84,7 @@ PL_INLINE void deriv(const plant_t *p, ctx_t *k, const xs_t *x, dx_t *dx, int mo
     if (mode == MODE_ALL_BLOCKED) {
         dx->did = 0.0;
         dx->diq = 0.0;
-        ud -= rd;   /* the terminals float: the motor's terminals show its own back-EMF */
+        ud -= rd; /* the terminals float: the motor's terminals show its own back-EMF */
         uq -= rq;
     } else {
         dx->did = m.g_dd * rd + m.g_dq * rq;
@@ -136,7 +137,8 @@ PL_INLINE void mech_clamp(const ctx_t *k, xs_t *x)
 /* Classic RK4 over h (x->th == 0 on entry). Accumulates the integral of u_dq (for the truth) and
  * moves the context's angle reference to the end of the step: x->th back to 0, the step's angle
  * added to *th_tot. One small-angle rotation per step, no libm call below 0.15 rad per half step. */
-PL_INLINE void rk4(const plant_t *p, ctx_t *k, xs_t *x, double h, int mode, int mm, double *aud, double *auq, double *th_tot)
+PL_INLINE void rk4(const plant_t *p, ctx_t *k, xs_t *x, double h, int mode, int mm, double *aud,
+                   double *auq, double *th_tot)
 {
     dx_t k1, k2, k3, k4;
     xs_t y;
@@ -196,7 +198,8 @@ PL_INLINE void rk4(const plant_t *p, ctx_t *k, xs_t *x, double h, int mode, int 
 
 /* plant_integ.c */
 void pl_ctx_start(const plant_t *p, ctx_t *k, xs_t *x, double t_load);
-void pl_finish_period(plant_t *p, const ctx_t *k, const xs_t *x, double th_tot, double aud, double auq);
+void pl_finish_period(plant_t *p, const ctx_t *k, const xs_t *x, double th_tot, double aud,
+                      double auq);
 void pl_advance_on(plant_t *p, int mode, double u1, double u2, double t_load);
 void pl_hist_fill(plant_t *p);
 

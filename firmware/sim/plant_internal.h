@@ -10,9 +10,9 @@
 #include <math.h>
 #include <stdint.h>
 
-#define PL_PI 3.14159265358979323846
-#define PL_TWO_PI 6.28318530717958647692
-#define PL_SQRT3_2 0.86602540378443864676
+#define PL_PI        3.14159265358979323846
+#define PL_TWO_PI    6.28318530717958647692
+#define PL_SQRT3_2   0.86602540378443864676
 #define PL_INV_SQRT3 0.57735026918962576451
 
 #if defined(__GNUC__)
@@ -21,27 +21,35 @@
 #define PL_INLINE static inline
 #endif
 
-enum { MODE_KNOWN = 0, MODE_ONE_BLOCKED = 1, MODE_ALL_BLOCKED = 3, MODE_UDQ = 4 };
+enum {
+    MODE_KNOWN = 0,
+    MODE_ONE_BLOCKED = 1,
+    MODE_ALL_BLOCKED = 3,
+    MODE_UDQ = 4
+};
 
 /* ------------------------------------------------------------------ small helpers */
 
 PL_INLINE double sigm(double x)
 {
     double x2;
-    x = x < 3.0 ? x : 3.0;    /* branch-free clamp (minsd/maxsd); the rational is exactly +-1 at +-3 */
+    x = x < 3.0 ? x : 3.0; /* branch-free clamp (minsd/maxsd); the rational is exactly +-1 at +-3 */
     x = x > -3.0 ? x : -3.0;
     x2 = x * x;
     return x * (27.0 + x2) / (27.0 + 9.0 * x2);
 }
-
 
 /* cos and sin of a small angle: Taylor to d^8 / d^9 (error < 2e-15 for |d| < 0.15), libm beyond. */
 PL_INLINE void rot_small(double d, double *cd, double *sd)
 {
     if (fabs(d) < 0.15) {
         const double d2 = d * d;
-        *sd = d * (1.0 - d2 * (1.0 / 6.0) * (1.0 - d2 * (1.0 / 20.0) * (1.0 - d2 * (1.0 / 42.0) * (1.0 - d2 * (1.0 / 72.0)))));
-        *cd = 1.0 - d2 * 0.5 * (1.0 - d2 * (1.0 / 12.0) * (1.0 - d2 * (1.0 / 30.0) * (1.0 - d2 * (1.0 / 56.0))));
+        *sd = d * (1.0 - d2 * (1.0 / 6.0) *
+                             (1.0 - d2 * (1.0 / 20.0) *
+                                        (1.0 - d2 * (1.0 / 42.0) * (1.0 - d2 * (1.0 / 72.0)))));
+        *cd = 1.0 -
+              d2 * 0.5 *
+                  (1.0 - d2 * (1.0 / 12.0) * (1.0 - d2 * (1.0 / 30.0) * (1.0 - d2 * (1.0 / 56.0))));
     } else {
         *sd = sin(d);
         *cd = cos(d);
@@ -63,7 +71,7 @@ static inline double wrap_2pi(double a)
     } else if (a < 0.0) {
         a += PL_TWO_PI;
     }
-    if (a >= PL_TWO_PI || a < 0.0) {   /* more than one turn per period: only at absurd speeds */
+    if (a >= PL_TWO_PI || a < 0.0) { /* more than one turn per period: only at absurd speeds */
         a = fmod(a, PL_TWO_PI);
         if (a < 0.0) {
             a += PL_TWO_PI;
@@ -76,9 +84,11 @@ static inline double wrap_2pi(double a)
 }
 
 /* psi_d, psi_q and d(psi)/d(i) = l[dd, dq, qd, qq]; beyond the grid: linear with the boundary slope */
-PL_INLINE void map_eval(const plant_map_t *m, double id, double iq, double *pd, double *pq, double l[4])
+PL_INLINE void map_eval(const plant_map_t *m, double id, double iq, double *pd, double *pq,
+                        double l[4])
 {
-    double u = (id - m->id0_a) * m->inv_did, v = (iq - m->iq0_a) * m->inv_diq, eu = 0.0, ev = 0.0, val[2];
+    double u = (id - m->id0_a) * m->inv_did, v = (iq - m->iq0_a) * m->inv_diq, eu = 0.0, ev = 0.0,
+           val[2];
     int j, k, c;
     const double *co;
     j = u < 0.0 ? 0 : (int)u;
@@ -87,8 +97,20 @@ PL_INLINE void map_eval(const plant_map_t *m, double id, double iq, double *pd, 
     k = k > m->nq - 2 ? m->nq - 2 : k;
     u -= (double)j;
     v -= (double)k;
-    if (u < 0.0) { eu = u; u = 0.0; } else if (u > 1.0) { eu = u - 1.0; u = 1.0; }
-    if (v < 0.0) { ev = v; v = 0.0; } else if (v > 1.0) { ev = v - 1.0; v = 1.0; }
+    if (u < 0.0) {
+        eu = u;
+        u = 0.0;
+    } else if (u > 1.0) {
+        eu = u - 1.0;
+        u = 1.0;
+    }
+    if (v < 0.0) {
+        ev = v;
+        v = 0.0;
+    } else if (v > 1.0) {
+        ev = v - 1.0;
+        v = 1.0;
+    }
     co = &m->coef[k * (PLANT_MAP_MAX_N - 1) + j][0][0];
     /* both components side by side (coefficient pairs [psi_d, psi_q]): the compiler packs them */
     {
@@ -104,7 +126,8 @@ PL_INLINE void map_eval(const plant_map_t *m, double id, double iq, double *pd, 
         for (c = 0; c < 2; c++) {
             fu[c] = b[1][c] + u * (2.0 * b[2][c] + 3.0 * u * b[3][c]);
             fv[c] = bv[0][c] + u * (bv[1][c] + u * (bv[2][c] + u * bv[3][c]));
-            val[c] = b[0][c] + u * (b[1][c] + u * (b[2][c] + u * b[3][c])) + fu[c] * eu + fv[c] * ev;
+            val[c] =
+                b[0][c] + u * (b[1][c] + u * (b[2][c] + u * b[3][c])) + fu[c] * eu + fv[c] * ev;
         }
         l[0] = fu[0] * m->inv_did;
         l[1] = fv[0] * m->inv_diq;

@@ -29,7 +29,6 @@ double plant_leg_distortion_v(const plant_t *p, double i_a, int transition)
 
 /* ------------------------------------------------------------------ PWM off: diode bridge */
 
-
 /* open phase b: set i_b = 0 exactly by removing the current's component along g = R(-theta_e) e_b;
  * if the remaining pair no longer flows in its diodes' direction, everything is open */
 static void block_phase(plant_t *p, const ctx_t *k, xs_t *x, int b)
@@ -60,7 +59,8 @@ static void diode_voltage(const plant_t *p, double *ual, double *ube)
     double v[3];
     int n;
     for (n = 0; n < 3; n++) {
-        v[n] = p->diode[n] > 0 ? -p->cfg.v_drop_v : (p->diode[n] < 0 ? p->v_dc_v + p->cfg.v_drop_v : 0.0);
+        v[n] = p->diode[n] > 0 ? -p->cfg.v_drop_v
+                               : (p->diode[n] < 0 ? p->v_dc_v + p->cfg.v_drop_v : 0.0);
     }
     *ual = (2.0 * v[0] - v[1] - v[2]) * (1.0 / 3.0);
     *ube = (v[1] - v[2]) * PL_INV_SQRT3;
@@ -82,7 +82,7 @@ static int diode_mode(const plant_t *p, int *blocked)
 /* an open phase (or pair) starts to conduct when its floating terminal would leave the DC rails */
 static void diode_unblock(plant_t *p, ctx_t *k, const xs_t *x)
 {
-    const base_t b = {k->c0, k->s0, 0.0};
+    const base_t b = { k->c0, k->s0, 0.0 };
     const double vd = p->cfg.v_drop_v;
     dx_t d;
     double eal, ebe, e3[3];
@@ -93,7 +93,7 @@ static void diode_unblock(plant_t *p, ctx_t *k, const xs_t *x)
     diode_voltage(p, &k->u1, &k->u2);
     deriv(p, k, x, &d, mode, p->mag_general ? 1 : 0, &b, 1);
     if (mode == MODE_ONE_BLOCKED) {
-        const double vx = 1.5 * k->lam;   /* floating terminal voltage above DC- */
+        const double vx = 1.5 * k->lam; /* floating terminal voltage above DC- */
         if (vx > p->v_dc_v + vd) {
             p->diode[k->blocked] = -1;
         } else if (vx < -vd) {
@@ -114,7 +114,7 @@ static void diode_unblock(plant_t *p, ctx_t *k, const xs_t *x)
         }
     }
     if (e3[hi] - e3[lo] > p->v_dc_v + 2.0 * vd) {
-        p->diode[hi] = -1;   /* the highest back-EMF drives current out through the upper diode */
+        p->diode[hi] = -1; /* the highest back-EMF drives current out through the upper diode */
         p->diode[lo] = 1;
     }
 }
@@ -132,7 +132,7 @@ static void advance_off(plant_t *p, double t_load)
     int n;
 
     pl_ctx_start(p, &k, &x, t_load);
-    if (!p->diodes_valid) {  /* switches just opened: each current keeps flowing through the opposite diode */
+    if (!p->diodes_valid) { /* switches just opened: each current keeps flowing through the opposite diode */
         double i3[3];
         int b = -1, nb = 0;
         phase_currents(k.c0, k.s0, x.id, x.iq, i3);
@@ -178,7 +178,7 @@ static void advance_off(plant_t *p, double t_load)
                     }
                 }
             }
-            if (ev < 0) {  /* no current zero inside the piece (or the last try): accept it */
+            if (ev < 0) { /* no current zero inside the piece (or the last try): accept it */
                 if (mode != MODE_ALL_BLOCKED) {
                     phase_currents(k.c0, k.s0, x.id, x.iq, i1);
                     for (y = 0; y < 3; y++) {
@@ -223,7 +223,8 @@ void pl_step_legs(plant_t *p, const double d_in[3], bool on_in, bool carrier_in,
     bool pwm_on = on_in, carrier = carrier_in;
     double i0[3];
     if (p->cfg.pwm_delay_periods > 0) {
-        const uint32_t w = p->fifo_pos, r = (w - (uint32_t)p->cfg.pwm_delay_periods) & (PLANT_DELAY_RING - 1u);
+        const uint32_t w = p->fifo_pos,
+                       r = (w - (uint32_t)p->cfg.pwm_delay_periods) & (PLANT_DELAY_RING - 1u);
         p->fifo_d[w][0] = d_in[0];
         p->fifo_d[w][1] = d_in[1];
         p->fifo_d[w][2] = d_in[2];
@@ -256,12 +257,13 @@ static void step_legs_now(plant_t *p, const double d[3], bool pwm_on, bool carri
     }
     k_dt_v = p->v_dc_v * p->cfg.dead_time_s / p->cfg.ts_s;
     was_on = p->pwm_prev ? 1.0 : 0.0;
-    if (!p->dist_on) {   /* ideal inverter */
+    if (!p->dist_on) { /* ideal inverter */
         for (n = 0; n < 3; n++) {
             v[n] = p->v_dc_v * d[n];
             p->s_prev[n] = (uint16_t)(d[n] > 0.5);
         }
-        pl_advance_on(p, MODE_KNOWN, (2.0 * v[0] - v[1] - v[2]) * (1.0 / 3.0), (v[1] - v[2]) * PL_INV_SQRT3, t_load);
+        pl_advance_on(p, MODE_KNOWN, (2.0 * v[0] - v[1] - v[2]) * (1.0 / 3.0),
+                      (v[1] - v[2]) * PL_INV_SQRT3, t_load);
         p->pwm_prev = true;
         return;
     }
@@ -270,7 +272,7 @@ static void step_legs_now(plant_t *p, const double d[3], bool pwm_on, bool carri
         double rise, fall;
         if (carrier) {
             rise = fall = (d[n] > 0.0 && d[n] < 1.0) ? 1.0 : 0.0;
-        } else {   /* arithmetic, not branches: FCS switch sequences are unpredictable */
+        } else { /* arithmetic, not branches: FCS switch sequences are unpredictable */
             const double sp = (double)p->s_prev[n];
             rise = was_on * d[n] * (1.0 - sp);
             fall = was_on * sp * (1.0 - d[n]);
@@ -279,14 +281,15 @@ static void step_legs_now(plant_t *p, const double d[3], bool pwm_on, bool carri
         v[n] = p->v_dc_v * d[n] + p->v_dist_v[n];
         p->s_prev[n] = (uint16_t)(d[n] > 0.5);
     }
-    pl_advance_on(p, MODE_KNOWN, (2.0 * v[0] - v[1] - v[2]) * (1.0 / 3.0), (v[1] - v[2]) * PL_INV_SQRT3, t_load);
+    pl_advance_on(p, MODE_KNOWN, (2.0 * v[0] - v[1] - v[2]) * (1.0 / 3.0),
+                  (v[1] - v[2]) * PL_INV_SQRT3, t_load);
     p->pwm_prev = true;
 }
 
 void plant_step(plant_t *p, const fw_cmd_t *cmd)
 {
     double d[3];
-    if (cmd->mode == FW_CMD_DUTIES) {   /* a modulator's duties: averaged PWM */
+    if (cmd->mode == FW_CMD_DUTIES) { /* a modulator's duties: averaged PWM */
         d[0] = (double)cmd->duty_a;
         d[1] = (double)cmd->duty_b;
         d[2] = (double)cmd->duty_c;

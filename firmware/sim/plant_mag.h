@@ -33,7 +33,7 @@ PL_INLINE void cpow_k(double c, double s, int k, double *ck, double *sk)
 /* General magnetics: flux map (or linear), flux harmonics, cogging. */
 PL_INLINE void mag_gen(const plant_t *p, double id, double iq, double c, double s, plant_mag_t *m)
 {
-    double l[4] = {0.0, 0.0, 0.0, 0.0}, det;
+    double l[4] = { 0.0, 0.0, 0.0, 0.0 }, det;
     m->dpsi_d_dth_wb = 0.0;
     m->dpsi_q_dth_wb = 0.0;
     m->t_extra_nm = 0.0;
@@ -61,7 +61,8 @@ PL_INLINE void mag_gen(const plant_t *p, double id, double iq, double c, double 
         m->dpsi_d_dth_wb = -6.0 * a * s6;
         m->dpsi_q_dth_wb = 6.0 * b * c6;
         /* torque of the angle-dependent magnet flux: 1.5 p i . d(psi)/d(theta_e) */
-        m->t_extra_nm = 1.5 * (double)p->cfg.pole_pairs * (id * m->dpsi_d_dth_wb + iq * m->dpsi_q_dth_wb);
+        m->t_extra_nm =
+            1.5 * (double)p->cfg.pole_pairs * (id * m->dpsi_d_dth_wb + iq * m->dpsi_q_dth_wb);
     }
     m->l_dd = l[0];
     m->l_dq = l[1];
@@ -91,7 +92,8 @@ PL_INLINE double cog_torque(const plant_t *p, double c, double s)
  * mm = 0: the linear IPMSM (no effect on; the compiler specialises the callers, so the effects cost
  * nothing when off); mm = 1: mag_gen() with saturation, flux harmonics, cogging. The voltage equations
  * in deriv() use the general form u = R i + L_inc di/dt + w_e (dpsi/dtheta - J psi). */
-PL_INLINE void mag_eval(const plant_t *p, int mm, double id, double iq, double c, double s, plant_mag_t *m)
+PL_INLINE void mag_eval(const plant_t *p, int mm, double id, double iq, double c, double s,
+                        plant_mag_t *m)
 {
     if (mm) {
         mag_gen(p, id, iq, c, s, m);

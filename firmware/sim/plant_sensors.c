@@ -12,7 +12,8 @@ PL_INLINE double sensor_current(plant_t *p, double i)
     if (p->cfg.i_noise_a > 0.0) {
         v += p->cfg.i_noise_a * rng_gauss(&p->rng);
     }
-    if (p->inv_lsb > 0.0) {   /* round to nearest (even) by the 1.5 * 2^52 trick: branch-free, exact */
+    if (p->inv_lsb >
+        0.0) { /* round to nearest (even) by the 1.5 * 2^52 trick: branch-free, exact */
         const double q = v * p->inv_lsb;
         v = ((q + 6755399441055744.0) - 6755399441055744.0) * p->cfg.adc_lsb_a;
     }
@@ -28,7 +29,8 @@ static void sample_general(plant_t *p, fw_meas_t *m)
     int n;
     if (p->delay_n >= 0) {
         const double *a = p->hist_i[(p->hist_pos - (uint32_t)p->delay_n) & (PLANT_DELAY_RING - 1u)];
-        const double *b = p->hist_i[(p->hist_pos - (uint32_t)p->delay_n - 1u) & (PLANT_DELAY_RING - 1u)];
+        const double *b =
+            p->hist_i[(p->hist_pos - (uint32_t)p->delay_n - 1u) & (PLANT_DELAY_RING - 1u)];
         for (n = 0; n < 3; n++) {
             i3[n] = a[n] + p->delay_f * (b[n] - a[n]);
         }

@@ -7,15 +7,17 @@
 /* copper and iron losses at the present state */
 void pl_losses(const plant_t *p, double *p_cu, double *p_fe)
 {
-    const double r_fe_inv = p->inv_r_fe > 0.0 ? p->inv_r_fe
-                            : (p->cfg.r_fe_heat_ohm > 0.0 ? 1.0 / p->cfg.r_fe_heat_ohm : 0.0);
+    const double r_fe_inv = p->inv_r_fe > 0.0
+                                ? p->inv_r_fe
+                                : (p->cfg.r_fe_heat_ohm > 0.0 ? 1.0 / p->cfg.r_fe_heat_ohm : 0.0);
     *p_cu = 1.5 * p->r_s_ohm * (p->i_d_a * p->i_d_a + p->i_q_a * p->i_q_a);
     *p_fe = 0.0;
     if (r_fe_inv > 0.0) {
         const double we = (double)p->cfg.pole_pairs * p->omega_m_rad_s;
         plant_mag_t m;
         double idm, iqm, ed, eq;
-        mag_at(p, p->mag_general ? 1 : 0, p->i_d_a, p->i_q_a, we, p->cos_e, p->sin_e, &m, &idm, &iqm);
+        mag_at(p, p->mag_general ? 1 : 0, p->i_d_a, p->i_q_a, we, p->cos_e, p->sin_e, &m, &idm,
+               &iqm);
         ed = -we * (m.psi_q_wb - m.dpsi_d_dth_wb);
         eq = we * (m.psi_d_wb + m.dpsi_q_dth_wb);
         *p_fe = 1.5 * (ed * ed + eq * eq) * r_fe_inv;
@@ -25,9 +27,12 @@ void pl_losses(const plant_t *p, double *p_cu, double *p_fe)
 /* parameters that follow the temperatures */
 void pl_thermal_params(plant_t *p)
 {
-    p->r_s_ohm = p->cfg.r_s_ohm * (1.0 + p->cfg.alpha_r_per_k * (p->temp_winding_c - p->cfg.temp_ref_c));
-    p->psi_f_wb = p->psi_f_ref_wb * (1.0 + p->cfg.alpha_psi_per_k * (p->temp_magnet_c - p->cfg.temp_ref_c));
-    p->psi_shift_wb = p->cfg.map != NULL ? p->psi_f_wb - p->cfg.map->psi_f_wb : 0.0;   /* added to the map's psi_d */
+    p->r_s_ohm =
+        p->cfg.r_s_ohm * (1.0 + p->cfg.alpha_r_per_k * (p->temp_winding_c - p->cfg.temp_ref_c));
+    p->psi_f_wb =
+        p->psi_f_ref_wb * (1.0 + p->cfg.alpha_psi_per_k * (p->temp_magnet_c - p->cfg.temp_ref_c));
+    p->psi_shift_wb = p->cfg.map != NULL ? p->psi_f_wb - p->cfg.map->psi_f_wb
+                                         : 0.0; /* added to the map's psi_d */
 }
 
 /* two-node thermal network, explicit Euler every PLANT_THERMAL_DIV periods (time constants are seconds
@@ -43,7 +48,8 @@ void pl_thermal_step(plant_t *p)
     p->p_cu_w = p->th_acc_w * (1.0 / (double)PLANT_THERMAL_DIV);
     p->th_acc_w = 0.0;
     p->th_n = 0;
-    p->temp_winding_c = tw + dt * (p->p_cu_w + p->p_fe_w - (tw - ta) / p->cfg.r_wa_k_w - q_wm) / p->cfg.c_winding_j_k;
+    p->temp_winding_c = tw + dt * (p->p_cu_w + p->p_fe_w - (tw - ta) / p->cfg.r_wa_k_w - q_wm) /
+                                 p->cfg.c_winding_j_k;
     p->temp_magnet_c = tm + dt * (q_wm - (tm - ta) / p->cfg.r_ma_k_w) / p->cfg.c_magnet_j_k;
     pl_thermal_params(p);
 }
@@ -65,7 +71,8 @@ void pl_dc_link_step(plant_t *p, const double d[3], bool pwm_on, const double i0
     }
     p->i_dc_a = idc;
     if (p->cfg.dc_rectifier) {
-        double c = p->grid_c * p->grid_dc - p->grid_s * p->grid_ds, s = p->grid_s * p->grid_dc + p->grid_c * p->grid_ds;
+        double c = p->grid_c * p->grid_dc - p->grid_s * p->grid_ds,
+               s = p->grid_s * p->grid_dc + p->grid_c * p->grid_ds;
         const double r = 1.5 - 0.5 * (c * c + s * s);
         double a0, a1, a2, mx;
         c *= r;
@@ -80,7 +87,7 @@ void pl_dc_link_step(plant_t *p, const double d[3], bool pwm_on, const double i0
         mx = mx > a2 ? mx : a2;
         vs *= mx;
     }
-    vnc = p->v_dc_v - dt * inv_c * idc;               /* source not conducting */
+    vnc = p->v_dc_v - dt * inv_c * idc; /* source not conducting */
     if (p->cfg.dc_rectifier && vnc >= vs) {
         p->v_dc_v = vnc;
     } else {

@@ -16,13 +16,16 @@
 
 typedef struct {
     uint32_t s[4];
-    double spare;        /* second value of the polar method */
+    double spare; /* second value of the polar method */
     int has_spare;
 } rng_t;
 
 void rng_seed(rng_t *r, uint32_t seed);
 
-static inline uint32_t rng_rotl32_(uint32_t x, int k) { return (x << k) | (x >> (32 - k)); }
+static inline uint32_t rng_rotl32_(uint32_t x, int k)
+{
+    return (x << k) | (x >> (32 - k));
+}
 
 /* Next 32 uniformly distributed bits (xoshiro128**). */
 static inline uint32_t rng_u32(rng_t *r)
@@ -57,9 +60,9 @@ static inline double rng_gauss(rng_t *r)
 {
     const uint32_t u = rng_u32(r);
     const uint32_t i = u & 127u;
-    const uint32_t j = u >> 8;                     /* 24-bit magnitude */
+    const uint32_t j = u >> 8; /* 24-bit magnitude */
     if (j < rng_zig_k[i]) {
-        static const double sgn[2] = {1.0, -1.0};   /* branch-free sign: it is a coin toss */
+        static const double sgn[2] = { 1.0, -1.0 }; /* branch-free sign: it is a coin toss */
         return (double)j * rng_zig_w[i] * sgn[(u >> 7) & 1u];
     }
     return rng_gauss_slow_(r, u);

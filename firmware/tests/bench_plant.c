@@ -22,13 +22,14 @@ static double now_s(void)
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-static const int SA[8] = {0, 1, 1, 0, 0, 0, 1, 1}, SB[8] = {0, 0, 1, 1, 1, 0, 0, 1}, SC[8] = {0, 0, 0, 0, 1, 1, 1, 1};
+static const int SA[8] = { 0, 1, 1, 0, 0, 0, 1, 1 }, SB[8] = { 0, 0, 1, 1, 1, 0, 0, 1 },
+                 SC[8] = { 0, 0, 0, 0, 1, 1, 1, 1 };
 
 /* the switch state whose voltage vector points closest to the current error (stationary frame) */
 static int choose(const fw_meas_t *m, double iar, double ibr)
 {
-    static const double vx[8] = {0, 1, 0.5, -0.5, -1, -0.5, 0.5, 0};
-    static const double vy[8] = {0, 0, 0.866, 0.866, 0, -0.866, -0.866, 0};
+    static const double vx[8] = { 0, 1, 0.5, -0.5, -1, -0.5, 0.5, 0 };
+    static const double vy[8] = { 0, 0, 0.866, 0.866, 0, -0.866, -0.866, 0 };
     const double ea = iar - m->i_a_a, eb = ibr - (m->i_a_a + 2.0 * m->i_b_a) * 0.57735026919;
     double best = -1e30;
     int k, kb = 0;
@@ -46,7 +47,7 @@ static void record(const plant_cfg_t *cfg, unsigned char *seq, long n)
 {
     plant_t p;
     fw_meas_t m;
-    fw_cmd_t c = {FW_CMD_STATES, 0, 0, 0, 0.0f, 0.0f, 0.0f, true, 0.0f};
+    fw_cmd_t c = { FW_CMD_STATES, 0, 0, 0, 0.0f, 0.0f, 0.0f, true, 0.0f };
     long k;
     plant_init(&p, cfg);
     plant_set_mech(&p, 0.0, 1000.0 * 3.14159265358979 / 30.0, true);
@@ -61,11 +62,12 @@ static void record(const plant_cfg_t *cfg, unsigned char *seq, long n)
     }
 }
 
-static double replay(const plant_cfg_t *cfg, const unsigned char *seq, long n, double *irms, double *sw)
+static double replay(const plant_cfg_t *cfg, const unsigned char *seq, long n, double *irms,
+                     double *sw)
 {
     plant_t p;
     fw_meas_t m;
-    fw_cmd_t c = {FW_CMD_STATES, 0, 0, 0, 0.0f, 0.0f, 0.0f, true, 0.0f};
+    fw_cmd_t c = { FW_CMD_STATES, 0, 0, 0, 0.0f, 0.0f, 0.0f, true, 0.0f };
     double t0, t1, sink = 0.0;
     long k;
     int prev = 0;
@@ -108,19 +110,18 @@ static void build_map(void)
 #define N_CASES 12
 int main(int argc, char **argv)
 {
-    static const char *names[N_CASES] = {
-        "ideal inverter and sensors, 1 RK4 substep        ",
-        "noise + ADC + dead time + drop (the base below)  ",
-        "base, 2 RK4 substeps                             ",
-        "base + saturation (18 x 33 flux map)             ",
-        "base + thermal                                   ",
-        "base + flux harmonics                            ",
-        "base + cogging (order 18)                        ",
-        "base + sensor offset, gain, sample delay         ",
-        "base + PWM delay 1 period                        ",
-        "base + DC link (rectifier)                       ",
-        "base + iron loss                                 ",
-        "base + all of the above (lab-typical-like)       "};
+    static const char *names[N_CASES] = { "ideal inverter and sensors, 1 RK4 substep        ",
+                                          "noise + ADC + dead time + drop (the base below)  ",
+                                          "base, 2 RK4 substeps                             ",
+                                          "base + saturation (18 x 33 flux map)             ",
+                                          "base + thermal                                   ",
+                                          "base + flux harmonics                            ",
+                                          "base + cogging (order 18)                        ",
+                                          "base + sensor offset, gain, sample delay         ",
+                                          "base + PWM delay 1 period                        ",
+                                          "base + DC link (rectifier)                       ",
+                                          "base + iron loss                                 ",
+                                          "base + all of the above (lab-typical-like)       " };
     const long n = argc > 1 ? atol(argv[1]) : 2000000L;
     unsigned char *seq = malloc((size_t)n);
     plant_cfg_t cfg;
@@ -134,7 +135,7 @@ int main(int argc, char **argv)
         const int all = c == N_CASES - 1;
         best[c] = 1e30;
         plant_cfg_default(&cfg);
-        if (c >= 1) {   /* rig-like sensors and inverter */
+        if (c >= 1) { /* rig-like sensors and inverter */
             cfg.i_noise_a = 0.05;
             cfg.adc_lsb_a = 40.0 / 4096.0;
             cfg.dead_time_s = 2e-6;
@@ -178,7 +179,8 @@ int main(int argc, char **argv)
             best[c] = ns < best[c] ? ns : best[c];
         }
     }
-    printf("plant_sample + plant_step, paper A IPMSM at 1000 r/min, i_q = 10 A (i_a rms %.1f A, %.2f leg switchings/period), best of 5 x %ld periods:\n",
+    printf("plant_sample + plant_step, paper A IPMSM at 1000 r/min, i_q = 10 A (i_a rms %.1f A, "
+           "%.2f leg switchings/period), best of 5 x %ld periods:\n",
            irms, sw, n);
     for (c = 0; c < N_CASES; c++) {
         printf("  %s: %6.1f ns/period\n", names[c], best[c]);

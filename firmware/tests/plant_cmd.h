@@ -7,7 +7,7 @@
 
 static inline void cfg_base(plant_cfg_t *c)
 {
-    plant_cfg_default(c);   /* paper A's IPMSM, 540 V, Ts 50 us, ideal inverter and sensors */
+    plant_cfg_default(c); /* paper A's IPMSM, 540 V, Ts 50 us, ideal inverter and sensors */
 }
 
 static inline void cmd_set(fw_cmd_t *c, int sa, int sb, int sc, bool on, double load)

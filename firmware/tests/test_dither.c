@@ -14,8 +14,12 @@ int main(void)
     for (i = 0; i < 22 * 10; i++) {
         float x = dither_step(&d, 1.5f);
         sum += x;
-        if (x < lo) { lo = x; }
-        if (x > hi) { hi = x; }
+        if (x < lo) {
+            lo = x;
+        }
+        if (x > hi) {
+            hi = x;
+        }
     }
     CHECK_NEAR(sum / 220.0f, 0.0f, 1e-5, "zero mean over whole periods");
     CHECK_NEAR(hi - lo, 0.6f * 1.5f, 1e-5, "peak-to-peak is gain x step");

@@ -7,9 +7,9 @@
 #include "enc_angle.h"
 #include "transforms.h"
 
-#define PI_D 3.14159265358979323846
-#define TS_S 50e-6
-#define N_CNT 10000u
+#define PI_D          3.14159265358979323846
+#define TS_S          50e-6
+#define N_CNT         10000u
 #define RPM_PER_RAD_S (60.0 / (2.0 * PI_D))
 
 static enc_cfg_t cfg_paper(void)
@@ -75,7 +75,8 @@ static void test_angle_map(void)
     CHECK_NEAR(tf_wrap_pi(FW_PI_F + 0.1f), -FW_PI_F + 0.1f, 1e-6, "wrap_pi above pi");
     CHECK_NEAR(tf_wrap_pi(-FW_PI_F), FW_PI_F, 1e-6, "wrap_pi(-pi) = pi");
     CHECK_NEAR(tf_wrap_pi(-1.0f), -1.0f, 1e-6, "wrap_pi keeps (-pi, pi]");
-    CHECK_NEAR(tf_wrap_2pi(-100.0f * FW_TWO_PI_F - 0.25f), FW_TWO_PI_F - 0.25f, 1e-3, "wrap_2pi many turns");
+    CHECK_NEAR(tf_wrap_2pi(-100.0f * FW_TWO_PI_F - 0.25f), FW_TWO_PI_F - 0.25f, 1e-3,
+               "wrap_2pi many turns");
 }
 
 /* Constant speed through the rollover in both directions: no speed glitch, continuous angles. */
@@ -88,7 +89,8 @@ static void test_rollover(void)
         enc_t e;
         enc_out_t o;
         const double w = rpm[n] / RPM_PER_RAD_S;
-        double th = rpm[n] > 0.0 ? 2.0 * PI_D - 0.3 : 0.3, max_spd = 0.0, max_jump = 0.0, max_obs = 0.0;
+        double th = rpm[n] > 0.0 ? 2.0 * PI_D - 0.3 : 0.3, max_spd = 0.0, max_jump = 0.0,
+               max_obs = 0.0;
         double prev_obs = -1.0;
         long k;
         int crossed = 0;
@@ -96,7 +98,7 @@ static void test_rollover(void)
         enc_init(&e, &c);
         enc_reset(&e, count_of(th));
         e.w_cps = (float)(w / (2.0 * PI_D) * N_CNT);
-        for (k = 0; k < 20000; k++) {   /* 1 s: 10 mechanical turns */
+        for (k = 0; k < 20000; k++) { /* 1 s: 10 mechanical turns */
             const uint32_t cnt = count_of(th);
             enc_step(&e, cnt, &o);
             if ((rpm[n] > 0.0 && cnt < prev_cnt) || (rpm[n] < 0.0 && cnt > prev_cnt)) {
@@ -117,11 +119,14 @@ static void test_rollover(void)
             prev_obs = o.theta_e_obs_rad;
             th += w * TS_S;
         }
-        printf("  %+5.0f r/min through %d rollovers: max speed error %.3f r/min, observer angle error"
-               " %.4f rad el., max step %.4f rad\n", rpm[n], crossed, max_spd, max_obs, max_jump);
+        printf(
+            "  %+5.0f r/min through %d rollovers: max speed error %.3f r/min, observer angle error"
+            " %.4f rad el., max step %.4f rad\n",
+            rpm[n], crossed, max_spd, max_obs, max_jump);
         CHECK(crossed >= 9, "the count rolled over");
         CHECK(max_spd < 0.5, "no speed glitch at the rollover");
-        CHECK(max_obs < 4.0 * 2.0 * PI_D / N_CNT * 1.5, "observer angle within 1.5 counts (electrical)");
+        CHECK(max_obs < 4.0 * 2.0 * PI_D / N_CNT * 1.5,
+              "observer angle within 1.5 counts (electrical)");
         CHECK(max_jump < 4.0 * fabs(w) * TS_S * 1.5 + 0.01, "observer angle continuous");
     }
 }
@@ -142,10 +147,10 @@ static stat_t speed_stats(double rpm, float bw)
     c.bw_rad_s = bw;
     enc_init(&e, &c);
     enc_reset(&e, count_of(th));   /* from rest: the observer must pull in */
-    for (k = 0; k < 100000; k++) {   /* 5 s */
+    for (k = 0; k < 100000; k++) { /* 5 s */
         enc_step(&e, count_of(th), &o);
         th += w * TS_S;
-        if (k >= 20000) {   /* after 1 s */
+        if (k >= 20000) { /* after 1 s */
             const double d = o.speed_rpm - rpm;
             s += d;
             s2 += d * d;
@@ -170,7 +175,8 @@ static void test_speed_accuracy(void)
         const stat_t a = speed_stats(rpm[n], ENC_BW_DEFAULT_RAD_S);
         printf("  %7.2f r/min, bw %.0f rad/s: mean error %+.4f r/min, std %.4f, max %.4f r/min\n",
                rpm[n], (double)ENC_BW_DEFAULT_RAD_S, a.mean, a.std, a.max);
-        CHECK(fabs(a.mean) < 0.01 * fabs(rpm[n]) * 0.1 + 0.01, "mean speed error < 0.1 % + 0.01 r/min");
+        CHECK(fabs(a.mean) < 0.01 * fabs(rpm[n]) * 0.1 + 0.01,
+              "mean speed error < 0.1 % + 0.01 r/min");
         CHECK(a.std < 0.2 && a.max < 0.5, "low-noise speed (std < 0.2 r/min, max < 0.5 r/min)");
     }
     {
@@ -191,7 +197,7 @@ static void test_speed_step(void)
     long k;
     enc_init(&e, &c);
     enc_reset(&e, count_of(th));
-    for (k = 0; k < 4000; k++) {   /* 0.2 s */
+    for (k = 0; k < 4000; k++) { /* 0.2 s */
         const double w = k >= 200 ? w1 : 0.0;
         enc_step(&e, count_of(th), &o);
         th += w * TS_S;
@@ -218,7 +224,7 @@ static void test_dip(void)
     enc_t e;
     enc_out_t o;
     const double w0 = 15.0 / RPM_PER_RAD_S, tau = 0.02;
-    const double a_dip = 5.0 / 0.0036;   /* initial deceleration: 5 N m on J = 0.0036 */
+    const double a_dip = 5.0 / 0.0036; /* initial deceleration: 5 N m on J = 0.0036 */
     double th = 0.2, min_true = 1e9, min_est = 1e9, max_err = 0.0;
     long k;
     enc_init(&e, &c);
@@ -239,9 +245,11 @@ static void test_dip(void)
             max_err = fabs(o.speed_rpm - w * RPM_PER_RAD_S);
         }
     }
-    printf("  load-step dip: true minimum %.1f r/min, observed %.1f r/min, max lag error %.1f r/min\n",
-           min_true, min_est, max_err);
-    CHECK(fabs(min_est - min_true) < 0.05 * fabs(min_true - 15.0), "dip minimum followed within 5 %");
+    printf(
+        "  load-step dip: true minimum %.1f r/min, observed %.1f r/min, max lag error %.1f r/min\n",
+        min_true, min_est, max_err);
+    CHECK(fabs(min_est - min_true) < 0.05 * fabs(min_true - 15.0),
+          "dip minimum followed within 5 %");
     CHECK(max_err < 25.0, "lag error during the dip below 25 r/min");
 }
 
@@ -257,7 +265,7 @@ static void test_long_run(void)
     enc_init(&e, &c);
     enc_reset(&e, 0u);
     e.w_cps = (float)(w / (2.0 * PI_D) * N_CNT);
-    for (k = 0; k < 2000000; k++) {   /* 100 s, 1667 turns */
+    for (k = 0; k < 2000000; k++) { /* 100 s, 1667 turns */
         const uint32_t cnt = (uint32_t)fmod(floor(cnt_true), (double)N_CNT);
         enc_step(&e, cnt, &o);
         cnt_true += w / (2.0 * PI_D) * N_CNT * TS_S;

@@ -10,9 +10,9 @@
 #include "r_inject.h"
 #include "id_window.h"
 
-#define R_T 0.9f
-#define LD_T 0.005f
-#define LQ_T 0.012f
+#define R_T   0.9f
+#define LD_T  0.005f
+#define LQ_T  0.012f
 #define PSI_T 0.18f
 
 /* window k of a run at w = 418.9 rad/s, i_q = 5 A, i_d a square wave -0.3 +- 2 A (period 100) */
@@ -33,11 +33,21 @@ static void sample(uint32_t k, float i_d_amp, id_sample_t *s)
 }
 
 typedef void (*step_fn)(void *e, const id_sample_t *s, est_out_t *o);
-static void rls_step(void *e, const id_sample_t *s, est_out_t *o) { est_rls_step((est_rls_t *)e, s, o); }
-static void ada_step(void *e, const id_sample_t *s, est_out_t *o) { est_adaline_step((est_adaline_t *)e, s, o); }
-static void nlms_step(void *e, const id_sample_t *s, est_out_t *o) { est_nlms_step((est_nlms_t *)e, s, o); }
+static void rls_step(void *e, const id_sample_t *s, est_out_t *o)
+{
+    est_rls_step((est_rls_t *)e, s, o);
+}
+static void ada_step(void *e, const id_sample_t *s, est_out_t *o)
+{
+    est_adaline_step((est_adaline_t *)e, s, o);
+}
+static void nlms_step(void *e, const id_sample_t *s, est_out_t *o)
+{
+    est_nlms_step((est_nlms_t *)e, s, o);
+}
 
-static uint32_t run(const char *name, void *e, step_fn step, float i_d_amp, uint32_t n, est_out_t *o)
+static uint32_t run(const char *name, void *e, step_fn step, float i_d_amp, uint32_t n,
+                    est_out_t *o)
 {
     uint32_t k, k_conv = 0u;
     id_sample_t s;
@@ -49,9 +59,10 @@ static uint32_t run(const char *name, void *e, step_fn step, float i_d_amp, uint
             k_conv = k + 1u;
         }
     }
-    printf("  %-8s L_d %.4f mH  L_q %.4f mH  psi_f %.5f Wb  within 2 %% after %u windows, converged flag %d\n",
-           name, (double)o->l_d_h * 1e3, (double)o->l_q_h * 1e3, (double)o->psi_f_wb, (unsigned)k_conv,
-           (int)o->converged);
+    printf("  %-8s L_d %.4f mH  L_q %.4f mH  psi_f %.5f Wb  within 2 %% after %u windows, "
+           "converged flag %d\n",
+           name, (double)o->l_d_h * 1e3, (double)o->l_q_h * 1e3, (double)o->psi_f_wb,
+           (unsigned)k_conv, (int)o->converged);
     return k_conv;
 }
 
@@ -70,7 +81,8 @@ int main(void)
     est_rls_init(&rls, &c);
     est_adaline_init(&ada, &c);
     est_nlms_init(&nlms, &c);
-    CHECK(run("rls", &rls, rls_step, 2.0f, 3000u, &o) < 600u, "RLS converges within 0.6 s of windows");
+    CHECK(run("rls", &rls, rls_step, 2.0f, 3000u, &o) < 600u,
+          "RLS converges within 0.6 s of windows");
     CHECK_NEAR(o.l_d_h, LD_T, 1e-3 * LD_T, "RLS L_d");
     CHECK_NEAR(o.l_q_h, LQ_T, 1e-3 * LQ_T, "RLS L_q");
     CHECK_NEAR(o.psi_f_wb, PSI_T, 1e-3 * PSI_T, "RLS psi_f");
@@ -117,7 +129,7 @@ int main(void)
     /* window averager: a current ramp with the exact voltage of the dq model gives exact means */
     {
         idw_t w;
-        idw_cfg_t wc = {20u, 50e-6f};
+        idw_cfg_t wc = { 20u, 50e-6f };
         idw_in_t in;
         id_sample_t out;
         uint32_t j, got = 0u;
@@ -141,7 +153,7 @@ int main(void)
      * levels, V_dead = 3 V per phase, small ripple */
     {
         rinj_t r;
-        rinj_cfg_t rc = {0.02f, 20u, 50e-6f, 0.0f, 0.0f};
+        rinj_cfg_t rc = { 0.02f, 20u, 50e-6f, 0.0f, 0.0f };
         rinj_in_t in;
         rinj_out_t ro;
         uint32_t j;
@@ -161,7 +173,8 @@ int main(void)
             in.i_c_a = -0.5f * i_d;
             rinj_step(&r, &in, &ro);
         }
-        printf("R injection, V_dead 3 V, theta 0, 6 A / 3 A: R %.4f ohm, V_dead %.3f V, separable %d\n",
+        printf("R injection, V_dead 3 V, theta 0, 6 A / 3 A: R %.4f ohm, V_dead %.3f V, separable "
+               "%d\n",
                (double)ro.r_s_ohm, (double)ro.v_dead_v, (int)ro.separable);
         CHECK(ro.separable, "two levels make (32) solvable at theta = 0");
         CHECK_NEAR(ro.r_s_ohm, R_T, 0.01 * R_T, "R within 1 % with a dead-time voltage");
@@ -174,7 +187,7 @@ int main(void)
      * L (i1 - i0) / Ts = u - R (i0 + i1) / 2 - V_dead D_d,  V_dead 2 V, D_d 4/3. */
     {
         rinj_t r;
-        rinj_cfg_t rc = {0.02f, 20u, 50e-6f, LD_T, LQ_T};
+        rinj_cfg_t rc = { 0.02f, 20u, 50e-6f, LD_T, LQ_T };
         rinj_in_t in;
         rinj_out_t ro;
         const float ts = 50e-6f, a = ts * R_T / (2.0f * LD_T);
@@ -204,7 +217,8 @@ int main(void)
         }
         printf("R injection, bang-bang ripple, 12 A / 6 A, V_dead 2 V: R %.4f ohm, V_dead %.3f V\n",
                (double)ro.r_s_ohm, (double)ro.v_dead_v);
-        CHECK_NEAR(ro.r_s_ohm, R_T, 0.005 * R_T, "R within 0.5 % with FCS ripple (trapezoid, L di/dt)");
+        CHECK_NEAR(ro.r_s_ohm, R_T, 0.005 * R_T,
+                   "R within 0.5 % with FCS ripple (trapezoid, L di/dt)");
         /* (32): u = R i - V_dead D with u the commanded voltage; the inverter loses 2 V: V_dead = -2 */
         CHECK_NEAR(ro.v_dead_v, -2.0f, 0.05, "V_dead with FCS ripple");
     }

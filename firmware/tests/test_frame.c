@@ -8,7 +8,7 @@
 #include "golden_frames.h"
 #include "proto_gen.h"
 
-static frame_parser_t parser;   /* large: keep it off the stack */
+static frame_parser_t parser; /* large: keep it off the stack */
 
 /* Pushes n octets; returns how many FRAME_OK results they produced. */
 static int push_all(frame_parser_t *p, const uint16_t *d, uint16_t n)
@@ -37,7 +37,7 @@ static bool parser_holds(const frame_parser_t *p, const golden_frame_t *g)
 
 static void test_crc(void)
 {
-    static const uint16_t digits[9] = {'1', '2', '3', '4', '5', '6', '7', '8', '9'};
+    static const uint16_t digits[9] = { '1', '2', '3', '4', '5', '6', '7', '8', '9' };
     CHECK(frame_crc16(digits, 9u) == 0x29B1u, "CRC-16/CCITT-FALSE check value");
     CHECK(frame_crc16(digits, 0u) == 0xFFFFu, "CRC of nothing is the init value");
 }
@@ -52,14 +52,17 @@ static void test_golden_pack_encode(void)
         uint16_t n = g->pack(payload);
         uint16_t len;
         char msg[160];
-        snprintf(msg, sizeof msg, "golden %u (%s): pack reproduces the payload", (unsigned)k, g->label);
+        snprintf(msg, sizeof msg, "golden %u (%s): pack reproduces the payload", (unsigned)k,
+                 g->label);
         CHECK(n == g->payload_len && same_octets(payload, g->payload, n), msg);
         CHECK(proto_payload_len(g->msg_id) == (int16_t)g->payload_len, "proto_payload_len");
         len = frame_encode(g->msg_id, g->seq, payload, n, out, FRAME_MAX_ENCODED);
-        snprintf(msg, sizeof msg, "golden %u (%s): frame_encode reproduces the frame", (unsigned)k, g->label);
+        snprintf(msg, sizeof msg, "golden %u (%s): frame_encode reproduces the frame", (unsigned)k,
+                 g->label);
         CHECK(len == g->frame_len && same_octets(out, g->frame, len), msg);
         /* exactly the frame's length fits, one less does not */
-        CHECK(frame_encode(g->msg_id, g->seq, payload, n, out, g->frame_len) == g->frame_len, "exact fit");
+        CHECK(frame_encode(g->msg_id, g->seq, payload, n, out, g->frame_len) == g->frame_len,
+              "exact fit");
         CHECK(frame_encode(g->msg_id, g->seq, payload, n, out, (uint16_t)(g->frame_len - 1u)) == 0u,
               "one octet short: 0");
         g->check(g->payload, g->payload_len);
@@ -85,7 +88,8 @@ static void test_golden_parse(void)
         }
     }
     CHECK(ok == (int)GOLDEN_FRAME_COUNT, "every golden frame parses back");
-    CHECK(parser.frames_ok == GOLDEN_FRAME_COUNT && parser.frames_bad == 0u, "counters after golden frames");
+    CHECK(parser.frames_ok == GOLDEN_FRAME_COUNT && parser.frames_bad == 0u,
+          "counters after golden frames");
 }
 
 /* Every single-bit flip of every golden frame (delimiter included) is rejected, and the parser takes
@@ -113,7 +117,8 @@ static void test_bit_flips(void)
             }
         }
     }
-    printf("bit flips: %ld tried, %ld accepted, %ld resync failures\n", flips, accepted, resync_fail);
+    printf("bit flips: %ld tried, %ld accepted, %ld resync failures\n", flips, accepted,
+           resync_fail);
     CHECK(accepted == 0, "no single-bit flip is accepted");
     CHECK(resync_fail == 0, "the parser resynchronises after each flipped frame");
 }
@@ -142,16 +147,17 @@ static void test_truncation(void)
 
 static void test_errors(void)
 {
-    static const uint16_t empty[3] = {0u, 0u, 0u};
-    static const uint16_t short1[2] = {0x01u, 0x00u};
-    static const uint16_t short3[4] = {0x03u, 0x11u, 0x22u, 0x00u};
-    static const uint16_t cobs_bad[3] = {0x05u, 0x11u, 0x00u};
+    static const uint16_t empty[3] = { 0u, 0u, 0u };
+    static const uint16_t short1[2] = { 0x01u, 0x00u };
+    static const uint16_t short3[4] = { 0x03u, 0x11u, 0x22u, 0x00u };
+    static const uint16_t cobs_bad[3] = { 0x05u, 0x11u, 0x00u };
     const golden_frame_t *g = &golden_frames[0];
     uint16_t i;
     int16_t r, first_err = FRAME_NONE;
 
     frame_parser_init(&parser);
-    CHECK(push_all(&parser, empty, 3u) == 0 && parser.frames_bad == 0u, "idle zeros are not errors");
+    CHECK(push_all(&parser, empty, 3u) == 0 && parser.frames_bad == 0u,
+          "idle zeros are not errors");
     (void)push_all(&parser, short1, 2u);
     (void)push_all(&parser, short3, 4u);
     CHECK(parser.err_short == 2u, "frames under 4 octets: FRAME_ERR_SHORT");
@@ -168,14 +174,16 @@ static void test_errors(void)
     }
     CHECK(first_err == FRAME_ERR_LEN && parser.err_len == 1u, "overflow: one FRAME_ERR_LEN");
     CHECK(frame_parser_push(&parser, 0u) == FRAME_NONE, "the delimiter ends the skipped frame");
-    CHECK(push_all(&parser, g->frame, g->frame_len) == 1 && parser_holds(&parser, g), "resync after overflow");
+    CHECK(push_all(&parser, g->frame, g->frame_len) == 1 && parser_holds(&parser, g),
+          "resync after overflow");
 
     /* garbage glued to the front of a frame loses that frame only */
     frame_parser_init(&parser);
     (void)frame_parser_push(&parser, 0x42u);
     CHECK(push_all(&parser, g->frame, g->frame_len) == 0 && parser.err_crc + parser.err_cobs == 1u,
           "a frame with leading garbage is rejected");
-    CHECK(push_all(&parser, g->frame, g->frame_len) == 1 && parser_holds(&parser, g), "the next one is taken");
+    CHECK(push_all(&parser, g->frame, g->frame_len) == 1 && parser_holds(&parser, g),
+          "the next one is taken");
     CHECK(parser.frames_ok == 1u && parser.frames_bad == 1u, "good and bad counters");
 }
 
@@ -188,16 +196,19 @@ static void test_encode_limits(void)
     CHECK(proto_payload_len(0xFFu) == -1, "0xFF is not a message id");
     len = frame_encode(0xFFu, 0u, payload, PROTO_MAX_PAYLOAD, out, FRAME_MAX_ENCODED);
     CHECK(len > 0u && len <= FRAME_MAX_ENCODED, "the longest payload fits in FRAME_MAX_ENCODED");
-    CHECK(frame_encode(0xFFu, 0u, payload, PROTO_MAX_PAYLOAD + 1u, out, 2u * FRAME_MAX_ENCODED) == 0u,
+    CHECK(frame_encode(0xFFu, 0u, payload, PROTO_MAX_PAYLOAD + 1u, out, 2u * FRAME_MAX_ENCODED) ==
+              0u,
           "a payload over PROTO_MAX_PAYLOAD is refused");
     frame_parser_init(&parser);
     CHECK(push_all(&parser, out, len) == 1 && parser.payload_len == PROTO_MAX_PAYLOAD,
           "an unknown id passes the framing, for the dispatcher to refuse");
 
     /* a known id with the wrong payload length is a framing error */
-    len = frame_encode(PROTO_ID_TELEM_FAST, 0u, payload, PROTO_LEN_TELEM_FAST + 1u, out, FRAME_MAX_ENCODED);
+    len = frame_encode(PROTO_ID_TELEM_FAST, 0u, payload, PROTO_LEN_TELEM_FAST + 1u, out,
+                       FRAME_MAX_ENCODED);
     frame_parser_init(&parser);
-    CHECK(push_all(&parser, out, len) == 0 && parser.err_len == 1u, "known id, wrong length: FRAME_ERR_LEN");
+    CHECK(push_all(&parser, out, len) == 0 && parser.err_len == 1u,
+          "known id, wrong length: FRAME_ERR_LEN");
 }
 
 static void test_accessors(void)
@@ -210,7 +221,8 @@ static void test_accessors(void)
     (void)push_all(&parser, g->frame, g->frame_len);
     n = frame_parser_frame(&parser, out, FRAME_MAX_RAW);
     CHECK(n == g->payload_len + 2u && out[0] == g->msg_id && out[1] == g->seq &&
-          same_octets(&out[2], g->payload, g->payload_len), "frame_parser_frame copies id, seq, payload");
+              same_octets(&out[2], g->payload, g->payload_len),
+          "frame_parser_frame copies id, seq, payload");
     CHECK(frame_parser_frame(&parser, out, (uint16_t)(g->payload_len + 1u)) == 0u, "too small: 0");
     CHECK(proto_payload_len(0xFFu) == -1, "unknown id: -1");
 }
@@ -226,8 +238,8 @@ static void test_saturation(void)
     t.speed_est_rpm = INFINITY;
     t.speed_ref_rpm = -INFINITY;
     t.theta_e_rad = 1e30f;
-    t.i_d_a = -0.0029f;   /* -1.45 LSB -> -1 */
-    t.i_q_a = -0.0031f;   /* -1.55 LSB -> -2 */
+    t.i_d_a = -0.0029f; /* -1.45 LSB -> -1 */
+    t.i_q_a = -0.0031f; /* -1.55 LSB -> -2 */
     CHECK(proto_telem_fast_pack(&t, buf) == PROTO_LEN_TELEM_FAST, "pack length");
     CHECK(proto_telem_fast_unpack(&t, buf, PROTO_LEN_TELEM_FAST), "unpack");
     CHECK_NEAR(t.speed_rpm, 0.0, 0.0, "NaN -> 0");
@@ -247,17 +259,20 @@ static void test_saturation(void)
  * heartbeat seq 5 counter 0x01020304 and hello seq 0 host_proto_version 2. */
 static void test_hand_frames(void)
 {
-    static const uint16_t hb[] = {0x09u, 0x09u, 0x05u, 0x04u, 0x03u, 0x02u, 0x01u, 0x80u, 0x47u, 0x00u};
-    static const uint16_t hello[] = {0x02u, 0x01u, 0x02u, 0x02u, 0x03u, 0x94u, 0x16u, 0x00u};
-    static const uint16_t hb_payload[] = {0x04u, 0x03u, 0x02u, 0x01u};
-    static const uint16_t hello_payload[] = {0x02u, 0x00u};
+    static const uint16_t hb[] = { 0x09u, 0x09u, 0x05u, 0x04u, 0x03u,
+                                   0x02u, 0x01u, 0x80u, 0x47u, 0x00u };
+    static const uint16_t hello[] = { 0x02u, 0x01u, 0x02u, 0x02u, 0x03u, 0x94u, 0x16u, 0x00u };
+    static const uint16_t hb_payload[] = { 0x04u, 0x03u, 0x02u, 0x01u };
+    static const uint16_t hello_payload[] = { 0x02u, 0x00u };
     uint16_t out[16];
 
     frame_parser_init(&parser);
     CHECK(push_all(&parser, hb, 10u) == 1 && parser.msg_id == 0x09u && parser.seq == 5u &&
-          parser.payload_len == 4u && same_octets(parser.payload, hb_payload, 4u), "hand heartbeat parses");
+              parser.payload_len == 4u && same_octets(parser.payload, hb_payload, 4u),
+          "hand heartbeat parses");
     CHECK(push_all(&parser, hello, 8u) == 1 && parser.msg_id == 0x01u && parser.seq == 0u &&
-          parser.payload_len == 2u && same_octets(parser.payload, hello_payload, 2u), "hand hello parses");
+              parser.payload_len == 2u && same_octets(parser.payload, hello_payload, 2u),
+          "hand hello parses");
     CHECK(frame_encode(0x09u, 5u, hb_payload, 4u, out, 16u) == 10u && same_octets(out, hb, 10u),
           "heartbeat encodes to the hand frame");
     CHECK(frame_encode(0x01u, 0u, hello_payload, 2u, out, 16u) == 8u && same_octets(out, hello, 8u),

@@ -25,9 +25,11 @@ static void test_txq(void)
     }
     CHECK(txq_push(&q, a, 700u), "txq: 700 octets fit");
     CHECK(!txq_push(&q, a, 400u), "txq: 400 more do not fit (whole frames or nothing)");
-    CHECK(q.dropped == 1u && q.level == 700u, "txq: the refused frame is counted, the queue unchanged");
+    CHECK(q.dropped == 1u && q.level == 700u,
+          "txq: the refused frame is counted, the queue unchanged");
     n = txq_pop_n(&q, out, 500u);
-    CHECK(n == 500u && out[0] == 0u && out[499] == (499u & 0xFFu), "txq: pop_n gives the oldest first");
+    CHECK(n == 500u && out[0] == 0u && out[499] == (499u & 0xFFu),
+          "txq: pop_n gives the oldest first");
     CHECK(txq_push(&q, a, 600u), "txq: after draining, 600 fit (wrapping round the ring)");
     n = txq_pop_n(&q, out, 1024u);
     CHECK(n == 800u, "txq: pop_n stops at the level");
@@ -62,7 +64,8 @@ static void test_can_tx_direct(void)
     t.speed_rpm = 1000.0f;
     t.i_q_a = 3.5f;
     n = proto_telem_fast_pack(&t, payload);
-    CHECK(proto_can_layout(PROTO_ID_TELEM_FAST, &l) && !l.transfer && !l.h2d, "can: telem_fast is a direct d2h message");
+    CHECK(proto_can_layout(PROTO_ID_TELEM_FAST, &l) && !l.transfer && !l.h2d,
+          "can: telem_fast is a direct d2h message");
     can_link_init(&c, 5u);
     CHECK(can_link_send(&c, PROTO_ID_TELEM_FAST, 0x42u, payload, n), "can: direct send queued");
     CHECK(can_link_tx_level(&c) == l.n_frames, "can: one frame per layout frame");
@@ -77,7 +80,8 @@ static void test_can_tx_direct(void)
         }
     }
     CHECK(ids_ok, "can: identifiers function + k << 4 | node, lengths of the layout");
-    CHECK(m == n && memcmp(got, payload, n * sizeof(uint16_t)) == 0, "can: the frames carry the payload in order");
+    CHECK(m == n && memcmp(got, payload, n * sizeof(uint16_t)) == 0,
+          "can: the frames carry the payload in order");
     CHECK(can_link_tx_peek(&c) == 0, "can: queue empty afterwards");
 }
 
@@ -93,7 +97,8 @@ static void test_can_tx_transfer_and_full(void)
     cc.n_valid = 8u;
     cc.i_a_a[3] = 1.5f;
     n = proto_capture_chunk_pack(&cc, payload);
-    CHECK(proto_can_layout(PROTO_ID_CAPTURE_CHUNK, &l) && l.transfer, "can: capture_chunk goes by transfer");
+    CHECK(proto_can_layout(PROTO_ID_CAPTURE_CHUNK, &l) && l.transfer,
+          "can: capture_chunk goes by transfer");
     can_link_init(&c, 1u);
     CHECK(can_link_send(&c, PROTO_ID_CAPTURE_CHUNK, 7u, payload, n), "can: transfer queued");
     CHECK(can_link_tx_pop(&c, &fr), "can: header frame");
@@ -101,17 +106,20 @@ static void test_can_tx_transfer_and_full(void)
     crc_in[1] = 7u;
     memcpy(&crc_in[2], payload, n * sizeof(uint16_t));
     crc = frame_crc16(crc_in, (uint16_t)(n + 2u));
-    CHECK(fr.id == can_id(PROTO_CAN_FUNC_TRANSFER_D2H, 1u) && fr.dlc == PROTO_CAN_TRANSFER_HEADER &&
-          fr.data[0] == 0u && fr.data[1] == PROTO_ID_CAPTURE_CHUNK && fr.data[2] == 7u && fr.data[3] == n &&
-          fr.data[4] == (crc >> 8) && fr.data[5] == (crc & 0xFFu),
-          "can: header [0, msg_id, seq, len, crc_hi, crc_lo] with the CRC over msg_id, seq, payload");
+    CHECK(
+        fr.id == can_id(PROTO_CAN_FUNC_TRANSFER_D2H, 1u) && fr.dlc == PROTO_CAN_TRANSFER_HEADER &&
+            fr.data[0] == 0u && fr.data[1] == PROTO_ID_CAPTURE_CHUNK && fr.data[2] == 7u &&
+            fr.data[3] == n && fr.data[4] == (crc >> 8) && fr.data[5] == (crc & 0xFFu),
+        "can: header [0, msg_id, seq, len, crc_hi, crc_lo] with the CRC over msg_id, seq, payload");
     CHECK(can_link_tx_pop(&c, &fr) && fr.data[0] == 1u && fr.dlc == 1u + PROTO_CAN_TRANSFER_DATA &&
-          fr.data[1] == payload[0], "can: data frame 1 carries index 1 and the first 7 octets");
+              fr.data[1] == payload[0],
+          "can: data frame 1 carries index 1 and the first 7 octets");
     can_link_init(&c, 1u);
     while (can_link_send(&c, PROTO_ID_CAPTURE_CHUNK, 0u, payload, n)) {
         sent++;
     }
-    CHECK(sent >= 1u && can_link_tx_level(&c) <= CAN_TXQ_FRAMES, "can: a full queue refuses whole messages");
+    CHECK(sent >= 1u && can_link_tx_level(&c) <= CAN_TXQ_FRAMES,
+          "can: a full queue refuses whole messages");
 }
 
 /* host-side frames of an h2d direct message, by the rules of docs/can.md */
@@ -143,8 +151,12 @@ static uint16_t h2d_transfer(uint16_t msg_id, uint16_t seq, const uint16_t *payl
     crc = (uint16_t)(frame_crc16(crc_in, (uint16_t)(n + 2u)) ^ crc_xor);
     fr[0].id = can_id(PROTO_CAN_FUNC_TRANSFER_H2D, node);
     fr[0].dlc = PROTO_CAN_TRANSFER_HEADER;
-    fr[0].data[0] = 0u; fr[0].data[1] = msg_id; fr[0].data[2] = seq; fr[0].data[3] = n;
-    fr[0].data[4] = (uint16_t)(crc >> 8); fr[0].data[5] = (uint16_t)(crc & 0xFFu);
+    fr[0].data[0] = 0u;
+    fr[0].data[1] = msg_id;
+    fr[0].data[2] = seq;
+    fr[0].data[3] = n;
+    fr[0].data[4] = (uint16_t)(crc >> 8);
+    fr[0].data[5] = (uint16_t)(crc & 0xFFu);
     while (p < n) {
         fr[k].id = fr[0].id;
         fr[k].data[0] = k;
@@ -181,8 +193,10 @@ static void test_can_rx(void)
     }
     CHECK(none_before, "can rx: nothing complete before the last frame");
     CHECK(r == CAN_RX_MSG && c.msg_id == PROTO_ID_SIM_PLANT && c.seq == 9u && c.payload_len == n &&
-          memcmp(c.payload, payload, n * sizeof(uint16_t)) == 0, "can rx: a direct message reassembled");
-    CHECK(can_link_rx(&c, (uint16_t)((fr[0].id & ~0xFu) | 4u), fr[0].data, fr[0].dlc) == CAN_RX_NONE,
+              memcmp(c.payload, payload, n * sizeof(uint16_t)) == 0,
+          "can rx: a direct message reassembled");
+    CHECK(can_link_rx(&c, (uint16_t)((fr[0].id & ~0xFu) | 4u), fr[0].data, fr[0].dlc) ==
+              CAN_RX_NONE,
           "can rx: frames for another node are ignored");
     CHECK(can_link_rx(&c, fr[1].id, fr[1].data, fr[1].dlc) == CAN_RX_ERR_ORDER && c.err_order == 1u,
           "can rx: a frame without its first one is out of order");
@@ -198,13 +212,15 @@ static void test_can_rx(void)
     for (k = 0u; k < nf; k++) {
         r = can_link_rx(&c, fr[k].id, fr[k].data, fr[k].dlc);
     }
-    CHECK(r == CAN_RX_MSG && c.msg_id == PROTO_ID_CONFIG_MOTOR && c.seq == 17u && c.payload_len == n &&
-          memcmp(c.payload, payload, n * sizeof(uint16_t)) == 0, "can rx: a transfer reassembled, CRC checked");
+    CHECK(r == CAN_RX_MSG && c.msg_id == PROTO_ID_CONFIG_MOTOR && c.seq == 17u &&
+              c.payload_len == n && memcmp(c.payload, payload, n * sizeof(uint16_t)) == 0,
+          "can rx: a transfer reassembled, CRC checked");
     nf = h2d_transfer(PROTO_ID_CONFIG_MOTOR, 18u, payload, n, fr, 3u, 0x0100u);
     for (k = 0u; k < nf; k++) {
         r = can_link_rx(&c, fr[k].id, fr[k].data, fr[k].dlc);
     }
-    CHECK(r == CAN_RX_ERR_CRC && c.err_crc == 1u, "can rx: a transfer with a bad CRC is rejected and counted");
+    CHECK(r == CAN_RX_ERR_CRC && c.err_crc == 1u,
+          "can rx: a transfer with a bad CRC is rejected and counted");
     nf = h2d_transfer(PROTO_ID_CONFIG_MOTOR, 19u, payload, n, fr, 3u, 0u);
     (void)can_link_rx(&c, fr[0].id, fr[0].data, fr[0].dlc);
     CHECK(can_link_rx(&c, fr[2].id, fr[2].data, fr[2].dlc) == CAN_RX_ERR_ORDER,
@@ -223,9 +239,9 @@ static void test_profile(void)
     memset(&s, 0, sizeof s);
     profile_clear(&p, 2u);
     CHECK(!profile_complete(&p), "profile: incomplete before the segments");
-    s.duration_s = 0.01f;            /* 10 periods of 1 ms */
+    s.duration_s = 0.01f; /* 10 periods of 1 ms */
     s.speed_rpm = 100.0f;
-    s.ramp_rpm_s = 1000.0f;          /* 1 r/min per period */
+    s.ramp_rpm_s = 1000.0f; /* 1 r/min per period */
     s.flags = PROFILE_FLAG_CAPTURE;
     CHECK(profile_set(&p, 0u, &s), "profile: segment 0 set");
     CHECK(!profile_set(&p, 2u, &s), "profile: an index past the declared count is refused");
@@ -243,7 +259,8 @@ static void test_profile(void)
         profile_step(&p, 1e-3f, &o);
         starts += o.segment_started ? 1u : 0u;
         if (t == 0u) {
-            CHECK(o.segment_started && o.index == 0u && (o.flags & PROFILE_FLAG_CAPTURE) && o.seg_ticks == 10u,
+            CHECK(o.segment_started && o.index == 0u && (o.flags & PROFILE_FLAG_CAPTURE) &&
+                      o.seg_ticks == 10u,
                   "profile: the first period starts segment 0 with its flags and length");
         }
         if (t == 4u) {
@@ -251,7 +268,8 @@ static void test_profile(void)
         }
         if (t == 10u) {
             CHECK(o.segment_started && o.index == 1u && o.tick_in_seg == 0u && o.load_nm == 2.0f &&
-                  o.speed_ref_rpm == -50.0f, "profile: segment 1 after 10 periods, a step to its speed");
+                      o.speed_ref_rpm == -50.0f,
+                  "profile: segment 1 after 10 periods, a step to its speed");
         }
         if (o.finished) {
             ticks = t;
@@ -259,8 +277,10 @@ static void test_profile(void)
         }
     }
     CHECK_NEAR(ramp_at_5, 5.0f, 1e-4, "profile: the ramp climbs 1 r/min per period");
-    CHECK(starts == 2u && ticks == 15u, "profile: finished in the period after the last one (10 + 5)");
-    CHECK(o.load_nm == 0.0f && o.speed_ref_rpm == -50.0f, "profile: at the end the load goes, the reference holds");
+    CHECK(starts == 2u && ticks == 15u,
+          "profile: finished in the period after the last one (10 + 5)");
+    CHECK(o.load_nm == 0.0f && o.speed_ref_rpm == -50.0f,
+          "profile: at the end the load goes, the reference holds");
     profile_step(&p, 1e-3f, &o);
     CHECK(!o.finished && !o.segment_started, "profile: finished only once");
 }
@@ -302,11 +322,13 @@ static void test_capture(void)
     CHECK(capture_frozen(&c) && capture_count(&c) == CAPTURE_LEN, "capture: frozen when full");
     sample(&s, k + 1u);
     capture_record(&c, k + 1u, &s);
-    CHECK(capture_tick0(&c) == 1900u, "capture: frozen ignores new samples; oldest is 100 before the trigger");
+    CHECK(capture_tick0(&c) == 1900u,
+          "capture: frozen ignores new samples; oldest is 100 before the trigger");
     CHECK(capture_get(&c, 0u, &s) && s.s_abc == (1900u & 7u), "capture: index 0 is the oldest");
     CHECK_NEAR(s.i_a_a, 0.002f * 900.0f, 1e-3, "capture: current kept at the wire's scale");
     CHECK_NEAR(s.omega_e_rad_s, -100.0f, 0.05, "capture: speed kept");
-    CHECK(capture_get(&c, 100u, &s) && s.s_abc == (2000u & 7u), "capture: index pre is the trigger period");
+    CHECK(capture_get(&c, 100u, &s) && s.s_abc == (2000u & 7u),
+          "capture: index pre is the trigger period");
     CHECK(!capture_get(&c, CAPTURE_LEN, &s), "capture: past the end");
     capture_rearm(&c);
     CHECK(capture_count(&c) == 0u && !capture_frozen(&c), "capture: re-armed and empty");

@@ -7,14 +7,14 @@
 #include "transforms.h"
 
 /* Paper A's motor and drive. */
-#define R_OHM 0.9
-#define LD_H 0.005
-#define LQ_H 0.012
+#define R_OHM  0.9
+#define LD_H   0.005
+#define LQ_H   0.012
 #define PSI_WB 0.18
-#define POLES 4
-#define VDC_V 540.0
-#define TS_S 50e-6
-#define PI_D 3.14159265358979323846
+#define POLES  4
+#define VDC_V  540.0
+#define TS_S   50e-6
+#define PI_D   3.14159265358979323846
 
 /* ------------------------------------------------------------------ plant
  * Continuous dq model integrated with fine Euler sub-steps (the "exact" plant the Euler
@@ -24,12 +24,12 @@
  * td_s, and the pole voltage follows the current sign (i > 0: 0, i < 0: v_dc); plus a device
  * drop -v_drop sign(i). */
 typedef struct {
-    double i_d, i_q, theta, w;   /* electrical */
+    double i_d, i_q, theta, w; /* electrical */
     double r, l_d, l_q, psi, vdc;
     double td_s, v_drop;
-    int sw;                      /* state applied during the current period */
-    double sum_id, sum_iq;       /* time integral of the currents over the last period / Ts */
-    double sum_ud, sum_uq;       /* average dq voltage over the last period (rotating frame) */
+    int sw;                /* state applied during the current period */
+    double sum_id, sum_iq; /* time integral of the currents over the last period / Ts */
+    double sum_ud, sum_uq; /* average dq voltage over the last period (rotating frame) */
 } plant_t;
 
 #define N_SUB 100
@@ -52,7 +52,10 @@ static void plant_init(plant_t *p, double w)
     p->sum_iq = 0.0;
 }
 
-static double sgn(double x) { return x > 0.0 ? 1.0 : (x < 0.0 ? -1.0 : 0.0); }
+static double sgn(double x)
+{
+    return x > 0.0 ? 1.0 : (x < 0.0 ? -1.0 : 0.0);
+}
 
 /* One control period with switch state sw_new applied from its start. */
 static void plant_period(plant_t *p, int sw_new)
@@ -119,12 +122,12 @@ static void fill_in(mpcc_in_t *in, const plant_t *p, float id_ref, float iq_ref)
 
 typedef struct {
     double mean_ed, mean_eq, rms_ed, rms_eq, sw_per_s;
-    double avg_ed, avg_eq;   /* error of the time-averaged (not sampled) current */
+    double avg_ed, avg_eq; /* error of the time-averaged (not sampled) current */
 } track_t;
 
 /* Run MPCC on the plant at a fixed electrical speed; statistics after a 10 ms settling time. */
-static track_t run_track(const mpcc_cfg_t *cfg, double w, double td_s, double v_drop,
-                         float id_ref, float iq_ref, double t_end)
+static track_t run_track(const mpcc_cfg_t *cfg, double w, double td_s, double v_drop, float id_ref,
+                         float iq_ref, double t_end)
 {
     mpcc_t m;
     mpcc_in_t in;
@@ -185,13 +188,15 @@ static void test_vector_table(void)
     uint16_t code;
     for (code = 0u; code < 8u; code++) {
         float al, be, ua, ub;
-        const float sa = (float)(code & 1u), sb = (float)((code >> 1) & 1u), sc = (float)((code >> 2) & 1u);
+        const float sa = (float)(code & 1u), sb = (float)((code >> 1) & 1u),
+                    sc = (float)((code >> 2) & 1u);
         mpcc_vector(code, &al, &be);
         tf_clarke(sa, sb, sc, &ua, &ub);
         CHECK_NEAR(al, ua, 1e-6, "vector alpha = Clarke of the switch pattern");
         CHECK_NEAR(be, ub, 1e-6, "vector beta = Clarke of the switch pattern");
         if (code != 0u && code != 7u) {
-            CHECK_NEAR(sqrtf(al * al + be * be), 2.0f / 3.0f, 1e-6, "active vector magnitude 2/3 v_dc");
+            CHECK_NEAR(sqrtf(al * al + be * be), 2.0f / 3.0f, 1e-6,
+                       "active vector magnitude 2/3 v_dc");
         }
     }
 }
@@ -243,7 +248,8 @@ static void test_obvious_choice(void)
         const float th2 = 0.3f + 1.5f * (float)(p.w * TS_S);
         mpcc_vector(out.s_abc_next, &al, &be);
         uq = -sinf(th2) * al + cosf(th2) * be;
-        CHECK(out.s_abc_next != 0u && out.s_abc_next != 7u, "at speed an active vector holds i = 0");
+        CHECK(out.s_abc_next != 0u && out.s_abc_next != 7u,
+              "at speed an active vector holds i = 0");
         CHECK(uq > 0.3f, "the chosen vector opposes the back-EMF (u_q > 0)");
     }
 }
@@ -260,7 +266,7 @@ static void test_zero_vector_tie(void)
     const float c = cosf(0.2f), s = sinf(0.2f);
     uint16_t prev;
 
-    cfg.k_int_rad_s = 0.0f;   /* the pure cost of paper A (4) */
+    cfg.k_int_rad_s = 0.0f; /* the pure cost of paper A (4) */
     for (prev = 0u; prev < 8u; prev++) {
         mpcc_init(&m, &cfg);
         m.sw_prev = prev;
@@ -321,8 +327,10 @@ static void test_prediction_vs_plant(void)
             pq = out.i_q_k1_a;
             plant_period(&p, pending);
             pending = out.s_abc_next;
-            if (fabs(pd - p.i_d) > max_ed) max_ed = fabs(pd - p.i_d);
-            if (fabs(pq - p.i_q) > max_eq) max_eq = fabs(pq - p.i_q);
+            if (fabs(pd - p.i_d) > max_ed)
+                max_ed = fabs(pd - p.i_d);
+            if (fabs(pq - p.i_q) > max_eq)
+                max_eq = fabs(pq - p.i_q);
         }
     }
     printf("  one-step prediction error max: d %.4f A, q %.4f A\n", max_ed, max_eq);
@@ -343,9 +351,10 @@ static void test_tracking(void)
         track_t u = run_track(&pure, w, 0.0, 0.0, -2.0f, 8.0f, 1.0);
         printf("  %6.0f r/min: mean err d %+.3f q %+.3f A, rms d %.3f q %.3f A, %.0f changes/s"
                " | plain paper A: mean %+.3f %+.3f, rms %.3f %.3f, %.0f/s\n",
-               rpm[n], t.mean_ed, t.mean_eq, t.rms_ed, t.rms_eq, t.sw_per_s,
-               u.mean_ed, u.mean_eq, u.rms_ed, u.rms_eq, u.sw_per_s);
-        CHECK(hypot(t.mean_ed, t.mean_eq) < 0.02, "mean current error < 20 mA (offset compensation)");
+               rpm[n], t.mean_ed, t.mean_eq, t.rms_ed, t.rms_eq, t.sw_per_s, u.mean_ed, u.mean_eq,
+               u.rms_ed, u.rms_eq, u.sw_per_s);
+        CHECK(hypot(t.mean_ed, t.mean_eq) < 0.02,
+              "mean current error < 20 mA (offset compensation)");
         CHECK(t.rms_ed < 1.0 && t.rms_eq < 0.75, "bounded ripple (rms d < 1 A, q < 0.75 A)");
         CHECK(fabs(t.avg_ed - t.mean_ed) < 0.01 && fabs(t.avg_eq - t.mean_eq) < 0.01,
               "sampled mean = time-averaged mean");
@@ -394,7 +403,7 @@ static double window_err_max(const mpcc_cfg_t *cfg, double rpm, float iq_ref)
         mpcc_step(&m, &in, &out);
         plant_period(&p, pending);
         pending = out.s_abc_next;
-        if (k >= 2000) {   /* after 0.1 s */
+        if (k >= 2000) { /* after 0.1 s */
             sq += iq_ref - p.sum_iq;
             if (++nw == 200) {
                 if (fabs(sq / nw) > mx) {
@@ -415,9 +424,11 @@ static void test_low_speed_dead_band(void)
     int n;
     pure.k_int_rad_s = 0.0f;
     for (n = 0; n < 2; n++) {
-        const double a = window_err_max(&cfg, rpm[n], 0.3f), b = window_err_max(&pure, rpm[n], 0.3f);
-        printf("  %4.0f r/min, i_q* = 0.3 A: worst 10 ms mean error %.3f A (plain paper A %.3f A)\n",
-               rpm[n], a, b);
+        const double a = window_err_max(&cfg, rpm[n], 0.3f),
+                     b = window_err_max(&pure, rpm[n], 0.3f);
+        printf(
+            "  %4.0f r/min, i_q* = 0.3 A: worst 10 ms mean error %.3f A (plain paper A %.3f A)\n",
+            rpm[n], a, b);
         CHECK(a < 0.15, "offset compensation: 10 ms mean within 0.15 A at a small reference");
         CHECK(b > 0.25, "plain FCS shows the dead band (documents why the compensation exists)");
     }
@@ -516,15 +527,19 @@ static void test_dead_time(void)
         dt_stat_t b = run_dt(&avg, w, td, vdrop, t_end);
         dt_stat_t c = run_dt(&swm, w, td, vdrop, t_end);
         printf("  %6.0f r/min, dead time 2 us, drop 1.5 V: prediction bias / rms (A), |mean| / rms "
-               "voltage error (V):\n", rpm[n]);
-        printf("      none %.4f/%.4f %.2f/%.2f   average %.4f/%.4f %.2f/%.2f   switching %.4f/%.4f %.2f/%.2f\n",
+               "voltage error (V):\n",
+               rpm[n]);
+        printf("      none %.4f/%.4f %.2f/%.2f   average %.4f/%.4f %.2f/%.2f   switching %.4f/%.4f "
+               "%.2f/%.2f\n",
                a.pred_bias, a.pred_rms, a.u_err_mean, a.u_err_rms, b.pred_bias, b.pred_rms,
                b.u_err_mean, b.u_err_rms, c.pred_bias, c.pred_rms, c.u_err_mean, c.u_err_rms);
         CHECK(c.pred_bias < 0.1 * a.pred_bias, "switching model removes the prediction bias");
         CHECK(c.pred_rms < 0.5 * a.pred_rms, "switching model reduces the prediction error");
-        CHECK(c.u_err_mean < 0.1 * a.u_err_mean, "reported voltage unbiased with the switching model");
+        CHECK(c.u_err_mean < 0.1 * a.u_err_mean,
+              "reported voltage unbiased with the switching model");
         CHECK(c.u_err_rms < 1.5, "reported period-average voltage within 1.5 V rms of the plant");
-        printf("      mean current error: none %.3f, switching %.3f A\n", a.track_mean, c.track_mean);
+        printf("      mean current error: none %.3f, switching %.3f A\n", a.track_mean,
+               c.track_mean);
         CHECK(c.track_mean < 0.05, "current still tracks with dead time");
     }
 }

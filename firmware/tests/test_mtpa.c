@@ -55,8 +55,10 @@ static void test_mtpa_vs_brute_force(void)
         mtpa_split(&m, MTPA_MODE_MTPA, (float)is[n], &i);
         t_b = brute_best(&m, is[n], &id_b);
         t_m = mtpa_torque_nm(&m, &i);
-        printf("  i_s %5.1f A: MTPA i_d %+.4f i_q %.4f A, %.5f N m; brute force i_d %+.4f A, %.5f N m;"
-               " i_d = 0: %.5f N m\n", is[n], i.d, i.q, t_m, id_b, t_b, torque_d(&m, 0.0, is[n]));
+        printf(
+            "  i_s %5.1f A: MTPA i_d %+.4f i_q %.4f A, %.5f N m; brute force i_d %+.4f A, %.5f N m;"
+            " i_d = 0: %.5f N m\n",
+            is[n], i.d, i.q, t_m, id_b, t_b, torque_d(&m, 0.0, is[n]));
         CHECK(t_m >= t_b * (1.0 - 1e-5), "MTPA torque equals the brute-force maximum");
         CHECK_NEAR(i.d, id_b, 1e-3 * is[n] + 1e-3, "MTPA i_d equals the brute-force optimum");
         CHECK_NEAR(sqrt((double)i.d * i.d + (double)i.q * i.q), is[n], 1e-5 * is[n], "|i| = i_s");
@@ -89,7 +91,8 @@ static void test_id_zero(void)
     CHECK(a.d == 0.0f && a.q == -3.0f, "id_zero: negative");
     mtpa_split(&m, 99u, 5.0f, &a);
     CHECK(a.d == 0.0f && a.q == 5.0f, "unknown mode behaves as id_zero");
-    CHECK_NEAR(mtpa_torque_nm(&m, &a), 1.5 * 4 * 0.18 * 5.0, 1e-5, "torque = 1.5 p psi_f i_q at i_d = 0");
+    CHECK_NEAR(mtpa_torque_nm(&m, &a), 1.5 * 4 * 0.18 * 5.0, 1e-5,
+               "torque = 1.5 p psi_f i_q at i_d = 0");
 }
 
 static void test_degenerate(void)
@@ -116,7 +119,8 @@ static void test_degenerate(void)
     mtpa_split(&m, MTPA_MODE_MTPA, 10.0f, &a);
     CHECK_NEAR(a.d, -10.0 / sqrt(2.0), 1e-4, "psi_f = 0: i_d = -i_s/sqrt(2)");
     CHECK_NEAR(a.q, 10.0 / sqrt(2.0), 1e-4, "psi_f = 0: i_q = i_s/sqrt(2)");
-    CHECK(mtpa_torque_nm(&m, &a) >= brute_best(&m, 10.0, &id_b) * (1.0 - 1e-5), "psi_f = 0: optimum");
+    CHECK(mtpa_torque_nm(&m, &a) >= brute_best(&m, 10.0, &id_b) * (1.0 - 1e-5),
+          "psi_f = 0: optimum");
     mtpa_split(&m, MTPA_MODE_MTPA, 0.0f, &a);
     CHECK(a.d == 0.0f && a.q == 0.0f, "psi_f = 0 and i_s = 0: no division by zero");
 }

@@ -9,12 +9,18 @@
 #include "plant_cmd.h"
 #include "rng.h"
 
-#define PI 3.14159265358979323846
+#define PI     3.14159265358979323846
 #define TWO_PI (2.0 * PI)
-#define SQRT3 1.7320508075688772
+#define SQRT3  1.7320508075688772
 
-static int finite3(double a, double b, double c) { return isfinite(a) && isfinite(b) && isfinite(c); }
-static double maxd(double a, double b) { return a > b ? a : b; }
+static int finite3(double a, double b, double c)
+{
+    return isfinite(a) && isfinite(b) && isfinite(c);
+}
+static double maxd(double a, double b)
+{
+    return a > b ? a : b;
+}
 
 /* ------------------------------------------------------------------ steady state */
 
@@ -32,9 +38,9 @@ static void test_steady_state(void)
     plant_init(&p, &cfg);
     plant_set_mech(&p, 0.4, wm, true);
     we = cfg.pole_pairs * wm;
-    ud = cfg.r_s_ohm * id - we * cfg.l_q_h * iq;                    /* steady-state voltage equations */
+    ud = cfg.r_s_ohm * id - we * cfg.l_q_h * iq; /* steady-state voltage equations */
     uq = cfg.r_s_ohm * iq + we * (cfg.l_d_h * id + cfg.psi_f_wb);
-    for (k = 0; k < 8000; k++) {                                    /* 0.4 s = 30 q-axis time constants */
+    for (k = 0; k < 8000; k++) { /* 0.4 s = 30 q-axis time constants */
         plant_step_udq(&p, ud, uq, 0.0);
     }
     plant_truth(&p, &t);
@@ -42,9 +48,11 @@ static void test_steady_state(void)
     CHECK_NEAR(t.i_q_a, iq, 1e-6, "steady state i_q at 955 r/min");
     CHECK_NEAR(t.u_d_v, ud, 1e-9, "truth u_d is the applied voltage");
     CHECK_NEAR(t.u_q_v, uq, 1e-9, "truth u_q is the applied voltage");
-    CHECK_NEAR(t.torque_nm, 1.5 * 4 * (0.18 * iq + (5e-3 - 12e-3) * id * iq), 1e-5, "torque formula");
+    CHECK_NEAR(t.torque_nm, 1.5 * 4 * (0.18 * iq + (5e-3 - 12e-3) * id * iq), 1e-5,
+               "torque formula");
     CHECK_NEAR(t.omega_m_rad_s, wm, 0.0, "held speed stays");
-    CHECK_NEAR(t.theta_m_rad, fmod(0.4 + wm * 8000 * 50e-6, TWO_PI), 1e-9, "angle = integral of the held speed");
+    CHECK_NEAR(t.theta_m_rad, fmod(0.4 + wm * 8000 * 50e-6, TWO_PI), 1e-9,
+               "angle = integral of the held speed");
     CHECK_NEAR(t.t_s, 0.4, 1e-12, "truth time");
 
     /* the inverter path: switch state (1,0,0) held at standstill, rotor at theta_m = 0.3 */
@@ -59,8 +67,10 @@ static void test_steady_state(void)
             plant_step(&p, &c);
         }
         plant_truth(&p, &t);
-        CHECK_NEAR(t.i_d_a, cos(the) * ua / 0.9, 1e-6, "switch state (1,0,0): steady i_d = u_d / R");
-        CHECK_NEAR(t.i_q_a, -sin(the) * ua / 0.9, 1e-6, "switch state (1,0,0): steady i_q = u_q / R");
+        CHECK_NEAR(t.i_d_a, cos(the) * ua / 0.9, 1e-6,
+                   "switch state (1,0,0): steady i_d = u_d / R");
+        CHECK_NEAR(t.i_q_a, -sin(the) * ua / 0.9, 1e-6,
+                   "switch state (1,0,0): steady i_q = u_q / R");
         CHECK_NEAR(t.i_a_a, ua / 0.9, 1e-6, "switch state (1,0,0): i_a = 2/3 v_dc / R");
         CHECK_NEAR(t.i_b_a, -0.5 * ua / 0.9, 1e-6, "switch state (1,0,0): i_b = -i_a / 2");
     }
@@ -68,7 +78,7 @@ static void test_steady_state(void)
     /* averaged PWM: duties (0.6, 0.4, 0.4) at theta_e = 0: u_d = 2/3 (0.6 - 0.4) v_dc */
     plant_init(&p, &cfg);
     {
-        const double duty[3] = {0.6, 0.4, 0.4};
+        const double duty[3] = { 0.6, 0.4, 0.4 };
         for (k = 0; k < 8000; k++) {
             plant_step_duty(&p, duty, true, 0.0);
         }
@@ -83,7 +93,8 @@ static void test_steady_state(void)
         plant_t q, s;
         plant_truth_t tq, ts;
         fw_cmd_t c;
-        const double duty[3] = {(double)0.7f, (double)0.25f, (double)0.4f};   /* the command's floats */
+        const double duty[3] = { (double)0.7f, (double)0.25f,
+                                 (double)0.4f }; /* the command's floats */
         plant_init(&p, &cfg);
         plant_init(&q, &cfg);
         memset(&c, 0, sizeof c);
@@ -130,7 +141,7 @@ static void test_energy(void)
     int k;
 
     cfg_base(&cfg);
-    cfg.ts_s = 2e-6;          /* fine periods so that the test's own trapezoid quadrature is exact enough */
+    cfg.ts_s = 2e-6; /* fine periods so that the test's own trapezoid quadrature is exact enough */
     cfg.b_visc_nms = b;
     plant_init(&p, &cfg);
     plant_truth(&p, &t0);
@@ -139,7 +150,7 @@ static void test_energy(void)
     p_in0 = 1.5 * (ud * t0.i_d_a + uq * t0.i_q_a);
     p_cu0 = 1.5 * cfg.r_s_ohm * (t0.i_d_a * t0.i_d_a + t0.i_q_a * t0.i_q_a);
     p_v0 = b * t0.omega_m_rad_s * t0.omega_m_rad_s;
-    for (k = 0; k < 50000; k++) {   /* 0.1 s: currents build up, the rotor accelerates */
+    for (k = 0; k < 50000; k++) { /* 0.1 s: currents build up, the rotor accelerates */
         double p_in1, p_cu1, p_v1;
         plant_step_udq(&p, ud, uq, 0.0);
         plant_truth(&p, &t1);
@@ -156,12 +167,16 @@ static void test_energy(void)
     w_mag1 = 0.75 * (cfg.l_d_h * t1.i_d_a * t1.i_d_a + cfg.l_q_h * t1.i_q_a * t1.i_q_a);
     ke1 = 0.5 * cfg.j_kgm2 * t1.omega_m_rad_s * t1.omega_m_rad_s;
     bal = e_in - (e_cu + (w_mag1 - w_mag0) + (ke1 - ke0) + e_visc);
-    printf("energy: in %.6g J, copper %.6g J, magnetic %.6g J, kinetic %.6g J, viscous %.6g J, residual %.3g J\n",
+    printf("energy: in %.6g J, copper %.6g J, magnetic %.6g J, kinetic %.6g J, viscous %.6g J, "
+           "residual %.3g J\n",
            e_in, e_cu, w_mag1 - w_mag0, ke1 - ke0, e_visc, bal);
     CHECK(t1.omega_m_rad_s > 5.0, "energy test: the rotor accelerated");
-    CHECK(fabs(bal) < 1e-8 * e_in, "energy balance: electrical input = copper + magnetic + kinetic + viscous");
-    CHECK(fabs(bal) < 1e-4 * (ke1 - ke0 + e_visc), "energy balance: the torque accounts for the mechanical energy");
-    CHECK_NEAR(plant_torque(&p, -3.0, 8.0, 1.0), 1.5 * 4 * (0.18 * 8.0 + (5e-3 - 12e-3) * -3.0 * 8.0), 1e-12,
+    CHECK(fabs(bal) < 1e-8 * e_in,
+          "energy balance: electrical input = copper + magnetic + kinetic + viscous");
+    CHECK(fabs(bal) < 1e-4 * (ke1 - ke0 + e_visc),
+          "energy balance: the torque accounts for the mechanical energy");
+    CHECK_NEAR(plant_torque(&p, -3.0, 8.0, 1.0),
+               1.5 * 4 * (0.18 * 8.0 + (5e-3 - 12e-3) * -3.0 * 8.0), 1e-12,
                "plant_torque = 1.5 p (psi_f i_q + (Ld - Lq) i_d i_q)");
 }
 
@@ -174,12 +189,14 @@ typedef struct {
 
 static void ref_f(const plant_cfg_t *c, const ref_x *x, double ual, double ube, double tl, ref_x *d)
 {
-    const double the = c->pole_pairs * x->th, co = cos(the), si = sin(the), we = c->pole_pairs * x->w;
+    const double the = c->pole_pairs * x->th, co = cos(the), si = sin(the),
+                 we = c->pole_pairs * x->w;
     const double ud = co * ual + si * ube, uq = -si * ual + co * ube;
     d->id = (ud - c->r_s_ohm * x->id + we * c->l_q_h * x->iq) / c->l_d_h;
     d->iq = (uq - c->r_s_ohm * x->iq - we * (c->l_d_h * x->id + c->psi_f_wb)) / c->l_q_h;
-    d->w = (1.5 * c->pole_pairs * (c->psi_f_wb * x->iq + (c->l_d_h - c->l_q_h) * x->id * x->iq) - tl -
-            c->b_visc_nms * x->w) / c->j_kgm2;
+    d->w = (1.5 * c->pole_pairs * (c->psi_f_wb * x->iq + (c->l_d_h - c->l_q_h) * x->id * x->iq) -
+            tl - c->b_visc_nms * x->w) /
+           c->j_kgm2;
     d->th = x->w;
 }
 
@@ -191,11 +208,20 @@ static void ref_period(const plant_cfg_t *c, ref_x *x, int sa, int sb, int sc, d
     for (k = 0; k < n; k++) {
         ref_x k1, k2, k3, k4, y;
         ref_f(c, x, ual, ube, tl, &k1);
-        y.id = x->id + 0.5 * h * k1.id; y.iq = x->iq + 0.5 * h * k1.iq; y.w = x->w + 0.5 * h * k1.w; y.th = x->th + 0.5 * h * k1.th;
+        y.id = x->id + 0.5 * h * k1.id;
+        y.iq = x->iq + 0.5 * h * k1.iq;
+        y.w = x->w + 0.5 * h * k1.w;
+        y.th = x->th + 0.5 * h * k1.th;
         ref_f(c, &y, ual, ube, tl, &k2);
-        y.id = x->id + 0.5 * h * k2.id; y.iq = x->iq + 0.5 * h * k2.iq; y.w = x->w + 0.5 * h * k2.w; y.th = x->th + 0.5 * h * k2.th;
+        y.id = x->id + 0.5 * h * k2.id;
+        y.iq = x->iq + 0.5 * h * k2.iq;
+        y.w = x->w + 0.5 * h * k2.w;
+        y.th = x->th + 0.5 * h * k2.th;
         ref_f(c, &y, ual, ube, tl, &k3);
-        y.id = x->id + h * k3.id; y.iq = x->iq + h * k3.iq; y.w = x->w + h * k3.w; y.th = x->th + h * k3.th;
+        y.id = x->id + h * k3.id;
+        y.iq = x->iq + h * k3.iq;
+        y.w = x->w + h * k3.w;
+        y.th = x->th + h * k3.th;
         ref_f(c, &y, ual, ube, tl, &k4);
         x->id += h / 6 * (k1.id + 2 * k2.id + 2 * k3.id + k4.id);
         x->iq += h / 6 * (k1.iq + 2 * k2.iq + 2 * k3.iq + k4.iq);
@@ -210,8 +236,9 @@ static uint8_t acc_seq[ACC_N];
 /* switch state sequence of a bang-bang current loop (i_d* = -5 A, i_q* = 15 A) on the reference */
 static void make_sequence(const plant_cfg_t *c, double w0)
 {
-    static const int sa[8] = {0, 1, 1, 0, 0, 0, 1, 1}, sb[8] = {0, 0, 1, 1, 1, 0, 0, 1}, sc[8] = {0, 0, 0, 0, 1, 1, 1, 1};
-    ref_x x = {0.0, 0.0, w0, 0.0};
+    static const int sa[8] = { 0, 1, 1, 0, 0, 0, 1, 1 }, sb[8] = { 0, 0, 1, 1, 1, 0, 0, 1 },
+                     sc[8] = { 0, 0, 0, 0, 1, 1, 1, 1 };
+    ref_x x = { 0.0, 0.0, w0, 0.0 };
     int k, j;
     for (k = 0; k < ACC_N; k++) {
         const double the = c->pole_pairs * x.th, co = cos(the), si = sin(the);
@@ -236,7 +263,8 @@ static void make_sequence(const plant_cfg_t *c, double w0)
 
 static void run_seq(plant_t *p, double w0, double *id, double *iq, double *w, double *th)
 {
-    static const int sa[8] = {0, 1, 1, 0, 0, 0, 1, 1}, sb[8] = {0, 0, 1, 1, 1, 0, 0, 1}, sc[8] = {0, 0, 0, 0, 1, 1, 1, 1};
+    static const int sa[8] = { 0, 1, 1, 0, 0, 0, 1, 1 }, sb[8] = { 0, 0, 1, 1, 1, 0, 0, 1 },
+                     sc[8] = { 0, 0, 0, 0, 1, 1, 1, 1 };
     fw_cmd_t c;
     int k;
     plant_set_mech(p, 0.0, w0, false);
@@ -256,8 +284,10 @@ static void run_seq(plant_t *p, double w0, double *id, double *iq, double *w, do
 static double angdiff(double a, double b)
 {
     double d = fmod(a - b, TWO_PI);
-    if (d > PI) d -= TWO_PI;
-    if (d < -PI) d += TWO_PI;
+    if (d > PI)
+        d -= TWO_PI;
+    if (d < -PI)
+        d += TWO_PI;
     return fabs(d);
 }
 
@@ -265,16 +295,18 @@ static void test_rk4_accuracy(void)
 {
     static double rid[ACC_N], riq[ACC_N], rw[ACC_N], rth[ACC_N];
     static double id[ACC_N], iq[ACC_N], w[ACC_N], th[ACC_N];
-    const int subs[4] = {1, 2, 4, 1000};
-    const double speeds_rpm[2] = {1000.0, 3000.0};
+    const int subs[4] = { 1, 2, 4, 1000 };
+    const double speeds_rpm[2] = { 1000.0, 3000.0 };
     int si, k, n;
     for (si = 0; si < 2; si++) {
         const double w0 = speeds_rpm[si] * PI / 30.0;
         plant_cfg_t cfg;
         plant_t p;
-        ref_x x = {0.0, 0.0, w0, 0.0};
-        double emax[4] = {0, 0, 0, 0}, ewmax[4] = {0, 0, 0, 0}, ethmax[4] = {0, 0, 0, 0}, eind = 0.0, imax = 0.0;
-        static const int sa[8] = {0, 1, 1, 0, 0, 0, 1, 1}, sb[8] = {0, 0, 1, 1, 1, 0, 0, 1}, sc[8] = {0, 0, 0, 0, 1, 1, 1, 1};
+        ref_x x = { 0.0, 0.0, w0, 0.0 };
+        double emax[4] = { 0, 0, 0, 0 }, ewmax[4] = { 0, 0, 0, 0 }, ethmax[4] = { 0, 0, 0, 0 },
+               eind = 0.0, imax = 0.0;
+        static const int sa[8] = { 0, 1, 1, 0, 0, 0, 1, 1 }, sb[8] = { 0, 0, 1, 1, 1, 0, 0, 1 },
+                         sc[8] = { 0, 0, 0, 0, 1, 1, 1, 1 };
         cfg_base(&cfg);
         cfg.b_visc_nms = 1e-3;
         make_sequence(&cfg, w0);
@@ -298,16 +330,20 @@ static void test_rk4_accuracy(void)
                 ethmax[n] = maxd(ethmax[n], angdiff(th[k], rth[k]));
             }
         }
-        printf("RK4 accuracy at %4.0f r/min over %d periods (FCS current loop, |i| up to %.1f A, speed %.0f..%.0f rad/s):\n",
+        printf("RK4 accuracy at %4.0f r/min over %d periods (FCS current loop, |i| up to %.1f A, "
+               "speed %.0f..%.0f rad/s):\n",
                speeds_rpm[si], ACC_N, imax, w0, rw[ACC_N - 1]);
         for (n = 0; n < 3; n++) {
-            printf("  substeps %d vs 1000: max |di| %.3e A, max |dw| %.3e rad/s, max |dtheta_m| %.3e rad\n",
+            printf("  substeps %d vs 1000: max |di| %.3e A, max |dw| %.3e rad/s, max |dtheta_m| "
+                   "%.3e rad\n",
                    subs[n], emax[n], ewmax[n], ethmax[n]);
         }
-        printf("  plant (1000 substeps) vs independent libm-rotation reference: max |di| %.3e A\n", eind);
+        printf("  plant (1000 substeps) vs independent libm-rotation reference: max |di| %.3e A\n",
+               eind);
         CHECK(eind < 1e-9, "plant with 1000 substeps equals the independent reference");
         CHECK(emax[0] < 1e-4, "1 RK4 substep: current error < 0.1 mA against 1000 substeps");
-        CHECK(emax[1] < emax[0] / 12.0 && emax[2] < emax[1] / 12.0, "halving the step divides the error by ~16 (4th order)");
+        CHECK(emax[1] < emax[0] / 12.0 && emax[2] < emax[1] / 12.0,
+              "halving the step divides the error by ~16 (4th order)");
         CHECK(ewmax[0] < 1e-4 && ethmax[0] < 1e-6, "1 substep: speed and angle errors negligible");
     }
 }
@@ -324,12 +360,15 @@ static void test_distortion(void)
     CHECK_NEAR(plant_sigmoid(0.0), 0.0, 0.0, "sigmoid(0) = 0");
     CHECK_NEAR(plant_sigmoid(3.0), 1.0, 0.0, "sigmoid saturates at 3");
     CHECK_NEAR(plant_sigmoid(-7.0), -1.0, 0.0, "sigmoid saturates at -3");
-    CHECK_NEAR((plant_sigmoid(3.0) - plant_sigmoid(3.0 - 1e-6)) / 1e-6, 0.0, 1e-5, "sigmoid is C1 at the knee");
+    CHECK_NEAR((plant_sigmoid(3.0) - plant_sigmoid(3.0 - 1e-6)) / 1e-6, 0.0, 1e-5,
+               "sigmoid is C1 at the knee");
     for (k = -4000; k <= 4000; k++) {
         const double x = k * 1e-3;
         CHECK(fabs(plant_sigmoid(x) - tanh(x)) < 0.025, "sigmoid within 0.025 of tanh");
-        if (k > -4000 && plant_sigmoid(x) < plant_sigmoid(x - 1e-3)) mono = 0;
-        if (plant_sigmoid(-x) != -plant_sigmoid(x)) odd = 0;
+        if (k > -4000 && plant_sigmoid(x) < plant_sigmoid(x - 1e-3))
+            mono = 0;
+        if (plant_sigmoid(-x) != -plant_sigmoid(x))
+            odd = 0;
     }
     CHECK(mono, "sigmoid monotonic");
     CHECK(odd, "sigmoid odd");
@@ -339,7 +378,7 @@ static void test_distortion(void)
     cfg.v_drop_v = 1.2;
     cfg.i_dt_a = 0.4;
     plant_init(&p, &cfg);
-    kdt = 540.0 * 2e-6 / 50e-6;   /* 21.6 V */
+    kdt = 540.0 * 2e-6 / 50e-6; /* 21.6 V */
     /* carrier PWM (one rising and one falling edge per period): the classic -(v_dc t_d / Ts + v_drop) sgn i */
     CHECK_NEAR(plant_leg_distortion_v(&p, 10.0, 2), -(kdt + 1.2), 1e-12, "PWM distortion at +10 A");
     CHECK_NEAR(plant_leg_distortion_v(&p, -10.0, 2), kdt + 1.2, 1e-12, "PWM distortion at -10 A");
@@ -347,22 +386,29 @@ static void test_distortion(void)
     for (k = -3000; k <= 3000; k++) {
         const double v = plant_leg_distortion_v(&p, (i = k * 1e-3), 2);
         if (k > -3000) {
-            if (v > prev) mono = 0;
+            if (v > prev)
+                mono = 0;
             maxslope = maxd(maxslope, fabs(v - prev) / 1e-3);
         }
         CHECK(i * v <= 0.0, "distortion opposes the current");
         prev = v;
     }
     CHECK(mono, "distortion is monotonic in the current");
-    CHECK(maxslope <= (kdt + 1.2) / 0.4 * 1.001, "distortion is smooth: slope bounded by (v_dc t_d/Ts + v_drop) / i_dt");
+    CHECK(maxslope <= (kdt + 1.2) / 0.4 * 1.001,
+          "distortion is smooth: slope bounded by (v_dc t_d/Ts + v_drop) / i_dt");
     /* FCS transitions: a rising edge loses volts only for i > 0, a falling edge gains volts only for i < 0 */
-    CHECK_NEAR(plant_leg_distortion_v(&p, 10.0, 1), -(kdt + 1.2), 1e-12, "rising edge, i > 0: v_dc t_d / Ts lost");
-    CHECK_NEAR(plant_leg_distortion_v(&p, -10.0, 1), 1.2, 1e-12, "rising edge, i < 0: no dead-time error");
-    CHECK_NEAR(plant_leg_distortion_v(&p, 10.0, -1), -1.2, 1e-12, "falling edge, i > 0: no dead-time error");
-    CHECK_NEAR(plant_leg_distortion_v(&p, -10.0, -1), kdt + 1.2, 1e-12, "falling edge, i < 0: v_dc t_d / Ts gained");
+    CHECK_NEAR(plant_leg_distortion_v(&p, 10.0, 1), -(kdt + 1.2), 1e-12,
+               "rising edge, i > 0: v_dc t_d / Ts lost");
+    CHECK_NEAR(plant_leg_distortion_v(&p, -10.0, 1), 1.2, 1e-12,
+               "rising edge, i < 0: no dead-time error");
+    CHECK_NEAR(plant_leg_distortion_v(&p, 10.0, -1), -1.2, 1e-12,
+               "falling edge, i > 0: no dead-time error");
+    CHECK_NEAR(plant_leg_distortion_v(&p, -10.0, -1), kdt + 1.2, 1e-12,
+               "falling edge, i < 0: v_dc t_d / Ts gained");
     CHECK_NEAR(plant_leg_distortion_v(&p, 10.0, 0), -1.2, 1e-12, "no edge: device drop only");
     CHECK_NEAR(plant_leg_distortion_v(&p, 0.3, 1) + plant_leg_distortion_v(&p, 0.3, -1),
-               plant_leg_distortion_v(&p, 0.3, 2) - 1.2 * plant_sigmoid(0.3 / 0.4), 1e-12, "rise + fall = PWM period");
+               plant_leg_distortion_v(&p, 0.3, 2) - 1.2 * plant_sigmoid(0.3 / 0.4), 1e-12,
+               "rise + fall = PWM period");
 
     /* in the loop: leg a toggles every period at standstill, b and c low: the mean a-terminal voltage
      * is v_dc / 2 - (v_dc t_d / Ts) sigma / 2, so i_d settles lower than without dead time */
@@ -385,8 +431,10 @@ static void test_distortion(void)
                 id2 += t.i_d_a;
             }
         }
-        CHECK_NEAR(ud2 / 1000, 2.0 / 3.0 * (10.0 - 0.5), 1e-3, "toggling leg: mean u_d = 2/3 (v_dc/2 - k_dt/2)");
-        CHECK_NEAR(id2 / 1000, 2.0 / 3.0 * (10.0 - 0.5) / 0.9, 2e-3, "toggling leg: mean i_d follows");
+        CHECK_NEAR(ud2 / 1000, 2.0 / 3.0 * (10.0 - 0.5), 1e-3,
+                   "toggling leg: mean u_d = 2/3 (v_dc/2 - k_dt/2)");
+        CHECK_NEAR(id2 / 1000, 2.0 / 3.0 * (10.0 - 0.5) / 0.9, 2e-3,
+                   "toggling leg: mean i_d follows");
     }
 }
 
@@ -410,11 +458,15 @@ static void test_pwm_off(void)
     for (k = 0; k < 2000; k++) {
         plant_step(&p, &off);
         plant_truth(&p, &t);
-        if (!finite3(t.i_d_a, t.i_q_a, t.u_d_v)) ok = 0;
-        if (zero_at < 0 && t.i_d_a == 0.0 && t.i_q_a == 0.0) zero_at = k;
-        if (zero_at >= 0 && (t.i_d_a != 0.0 || t.i_q_a != 0.0)) stays = 0;
+        if (!finite3(t.i_d_a, t.i_q_a, t.u_d_v))
+            ok = 0;
+        if (zero_at < 0 && t.i_d_a == 0.0 && t.i_q_a == 0.0)
+            zero_at = k;
+        if (zero_at >= 0 && (t.i_d_a != 0.0 || t.i_q_a != 0.0))
+            stays = 0;
     }
-    printf("PWM off at 1000 r/min from |i| = 11.2 A: currents exactly zero after %d periods\n", zero_at + 1);
+    printf("PWM off at 1000 r/min from |i| = 11.2 A: currents exactly zero after %d periods\n",
+           zero_at + 1);
     CHECK(ok, "PWM off: no NaN");
     CHECK(zero_at >= 0 && zero_at < 20, "PWM off: currents reach zero within 1 ms");
     CHECK(stays, "PWM off: currents stay exactly zero (back-EMF below v_dc)");
@@ -441,7 +493,8 @@ static void test_pwm_off(void)
     for (k = 0; k < 400; k++) {
         plant_step(&p, (k / 37) & 1 ? &on : &off);
         plant_truth(&p, &t);
-        if (!finite3(t.i_d_a, t.i_q_a, t.omega_m_rad_s)) ok = 0;
+        if (!finite3(t.i_d_a, t.i_q_a, t.omega_m_rad_s))
+            ok = 0;
     }
     CHECK(ok, "PWM on/off toggling: no NaN");
 
@@ -455,7 +508,8 @@ static void test_pwm_off(void)
         for (k = 0; k < 4000; k++) {
             plant_step(&p, &off);
             plant_truth(&p, &t);
-            if (!finite3(t.i_a_a, t.i_b_a, t.torque_nm)) ok = 0;
+            if (!finite3(t.i_a_a, t.i_b_a, t.torque_nm))
+                ok = 0;
             if (k >= 2000) {
                 tsum += t.torque_nm;
                 imax = maxd(imax, fabs(t.i_a_a));
@@ -463,7 +517,8 @@ static void test_pwm_off(void)
             }
             iprev = t.i_a_a;
         }
-        printf("PWM off, 60 V link at 1000 r/min: braking torque %.3f N m, peak phase current %.2f A, largest step %.3f A\n",
+        printf("PWM off, 60 V link at 1000 r/min: braking torque %.3f N m, peak phase current %.2f "
+               "A, largest step %.3f A\n",
                tsum / 2000, imax, jumps);
         CHECK(ok, "rectifying: no NaN");
         CHECK(tsum / 2000 < -0.05, "rectifying: mean torque brakes the rotor");
@@ -485,13 +540,14 @@ static void test_mechanics(void)
 
     cfg_base(&cfg);
     plant_init(&p, &cfg);
-    cmd_set(&c, 0, 0, 0, false, -2.0);   /* a driving load of 2 N m, PWM off, no current */
+    cmd_set(&c, 0, 0, 0, false, -2.0); /* a driving load of 2 N m, PWM off, no current */
     for (k = 0; k < 2000; k++) {
         plant_step(&p, &c);
     }
     plant_truth(&p, &t);
     CHECK_NEAR(t.omega_m_rad_s, 2.0 / J * 0.1, 1e-9, "constant torque: w = T t / J");
-    CHECK_NEAR(t.theta_m_rad, fmod(0.5 * 2.0 / J * 0.01, TWO_PI), 1e-9, "constant torque: theta = T t^2 / 2J");
+    CHECK_NEAR(t.theta_m_rad, fmod(0.5 * 2.0 / J * 0.01, TWO_PI), 1e-9,
+               "constant torque: theta = T t^2 / 2J");
     CHECK_NEAR(t.i_d_a, 0.0, 0.0, "no current while the back-EMF is below v_dc");
 
     /* viscous friction: exponential approach to T / b */
@@ -501,7 +557,8 @@ static void test_mechanics(void)
         plant_step(&p, &c);
     }
     plant_truth(&p, &t);
-    CHECK_NEAR(t.omega_m_rad_s, 2.0 / 0.01 * (1.0 - exp(-0.01 / J * 0.2)), 1e-8, "viscous: w = T/b (1 - exp(-b t / J))");
+    CHECK_NEAR(t.omega_m_rad_s, 2.0 / 0.01 * (1.0 - exp(-0.01 / J * 0.2)), 1e-8,
+               "viscous: w = T/b (1 - exp(-b t / J))");
 
     /* Coulomb friction: sticks below T_c, breaks away above, stops and stays stopped */
     cfg.b_visc_nms = 0.0;
@@ -510,7 +567,8 @@ static void test_mechanics(void)
     cmd_set(&c, 0, 0, 0, false, -0.3);
     for (k = 0; k < 1000; k++) {
         plant_step(&p, &c);
-        if (p.omega_m_rad_s != 0.0 || p.theta_m_rad != 0.0) stuck = 0;
+        if (p.omega_m_rad_s != 0.0 || p.theta_m_rad != 0.0)
+            stuck = 0;
     }
     CHECK(stuck, "Coulomb: load below T_c, the rotor does not move at all");
     cmd_set(&c, 0, 0, 0, false, -1.0);
@@ -518,14 +576,16 @@ static void test_mechanics(void)
         plant_step(&p, &c);
     }
     plant_truth(&p, &t);
-    CHECK_NEAR(t.omega_m_rad_s, 0.5 / J * 0.05, 1e-9, "Coulomb: breakaway, acceleration (T - T_c) / J");
+    CHECK_NEAR(t.omega_m_rad_s, 0.5 / J * 0.05, 1e-9,
+               "Coulomb: breakaway, acceleration (T - T_c) / J");
     cmd_set(&c, 0, 0, 0, false, 0.0);
     for (k = 0; k < 3000; k++) {
         plant_step(&p, &c);
-        if (k > 1100 && p.omega_m_rad_s != 0.0) stays = 0;
+        if (k > 1100 && p.omega_m_rad_s != 0.0)
+            stays = 0;
     }
     CHECK(stays, "Coulomb: coasting stops at w = 0 and stays there (no chatter)");
-    cmd_set(&c, 0, 0, 0, false, 0.7);   /* reverse breakaway */
+    cmd_set(&c, 0, 0, 0, false, 0.7); /* reverse breakaway */
     for (k = 0; k < 100; k++) {
         plant_step(&p, &c);
     }

@@ -6,7 +6,8 @@
 #include "check.h"
 #include "plant.h"
 
-static const int SA[8] = {0, 1, 1, 0, 0, 0, 1, 1}, SB[8] = {0, 0, 1, 1, 1, 0, 0, 1}, SC[8] = {0, 0, 0, 0, 1, 1, 1, 1};
+static const int SA[8] = { 0, 1, 1, 0, 0, 0, 1, 1 }, SB[8] = { 0, 0, 1, 1, 1, 0, 0, 1 },
+                 SC[8] = { 0, 0, 0, 0, 1, 1, 1, 1 };
 
 static fw_cmd_t cmd_of(int k)
 {
@@ -20,7 +21,10 @@ static fw_cmd_t cmd_of(int k)
 }
 
 /* a fixed pseudo-random switch sequence, the same for every run */
-static int seq_at(int n) { return (int)((1103515245u * (unsigned)(n + 7) + 12345u) >> 16) % 8; }
+static int seq_at(int n)
+{
+    return (int)((1103515245u * (unsigned)(n + 7) + 12345u) >> 16) % 8;
+}
 
 #define N 400
 static void record(const plant_cfg_t *cfg, double ia_meas[N], double ia_true[N])
@@ -56,7 +60,8 @@ static void test_delay(void)
     for (n = 3; n < N; n++) {
         ok &= fabs(m1[n] - (double)(float)t0[n - 3]) < 1e-6 && t1[n] == t0[n];
     }
-    CHECK(ok, "sample delay 3 Ts: measured current = true current 3 periods earlier, plant unchanged");
+    CHECK(ok,
+          "sample delay 3 Ts: measured current = true current 3 periods earlier, plant unchanged");
     /* half a period: linear interpolation between boundaries */
     cfg.sample_delay_s = 0.5 * cfg.ts_s;
     record(&cfg, m1, t1);
@@ -96,14 +101,21 @@ static void test_delay(void)
             ok &= fabs(ts[n + 2] - t.i_a_a) < 1e-12;
             plant_step(&p, &c);
         }
-        CHECK(ok, "PWM delay 2 periods (rotor at rest): the current response comes 2 periods later");
+        CHECK(ok,
+              "PWM delay 2 periods (rotor at rest): the current response comes 2 periods later");
     }
 }
 
 /* analytic saturating map: psi_q = Lq0 iq / sqrt(1 + (iq/8)^2) (incremental L_q falls with |i_q|),
  * psi_d = psi_f + Ld id */
-static double psi_q_of(double iq) { return 0.012 * iq / sqrt(1.0 + iq * iq / 64.0); }
-static double lq_of(double iq) { return 0.012 / pow(1.0 + iq * iq / 64.0, 1.5); }
+static double psi_q_of(double iq)
+{
+    return 0.012 * iq / sqrt(1.0 + iq * iq / 64.0);
+}
+static double lq_of(double iq)
+{
+    return 0.012 / pow(1.0 + iq * iq / 64.0, 1.5);
+}
 
 static plant_map_t map;
 
@@ -122,16 +134,19 @@ static void test_saturation(void)
         }
     }
     CHECK(plant_map_build(&map, 41, 61, -20.0, 0.5, -15.0, 0.5, pd, pq) == NULL, "map builds");
-    CHECK(plant_map_build(&map, 1, 61, -20.0, 0.5, -15.0, 0.5, pd, pq) != NULL, "map rejects 1 node");
-    CHECK(plant_map_build(&map, 41, 61, -20.0, 0.5, -15.0, 0.5, pd, pq) == NULL, "map builds again");
+    CHECK(plant_map_build(&map, 1, 61, -20.0, 0.5, -15.0, 0.5, pd, pq) != NULL,
+          "map rejects 1 node");
+    CHECK(plant_map_build(&map, 41, 61, -20.0, 0.5, -15.0, 0.5, pd, pq) == NULL,
+          "map builds again");
     CHECK_NEAR(map.psi_f_wb, 0.18, 1e-12, "map psi_f = psi_d(0, 0)");
-    for (k = 0; k < 40; k++) {   /* between the nodes too */
+    for (k = 0; k < 40; k++) { /* between the nodes too */
         const double iq = -14.0 + 0.7 * k;
         plant_map_eval(&map, -3.3, iq, &a, &b, l);
-        ok &= fabs(b - psi_q_of(iq)) < 1e-5 && fabs(l[3] - lq_of(iq)) < 0.01 * lq_of(iq) && fabs(l[0] - 0.005) < 1e-9;
+        ok &= fabs(b - psi_q_of(iq)) < 1e-5 && fabs(l[3] - lq_of(iq)) < 0.01 * lq_of(iq) &&
+              fabs(l[0] - 0.005) < 1e-9;
         if (k == 20) {
-            printf("  map at i_q %.1f A: psi_q error %.2e Wb, L_q error %.2f %%\n", iq, b - psi_q_of(iq),
-                   100.0 * (l[3] - lq_of(iq)) / lq_of(iq));
+            printf("  map at i_q %.1f A: psi_q error %.2e Wb, L_q error %.2f %%\n", iq,
+                   b - psi_q_of(iq), 100.0 * (l[3] - lq_of(iq)) / lq_of(iq));
         }
     }
     CHECK(ok, "map: psi_q and incremental L_q between the nodes");
@@ -153,7 +168,8 @@ static void test_saturation(void)
         diq = (p.i_q_a - iq0) / cfg.ts_s;
         /* exactly: the flux change over the period is the volt-seconds (R = 0, rotor at rest) */
         ok &= fabs((psi_q_of(p.i_q_a) - psi_q_of(iq0)) - u * cfg.ts_s) < 0.005 * u * cfg.ts_s;
-        printf("  i_q %4.1f A: L_q from the current slope %.3f mH, map %.3f mH\n", iq0, 1e3 * u / diq, 1e3 * lq_of(iq0));
+        printf("  i_q %4.1f A: L_q from the current slope %.3f mH, map %.3f mH\n", iq0,
+               1e3 * u / diq, 1e3 * lq_of(iq0));
     }
     CHECK(ok, "saturation: the current slope follows the incremental L_q of the map (0..12 A)");
     CHECK(lq_of(12.0) < 0.6 * lq_of(0.0), "the test map saturates");

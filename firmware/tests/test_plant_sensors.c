@@ -9,11 +9,14 @@
 #include "plant_cmd.h"
 #include "rng.h"
 
-#define PI 3.14159265358979323846
+#define PI     3.14159265358979323846
 #define TWO_PI (2.0 * PI)
-#define SQRT3 1.7320508075688772
+#define SQRT3  1.7320508075688772
 
-static double maxd(double a, double b) { return a > b ? a : b; }
+static double maxd(double a, double b)
+{
+    return a > b ? a : b;
+}
 
 /* ------------------------------------------------------------------ PRNG */
 
@@ -58,7 +61,7 @@ static void test_rng(void)
     CHECK_NEAR(s1 / 200000, 0.0, 0.01, "polar mean");
     CHECK_NEAR(s2 / 200000, 1.0, 0.01, "polar variance");
 
-    {   /* the stored ziggurat tables equal Marsaglia & Tsang's set-up recursion */
+    { /* the stored ziggurat tables equal Marsaglia & Tsang's set-up recursion */
         const double m = 16777216.0, vn = 9.91256303526217e-3;
         double dn = 3.442619855899, tn = dn, q = vn / exp(-0.5 * dn * dn), wmax = 0.0, fmax = 0.0;
         int i, kmax = 0;
@@ -89,7 +92,6 @@ static void test_rng(void)
     }
 }
 
-
 static void test_encoder(void)
 {
     plant_cfg_t cfg;
@@ -107,7 +109,8 @@ static void test_encoder(void)
         const double th = (k + 0.5) * TWO_PI / 1000.0;
         plant_set_mech(&p, th, 0.0, true);
         plant_sample(&p, &m);
-        if (m.enc_count != (uint32_t)k) ok = 0;
+        if (m.enc_count != (uint32_t)k)
+            ok = 0;
     }
     CHECK(ok, "encoder count = floor(theta_m N / 2 pi)");
     plant_set_mech(&p, TWO_PI - 1e-9, 0.0, true);
@@ -128,7 +131,8 @@ static void test_encoder(void)
     /* turning backwards through zero: counts wrap from 0 to N - 1 and decrease */
     cfg.enc_offset_m_rad = 0.0;
     plant_init(&p, &cfg);
-    plant_set_mech(&p, 0.6 * TWO_PI / 1000.0, -TWO_PI / 1000.0 / 50e-6 / 4.0, true); /* -1/4 count per period */
+    plant_set_mech(&p, 0.6 * TWO_PI / 1000.0, -TWO_PI / 1000.0 / 50e-6 / 4.0,
+                   true); /* -1/4 count per period */
     cmd_set(&off, 0, 0, 0, false, 0.0);
     {
         uint32_t seen[12];
@@ -137,8 +141,9 @@ static void test_encoder(void)
             seen[k] = m.enc_count;
             plant_step(&p, &off);
         }
-        CHECK(seen[0] == 0u && seen[2] == 0u && seen[3] == 999u && seen[6] == 999u && seen[7] == 998u &&
-              seen[11] == 997u, "encoder backwards through zero");
+        CHECK(seen[0] == 0u && seen[2] == 0u && seen[3] == 999u && seen[6] == 999u &&
+                  seen[7] == 998u && seen[11] == 997u,
+              "encoder backwards through zero");
     }
 }
 
@@ -172,7 +177,8 @@ static void test_sensors(void)
         double r;
         plant_sample(&p, &m);
         r = m.i_c_a / 0.02;
-        if (fabs(r - floor(r + 0.5)) > 1e-4) onlsb = 0;
+        if (fabs(r - floor(r + 0.5)) > 1e-4)
+            onlsb = 0;
     }
     CHECK(onlsb, "ADC output on the LSB grid");
     cfg.i_noise_a = 0.0;
@@ -193,7 +199,8 @@ static void test_sensors(void)
     for (k = 0; k < 5000; k++) {
         plant_sample(&p, &m);
         plant_sample(&q, &mq);
-        if (memcmp(&m, &mq, sizeof m) != 0) same = 0;
+        if (memcmp(&m, &mq, sizeof m) != 0)
+            same = 0;
         cmd_set(&c, (k * 7) % 3 == 0, (k * 5) % 4 == 1, (k % 5) == 2, (k % 400) < 350, 0.5);
         plant_step(&p, &c);
         plant_step(&q, &c);

@@ -25,7 +25,8 @@ static void test_cc_slot(void)
     int k;
     bool same = true, states = true;
     uint16_t prev_code = 0u, applied_ok = 1u;
-    CHECK(cc_kind_known(CC_KIND_MPCC) && !cc_kind_known(7u), "cc: the MPCC is the only occupant known");
+    CHECK(cc_kind_known(CC_KIND_MPCC) && !cc_kind_known(7u),
+          "cc: the MPCC is the only occupant known");
     memset(&cfg, 0, sizeof cfg);
     cfg.kind = CC_KIND_MPCC;
     mpcc_cfg_default(&cfg.mpcc);
@@ -55,14 +56,22 @@ static void test_cc_slot(void)
         in.pred.psi_f_wb = 0.18f;
         applied_ok &= (uint16_t)(cc_applied_code(&cc) == prev_code);
         cc_step(&cc, &in, &o);
-        mi.i_d_a = in.i_d_a; mi.i_q_a = in.i_q_a; mi.i_d_ref_a = in.i_d_ref_a; mi.i_q_ref_a = in.i_q_ref_a;
-        mi.theta_e_rad = in.theta_e_rad; mi.omega_e_rad_s = in.omega_e_rad_s; mi.v_dc_v = in.v_dc_v;
-        mi.r_s_ohm = in.pred.r_s_ohm; mi.l_d_h = in.pred.l_d_h; mi.l_q_h = in.pred.l_q_h;
+        mi.i_d_a = in.i_d_a;
+        mi.i_q_a = in.i_q_a;
+        mi.i_d_ref_a = in.i_d_ref_a;
+        mi.i_q_ref_a = in.i_q_ref_a;
+        mi.theta_e_rad = in.theta_e_rad;
+        mi.omega_e_rad_s = in.omega_e_rad_s;
+        mi.v_dc_v = in.v_dc_v;
+        mi.r_s_ohm = in.pred.r_s_ohm;
+        mi.l_d_h = in.pred.l_d_h;
+        mi.l_q_h = in.pred.l_q_h;
         mi.psi_f_wb = in.pred.psi_f_wb;
         mpcc_step_cs(&twin, &mi, in.cos_theta, in.sin_theta, &mo);
-        same = same && o.s_a == mo.s_a && o.s_b == mo.s_b && o.s_c == mo.s_c && o.u_d_v == mo.u_d_v &&
-               o.u_q_v == mo.u_q_v && o.u_d_avg_v == mo.u_d_avg_v && o.u_q_avg_v == mo.u_q_avg_v &&
-               o.i_d_pred_a == mo.i_d_k1_a && o.i_q_pred_a == mo.i_q_k1_a;
+        same = same && o.s_a == mo.s_a && o.s_b == mo.s_b && o.s_c == mo.s_c &&
+               o.u_d_v == mo.u_d_v && o.u_q_v == mo.u_q_v && o.u_d_avg_v == mo.u_d_avg_v &&
+               o.u_q_avg_v == mo.u_q_avg_v && o.i_d_pred_a == mo.i_d_k1_a &&
+               o.i_q_pred_a == mo.i_q_k1_a;
         states = states && o.mode == CC_OUT_STATES && o.duty_a == (float)o.s_a &&
                  o.duty_b == (float)o.s_b && o.duty_c == (float)o.s_c;
         prev_code = mo.s_abc_next;
@@ -84,7 +93,8 @@ static void test_angle_slot(void)
     angle_in_t in;
     angle_out_t o;
     enc_out_t e;
-    CHECK(angle_src_known(ANGLE_SRC_ENCODER) && !angle_src_known(3u), "angle: the encoder is the only source known");
+    CHECK(angle_src_known(ANGLE_SRC_ENCODER) && !angle_src_known(3u),
+          "angle: the encoder is the only source known");
     cfg.src = 3u;
     cfg.pole_pairs = 4u;
     cfg.ts_s = 50e-6f;
@@ -98,11 +108,13 @@ static void test_angle_slot(void)
     e.speed_rpm = 238.7f;
     in.enc = &e;
     angle_step(&a, &in, &o);
-    CHECK(o.valid && o.theta_e_rad == 1.25f && o.omega_e_rad_s == 100.0f && o.omega_m_rad_s == 25.0f &&
-          o.speed_rpm == 238.7f, "angle: the encoder occupant passes the encoder's reading on");
+    CHECK(o.valid && o.theta_e_rad == 1.25f && o.omega_e_rad_s == 100.0f &&
+              o.omega_m_rad_s == 25.0f && o.speed_rpm == 238.7f,
+          "angle: the encoder occupant passes the encoder's reading on");
     in.enc = NULL;
     angle_step(&a, &in, &o);
-    CHECK(!o.valid && o.speed_rpm == 0.0f, "angle: without an encoder the encoder occupant is not valid");
+    CHECK(!o.valid && o.speed_rpm == 0.0f,
+          "angle: without an encoder the encoder occupant is not valid");
 }
 
 static void ident_cfg(ident_cfg_t *c)
@@ -144,13 +156,15 @@ static void test_ident(void)
     CHECK(ops_ok, "ident: every estimator sits behind a full operations table");
     ident_predictor(&id, &p);
     CHECK(p.r_s_ohm == 0.9f && p.l_d_h == 2.5e-3f && p.l_q_h == 24e-3f && p.psi_f_wb == 0.18f &&
-          ident_nominal_feeds(&id), "ident: identification off, the predictor gets nominal x scale");
+              ident_nominal_feeds(&id),
+          "ident: identification off, the predictor gets nominal x scale");
 
     memset(&seg, 0, sizeof seg);
     seg.inject_a = 2.0f;
-    seg.inject_hz = 100.0f;   /* 200 periods per excitation period */
+    seg.inject_hz = 100.0f; /* 200 periods per excitation period */
     seg.tick = 50u;
-    CHECK(ident_d_ref(&id, &seg, -1.0f) == 1.0f, "ident: first half of the excitation is base + amplitude");
+    CHECK(ident_d_ref(&id, &seg, -1.0f) == 1.0f,
+          "ident: first half of the excitation is base + amplitude");
     seg.tick = 150u;
     CHECK(ident_d_ref(&id, &seg, -1.0f) == -3.0f, "ident: second half is base - amplitude");
     seg.identify_r = true;
@@ -193,7 +207,8 @@ static void test_ident(void)
     CHECK_NEAR(r_event, 0.6f, 1e-3, "ident: the injection finds R");
     CHECK_NEAR(r_during, 0.6f, 1e-3, "ident: while it runs, the injection's running R is reported");
     ident_predictor(&id, &p);
-    CHECK(p.r_s_ohm == r_event && p.l_d_h == 2.5e-3f, "ident: the predictor takes the identified R, nominal L until convergence");
+    CHECK(p.r_s_ohm == r_event && p.l_d_h == 2.5e-3f,
+          "ident: the predictor takes the identified R, nominal L until convergence");
     ident_report(&id, 2u, &rep);
     CHECK(rep.r_s_ohm == r_event, "ident: every estimator starts from the identified R");
     CHECK(ident_nominal_feeds(&id), "ident: no estimator feeds the predictor before it converged");
@@ -209,7 +224,8 @@ static void test_evq(void)
     for (i = 0u; i < EVQ_LEN + 3u; i++) {
         (void)evq_push(&q, 100u + i, (uint16_t)(i + 1u), -(int32_t)i);
     }
-    CHECK(evq_count(&q) == EVQ_LEN && q.lost == 3u, "evq: a full queue keeps the first and counts the rest");
+    CHECK(evq_count(&q) == EVQ_LEN && q.lost == 3u,
+          "evq: a full queue keeps the first and counts the rest");
     for (i = 0u; i < EVQ_LEN; i++) {
         const evq_entry_t *e = evq_at(&q, i);
         ok = ok && e->tick == 100u + i && e->code == i + 1u && e->arg == -(int32_t)i;

@@ -10,28 +10,31 @@
 #include "mtpa.h"
 #include "enc_angle.h"
 
-#define PI_D 3.14159265358979323846
+#define PI_D          3.14159265358979323846
 #define RPM_PER_RAD_S (60.0 / (2.0 * PI_D))
 
 /* Paper A's motor. */
-#define R_OHM 0.9
-#define LD_H 0.005
-#define LQ_H 0.012
-#define PSI_WB 0.18
-#define POLES 4
-#define J_KGM2 0.0036
-#define VDC_V 540.0
-#define TS_S 50e-6
-#define SPEED_DIV 20          /* 1 kHz speed loop */
-#define I_MAX_A 15.0f
-#define ENC_COUNTS 10000u     /* 2500 lines x 4 */
+#define R_OHM      0.9
+#define LD_H       0.005
+#define LQ_H       0.012
+#define PSI_WB     0.18
+#define POLES      4
+#define J_KGM2     0.0036
+#define VDC_V      540.0
+#define TS_S       50e-6
+#define SPEED_DIV  20 /* 1 kHz speed loop */
+#define I_MAX_A    15.0f
+#define ENC_COUNTS 10000u /* 2500 lines x 4 */
 
 /* The recommended defaults (docs/control.md). */
 #define BW_SPEED_RAD_S 100.0f
-#define BW_OBS_RAD_S 1000.0f
-#define REF_WEIGHT 0.7f
+#define BW_OBS_RAD_S   1000.0f
+#define REF_WEIGHT     0.7f
 
-static float kt_nominal(void) { return 1.5f * (float)POLES * (float)PSI_WB; }
+static float kt_nominal(void)
+{
+    return 1.5f * (float)POLES * (float)PSI_WB;
+}
 
 /* ------------------------------------------------------------------ unit tests */
 static void test_basic(void)
@@ -99,7 +102,7 @@ static step_t run_inertia(float kp, float ki, float b, bool anti_windup, double 
         int s;
         if (anti_windup) {
             u = speed_pi_step(&p, (float)w_ref, (float)w);
-        } else {   /* naive PI with an output clamp only */
+        } else { /* naive PI with an output clamp only */
             const double e = w_ref - w;
             integ += ki * 1e-3 * e;
             u = kp * e + integ;
@@ -132,8 +135,9 @@ static void test_anti_windup(void)
     b = run_inertia(kp, ki, 1.0f, false, w_ref, 0.0, 1.0);
     c = run_inertia(kp, ki, 0.7f, true, w_ref, 0.0, 1.0);
     printf("  0 -> 1000 r/min step at 15 A: overshoot %.1f r/min with anti-windup (b = 0.7: %.1f),"
-           " %.1f with a clamped naive PI; %d saturation toggles\n", a.over_max * RPM_PER_RAD_S,
-           c.over_max * RPM_PER_RAD_S, b.over_max * RPM_PER_RAD_S, a.sat_toggles);
+           " %.1f with a clamped naive PI; %d saturation toggles\n",
+           a.over_max * RPM_PER_RAD_S, c.over_max * RPM_PER_RAD_S, b.over_max * RPM_PER_RAD_S,
+           a.sat_toggles);
     CHECK(a.over_max < 0.08 * w_ref, "anti-windup: overshoot below 8 % after a saturated step");
     CHECK(a.over_max < 0.3 * b.over_max, "anti-windup beats a clamped naive PI");
     CHECK(c.over_max < 0.01 * w_ref, "set-point weight 0.7: overshoot below 1 %");
@@ -152,7 +156,8 @@ static void test_disturbance(void)
     a = run_inertia(kp, ki, 0.7f, true, w_ref, 3.0, 2.0);
     CHECK(fabs(a.err_end) < 1e-4, "zero steady-state error with a constant load torque (b = 0.7)");
     a = run_inertia(kp, ki, 0.7f, true, 1500.0 / RPM_PER_RAD_S, 0.0, 2.0);
-    CHECK(fabs(a.err_end) < 1e-4, "b = 0.7 reaches a high reference (integrator not cut by the clamp)");
+    CHECK(fabs(a.err_end) < 1e-4,
+          "b = 0.7 reaches a high reference (integrator not cut by the clamp)");
     /* and with a load beyond the current limit the speed falls, the state stays bounded */
     a = run_inertia(kp, ki, 1.0f, true, w_ref, 30.0, 0.5);
     CHECK(a.err_end > 0.0, "overload: speed falls");
@@ -231,12 +236,12 @@ static uint32_t enc_count_of(double th_m)
 }
 
 typedef struct {
-    double t_rec_on, t_rec_off;   /* recovery times after load on / off */
-    double dip_rpm, rise_rpm;     /* worst deviation after load on / off */
+    double t_rec_on, t_rec_off; /* recovery times after load on / off */
+    double dip_rpm, rise_rpm;   /* worst deviation after load on / off */
     double i_s_peak;
     int sat_periods, sat_toggles;
-    double speed_std_rpm;         /* true speed ripple before the load step */
-    double over_rpm;              /* overshoot after the reference step */
+    double speed_std_rpm; /* true speed ripple before the load step */
+    double over_rpm;      /* overshoot after the reference step */
 } loop_t;
 
 /* seg: speed targets (rpm) with their start times, load on [t_on, t_off) */
@@ -249,8 +254,8 @@ static loop_t run_loop(double rpm0, double rpm1, double t_step, double t_on, dou
     speed_pi_t sp;
     enc_cfg_t ec;
     enc_t e;
-    fw_motor_t mot = { POLES, (float)R_OHM, (float)LD_H, (float)LQ_H, (float)PSI_WB,
-                       (float)J_KGM2, I_MAX_A, 1500.0f };
+    fw_motor_t mot = { POLES,         (float)R_OHM,  (float)LD_H, (float)LQ_H,
+                       (float)PSI_WB, (float)J_KGM2, I_MAX_A,     1500.0f };
     drive_t p = { 0.0, 0.0, 0.1, 0.0 };
     fw_dq_t ref = { 0.0f, 0.0f };
     loop_t r = { 0.0, 0.0, 0.0, 0.0, 0.0, 0, 0, 0.0, 0.0 };
@@ -288,7 +293,7 @@ static loop_t run_loop(double rpm0, double rpm1, double t_step, double t_on, dou
         const double t = k * TS_S;
         const double rpm_ref = t < t_step ? rpm0 : rpm1;
         const double tl = (t >= t_on && t < t_off) ? load_nm : 0.0;
-        double rpm_true;   /* 10 ms moving average of the true speed (what a scope trace shows) */
+        double rpm_true; /* 10 ms moving average of the true speed (what a scope trace shows) */
         const double band = fmax(0.02 * fabs(rpm_ref), 2.0);
         enc_out_t eo;
         mpcc_in_t in;
@@ -372,18 +377,23 @@ static void test_load_steps(void)
     int n;
     for (n = 0; n < 3; n++) {
         loop_t r = run_loop(rpm[n], rpm[n], 0.0, 0.3, 0.9, 5.0, 1.5, MTPA_MODE_MTPA);
-        printf("  %5.0f r/min, 5 N m step: dip %.1f r/min, recovered (+-max(2 %%, 2 r/min)) in %.3f s;"
-               " release: +%.1f r/min, %.3f s; i_s peak %.2f A, saturated %d ms; speed ripple %.2f r/min rms\n",
-               rpm[n], r.dip_rpm, r.t_rec_on, r.rise_rpm, r.t_rec_off, r.i_s_peak, r.sat_periods,
-               r.speed_std_rpm);
+        printf(
+            "  %5.0f r/min, 5 N m step: dip %.1f r/min, recovered (+-max(2 %%, 2 r/min)) in %.3f s;"
+            " release: +%.1f r/min, %.3f s; i_s peak %.2f A, saturated %d ms; speed ripple %.2f "
+            "r/min rms\n",
+            rpm[n], r.dip_rpm, r.t_rec_on, r.rise_rpm, r.t_rec_off, r.i_s_peak, r.sat_periods,
+            r.speed_std_rpm);
         CHECK(r.t_rec_on < 0.3, "load step recovered within 0.3 s");
         CHECK(r.t_rec_off < 0.3, "load release recovered within 0.3 s");
-        CHECK(r.sat_periods == 0 && r.i_s_peak < 0.8 * I_MAX_A, "no current limit during a 5 N m step");
-        CHECK(r.speed_std_rpm < fmax(0.01 * rpm[n], 1.0), "steady speed ripple below max(1 %, 1 r/min) rms");
+        CHECK(r.sat_periods == 0 && r.i_s_peak < 0.8 * I_MAX_A,
+              "no current limit during a 5 N m step");
+        CHECK(r.speed_std_rpm < fmax(0.01 * rpm[n], 1.0),
+              "steady speed ripple below max(1 %, 1 r/min) rms");
     }
     {
         loop_t r = run_loop(240.0, 240.0, 0.0, 0.3, 0.9, 5.0, 1.5, MTPA_MODE_ID_ZERO);
-        printf("  240 r/min with i_d = 0: recovered in %.3f s, i_s peak %.2f A\n", r.t_rec_on, r.i_s_peak);
+        printf("  240 r/min with i_d = 0: recovered in %.3f s, i_s peak %.2f A\n", r.t_rec_on,
+               r.i_s_peak);
         CHECK(r.t_rec_on < 0.3, "i_d = 0 mode: recovered within 0.3 s");
     }
 }
@@ -393,11 +403,13 @@ static void test_speed_steps(void)
 {
     loop_t a = run_loop(50.0, 500.0, 0.1, 10.0, 10.0, 0.0, 0.6, MTPA_MODE_MTPA);
     loop_t b = run_loop(500.0, 1000.0, 0.1, 10.0, 10.0, 0.0, 0.6, MTPA_MODE_MTPA);
-    printf("  50 -> 500 r/min: saturated %d ms, %d toggles, overshoot %.1f r/min; 500 -> 1000: %d ms,"
-           " %d toggles, overshoot %.1f r/min\n", a.sat_periods, a.sat_toggles, a.over_rpm,
-           b.sat_periods, b.sat_toggles, b.over_rpm);
+    printf(
+        "  50 -> 500 r/min: saturated %d ms, %d toggles, overshoot %.1f r/min; 500 -> 1000: %d ms,"
+        " %d toggles, overshoot %.1f r/min\n",
+        a.sat_periods, a.sat_toggles, a.over_rpm, b.sat_periods, b.sat_toggles, b.over_rpm);
     CHECK(a.sat_toggles <= 2 && b.sat_toggles <= 2, "no current-limit chatter on speed steps");
-    CHECK(a.over_rpm < 0.05 * 450.0 && b.over_rpm < 0.05 * 500.0, "overshoot below 5 % of the step");
+    CHECK(a.over_rpm < 0.05 * 450.0 && b.over_rpm < 0.05 * 500.0,
+          "overshoot below 5 % of the step");
 }
 
 int main(void)

@@ -1,5 +1,6 @@
 """A run judged against its profile's acceptance criteria: one check per bound and segment, with
 the measured value beside the bound (the run summary and the identification table measure)."""
+
 from __future__ import annotations
 
 import math
@@ -10,10 +11,10 @@ __all__ = ["Check", "evaluate", "checks_failed"]
 
 @dataclass
 class Check:
-    scope: str          # "run", or "segment 3 '240 r/min load on'"
-    criterion: str      # "speed error", "recovery", "faults", "nlms_adaline l_q_h error", ...
-    measured: str       # the measured value with its unit (or "not seen")
-    bound: str          # the bound with its unit
+    scope: str  # "run", or "segment 3 '240 r/min load on'"
+    criterion: str  # "speed error", "recovery", "faults", "nlms_adaline l_q_h error", ...
+    measured: str  # the measured value with its unit (or "not seen")
+    bound: str  # the bound with its unit
     passed: bool
 
     def as_dict(self) -> dict:
@@ -33,18 +34,39 @@ def _segment_checks(bounds, segs, summary, scope_all: bool) -> list[Check]:
         if b is not None and plateau:
             lim = s.band_rpm if b == "band" else float(b)
             err = s.mean_error_rpm
-            out.append(Check(scope, "speed error", f"{err:+.3f} r/min",
-                             f"|.| <= {lim:g} r/min" + (" (band)" if b == "band" else ""),
-                             bool(not math.isnan(err) and abs(err) <= lim)))
+            out.append(
+                Check(
+                    scope,
+                    "speed error",
+                    f"{err:+.3f} r/min",
+                    f"|.| <= {lim:g} r/min" + (" (band)" if b == "band" else ""),
+                    bool(not math.isnan(err) and abs(err) <= lim),
+                )
+            )
         for key, name in (("ripple_d_max_a", "ripple i_d"), ("ripple_q_max_a", "ripple i_q")):
             lim = getattr(bounds, key)
             if lim is not None and plateau:
                 v = s.ripple_d_a if key == "ripple_d_max_a" else s.ripple_q_a
-                out.append(Check(scope, name, f"{v:.3f} A", f"<= {lim:g} A", bool(not math.isnan(v) and v <= lim)))
+                out.append(
+                    Check(
+                        scope,
+                        name,
+                        f"{v:.3f} A",
+                        f"<= {lim:g} A",
+                        bool(not math.isnan(v) and v <= lim),
+                    )
+                )
         if bounds.recovery_max_s is not None and (s.recovery_s is not None or not scope_all):
             v = s.recovery_s
-            out.append(Check(scope, "recovery", "no load step" if v is None else f"{v:.3f} s",
-                             f"<= {bounds.recovery_max_s:g} s", v is not None and v <= bounds.recovery_max_s))
+            out.append(
+                Check(
+                    scope,
+                    "recovery",
+                    "no load step" if v is None else f"{v:.3f} s",
+                    f"<= {bounds.recovery_max_s:g} s",
+                    v is not None and v <= bounds.recovery_max_s,
+                )
+            )
         if bounds.faults is not None and not scope_all:
             out.append(_fault_check(scope, s.faults, bounds.faults))
     return out
@@ -62,13 +84,27 @@ def evaluate(acceptance, summary, ident=None) -> list[Check]:
     if acceptance is None:
         return out
     run = acceptance.run
-    if run is None:   # a run that did not play the whole profile never passes
-        out.append(Check("run", "complete", "yes" if summary.complete else
-                         f"no ({summary.ended or 'the log ends early'})", "whole profile", summary.complete))
+    if run is None:  # a run that did not play the whole profile never passes
+        out.append(
+            Check(
+                "run",
+                "complete",
+                "yes" if summary.complete else f"no ({summary.ended or 'the log ends early'})",
+                "whole profile",
+                summary.complete,
+            )
+        )
     else:
         if run.complete:
-            out.append(Check("run", "complete", "yes" if summary.complete else
-                             f"no ({summary.ended or 'the log ends early'})", "whole profile", summary.complete))
+            out.append(
+                Check(
+                    "run",
+                    "complete",
+                    "yes" if summary.complete else f"no ({summary.ended or 'the log ends early'})",
+                    "whole profile",
+                    summary.complete,
+                )
+            )
         if run.faults is not None:
             out.append(_fault_check("run", len(summary.faults), run.faults))
         out += _segment_checks(run, summary.segments, summary, scope_all=True)
@@ -77,22 +113,47 @@ def evaluate(acceptance, summary, ident=None) -> list[Check]:
             what = f"{ib.estimator} {ib.param}"
             if ib.error_max_rel is not None:
                 if cell is None:
-                    out.append(Check("run", f"{what} error", "not measured", f"<= {100 * ib.error_max_rel:g} %", False))
+                    out.append(
+                        Check(
+                            "run",
+                            f"{what} error",
+                            "not measured",
+                            f"<= {100 * ib.error_max_rel:g} %",
+                            False,
+                        )
+                    )
                 else:
                     e = cell.error_rel
-                    out.append(Check("run", f"{what} error", f"{100 * e:+.2f} %", f"|.| <= {100 * ib.error_max_rel:g} %",
-                                     bool(not math.isnan(e) and abs(e) <= ib.error_max_rel)))
+                    out.append(
+                        Check(
+                            "run",
+                            f"{what} error",
+                            f"{100 * e:+.2f} %",
+                            f"|.| <= {100 * ib.error_max_rel:g} %",
+                            bool(not math.isnan(e) and abs(e) <= ib.error_max_rel),
+                        )
+                    )
             if ib.conv_max_s is not None:
                 c = None if cell is None else cell.conv_s
-                out.append(Check("run", f"{what} convergence",
-                                 "not measured" if cell is None else ("never" if c is None else f"{c:.3f} s"),
-                                 f"<= {ib.conv_max_s:g} s", c is not None and c <= ib.conv_max_s))
+                out.append(
+                    Check(
+                        "run",
+                        f"{what} convergence",
+                        "not measured"
+                        if cell is None
+                        else ("never" if c is None else f"{c:.3f} s"),
+                        f"<= {ib.conv_max_s:g} s",
+                        c is not None and c <= ib.conv_max_s,
+                    )
+                )
     by_index = {s.index: s for s in summary.segments}
     by_name = {s.name: s for s in summary.segments}
     for sa in acceptance.segments:
         seg = by_index.get(sa.segment) if isinstance(sa.segment, int) else by_name.get(sa.segment)
         if seg is None:
-            out.append(Check(f"segment {sa.segment!r}", "seen", "not seen in the log", "played", False))
+            out.append(
+                Check(f"segment {sa.segment!r}", "seen", "not seen in the log", "played", False)
+            )
             continue
         out += _segment_checks(sa, [seg], summary, scope_all=False)
     return out

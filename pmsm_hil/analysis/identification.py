@@ -8,6 +8,7 @@ with a non-zero value of the parameter) to the first moment after which the esti
 +-TOL (2 %) of the truth until the end of the window considered; None if it never settles.
 The final value is the mean over the last FINAL_WINDOW_S (50 ms) of the window.
 """
+
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
@@ -21,17 +22,33 @@ PARAMS = ("l_d_h", "l_q_h", "psi_f_wb", "r_s_ohm")
 ESTIMATORS = ("rls", "adaline", "nlms_adaline")
 TOL = 0.02
 FINAL_WINDOW_S = 0.05
-UNITS = {"l_d_h": ("L_d", "mH", 1e3), "l_q_h": ("L_q", "mH", 1e3), "psi_f_wb": ("psi_f", "Wb", 1.0),
-         "r_s_ohm": ("R", "ohm", 1.0)}
+UNITS = {
+    "l_d_h": ("L_d", "mH", 1e3),
+    "l_q_h": ("L_q", "mH", 1e3),
+    "psi_f_wb": ("psi_f", "Wb", 1.0),
+    "r_s_ohm": ("R", "ohm", 1.0),
+}
 
 # Paper A, Table 2: (value, |error|, time s) per parameter and estimator, SI units.
 PAPER_A_TABLE2 = {
-    "rls": {"l_d_h": (4.4e-3, 0.6e-3, 0.8), "l_q_h": (9.31e-3, 2.69e-3, 0.8),
-            "r_s_ohm": (1.42, 0.52, 0.2), "psi_f_wb": (0.194, 0.014, 0.15)},
-    "adaline": {"l_d_h": (5.406e-3, 0.406e-3, 0.55), "l_q_h": (11.44e-3, 0.56e-3, 0.7),
-                "r_s_ohm": (0.982, 0.082, 0.4), "psi_f_wb": (0.22, 0.04, 0.63)},
-    "nlms_adaline": {"l_d_h": (5.013e-3, 0.013e-3, 0.322), "l_q_h": (12.06e-3, 0.06e-3, 0.47),
-                     "r_s_ohm": (0.982, 0.082, 0.32), "psi_f_wb": (0.182, 0.002, 0.37)},
+    "rls": {
+        "l_d_h": (4.4e-3, 0.6e-3, 0.8),
+        "l_q_h": (9.31e-3, 2.69e-3, 0.8),
+        "r_s_ohm": (1.42, 0.52, 0.2),
+        "psi_f_wb": (0.194, 0.014, 0.15),
+    },
+    "adaline": {
+        "l_d_h": (5.406e-3, 0.406e-3, 0.55),
+        "l_q_h": (11.44e-3, 0.56e-3, 0.7),
+        "r_s_ohm": (0.982, 0.082, 0.4),
+        "psi_f_wb": (0.22, 0.04, 0.63),
+    },
+    "nlms_adaline": {
+        "l_d_h": (5.013e-3, 0.013e-3, 0.322),
+        "l_q_h": (12.06e-3, 0.06e-3, 0.47),
+        "r_s_ohm": (0.982, 0.082, 0.32),
+        "psi_f_wb": (0.182, 0.002, 0.37),
+    },
 }
 PAPER_A_TRUE = {"l_d_h": 5e-3, "l_q_h": 12e-3, "psi_f_wb": 0.18, "r_s_ohm": 0.9}
 
@@ -42,11 +59,11 @@ class Cell:
     param: str
     final: float
     truth: float
-    error: float            # final - truth
-    error_rel: float        # (final - truth) / truth
+    error: float  # final - truth
+    error_rel: float  # (final - truth) / truth
     t_first_s: float | None  # first update (device time)
-    conv_s: float | None     # convergence time from the first update
-    converged_flag: bool     # the firmware's own flag at the end
+    conv_s: float | None  # convergence time from the first update
+    converged_flag: bool  # the firmware's own flag at the end
 
 
 @dataclass
@@ -64,8 +81,13 @@ class IdentTable:
         return None
 
     def as_dict(self) -> dict:
-        return {"path": self.path, "truth_source": self.truth_source, "t0_s": self.t0_s,
-                "t1_s": self.t1_s, "cells": [asdict(c) for c in self.cells]}
+        return {
+            "path": self.path,
+            "truth_source": self.truth_source,
+            "t0_s": self.t0_s,
+            "t1_s": self.t1_s,
+            "cells": [asdict(c) for c in self.cells],
+        }
 
 
 def _truth(log, t: np.ndarray) -> tuple[dict[str, np.ndarray], str]:
@@ -80,8 +102,9 @@ def _truth(log, t: np.ndarray) -> tuple[dict[str, np.ndarray], str]:
     return out, "motor file" if motor else "paper A's motor (no motor metadata)"
 
 
-def convergence_time(t: np.ndarray, est: np.ndarray, truth: np.ndarray, t_first: float,
-                     tol: float = TOL) -> float | None:
+def convergence_time(
+    t: np.ndarray, est: np.ndarray, truth: np.ndarray, t_first: float, tol: float = TOL
+) -> float | None:
     """Time from t_first to the first sample after which |est - truth| <= tol |truth| holds to the end."""
     ok = np.abs(est - truth) <= tol * np.abs(truth)
     if not len(ok) or not ok[-1]:
@@ -114,9 +137,24 @@ def identification_table(path, t0_s: float | None = None, t1_s: float | None = N
             last = t >= t[-1] - FINAL_WINDOW_S
             final = float(np.mean(v[last]))
             tr = float(np.mean(truth[p][last]))
-            conv = convergence_time(t[nz[0]:], v[nz[0]:], truth[p][nz[0]:], t_first) if len(nz) else None
-            table.cells.append(Cell(est, p, final, tr, final - tr, (final - tr) / tr if tr else float("nan"),
-                                    t_first, conv, conv_flag))
+            conv = (
+                convergence_time(t[nz[0] :], v[nz[0] :], truth[p][nz[0] :], t_first)
+                if len(nz)
+                else None
+            )
+            table.cells.append(
+                Cell(
+                    est,
+                    p,
+                    final,
+                    tr,
+                    final - tr,
+                    (final - tr) / tr if tr else float("nan"),
+                    t_first,
+                    conv,
+                    conv_flag,
+                )
+            )
     return table
 
 
@@ -140,8 +178,11 @@ def markdown_table(table: IdentTable, with_paper: bool = True) -> str:
         row = [f"{name} ({unit})", _fmt(p, c0.truth) if c0 else "-"]
         for e in ests:
             c = table.cell(e, p)
-            row += [_fmt(p, c.final), f"{100 * c.error_rel:+.2f} %",
-                    "-" if c.conv_s is None else f"{c.conv_s:.3f}"]
+            row += [
+                _fmt(p, c.final),
+                f"{100 * c.error_rel:+.2f} %",
+                "-" if c.conv_s is None else f"{c.conv_s:.3f}",
+            ]
             if with_paper:
                 v, err, ts = PAPER_A_TABLE2[e][p]
                 row += [_fmt(p, v), f"{100 * err / PAPER_A_TRUE[p]:.2f} %", f"{ts:.2f}"]
@@ -151,8 +192,10 @@ def markdown_table(table: IdentTable, with_paper: bool = True) -> str:
 
 def text_table(table: IdentTable, with_paper: bool = True) -> str:
     """Plain-text version for the console: one block per estimator."""
-    out = [f"identification ({table.path}, truth: {table.truth_source}, "
-           f"t = {table.t0_s:.3f} .. {table.t1_s:.3f} s; convergence: stays within +-{100 * TOL:.0f} %)"]
+    out = [
+        f"identification ({table.path}, truth: {table.truth_source}, "
+        f"t = {table.t0_s:.3f} .. {table.t1_s:.3f} s; convergence: stays within +-{100 * TOL:.0f} %)"
+    ]
     hdr = f"  {'param':<10}{'truth':>10}{'ours':>11}{'error':>10}{'t_conv s':>10}"
     if with_paper:
         hdr += f"   |{'paper':>9}{'error':>9}{'t s':>7}"
@@ -165,8 +208,10 @@ def text_table(table: IdentTable, with_paper: bool = True) -> str:
             c = table.cell(e, p)
             name, unit, _ = UNITS[p]
             conv = "never" if c.conv_s is None else f"{c.conv_s:.3f}"
-            line = (f"  {name + ' ' + unit:<10}{_fmt(p, c.truth):>10}{_fmt(p, c.final):>11}"
-                    f"{100 * c.error_rel:>+9.2f}%{conv:>10}")
+            line = (
+                f"  {name + ' ' + unit:<10}{_fmt(p, c.truth):>10}{_fmt(p, c.final):>11}"
+                f"{100 * c.error_rel:>+9.2f}%{conv:>10}"
+            )
             if with_paper:
                 v, err, ts = PAPER_A_TABLE2[e][p]
                 line += f"   |{_fmt(p, v):>9}{100 * err / PAPER_A_TRUE[p]:>8.2f}%{ts:>7.2f}"
@@ -177,6 +222,7 @@ def text_table(table: IdentTable, with_paper: bool = True) -> str:
 def convergence_plot(path, out_png, t0_s: float | None = None, t1_s: float | None = None) -> Path:
     """Per parameter: each estimator against the truth (PNG)."""
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
@@ -194,8 +240,13 @@ def convergence_plot(path, out_png, t0_s: float | None = None, t1_s: float | Non
             if t1_s is not None:
                 sel &= t_all <= t1_s
             if np.any(sel):
-                ax.plot(t_all[sel], np.asarray(par[p], dtype=float)[sel] * k, label=est,
-                        lw=1.0 if est != "nominal" else 0.8, ls="-" if est != "nominal" else ":")
+                ax.plot(
+                    t_all[sel],
+                    np.asarray(par[p], dtype=float)[sel] * k,
+                    label=est,
+                    lw=1.0 if est != "nominal" else 0.8,
+                    ls="-" if est != "nominal" else ":",
+                )
         t = t_all[(t_all >= (t0_s or -1)) & (t_all <= (t1_s if t1_s is not None else 1e9))]
         truth, src = _truth(log, t)
         ax.plot(t, truth[p] * k, "k--", lw=1.0, label=f"truth ({src})")

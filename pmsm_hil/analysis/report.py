@@ -4,6 +4,7 @@ self-contained HTML page (PNGs embedded, the per-segment summary and the identif
 Panels (docs/report.md): speed, dq currents, dq voltages, parameters vs truth, angle and speed
 estimation error, capture waveforms. A panel without data is skipped, with the reason in the page.
 """
+
 from __future__ import annotations
 
 import io
@@ -16,21 +17,45 @@ from pmsm_hil.log.reader import LogFormatError, read_log
 
 # key (file name), title, function, caption
 PANELS = (
-    ("speed", "Speed", report_signals.speed,
-     "Reference, encoder speed, the speed the firmware uses (when it differs) and, on the "
-     "emulator, the plant's own speed."),
-    ("currents", "dq currents", report_signals.currents,
-     "Measured d and q currents at the telemetry rate against their references."),
-    ("voltages", "dq voltages", report_signals.voltages,
-     "Commanded d and q voltages: light, each telemetry sample (one switching vector of the MPCC); "
-     "bold, their 20 ms mean; dashed, the linear modulation limit V_dc/√3."),
-    ("parameters", "Parameters vs truth", report_params.parameters,
-     "Each estimator's L_d, L_q, ψ_f and R against the plant's truth, with the ±2 % convergence band."),
-    ("estimation_error", "Angle and speed estimation error", report_signals.estimation_error,
-     "Electrical angle and speed the firmware uses minus the encoder's."),
-    ("capture", "Capture waveforms", report_capture.capture,
-     "At the control rate: phase currents; each leg's duty (its switch state averaged over 20 "
-     "control periods); the DC-link voltage; the switch states of the first 60 periods."),
+    (
+        "speed",
+        "Speed",
+        report_signals.speed,
+        "Reference, encoder speed, the speed the firmware uses (when it differs) and, on the "
+        "emulator, the plant's own speed.",
+    ),
+    (
+        "currents",
+        "dq currents",
+        report_signals.currents,
+        "Measured d and q currents at the telemetry rate against their references.",
+    ),
+    (
+        "voltages",
+        "dq voltages",
+        report_signals.voltages,
+        "Commanded d and q voltages: light, each telemetry sample (one switching vector of the MPCC); "
+        "bold, their 20 ms mean; dashed, the linear modulation limit V_dc/√3.",
+    ),
+    (
+        "parameters",
+        "Parameters vs truth",
+        report_params.parameters,
+        "Each estimator's L_d, L_q, ψ_f and R against the plant's truth, with the ±2 % convergence band.",
+    ),
+    (
+        "estimation_error",
+        "Angle and speed estimation error",
+        report_signals.estimation_error,
+        "Electrical angle and speed the firmware uses minus the encoder's.",
+    ),
+    (
+        "capture",
+        "Capture waveforms",
+        report_capture.capture,
+        "At the control rate: phase currents; each leg's duty (its switch state averaged over 20 "
+        "control periods); the DC-link voltage; the switch states of the first 60 periods.",
+    ),
 )
 
 
@@ -42,8 +67,8 @@ class ReportError(Exception):
 class Report:
     out_dir: Path
     html: Path
-    pngs: dict[str, Path] = field(default_factory=dict)       # key -> file
-    skipped: dict[str, str] = field(default_factory=dict)     # key -> reason
+    pngs: dict[str, Path] = field(default_factory=dict)  # key -> file
+    skipped: dict[str, str] = field(default_factory=dict)  # key -> reason
 
 
 def _png(fig) -> bytes:
@@ -84,8 +109,10 @@ def build_report(log_path, out_dir=None) -> Report:
         raise ReportError(f"{path}: cannot read ({e.strerror or e})") from None
     ctx = run_context(log, path)
     if not ctx.has("/pmsm/telemetry") and not ctx.has("/pmsm/capture"):
-        raise ReportError(f"{path}: no telemetry in the log (empty, or cut off before the first "
-                          f"chunk): nothing to plot")
+        raise ReportError(
+            f"{path}: no telemetry in the log (empty, or cut off before the first "
+            f"chunk): nothing to plot"
+        )
     out = Path(out_dir) if out_dir is not None else path.with_name(path.stem + "-report")
     try:
         out.mkdir(parents=True, exist_ok=True)

@@ -1,6 +1,7 @@
 """Report panel: the control-rate capture (/pmsm/capture): phase currents, the legs' duty (switch
 states averaged over DUTY_PERIODS control periods), the DC-link voltage, and the raw switch
 states of the first ZOOM_PERIODS periods."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -9,8 +10,8 @@ from pmsm_hil.analysis.report_context import RunContext
 from pmsm_hil.analysis.report_style import figure, legend
 
 CAP = "/pmsm/capture"
-DUTY_PERIODS = 20      # 1 ms at 20 kHz
-ZOOM_PERIODS = 60      # 3 ms at 20 kHz
+DUTY_PERIODS = 20  # 1 ms at 20 kHz
+ZOOM_PERIODS = 60  # 3 ms at 20 kHz
 LEGS = (("a", "C0"), ("b", "C1"), ("c", "C2"))
 
 
@@ -35,8 +36,13 @@ def capture(ctx: RunContext):
     legend(ax)
     ax = axes[1]
     for ph, c in LEGS:
-        ax.plot(t_ms, _duty(np.asarray(cap[f"s_{ph}"]), DUTY_PERIODS), lw=1.0, color=c,
-                label=f"leg {ph}")
+        ax.plot(
+            t_ms,
+            _duty(np.asarray(cap[f"s_{ph}"]), DUTY_PERIODS),
+            lw=1.0,
+            color=c,
+            label=f"leg {ph}",
+        )
     ax.set_ylabel(f"duty, {DUTY_PERIODS}-period mean")
     ax.set_ylim(-0.05, 1.05)
     legend(ax, title="upper switch on")
@@ -51,10 +57,15 @@ def capture(ctx: RunContext):
     ax = axes[3]
     k = min(len(t_ms), ZOOM_PERIODS)
     for j, (ph, c) in enumerate(LEGS):
-        base = 2 * (2 - j)           # leg a on top
-        ax.step(np.append(t_ms[:k], t_ms[k - 1] + ts_ms),
-                np.append(np.asarray(cap[f"s_{ph}"][:k], float), cap[f"s_{ph}"][k - 1]) * 0.8 + base,
-                where="post", lw=1.0, color=c, label=f"s_{ph} (leg {ph})")
+        base = 2 * (2 - j)  # leg a on top
+        ax.step(
+            np.append(t_ms[:k], t_ms[k - 1] + ts_ms),
+            np.append(np.asarray(cap[f"s_{ph}"][:k], float), cap[f"s_{ph}"][k - 1]) * 0.8 + base,
+            where="post",
+            lw=1.0,
+            color=c,
+            label=f"s_{ph} (leg {ph})",
+        )
     ax.set_yticks([0, 0.8, 2, 2.8, 4, 4.8], ["c off", "c on", "b off", "b on", "a off", "a on"])
     ax.set_ylim(-0.4, 5.4)
     ax.set_ylabel("switch state\n(upper switch)")

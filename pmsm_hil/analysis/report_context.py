@@ -1,5 +1,6 @@
 """What every report panel needs from a log: its topics, the run's identity (profile, rig, seed)
 for the titles, and the segment boundaries for the markers."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -26,7 +27,7 @@ class RunContext:
     seed: str
     board: str
     segments: list[Segment] = field(default_factory=list)
-    notes: list[str] = field(default_factory=list)   # things the reader of the report must know
+    notes: list[str] = field(default_factory=list)  # things the reader of the report must know
 
     @property
     def tag(self) -> str:
@@ -52,8 +53,14 @@ def _rig_name(meta: dict) -> str:
 def run_context(log: Log, path: Path) -> RunContext:
     meta = log.metadata
     run = meta.get("run", {})
-    ctx = RunContext(log=log, path=Path(path), profile=run.get("profile", ""), rig=_rig_name(meta),
-                     seed=run.get("seed", ""), board=meta.get("device", {}).get("board", ""))
+    ctx = RunContext(
+        log=log,
+        path=Path(path),
+        profile=run.get("profile", ""),
+        rig=_rig_name(meta),
+        seed=run.get("seed", ""),
+        board=meta.get("device", {}).get("board", ""),
+    )
     names = run.get("segment_names", "").split("|") if run.get("segment_names") else []
     stops = []
     if ctx.has("/pmsm/events"):
@@ -61,13 +68,16 @@ def run_context(log: Log, path: Path) -> RunContext:
         for t, kind, arg, text in zip(ev["t_s"], ev["kind"], ev["arg"], ev["text"]):
             if str(kind) == "segment_start":
                 i = int(arg)
-                ctx.segments.append(Segment(i, names[i] if 0 <= i < len(names) else f"segment {i}",
-                                            float(t)))
+                ctx.segments.append(
+                    Segment(i, names[i] if 0 <= i < len(names) else f"segment {i}", float(t))
+                )
             elif str(kind) == "stopped":
                 stops.append(f"{float(t):.3f} s {text}")
     if not stops:
-        ctx.notes.append("The log has no `stopped` event: the run was cut off before the device "
-                         "reported its end.")
+        ctx.notes.append(
+            "The log has no `stopped` event: the run was cut off before the device "
+            "reported its end."
+        )
     elif not stops[-1].endswith("profile end"):
         ctx.notes.append(f"The run did not reach the profile's end: {stops[-1]}.")
     if names and ctx.segments and len({s.index for s in ctx.segments}) < len(names):
@@ -75,8 +85,10 @@ def run_context(log: Log, path: Path) -> RunContext:
         missing = [f"{i} {n}" for i, n in enumerate(names) if i not in seen]
         ctx.notes.append("Segments not reached: " + ", ".join(missing) + ".")
     if log.truncated or not log.finalised:
-        ctx.notes.append("The log is not finalised (the run was killed or the file is truncated): "
-                         "the report shows what could be recovered.")
+        ctx.notes.append(
+            "The log is not finalised (the run was killed or the file is truncated): "
+            "the report shows what could be recovered."
+        )
     for p in log.problems:
         ctx.notes.append(f"Log problem: {p}")
     return ctx

@@ -1,6 +1,7 @@
 """The report's single HTML page: self-contained (the PNGs are embedded as base64), with the run's
 identity, the panels (or why a panel was skipped), the per-segment summary and the
 identification table."""
+
 from __future__ import annotations
 
 import base64
@@ -23,12 +24,19 @@ img { max-width: 100%; border: 1px solid #ddd; }
 
 
 def _table(head: list[str], rows: list[list[str]], left: int = 1) -> str:
-    th = "".join(f'<th class="l">{escape(h)}</th>' if i < left else f"<th>{escape(h)}</th>"
-                 for i, h in enumerate(head))
+    th = "".join(
+        f'<th class="l">{escape(h)}</th>' if i < left else f"<th>{escape(h)}</th>"
+        for i, h in enumerate(head)
+    )
     body = []
     for r in rows:
-        body.append("<tr>" + "".join(f'<td class="l">{c}</td>' if i < left else f"<td>{c}</td>"
-                                     for i, c in enumerate(r)) + "</tr>")
+        body.append(
+            "<tr>"
+            + "".join(
+                f'<td class="l">{c}</td>' if i < left else f"<td>{c}</td>" for i, c in enumerate(r)
+            )
+            + "</tr>"
+        )
     return f"<table><tr>{th}</tr>{''.join(body)}</table>"
 
 
@@ -53,18 +61,29 @@ def summary_html(summary) -> str:
     head += ["band (r/min)", "recovery (s)", "ripple i_d (A rms)", "ripple i_q (A rms)", "faults"]
     rows = []
     for s in summary.segments:
-        row = [escape(f"{s.index} {s.name}"), f"{s.setpoint_rpm:.1f}", f"{s.load_nm:.2f}",
-               _mark(s.mean_ok, _num(s.mean_error_rpm, "+.3f"))]
+        row = [
+            escape(f"{s.index} {s.name}"),
+            f"{s.setpoint_rpm:.1f}",
+            f"{s.load_nm:.2f}",
+            _mark(s.mean_ok, _num(s.mean_error_rpm, "+.3f")),
+        ]
         if has_truth:
             te = s.true_mean_error_rpm
             row.append("–" if te is None else _mark(abs(te) <= s.band_rpm, f"{te:+.3f}"))
-        row += [f"±{s.band_rpm:.2f}", _mark(s.recovery_ok, _num(s.recovery_s, ".3f")),
-                _num(s.ripple_d_a, ".3f"), _num(s.ripple_q_a, ".3f"), str(s.faults)]
+        row += [
+            f"±{s.band_rpm:.2f}",
+            _mark(s.recovery_ok, _num(s.recovery_s, ".3f")),
+            _num(s.ripple_d_a, ".3f"),
+            _num(s.ripple_q_a, ".3f"),
+            str(s.faults),
+        ]
         rows.append(row)
-    verdict = ("all plateaus within bounds" if summary.ok else "bounds missed")
-    out = [_table(head, rows),
-           f'<p>{len(summary.segments)} segments, {summary.duration_s:.2f} s: '
-           f'{_mark(summary.ok, verdict)} (definitions: docs/analysis.md)</p>']
+    verdict = "all plateaus within bounds" if summary.ok else "bounds missed"
+    out = [
+        _table(head, rows),
+        f"<p>{len(summary.segments)} segments, {summary.duration_s:.2f} s: "
+        f"{_mark(summary.ok, verdict)} (definitions: docs/analysis.md)</p>",
+    ]
     out += [f'<p class="bad">fault {escape(f)}</p>' for f in summary.faults]
     return "\n".join(out)
 
@@ -84,45 +103,69 @@ def ident_html(table: IdentTable | None) -> str:
         for e in ests:
             c = table.cell(e, p)
             ok = abs(c.error_rel) <= TOL
-            row += [f"{c.final * k:.4g}", _mark(ok, f"{100 * c.error_rel:+.2f} %"),
-                    "never" if c.conv_s is None else f"{c.conv_s:.3f}"]
+            row += [
+                f"{c.final * k:.4g}",
+                _mark(ok, f"{100 * c.error_rel:+.2f} %"),
+                "never" if c.conv_s is None else f"{c.conv_s:.3f}",
+            ]
         rows.append(row)
-    return (_table(head, rows) +
-            f"<p>Truth: {escape(table.truth_source)}; window t = {table.t0_s:.3f} … {table.t1_s:.3f} s; "
-            f"final = mean over the last 50 ms; t_conv: from the first update until the estimate stays "
-            f"within ±{100 * TOL:.0f} % (docs/identification.md).</p>")
+    return (
+        _table(head, rows)
+        + f"<p>Truth: {escape(table.truth_source)}; window t = {table.t0_s:.3f} … {table.t1_s:.3f} s; "
+        f"final = mean over the last 50 ms; t_conv: from the first update until the estimate stays "
+        f"within ±{100 * TOL:.0f} % (docs/identification.md).</p>"
+    )
 
 
 def page(ctx, panels, summary, ident, extra_notes: list[str]) -> str:
     """panels: list of (key, title, png bytes or None, caption or skip reason)."""
     meta = ctx.log.metadata
     run, dev = meta.get("run", {}), meta.get("device", {})
-    info = [("profile", run.get("profile", "")), ("motor", run.get("motor", "")),
-            ("rig", ctx.rig or "–"), ("seed", ctx.seed or "– (a rig)"),
-            ("board", f"{dev.get('board', '')} firmware {dev.get('fw_version', '')}"),
-            ("transport", run.get("transport", "")), ("log", str(ctx.path))]
-    parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>pmsm-hil report: "
-             f"{escape(ctx.tag)}</title><style>{CSS}</style></head><body>",
-             f"<h1>pmsm-hil run report — {escape(ctx.tag)}</h1>",
-             _table(["", ""], [[escape(k), escape(v)] for k, v in info], left=2)]
+    info = [
+        ("profile", run.get("profile", "")),
+        ("motor", run.get("motor", "")),
+        ("rig", ctx.rig or "–"),
+        ("seed", ctx.seed or "– (a rig)"),
+        ("board", f"{dev.get('board', '')} firmware {dev.get('fw_version', '')}"),
+        ("transport", run.get("transport", "")),
+        ("log", str(ctx.path)),
+    ]
+    parts = [
+        f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>pmsm-hil report: "
+        f"{escape(ctx.tag)}</title><style>{CSS}</style></head><body>",
+        f"<h1>pmsm-hil run report — {escape(ctx.tag)}</h1>",
+        _table(["", ""], [[escape(k), escape(v)] for k, v in info], left=2),
+    ]
     for n in ctx.notes + extra_notes:
         parts.append(f'<p class="note">{escape(n)}</p>')
     drawn = [p for p in panels if p[2] is not None]
     skipped = [p for p in panels if p[2] is None]
-    parts.append("<h2>Panels</h2><ul>" + "".join(
-        f'<li><a href="#panel-{k}">{escape(title)}</a></li>' for k, title, _, _ in drawn) + "</ul>")
+    parts.append(
+        "<h2>Panels</h2><ul>"
+        + "".join(f'<li><a href="#panel-{k}">{escape(title)}</a></li>' for k, title, _, _ in drawn)
+        + "</ul>"
+    )
     for k, title, _, why in skipped:
-        parts.append(f'<p class="skipped" id="skipped-{k}">{escape(title)}: skipped — {escape(why)}.</p>')
+        parts.append(
+            f'<p class="skipped" id="skipped-{k}">{escape(title)}: skipped — {escape(why)}.</p>'
+        )
     parts.append("<h2>Per-segment summary</h2>" + summary_html(summary))
     parts.append("<h2>Identification</h2>" + ident_html(ident))
     for k, title, png, caption in drawn:
         b64 = base64.b64encode(png).decode("ascii")
-        parts.append(f'<h2 id="panel-{k}">{escape(title)}</h2>'
-                     f'<img alt="{escape(title)}" src="data:image/png;base64,{b64}">'
-                     + (f"<p>{escape(caption)}</p>" if caption else ""))
+        parts.append(
+            f'<h2 id="panel-{k}">{escape(title)}</h2>'
+            f'<img alt="{escape(title)}" src="data:image/png;base64,{b64}">'
+            + (f"<p>{escape(caption)}</p>" if caption else "")
+        )
     if ctx.segments:
-        parts.append("<h2>Segments</h2>" + _table(
-            ["index", "name", "start (s)"],
-            [[str(s.index), escape(s.name), f"{s.t_start_s:.3f}"] for s in ctx.segments], left=2))
+        parts.append(
+            "<h2>Segments</h2>"
+            + _table(
+                ["index", "name", "start (s)"],
+                [[str(s.index), escape(s.name), f"{s.t_start_s:.3f}"] for s in ctx.segments],
+                left=2,
+            )
+        )
     parts.append("</body></html>")
     return "\n".join(parts)

@@ -1,5 +1,6 @@
 """Report panel: identified parameters against the plant's truth, with ±2 % bands and segment
 markers (the band is the convergence tolerance of pmsm_hil.analysis.identification)."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -9,11 +10,20 @@ from pmsm_hil.analysis.report_context import RunContext
 from pmsm_hil.analysis.report_style import figure, legend, segment_markers, time_axis
 
 ORDER = ("l_d_h", "l_q_h", "psi_f_wb", "r_s_ohm")
-STYLE = {"nominal": dict(color="C3", ls=(0, (1, 2)), lw=1.8, zorder=3), "rls": dict(color="C0", lw=0.9),
-         "adaline": dict(color="C1", lw=0.9), "nlms_adaline": dict(color="C2", lw=1.1)}
-SCALE = {"l_d_h": (1e3, "mH"), "l_q_h": (1e3, "mH"), "psi_f_wb": (1e3, "mWb"), "r_s_ohm": (1.0, "Ω")}
+STYLE = {
+    "nominal": dict(color="C3", ls=(0, (1, 2)), lw=1.8, zorder=3),
+    "rls": dict(color="C0", lw=0.9),
+    "adaline": dict(color="C1", lw=0.9),
+    "nlms_adaline": dict(color="C2", lw=1.1),
+}
+SCALE = {
+    "l_d_h": (1e3, "mH"),
+    "l_q_h": (1e3, "mH"),
+    "psi_f_wb": (1e3, "mWb"),
+    "r_s_ohm": (1.0, "Ω"),
+}
 LABEL = {"l_d_h": "L_d", "l_q_h": "L_q", "psi_f_wb": "ψ_f", "r_s_ohm": "R_s"}
-ZOOM = 0.25   # y range: the truth ± 25 %, so that the start-up transients do not flatten the rest
+ZOOM = 0.25  # y range: the truth ± 25 %, so that the start-up transients do not flatten the rest
 
 
 def parameters(ctx: RunContext):
@@ -22,8 +32,10 @@ def parameters(ctx: RunContext):
     par = ctx.topic("/pmsm/params")
     has_truth = ctx.has("/sim/truth")
     if not has_truth:
-        return ("no /sim/truth in the log (a rig log): there is no truth to compare the "
-                "parameters with; the identification table uses the motor file's values")
+        return (
+            "no /sim/truth in the log (a rig log): there is no truth to compare the "
+            "parameters with; the identification table uses the motor file's values"
+        )
     tr = ctx.topic("/sim/truth")
     names = np.asarray(par["estimator"]).astype(str)
     t_all = np.asarray(par["t_s"], float)
@@ -33,13 +45,21 @@ def parameters(ctx: RunContext):
     for ax, p in zip(axes, ORDER):
         k, unit = SCALE[p]
         tt, tv = np.asarray(tr["t_s"], float), np.asarray(tr[p], float) * k
-        ax.fill_between(tt, tv * (1 - TOL), tv * (1 + TOL), color="0.85", lw=0,
-                        label=f"truth ±{100 * TOL:.0f} %")
+        ax.fill_between(
+            tt,
+            tv * (1 - TOL),
+            tv * (1 + TOL),
+            color="0.85",
+            lw=0,
+            label=f"truth ±{100 * TOL:.0f} %",
+        )
         ax.plot(tt, tv, color="k", lw=1.0, ls="--", label="truth (plant)", zorder=2)
         for e in present:
             sel = names == e
             v = np.asarray(par[p], float)[sel] * k
-            ax.plot(t_all[sel], v, label=e if e != "nominal" else "nominal (motor file)", **STYLE[e])
+            ax.plot(
+                t_all[sel], v, label=e if e != "nominal" else "nominal (motor file)", **STYLE[e]
+            )
         lo, hi = float(np.nanmin(tv)), float(np.nanmax(tv))
         y0, y1 = lo * (1 - ZOOM), hi * (1 + ZOOM)
         for e in present:
@@ -52,7 +72,12 @@ def parameters(ctx: RunContext):
     legend(axes[0])
     time_axis(axes[-1])
     if clipped:
-        axes[-1].annotate(f"y ranges: truth ±{100 * ZOOM:.0f} %; estimates outside are clipped",
-                          xy=(0.0, -0.32), xycoords="axes fraction", fontsize=8, color="0.35",
-                          va="top")
+        axes[-1].annotate(
+            f"y ranges: truth ±{100 * ZOOM:.0f} %; estimates outside are clipped",
+            xy=(0.0, -0.32),
+            xycoords="axes fraction",
+            fontsize=8,
+            color="0.35",
+            va="top",
+        )
     return fig

@@ -1,5 +1,6 @@
 """Report panels of the fast telemetry: speed, dq currents, dq voltages, estimation error.
 Each returns a matplotlib Figure, or a string saying why the panel has nothing to show."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -23,7 +24,9 @@ def speed(ctx: RunContext):
     t = tel["t_s"]
     ax.plot(t, tel["speed_rpm"], lw=0.9, color="C0", label="measured (encoder)")
     if not np.array_equal(tel["speed_est_rpm"], tel["speed_rpm"]):
-        ax.plot(t, tel["speed_est_rpm"], lw=0.8, color="C2", label="estimated (used by the firmware)")
+        ax.plot(
+            t, tel["speed_est_rpm"], lw=0.8, color="C2", label="estimated (used by the firmware)"
+        )
     ax.plot(t, tel["speed_ref_rpm"], lw=1.2, color="k", ls="--", label="reference")
     if ctx.has("/sim/truth"):
         tr = ctx.topic("/sim/truth")
@@ -43,8 +46,13 @@ def currents(ctx: RunContext):
     t = tel["t_s"]
     fig, axes = figure(ctx, "dq currents", 2)
     for ax, axis in zip(axes, ("d", "q")):
-        ax.plot(t, tel[f"i_{axis}_a"], lw=0.6, color="C0" if axis == "d" else "C1",
-                label=f"i_{axis} measured")
+        ax.plot(
+            t,
+            tel[f"i_{axis}_a"],
+            lw=0.6,
+            color="C0" if axis == "d" else "C1",
+            label=f"i_{axis} measured",
+        )
         ax.plot(t, tel[f"i_{axis}_ref_a"], lw=1.1, color="k", ls="--", label=f"i_{axis}* reference")
         segment_markers(ax, ctx, label=axis == "d")
         ax.set_ylabel(f"i_{axis} (A)")
@@ -83,8 +91,13 @@ def voltages(ctx: RunContext):
     for ax, axis, c in zip(axes, ("d", "q"), ("C0", "C1")):
         u = np.asarray(tel[f"u_{axis}_v"], float)
         ax.plot(t, u, lw=0.4, color=c, alpha=0.25, label=f"u_{axis}, each sample")
-        ax.plot(t, _mean(t, u, VOLTAGE_MEAN_S), lw=1.1, color=c,
-                label=f"u_{axis}, {VOLTAGE_MEAN_S * 1e3:.0f} ms mean")
+        ax.plot(
+            t,
+            _mean(t, u, VOLTAGE_MEAN_S),
+            lw=1.1,
+            color=c,
+            label=f"u_{axis}, {VOLTAGE_MEAN_S * 1e3:.0f} ms mean",
+        )
         if lim is not None:
             ax.plot(lim[0], lim[1], lw=1.0, color="0.3", ls="--", label="±V_dc/√3 (linear limit)")
             ax.plot(lim[0], -lim[1], lw=1.0, color="0.3", ls="--")
@@ -104,11 +117,15 @@ def estimation_error(ctx: RunContext):
     if why:
         return why
     tel = ctx.topic(TEL)
-    d_theta = _wrap(np.asarray(tel["theta_e_est_rad"], float) - np.asarray(tel["theta_e_rad"], float))
+    d_theta = _wrap(
+        np.asarray(tel["theta_e_est_rad"], float) - np.asarray(tel["theta_e_rad"], float)
+    )
     d_speed = np.asarray(tel["speed_est_rpm"], float) - np.asarray(tel["speed_rpm"], float)
     if not np.any(d_theta) and not np.any(d_speed):
-        return ("the firmware used the encoder's angle and speed throughout (no sensorless "
-                "estimator ran): the estimation error is zero by construction")
+        return (
+            "the firmware used the encoder's angle and speed throughout (no sensorless "
+            "estimator ran): the estimation error is zero by construction"
+        )
     t = tel["t_s"]
     fig, axes = figure(ctx, "Angle and speed estimation error (estimate − encoder)", 2)
     axes[0].plot(t, np.degrees(d_theta), lw=0.6, color="C4", label="θe,est − θe")

@@ -11,6 +11,7 @@ Definitions (docs/analysis.md):
   to the moment after which the 20 ms moving average of the speed error stays within the band.
 - ripple: RMS of i_d − i_d* and i_q − i_q* in the plateau window (telemetry rate).
 """
+
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
@@ -36,8 +37,8 @@ class SegmentStats:
     band_rpm: float
     mean_error_rpm: float
     mean_ok: bool
-    true_mean_error_rpm: float | None   # the plant's own speed (emulator logs only)
-    recovery_s: float | None       # None: no load step in this segment
+    true_mean_error_rpm: float | None  # the plant's own speed (emulator logs only)
+    recovery_s: float | None  # None: no load step in this segment
     recovery_ok: bool | None
     ripple_d_a: float
     ripple_q_a: float
@@ -52,26 +53,42 @@ class RunSummary:
     duration_s: float = 0.0
     frames: int = 0
     # completeness: what the log holds against what the run was to play
-    expected: list[str] = field(default_factory=list)   # the profile's segment names (metadata)
-    missing: list[int] = field(default_factory=list)    # segments the log never shows starting
-    partial: list[int] = field(default_factory=list)    # segments the log shows cut short
-    ended: str = ""                 # "profile end", "stopped: REASON", or "" (the log just ends)
-    problems: list[str] = field(default_factory=list)   # truncated file, no summary section, ...
+    expected: list[str] = field(default_factory=list)  # the profile's segment names (metadata)
+    missing: list[int] = field(default_factory=list)  # segments the log never shows starting
+    partial: list[int] = field(default_factory=list)  # segments the log shows cut short
+    ended: str = ""  # "profile end", "stopped: REASON", or "" (the log just ends)
+    problems: list[str] = field(default_factory=list)  # truncated file, no summary section, ...
 
     @property
     def complete(self) -> bool:
-        return self.ended == "profile end" and not self.missing and not self.partial and not self.problems
+        return (
+            self.ended == "profile end"
+            and not self.missing
+            and not self.partial
+            and not self.problems
+        )
 
     @property
     def ok(self) -> bool:
-        return (self.complete and not self.faults
-                and all(s.mean_ok and s.recovery_ok is not False for s in self.segments))
+        return (
+            self.complete
+            and not self.faults
+            and all(s.mean_ok and s.recovery_ok is not False for s in self.segments)
+        )
 
     def as_dict(self) -> dict:
-        return {"path": self.path, "ok": self.ok, "complete": self.complete, "ended": self.ended,
-                "duration_s": self.duration_s, "faults": self.faults, "missing": self.missing,
-                "partial": self.partial, "problems": self.problems,
-                "segments": [asdict(s) for s in self.segments]}
+        return {
+            "path": self.path,
+            "ok": self.ok,
+            "complete": self.complete,
+            "ended": self.ended,
+            "duration_s": self.duration_s,
+            "faults": self.faults,
+            "missing": self.missing,
+            "partial": self.partial,
+            "problems": self.problems,
+            "segments": [asdict(s) for s in self.segments],
+        }
 
 
 def _moving_average(x: np.ndarray, n: int) -> np.ndarray:
@@ -79,7 +96,7 @@ def _moving_average(x: np.ndarray, n: int) -> np.ndarray:
         return x.copy()
     c = np.cumsum(np.insert(x, 0, 0.0))
     out = np.empty_like(x)
-    out[n - 1:] = (c[n:] - c[:-n]) / n
+    out[n - 1 :] = (c[n:] - c[:-n]) / n
     out[: n - 1] = c[1:n] / np.arange(1, n)
     return out
 
@@ -99,8 +116,13 @@ def recovery_time(t: np.ndarray, err: np.ndarray, band: float, t0: float) -> flo
     return float(t[last + 1] - t0)
 
 
-def summarize(tel: dict, events: dict, names: list[str] | None = None, path: str = "",
-              truth: dict | None = None) -> RunSummary:
+def summarize(
+    tel: dict,
+    events: dict,
+    names: list[str] | None = None,
+    path: str = "",
+    truth: dict | None = None,
+) -> RunSummary:
     t = np.asarray(tel["t_s"], dtype=float)
     ref = np.asarray(tel["speed_ref_rpm"], dtype=float)
     spd = np.asarray(tel["speed_rpm"], dtype=float)
@@ -114,14 +136,24 @@ def summarize(tel: dict, events: dict, names: list[str] | None = None, path: str
     texts = [str(x) for x in events.get("text", [])]
     # the run's end: the profile's end, a stop, or the moment the host asked for one (a partial
     # segment is judged up to there, not through the quick stop that follows)
-    ends = [float(ev_t[i]) for i, k in enumerate(kinds)
-            if k in ("profile_done", "stopped", "heartbeat_lost")
-            or (k == "host" and texts[i].startswith(("interrupted", "stop requested")))]
-    fault_events = [(float(ev_t[i]), str(events["text"][i])) for i, k in enumerate(kinds)
-                    if k in ("fault", "heartbeat_lost")]
-    summary = RunSummary(path=path, duration_s=float(t[-1]) if len(t) else 0.0, frames=len(t),
-                         faults=[f"{ts:.3f} s {txt}" for ts, txt in fault_events],
-                         expected=list(names or []))
+    ends = [
+        float(ev_t[i])
+        for i, k in enumerate(kinds)
+        if k in ("profile_done", "stopped", "heartbeat_lost")
+        or (k == "host" and texts[i].startswith(("interrupted", "stop requested")))
+    ]
+    fault_events = [
+        (float(ev_t[i]), str(events["text"][i]))
+        for i, k in enumerate(kinds)
+        if k in ("fault", "heartbeat_lost")
+    ]
+    summary = RunSummary(
+        path=path,
+        duration_s=float(t[-1]) if len(t) else 0.0,
+        frames=len(t),
+        faults=[f"{ts:.3f} s {txt}" for ts, txt in fault_events],
+        expected=list(names or []),
+    )
     done = [i for i, k in enumerate(kinds) if k == "profile_done"]
     stops = [i for i, k in enumerate(kinds) if k == "stopped"]
     if done:
@@ -136,7 +168,9 @@ def summarize(tel: dict, events: dict, names: list[str] | None = None, path: str
             summary.partial = [starts[-1][1]]
     prev_load = 0.0
     for k, (t0, idx) in enumerate(starts):
-        t1 = starts[k + 1][0] if k + 1 < len(starts) else (min(ends) if ends else summary.duration_s)
+        t1 = (
+            starts[k + 1][0] if k + 1 < len(starts) else (min(ends) if ends else summary.duration_s)
+        )
         sel = (t >= t0) & (t < t1)
         if sel.sum() < 4:
             continue
@@ -145,7 +179,9 @@ def summarize(tel: dict, events: dict, names: list[str] | None = None, path: str
         seg_load = float(np.median(load[sel]))
         band = max(0.01 * abs(setpoint), 1.0)
         at_final = np.nonzero(np.abs(r - setpoint) > 1e-6 + 0.001 * abs(setpoint))[0]
-        t_ramp_end = float(ts[at_final[-1] + 1]) if len(at_final) and at_final[-1] + 1 < len(ts) else t0
+        t_ramp_end = (
+            float(ts[at_final[-1] + 1]) if len(at_final) and at_final[-1] + 1 < len(ts) else t0
+        )
         plateau = t1 - t_ramp_end
         w0 = t_ramp_end + min(0.5, 0.5 * plateau)
         win = sel & (t >= w0)
@@ -156,24 +192,36 @@ def summarize(tel: dict, events: dict, names: list[str] | None = None, path: str
             tt = np.asarray(truth["t_s"], float)
             tw = (tt >= w0) & (tt < t1)
             if tw.sum():
-                true_err = float(np.mean(np.asarray(truth["speed_rpm"], float)[tw]
-                                         - np.interp(tt[tw], t, ref)))
+                true_err = float(
+                    np.mean(np.asarray(truth["speed_rpm"], float)[tw] - np.interp(tt[tw], t, ref))
+                )
         step = seg_load - prev_load
         rec = rec_ok = None
         ramped = abs(float(r[0]) - setpoint) > 1e-6 + 0.001 * abs(setpoint)
-        if abs(step) > 1e-6 and not ramped:   # a load step on a plateau (not during a ramp)
+        if abs(step) > 1e-6 and not ramped:  # a load step on a plateau (not during a ramp)
             rec = recovery_time(ts, err, band, t0)
             rec_ok = rec <= RECOVERY_LIMIT_S
         n_faults = sum(1 for ft, _ in fault_events if t0 <= ft < t1)
-        summary.segments.append(SegmentStats(
-            index=idx, name=(names[idx] if names and idx < len(names) else f"segment {idx}"),
-            t_start_s=t0, t_end_s=t1, setpoint_rpm=setpoint, load_nm=seg_load, load_step_nm=step,
-            band_rpm=band, mean_error_rpm=mean_err, mean_ok=bool(abs(mean_err) <= band),
-            true_mean_error_rpm=true_err,
-            recovery_s=rec, recovery_ok=rec_ok,
-            ripple_d_a=float(np.sqrt(np.mean(ed[win] ** 2))) if win.sum() else float("nan"),
-            ripple_q_a=float(np.sqrt(np.mean(eq[win] ** 2))) if win.sum() else float("nan"),
-            faults=n_faults))
+        summary.segments.append(
+            SegmentStats(
+                index=idx,
+                name=(names[idx] if names and idx < len(names) else f"segment {idx}"),
+                t_start_s=t0,
+                t_end_s=t1,
+                setpoint_rpm=setpoint,
+                load_nm=seg_load,
+                load_step_nm=step,
+                band_rpm=band,
+                mean_error_rpm=mean_err,
+                mean_ok=bool(abs(mean_err) <= band),
+                true_mean_error_rpm=true_err,
+                recovery_s=rec,
+                recovery_ok=rec_ok,
+                ripple_d_a=float(np.sqrt(np.mean(ed[win] ** 2))) if win.sum() else float("nan"),
+                ripple_q_a=float(np.sqrt(np.mean(eq[win] ** 2))) if win.sum() else float("nan"),
+                faults=n_faults,
+            )
+        )
         prev_load = seg_load
     return summary
 
@@ -185,8 +233,10 @@ def log_problems(log) -> list[str]:
     if log.truncated:
         out.append(f"the file ends inside a record (truncated); {total} messages recovered")
     elif not log.finalised:
-        out.append(f"the file has no summary section (the writer did not finish); {total} messages "
-                   f"recovered")
+        out.append(
+            f"the file has no summary section (the writer did not finish); {total} messages "
+            f"recovered"
+        )
     out += [str(p) for p in log.problems]
     status = log.topic("/pmsm/status") if "/pmsm/status" in log.topics else {}
     dropped = int(np.max(status["tx_dropped"])) if len(status.get("tx_dropped", [])) else 0
@@ -196,7 +246,9 @@ def log_problems(log) -> list[str]:
     gaps = int(np.sum(link.get("seq_gaps", 0)))
     bad = int(sum(np.sum(link.get(k, 0)) for k in ("crc_errors", "cobs_errors", "len_errors")))
     if gaps or bad:
-        out.append(f"the host lost frames on the link: {gaps} sequence gaps, {bad} corrupted frames")
+        out.append(
+            f"the host lost frames on the link: {gaps} sequence gaps, {bad} corrupted frames"
+        )
     return out
 
 
@@ -210,17 +262,26 @@ def summarize_log(path: Path) -> RunSummary:
     if meta.get("segment_names"):
         names = meta["segment_names"].split("|")
     truth = log.topic("/sim/truth") if "/sim/truth" in log.topics else None
-    summary = summarize(log.topic("/pmsm/telemetry"), log.topic("/pmsm/events"), names, str(path),
-                        truth)
+    summary = summarize(
+        log.topic("/pmsm/telemetry"), log.topic("/pmsm/events"), names, str(path), truth
+    )
     summary.problems = log_problems(log)
     return summary
 
 
 # columns of the printed summary: (header, short header, priority: the lowest goes first when narrow)
-_COLUMNS = (("seg", "seg", 9), ("name", "name", 8), ("setpoint r/min", "set r/min", 7),
-            ("load N·m", "load N·m", 2), ("mean err r/min", "err r/min", 9),
-            ("true err r/min", "true err", 5), ("band", "band", 3), ("recovery s", "rec s", 6),
-            ("ripple d/q A", "ripple d/q A", 1), ("faults", "flt", 4))
+_COLUMNS = (
+    ("seg", "seg", 9),
+    ("name", "name", 8),
+    ("setpoint r/min", "set r/min", 7),
+    ("load N·m", "load N·m", 2),
+    ("mean err r/min", "err r/min", 9),
+    ("true err r/min", "true err", 5),
+    ("band", "band", 3),
+    ("recovery s", "rec s", 6),
+    ("ripple d/q A", "ripple d/q A", 1),
+    ("faults", "flt", 4),
+)
 
 
 def _summary_rows(summary: RunSummary) -> list[dict[str, str]]:
@@ -228,15 +289,24 @@ def _summary_rows(summary: RunSummary) -> list[dict[str, str]]:
     for s in summary.segments:
         ok = "[green]" if s.mean_ok else "[red]"
         te = s.true_mean_error_rpm
-        rows.append({
-            "seg": str(s.index), "name": s.name, "setpoint r/min": f"{s.setpoint_rpm:.1f}",
-            "load N·m": f"{s.load_nm:.2f}", "mean err r/min": f"{ok}{s.mean_error_rpm:+.3f}",
-            "true err r/min": "" if te is None else
-            f"{'[green]' if abs(te) <= s.band_rpm else '[red]'}{te:+.3f}",
-            "band": f"±{s.band_rpm:.2f}",
-            "recovery s": "" if s.recovery_s is None else
-            ("[green]" if s.recovery_ok else "[red]") + f"{s.recovery_s:.3f}",
-            "ripple d/q A": f"{s.ripple_d_a:.3f}/{s.ripple_q_a:.3f}", "faults": str(s.faults)})
+        rows.append(
+            {
+                "seg": str(s.index),
+                "name": s.name,
+                "setpoint r/min": f"{s.setpoint_rpm:.1f}",
+                "load N·m": f"{s.load_nm:.2f}",
+                "mean err r/min": f"{ok}{s.mean_error_rpm:+.3f}",
+                "true err r/min": ""
+                if te is None
+                else f"{'[green]' if abs(te) <= s.band_rpm else '[red]'}{te:+.3f}",
+                "band": f"±{s.band_rpm:.2f}",
+                "recovery s": ""
+                if s.recovery_s is None
+                else ("[green]" if s.recovery_ok else "[red]") + f"{s.recovery_s:.3f}",
+                "ripple d/q A": f"{s.ripple_d_a:.3f}/{s.ripple_q_a:.3f}",
+                "faults": str(s.faults),
+            }
+        )
     return rows
 
 
@@ -259,14 +329,19 @@ def print_summary(summary: RunSummary, console=None, interrupted: bool = False) 
     hidden = []
 
     def table(cs):
-        tab = Table(title=f"run summary: {summary.path}", header_style="bold",
-                    box=box.SIMPLE_HEAD if narrow else box.HEAVY_HEAD)
+        tab = Table(
+            title=f"run summary: {summary.path}",
+            header_style="bold",
+            box=box.SIMPLE_HEAD if narrow else box.HEAVY_HEAD,
+        )
         for key, short, _ in cs:
-            tab.add_column(short if narrow else key, justify="left" if key == "name" else "right",
-                           no_wrap=True)
+            tab.add_column(
+                short if narrow else key, justify="left" if key == "name" else "right", no_wrap=True
+            )
         for r in rows:
             tab.add_row(*(r[key] for key, _, _ in cs))
         return tab
+
     tab = table(cols)
     wide = console.options.update_width(10_000)
     while Measurement.get(console, wide, tab).maximum > console.width and len(cols) > 3:
@@ -276,14 +351,20 @@ def print_summary(summary: RunSummary, console=None, interrupted: bool = False) 
         tab = table(cols)
     console.print(tab)
     if hidden:
-        console.print(f"[dim]not shown at {console.width} columns: {', '.join(hidden)} "
-                      f"(`pmsm-hil analyze LOG --json` has every column)[/]", highlight=False)
+        console.print(
+            f"[dim]not shown at {console.width} columns: {', '.join(hidden)} "
+            f"(`pmsm-hil analyze LOG --json` has every column)[/]",
+            highlight=False,
+        )
     for f in summary.faults:
         console.print(f"[red]fault[/] {f}")
     for p in summary.problems:
         console.print(f"[yellow]log[/] {p}")
-    console.print(f"{len(summary.segments)} segments, {summary.duration_s:.2f} s: "
-                  f"{verdict_text(summary, interrupted)}", highlight=False)
+    console.print(
+        f"{len(summary.segments)} segments, {summary.duration_s:.2f} s: "
+        f"{verdict_text(summary, interrupted)}",
+        highlight=False,
+    )
 
 
 def verdict_text(summary: RunSummary, interrupted: bool = False) -> str:
@@ -300,6 +381,7 @@ def verdict_text(summary: RunSummary, interrupted: bool = False) -> str:
                 runs.append(f"{start}" if start == a else f"{start}-{a}")
                 start = b
         return f"segments {', '.join(runs)} ({len(idx)} of {len(names)})"
+
     if summary.complete:
         return "[green]all plateaus within bounds[/]" if summary.ok else "[red]bounds missed[/]"
     parts = []
@@ -316,6 +398,5 @@ def verdict_text(summary: RunSummary, interrupted: bool = False) -> str:
     if summary.problems and not summary.partial and not summary.missing:
         parts.append("the file is damaged")
     missed = [s.index for s in summary.segments if not (s.mean_ok and s.recovery_ok is not False)]
-    seen = ("bounds missed in the segments seen" if missed else
-            "segments seen are within bounds")
+    seen = "bounds missed in the segments seen" if missed else "segments seen are within bounds"
     return f"[red]INCOMPLETE[/] ({'; '.join(parts)}): {seen}, the others were not checked"

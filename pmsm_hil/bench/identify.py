@@ -1,6 +1,7 @@
 """The identification benchmark (`pmsm-hil bench identify`): paper A's identification profile on the
 emulator in this process, the Table-2 figures beside the paper's, the mismatch benchmark and the
 per-effect table. Results are written to a folder and echoed as text."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -14,14 +15,25 @@ class BenchError(Exception):
 
 def default_profile() -> str:
     from pmsm_hil.profiles.shipped import shipped_file
+
     return shipped_file("paper-a-identify.yaml")
 
 
-def identify(path: str, out: Path, seed: int = 1, rig: str | None = None, until: float | None = None,
-             echo=print) -> None:
+def identify(
+    path: str,
+    out: Path,
+    seed: int = 1,
+    rig: str | None = None,
+    until: float | None = None,
+    echo=print,
+) -> None:
     """The Table-2 run: identification table (markdown and text), convergence plot, drift step."""
-    from pmsm_hil.analysis.identification import (convergence_plot, identification_table,
-                                                   markdown_table, text_table)
+    from pmsm_hil.analysis.identification import (
+        convergence_plot,
+        identification_table,
+        markdown_table,
+        text_table,
+    )
     from pmsm_hil.profiles import load_profile
 
     profile = load_profile(path, rig_override=rig)
@@ -32,28 +44,49 @@ def identify(path: str, out: Path, seed: int = 1, rig: str | None = None, until:
         raise BenchError(f"the run failed ({result.error or result.faults}); log {log}")
     t1 = until
     drift = [s for s in profile.segments if s.plant is not None]
-    if t1 is None:   # before the first drift step
+    if t1 is None:  # before the first drift step
         t1 = drift[0].t_start_s if drift else profile.total_duration_s
     effects = ", ".join(profile.rig.enabled_effects)
-    echo(f"bench identify: {profile.name} on the emulator (motor {profile.motor.name}, rig "
-         f"{profile.rig.name}: {effects}; seed {seed}); estimators from zero weights")
-    if profile.control.dead_time_comp and profile.motor.dead_time_s and not profile.rig.enabled("dead_time"):
-        echo(f"note: the firmware compensates the motor file's {profile.motor.dead_time_s * 1e6:g} us dead time, "
-             f"which rig {profile.rig.name} does not have: the voltages it assumes are wrong by that much")
+    echo(
+        f"bench identify: {profile.name} on the emulator (motor {profile.motor.name}, rig "
+        f"{profile.rig.name}: {effects}; seed {seed}); estimators from zero weights"
+    )
+    if (
+        profile.control.dead_time_comp
+        and profile.motor.dead_time_s
+        and not profile.rig.enabled("dead_time")
+    ):
+        echo(
+            f"note: the firmware compensates the motor file's {profile.motor.dead_time_s * 1e6:g} us dead time, "
+            f"which rig {profile.rig.name} does not have: the voltages it assumes are wrong by that much"
+        )
     table = identification_table(log, 0.0, t1)
     echo(text_table(table))
     md = out / "identify.md"
-    md.write_text(f"# Online identification, {profile.name} (t <= {t1:g} s)\n\n" + markdown_table(table) + "\n")
+    md.write_text(
+        f"# Online identification, {profile.name} (t <= {t1:g} s)\n\n"
+        + markdown_table(table)
+        + "\n"
+    )
     png = convergence_plot(log, out / "identify.png")
     if drift:
         d = drift[0]
         dt = identification_table(log, d.t_start_s, d.t_end_s)
-        echo(f"\ndrift step at t = {d.t_start_s:g} s (R x {d.plant.r_s_scale:g}, psi_f x "
-             f"{d.plant.psi_f_scale:g}); convergence times from the step:")
+        echo(
+            f"\ndrift step at t = {d.t_start_s:g} s (R x {d.plant.r_s_scale:g}, psi_f x "
+            f"{d.plant.psi_f_scale:g}); convergence times from the step:"
+        )
         for c in dt.cells:
-            c.conv_s = None if c.conv_s is None else c.conv_s + (c.t_first_s or d.t_start_s) - d.t_start_s
+            c.conv_s = (
+                None if c.conv_s is None else c.conv_s + (c.t_first_s or d.t_start_s) - d.t_start_s
+            )
         echo(text_table(dt, with_paper=False))
-        md.write_text(md.read_text() + f"\n## Drift step at {d.t_start_s:g} s\n\n" + markdown_table(dt, False) + "\n")
+        md.write_text(
+            md.read_text()
+            + f"\n## Drift step at {d.t_start_s:g} s\n\n"
+            + markdown_table(dt, False)
+            + "\n"
+        )
     echo(f"\nlog {log}\nplot {png}\ntable {md}")
 
 
@@ -70,12 +103,16 @@ def _run_profile(profile, log: Path, seed: int):
 
 def _run(profile_path, log: Path, seed: int, rig=None):
     from pmsm_hil.profiles import load_profile
+
     return _run_profile(load_profile(str(profile_path), rig_override=rig), log, seed)
 
 
 # ------------------------------------------------------------------------------- variants
 
-def _variant(path, out: Path, name: str, control: dict | None = None, segments: list[str] | None = None) -> Path:
+
+def _variant(
+    path, out: Path, name: str, control: dict | None = None, segments: list[str] | None = None
+) -> Path:
     """A copy of the profile at `path` (motor and rig paths made absolute) with control fields
     replaced or added and, optionally, other segments; written to out/NAME.yaml."""
     import yaml
@@ -96,8 +133,8 @@ def _variant(path, out: Path, name: str, control: dict | None = None, segments: 
 
 # ------------------------------------------------------------------------------- mismatch
 
-MISMATCH_SCALE = 1.5      # "50 % off": L_d, L_q, psi_f of the predictor x 1.5
-MISMATCH_WINDOW = (3.0, 4.0)   # device time evaluated: 1000 r/min, 5 N m, steady
+MISMATCH_SCALE = 1.5  # "50 % off": L_d, L_q, psi_f of the predictor x 1.5
+MISMATCH_WINDOW = (3.0, 4.0)  # device time evaluated: 1000 r/min, 5 N m, steady
 
 
 def mismatch(path, out: Path, seed: int = 1, echo=print) -> None:
@@ -107,44 +144,74 @@ def mismatch(path, out: Path, seed: int = 1, echo=print) -> None:
 
     from pmsm_hil.log.reader import read_log
 
-    segs = ['{name: "R injection", kind: identify_r, duration_s: 0.5, speed_rpm: 0, inject_a: 12.0}',
-            '{name: "spin up, load", duration_s: 1.0, speed_rpm: 1000, ramp_rpm_s: 2000, load_nm: 5.0, inject_a: 2.0, inject_hz: 10}',
-            '{name: "1000 r/min, load", duration_s: 2.5, speed_rpm: 1000, load_nm: 5.0, inject_a: 2.0, inject_hz: 10}',
-            '{name: "stop", duration_s: 0.8, speed_rpm: 0, ramp_rpm_s: 2000, load_nm: 0}']
-    off = {"l_d_h": MISMATCH_SCALE, "l_q_h": MISMATCH_SCALE, "psi_f_wb": MISMATCH_SCALE, "r_s_ohm": 1.0}
-    cases = [("true parameters", {"predictor": "nominal"}),
-             (f"frozen x{MISMATCH_SCALE:g} (L_d, L_q, psi_f)", {"predictor": "nominal", "predictor_scale": off}),
-             ("NLMS-Adaline feeds it", {"predictor": "nlms_adaline", "predictor_scale": off})]
+    segs = [
+        '{name: "R injection", kind: identify_r, duration_s: 0.5, speed_rpm: 0, inject_a: 12.0}',
+        '{name: "spin up, load", duration_s: 1.0, speed_rpm: 1000, ramp_rpm_s: 2000, load_nm: 5.0, inject_a: 2.0, inject_hz: 10}',
+        '{name: "1000 r/min, load", duration_s: 2.5, speed_rpm: 1000, load_nm: 5.0, inject_a: 2.0, inject_hz: 10}',
+        '{name: "stop", duration_s: 0.8, speed_rpm: 0, ramp_rpm_s: 2000, load_nm: 0}',
+    ]
+    off = {
+        "l_d_h": MISMATCH_SCALE,
+        "l_q_h": MISMATCH_SCALE,
+        "psi_f_wb": MISMATCH_SCALE,
+        "r_s_ohm": 1.0,
+    }
+    cases = [
+        ("true parameters", {"predictor": "nominal"}),
+        (
+            f"frozen x{MISMATCH_SCALE:g} (L_d, L_q, psi_f)",
+            {"predictor": "nominal", "predictor_scale": off},
+        ),
+        ("NLMS-Adaline feeds it", {"predictor": "nlms_adaline", "predictor_scale": off}),
+    ]
     rows = []
     for i, (label, ctrl) in enumerate(cases):
         p = _variant(path, out, f"mismatch-{i}", ctrl, segs)
         log = out / f"mismatch-{i}.mcap"
         _, res = _run(p, log, seed)
         if res.faults or res.error:
-            raise BenchError(f"mismatch run {label!r} failed ({res.error or res.faults}); log {log}")
+            raise BenchError(
+                f"mismatch run {label!r} failed ({res.error or res.faults}); log {log}"
+            )
         tel = read_log(log).topic("/pmsm/telemetry")
         t = np.asarray(tel["t_s"], dtype=float)
         m = (t >= MISMATCH_WINDOW[0]) & (t < MISMATCH_WINDOW[1])
         ed = np.asarray(tel["i_d_ref_a"])[m] - np.asarray(tel["i_d_a"])[m]
         eq = np.asarray(tel["i_q_ref_a"])[m] - np.asarray(tel["i_q_a"])[m]
-        rows.append((label, float(np.sqrt(np.mean(ed ** 2))), float(np.sqrt(np.mean(eq ** 2))),
-                     float(np.sqrt(np.mean(ed ** 2 + eq ** 2)))))
+        rows.append(
+            (
+                label,
+                float(np.sqrt(np.mean(ed**2))),
+                float(np.sqrt(np.mean(eq**2))),
+                float(np.sqrt(np.mean(ed**2 + eq**2))),
+            )
+        )
     ref = rows[0][3]
-    lines = ["| predictor | i_d error RMS (A) | i_q error RMS (A) | |i| error RMS (A) | vs true |",
-             "|---|---|---|---|---|"]
+    lines = [
+        "| predictor | i_d error RMS (A) | i_q error RMS (A) | |i| error RMS (A) | vs true |",
+        "|---|---|---|---|---|",
+    ]
     for label, d, q, tot in rows:
-        lines.append(f"| {label} | {d:.3f} | {q:.3f} | {tot:.3f} | {100 * (tot / ref - 1):+.1f} % |")
+        lines.append(
+            f"| {label} | {d:.3f} | {q:.3f} | {tot:.3f} | {100 * (tot / ref - 1):+.1f} % |"
+        )
     md = "\n".join(lines)
-    echo(f"\nmismatch: tracking error at 1000 r/min, 5 N m, t = {MISMATCH_WINDOW[0]:g}..{MISMATCH_WINDOW[1]:g} s "
-          f"(telemetry samples: the sampled current at k, before the MPCC step)")
+    echo(
+        f"\nmismatch: tracking error at 1000 r/min, 5 N m, t = {MISMATCH_WINDOW[0]:g}..{MISMATCH_WINDOW[1]:g} s "
+        f"(telemetry samples: the sampled current at k, before the MPCC step)"
+    )
     echo(md)
-    (out / "mismatch.md").write_text("# Mismatch: current tracking with the predictor's parameters\n\n" + md + "\n")
+    (out / "mismatch.md").write_text(
+        "# Mismatch: current tracking with the predictor's parameters\n\n" + md + "\n"
+    )
 
 
 # ------------------------------------------------------------------------------- per effect
 
+
 def _fault_names(bits: int) -> str:
     from pmsm_hil.protocol import generated
+
     names = [n for n, b in generated.ENUMS["fault"].items() if bits & b]
     return "fault " + (", ".join(names) if names else f"0x{bits:x}")
 
@@ -159,12 +226,25 @@ def per_effect(path, out: Path, seed: int = 1, echo=print) -> None:
 
     rigs_dir = shipped_root() / "rigs"
     src = yaml.safe_load(Path(path).read_text())
-    segs = [yaml.safe_dump(s, default_flow_style=True).strip() for s in src["segments"] if not s.get("plant")]
-    rigs = ["ideal"] + sorted(f.stem for f in rigs_dir.glob("effect-*.yaml")) + ["default", "lab-typical"]
-    head = ("| rig | " + " | ".join(f"{e} {n}" for e in ("rls", "nlms") for n in ("L_d", "L_q", "psi_f", "R"))
-            + " | nlms t_conv L_d/L_q/psi_f s |")
+    segs = [
+        yaml.safe_dump(s, default_flow_style=True).strip()
+        for s in src["segments"]
+        if not s.get("plant")
+    ]
+    rigs = (
+        ["ideal"]
+        + sorted(f.stem for f in rigs_dir.glob("effect-*.yaml"))
+        + ["default", "lab-typical"]
+    )
+    head = (
+        "| rig | "
+        + " | ".join(f"{e} {n}" for e in ("rls", "nlms") for n in ("L_d", "L_q", "psi_f", "R"))
+        + " | nlms t_conv L_d/L_q/psi_f s |"
+    )
     lines = [head, "|" + "---|" * (head.count("|") - 1)]
-    echo("\nper effect: identification (before any drift step) on each rig; error against /sim/truth")
+    echo(
+        "\nper effect: identification (before any drift step) on each rig; error against /sim/truth"
+    )
     echo(lines[0])
     echo(lines[1])
     for r in rigs:
@@ -172,13 +252,16 @@ def per_effect(path, out: Path, seed: int = 1, echo=print) -> None:
         # the firmware compensates the inverter it is told about: the motor file's dead time when the
         # rig has one (the rig's true one may differ: effect-dead-time, lab-typical), else none
         from pmsm_hil.profiles import load_rig
+
         has_dt = "dead_time" in load_rig(rigs_dir / f"{r}.yaml").enabled_effects
-        pr = _variant(path, out, f"per-effect-{'dt' if has_dt else 'nodt'}", {"dead_time_comp": has_dt}, segs)
+        pr = _variant(
+            path, out, f"per-effect-{'dt' if has_dt else 'nodt'}", {"dead_time_comp": has_dt}, segs
+        )
         prof, res = _run(pr, log, seed, rig=str(rigs_dir / f"{r}.yaml"))
         if res.faults or res.error:
             row = f"| {r} | run failed: {res.error or _fault_names(res.faults)} |"
         else:
-            t1 = prof.segments[-1].t_start_s   # before the stop
+            t1 = prof.segments[-1].t_start_s  # before the stop
             tab = identification_table(log, 0.0, t1)
             cells = []
             for e in ("rls", "nlms_adaline"):
@@ -192,4 +275,6 @@ def per_effect(path, out: Path, seed: int = 1, echo=print) -> None:
             row = f"| {r} | " + " | ".join(cells) + " | " + " / ".join(conv) + " |"
         lines.append(row)
         echo(row)
-    (out / "per-effect.md").write_text("# Identification per rig effect\n\n" + "\n".join(lines) + "\n")
+    (out / "per-effect.md").write_text(
+        "# Identification per rig effect\n\n" + "\n".join(lines) + "\n"
+    )

@@ -1,4 +1,5 @@
 """`pmsm-hil analyze LOG.mcap`: per-segment summary of a run log."""
+
 from __future__ import annotations
 
 import argparse
@@ -9,11 +10,14 @@ from pmsm_hil.cli.errors import fail
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("analyze", help="summarise a run log (per segment: speed error, ripple, faults)",
-                       description="Per-segment summary of a run log, and the identification table "
-                                   "when estimators ran. Exit 0: the whole run is in the log and "
-                                   "within bounds; 1: bounds missed, or the log is incomplete "
-                                   "(truncated, interrupted, segments missing); 2: not a log.")
+    p = sub.add_parser(
+        "analyze",
+        help="summarise a run log (per segment: speed error, ripple, faults)",
+        description="Per-segment summary of a run log, and the identification table "
+        "when estimators ran. Exit 0: the whole run is in the log and "
+        "within bounds; 1: bounds missed, or the log is incomplete "
+        "(truncated, interrupted, segments missing); 2: not a log.",
+    )
     p.add_argument("log", help="MCAP log written by `pmsm-hil run`")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
 
@@ -21,6 +25,7 @@ def add_parser(sub) -> None:
 def identification(path):
     """The identification table of a log, or None when no estimator ran."""
     from pmsm_hil.analysis.identification import identification_table
+
     try:
         t = identification_table(path)
     except (KeyError, ValueError):
@@ -30,6 +35,7 @@ def identification(path):
 
 def print_identification(table) -> None:
     from pmsm_hil.analysis.identification import text_table
+
     print()
     print(text_table(table))
 

@@ -1,4 +1,5 @@
 """`pmsm-hil bench identify`: paper A's identification run on the emulator, Table 2 beside ours."""
+
 from __future__ import annotations
 
 import argparse
@@ -8,25 +9,50 @@ from pmsm_hil.cli.errors import fail
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("bench", help="reproducible benchmarks on the emulator (identify: paper A Table 2)")
+    p = sub.add_parser(
+        "bench", help="reproducible benchmarks on the emulator (identify: paper A Table 2)"
+    )
     bsub = p.add_subparsers(dest="bench", required=True, metavar="BENCH")
-    b = bsub.add_parser("identify", help="online identification: RLS, Adaline, NLMS-Adaline vs paper A Table 2")
-    b.add_argument("--profile", default=None, help="profile (default: profiles/paper-a-identify.yaml)")
-    b.add_argument("--out", "-o", default="runs/bench-identify",
-                   help="directory for the log, the convergence plot (PNG) and the table (markdown)")
+    b = bsub.add_parser(
+        "identify", help="online identification: RLS, Adaline, NLMS-Adaline vs paper A Table 2"
+    )
+    b.add_argument(
+        "--profile", default=None, help="profile (default: profiles/paper-a-identify.yaml)"
+    )
+    b.add_argument(
+        "--out",
+        "-o",
+        default="runs/bench-identify",
+        help="directory for the log, the convergence plot (PNG) and the table (markdown)",
+    )
     b.add_argument("--seed", type=int, default=1)
     b.add_argument("--rig", default=None, help="rig file for the emulator (default: the profile's)")
-    b.add_argument("--until", type=float, default=None, metavar="S",
-                   help="evaluate the table up to device time S (default: the end of the last segment "
-                        "before any drift step)")
-    b.add_argument("--mismatch", action="store_true",
-                   help="also the mismatch benchmark: i_d/i_q tracking-error RMS at 1000 r/min under load "
-                        "with the predictor at the true parameters, frozen 50 %% off, and fed by NLMS-Adaline")
-    b.add_argument("--per-effect", action="store_true",
-                   help="also the identification results on each rig effect alone (profiles/rigs/effect-*.yaml), "
-                        "as a markdown table (about a minute)")
-    b.add_argument("--only", choices=("mismatch", "per-effect"), default=None,
-                   help="run only that part (skips the Table-2 run)")
+    b.add_argument(
+        "--until",
+        type=float,
+        default=None,
+        metavar="S",
+        help="evaluate the table up to device time S (default: the end of the last segment "
+        "before any drift step)",
+    )
+    b.add_argument(
+        "--mismatch",
+        action="store_true",
+        help="also the mismatch benchmark: i_d/i_q tracking-error RMS at 1000 r/min under load "
+        "with the predictor at the true parameters, frozen 50 %% off, and fed by NLMS-Adaline",
+    )
+    b.add_argument(
+        "--per-effect",
+        action="store_true",
+        help="also the identification results on each rig effect alone (profiles/rigs/effect-*.yaml), "
+        "as a markdown table (about a minute)",
+    )
+    b.add_argument(
+        "--only",
+        choices=("mismatch", "per-effect"),
+        default=None,
+        help="run only that part (skips the Table-2 run)",
+    )
 
 
 def main(args: argparse.Namespace) -> int:

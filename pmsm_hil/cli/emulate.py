@@ -1,4 +1,5 @@
 """`pmsm-hil emulate`: serve the emulated F28335 (firmware core + sim board) on a pty or CAN."""
+
 from __future__ import annotations
 
 import argparse
@@ -7,10 +8,13 @@ import argparse
 def add_parser(sub) -> None:
     from pmsm_hil.emulator.entry import add_arguments
 
-    p = sub.add_parser("emulate", help="serve the emulated drive on a pseudo-terminal (or CAN)",
-                       description="Runs the firmware core on the emulated board and serves it on "
-                                   "a pty; prints `serial: /dev/pts/N` (or `can: SPEC` with --can) "
-                                   "and serves until stopped.")
+    p = sub.add_parser(
+        "emulate",
+        help="serve the emulated drive on a pseudo-terminal (or CAN)",
+        description="Runs the firmware core on the emulated board and serves it on "
+        "a pty; prints `serial: /dev/pts/N` (or `can: SPEC` with --can) "
+        "and serves until stopped.",
+    )
     add_arguments(p)
 
 

@@ -1,4 +1,5 @@
 """How the CLI reports errors: one clear line, no traceback for a user or device error."""
+
 from __future__ import annotations
 
 import sys

@@ -1,11 +1,12 @@
 """`pmsm-hil gap`: sim-to-real gap diagnosis (docs/gap.md).
 
-    pmsm-hil gap LOG.mcap --motor M.yaml [--json] [--report DIR] [--holdout LOG2.mcap]
-    pmsm-hil gap augment LOG.mcap [--motor M.yaml] -o fitted-rig.yaml
-    pmsm-hil gap record PROFILE.yaml --rig RIG.yaml -o real.mcap [--seed N]   (emulator, continuous)
-    pmsm-hil gap selftest --trials N --seed S [--workers W] [--json]
-    pmsm-hil gap verify LOG.mcap --rig fitted-rig.yaml [--json]        (re-runs the log's profile)
+pmsm-hil gap LOG.mcap --motor M.yaml [--json] [--report DIR] [--holdout LOG2.mcap]
+pmsm-hil gap augment LOG.mcap [--motor M.yaml] -o fitted-rig.yaml
+pmsm-hil gap record PROFILE.yaml --rig RIG.yaml -o real.mcap [--seed N]   (emulator, continuous)
+pmsm-hil gap selftest --trials N --seed S [--workers W] [--json]
+pmsm-hil gap verify LOG.mcap --rig fitted-rig.yaml [--json]        (re-runs the log's profile)
 """
+
 from __future__ import annotations
 
 import argparse
@@ -20,14 +21,22 @@ ACTIONS = ("augment", "record", "selftest", "verify")
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("gap", help="diagnose the sim-to-real gap of a log (also: augment, record, selftest)",
-                       description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser(
+        "gap",
+        help="diagnose the sim-to-real gap of a log (also: augment, record, selftest)",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     p.add_argument("target", help="LOG.mcap, or one of: " + ", ".join(ACTIONS))
     p.add_argument("rest", nargs="*", help="the log (augment) or profile (record)")
-    p.add_argument("--motor", help="motor file of the nominal model (default: the log's motor.yaml)")
+    p.add_argument(
+        "--motor", help="motor file of the nominal model (default: the log's motor.yaml)"
+    )
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("--report", metavar="DIR", help="write plots, gap.json and index.html here")
-    p.add_argument("--holdout", metavar="LOG", help="a second record of the same rig: held-out closure")
+    p.add_argument(
+        "--holdout", metavar="LOG", help="a second record of the same rig: held-out closure"
+    )
     p.add_argument("-o", "--out", help="output file (augment: rig yaml; record: log)")
     p.add_argument("--rig", help="record, verify: the rig file")
     p.add_argument("--trials", type=int, default=20, help="selftest: number of trials")
@@ -75,6 +84,7 @@ def main(args: argparse.Namespace) -> int:
     try:
         if args.target == "selftest":
             from pmsm_hil.gapgen.selftest import print_selftest, run_selftest
+
             res = run_selftest(args.trials, args.seed, workers=args.workers, progress=not args.json)
             if args.json:
                 print(json.dumps(res, indent=1))
@@ -83,6 +93,7 @@ def main(args: argparse.Namespace) -> int:
             return 0
         if args.target == "record":
             from pmsm_hil.gapgen.recorder import record_profile
+
             if not args.rest or not args.out:
                 return fail("error", "gap record PROFILE.yaml [--rig RIG.yaml] -o OUT.mcap", 2)
             cols = record_profile(args.rest[0], args.out, rig_path=args.rig, seed=args.seed)
@@ -90,6 +101,7 @@ def main(args: argparse.Namespace) -> int:
             return 0
         if args.target == "verify":
             from pmsm_hil.gapgen.verify import verify
+
             if not args.rest or not args.rig:
                 return fail("error", "gap verify LOG.mcap --rig fitted-rig.yaml", 2)
             for f in (args.rest[0], args.rig):
@@ -99,10 +111,14 @@ def main(args: argparse.Namespace) -> int:
             if args.json:
                 print(json.dumps(v))
             else:
-                print(f"gap verify: free-run closure (median over i_d, i_q, u_d, u_q) {v['closure_median']:.2f}")
+                print(
+                    f"gap verify: free-run closure (median over i_d, i_q, u_d, u_q) {v['closure_median']:.2f}"
+                )
                 for k, s in v["signals"].items():
-                    print(f"  {k:10s} rms error nominal {s['rms_nominal']:.3g}, fitted {s['rms_fitted']:.3g}, "
-                          f"closure {s['closure']:.2f}")
+                    print(
+                        f"  {k:10s} rms error nominal {s['rms_nominal']:.3g}, fitted {s['rms_fitted']:.3g}, "
+                        f"closure {s['closure']:.2f}"
+                    )
             return 0
         path = args.rest[0] if args.target == "augment" and args.rest else args.target
         if args.target == "augment" and (not args.rest or not args.out):
@@ -116,6 +132,7 @@ def main(args: argparse.Namespace) -> int:
 
     if args.target == "augment":
         from pmsm_hil.gap.rigfile import fitted_rig
+
         rig = fitted_rig(res, m, args.out, getattr(rec, "sensor_spec", {}))
         print(f"{args.out}: {', '.join(rig['effects']) or 'no effect'}")
         return 0
@@ -124,7 +141,9 @@ def main(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(jsonable(res)))
     else:
-        for line in verdict_lines(res) if "discretisation_gap" in res else [f"gap: {res['verdict']}"]:
+        for line in (
+            verdict_lines(res) if "discretisation_gap" in res else [f"gap: {res['verdict']}"]
+        ):
             print(line)
     sys.stdout.flush()
     return 0

@@ -1,4 +1,5 @@
 """`pmsm-hil import FILE.csv --motor M.yaml -o OUT.mcap`: external data for the gap diagnosis."""
+
 from __future__ import annotations
 
 import argparse
@@ -7,7 +8,9 @@ from pmsm_hil.cli.errors import fail
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("import", help="import control-rate or steady-state dq data from a CSV (docs/gap.md)")
+    p = sub.add_parser(
+        "import", help="import control-rate or steady-state dq data from a CSV (docs/gap.md)"
+    )
     p.add_argument("csv", help="CSV file: a header row, SI units, the project's column names")
     p.add_argument("--motor", required=True, help="motor file the data belongs to")
     p.add_argument("-o", "--out", required=True, help="MCAP log to write")

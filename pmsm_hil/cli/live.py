@@ -1,5 +1,6 @@
 """Live view of a run (rich), and the plain progress printer used with --no-live or when the
 output is not a terminal (a pipe, a file, CI)."""
+
 from __future__ import annotations
 
 import sys
@@ -23,8 +24,10 @@ def _link_use(live: LiveState, bit_rate: float) -> float:
     return live.octets * 10.0 / (bit_rate * live.t_s)
 
 
-FLAGS_LEGEND = ("estimator flags: * feeds the MPCC predictor, e excited (the operating point "
-                "lets it learn), c converged, - not (yet); % = error against the plant's truth")
+FLAGS_LEGEND = (
+    "estimator flags: * feeds the MPCC predictor, e excited (the operating point "
+    "lets it learn), c converged, - not (yet); % = error against the plant's truth"
+)
 FLAGS_LEGEND_SHORT = "flags: * feeds predictor  e excited  c converged  - not yet  %: vs truth"
 FLAGS_LEGEND_TINY = "* feeds predictor, e excited,\nc converged, - not yet"
 
@@ -57,17 +60,29 @@ def _parameters(live: LiveState, errors: bool = True, fold: bool = False) -> Tab
         par.add_column(col, justify="right", no_wrap=not fold, overflow="fold")
     tr = live.truth or {}
     for name, p in live.params.items():
+
         def cell(key, k, fmt):
             v = p[key] * k
             ref = tr.get(key)
             if errors and name != "nominal" and ref:
                 return f"{v:{fmt}} [dim]{100 * (p[key] / ref - 1):+.1f}%[/]"
             return f"{v:{fmt}}"
-        par.add_row(_flags(name, p), cell("l_d_h", 1e3, ".3f"), cell("l_q_h", 1e3, ".3f"),
-                    cell("psi_f_wb", 1e3, ".1f"), cell("r_s_ohm", 1.0, ".3f"))
+
+        par.add_row(
+            _flags(name, p),
+            cell("l_d_h", 1e3, ".3f"),
+            cell("l_q_h", 1e3, ".3f"),
+            cell("psi_f_wb", 1e3, ".1f"),
+            cell("r_s_ohm", 1.0, ".3f"),
+        )
     if tr:
-        par.add_row("[dim]truth[/]", f"[dim]{tr['l_d_h'] * 1e3:.3f}", f"[dim]{tr['l_q_h'] * 1e3:.3f}",
-                    f"[dim]{tr['psi_f_wb'] * 1e3:.1f}", f"[dim]{tr['r_s_ohm']:.3f}")
+        par.add_row(
+            "[dim]truth[/]",
+            f"[dim]{tr['l_d_h'] * 1e3:.3f}",
+            f"[dim]{tr['l_q_h'] * 1e3:.3f}",
+            f"[dim]{tr['psi_f_wb'] * 1e3:.1f}",
+            f"[dim]{tr['r_s_ohm']:.3f}",
+        )
     return par
 
 
@@ -76,11 +91,15 @@ def _link(live: LiveState, bit_rate: float, wide: bool) -> Table:
     link.add_column(justify="right", no_wrap=True)
     link.add_column(no_wrap=True)
     link.add_row(f"{live.frames}", "frames")
-    link.add_row(f"{_link_use(live, bit_rate) * 100:.1f} %",
-                 "of capacity (device time)" if wide else "of capacity")
+    link.add_row(
+        f"{_link_use(live, bit_rate) * 100:.1f} %",
+        "of capacity (device time)" if wide else "of capacity",
+    )
     link.add_row(f"{live.bad_frames}", "bad frames")
     link.add_row(f"{live.seq_gaps}", "sequence gaps")
-    link.add_row(f"{live.tx_dropped}", "dropped by the device (TX full)" if wide else "dropped (TX full)")
+    link.add_row(
+        f"{live.tx_dropped}", "dropped by the device (TX full)" if wide else "dropped (TX full)"
+    )
     return link
 
 
@@ -99,17 +118,25 @@ class _Screen:
         live = self.live
         t = live.telemetry
         seg = self.names[live.segment] if 0 <= live.segment < len(self.names) else ""
-        state = (f"state [bold]{live.state}[/]  segment {live.segment} {seg}  "
-                 f"faults [{'red' if live.faults else 'green'}]{fault_text(live.faults)}[/]")
+        state = (
+            f"state [bold]{live.state}[/]  segment {live.segment} {seg}  "
+            f"faults [{'red' if live.faults else 'green'}]{fault_text(live.faults)}[/]"
+        )
         head = Text.from_markup(f"[bold]{self.title}[/]  {state}")
-        rows = [head] if head.cell_len <= inner else [Text.from_markup(f"[bold]{self.title}[/]"),
-                                                      Text.from_markup(state)]
-        counts = (f"{live.t_s:7.2f} / {live.total_s:.2f} s  "
-                  f"{live.realtime_factor:5.1f}x real time")
+        rows = (
+            [head]
+            if head.cell_len <= inner
+            else [Text.from_markup(f"[bold]{self.title}[/]"), Text.from_markup(state)]
+        )
+        counts = f"{live.t_s:7.2f} / {live.total_s:.2f} s  {live.realtime_factor:5.1f}x real time"
         bar_w = max(10, min(50, inner - len(counts) - 2))
         prog = Table.grid(padding=(0, 2))
-        prog.add_row(ProgressBar(total=max(live.total_s, 1e-9), completed=min(live.t_s, live.total_s),
-                                 width=bar_w), counts)
+        prog.add_row(
+            ProgressBar(
+                total=max(live.total_s, 1e-9), completed=min(live.t_s, live.total_s), width=bar_w
+            ),
+            counts,
+        )
         rows.append(prog)
         sig, par = _signals(t), _parameters(live)
         wide_link = _link(live, self.bit_rate, True)
@@ -134,20 +161,31 @@ class _Screen:
                     par = _parameters(live, errors=False, fold=True)
             rows.append(par)
         if any(n != "nominal" or p.get("feeds_predictor") for n, p in live.params.items()):
-            legend = next((x for x in (FLAGS_LEGEND, FLAGS_LEGEND_SHORT) if len(x) <= inner),
-                          FLAGS_LEGEND_TINY)
+            legend = next(
+                (x for x in (FLAGS_LEGEND, FLAGS_LEGEND_SHORT) if len(x) <= inner),
+                FLAGS_LEGEND_TINY,
+            )
             rows.append(Text(legend, style="dim"))
         return rows
 
     def __rich_console__(self, console, options):
         width = options.max_width
-        inner = width - 4                 # panel border and padding
+        inner = width - 4  # panel border and padding
         rows = self._body(console, options, inner)
         height = options.height or console.height
-        used = sum(len(console.render_lines(r, options.update(width=inner, height=None), pad=False))
-                   for r in rows) + 2
-        room = max(0, (height or 10_000) - 1 - used)    # one line spare for rich.Live's cursor
-        events = [Text(f"{e[0]:8.3f} s  {e[3]}") for e in self.live.events[-min(4, room):]] if room else []
+        used = (
+            sum(
+                len(console.render_lines(r, options.update(width=inner, height=None), pad=False))
+                for r in rows
+            )
+            + 2
+        )
+        room = max(0, (height or 10_000) - 1 - used)  # one line spare for rich.Live's cursor
+        events = (
+            [Text(f"{e[0]:8.3f} s  {e[3]}") for e in self.live.events[-min(4, room) :]]
+            if room
+            else []
+        )
         yield Panel(Group(*rows, *events), title="pmsm-hil run", border_style="blue", width=width)
 
 
@@ -200,11 +238,14 @@ class PlainProgress:
             return
         self._last = now
         t = live.telemetry
-        print(f"t={live.t_s:7.2f}/{live.total_s:.2f} s  seg {live.segment:2d}  {live.state:8s} "
-              f"speed {t.get('speed_ref_rpm', 0):7.1f}/{t.get('speed_rpm', 0):7.1f} r/min  "
-              f"i_d {t.get('i_d_a', 0):6.2f} A  i_q {t.get('i_q_a', 0):6.2f} A  "
-              f"frames {live.frames}  bad {live.bad_frames}  {live.realtime_factor:.1f}x",
-              file=self.stream, flush=True)
+        print(
+            f"t={live.t_s:7.2f}/{live.total_s:.2f} s  seg {live.segment:2d}  {live.state:8s} "
+            f"speed {t.get('speed_ref_rpm', 0):7.1f}/{t.get('speed_rpm', 0):7.1f} r/min  "
+            f"i_d {t.get('i_d_a', 0):6.2f} A  i_q {t.get('i_q_a', 0):6.2f} A  "
+            f"frames {live.frames}  bad {live.bad_frames}  {live.realtime_factor:.1f}x",
+            file=self.stream,
+            flush=True,
+        )
 
     def message(self, text: str) -> None:
         print(text, file=self.stream, flush=True)

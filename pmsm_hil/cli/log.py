@@ -1,4 +1,5 @@
 """`pmsm-hil log recover LOG.mcap [-o OUT.mcap]`: make the log of a killed run whole again."""
+
 from __future__ import annotations
 
 import argparse
@@ -10,14 +11,18 @@ from pmsm_hil.cli.errors import fail
 def add_parser(sub) -> None:
     p = sub.add_parser("log", help="log file tools (recover a killed run's log)")
     lsub = p.add_subparsers(dest="log_command", required=True, metavar="TOOL")
-    r = lsub.add_parser("recover", help="rewrite a log whose writer was killed into a finalised one",
-                        description="Reads every message that reached the disk (the writer flushes a "
-                                    "chunk at least every second of device time) and writes a "
-                                    "finalised copy, with its index and summary, that any MCAP "
-                                    "reader opens (Foxglove, the `mcap` library).")
+    r = lsub.add_parser(
+        "recover",
+        help="rewrite a log whose writer was killed into a finalised one",
+        description="Reads every message that reached the disk (the writer flushes a "
+        "chunk at least every second of device time) and writes a "
+        "finalised copy, with its index and summary, that any MCAP "
+        "reader opens (Foxglove, the `mcap` library).",
+    )
     r.add_argument("log", help="the MCAP log to recover")
-    r.add_argument("-o", "--out", default=None,
-                   help="the recovered log (default: LOG with .recovered.mcap)")
+    r.add_argument(
+        "-o", "--out", default=None, help="the recovered log (default: LOG with .recovered.mcap)"
+    )
 
 
 def main(args: argparse.Namespace) -> int:

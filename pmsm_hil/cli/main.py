@@ -1,18 +1,40 @@
 """pmsm-hil command line: one module per subcommand, each thin over the library."""
+
 from __future__ import annotations
 
 import argparse
 import sys
 
 from pmsm_hil import __version__
-from pmsm_hil.cli import (analyze, bench, emulate, gap, import_csv, log, profiles, report, run,
-                          sweep, test)
+from pmsm_hil.cli import (
+    analyze,
+    bench,
+    emulate,
+    gap,
+    import_csv,
+    log,
+    profiles,
+    report,
+    run,
+    sweep,
+    test,
+)
 
-COMMANDS = {"run": run, "emulate": emulate, "analyze": analyze, "report": report, "bench": bench,
-            "profiles": profiles, "log": log, "sweep": sweep, "test": test, "import": import_csv,
-            "gap": gap}
+COMMANDS = {
+    "run": run,
+    "emulate": emulate,
+    "analyze": analyze,
+    "report": report,
+    "bench": bench,
+    "profiles": profiles,
+    "log": log,
+    "sweep": sweep,
+    "test": test,
+    "import": import_csv,
+    "gap": gap,
+}
 
-EXIT_USER_ERROR = 2    # bad input: profile, file, option
+EXIT_USER_ERROR = 2  # bad input: profile, file, option
 EXIT_DEVICE_ERROR = 3  # link or device: no answer, mismatch, dropped link, fault
 
 
@@ -20,7 +42,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="pmsm-hil",
         description="Hardware-in-the-loop tool for PMSM drives: runs speed/load profiles on an "
-                    "F28335 rig or its emulator, logs to MCAP, analyses logs.")
+        "F28335 rig or its emulator, logs to MCAP, analyses logs.",
+    )
     p.add_argument("--version", action="version", version=f"pmsm-hil {__version__}")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name, mod in COMMANDS.items():
@@ -32,6 +55,7 @@ def _quiet_libraries() -> None:
     """python-can's socketcand client logs every partial TCP read as a warning ("Got incomplete
     message"): normal on a stream, noise on a terminal. Its real errors are raised, not logged."""
     import logging
+
     logging.getLogger("can").setLevel(logging.ERROR)
 
 
@@ -43,6 +67,7 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:
         # the reader of our output went away (`| head`): the work itself has ended cleanly
         import os
+
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
 

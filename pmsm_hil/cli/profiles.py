@@ -1,14 +1,18 @@
 """`pmsm-hil profiles`: the shipped profiles, motor, rig and flux-map files."""
+
 from __future__ import annotations
 
 import argparse
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("profiles", help="list the shipped profiles, motors, rigs and flux maps",
-                       description="Lists the files shipped with pmsm-hil. Any command that takes a "
-                                   "profile, --motor or --rig accepts these bare names; a file path "
-                                   "always wins over a shipped name.")
+    p = sub.add_parser(
+        "profiles",
+        help="list the shipped profiles, motors, rigs and flux maps",
+        description="Lists the files shipped with pmsm-hil. Any command that takes a "
+        "profile, --motor or --rig accepts these bare names; a file path "
+        "always wins over a shipped name.",
+    )
     p.add_argument("--paths", action="store_true", help="show where each file is installed")
 
 
@@ -39,10 +43,18 @@ def main(args: argparse.Namespace) -> int:
         tab.add_column("name", no_wrap=True)
         tab.add_column("path" if args.paths else "description")
         for p in files:
-            tab.add_row(p.stem, str(p) if args.paths else
-                        (_first_line(p) if p.suffix == ".yaml" else "flux map (psi_d, psi_q vs i_d, i_q)"))
+            tab.add_row(
+                p.stem,
+                str(p)
+                if args.paths
+                else (
+                    _first_line(p) if p.suffix == ".yaml" else "flux map (psi_d, psi_q vs i_d, i_q)"
+                ),
+            )
         console.print(tab)
         console.print()
-    console.print(f"shipped with pmsm-hil in {shipped_root()}; use a bare name, e.g. "
-                  f"`pmsm-hil run paper-a --rig lab-typical`")
+    console.print(
+        f"shipped with pmsm-hil in {shipped_root()}; use a bare name, e.g. "
+        f"`pmsm-hil run paper-a --rig lab-typical`"
+    )
     return 0

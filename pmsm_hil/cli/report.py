@@ -1,4 +1,5 @@
 """`pmsm-hil report LOG.mcap [-o DIR]`: PNG plots and one self-contained HTML page of a run."""
+
 from __future__ import annotations
 
 import argparse
@@ -7,13 +8,21 @@ from pmsm_hil.cli.errors import fail
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("report", help="plot a run log: PNGs and one HTML page with the summary tables",
-                       description="Writes speed, currents, voltages, parameters vs truth, estimation "
-                                   "error and capture plots (PNG) and report.html (self-contained) "
-                                   "for an MCAP log written by `pmsm-hil run` (docs/report.md).")
+    p = sub.add_parser(
+        "report",
+        help="plot a run log: PNGs and one HTML page with the summary tables",
+        description="Writes speed, currents, voltages, parameters vs truth, estimation "
+        "error and capture plots (PNG) and report.html (self-contained) "
+        "for an MCAP log written by `pmsm-hil run` (docs/report.md).",
+    )
     p.add_argument("log", help="MCAP log written by `pmsm-hil run`")
-    p.add_argument("-o", "--out", default=None, metavar="DIR",
-                   help="directory to write into (default: LOG's name + '-report', beside the log)")
+    p.add_argument(
+        "-o",
+        "--out",
+        default=None,
+        metavar="DIR",
+        help="directory to write into (default: LOG's name + '-report', beside the log)",
+    )
 
 
 def main(args: argparse.Namespace) -> int:

@@ -1,4 +1,5 @@
 """`pmsm-hil run PROFILE`: play a speed/load profile on a rig or the emulator, live, to MCAP."""
+
 from __future__ import annotations
 
 import argparse
@@ -10,36 +11,82 @@ from pmsm_hil.cli.errors import fail, report
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("run", help="run a speed/load profile (on the emulator unless --port/--can)",
-                       description="Downloads PROFILE to the device, runs it, shows a live view and "
-                                   "logs everything to MCAP. Without --port the emulator is started.")
-    p.add_argument("profile", help="profile YAML, or the name of a shipped profile (`pmsm-hil profiles`), "
-                                   "e.g. profiles/paper-a.yaml or paper-a")
-    p.add_argument("--out", "-o", default=None,
-                   help="MCAP log to write (default: runs/PROFILE-YYYYmmdd-HHMMSS.mcap)")
+    p = sub.add_parser(
+        "run",
+        help="run a speed/load profile (on the emulator unless --port/--can)",
+        description="Downloads PROFILE to the device, runs it, shows a live view and "
+        "logs everything to MCAP. Without --port the emulator is started.",
+    )
+    p.add_argument(
+        "profile",
+        help="profile YAML, or the name of a shipped profile (`pmsm-hil profiles`), "
+        "e.g. profiles/paper-a.yaml or paper-a",
+    )
+    p.add_argument(
+        "--out",
+        "-o",
+        default=None,
+        help="MCAP log to write (default: runs/PROFILE-YYYYmmdd-HHMMSS.mcap)",
+    )
     p.add_argument("--port", default=None, help="serial port of a rig, e.g. /dev/ttyUSB0")
-    p.add_argument("--can", nargs="?", const="emulator", default=None, metavar="SPEC",
-                   help="use CAN: a python-can SPEC such as socketcand:emu0@127.0.0.1:29536, "
-                        "socketcan:can0, pcan:PCAN_USBBUS1 (options ,bitrate=N,node=N); "
-                        "bare --can or `emulator` starts the emulator on CAN (README, docs/can.md)")
-    p.add_argument("--baud", type=int, default=None, help="serial bit rate (default: the profile's)")
-    p.add_argument("--motor", default=None,
-                   help="motor file (or shipped name) instead of the profile's, e.g. a commissioned one")
-    p.add_argument("--rig", default=None,
-                   help="rig file (or shipped name) for the emulator (default: the profile's)")
+    p.add_argument(
+        "--can",
+        nargs="?",
+        const="emulator",
+        default=None,
+        metavar="SPEC",
+        help="use CAN: a python-can SPEC such as socketcand:emu0@127.0.0.1:29536, "
+        "socketcan:can0, pcan:PCAN_USBBUS1 (options ,bitrate=N,node=N); "
+        "bare --can or `emulator` starts the emulator on CAN (README, docs/can.md)",
+    )
+    p.add_argument(
+        "--baud", type=int, default=None, help="serial bit rate (default: the profile's)"
+    )
+    p.add_argument(
+        "--motor",
+        default=None,
+        help="motor file (or shipped name) instead of the profile's, e.g. a commissioned one",
+    )
+    p.add_argument(
+        "--rig",
+        default=None,
+        help="rig file (or shipped name) for the emulator (default: the profile's)",
+    )
     p.add_argument("--seed", type=int, default=1, help="emulator noise seed (default 1)")
-    p.add_argument("--pace", type=float, default=None, metavar="X",
-                   help="run the emulator at X times real time (1 = real time) so the live view can "
-                        "be watched (default: as fast as possible)")
-    p.add_argument("--decimate", action="store_true",
-                   help="when the link cannot carry the profile's telemetry, lower the fast-frame "
-                        "rate to what fits (default: refuse the run and show the budget)")
-    p.add_argument("--no-live", action="store_true", help="plain progress lines instead of the live view")
-    p.add_argument("--foxglove", nargs="?", type=int, const=8765, default=None, metavar="PORT",
-                   help="also serve the live streams to Foxglove on ws://127.0.0.1:PORT "
-                        "(default 8765; docs/foxglove.md)")
-    p.add_argument("--stop-after", type=float, default=None, metavar="S",
-                   help="ask the device to stop after S seconds of device time")
+    p.add_argument(
+        "--pace",
+        type=float,
+        default=None,
+        metavar="X",
+        help="run the emulator at X times real time (1 = real time) so the live view can "
+        "be watched (default: as fast as possible)",
+    )
+    p.add_argument(
+        "--decimate",
+        action="store_true",
+        help="when the link cannot carry the profile's telemetry, lower the fast-frame "
+        "rate to what fits (default: refuse the run and show the budget)",
+    )
+    p.add_argument(
+        "--no-live", action="store_true", help="plain progress lines instead of the live view"
+    )
+    p.add_argument(
+        "--foxglove",
+        nargs="?",
+        type=int,
+        const=8765,
+        default=None,
+        metavar="PORT",
+        help="also serve the live streams to Foxglove on ws://127.0.0.1:PORT "
+        "(default 8765; docs/foxglove.md)",
+    )
+    p.add_argument(
+        "--stop-after",
+        type=float,
+        default=None,
+        metavar="S",
+        help="ask the device to stop after S seconds of device time",
+    )
 
 
 def default_log_path(profile_path: str) -> Path:
@@ -49,17 +96,28 @@ def default_log_path(profile_path: str) -> Path:
 
 def device_spec(args):
     from pmsm_hil.device import DeviceSpec
-    return DeviceSpec(port=args.port, can=args.can, baud=args.baud, rig_path=args.rig, seed=args.seed,
-                      pace=args.pace)
+
+    return DeviceSpec(
+        port=args.port,
+        can=args.can,
+        baud=args.baud,
+        rig_path=args.rig,
+        seed=args.seed,
+        pace=args.pace,
+    )
 
 
 def budget_text(budget: dict, baud: int) -> str:
     lines = [f"link budget at {baud} baud ({budget['capacity_octets_s']:.0f} octets/s):"]
     for name, st in budget["streams"].items():
         if st["octets_s"]:
-            lines.append(f"  {name:<10} {st['rate_hz'] * st['count']:8.1f} frames/s x {st['frame_octets']:3d} "
-                         f"octets = {st['octets_s']:8.0f} octets/s ({100 * st['share']:5.1f} %)")
-    lines.append(f"  total {budget['total_octets_s']:.0f} octets/s = {100 * budget['load']:.0f} % of the link")
+            lines.append(
+                f"  {name:<10} {st['rate_hz'] * st['count']:8.1f} frames/s x {st['frame_octets']:3d} "
+                f"octets = {st['octets_s']:8.0f} octets/s ({100 * st['share']:5.1f} %)"
+            )
+    lines.append(
+        f"  total {budget['total_octets_s']:.0f} octets/s = {100 * budget['load']:.0f} % of the link"
+    )
     return "\n".join(lines)
 
 
@@ -68,23 +126,33 @@ def check_link_budget(args, profile) -> int | None:
     from pmsm_hil.profiles import link_budget
 
     if args.can is not None:
-        return None          # CAN rates are fitted to the bus in open_for_run (docs/can.md)
+        return None  # CAN rates are fitted to the bus in open_for_run (docs/can.md)
     baud = args.baud or profile.link.baud
     profile.link = profile.link.model_copy(update={"baud": baud})
     budget = link_budget(profile, emulator=not args.port)
     if budget["load"] <= 1.0:
         return None
     if not args.decimate or budget["fast_hz_fit"] <= 0:
-        why = ("no fast-frame rate fits beside the other streams; lower telemetry.params_hz/status_hz "
-               "or raise the bit rate" if budget["fast_hz_fit"] <= 0 else
-               f"lower telemetry.fast_hz to {budget['fast_hz_fit']:g} Hz, raise --baud, or pass "
-               f"--decimate to run at {budget['fast_hz_fit']:g} Hz")
-        return fail("error", f"{profile.path}: the link cannot carry this telemetry; {why}\n"
-                             f"{budget_text(budget, baud)}", 2)
+        why = (
+            "no fast-frame rate fits beside the other streams; lower telemetry.params_hz/status_hz "
+            "or raise the bit rate"
+            if budget["fast_hz_fit"] <= 0
+            else f"lower telemetry.fast_hz to {budget['fast_hz_fit']:g} Hz, raise --baud, or pass "
+            f"--decimate to run at {budget['fast_hz_fit']:g} Hz"
+        )
+        return fail(
+            "error",
+            f"{profile.path}: the link cannot carry this telemetry; {why}\n"
+            f"{budget_text(budget, baud)}",
+            2,
+        )
     old = profile.telemetry.fast_hz
     profile.telemetry = profile.telemetry.model_copy(update={"fast_hz": budget["fast_hz_fit"]})
-    report("note", f"telemetry.fast_hz decimated from {old:g} Hz to {budget['fast_hz_fit']:g} Hz to fit "
-                   f"{baud} baud (--decimate)")
+    report(
+        "note",
+        f"telemetry.fast_hz decimated from {old:g} Hz to {budget['fast_hz_fit']:g} Hz to fit "
+        f"{baud} baud (--decimate)",
+    )
     return None
 
 
@@ -127,7 +195,9 @@ def main(args: argparse.Namespace) -> int:
     if args.baud is not None and args.baud <= 0:
         return fail("error", f"--baud {args.baud}: must be a positive bit rate", 2)
     if args.pace is not None and not 0.001 <= args.pace <= 1000:
-        return fail("error", f"--pace {args.pace}: must be between 0.001 and 1000 (times real time)", 2)
+        return fail(
+            "error", f"--pace {args.pace}: must be between 0.001 and 1000 (times real time)", 2
+        )
     if args.pace is not None and (args.port or (args.can not in (None, "emulator", ""))):
         return fail("error", "--pace sets the emulator's speed; a rig runs in real time", 2)
     for w in profile.warnings:
@@ -142,8 +212,9 @@ def main(args: argparse.Namespace) -> int:
         return code
 
     sinks = []
-    if args.foxglove is not None:   # docs/foxglove.md
+    if args.foxglove is not None:  # docs/foxglove.md
         from pmsm_hil.live.foxglove import FoxgloveError, FoxgloveSink
+
         try:
             sinks.append(FoxgloveSink(args.foxglove))
         except FoxgloveError as e:
@@ -160,8 +231,12 @@ def main(args: argparse.Namespace) -> int:
         return fail("error", str(e), 2 if isinstance(e, TransportSpecError) else 3)
     names = [s.name or f"segment {i}" for i, s in enumerate(profile.segments)]
     observer = make_observer(args.no_live, f"{profile.name} on {link.name}", link.bit_rate, names)
-    options = RunOptions(seed=None if dev.is_rig else args.seed, rig_name=args.rig or str(profile.rig.path or ""),
-                         stop_after_s=args.stop_after, sinks=sinks)
+    options = RunOptions(
+        seed=None if dev.is_rig else args.seed,
+        rig_name=args.rig or str(profile.rig.path or ""),
+        stop_after_s=args.stop_after,
+        sinks=sinks,
+    )
     try:
         with observer:
             result = run_profile(profile, Session(link), out, options, observer)
@@ -184,23 +259,37 @@ def _finish(result, print_summary, summarize_log) -> int:
         summary = summarize_log(result.log_path)
         print_summary(summary, interrupted=result.interrupted or bool(result.error))
         from pmsm_hil.cli.analyze import identification, print_identification
+
         ident = identification(result.log_path)
         if ident is not None:
             print_identification(ident)
-    except BrokenPipeError:   # `| head`: the reader left; the exit code still tells how the run ended
+    except (
+        BrokenPipeError
+    ):  # `| head`: the reader left; the exit code still tells how the run ended
         import os
+
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-    except (OSError, ValueError, KeyError) as e:   # the log is written; a summary problem must not hide it
+    except (
+        OSError,
+        ValueError,
+        KeyError,
+    ) as e:  # the log is written; a summary problem must not hide it
         report("warning", f"could not summarise {result.log_path}: {e}")
     if result.error:
         return fail("error", f"{result.error} (log kept: {result.log_path})", 3)
     if result.interrupted:
-        report("stopped", f"run interrupted; the motor was stopped and the log is complete up to "
-                          f"there: {result.log_path}")
+        report(
+            "stopped",
+            f"run interrupted; the motor was stopped and the log is complete up to "
+            f"there: {result.log_path}",
+        )
         return 130
     if result.faults:
         from pmsm_hil.recorder import fault_text
-        return fail("fault", f"device faulted ({fault_text(result.faults)}); see {result.log_path}", 4)
+
+        return fail(
+            "fault", f"device faulted ({fault_text(result.faults)}); see {result.log_path}", 4
+        )
     if result.stop_reason and result.stop_reason not in ("profile end", "host stop"):
         return fail("stopped", f"device stopped: {result.stop_reason}", 4)
     return 0

@@ -1,5 +1,6 @@
 """`pmsm-hil sweep SWEEP.yaml --out DIR`: a profile over parameter grids and random draws, on Dask;
 `pmsm-hil sweep report DIR`: plots of the metrics against the axes."""
+
 from __future__ import annotations
 
 import argparse
@@ -10,21 +11,41 @@ from pmsm_hil.cli.errors import fail
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("sweep", help="run a profile over grids / random draws of parameters on Dask; "
-                                     "`sweep report DIR` plots the results",
-                       description="Runs every point of SWEEP (a sweep YAML, docs/sweep.md) on the "
-                                   "in-process emulator, on a local Dask cluster (one worker per core) "
-                                   "or the scheduler given; one row per run in DIR/results.parquet and "
-                                   "DIR/results.csv. A sweep run again into the same DIR skips the runs "
-                                   "done there. `pmsm-hil sweep report DIR` writes the plots.")
-    p.add_argument("sweep", metavar="SWEEP", help="sweep YAML (or `report` followed by the sweep's DIR)")
-    p.add_argument("dir", nargs="?", default=None, metavar="DIR", help="with `report`: the sweep's output folder")
+    p = sub.add_parser(
+        "sweep",
+        help="run a profile over grids / random draws of parameters on Dask; "
+        "`sweep report DIR` plots the results",
+        description="Runs every point of SWEEP (a sweep YAML, docs/sweep.md) on the "
+        "in-process emulator, on a local Dask cluster (one worker per core) "
+        "or the scheduler given; one row per run in DIR/results.parquet and "
+        "DIR/results.csv. A sweep run again into the same DIR skips the runs "
+        "done there. `pmsm-hil sweep report DIR` writes the plots.",
+    )
+    p.add_argument(
+        "sweep", metavar="SWEEP", help="sweep YAML (or `report` followed by the sweep's DIR)"
+    )
+    p.add_argument(
+        "dir",
+        nargs="?",
+        default=None,
+        metavar="DIR",
+        help="with `report`: the sweep's output folder",
+    )
     p.add_argument("--out", "-o", default=None, help="output folder (default: sweeps-out/NAME)")
     p.add_argument("--limit", type=int, default=None, metavar="N", help="run only the first N runs")
-    p.add_argument("--scheduler", default=None, metavar="ADDR",
-                   help="Dask scheduler address, e.g. tcp://HOST:8786 (default: a local cluster)")
-    p.add_argument("--workers", type=int, default=None, metavar="N",
-                   help="worker processes of the local cluster (default: one per core)")
+    p.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDR",
+        help="Dask scheduler address, e.g. tcp://HOST:8786 (default: a local cluster)",
+    )
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        metavar="N",
+        help="worker processes of the local cluster (default: one per core)",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
@@ -32,7 +53,9 @@ def main(args: argparse.Namespace) -> int:
     if args.sweep == "report" and not os.path.isfile("report"):
         return _report(args)
     if args.dir is not None:
-        return fail("error", f"unexpected argument {args.dir!r} (the output folder is --out DIR)", 2)
+        return fail(
+            "error", f"unexpected argument {args.dir!r} (the output folder is --out DIR)", 2
+        )
     from pmsm_hil.profiles import ProfileError
     from pmsm_hil.sweep import load_sweep, plan_runs, run_sweep
 
@@ -46,31 +69,49 @@ def main(args: argparse.Namespace) -> int:
     except ProfileError as e:
         return fail("error", str(e), 2)
     out = Path(args.out or Path("sweeps-out") / sweep.name)
-    print(f"sweep {sweep.name}: {len(runs)} runs of {Path(sweep.profile_path).name}"
-          + (f", the first {min(args.limit, len(runs))}" if args.limit else "")
-          + f" -> {out}/ on " + (args.scheduler or f"a local cluster ({args.workers or os.cpu_count()} workers)"))
+    print(
+        f"sweep {sweep.name}: {len(runs)} runs of {Path(sweep.profile_path).name}"
+        + (f", the first {min(args.limit, len(runs))}" if args.limit else "")
+        + f" -> {out}/ on "
+        + (args.scheduler or f"a local cluster ({args.workers or os.cpu_count()} workers)")
+    )
     try:
-        res = run_sweep(sweep, out, limit=args.limit, scheduler=args.scheduler, workers=args.workers,
-                        progress=not args.no_progress, runs=runs)
+        res = run_sweep(
+            sweep,
+            out,
+            limit=args.limit,
+            scheduler=args.scheduler,
+            workers=args.workers,
+            progress=not args.no_progress,
+            runs=runs,
+        )
     except OSError as e:
         return fail("error", f"cannot reach the scheduler {args.scheduler}: {e}", 3)
-    print(f"{res.ok} ok, {res.failed} failed, {res.skipped} done before"
-          + (f"; {res.runs_per_min:.1f} runs/min on {res.workers} workers" if res.ok + res.failed else "")
-          + (" (interrupted: run the same command again to resume)" if res.interrupted else ""))
+    print(
+        f"{res.ok} ok, {res.failed} failed, {res.skipped} done before"
+        + (
+            f"; {res.runs_per_min:.1f} runs/min on {res.workers} workers"
+            if res.ok + res.failed
+            else ""
+        )
+        + (" (interrupted: run the same command again to resume)" if res.interrupted else "")
+    )
     for r in res.rows:
         if r.get("status") != "ok":
             print(f"  run {r['index']} ({r['key']}) failed: {r.get('error', '')}")
     print(f"results {res.parquet}\n        {res.csv}")
     if res.interrupted:
         return 130
-    return 0   # failed runs are results (status "failed" in the table), not a failed sweep
+    return 0  # failed runs are results (status "failed" in the table), not a failed sweep
 
 
 def _report(args: argparse.Namespace) -> int:
     from pmsm_hil.sweep.report import ReportError, write_report
 
     if args.dir is None:
-        return fail("error", "sweep report needs the sweep's output folder: pmsm-hil sweep report DIR", 2)
+        return fail(
+            "error", "sweep report needs the sweep's output folder: pmsm-hil sweep report DIR", 2
+        )
     try:
         paths = write_report(Path(args.dir))
     except ReportError as e:

@@ -1,5 +1,6 @@
 """`pmsm-hil test PROFILES...`: run profiles on the emulator and judge them against their
 acceptance criteria; a pass/fail table, JUnit XML, a non-zero exit on any failure."""
+
 from __future__ import annotations
 
 import argparse
@@ -12,20 +13,38 @@ EXIT_FAILED = 1
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("test", help="run profiles and check their acceptance criteria (regression suite)",
-                       description="Runs each PROFILE on the in-process emulator (several on Dask) and "
-                                   "checks the run against the profile's `acceptance:` section (without "
-                                   "one: the whole profile played, no fault). Prints a pass/fail table "
-                                   "with the measured value beside each bound; exits 1 on any failure.")
-    p.add_argument("profiles", nargs="+", metavar="PROFILE", help="profile YAML files or shipped names")
-    p.add_argument("--rig", default=None, help="rig file (or shipped name) instead of each profile's")
+    p = sub.add_parser(
+        "test",
+        help="run profiles and check their acceptance criteria (regression suite)",
+        description="Runs each PROFILE on the in-process emulator (several on Dask) and "
+        "checks the run against the profile's `acceptance:` section (without "
+        "one: the whole profile played, no fault). Prints a pass/fail table "
+        "with the measured value beside each bound; exits 1 on any failure.",
+    )
+    p.add_argument(
+        "profiles", nargs="+", metavar="PROFILE", help="profile YAML files or shipped names"
+    )
+    p.add_argument(
+        "--rig", default=None, help="rig file (or shipped name) instead of each profile's"
+    )
     p.add_argument("--seed", type=int, default=1, help="emulator noise seed (default 1)")
     p.add_argument("--junit", default=None, metavar="OUT.xml", help="also write JUnit XML here")
-    p.add_argument("--out", "-o", default=None,
-                   help="folder for the logs and the results table (default: a temporary folder, removed)")
-    p.add_argument("--workers", type=int, default=None, metavar="N",
-                   help="worker processes when there are several profiles (default: one per core)")
-    p.add_argument("--scheduler", default=None, metavar="ADDR", help="Dask scheduler address (default: local)")
+    p.add_argument(
+        "--out",
+        "-o",
+        default=None,
+        help="folder for the logs and the results table (default: a temporary folder, removed)",
+    )
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        metavar="N",
+        help="worker processes when there are several profiles (default: one per core)",
+    )
+    p.add_argument(
+        "--scheduler", default=None, metavar="ADDR", help="Dask scheduler address (default: local)"
+    )
 
 
 def main(args: argparse.Namespace) -> int:
@@ -46,8 +65,14 @@ def main(args: argparse.Namespace) -> int:
     else:
         out = Path(args.out)
     try:
-        run_suite(cases, out, workers=args.workers, scheduler=args.scheduler, keep_logs=args.out is not None,
-                  progress=len(cases) > 1)
+        run_suite(
+            cases,
+            out,
+            workers=args.workers,
+            scheduler=args.scheduler,
+            keep_logs=args.out is not None,
+            progress=len(cases) > 1,
+        )
     except OSError as e:
         return fail("error", f"cannot reach the scheduler {args.scheduler}: {e}", 3)
     finally:
@@ -70,22 +95,37 @@ def _print(cases) -> None:
     if not console.is_terminal:
         console = Console(width=max(console.width, 120))
     for c in cases:
-        tab = Table(title=f"{c.name} ({c.profile}, seed {c.run.seed})" if c.run else c.name,
-                    title_justify="left", header_style="bold", box=box.SIMPLE_HEAD)
+        tab = Table(
+            title=f"{c.name} ({c.profile}, seed {c.run.seed})" if c.run else c.name,
+            title_justify="left",
+            header_style="bold",
+            box=box.SIMPLE_HEAD,
+        )
         for col in ("scope", "criterion", "measured", "bound", "result"):
             tab.add_column(col, justify="right" if col in ("measured", "bound") else "left")
         for ch in c.checks:
-            tab.add_row(escape(ch["scope"]), ch["criterion"], ch["measured"], ch["bound"],
-                        "[green]pass[/]" if ch["passed"] else "[red]FAIL[/]")
+            tab.add_row(
+                escape(ch["scope"]),
+                ch["criterion"],
+                ch["measured"],
+                ch["bound"],
+                "[green]pass[/]" if ch["passed"] else "[red]FAIL[/]",
+            )
         console.print(tab)
         if c.default_criteria:
-            console.print("[dim]no acceptance criteria in the profile: the default (whole profile, no fault)[/]")
+            console.print(
+                "[dim]no acceptance criteria in the profile: the default (whole profile, no fault)[/]"
+            )
         if c.status != "ok":
             console.print(f"[red]run failed:[/] {escape(c.error)}")
         n_fail = sum(1 for ch in c.checks if not ch["passed"])
         verdict = "[green]PASS[/]" if c.passed else "[red]FAIL[/]"
-        console.print(f"{verdict} {escape(c.name)}: {len(c.checks) - n_fail} of {len(c.checks)} checks passed"
-                      + (f"; log {c.log_path}" if c.log_path else ""), highlight=False, soft_wrap=True)
+        console.print(
+            f"{verdict} {escape(c.name)}: {len(c.checks) - n_fail} of {len(c.checks)} checks passed"
+            + (f"; log {c.log_path}" if c.log_path else ""),
+            highlight=False,
+            soft_wrap=True,
+        )
         console.print()
     n_pass = sum(c.passed for c in cases)
     console.print(f"{n_pass} of {len(cases)} profiles passed", highlight=False)

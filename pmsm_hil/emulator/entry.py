@@ -4,6 +4,7 @@ child) and `pmsm-hil emulate` (the same options, for a user who serves it by han
 It does not boot through the CLI: it reads the motor and rig files, builds the sim board's
 settings and serves a pty (or a CAN endpoint) until SIGTERM/SIGINT.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -14,31 +15,68 @@ EXIT_USER_ERROR = 2
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--motor", default=None,
-                   help="motor file of the emulated plant, a path or a shipped name "
-                        "(default: the profile's, else paper-a-ipmsm)")
-    p.add_argument("--rig", default=None,
-                   help="rig file: the plant's departures from the model, a path or a shipped name "
-                        "(default: the profile's, else default)")
-    p.add_argument("--profile", default=None,
-                   help="take the motor and rig from this profile (a path or a shipped name)")
+    p.add_argument(
+        "--motor",
+        default=None,
+        help="motor file of the emulated plant, a path or a shipped name "
+        "(default: the profile's, else paper-a-ipmsm)",
+    )
+    p.add_argument(
+        "--rig",
+        default=None,
+        help="rig file: the plant's departures from the model, a path or a shipped name "
+        "(default: the profile's, else default)",
+    )
+    p.add_argument(
+        "--profile",
+        default=None,
+        help="take the motor and rig from this profile (a path or a shipped name)",
+    )
     p.add_argument("--seed", type=int, default=1, help="seed of the plant's noise (default 1)")
     p.add_argument("--baud", type=int, default=921600, help="emulated UART bit rate")
-    p.add_argument("--pace", type=float, default=None, metavar="X",
-                   help="run at X times real time (1 = real time; default: as fast as the host reads)")
-    p.add_argument("--can", action="store_true",
-                   help="serve CAN (socketcand protocol on 127.0.0.1) instead of a pty; prints `can: SPEC`")
-    p.add_argument("--can-port", type=int, default=0, help="TCP port of the CAN endpoint (default: any free)")
-    p.add_argument("--can-bitrate", type=int, default=1_000_000, help="emulated CAN bit rate (default 1 Mbit/s)")
-    p.add_argument("--node", type=int, default=1, help="CAN node ID of the emulated drive, 0..15 (default 1)")
-    p.add_argument("--report-state", action="store_true",
-                   help="print a line each time the drive's state changes (device time, and the "
-                        "device time since the last heartbeat)")
-    p.add_argument("--exit-with-parent", action="store_true",
-                   help="end once the process that started the emulator is gone and the drive is at "
-                        "rest (the host sets this for the emulator it starts)")
-    p.add_argument("--corrupt-ppm", type=float, default=0.0, metavar="PPM",
-                   help="flip bits in this many of a million octets sent (tests the host's framing)")
+    p.add_argument(
+        "--pace",
+        type=float,
+        default=None,
+        metavar="X",
+        help="run at X times real time (1 = real time; default: as fast as the host reads)",
+    )
+    p.add_argument(
+        "--can",
+        action="store_true",
+        help="serve CAN (socketcand protocol on 127.0.0.1) instead of a pty; prints `can: SPEC`",
+    )
+    p.add_argument(
+        "--can-port", type=int, default=0, help="TCP port of the CAN endpoint (default: any free)"
+    )
+    p.add_argument(
+        "--can-bitrate",
+        type=int,
+        default=1_000_000,
+        help="emulated CAN bit rate (default 1 Mbit/s)",
+    )
+    p.add_argument(
+        "--node", type=int, default=1, help="CAN node ID of the emulated drive, 0..15 (default 1)"
+    )
+    p.add_argument(
+        "--report-state",
+        action="store_true",
+        help="print a line each time the drive's state changes (device time, and the "
+        "device time since the last heartbeat)",
+    )
+    p.add_argument(
+        "--exit-with-parent",
+        action="store_true",
+        help="end once the process that started the emulator is gone and the drive is at "
+        "rest (the host sets this for the emulator it starts)",
+    )
+    p.add_argument(
+        "--corrupt-ppm",
+        type=float,
+        default=0.0,
+        metavar="PPM",
+        help="flip bits in this many of a million octets sent (tests the host's framing)",
+    )
 
 
 def _error(message: str) -> int:
@@ -51,8 +89,10 @@ def _motor_and_rig(args: argparse.Namespace):
     from pmsm_hil.profiles.shipped import resolve
 
     if args.profile is not None:
-        profile = load_profile(resolve(args.profile, "profile"),
-                               rig_override=resolve(args.rig, "rig") if args.rig else None)
+        profile = load_profile(
+            resolve(args.profile, "profile"),
+            rig_override=resolve(args.rig, "rig") if args.rig else None,
+        )
         motor = load_motor(resolve(args.motor, "motor")) if args.motor else profile.motor
         return motor, profile.rig
     motor = load_motor(resolve(args.motor, "motor") if args.motor else None)
@@ -76,23 +116,39 @@ def serve(args: argparse.Namespace) -> int:
     settings = emulator_settings(motor, rig, seed=args.seed, baud=args.baud)
     parent = os.getppid() if args.exit_with_parent else None
     plant = f"motor: {motor.name}  rig: {rig.name or 'default'}"
-    announce = (lambda s: print(f"{s}\n{plant}", flush=True))
-    if args.can:   # docs/can.md
+    announce = lambda s: print(f"{s}\n{plant}", flush=True)
+    if args.can:  # docs/can.md
         if not 10_000 <= args.can_bitrate <= 1_000_000 or not 0 <= args.node <= 15:
             return _error("--can-bitrate must be 10000..1000000 and --node 0..15")
         from pmsm_hil.emulator.socketcand_server import serve_socketcand
+
         settings.update(can_bitrate=float(args.can_bitrate), can_node=float(args.node))
-        serve_socketcand(settings, announce=announce, port=args.can_port, pace=args.pace,
-                         report_state=args.report_state, parent_pid=parent)
+        serve_socketcand(
+            settings,
+            announce=announce,
+            port=args.can_port,
+            pace=args.pace,
+            report_state=args.report_state,
+            parent_pid=parent,
+        )
         return 0
     from pmsm_hil.emulator.server import serve_pty
-    serve_pty(settings, announce=announce, corrupt_ppm=args.corrupt_ppm, pace=args.pace,
-              report_state=args.report_state, parent_pid=parent)
+
+    serve_pty(
+        settings,
+        announce=announce,
+        corrupt_ppm=args.corrupt_ppm,
+        pace=args.pace,
+        report_state=args.report_state,
+        parent_pid=parent,
+    )
     return 0
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m pmsm_hil.emulator",
-                                description="Serve the emulated drive (firmware core + sim board).")
+    p = argparse.ArgumentParser(
+        prog="python -m pmsm_hil.emulator",
+        description="Serve the emulated drive (firmware core + sim board).",
+    )
     add_arguments(p)
     return serve(p.parse_args(argv))

@@ -1,4 +1,5 @@
 """ctypes binding of the emulator's C API (firmware/sim/emu.h) inside the pmsm_hil._fw extension."""
+
 from __future__ import annotations
 
 import ctypes
@@ -18,18 +19,32 @@ def lib() -> ctypes.CDLL:
     so.emu_get.argtypes = [ctypes.c_void_p, ctypes.c_char_p, ctypes.POINTER(ctypes.c_double)]
     so.emu_get.restype = ctypes.c_int
     so.emu_reset.argtypes = [ctypes.c_void_p]
-    so.emu_set_array.argtypes = [ctypes.c_void_p, ctypes.c_char_p, ctypes.POINTER(ctypes.c_double),
-                                 ctypes.c_uint32]
+    so.emu_set_array.argtypes = [
+        ctypes.c_void_p,
+        ctypes.c_char_p,
+        ctypes.POINTER(ctypes.c_double),
+        ctypes.c_uint32,
+    ]
     so.emu_set_array.restype = ctypes.c_int
     so.emu_check.argtypes = [ctypes.c_void_p]
     so.emu_check.restype = ctypes.c_char_p
-    so.emu_plant_flux.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_double,
-                                  ctypes.POINTER(ctypes.c_double)]
+    so.emu_plant_flux.argtypes = [
+        ctypes.c_void_p,
+        ctypes.c_double,
+        ctypes.c_double,
+        ctypes.c_double,
+        ctypes.POINTER(ctypes.c_double),
+    ]
     so.emu_plant_truth.argtypes = [ctypes.c_void_p, ctypes.POINTER(ctypes.c_double), ctypes.c_int]
     so.emu_plant_truth.restype = ctypes.c_int
     so.emu_rx.argtypes = [ctypes.c_void_p, ctypes.c_char_p, ctypes.c_uint32]
-    so.emu_run.argtypes = [ctypes.c_void_p, ctypes.c_uint32, ctypes.c_void_p, ctypes.c_uint32,
-                           ctypes.POINTER(ctypes.c_uint32)]
+    so.emu_run.argtypes = [
+        ctypes.c_void_p,
+        ctypes.c_uint32,
+        ctypes.c_void_p,
+        ctypes.c_uint32,
+        ctypes.POINTER(ctypes.c_uint32),
+    ]
     so.emu_run.restype = ctypes.c_uint32
     so.emu_state_change.argtypes = [ctypes.c_void_p, ctypes.POINTER(ctypes.c_uint32)]
     so.emu_state_change.restype = ctypes.c_uint32
@@ -117,7 +132,16 @@ class EmulatedDevice:
         """The plant's magnetics at one point (flux linkages, incremental inductances, torque)."""
         out = (ctypes.c_double * 8)()
         self._lib.emu_plant_flux(self._p, i_d_a, i_q_a, theta_e_rad, out)
-        keys = ("psi_d_wb", "psi_q_wb", "l_dd_h", "l_dq_h", "l_qd_h", "l_qq_h", "t_extra_nm", "torque_nm")
+        keys = (
+            "psi_d_wb",
+            "psi_q_wb",
+            "l_dd_h",
+            "l_dq_h",
+            "l_qd_h",
+            "l_qq_h",
+            "t_extra_nm",
+            "torque_nm",
+        )
         return dict(zip(keys, list(out)))
 
     def get(self, key: str) -> float:
@@ -132,8 +156,9 @@ class EmulatedDevice:
 
     def run(self, max_ticks: int) -> tuple[int, bytes]:
         """Run up to max_ticks control periods; returns (periods run, octets sent on the UART)."""
-        ticks = self._lib.emu_run(self._p, max(0, int(max_ticks)), self._out, self._out_cap,
-                                  ctypes.byref(self._n))
+        ticks = self._lib.emu_run(
+            self._p, max(0, int(max_ticks)), self._out, self._out_cap, ctypes.byref(self._n)
+        )
         return ticks, self._out.raw[: self._n.value]
 
     def can_rx(self, ident: int, data: bytes) -> None:
@@ -143,14 +168,19 @@ class EmulatedDevice:
     def can_take(self, cap: int = 4096) -> list[tuple[int, bytes, int]]:
         """The CAN frames the sim board sent since the last call: [(identifier, data, isr_count)]."""
         if not hasattr(self, "_can_bufs"):
-            self._can_bufs = ((ctypes.c_uint32 * cap)(), (ctypes.c_uint8 * cap)(),
-                              ctypes.create_string_buffer(8 * cap), (ctypes.c_uint32 * cap)(), cap)
+            self._can_bufs = (
+                (ctypes.c_uint32 * cap)(),
+                (ctypes.c_uint8 * cap)(),
+                ctypes.create_string_buffer(8 * cap),
+                (ctypes.c_uint32 * cap)(),
+                cap,
+            )
         ids, dlc, data, isr, cap = self._can_bufs
         n = self._lib.emu_can_take(self._p, ids, dlc, data, isr, cap)
         if n == 0:
             return []
         raw = data.raw
-        return [(ids[i], raw[8 * i: 8 * i + dlc[i]], isr[i]) for i in range(n)]
+        return [(ids[i], raw[8 * i : 8 * i + dlc[i]], isr[i]) for i in range(n)]
 
     @property
     def isr_count(self) -> int:

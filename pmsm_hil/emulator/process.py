@@ -6,6 +6,7 @@ in which it announces where it serves (`serial: PATH` or `can: SPEC`), stop it.
 - A session of its own: the terminal's Ctrl-C (SIGINT to the foreground process group) reaches the
   host only, which stops the motor through the link and then ends the child itself.
 """
+
 from __future__ import annotations
 
 import os
@@ -18,9 +19,13 @@ from pmsm_hil.errors import TransportError
 
 
 def start(args: list[str]) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-P", "-m", "pmsm_hil.emulator", "--exit-with-parent", *args],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, stdin=subprocess.DEVNULL,
-                            start_new_session=True)
+    return subprocess.Popen(
+        [sys.executable, "-P", "-m", "pmsm_hil.emulator", "--exit-with-parent", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        stdin=subprocess.DEVNULL,
+        start_new_session=True,
+    )
 
 
 def wait_for_announcement(proc: subprocess.Popen, prefix: str, timeout_s: float) -> str:
@@ -36,7 +41,7 @@ def wait_for_announcement(proc: subprocess.Popen, prefix: str, timeout_s: float)
             seen += os.read(proc.stdout.fileno(), 4096)
             for line in seen.decode(errors="replace").splitlines():
                 if line.startswith(prefix):
-                    return line[len(prefix):].strip()
+                    return line[len(prefix) :].strip()
     stop(proc)
     raise TransportError(f"the emulator did not start within {timeout_s:.0f} s")
 

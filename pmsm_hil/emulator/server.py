@@ -5,6 +5,7 @@ timeout ahead of the last heartbeat it received. When the host falls silent the 
 to real time, so the firmware's heartbeat timeout fires after the same wall time as on a rig.
 With a pace X (`--pace`), device time never runs faster than X times wall time either.
 """
+
 from __future__ import annotations
 
 import errno
@@ -18,8 +19,8 @@ from dataclasses import dataclass, field
 
 from pmsm_hil.emulator.fwlib import EmulatedDevice
 
-CHUNK_TICKS = 1000          # control periods per call into C (50 ms of device time at 50 us)
-MAX_PENDING = 1 << 16       # octets waiting for the host before the emulator pauses
+CHUNK_TICKS = 1000  # control periods per call into C (50 ms of device time at 50 us)
+MAX_PENDING = 1 << 16  # octets waiting for the host before the emulator pauses
 
 
 @dataclass
@@ -34,7 +35,7 @@ class Pacer:
     """
 
     lead_fraction: float = 0.5
-    pace: float | None = None          # X times real time (None: as fast as the host keeps up)
+    pace: float | None = None  # X times real time (None: as fast as the host keeps up)
     grace_s: float = 1.0
     _last_hb: int = -1
     _gone: bool = False
@@ -88,6 +89,7 @@ class StateReporter:
 
     def __init__(self, device: EmulatedDevice, out=None):
         from pmsm_hil.protocol import generated as gen
+
         self.dev = device
         self.out = out or sys.stdout
         self.names = {v: k for k, v in gen.ENUMS["state"].items()}
@@ -100,8 +102,12 @@ class StateReporter:
             return
         self.last = state
         isr, hb = self.dev.state_change()
-        print(f"state: {self.names.get(state, state)} t_s={isr * self.ts_s:.6f} "
-              f"since_heartbeat_s={(isr - hb) * self.ts_s:.6f}", file=self.out, flush=True)
+        print(
+            f"state: {self.names.get(state, state)} t_s={isr * self.ts_s:.6f} "
+            f"since_heartbeat_s={(isr - hb) * self.ts_s:.6f}",
+            file=self.out,
+            flush=True,
+        )
 
 
 class ParentWatch:
@@ -128,6 +134,7 @@ class LinkCorrupter:
 
     def __init__(self, ppm: float, seed: int):
         import numpy as np
+
         self.p = ppm * 1e-6
         self.rng = np.random.default_rng(seed)
 
@@ -144,8 +151,13 @@ class LinkCorrupter:
 class PtyServer:
     """Serves one EmulatedDevice on a pty until stopped."""
 
-    def __init__(self, device: EmulatedDevice, corrupt_ppm: float = 0.0, seed: int = 1,
-                 pace: float | None = None):
+    def __init__(
+        self,
+        device: EmulatedDevice,
+        corrupt_ppm: float = 0.0,
+        seed: int = 1,
+        pace: float | None = None,
+    ):
         self.dev = device
         self.pacer = Pacer(pace=pace)
         self.corrupt = LinkCorrupter(corrupt_ppm, seed) if corrupt_ppm > 0 else None
@@ -155,13 +167,15 @@ class PtyServer:
         self.path = os.ttyname(self.slave)
         self._pending = bytearray()
         self._stop = False
-        self.dropped_octets = 0      # the host not reading: what a full UART FIFO loses
+        self.dropped_octets = 0  # the host not reading: what a full UART FIFO loses
         self._last_drain = time.monotonic()
 
     def stop(self, *_args) -> None:
         self._stop = True
 
-    def serve(self, reporter: StateReporter | None = None, watch: ParentWatch | None = None) -> None:
+    def serve(
+        self, reporter: StateReporter | None = None, watch: ParentWatch | None = None
+    ) -> None:
         while not self._stop:
             if reporter is not None:
                 reporter.poll()
@@ -182,8 +196,9 @@ class PtyServer:
             can_run = len(self._pending) < MAX_PENDING or self.pacer.pace is not None or stalled
             busy = self.dev.active and ticks_allowed > 0 and can_run
             wait = 0.0 if busy else 0.002
-            rlist, wlist, _ = select.select([self.master], [self.master] if self._pending else [],
-                                            [], wait)
+            rlist, wlist, _ = select.select(
+                [self.master], [self.master] if self._pending else [], [], wait
+            )
             if rlist:
                 try:
                     data = os.read(self.master, 65536)
@@ -218,9 +233,14 @@ class PtyServer:
                 pass
 
 
-def serve_pty(settings: dict[str, float], announce=print, corrupt_ppm: float = 0.0,
-              pace: float | None = None, report_state: bool = False,
-              parent_pid: int | None = None) -> None:
+def serve_pty(
+    settings: dict[str, float],
+    announce=print,
+    corrupt_ppm: float = 0.0,
+    pace: float | None = None,
+    report_state: bool = False,
+    parent_pid: int | None = None,
+) -> None:
     """Run the emulator on a pty, printing `serial: PATH`, until SIGINT/SIGTERM."""
     dev = EmulatedDevice(settings)
     server = PtyServer(dev, corrupt_ppm, int(settings.get("seed", 1)), pace=pace)
@@ -229,7 +249,9 @@ def serve_pty(settings: dict[str, float], announce=print, corrupt_ppm: float = 0
     announce(f"serial: {server.path}")
     sys.stdout.flush()
     try:
-        server.serve(StateReporter(dev) if report_state else None,
-                     ParentWatch(dev, parent_pid) if parent_pid else None)
+        server.serve(
+            StateReporter(dev) if report_state else None,
+            ParentWatch(dev, parent_pid) if parent_pid else None,
+        )
     finally:
         server.close()

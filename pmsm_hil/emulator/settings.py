@@ -1,4 +1,5 @@
 """From a motor file and a rig file to the sim board's settings (firmware/sim/board.c keys)."""
+
 from __future__ import annotations
 
 
@@ -10,17 +11,24 @@ def _eff(rig, name: str):
     return e
 
 
-def emulator_settings(motor, rig, seed: int = 1, baud: int = 921600,
-                      truth_hz: float = 100.0, ts_s: float = 50e-6) -> dict[str, float]:
+def emulator_settings(
+    motor, rig, seed: int = 1, baud: int = 921600, truth_hz: float = 100.0, ts_s: float = 50e-6
+) -> dict[str, float]:
     """The plant is the motor file's motor with the rig's effects; the firmware learns its own
     (nominal) view of the motor over the link."""
     s: dict[str, float] = {
-        "r_s_ohm": motor.r_s_ohm, "l_d_h": motor.l_d_h, "l_q_h": motor.l_q_h,
-        "psi_f_wb": motor.psi_f_wb, "pole_pairs": motor.pole_pairs, "j_kgm2": motor.j_kgm2,
+        "r_s_ohm": motor.r_s_ohm,
+        "l_d_h": motor.l_d_h,
+        "l_q_h": motor.l_q_h,
+        "psi_f_wb": motor.psi_f_wb,
+        "pole_pairs": motor.pole_pairs,
+        "j_kgm2": motor.j_kgm2,
         "b_visc_nms": getattr(motor, "b_visc_nms", 0.0) or 0.0,
         "t_coulomb_nm": getattr(motor, "t_coulomb_nm", 0.0) or 0.0,
         "v_dc_v": getattr(rig, "v_dc_v", None) or motor.v_dc_v,
-        "seed": seed, "baud": baud, "ts_s": ts_s,
+        "seed": seed,
+        "baud": baud,
+        "ts_s": ts_s,
         "truth_div": max(1, round(1.0 / (truth_hz * ts_s))) if truth_hz else 0,
     }
     dt = _eff(rig, "dead_time")
@@ -57,12 +65,22 @@ def effect_settings(motor, rig) -> dict:
     th = _eff(rig, "thermal")
     s["thermal_on"] = 1 if th is not None else 0
     if th is not None:
-        s.update({"temp_ambient_c": th.temp_ambient_c, "temp_ref_c": th.temp_ref_c,
-                  "temp_winding0_c": th.temp_winding_c, "temp_magnet0_c": th.temp_magnet_c,
-                  "alpha_r_per_k": th.alpha_r_per_k, "alpha_psi_per_k": th.alpha_psi_per_k,
-                  "c_winding_j_k": th.c_winding_j_k, "c_magnet_j_k": th.c_magnet_j_k,
-                  "r_wa_k_w": th.r_wa_k_w, "r_wm_k_w": th.r_wm_k_w, "r_ma_k_w": th.r_ma_k_w,
-                  "r_fe_heat_ohm": th.r_fe_heat_ohm})
+        s.update(
+            {
+                "temp_ambient_c": th.temp_ambient_c,
+                "temp_ref_c": th.temp_ref_c,
+                "temp_winding0_c": th.temp_winding_c,
+                "temp_magnet0_c": th.temp_magnet_c,
+                "alpha_r_per_k": th.alpha_r_per_k,
+                "alpha_psi_per_k": th.alpha_psi_per_k,
+                "c_winding_j_k": th.c_winding_j_k,
+                "c_magnet_j_k": th.c_magnet_j_k,
+                "r_wa_k_w": th.r_wa_k_w,
+                "r_wm_k_w": th.r_wm_k_w,
+                "r_ma_k_w": th.r_ma_k_w,
+                "r_fe_heat_ohm": th.r_fe_heat_ohm,
+            }
+        )
     fh = _eff(rig, "flux_harmonics")
     # the n-th flux harmonic gives the n-th back-EMF harmonic n times larger (relative to psi_f)
     s["psi5_rel"] = fh.emf5_rel / 5.0 if fh is not None else 0.0
@@ -86,8 +104,14 @@ def effect_settings(motor, rig) -> dict:
     dc = _eff(rig, "dc_link")
     s["dc_on"] = 1 if dc is not None else 0
     if dc is not None:
-        s.update({"dc_r_src_ohm": dc.r_source_ohm, "dc_c_f": dc.c_dc_f,
-                  "dc_rectifier": 1 if dc.rectifier else 0, "dc_grid_hz": dc.grid_hz})
+        s.update(
+            {
+                "dc_r_src_ohm": dc.r_source_ohm,
+                "dc_c_f": dc.c_dc_f,
+                "dc_rectifier": 1 if dc.rectifier else 0,
+                "dc_grid_hz": dc.grid_hz,
+            }
+        )
     fe = _eff(rig, "iron_loss")
     s["r_fe_ohm"] = fe.r_fe_ohm if fe is not None else 0.0
     return s

@@ -11,6 +11,7 @@ One controlling client at a time: while one has its channel open, a second is re
 When the client goes away the device runs on in real time, so its heartbeat timeout
 stops the motor as on a rig, and the next client may connect. Pacing as in server.py.
 """
+
 from __future__ import annotations
 
 import select
@@ -22,7 +23,7 @@ import time
 from pmsm_hil.emulator.fwlib import EmulatedDevice
 from pmsm_hil.emulator.server import Pacer, ParentWatch, StateReporter
 
-MAX_PENDING = 1 << 16     # octets of text waiting for the client before the device pauses
+MAX_PENDING = 1 << 16  # octets of text waiting for the client before the device pauses
 CHANNEL = "emu0"
 
 
@@ -31,13 +32,21 @@ def format_frames(frames, ts_s: float) -> bytes:
     for ident, data, isr in frames:
         t = isr * ts_s
         sec = int(t)
-        out.append(f"< frame {ident:03X} {sec}.{int(round((t - sec) * 1e6)):06d} {data.hex().upper()} >")
+        out.append(
+            f"< frame {ident:03X} {sec}.{int(round((t - sec) * 1e6)):06d} {data.hex().upper()} >"
+        )
     return "".join(out).encode("ascii")
 
 
 class SocketcandServer:
-    def __init__(self, device: EmulatedDevice, host: str = "127.0.0.1", port: int = 0,
-                 channel: str = CHANNEL, pace: float | None = None):
+    def __init__(
+        self,
+        device: EmulatedDevice,
+        host: str = "127.0.0.1",
+        port: int = 0,
+        channel: str = CHANNEL,
+        pace: float | None = None,
+    ):
         self.dev = device
         self.pacer = Pacer(pace=pace)
         self.channel = channel
@@ -50,12 +59,12 @@ class SocketcandServer:
         self.client: socket.socket | None = None
         self._inbuf = ""
         self._pending = bytearray()
-        self._raw = False           # handshake done
-        self._forward = False       # the client has sent a frame: device output goes to it
+        self._raw = False  # handshake done
+        self._forward = False  # the client has sent a frame: device output goes to it
         self._stop = False
         self.frames_in = 0
         self.frames_out = 0
-        self.refused = 0            # second clients refused while a session was connected
+        self.refused = 0  # second clients refused while a session was connected
         self.ts_s = device.get("ts_s")
 
     @property
@@ -92,10 +101,14 @@ class SocketcandServer:
             except OSError:
                 pass
             c.close()
-            print(f"refused a second CAN client: a controlling session is connected "
-                  f"({self.refused} refused)", file=sys.stderr, flush=True)
+            print(
+                f"refused a second CAN client: a controlling session is connected "
+                f"({self.refused} refused)",
+                file=sys.stderr,
+                flush=True,
+            )
             return
-        if self.client is not None:   # the old one is gone, or a probe that never opened a channel
+        if self.client is not None:  # the old one is gone, or a probe that never opened a channel
             self._drop_client()
         c.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         self.client = c
@@ -120,7 +133,7 @@ class SocketcandServer:
             try:
                 ident = int(parts[1], 16)
                 n = int(parts[2], 16)
-                data = bytes(int(b, 16) for b in parts[3:3 + n])
+                data = bytes(int(b, 16) for b in parts[3 : 3 + n])
             except ValueError:
                 return
             self.frames_in += 1
@@ -158,8 +171,8 @@ class SocketcandServer:
                 if start < 0:
                     self._inbuf = ""
                 break
-            cmd = self._inbuf[start + 1:end]
-            self._inbuf = self._inbuf[end + 1:]
+            cmd = self._inbuf[start + 1 : end]
+            self._inbuf = self._inbuf[end + 1 :]
             self._handle(cmd)
 
     # ------------------------------------------------------------------ main loop
@@ -207,9 +220,14 @@ class SocketcandServer:
             pass
 
 
-def serve_socketcand(settings: dict[str, float], announce=print, port: int = 0,
-                     pace: float | None = None, report_state: bool = False,
-                     parent_pid: int | None = None) -> None:
+def serve_socketcand(
+    settings: dict[str, float],
+    announce=print,
+    port: int = 0,
+    pace: float | None = None,
+    report_state: bool = False,
+    parent_pid: int | None = None,
+) -> None:
     """Run the emulator on a socketcand endpoint, printing `can: SPEC`, until SIGINT/SIGTERM."""
     dev = EmulatedDevice(settings)
     server = SocketcandServer(dev, port=port, pace=pace)
@@ -219,6 +237,7 @@ def serve_socketcand(settings: dict[str, float], announce=print, port: int = 0,
     bitrate = int(settings.get("can_bitrate", 1_000_000))
     node = int(settings.get("can_node", 1))
     from pmsm_hil.protocol import can_generated as cg
+
     if bitrate != cg.BITRATE:
         spec += f",bitrate={bitrate}"
     if node != cg.NODE:
@@ -226,7 +245,9 @@ def serve_socketcand(settings: dict[str, float], announce=print, port: int = 0,
     announce(f"can: {spec}")
     sys.stdout.flush()
     try:
-        server.serve(StateReporter(dev) if report_state else None,
-                     ParentWatch(dev, parent_pid) if parent_pid else None)
+        server.serve(
+            StateReporter(dev) if report_state else None,
+            ParentWatch(dev, parent_pid) if parent_pid else None,
+        )
     finally:
         server.close()

@@ -6,6 +6,7 @@ steady-state dq data `/pmsm/steady_dq`. Nothing is guessed: unknown or missing c
 is not a number, time that does not increase, or (control rate) a sampling gap is an error that names
 the file, line and column.
 """
+
 from __future__ import annotations
 
 import csv
@@ -18,7 +19,15 @@ from pmsm_hil.gap.record import CONTROL_TOPIC, GAP_TOPICS, STEADY_TOPIC
 
 CONTROL_REQUIRED = ("t_s", "i_a_a", "i_b_a", "theta_e_rad")
 CONTROL_VOLTAGE = (("s_a", "s_b", "s_c"), ("d_a", "d_b", "d_c"), ("u_alpha_v", "u_beta_v"))
-CONTROL_OPTIONAL = ("i_c_a", "v_dc_v", "omega_e_rad_s", "load_nm", "temp_winding_c", "temp_magnet_c", "pwm_on")
+CONTROL_OPTIONAL = (
+    "i_c_a",
+    "v_dc_v",
+    "omega_e_rad_s",
+    "load_nm",
+    "temp_winding_c",
+    "temp_magnet_c",
+    "pwm_on",
+)
 STEADY_REQUIRED = ("t_s", "u_d_v", "u_q_v", "i_d_a", "i_q_a")
 STEADY_SPEED = ("omega_e_rad_s", "speed_rpm")
 STEADY_OPTIONAL = ("temp_winding_c", "temp_magnet_c", "torque_nm")
@@ -46,7 +55,9 @@ def _kind(path: str, header: list[str]) -> str:
             missing.append("the applied voltage (s_a s_b s_c, d_a d_b d_c or u_alpha_v u_beta_v)")
         elif groups[0] != CONTROL_VOLTAGE[2] and "v_dc_v" not in cols:
             missing.append("v_dc_v (needed with switch states or duties)")
-        known = set(CONTROL_REQUIRED) | {c for g in CONTROL_VOLTAGE for c in g} | set(CONTROL_OPTIONAL)
+        known = (
+            set(CONTROL_REQUIRED) | {c for g in CONTROL_VOLTAGE for c in g} | set(CONTROL_OPTIONAL)
+        )
         kind = "control-rate"
     unknown = [c for c in header if c not in known]
     problems = []
@@ -55,8 +66,9 @@ def _kind(path: str, header: list[str]) -> str:
     if missing:
         problems.append(f"missing column(s) {', '.join(missing)}")
     if problems:
-        raise ImportError_(f"{path}: line 1: {kind} data: {'; '.join(problems)} "
-                           f"(columns and units: docs/gap.md)")
+        raise ImportError_(
+            f"{path}: line 1: {kind} data: {'; '.join(problems)} (columns and units: docs/gap.md)"
+        )
     return "steady" if kind.startswith("steady") else "control"
 
 
@@ -68,7 +80,11 @@ def read_csv(path: str | os.PathLike) -> tuple[str, dict[str, np.ndarray]]:
     except OSError as e:
         raise ImportError_(f"{path}: cannot read ({e.strerror})") from None
     with f:
-        rows = [(n, r) for n, r in enumerate(csv.reader(f), start=1) if r and not r[0].lstrip().startswith("#")]
+        rows = [
+            (n, r)
+            for n, r in enumerate(csv.reader(f), start=1)
+            if r and not r[0].lstrip().startswith("#")
+        ]
     if not rows:
         raise ImportError_(f"{path}: empty file (a header row and data rows are needed)")
     hline, header = rows[0]
@@ -85,9 +101,13 @@ def read_csv(path: str | os.PathLike) -> tuple[str, dict[str, np.ndarray]]:
             try:
                 x = float(v)
             except ValueError:
-                raise ImportError_(f"{path}: line {line}: {header[j]} = {v.strip()!r} is not a number") from None
+                raise ImportError_(
+                    f"{path}: line {line}: {header[j]} = {v.strip()!r} is not a number"
+                ) from None
             if not math.isfinite(x):
-                raise ImportError_(f"{path}: line {line}: {header[j]} = {v.strip()!r} is not finite")
+                raise ImportError_(
+                    f"{path}: line {line}: {header[j]} = {v.strip()!r} is not finite"
+                )
             vals[i, j] = x
     cols = {h: vals[:, j] for j, h in enumerate(header)}
     lines = [ln for ln, _ in data]
@@ -96,15 +116,19 @@ def read_csv(path: str | os.PathLike) -> tuple[str, dict[str, np.ndarray]]:
     bad = np.nonzero(dt <= 0)[0]
     if len(bad):
         k = int(bad[0]) + 1
-        raise ImportError_(f"{path}: line {lines[k]}: t_s = {t[k]!r} does not increase (previous {t[k - 1]!r})")
+        raise ImportError_(
+            f"{path}: line {lines[k]}: t_s = {t[k]!r} does not increase (previous {t[k - 1]!r})"
+        )
     if kind == "control":
         ts = float(np.median(dt))
         gap = np.nonzero(np.abs(dt - ts) > 0.01 * ts)[0]
         if len(gap):
             k = int(gap[0]) + 1
-            raise ImportError_(f"{path}: line {lines[k]}: t_s = {t[k]!r} leaves a gap of {dt[k - 1]:.6g} s "
-                               f"after {t[k - 1]!r}; the sample time from t_s is {ts:.6g} s (±1 %) "
-                               f"({len(gap)} such step(s); split the file at the gaps)")
+            raise ImportError_(
+                f"{path}: line {lines[k]}: t_s = {t[k]!r} leaves a gap of {dt[k - 1]:.6g} s "
+                f"after {t[k - 1]!r}; the sample time from t_s is {ts:.6g} s (±1 %) "
+                f"({len(gap)} such step(s); split the file at the gaps)"
+            )
         for c in ("s_a", "s_b", "s_c"):
             if c in cols and np.any((cols[c] != 0) & (cols[c] != 1)):
                 k = int(np.nonzero((cols[c] != 0) & (cols[c] != 1))[0][0])
@@ -112,7 +136,9 @@ def read_csv(path: str | os.PathLike) -> tuple[str, dict[str, np.ndarray]]:
         for c in ("d_a", "d_b", "d_c"):
             if c in cols and np.any((cols[c] < 0) | (cols[c] > 1)):
                 k = int(np.nonzero((cols[c] < 0) | (cols[c] > 1))[0][0])
-                raise ImportError_(f"{path}: line {lines[k]}: {c} = {cols[c][k]!r} is not in [0, 1]")
+                raise ImportError_(
+                    f"{path}: line {lines[k]}: {c} = {cols[c][k]!r} is not in [0, 1]"
+                )
     return kind, cols
 
 
@@ -124,7 +150,13 @@ def import_csv(path, motor_path, out_path) -> dict[str, object]:
     motor = load_motor(motor_path)
     kind, cols = read_csv(path)
     n = len(cols["t_s"])
-    meta = {"gap_source": {"kind": "csv", "file": os.path.basename(os.fspath(path)), "motor": motor.name}}
+    meta = {
+        "gap_source": {
+            "kind": "csv",
+            "file": os.path.basename(os.fspath(path)),
+            "motor": motor.name,
+        }
+    }
     with open(motor_path, "rb") as f:
         atts = [("motor.yaml", "application/yaml", f.read())]
     if kind == "control":

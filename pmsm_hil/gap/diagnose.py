@@ -1,5 +1,6 @@
 """The gap diagnosis: base and discretisation gaps, noise floor, parametric gap, forward selection of
 effects on held-out blocks, closure with block-bootstrap intervals (docs/gap.md)."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -13,10 +14,10 @@ from pmsm_hil.gap.probe import Probe, mse
 from pmsm_hil.gap.record import ControlRecord
 from pmsm_hil.gap.views import view_effects
 
-BLOCK_S = 0.02          # block length for train/test splits and the bootstrap
-SIGNIFICANCE_Z = 3.0    # a gain must exceed this many block-bootstrap standard errors ...
-PRACTICAL_REL = 0.003   # ... and this fraction of the noise floor (practical significance)
-AMBIGUOUS_REL = 0.5     # a rival within this fraction of the winner's gain, within its error
+BLOCK_S = 0.02  # block length for train/test splits and the bootstrap
+SIGNIFICANCE_Z = 3.0  # a gain must exceed this many block-bootstrap standard errors ...
+PRACTICAL_REL = 0.003  # ... and this fraction of the noise floor (practical significance)
+AMBIGUOUS_REL = 0.5  # a rival within this fraction of the winner's gain, within its error
 MAX_EFFECTS = 4
 # Model-form uncertainty added to the statistical (cluster-robust) error of every fitted parameter,
 # relative to the parameter's departure from "no effect": the augmentations are approximations of
@@ -28,10 +29,14 @@ MODEL_FORM_REL = 0.10
 SEPARATE = {
     frozenset({"thermal", "parameters"}): "record the winding/magnet temperature, or repeat cold",
     frozenset({"delay", "dead_time"}): "run at two DC-link voltages (dead time scales with v_dc) "
-                                       "or with i_d steps at fixed speed",
-    frozenset({"encoder", "sensor_offset"}): "spin at two speeds in both directions at zero current",
+    "or with i_d steps at fixed speed",
+    frozenset(
+        {"encoder", "sensor_offset"}
+    ): "spin at two speeds in both directions at zero current",
     frozenset({"saturation", "sensor_gain"}): "two current levels at standstill (d-axis steps)",
-    frozenset({"iron_loss", "thermal"}): "the same current at two speeds (iron loss grows with speed)",
+    frozenset(
+        {"iron_loss", "thermal"}
+    ): "the same current at two speeds (iron loss grows with speed)",
 }
 
 
@@ -39,20 +44,33 @@ def _advice(a, b):
     return SEPARATE.get(frozenset({a, b}), "more current levels and speeds in both directions")
 
 
-def diagnose(rec: ControlRecord, motor: MotorModel, holdout: ControlRecord | None = None,
-             seed: int = 0, candidates=None) -> dict:
+def diagnose(
+    rec: ControlRecord,
+    motor: MotorModel,
+    holdout: ControlRecord | None = None,
+    seed: int = 0,
+    candidates=None,
+) -> dict:
     probe = Probe(rec, motor)
     k = probe.idx
     if len(k) < 200:
-        raise ValueError(f"{rec.source}: only {len(k)} usable control-rate transitions (need >= 200)")
-    blen = max(min(int(round(BLOCK_S / rec.ts_s)), len(k) // 10), 20)   # >= 10 blocks on a short capture
+        raise ValueError(
+            f"{rec.source}: only {len(k)} usable control-rate transitions (need >= 200)"
+        )
+    blen = max(
+        min(int(round(BLOCK_S / rec.ts_s)), len(k) // 10), 20
+    )  # >= 10 blocks on a short capture
     blk = k // blen
     test = (blk % 2) == 1
     train = ~test
     tr_sel, te_sel = np.nonzero(train)[0], np.nonzero(test)[0]
     tr_sub = tr_sel[::3]
     if candidates is None:
-        candidates = [n for n, e in EFFECTS.items() if not (e.needs == "switch" and rec.voltage_kind == "alphabeta")]
+        candidates = [
+            n
+            for n, e in EFFECTS.items()
+            if not (e.needs == "switch" and rec.voltage_kind == "alphabeta")
+        ]
 
     r_base = probe.residual()
     r_euler = probe.residual(euler=True)
@@ -61,8 +79,13 @@ def diagnose(rec: ControlRecord, motor: MotorModel, holdout: ControlRecord | Non
     if fl is None:
         fl = None
         floor_src = "estimated from the data (lag-1 autocovariance of the residual)"
-    out = {"source": rec.source, "samples": int(rec.n), "transitions": int(len(k)), "ts_s": rec.ts_s,
-           "voltage_kind": rec.voltage_kind}
+    out = {
+        "source": rec.source,
+        "samples": int(rec.n),
+        "transitions": int(len(k)),
+        "ts_s": rec.ts_s,
+        "voltage_kind": rec.voltage_kind,
+    }
 
     def floor_arr(r_final):
         if fl is not None:
@@ -83,11 +106,15 @@ def diagnose(rec: ControlRecord, motor: MotorModel, holdout: ControlRecord | Non
         for c in candidates:
             if c in chosen:
                 continue
-            f = fit_effects(probe, chosen + [c], tr_sub, warm=warm, max_nfev=12 * (len(EFFECTS[c].params) + 1))
+            f = fit_effects(
+                probe, chosen + [c], tr_sub, warm=warm, max_nfev=12 * (len(EFFECTS[c].params) + 1)
+            )
             if not np.isfinite(f.cost):
                 continue
             r_te = probe.residual(f.effects(), te_sel)
-            st = bootstrap_closure(cur_test, r_te, fl_guess[te_sel], blk[te_sel], n_boot=200, seed=seed)
+            st = bootstrap_closure(
+                cur_test, r_te, fl_guess[te_sel], blk[te_sel], n_boot=200, seed=seed
+            )
             rows.append((st["mse_gain"], st["mse_gain_se"], c, f, r_te))
             if not chosen:
                 singles[c] = {"gain": st["mse_gain"], "se": st["mse_gain_se"], "x": f.x[c]}
@@ -96,7 +123,9 @@ def diagnose(rec: ControlRecord, motor: MotorModel, holdout: ControlRecord | Non
         rows.sort(key=lambda r: -r[0])
         g, se, c, f, r_te = rows[0]
         thr = max(SIGNIFICANCE_Z * se, PRACTICAL_REL * floor_mean)
-        steps.append({"effect": c, "gain_v2": g, "gain_se_v2": se, "threshold_v2": thr, "accepted": g > thr})
+        steps.append(
+            {"effect": c, "gain_v2": g, "gain_se_v2": se, "threshold_v2": thr, "accepted": g > thr}
+        )
         if g <= thr:
             break
         for g2, se2, c2, _, _ in rows[1:]:
@@ -105,33 +134,51 @@ def diagnose(rec: ControlRecord, motor: MotorModel, holdout: ControlRecord | Non
         chosen.append(c)
         warm = dict(f.x)
         cur_test = r_te
-        if fl is None:          # re-estimate the data floor on the augmented residual
+        if fl is None:  # re-estimate the data floor on the augmented residual
             fl_guess = floor_arr(probe.residual(f.effects()))
             floor_mean = float(np.mean(fl_guess))
 
-    final = fit_effects(probe, chosen, tr_sel, warm=warm, blocks=blk[tr_sel], max_nfev=80) if chosen else None
+    final = (
+        fit_effects(probe, chosen, tr_sel, warm=warm, blocks=blk[tr_sel], max_nfev=80)
+        if chosen
+        else None
+    )
     r_aug = probe.residual(final.effects()) if final else r_base
     floor = floor_arr(r_aug)
     floor_mean = float(np.mean(floor))
     mse_b, mse_a = mse(r_base[te_sel]), mse(r_aug[te_sel])
     clo = bootstrap_closure(r_base[te_sel], r_aug[te_sel], floor[te_sel], blk[te_sel], seed=seed)
-    out.update({
-        "noise_floor_v2": floor_mean, "noise_floor_source": floor_src,
-        "noise_floor_data_v2": floor_from_data(r_aug, k),
-        "base_gap": {"mse_v2": mse_b, "rms_v": float(np.sqrt(mse_b)), "excess_over_floor_v2": mse_b - floor_mean},
-        "discretisation_gap": {"mse_euler_v2": mse(r_euler[te_sel]), "mse_rk4_v2": mse_b,
-                               "excess_v2": mse(r_euler[te_sel]) - mse_b},
-        "selected": chosen,
-        "closure": clo,
-        "steps": steps, "ambiguous": ambiguous,
-    })
+    out.update(
+        {
+            "noise_floor_v2": floor_mean,
+            "noise_floor_source": floor_src,
+            "noise_floor_data_v2": floor_from_data(r_aug, k),
+            "base_gap": {
+                "mse_v2": mse_b,
+                "rms_v": float(np.sqrt(mse_b)),
+                "excess_over_floor_v2": mse_b - floor_mean,
+            },
+            "discretisation_gap": {
+                "mse_euler_v2": mse(r_euler[te_sel]),
+                "mse_rk4_v2": mse_b,
+                "excess_v2": mse(r_euler[te_sel]) - mse_b,
+            },
+            "selected": chosen,
+            "closure": clo,
+            "steps": steps,
+            "ambiguous": ambiguous,
+        }
+    )
     # parametric gap (separately): best constant R, Ld, Lq, psi_f on the nominal model
     pf = fit_effects(probe, ["parameters"], tr_sub, blocks=blk[tr_sub], max_nfev=40)
     r_par = probe.residual(pf.effects(), te_sel)
     pc = bootstrap_closure(r_base[te_sel], r_par, floor[te_sel], blk[te_sel], n_boot=200, seed=seed)
-    out["parametric_gap"] = {**{kk: v for kk, v in PARAMETERS.report(pf.x["parameters"], motor).items()},
-                             "scale": [float(v) for v in pf.x["parameters"]],
-                             "scale_se": [float(v) for v in pf.se["parameters"]], "closure": pc["closure"]}
+    out["parametric_gap"] = {
+        **{kk: v for kk, v in PARAMETERS.report(pf.x["parameters"], motor).items()},
+        "scale": [float(v) for v in pf.x["parameters"]],
+        "scale_se": [float(v) for v in pf.se["parameters"]],
+        "closure": pc["closure"],
+    }
     # held-out operating region: fit below the median speed, test above it
     if chosen:
         sp = np.abs(rec.omega_e_rad_s[k])
@@ -139,8 +186,14 @@ def diagnose(rec: ControlRecord, motor: MotorModel, holdout: ControlRecord | Non
         hi_r = np.nonzero(test & (sp > np.median(sp)))[0]
         if len(lo_r) > 100 and len(hi_r) > 100:
             fr = fit_effects(probe, chosen, lo_r[::2], warm=final.x, max_nfev=40)
-            cr = bootstrap_closure(r_base[hi_r], probe.residual(fr.effects(), hi_r), floor[hi_r], blk[hi_r],
-                                   n_boot=200, seed=seed)
+            cr = bootstrap_closure(
+                r_base[hi_r],
+                probe.residual(fr.effects(), hi_r),
+                floor[hi_r],
+                blk[hi_r],
+                n_boot=200,
+                seed=seed,
+            )
             out["closure_region"] = cr
     if holdout is not None and chosen:
         hp = Probe(holdout, motor)
@@ -161,23 +214,48 @@ def diagnose(rec: ControlRecord, motor: MotorModel, holdout: ControlRecord | Non
         lo_v = primary_value(e, x - 1.96 * se, motor, rec.ts_s)
         hi_v = primary_value(e, x + 1.96 * se, motor, rec.ts_s)
         step = next(s for s in steps if s["effect"] == c)
-        effects.append({"name": c, "selected": True, "magnitude": mag, "quantity": e.primary,
-                        "interval": sorted([lo_v, hi_v]) if e.primary not in ("offset_norm_a",) else
-                        [max(mag - 1.96 * float(np.max(se)) * 1.5, 0.0), mag + 1.96 * float(np.max(se)) * 1.5],
-                        "parameters": e.report(x, motor),
-                        "parameters_se": {p: float(s) for p, s in zip(e.params, se)},
-                        "closure": step["gain_v2"] / excess,
-                        "evidence": f"held-out MSE down {step['gain_v2']:.3g} V^2 "
-                                    f"(± {step['gain_se_v2']:.2g}, threshold {step['threshold_v2']:.2g})"})
-    rest = sorted((c for c in candidates if c not in chosen), key=lambda c: -singles.get(c, {"gain": -1e30})["gain"])
+        effects.append(
+            {
+                "name": c,
+                "selected": True,
+                "magnitude": mag,
+                "quantity": e.primary,
+                "interval": sorted([lo_v, hi_v])
+                if e.primary not in ("offset_norm_a",)
+                else [
+                    max(mag - 1.96 * float(np.max(se)) * 1.5, 0.0),
+                    mag + 1.96 * float(np.max(se)) * 1.5,
+                ],
+                "parameters": e.report(x, motor),
+                "parameters_se": {p: float(s) for p, s in zip(e.params, se)},
+                "closure": step["gain_v2"] / excess,
+                "evidence": f"held-out MSE down {step['gain_v2']:.3g} V^2 "
+                f"(± {step['gain_se_v2']:.2g}, threshold {step['threshold_v2']:.2g})",
+            }
+        )
+    rest = sorted(
+        (c for c in candidates if c not in chosen),
+        key=lambda c: -singles.get(c, {"gain": -1e30})["gain"],
+    )
     for c in rest:
         s = singles.get(c)
         e = EFFECTS[c]
-        effects.append({"name": c, "selected": False,
-                        "magnitude": primary_value(e, s["x"], motor, rec.ts_s) if s else None, "quantity": e.primary,
-                        "interval": None, "closure": (s["gain"] / excess) if s else None,
-                        "evidence": (f"alone: held-out MSE change {s['gain']:.3g} V^2 (± {s['se']:.2g}); "
-                                     f"below the threshold") if s else "not tried"})
+        effects.append(
+            {
+                "name": c,
+                "selected": False,
+                "magnitude": primary_value(e, s["x"], motor, rec.ts_s) if s else None,
+                "quantity": e.primary,
+                "interval": None,
+                "closure": (s["gain"] / excess) if s else None,
+                "evidence": (
+                    f"alone: held-out MSE change {s['gain']:.3g} V^2 (± {s['se']:.2g}); "
+                    f"below the threshold"
+                )
+                if s
+                else "not tried",
+            }
+        )
     effects.extend(view_effects(rec, motor))
     out["effects"] = effects
     out["where"] = residual_maps(probe, r_base, r_aug)
@@ -186,15 +264,26 @@ def diagnose(rec: ControlRecord, motor: MotorModel, holdout: ControlRecord | Non
     off = [n for n, v in zip(("R", "Ld", "Lq", "psi_f"), par["scale"]) if abs(v - 1) > 0.05]
     # constant inductances off the motor file explain the gap as well as the selected effects: a
     # parametric gap (the knee of `saturation` is kept above 2 A so that it cannot become a constant)
-    parametric = (gap_v2 > 0.05 * max(floor_mean, 1e-9) and 0.5 < par["closure"] <= 1.5
-                  and par["closure"] > clo["closure"] - 0.05 and any(n in off for n in ("Ld", "Lq")))
+    parametric = (
+        gap_v2 > 0.05 * max(floor_mean, 1e-9)
+        and 0.5 < par["closure"] <= 1.5
+        and par["closure"] > clo["closure"] - 0.05
+        and any(n in off for n in ("Ld", "Lq"))
+    )
     if not chosen:
-        out["verdict"] = ("unexplained residual" if gap_v2 > 0.05 * max(floor_mean, 1e-9) and gap_v2 > 1e-3
-                          else "no structural gap found")
+        out["verdict"] = (
+            "unexplained residual"
+            if gap_v2 > 0.05 * max(floor_mean, 1e-9) and gap_v2 > 1e-3
+            else "no structural gap found"
+        )
     else:
         left = 1.0 - clo["closure"]
-        out["verdict"] = ", ".join(chosen) + (f"; unexplained residual {left:.0%} of the gap" if left > 0.3 else "")
+        out["verdict"] = ", ".join(chosen) + (
+            f"; unexplained residual {left:.0%} of the gap" if left > 0.3 else ""
+        )
     if parametric:
-        out["verdict"] += (f"; parametric gap: constant {', '.join(off)} off the motor file close more "
-                           f"({par['closure']:.2f}) than the effects")
+        out["verdict"] += (
+            f"; parametric gap: constant {', '.join(off)} off the motor file close more "
+            f"({par['closure']:.2f}) than the effects"
+        )
     return out

@@ -1,4 +1,5 @@
 """Fitting augmentations on training blocks; block-robust intervals (docs/gap.md, "How far")."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -27,13 +28,19 @@ def _split(names, v):
     out, p = {}, 0
     for n in names:
         k = len(LIB[n].params)
-        out[n] = v[p:p + k]
+        out[n] = v[p : p + k]
         p += k
     return out
 
 
-def fit_effects(probe: Probe, names, sel: np.ndarray, warm: dict | None = None, blocks: np.ndarray | None = None,
-                max_nfev: int = 60) -> Fit:
+def fit_effects(
+    probe: Probe,
+    names,
+    sel: np.ndarray,
+    warm: dict | None = None,
+    blocks: np.ndarray | None = None,
+    max_nfev: int = 60,
+) -> Fit:
     """Least-squares fit of the named effects' parameters on the transitions idx[sel]. ``blocks``
     (block id per selected transition) gives cluster-robust standard errors."""
     names = tuple(names)
@@ -61,13 +68,21 @@ def fit_effects(probe: Probe, names, sel: np.ndarray, warm: dict | None = None, 
     for x0 in starts():
         x0 = np.clip(x0, lo, hi)
         try:
-            r = least_squares(fun, x0, bounds=(lo, hi), x_scale=scale, diff_step=1e-4, max_nfev=max_nfev,
-                              method="trf", tr_solver="lsmr" if len(x0) > 1 else "exact")
+            r = least_squares(
+                fun,
+                x0,
+                bounds=(lo, hi),
+                x_scale=scale,
+                diff_step=1e-4,
+                max_nfev=max_nfev,
+                method="trf",
+                tr_solver="lsmr" if len(x0) > 1 else "exact",
+            )
         except ValueError:
             continue
         if best is None or r.cost < best.cost:
             best = r
-    if best is None:            # every start failed (non-finite residuals): the candidate cannot be fitted
+    if best is None:  # every start failed (non-finite residuals): the candidate cannot be fitted
         x = np.concatenate([np.asarray(warm.get(n, LIB[n].x0), float) for n in names])
         return Fit(names, _split(names, x), _split(names, np.full(len(x), np.inf)), float("inf"))
     x = best.x
@@ -87,7 +102,7 @@ def _robust_se(r, blocks, m) -> np.ndarray:
     if blocks is None:
         s2 = float(f @ f) / max(len(f) - J.shape[1], 1)
         return np.sqrt(np.maximum(np.diag(H) * s2, 0))
-    b2 = np.repeat(blocks, 2)          # two residual components per transition
+    b2 = np.repeat(blocks, 2)  # two residual components per transition
     g = J * f[:, None]
     ub, inv = np.unique(b2, return_inverse=True)
     G = np.zeros((len(ub), J.shape[1]))
@@ -123,6 +138,10 @@ def bootstrap_closure(r_base, r_aug, floor_per_sample, blocks, n_boot=400, seed=
 
     c, d = stat(np.arange(len(ub)))
     cb, db = stat(idx)
-    return {"closure": float(c), "closure_interval": [float(np.percentile(cb, 2.5)), float(np.percentile(cb, 97.5))],
-            "mse_gain": float(d), "mse_gain_se": float(np.std(db)),
-            "mse_gain_interval": [float(np.percentile(db, 2.5)), float(np.percentile(db, 97.5))]}
+    return {
+        "closure": float(c),
+        "closure_interval": [float(np.percentile(cb, 2.5)), float(np.percentile(cb, 97.5))],
+        "mse_gain": float(d),
+        "mse_gain_se": float(np.std(db)),
+        "mse_gain_interval": [float(np.percentile(db, 2.5)), float(np.percentile(db, 97.5))],
+    }

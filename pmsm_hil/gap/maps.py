@@ -1,5 +1,6 @@
 """Where the gap lies: residual RMS binned by operating point and angle, an order spectrum against
 speed (docs/gap.md, "Where")."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -12,9 +13,15 @@ def _binned(x, r, edges):
     b = np.digitize(x, edges[1:-1])
     for j in range(len(edges) - 1):
         s = b == j
-        out.append({"lo": float(edges[j]), "hi": float(edges[j + 1]), "n": int(s.sum()),
-                    "rms_d_v": float(np.sqrt(np.mean(r[s, 0] ** 2))) if s.any() else None,
-                    "rms_q_v": float(np.sqrt(np.mean(r[s, 1] ** 2))) if s.any() else None})
+        out.append(
+            {
+                "lo": float(edges[j]),
+                "hi": float(edges[j + 1]),
+                "n": int(s.sum()),
+                "rms_d_v": float(np.sqrt(np.mean(r[s, 0] ** 2))) if s.any() else None,
+                "rms_q_v": float(np.sqrt(np.mean(r[s, 1] ** 2))) if s.any() else None,
+            }
+        )
     return out
 
 
@@ -30,8 +37,17 @@ def order_spectrum(theta, r, speed, orders=range(1, 13), n_speed=4):
         amps = {}
         for n in orders:
             e = np.exp(-1j * n * th)
-            amps[str(n)] = [float(2 * abs(np.mean(rr[:, 0] * e))), float(2 * abs(np.mean(rr[:, 1] * e)))]
-        rows.append({"speed_lo_rad_s": float(edges[j]), "speed_hi_rad_s": float(edges[j + 1]), "orders": amps})
+            amps[str(n)] = [
+                float(2 * abs(np.mean(rr[:, 0] * e))),
+                float(2 * abs(np.mean(rr[:, 1] * e))),
+            ]
+        rows.append(
+            {
+                "speed_lo_rad_s": float(edges[j]),
+                "speed_hi_rad_s": float(edges[j + 1]),
+                "orders": amps,
+            }
+        )
     return rows
 
 

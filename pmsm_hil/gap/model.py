@@ -9,6 +9,7 @@ between the two on the same data is reported as the discretisation gap.
 The residual is in volts-equivalent: r = diag(Ld, Lq) (i_dq,meas(k+1) - i_dq,pred(k+1)) / Ts, the
 mean voltage over the period that the model misses.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -33,10 +34,18 @@ class MotorModel:
 
     @classmethod
     def from_motor(cls, m) -> "MotorModel":
-        return cls(float(m.r_s_ohm), float(m.l_d_h), float(m.l_q_h), float(m.psi_f_wb), int(m.pole_pairs),
-                   float(getattr(m, "j_kgm2", 0.0) or 0.0), float(getattr(m, "b_visc_nms", 0.0) or 0.0),
-                   float(getattr(m, "t_coulomb_nm", 0.0) or 0.0), float(getattr(m, "i_max_a", 10.0) or 10.0),
-                   float(getattr(m, "v_dc_v", 0.0) or 0.0))
+        return cls(
+            float(m.r_s_ohm),
+            float(m.l_d_h),
+            float(m.l_q_h),
+            float(m.psi_f_wb),
+            int(m.pole_pairs),
+            float(getattr(m, "j_kgm2", 0.0) or 0.0),
+            float(getattr(m, "b_visc_nms", 0.0) or 0.0),
+            float(getattr(m, "t_coulomb_nm", 0.0) or 0.0),
+            float(getattr(m, "i_max_a", 10.0) or 10.0),
+            float(getattr(m, "v_dc_v", 0.0) or 0.0),
+        )
 
 
 def abc_to_ab(i_abc: np.ndarray) -> np.ndarray:
@@ -53,12 +62,17 @@ def rot(x: np.ndarray, ang: np.ndarray) -> np.ndarray:
 @dataclass
 class PlantTerms:
     """Departures from the nominal plant used by the predictor (all optional)."""
-    r_s_ohm: np.ndarray | float | None = None       # resistance in force
-    psi_f_wb: np.ndarray | float | None = None      # magnet flux in force
-    sat: tuple | None = None   # (k_d, i_sd, k_q, i_sq, k_x, k_c): per-axis depth and knee, cross terms
-    g_fe_s: float = 0.0                             # iron-loss conductance 1/R_fe
-    u_dist_dq: np.ndarray | None = None             # (M, 2) extra voltage over the period, rotor frame
-    psi_h_dq: tuple[np.ndarray, np.ndarray] | None = None   # flux harmonic (psi_dq(theta), dpsi_dq/dtheta)
+
+    r_s_ohm: np.ndarray | float | None = None  # resistance in force
+    psi_f_wb: np.ndarray | float | None = None  # magnet flux in force
+    sat: tuple | None = (
+        None  # (k_d, i_sd, k_q, i_sq, k_x, k_c): per-axis depth and knee, cross terms
+    )
+    g_fe_s: float = 0.0  # iron-loss conductance 1/R_fe
+    u_dist_dq: np.ndarray | None = None  # (M, 2) extra voltage over the period, rotor frame
+    psi_h_dq: tuple[np.ndarray, np.ndarray] | None = (
+        None  # flux harmonic (psi_dq(theta), dpsi_dq/dtheta)
+    )
 
 
 def _sat_axis(l0: float, k: float, i_s: float, i):
@@ -77,14 +91,14 @@ def _flux(m: MotorModel, i: np.ndarray, pt: PlantTerms, psi_f):
     ld_inc, psi_d = _sat_axis(m.l_d_h, kd, isd, id_)
     lq_inc, psi_q = _sat_axis(m.l_q_h, kq, isq, iq)
     psi_d = psi_d + psi_f
-    i2 = m.i_max_a ** 2
+    i2 = m.i_max_a**2
     lx = kx * np.sqrt(m.l_d_h * m.l_q_h) / i2
     lc = kc * np.sqrt(m.l_d_h * m.l_q_h) / m.i_max_a
     # cross-saturation from the co-energy terms -lx/2 id^2 iq^2 - lc id iq^2 (reciprocal)
-    psi_d = psi_d - lx * id_ * iq ** 2 - lc * iq ** 2
-    psi_q = psi_q - lx * id_ ** 2 * iq - 2 * lc * id_ * iq
-    ldd = ld_inc - lx * iq ** 2
-    lqq = lq_inc - lx * id_ ** 2 - 2 * lc * id_
+    psi_d = psi_d - lx * id_ * iq**2 - lc * iq**2
+    psi_q = psi_q - lx * id_**2 * iq - 2 * lc * id_ * iq
+    ldd = ld_inc - lx * iq**2
+    lqq = lq_inc - lx * id_**2 - 2 * lc * id_
     ldq = -2 * lx * id_ * iq - 2 * lc * iq
     return (psi_d, psi_q), (ldd, ldq, lqq)
 
@@ -114,8 +128,17 @@ def _deriv(m: MotorModel, i, u, omega, pt: PlantTerms, r_s, psi_f):
     return np.stack([(lqq * v_d - ldq * v_q) / det, (ldd * v_q - ldq * v_d) / det], axis=-1)
 
 
-def predict_rk4(m: MotorModel, i0, theta0, omega, u_ab, ts_s: float, pt: PlantTerms | None = None,
-                n_sub: int = 1, cs0: tuple | None = None) -> np.ndarray:
+def predict_rk4(
+    m: MotorModel,
+    i0,
+    theta0,
+    omega,
+    u_ab,
+    ts_s: float,
+    pt: PlantTerms | None = None,
+    n_sub: int = 1,
+    cs0: tuple | None = None,
+) -> np.ndarray:
     """i_dq at t_k + Ts from i0 (M, 2) at t_k (RK4, n_sub steps per period); cs0: cos, sin of theta0
     if already known."""
     pt = pt or PlantTerms()
@@ -124,7 +147,7 @@ def predict_rk4(m: MotorModel, i0, theta0, omega, u_ab, ts_s: float, pt: PlantTe
     h = ts_s / n_sub
     i = np.asarray(i0, float)
     c0, s0 = cs0 if cs0 is not None else (np.cos(theta0), np.sin(theta0))
-    u = rot_cs(u_ab, c0, -s0)                       # rotor-frame voltage at the period start
+    u = rot_cs(u_ab, c0, -s0)  # rotor-frame voltage at the period start
     ch, sh = np.cos(0.5 * h * omega), np.sin(0.5 * h * omega)
     for _ in range(n_sub):
         u_mid = rot_cs(u, ch, -sh)

@@ -5,6 +5,7 @@ through the probe, or, where none is given (an imported CSV), estimated from the
 measurement noise of i(k+1) and i(k) enters the one-step residual as a first difference, whose
 lag-1 autocovariance is minus half its variance, so floor = -2 acov1 of the (augmented) residual.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -35,8 +36,10 @@ def floor_from_spec(probe, spec: dict) -> np.ndarray | None:
     lines = spec.get("encoder_lines", 0.0)
     if lines:
         q2 = (2 * np.pi * m.pole_pairs / (4 * lines)) ** 2 / 12.0
-        i_dq = rot(np.stack([rec.i_abc[k, 0], (rec.i_abc[k, 0] + 2 * rec.i_abc[k, 1]) / np.sqrt(3.0)], 1),
-                   -rec.theta_e_rad[k])
+        i_dq = rot(
+            np.stack([rec.i_abc[k, 0], (rec.i_abc[k, 0] + 2 * rec.i_abc[k, 1]) / np.sqrt(3.0)], 1),
+            -rec.theta_e_rad[k],
+        )
         u2 = np.sum(probe._u0[k] ** 2, axis=1)
         fd = fd + (m.l_d_h / ts) ** 2 * 2 * i_dq[:, 1] ** 2 * q2 + u2 * q2 / 2
         fq = fq + (m.l_q_h / ts) ** 2 * 2 * i_dq[:, 0] ** 2 * q2 + u2 * q2 / 2

@@ -1,4 +1,5 @@
 """The probe: one-step residuals of the nominal model, optionally augmented (docs/gap.md)."""
+
 from __future__ import annotations
 
 from dataclasses import replace
@@ -6,8 +7,17 @@ from dataclasses import replace
 import numpy as np
 
 from pmsm_hil.gap.effects import EFFECTS, STAGE_ORDER, Work, dead_time_dist
-from pmsm_hil.gap.model import MotorModel, PlantTerms, abc_to_ab, predict_euler, predict_rk4, rot_cs, volts
+from pmsm_hil.gap.model import (
+    MotorModel,
+    PlantTerms,
+    abc_to_ab,
+    predict_euler,
+    predict_rk4,
+    rot_cs,
+    volts,
+)
 from pmsm_hil.gap.record import ControlRecord
+
 
 def _shift(x: np.ndarray, n: int, run_start: np.ndarray) -> np.ndarray:
     """x[k - n], held at the start of each run (run_start[k]: index of k's run start)."""
@@ -30,7 +40,7 @@ class Probe:
         for a, b in rec.runs:
             self.run_start[a:b] = a
             first[a] = True
-            ok[a + 1:b - 1] = True
+            ok[a + 1 : b - 1] = True
         ok &= rec.pwm_on & np.roll(rec.pwm_on, 1)
         self.first = first
         self.idx = np.nonzero(ok)[0]
@@ -42,9 +52,16 @@ class Probe:
     # ------------------------------------------------------------------ evaluation
     def work(self, effects) -> Work:
         rec = self.rec
-        w = Work(i_abc=rec.i_abc, theta=rec.theta_e_rad, omega=rec.omega_e_rad_s,
-                 cmd=None if rec.voltage_kind == "alphabeta" else rec.v_cmd, kind=rec.voltage_kind,
-                 v_dc=rec.v_dc_v, pwm_on=rec.pwm_on, first=self.first)
+        w = Work(
+            i_abc=rec.i_abc,
+            theta=rec.theta_e_rad,
+            omega=rec.omega_e_rad_s,
+            cmd=None if rec.voltage_kind == "alphabeta" else rec.v_cmd,
+            kind=rec.voltage_kind,
+            v_dc=rec.v_dc_v,
+            pwm_on=rec.pwm_on,
+            first=self.first,
+        )
         ctx = _Ctx(self.ts_s, self.m)
         for eff, x in sorted(effects, key=lambda ex: STAGE_ORDER[ex[0].stage]):
             eff.apply(w, x, ctx)
@@ -68,21 +85,27 @@ class Probe:
         jp = np.maximum(j - 1, rs)
         cmd, prev = w.cmd[j], w.cmd[jp]
         was_off = (~w.pwm_on[jp]) | (jp == j)
-        i_ab = w.i_abc[rows, :2]          # leg c carries -(i_a + i_b): i_c need not be measured
+        i_ab = w.i_abc[rows, :2]  # leg c carries -(i_a + i_b): i_c need not be measured
         i3 = np.column_stack([i_ab, -i_ab.sum(axis=1)])
-        dist = dead_time_dist(dead, w.kind, cmd, prev.copy(), i3, w.v_dc[rows], w.pwm_on[j], was_off, self.ts_s)
+        dist = dead_time_dist(
+            dead, w.kind, cmd, prev.copy(), i3, w.v_dc[rows], w.pwm_on[j], was_off, self.ts_s
+        )
         v = cmd * w.v_dc[rows][:, None] + dist
-        u = np.stack([(2 * v[:, 0] - v[:, 1] - v[:, 2]) / 3.0, (v[:, 1] - v[:, 2]) / np.sqrt(3.0)], axis=1)
+        u = np.stack(
+            [(2 * v[:, 0] - v[:, 1] - v[:, 2]) / 3.0, (v[:, 1] - v[:, 2]) / np.sqrt(3.0)], axis=1
+        )
         u[~w.pwm_on[j]] = 0.0
         return u
 
-    def residual(self, effects=(), sel: np.ndarray | None = None, euler: bool = False) -> np.ndarray:
+    def residual(
+        self, effects=(), sel: np.ndarray | None = None, euler: bool = False
+    ) -> np.ndarray:
         """Residual (M, 2) in volts-equivalent for idx[sel] (all when None)."""
         k = self.idx if sel is None else self.idx[sel]
         w = self.work(effects)
         m, ts = self.m, self.ts_s
         th0 = w.theta[k]
-        d = self.rec.theta_e_rad[0] - w.theta[0]      # an encoder correction shifts the angle
+        d = self.rec.theta_e_rad[0] - w.theta[0]  # an encoder correction shifts the angle
         c0, s0, c1, s1 = self._c[k], self._s[k], self._c[k + 1], self._s[k + 1]
         if d != 0.0:
             cd, sd = np.cos(d), np.sin(d)
@@ -93,7 +116,7 @@ class Probe:
             kk = np.concatenate([k - 1, k, k + 1])
             sub = abc_to_ab(w.i_abc[kk])
             n = len(k)
-            ab_m1, ab_0, ab_1 = sub[:n], sub[n:2 * n], sub[2 * n:]
+            ab_m1, ab_0, ab_1 = sub[:n], sub[n : 2 * n], sub[2 * n :]
         else:
             ab_m1, ab_0, ab_1 = i_ab[k - 1], i_ab[k], i_ab[k + 1]
         a = w.sample_frac
@@ -103,13 +126,19 @@ class Probe:
         if euler:
             pred = predict_euler(m, i0, th0, om, self.u_at(w, k), ts)
         else:
-            pt = PlantTerms(r_s_ohm=m.r_s_ohm * w.r_scale, psi_f_wb=m.psi_f_wb * w.psi_scale, sat=w.sat,
-                            g_fe_s=w.g_fe_s)
+            pt = PlantTerms(
+                r_s_ohm=m.r_s_ohm * w.r_scale,
+                psi_f_wb=m.psi_f_wb * w.psi_scale,
+                sat=w.sat,
+                g_fe_s=w.g_fe_s,
+            )
             if w.harm is not None:
                 pt.psi_h_dq = _harmonic_flux(m.psi_f_wb, w.harm, th0 + 0.5 * om * ts)
             mp = m
             if "l_scale" in w.extra:
-                mp = replace(m, l_d_h=m.l_d_h * w.extra["l_scale"][0], l_q_h=m.l_q_h * w.extra["l_scale"][1])
+                mp = replace(
+                    m, l_d_h=m.l_d_h * w.extra["l_scale"][0], l_q_h=m.l_q_h * w.extra["l_scale"][1]
+                )
             pred = predict_rk4(mp, i0, th0, om, self.u_at(w, k), ts, pt, cs0=(c0, s0))
         if a != 0:
             pred = rot_cs((1 - a) * rot_cs(pred, c1, s1) + a * i0_ab, c1, -s1)

@@ -10,6 +10,7 @@ Sources, in order of preference:
 Sample k holds the phase currents measured at t_k and the voltage applied over [t_k, t_k+1]:
 switch states `s_abc` (held over the period), duties `d_abc`, or `u_alpha_v u_beta_v`.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -47,20 +48,32 @@ CONTROL_FIELDS = (
     _f("temp_winding_c", "degC", "winding temperature (NaN: unknown)"),
     _f("temp_magnet_c", "degC", "magnet temperature (NaN: unknown)"),
 )
-CONTROL_TOPICDEF = TopicDef(CONTROL_TOPIC, "pmsm_hil/msg/ControlRate", CONTROL_FIELDS,
-                            rate="1/ts_s, continuous", doc="Control-rate record for the gap diagnosis.")
+CONTROL_TOPICDEF = TopicDef(
+    CONTROL_TOPIC,
+    "pmsm_hil/msg/ControlRate",
+    CONTROL_FIELDS,
+    rate="1/ts_s, continuous",
+    doc="Control-rate record for the gap diagnosis.",
+)
 
 STEADY_FIELDS = (
     _f("t_s", "s", "time"),
-    _f("u_d_v", "V", "d-axis voltage"), _f("u_q_v", "V", "q-axis voltage"),
-    _f("i_d_a", "A", "d-axis current"), _f("i_q_a", "A", "q-axis current"),
+    _f("u_d_v", "V", "d-axis voltage"),
+    _f("u_q_v", "V", "q-axis voltage"),
+    _f("i_d_a", "A", "d-axis current"),
+    _f("i_q_a", "A", "q-axis current"),
     _f("omega_e_rad_s", "rad/s", "electrical speed"),
     _f("torque_nm", "N m", "shaft torque (NaN: unknown)"),
     _f("temp_winding_c", "degC", "winding temperature (NaN: unknown)"),
     _f("temp_magnet_c", "degC", "magnet temperature (NaN: unknown)"),
 )
-STEADY_TOPICDEF = TopicDef(STEADY_TOPIC, "pmsm_hil/msg/SteadyDq", STEADY_FIELDS,
-                           rate="as recorded", doc="Steady-state dq operating points.")
+STEADY_TOPICDEF = TopicDef(
+    STEADY_TOPIC,
+    "pmsm_hil/msg/SteadyDq",
+    STEADY_FIELDS,
+    rate="as recorded",
+    doc="Steady-state dq operating points.",
+)
 
 GAP_TOPICS = (CONTROL_TOPICDEF, STEADY_TOPICDEF)
 
@@ -73,11 +86,12 @@ class RecordError(ValueError):
 class ControlRecord:
     """Control-rate data, one row per period. ``runs`` are the index ranges [a, b) of contiguous
     sampling (a triggered capture gives one run per burst)."""
+
     t_s: np.ndarray
-    i_abc: np.ndarray                 # (N, 3) A; column 2 NaN when not measured
-    voltage_kind: str                 # "switch", "duty" or "alphabeta"
-    v_cmd: np.ndarray                 # (N, 3) switch states or duties, or (N, 2) u_alpha, u_beta
-    pwm_on: np.ndarray                # (N,) bool
+    i_abc: np.ndarray  # (N, 3) A; column 2 NaN when not measured
+    voltage_kind: str  # "switch", "duty" or "alphabeta"
+    v_cmd: np.ndarray  # (N, 3) switch states or duties, or (N, 2) u_alpha, u_beta
+    pwm_on: np.ndarray  # (N,) bool
     v_dc_v: np.ndarray
     theta_e_rad: np.ndarray
     omega_e_rad_s: np.ndarray
@@ -103,7 +117,9 @@ class ControlRecord:
         if self.voltage_kind == "alphabeta":
             return np.asarray(self.v_cmd, float)
         v = self.v_cmd * self.v_dc_v[:, None]
-        u = np.stack([(2 * v[:, 0] - v[:, 1] - v[:, 2]) / 3.0, (v[:, 1] - v[:, 2]) / np.sqrt(3.0)], axis=1)
+        u = np.stack(
+            [(2 * v[:, 0] - v[:, 1] - v[:, 2]) / 3.0, (v[:, 1] - v[:, 2]) / np.sqrt(3.0)], axis=1
+        )
         u[~self.pwm_on] = 0.0
         return u
 
@@ -152,8 +168,12 @@ def _omega_from_theta(theta: np.ndarray, runs, ts_s: float, half_window: int = 1
     return w
 
 
-def record_from_columns(cols: dict[str, np.ndarray], ts_s: float | None = None, source: str = "",
-                        sensor_spec: dict | None = None) -> ControlRecord:
+def record_from_columns(
+    cols: dict[str, np.ndarray],
+    ts_s: float | None = None,
+    source: str = "",
+    sensor_spec: dict | None = None,
+) -> ControlRecord:
     """A ControlRecord from columns named as CONTROL_FIELDS (missing optional ones may be absent)."""
     t = np.asarray(cols["t_s"], float)
     if len(t) < 3:
@@ -178,7 +198,9 @@ def record_from_columns(cols: dict[str, np.ndarray], ts_s: float | None = None, 
     elif not np.any(np.isnan(np.stack(u))):
         kind, v_cmd = "alphabeta", np.stack(u, axis=1)
     else:
-        raise RecordError(f"{source}: no complete applied voltage (s_a s_b s_c, d_a d_b d_c or u_alpha_v u_beta_v)")
+        raise RecordError(
+            f"{source}: no complete applied voltage (s_a s_b s_c, d_a d_b d_c or u_alpha_v u_beta_v)"
+        )
     pw = np.asarray(cols.get("pwm_on", nan), float)
     pwm_on = np.where(np.isnan(pw), True, pw > 0.5)
     theta = np.mod(np.asarray(cols["theta_e_rad"], float), 2 * np.pi)
@@ -188,11 +210,23 @@ def record_from_columns(cols: dict[str, np.ndarray], ts_s: float | None = None, 
     vdc = np.asarray(cols.get("v_dc_v", nan), float)
     if kind != "alphabeta" and np.any(np.isnan(vdc)):
         raise RecordError(f"{source}: v_dc_v is needed with switch states or duties")
-    return ControlRecord(t_s=t, i_abc=np.stack([ia, ib, ic], axis=1), voltage_kind=kind, v_cmd=v_cmd,
-                         pwm_on=pwm_on, v_dc_v=vdc, theta_e_rad=theta, omega_e_rad_s=om, ts_s=float(ts_s),
-                         runs=runs, load_nm=_opt(cols, "load_nm"), temp_winding_c=_opt(cols, "temp_winding_c"),
-                         temp_magnet_c=_opt(cols, "temp_magnet_c"), source=source,
-                         sensor_spec=dict(sensor_spec or {}))
+    return ControlRecord(
+        t_s=t,
+        i_abc=np.stack([ia, ib, ic], axis=1),
+        voltage_kind=kind,
+        v_cmd=v_cmd,
+        pwm_on=pwm_on,
+        v_dc_v=vdc,
+        theta_e_rad=theta,
+        omega_e_rad_s=om,
+        ts_s=float(ts_s),
+        runs=runs,
+        load_nm=_opt(cols, "load_nm"),
+        temp_winding_c=_opt(cols, "temp_winding_c"),
+        temp_magnet_c=_opt(cols, "temp_magnet_c"),
+        source=source,
+        sensor_spec=dict(sensor_spec or {}),
+    )
 
 
 def sensor_spec_from_metadata(meta: dict[str, dict[str, str]]) -> dict[str, float]:
@@ -205,8 +239,11 @@ def sensor_spec_from_metadata(meta: dict[str, dict[str, str]]) -> dict[str, floa
         if k in src and src[k] not in ("", "nan"):
             out[k] = float(src[k])
     rig = meta.get("rig") or meta.get("rig_effects") or {}
-    pairs = {"i_noise_a": "adc_noise.i_noise_a", "adc_lsb_a": "adc_quantisation.adc_lsb_a",
-             "encoder_lines": "encoder.lines"}
+    pairs = {
+        "i_noise_a": "adc_noise.i_noise_a",
+        "adc_lsb_a": "adc_quantisation.adc_lsb_a",
+        "encoder_lines": "encoder.lines",
+    }
     for k, rk in pairs.items():
         if k not in out and rk in rig:
             try:
@@ -237,14 +274,34 @@ def load_record(path) -> ControlRecord | SteadyRecord:
         return record_from_columns(cols, ts, source=f"{path}: {CONTROL_TOPIC}", sensor_spec=spec)
     if STEADY_TOPIC in log.topics:
         c = log.topic(STEADY_TOPIC)
-        return SteadyRecord(t_s=np.asarray(c["t_s"], float), u_dq=np.stack([c["u_d_v"], c["u_q_v"]], 1),
-                            i_dq=np.stack([c["i_d_a"], c["i_q_a"]], 1), omega_e_rad_s=np.asarray(c["omega_e_rad_s"]),
-                            torque_nm=_opt(c, "torque_nm"), temp_winding_c=_opt(c, "temp_winding_c"),
-                            source=f"{path}: {STEADY_TOPIC}")
+        return SteadyRecord(
+            t_s=np.asarray(c["t_s"], float),
+            u_dq=np.stack([c["u_d_v"], c["u_q_v"]], 1),
+            i_dq=np.stack([c["i_d_a"], c["i_q_a"]], 1),
+            omega_e_rad_s=np.asarray(c["omega_e_rad_s"]),
+            torque_nm=_opt(c, "torque_nm"),
+            temp_winding_c=_opt(c, "temp_winding_c"),
+            source=f"{path}: {STEADY_TOPIC}",
+        )
     if "/pmsm/capture" in log.topics and len(log.topic("/pmsm/capture")["t_s"]):
         c = log.topic("/pmsm/capture")
-        cols = {k: np.asarray(c[k], float) for k in ("t_s", "i_a_a", "i_b_a", "i_c_a", "s_a", "s_b", "s_c",
-                                                     "v_dc_v", "theta_e_rad", "omega_e_rad_s")}
+        cols = {
+            k: np.asarray(c[k], float)
+            for k in (
+                "t_s",
+                "i_a_a",
+                "i_b_a",
+                "i_c_a",
+                "s_a",
+                "s_b",
+                "s_c",
+                "v_dc_v",
+                "theta_e_rad",
+                "omega_e_rad_s",
+            )
+        }
         return record_from_columns(cols, ts, source=f"{path}: /pmsm/capture", sensor_spec=spec)
-    raise RecordError(f"{path}: no control-rate data ({CONTROL_TOPIC} or /pmsm/capture) and no "
-                      f"steady-state data ({STEADY_TOPIC})")
+    raise RecordError(
+        f"{path}: no control-rate data ({CONTROL_TOPIC} or /pmsm/capture) and no "
+        f"steady-state data ({STEADY_TOPIC})"
+    )

@@ -1,4 +1,5 @@
 """The diagnosis's outputs: the terminal verdict, JSON, and a report directory (plots + HTML)."""
+
 from __future__ import annotations
 
 import html
@@ -36,29 +37,48 @@ def _clo(v):
 
 def verdict_lines(res: dict) -> list[str]:
     b, d = res["base_gap"], res["discretisation_gap"]
-    out = [f"gap: {res['verdict']}",
-           f"  base gap {b['rms_v']:.3g} V rms one-step residual; noise floor {np.sqrt(max(res['noise_floor_v2'], 0)):.3g} V rms "
-           f"({res['noise_floor_source']}); discretisation gap (Euler vs RK4) {d['excess_v2']:.3g} V^2"]
+    out = [
+        f"gap: {res['verdict']}",
+        f"  base gap {b['rms_v']:.3g} V rms one-step residual; noise floor {np.sqrt(max(res['noise_floor_v2'], 0)):.3g} V rms "
+        f"({res['noise_floor_source']}); discretisation gap (Euler vs RK4) {d['excess_v2']:.3g} V^2",
+    ]
     c = res["closure"]
     if res["selected"]:
-        out.append(f"  held-out closure {_clo(c['closure'])} [{_clo(c['closure_interval'][0])}, {_clo(c['closure_interval'][1])}] (test blocks)"
-                   + (f", {_clo(res['closure_region']['closure'])} (held-out speed region)" if "closure_region" in res else "")
-                   + (f", {_clo(res['closure_record']['closure'])} (held-out record)" if "closure_record" in res else ""))
+        out.append(
+            f"  held-out closure {_clo(c['closure'])} [{_clo(c['closure_interval'][0])}, {_clo(c['closure_interval'][1])}] (test blocks)"
+            + (
+                f", {_clo(res['closure_region']['closure'])} (held-out speed region)"
+                if "closure_region" in res
+                else ""
+            )
+            + (
+                f", {_clo(res['closure_record']['closure'])} (held-out record)"
+                if "closure_record" in res
+                else ""
+            )
+        )
     for e in res["effects"]:
         if e.get("selected"):
             iv = e.get("interval") or [None, None]
-            out.append(f"  + {e['name']}: {e['quantity']} = {_fmt(e['magnitude'])} [{_fmt(iv[0])}, {_fmt(iv[1])}]; {e['evidence']}")
+            out.append(
+                f"  + {e['name']}: {e['quantity']} = {_fmt(e['magnitude'])} [{_fmt(iv[0])}, {_fmt(iv[1])}]; {e['evidence']}"
+            )
     for a in res.get("ambiguous", []):
-        out.append(f"  ? {a['effects'][0]} and {a['effects'][1]} cannot be told apart on this data: {a['experiment']}")
+        out.append(
+            f"  ? {a['effects'][0]} and {a['effects'][1]} cannot be told apart on this data: {a['experiment']}"
+        )
     p = res["parametric_gap"]
-    out.append(f"  parametric (best constant values): R {p['r_s_ohm']:.3g} ohm, Ld {p['l_d_h'] * 1e3:.3g} mH, "
-               f"Lq {p['l_q_h'] * 1e3:.3g} mH, psi_f {p['psi_f_wb']:.4g} Wb (closure alone {p['closure']:.2f})")
+    out.append(
+        f"  parametric (best constant values): R {p['r_s_ohm']:.3g} ohm, Ld {p['l_d_h'] * 1e3:.3g} mH, "
+        f"Lq {p['l_q_h'] * 1e3:.3g} mH, psi_f {p['psi_f_wb']:.4g} Wb (closure alone {p['closure']:.2f})"
+    )
     return out
 
 
 def write_report(res: dict, out_dir) -> list[str]:
     """gap.json, residual-map plots and index.html in out_dir; returns the files written."""
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
@@ -76,7 +96,9 @@ def write_report(res: dict, out_dir) -> list[str]:
             x = [(r["lo"] + r["hi"]) / 2 for r in rows]
             y = [np.hypot(r["rms_d_v"] or 0, r["rms_q_v"] or 0) / np.sqrt(2) for r in rows]
             ax.plot(x, y, style, label=name)
-        ax.axhline(np.sqrt(max(res["noise_floor_v2"], 0)), color="k", lw=0.8, ls=":", label="noise floor")
+        ax.axhline(
+            np.sqrt(max(res["noise_floor_v2"], 0)), color="k", lw=0.8, ls=":", label="noise floor"
+        )
         ax.set_title(key.replace("_", " "))
         ax.set_ylabel("residual rms, V")
     axs[0, 0].legend(fontsize=7)
@@ -90,7 +112,12 @@ def write_report(res: dict, out_dir) -> list[str]:
         for row in spec:
             orders = sorted(int(o) for o in row["orders"])
             amp = [np.hypot(*row["orders"][str(o)]) for o in orders]
-            ax.plot(orders, amp, "o-", label=f"|omega_e| {row['speed_lo_rad_s']:.0f}-{row['speed_hi_rad_s']:.0f} rad/s")
+            ax.plot(
+                orders,
+                amp,
+                "o-",
+                label=f"|omega_e| {row['speed_lo_rad_s']:.0f}-{row['speed_hi_rad_s']:.0f} rad/s",
+            )
         ax.set_xlabel("order of the electrical angle")
         ax.set_ylabel("residual amplitude, V")
         ax.legend(fontsize=7)
@@ -98,15 +125,21 @@ def write_report(res: dict, out_dir) -> list[str]:
         fig.savefig(os.path.join(out_dir, "order_spectrum.png"), dpi=90)
         plt.close(fig)
         files.append("order_spectrum.png")
-    rows = "".join(f"<tr><td>{html.escape(e['name'])}</td><td>{'yes' if e.get('selected') else ''}</td>"
-                   f"<td>{html.escape(str(e.get('quantity')))}</td><td>{_fmt(e.get('magnitude'))}</td>"
-                   f"<td>{html.escape(str(e.get('interval')))}</td><td>{_fmt(e.get('closure'))}</td>"
-                   f"<td>{html.escape(e.get('evidence', ''))}</td></tr>" for e in res["effects"])
-    page = (f"<html><head><meta charset='utf-8'><title>gap</title></head><body><h1>Sim-to-real gap</h1>"
-            f"<pre>{html.escape(chr(10).join(verdict_lines(res)))}</pre>"
-            f"<table border=1><tr><th>effect</th><th>selected</th><th>quantity</th><th>magnitude</th>"
-            f"<th>interval</th><th>closure</th><th>evidence</th></tr>{rows}</table>"
-            + "".join(f"<p><img src='{f}'></p>" for f in files if f.endswith(".png")) + "</body></html>")
+    rows = "".join(
+        f"<tr><td>{html.escape(e['name'])}</td><td>{'yes' if e.get('selected') else ''}</td>"
+        f"<td>{html.escape(str(e.get('quantity')))}</td><td>{_fmt(e.get('magnitude'))}</td>"
+        f"<td>{html.escape(str(e.get('interval')))}</td><td>{_fmt(e.get('closure'))}</td>"
+        f"<td>{html.escape(e.get('evidence', ''))}</td></tr>"
+        for e in res["effects"]
+    )
+    page = (
+        f"<html><head><meta charset='utf-8'><title>gap</title></head><body><h1>Sim-to-real gap</h1>"
+        f"<pre>{html.escape(chr(10).join(verdict_lines(res)))}</pre>"
+        f"<table border=1><tr><th>effect</th><th>selected</th><th>quantity</th><th>magnitude</th>"
+        f"<th>interval</th><th>closure</th><th>evidence</th></tr>{rows}</table>"
+        + "".join(f"<p><img src='{f}'></p>" for f in files if f.endswith(".png"))
+        + "</body></html>"
+    )
     with open(os.path.join(out_dir, "index.html"), "w") as f:
         f.write(page)
     files.append("index.html")

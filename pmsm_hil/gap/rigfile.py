@@ -1,4 +1,5 @@
 """`pmsm-hil gap augment`: the fitted effects as a rig file (format: docs/profiles.md, docs/rigs.md)."""
+
 from __future__ import annotations
 
 import os
@@ -14,11 +15,13 @@ def _flux_map_csv(path: str, m: MotorModel, k: dict) -> None:
     from pmsm_hil.gap.model import PlantTerms, _flux
 
     i_max = m.i_max_a
-    step = max(0.5, round(1.2 * i_max / 7 * 2) / 2)       # a grid the rig loader sees as regular
+    step = max(0.5, round(1.2 * i_max / 7 * 2) / 2)  # a grid the rig loader sees as regular
     g = np.arange(-7, 8) * step
     pt = PlantTerms(sat=(k["k_d"], k["i_sd_a"], k["k_q"], k["i_sq_a"], k["k_x"], k["k_c"]))
     with open(path, "w") as f:
-        f.write("# flux map fitted by pmsm-hil gap augment (docs/gap.md): the probe's saturation model\n")
+        f.write(
+            "# flux map fitted by pmsm-hil gap augment (docs/gap.md): the probe's saturation model\n"
+        )
         f.write("i_d_a,i_q_a,psi_d_wb,psi_q_wb\n")
         for iq in g:
             for id_ in g:
@@ -41,9 +44,15 @@ def fitted_rig(result: dict, m: MotorModel, out_path, sensor_spec: dict | None =
         p = dict(e.get("parameters") or {})
         n = e["name"]
         if n == "delay":
-            p = {"sample_delay_s": max(p["sample_delay_s"], 0.0), "pwm_delay_periods": int(round(p["pwm_delay_periods"]))}
+            p = {
+                "sample_delay_s": max(p["sample_delay_s"], 0.0),
+                "pwm_delay_periods": int(round(p["pwm_delay_periods"])),
+            }
         elif n == "encoder":
-            p = {"lines": int(spec.get("encoder_lines", 2500) or 2500), "offset_e_rad": p["offset_e_rad"]}
+            p = {
+                "lines": int(spec.get("encoder_lines", 2500) or 2500),
+                "offset_e_rad": p["offset_e_rad"],
+            }
         elif n == "saturation":
             map_name = os.path.splitext(os.path.basename(os.fspath(out_path)))[0] + "-map.csv"
             _flux_map_csv(os.path.join(os.path.dirname(os.fspath(out_path)) or ".", map_name), m, p)
@@ -53,19 +62,31 @@ def fitted_rig(result: dict, m: MotorModel, out_path, sensor_spec: dict | None =
         elif n == "thermal":
             p = {k: float(v) for k, v in p.items()}
         elif n == "dc_link":
-            notes.append("dc_link: the ripple was seen in the measured v_dc but not fitted; add it by hand")
+            notes.append(
+                "dc_link: the ripple was seen in the measured v_dc but not fitted; add it by hand"
+            )
             continue
         elif n == "cogging":
-            p = {"amplitude_nm": float(p["amplitude_nm"]), "periods_per_rev": int(p["periods_per_rev"]),
-                 "phase_rad": 0.0}
+            p = {
+                "amplitude_nm": float(p["amplitude_nm"]),
+                "periods_per_rev": int(p["periods_per_rev"]),
+                "phase_rad": 0.0,
+            }
         elif n == "friction":
-            p = {"t_coulomb_nm": max(float(p["t_coulomb_nm"]), 0.0), "b_visc_nms": max(float(p["b_visc_nms"]), 0.0)}
+            p = {
+                "t_coulomb_nm": max(float(p["t_coulomb_nm"]), 0.0),
+                "b_visc_nms": max(float(p["b_visc_nms"]), 0.0),
+            }
         eff[n] = {k: (float(v) if isinstance(v, (float, np.floating)) else v) for k, v in p.items()}
     if "encoder" not in eff and spec.get("encoder_lines"):
         eff["encoder"] = {"lines": int(spec["encoder_lines"]), "offset_e_rad": 0.0}
-    rig = {"name": "fitted", "description": "Effects fitted by pmsm-hil gap augment: " +
-           (", ".join(e["name"] for e in result["effects"] if e.get("selected")) or "none"),
-           "v_dc_v": None, "effects": eff}
+    rig = {
+        "name": "fitted",
+        "description": "Effects fitted by pmsm-hil gap augment: "
+        + (", ".join(e["name"] for e in result["effects"] if e.get("selected")) or "none"),
+        "v_dc_v": None,
+        "effects": eff,
+    }
     with open(out_path, "w") as f:
         f.write("# Written by `pmsm-hil gap augment` (docs/gap.md). Format: docs/rigs.md.\n")
         for n in notes:

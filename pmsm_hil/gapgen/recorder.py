@@ -1,5 +1,6 @@
 """A profile run on the in-process emulator with a continuous control-rate recording (simulation
 only: the F28335 keeps only a 1024-sample capture buffer), written as `/pmsm/control_rate`."""
+
 from __future__ import annotations
 
 import ctypes
@@ -19,8 +20,20 @@ from pmsm_hil.protocol.session import Session
 from pmsm_hil.runner import RunOptions, run_profile
 from pmsm_hil.transport.inproc import InProcessTransport
 
-REC_COLS = ("t_s", "i_a_a", "i_b_a", "i_c_a", "s_a", "s_b", "s_c", "pwm_on", "v_dc_v", "theta_e_rad",
-            "omega_e_rad_s", "load_nm")
+REC_COLS = (
+    "t_s",
+    "i_a_a",
+    "i_b_a",
+    "i_c_a",
+    "s_a",
+    "s_b",
+    "s_c",
+    "pwm_on",
+    "v_dc_v",
+    "theta_e_rad",
+    "omega_e_rad_s",
+    "load_nm",
+)
 
 
 def _bind(dev: EmulatedDevice):
@@ -31,15 +44,22 @@ def _bind(dev: EmulatedDevice):
     return lib
 
 
-def record_profile(profile_path, out_path, rig_path=None, seed: int = 1, full_log: bool = True,
-                   sensors: dict[str, float] | None = None) -> dict[str, np.ndarray]:
+def record_profile(
+    profile_path,
+    out_path,
+    rig_path=None,
+    seed: int = 1,
+    full_log: bool = True,
+    sensors: dict[str, float] | None = None,
+) -> dict[str, np.ndarray]:
     """Run the profile in process with the rig, record every control period and write a log with
     `/pmsm/control_rate`. full_log: also every topic of the run and its metadata (a user's log);
     otherwise only the control-rate record, the motor attachment and `gap_sensors` (a sealed
     self-test log: nothing of the rig). Returns the recorded columns."""
     profile = load_profile(str(profile_path), rig_override=rig_path)
-    settings = emulator_settings(profile.motor, profile.rig, seed=seed, baud=profile.link.baud,
-                                 ts_s=profile.control.ts_s)
+    settings = emulator_settings(
+        profile.motor, profile.rig, seed=seed, baud=profile.link.baud, ts_s=profile.control.ts_s
+    )
     settings["truth_div"] = 0 if not full_log else settings.get("truth_div", 200)
     dev = EmulatedDevice(settings)
     lib = _bind(dev)
@@ -63,7 +83,11 @@ def record_profile(profile_path, out_path, rig_path=None, seed: int = 1, full_lo
             meta.update({k: v for k, v in run_log.metadata.items() if k != "log"})
             atts = [(a.name, a.media_type, a.data) for a in run_log.attachments]
         else:
-            atts = [(a.name, a.media_type, a.data) for a in run_log.attachments if a.name == "motor.yaml"]
+            atts = [
+                (a.name, a.media_type, a.data)
+                for a in run_log.attachments
+                if a.name == "motor.yaml"
+            ]
         with LogWriter(out_path, meta, atts, topics=GAP_TOPICS) as w:
             if full_log:
                 for topic in run_log.topics:

@@ -5,6 +5,7 @@ runs. Each trial records a 2 s random profile on the in-process emulator with th
 (plus a held-out record on another random profile, and the same run without the effects for the
 detectability oracle), gives the diagnoser only the control-rate log, and keeps its answer; the
 scores are computed when every trial is done. Trials run in a process pool."""
+
 from __future__ import annotations
 
 import hashlib
@@ -20,10 +21,12 @@ from pmsm_hil.gapgen.draw import BASE_SENSORS, LIBRARY, SENSOR_SPEC, draw_trial,
 from pmsm_hil.profiles._base import default_file
 
 MOTOR = "motors/paper-a-ipmsm.yaml"
-DETECT_REL = 0.003          # the effect changes the one-step residual MSE by this fraction of the floor
+DETECT_REL = 0.003  # the effect changes the one-step residual MSE by this fraction of the floor
 
 
-def _write_inputs(d: str, trial: dict, effects: dict, segs: list, tag: str, outside: bool) -> tuple[str, str]:
+def _write_inputs(
+    d: str, trial: dict, effects: dict, segs: list, tag: str, outside: bool
+) -> tuple[str, str]:
     motor = default_file(MOTOR)
     if outside:
         with open(motor) as f:
@@ -31,7 +34,7 @@ def _write_inputs(d: str, trial: dict, effects: dict, segs: list, tag: str, outs
         mo["l_d_h"] *= trial["plant_l_scale"]
         mo["l_q_h"] *= trial["plant_l_scale"]
         mo["name"] = "plant"
-        mo["torque_max_nm"] = 15.0      # the MTPA torque at i_max changes with the inductances
+        mo["torque_max_nm"] = 15.0  # the MTPA torque at i_max changes with the inductances
         motor = os.path.join(d, "plant-motor.yaml")
         with open(motor, "w") as f:
             yaml.safe_dump(mo, f)
@@ -43,13 +46,26 @@ def _write_inputs(d: str, trial: dict, effects: dict, segs: list, tag: str, outs
         eff[n] = dict(eff.get(n, {}), **p)
     rig = os.path.join(d, f"rig-{tag}.yaml")
     with open(rig, "w") as f:
-        yaml.safe_dump({"name": f"hidden-{tag}", "description": "sealed", "v_dc_v": None, "effects": eff}, f)
+        yaml.safe_dump(
+            {"name": f"hidden-{tag}", "description": "sealed", "v_dc_v": None, "effects": eff}, f
+        )
     prof = os.path.join(d, f"profile-{tag}.yaml")
-    spec = {"name": f"selftest-{tag}", "description": "random", "motor": motor, "rig": rig,
-            "control": {"ts_s": 50e-6, "rho": 1.0, "current_ref": "mtpa", "speed_loop_hz": 1000,
-                        "heartbeat_timeout_s": 0.5, "dead_time_comp": True},
-            "telemetry": {"fast_hz": 100, "params_hz": 10, "status_hz": 10, "truth_hz": 0},
-            "segments": segs}
+    spec = {
+        "name": f"selftest-{tag}",
+        "description": "random",
+        "motor": motor,
+        "rig": rig,
+        "control": {
+            "ts_s": 50e-6,
+            "rho": 1.0,
+            "current_ref": "mtpa",
+            "speed_loop_hz": 1000,
+            "heartbeat_timeout_s": 0.5,
+            "dead_time_comp": True,
+        },
+        "telemetry": {"fast_hz": 100, "params_hz": 10, "status_hz": 10, "truth_hz": 0},
+        "segments": segs,
+    }
     with open(prof, "w") as f:
         yaml.safe_dump(spec, f)
     return prof, rig
@@ -75,9 +91,11 @@ def _run_trial(trial: dict) -> dict:
     outside = trial["kind"] == "outside"
     with tempfile.TemporaryDirectory() as d:
         logs = {}
-        for tag, eff, segs, seed in (("real", trial["effects"], trial["profile"], trial["seed"]),
-                                     ("holdout", trial["effects"], trial["profile_holdout"], trial["seed"] + 1),
-                                     ("clean", {}, trial["profile"], trial["seed"])):
+        for tag, eff, segs, seed in (
+            ("real", trial["effects"], trial["profile"], trial["seed"]),
+            ("holdout", trial["effects"], trial["profile_holdout"], trial["seed"] + 1),
+            ("clean", {}, trial["profile"], trial["seed"]),
+        ):
             prof, rig = _write_inputs(d, trial, eff, segs, tag, outside and tag != "clean")
             path = os.path.join(d, f"{tag}.mcap")
             record_profile(prof, path, rig_path=rig, seed=seed, full_log=False, sensors=SENSOR_SPEC)
@@ -92,13 +110,27 @@ def _run_trial(trial: dict) -> dict:
         v_rel = float(np.std(rec.v_dc_v) / np.mean(rec.v_dc_v))
         n = min(rec.n, clean.n)
         d_omega = float(np.sqrt(np.mean((rec.omega_e_rad_s[:n] - clean.omega_e_rad_s[:n]) ** 2)))
-    eff_out = [{k: e.get(k) for k in ("name", "selected", "magnitude", "interval", "closure")} for e in res["effects"]]
-    return {"selected": res["selected"] + [e["name"] for e in res["effects"]
-                                           if e.get("selected") and e["name"] not in res["selected"]],
-            "effects": eff_out, "closure": res["closure"]["closure"],
-            "closure_record": res.get("closure_record", {}).get("closure"),
-            "floor": res["noise_floor_v2"], "d_mse": d_mse, "v_dc_rel": v_rel, "d_omega": d_omega,
-            "verdict": res["verdict"], "ambiguous": res["ambiguous"]}
+    eff_out = [
+        {k: e.get(k) for k in ("name", "selected", "magnitude", "interval", "closure")}
+        for e in res["effects"]
+    ]
+    return {
+        "selected": res["selected"]
+        + [
+            e["name"]
+            for e in res["effects"]
+            if e.get("selected") and e["name"] not in res["selected"]
+        ],
+        "effects": eff_out,
+        "closure": res["closure"]["closure"],
+        "closure_record": res.get("closure_record", {}).get("closure"),
+        "floor": res["noise_floor_v2"],
+        "d_mse": d_mse,
+        "v_dc_rel": v_rel,
+        "d_omega": d_omega,
+        "verdict": res["verdict"],
+        "ambiguous": res["ambiguous"],
+    }
 
 
 def _detectable(trial, out) -> bool:
@@ -134,10 +166,22 @@ def score(trials: list[dict], outs: list[dict]) -> dict:
     clo_rec = [o["closure_record"] for t, o in det + two_det if o.get("closure_record") is not None]
     mag_err, cover, details = [], [], []
     for t, o in zip(trials, outs):
-        details.append({"kind": t["kind"], "truth": {n: true_primary(n, p) for n, p in t["effects"].items()},
-                        "selected": o["selected"], "verdict": o["verdict"], "closure": o["closure"],
-                        "closure_record": o.get("closure_record"), "detectable": _detectable(t, o),
-                        "estimates": {e["name"]: [e["magnitude"], e["interval"]] for e in o["effects"] if e["selected"]}})
+        details.append(
+            {
+                "kind": t["kind"],
+                "truth": {n: true_primary(n, p) for n, p in t["effects"].items()},
+                "selected": o["selected"],
+                "verdict": o["verdict"],
+                "closure": o["closure"],
+                "closure_record": o.get("closure_record"),
+                "detectable": _detectable(t, o),
+                "estimates": {
+                    e["name"]: [e["magnitude"], e["interval"]]
+                    for e in o["effects"]
+                    if e["selected"]
+                },
+            }
+        )
     for t, o in det:
         name = list(t["effects"])[0]
         tv = true_primary(name, t["effects"][name])
@@ -154,25 +198,42 @@ def score(trials: list[dict], outs: list[dict]) -> dict:
     def frac(x):
         return (float(np.mean(x)), len(x)) if x else (None, 0)
 
-    return {"trials": len(trials), "failed_trials": errors,
-            "top1_detectable_single": frac(top1), "single_trials": len(single), "detectable_single": len(det),
-            "both_found_two": frac(both),
-            "false_attribution_null": frac([bool(o["selected"]) for o in null]),
-            "outside_flagged": frac([(not o["selected"]) or "unexplained" in o["verdict"] or "parametric" in o["verdict"]
-                                     for o in outside]),
-            "parametric_flag_on_effect_trials": frac(["parametric" in o["verdict"] for t, o in single + two]),
-            "median_closure_test_blocks": float(np.median(clo)) if clo else None,
-            "median_closure_heldout_record": float(np.median(clo_rec)) if clo_rec else None,
-            "median_magnitude_error": float(np.median(mag_err)) if mag_err else None,
-            "worst_magnitude_error": float(np.max(mag_err)) if mag_err else None,
-            "interval_coverage": frac(cover), "confusion": confusion, "details": details}
+    return {
+        "trials": len(trials),
+        "failed_trials": errors,
+        "top1_detectable_single": frac(top1),
+        "single_trials": len(single),
+        "detectable_single": len(det),
+        "both_found_two": frac(both),
+        "false_attribution_null": frac([bool(o["selected"]) for o in null]),
+        "outside_flagged": frac(
+            [
+                (not o["selected"]) or "unexplained" in o["verdict"] or "parametric" in o["verdict"]
+                for o in outside
+            ]
+        ),
+        "parametric_flag_on_effect_trials": frac(
+            ["parametric" in o["verdict"] for t, o in single + two]
+        ),
+        "median_closure_test_blocks": float(np.median(clo)) if clo else None,
+        "median_closure_heldout_record": float(np.median(clo_rec)) if clo_rec else None,
+        "median_magnitude_error": float(np.median(mag_err)) if mag_err else None,
+        "worst_magnitude_error": float(np.max(mag_err)) if mag_err else None,
+        "interval_coverage": frac(cover),
+        "confusion": confusion,
+        "details": details,
+    }
 
 
-def run_selftest(n_trials: int, seed: int, workers: int | None = None, progress: bool = True) -> dict:
+def run_selftest(
+    n_trials: int, seed: int, workers: int | None = None, progress: bool = True
+) -> dict:
     rng = np.random.default_rng(seed)
     trials = [draw_trial(rng) for _ in range(n_trials)]
-    sealed = json.dumps([{"kind": t["kind"], "effects": t["effects"], "l": t.get("plant_l_scale")} for t in trials],
-                        sort_keys=True).encode()
+    sealed = json.dumps(
+        [{"kind": t["kind"], "effects": t["effects"], "l": t.get("plant_l_scale")} for t in trials],
+        sort_keys=True,
+    ).encode()
     digest = hashlib.sha256(sealed).hexdigest()
     if progress:
         print(f"labels sealed: sha256 {digest}", flush=True)
@@ -180,8 +241,15 @@ def run_selftest(n_trials: int, seed: int, workers: int | None = None, progress:
     with ProcessPoolExecutor(max_workers=workers) as ex:
         outs = list(ex.map(run_trial, trials))
     res = score(trials, outs)
-    res.update({"seed": seed, "labels_sha256": digest, "library": list(LIBRARY),
-                "labels": json.loads(sealed), "answers": [o.get("selected", o.get("error")) for o in outs]})
+    res.update(
+        {
+            "seed": seed,
+            "labels_sha256": digest,
+            "library": list(LIBRARY),
+            "labels": json.loads(sealed),
+            "answers": [o.get("selected", o.get("error")) for o in outs],
+        }
+    )
     return res
 
 
@@ -189,19 +257,30 @@ def print_selftest(res: dict) -> None:
     def f(v):
         return "-" if v[0] is None else f"{v[0]:.0%} of {v[1]}"
 
-    print(f"gap selftest: {res['trials']} trials, seed {res['seed']}, labels sha256 {res['labels_sha256']}")
+    print(
+        f"gap selftest: {res['trials']} trials, seed {res['seed']}, labels sha256 {res['labels_sha256']}"
+    )
     for e in res["failed_trials"]:
         print(f"  failed trial: {e}")
-    print(f"  top-1 on detectable single effects  {f(res['top1_detectable_single'])} "
-          f"({res['detectable_single']} of {res['single_trials']} single trials detectable)")
+    print(
+        f"  top-1 on detectable single effects  {f(res['top1_detectable_single'])} "
+        f"({res['detectable_single']} of {res['single_trials']} single trials detectable)"
+    )
     print(f"  both effects found (two-effect)     {f(res['both_found_two'])}")
     print(f"  false attribution (null trials)     {f(res['false_attribution_null'])}")
     print(f"  outside the library: none selected or 'unexplained'  {f(res['outside_flagged'])}")
-    for k in ("median_closure_test_blocks", "median_closure_heldout_record", "median_magnitude_error",
-              "worst_magnitude_error"):
+    for k in (
+        "median_closure_test_blocks",
+        "median_closure_heldout_record",
+        "median_magnitude_error",
+        "worst_magnitude_error",
+    ):
         v = res[k]
         print(f"  {k.replace('_', ' '):36s} {'-' if v is None else f'{v:.2f}'}")
     print(f"  95 % interval coverage              {f(res['interval_coverage'])}")
     print("  confusion (truth: answers)")
     for t, row in sorted(res["confusion"].items()):
-        print(f"    {t:15s} " + ", ".join(f"{k} {v}" for k, v in sorted(row.items(), key=lambda kv: -kv[1])))
+        print(
+            f"    {t:15s} "
+            + ", ".join(f"{k} {v}" for k, v in sorted(row.items(), key=lambda kv: -kv[1]))
+        )

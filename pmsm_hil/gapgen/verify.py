@@ -3,6 +3,7 @@
 (`rigs/ideal.yaml`) and with the fitted rig; the free-run telemetry of both is compared with the
 log's, smoothed over 5 ms so that sensor noise and switching ripple, which no model reproduces
 sample by sample, do not count (docs/gap.md, "How far")."""
+
 from __future__ import annotations
 
 import os
@@ -31,7 +32,9 @@ def verify(log_path, rig_path, seed: int = 1) -> dict:
     log = read_log(log_path)
     att = {a.name: a.data for a in log.attachments}
     if "profile.yaml" not in att or "motor.yaml" not in att:
-        raise ValueError(f"{log_path}: the log carries no profile.yaml/motor.yaml to re-run (a `pmsm-hil run` log)")
+        raise ValueError(
+            f"{log_path}: the log carries no profile.yaml/motor.yaml to re-run (a `pmsm-hil run` log)"
+        )
     real = log.topic("/pmsm/telemetry")
     if not len(real["t_s"]):
         raise ValueError(f"{log_path}: no /pmsm/telemetry to compare against")
@@ -47,7 +50,10 @@ def verify(log_path, rig_path, seed: int = 1) -> dict:
         with open(prof, "w") as f:
             yaml.safe_dump(spec, f)
         runs = {}
-        for tag, rig in (("nominal", default_file("rigs/ideal.yaml")), ("fitted", os.fspath(rig_path))):
+        for tag, rig in (
+            ("nominal", default_file("rigs/ideal.yaml")),
+            ("fitted", os.fspath(rig_path)),
+        ):
             path = os.path.join(d, f"{tag}.mcap")
             record_profile(prof, path, rig_path=rig, seed=seed, full_log=True)
             runs[tag] = read_log(path).topic("/pmsm/telemetry")
@@ -56,8 +62,11 @@ def verify(log_path, rig_path, seed: int = 1) -> dict:
         ref = _smooth(t, real[s], t)
         e = {tag: _smooth(r["t_s"], r[s], t) - ref for tag, r in runs.items()}
         mb, ma = float(np.mean(e["nominal"] ** 2)), float(np.mean(e["fitted"] ** 2))
-        out["signals"][s] = {"rms_nominal": float(np.sqrt(mb)), "rms_fitted": float(np.sqrt(ma)),
-                             "closure": (mb - ma) / mb if mb > 0 else 0.0}
+        out["signals"][s] = {
+            "rms_nominal": float(np.sqrt(mb)),
+            "rms_fitted": float(np.sqrt(ma)),
+            "closure": (mb - ma) / mb if mb > 0 else 0.0,
+        }
     cl = [v["closure"] for k, v in out["signals"].items() if k != "speed_rpm"]
     out["closure_median"] = float(np.median(cl))
     return out

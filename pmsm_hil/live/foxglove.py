@@ -14,6 +14,7 @@ Messages are JSON with the log's field names (t_s, then the fields of docs/log-f
 channels' JSON schemas are generated from pmsm_hil.log.schemas, so they cannot drift from the log.
 MCAP-style log time: the sink's start (wall clock, ns) + t_s.
 """
+
 from __future__ import annotations
 
 import json
@@ -27,9 +28,14 @@ DEFAULT_PORT = 8765
 HOST = "127.0.0.1"
 LIVE_TOPICS = ("/pmsm/telemetry", "/pmsm/params", "/pmsm/status", "/pmsm/events", "/sim/truth")
 # messages per second per key (topic, or topic + estimator), in device time and in wall time
-RATE_HZ = {"/pmsm/telemetry": 200.0, "/pmsm/params": 50.0, "/sim/truth": 100.0,
-           "/pmsm/status": 20.0, "/pmsm/events": math.inf}
-BURST = 20          # wall-time token bucket depth (messages)
+RATE_HZ = {
+    "/pmsm/telemetry": 200.0,
+    "/pmsm/params": 50.0,
+    "/sim/truth": 100.0,
+    "/pmsm/status": 20.0,
+    "/pmsm/events": math.inf,
+}
+BURST = 20  # wall-time token bucket depth (messages)
 
 _JSON_TYPES = {"string": "string", "bool": "boolean", "float32": "number", "float64": "number"}
 
@@ -45,12 +51,18 @@ def json_schema(topic: str) -> dict:
     for f in td.fields:
         desc = "; ".join(x for x in (f"[{f.unit}]" if f.unit else "", f.doc) if x)
         props[f.name] = {"type": _JSON_TYPES.get(f.type, "integer"), "description": desc}
-    return {"title": td.schema_name, "description": td.doc, "type": "object", "properties": props,
-            "required": list(props)}
+    return {
+        "title": td.schema_name,
+        "description": td.doc,
+        "type": "object",
+        "properties": props,
+        "required": list(props),
+    }
 
 
 class _Gate:
     """Decimation of one key: device-time spacing and a wall-time token bucket."""
+
     __slots__ = ("period_s", "rate", "next_t", "tokens", "wall")
 
     def __init__(self, rate_hz: float):
@@ -78,7 +90,7 @@ class _Gate:
 def _plain(v):
     if isinstance(v, float):
         return v if math.isfinite(v) else None
-    if hasattr(v, "item"):            # numpy scalars
+    if hasattr(v, "item"):  # numpy scalars
         return _plain(v.item())
     return v
 
@@ -89,7 +101,7 @@ class FoxgloveSink:
     def __init__(self, port: int = DEFAULT_PORT, name: str = "pmsm-hil", rates: dict | None = None):
         try:
             import foxglove
-        except ImportError as e:      # a broken install: say what is missing
+        except ImportError as e:  # a broken install: say what is missing
             raise FoxgloveError(f"--foxglove needs the foxglove-sdk package ({e})") from None
         if not 0 <= port <= 65535:
             raise FoxgloveError(f"--foxglove {port}: not a TCP port (0..65535; 0 picks a free one)")
@@ -97,16 +109,24 @@ class FoxgloveSink:
         try:
             self._server = foxglove.start_server(name=name, host=HOST, port=port, context=self._ctx)
         except (RuntimeError, OSError, OverflowError, ValueError) as e:
-            raise FoxgloveError(f"--foxglove {port}: cannot listen on {HOST}:{port} ({e})") from None
+            raise FoxgloveError(
+                f"--foxglove {port}: cannot listen on {HOST}:{port} ({e})"
+            ) from None
         self.port = self._server.port
         self.rates = dict(RATE_HZ, **(rates or {}))
         self._channels = {}
         for topic in LIVE_TOPICS:
             sch = json_schema(topic)
             self._channels[topic] = foxglove.Channel(
-                topic, context=self._ctx, message_encoding="json",
-                schema=foxglove.Schema(name=TOPICS[topic].schema_name, encoding="jsonschema",
-                                       data=json.dumps(sch).encode()))
+                topic,
+                context=self._ctx,
+                message_encoding="json",
+                schema=foxglove.Schema(
+                    name=TOPICS[topic].schema_name,
+                    encoding="jsonschema",
+                    data=json.dumps(sch).encode(),
+                ),
+            )
         self._gates: dict[str, _Gate] = {}
         self._t0_ns = time.time_ns()
         self.published = 0
@@ -137,8 +157,10 @@ class FoxgloveSink:
             msg = {"t_s": t_s}
             for k, v in fields.items():
                 msg[k] = _plain(v)
-            ch.log(json.dumps(msg, allow_nan=False).encode(),
-                   log_time=self._t0_ns + int(round(t_s * 1e9)))
+            ch.log(
+                json.dumps(msg, allow_nan=False).encode(),
+                log_time=self._t0_ns + int(round(t_s * 1e9)),
+            )
             self.published += 1
         except Exception as e:  # the live view must never end a run
             self._broken = True

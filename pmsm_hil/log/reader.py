@@ -15,6 +15,7 @@ kept here is what its readers cannot do fast enough (docs/log-format.md, "Readin
 benchmarks/log_reader.py): the walk over the top-level records without materialising every
 message-index entry, and the numpy gather and decode of the messages through the chunks' indexes.
 """
+
 from __future__ import annotations
 
 import io
@@ -29,7 +30,7 @@ from mcap import records as mr
 from mcap.data_stream import ReadDataStream
 from mcap.stream_reader import get_chunk_data_stream
 
-from pmsm_hil.log.schemas import (PRIMITIVES, TOPICS, Codec, FieldDef, TopicDef, codec_for)
+from pmsm_hil.log.schemas import PRIMITIVES, TOPICS, Codec, FieldDef, TopicDef, codec_for
 from pmsm_hil.log.writer import MCAP_MAGIC
 
 __all__ = ["read_log", "rewrite_log", "Log", "Attachment", "LogFormatError"]
@@ -69,9 +70,9 @@ class _Chan:
     schema_id: int
     encoding: str
     metadata: dict
-    lts: list = field(default_factory=list)         # arrays of log times (uint64)
+    lts: list = field(default_factory=list)  # arrays of log times (uint64)
     fixed_blocks: list = field(default_factory=list)  # 2-D uint8 arrays (n, size): fixed layout
-    var_data: list = field(default_factory=list)    # bytes per message: other layouts
+    var_data: list = field(default_factory=list)  # bytes per message: other layouts
     count: int = 0
 
 
@@ -95,9 +96,9 @@ def _flat_topicdef(topic: str, schema: _Schema) -> TopicDef | None:
         line = line.split("#", 1)[0].strip()
         if not line:
             continue
-        if line.startswith("="):     # a dependency section follows: not flat
+        if line.startswith("="):  # a dependency section follows: not flat
             return None
-        if "=" in line:              # a constant: not part of the data
+        if "=" in line:  # a constant: not part of the data
             continue
         m = _MSG_LINE.match(line)
         if not m:
@@ -120,8 +121,8 @@ class Log:
         self.library = ""
         self.metadata: dict[str, dict[str, str]] = {}
         self.attachments: list[Attachment] = []
-        self.finalised = False      # summary and footer present
-        self.truncated = False      # the file ends inside a record
+        self.finalised = False  # summary and footer present
+        self.truncated = False  # the file ends inside a record
         self.problems: list[str] = []
         self._schemas: dict[int, _Schema] = {}
         self._chans: dict[int, _Chan] = {}
@@ -132,7 +133,9 @@ class Log:
 
     def __repr__(self) -> str:
         counts = ", ".join(f"{t}: {n}" for t, n in self.counts.items())
-        state = "finalised" if self.finalised else ("truncated" if self.truncated else "not finalised")
+        state = (
+            "finalised" if self.finalised else ("truncated" if self.truncated else "not finalised")
+        )
         return f"Log({self.path!r}, {state}, {counts})"
 
     # ------------------------------------------------------------------ queries
@@ -173,7 +176,9 @@ class Log:
         if ch is None:
             if name in TOPICS:
                 return codec_for(name).empty()
-            raise KeyError(f"{self.path}: no topic {name!r} (topics: {', '.join(self.topics) or 'none'})")
+            raise KeyError(
+                f"{self.path}: no topic {name!r} (topics: {', '.join(self.topics) or 'none'})"
+            )
         cols, lt = self._decode(ch)
         if len(lt) > 1 and np.any(np.diff(lt.astype(np.int64)) < 0):
             order = np.argsort(lt, kind="stable")
@@ -190,7 +195,11 @@ class Log:
         s = self._schemas.get(ch.schema_id)
         if ch.encoding == "cdr" and s is not None:
             ours = TOPICS.get(ch.topic)
-            if ours is not None and s.name == ours.schema_name and s.data.decode("utf-8", "replace") == ours.msgdef:
+            if (
+                ours is not None
+                and s.name == ours.schema_name
+                and s.data.decode("utf-8", "replace") == ours.msgdef
+            ):
                 codec = codec_for(ch.topic)
             else:
                 td = _flat_topicdef(ch.topic, s)
@@ -204,15 +213,21 @@ class Log:
         codec = self._codec(ch)
         if codec is not None and codec.fixed:
             blocks = list(ch.fixed_blocks)
-            if ch.var_data:   # then fixed_blocks is empty (see _Parser._add_var)
+            if ch.var_data:  # then fixed_blocks is empty (see _Parser._add_var)
                 if any(len(d) != codec.size for d in ch.var_data):
-                    raise ValueError(f"{self.path}: {ch.topic}: messages of the wrong size for "
-                                     f"{codec.topic.schema_name}")
-                blocks.append(np.frombuffer(b"".join(ch.var_data), dtype=np.uint8).reshape(-1, codec.size))
+                    raise ValueError(
+                        f"{self.path}: {ch.topic}: messages of the wrong size for "
+                        f"{codec.topic.schema_name}"
+                    )
+                blocks.append(
+                    np.frombuffer(b"".join(ch.var_data), dtype=np.uint8).reshape(-1, codec.size)
+                )
             buf = np.concatenate(blocks) if blocks else np.empty((0, codec.size), np.uint8)
             if buf.shape[1] != codec.size:
-                raise ValueError(f"{self.path}: {ch.topic}: message size {buf.shape[1]} does not match "
-                                 f"the schema ({codec.size})")
+                raise ValueError(
+                    f"{self.path}: {ch.topic}: message size {buf.shape[1]} does not match "
+                    f"the schema ({codec.size})"
+                )
             return codec.decode_columns(buf.tobytes(), len(buf)), lt
         datas = ch.var_data + [bytes(r) for b in ch.fixed_blocks for r in b]
         if codec is not None:
@@ -227,9 +242,13 @@ class Log:
         s = self._schemas.get(ch.schema_id)
         if s is None:
             raise KeyError(f"{self.path}: {ch.topic} has no schema")
-        dec = DecoderFactory().decoder_for(ch.encoding, Schema(id=s.id, name=s.name, encoding=s.encoding, data=s.data))
+        dec = DecoderFactory().decoder_for(
+            ch.encoding, Schema(id=s.id, name=s.name, encoding=s.encoding, data=s.data)
+        )
         if dec is None:
-            raise ValueError(f"{self.path}: {ch.topic}: cannot decode {ch.encoding} / {s.encoding} messages")
+            raise ValueError(
+                f"{self.path}: {ch.topic}: cannot decode {ch.encoding} / {s.encoding} messages"
+            )
         msgs = [dec(d) for d in datas]
         if not msgs:
             return {}
@@ -246,6 +265,7 @@ class Log:
 
 
 # ----------------------------------------------------------------------------------- parsing
+
 
 class _Parser:
     def __init__(self, log: Log, buf: bytes):
@@ -271,7 +291,7 @@ class _Parser:
             raise LogFormatError(f"{log.path}: not an MCAP file (bad magic)")
         n = len(buf)
         p = len(MCAP_MAGIC)
-        pending: tuple | None = None        # (chunk records, {channel: index array}) awaiting indexes
+        pending: tuple | None = None  # (chunk records, {channel: index array}) awaiting indexes
         while True:
             if p + 9 > n:
                 if p < n:
@@ -282,11 +302,11 @@ class _Parser:
             if end > n:
                 log.truncated = True
                 break
-            c = mv[p + 9:end]
-            if op == 0x07 and pending is not None:          # message index of the pending chunk
+            c = mv[p + 9 : end]
+            if op == 0x07 and pending is not None:  # message index of the pending chunk
                 (cid,) = _U16(c, 0)
                 (ln,) = _U32(c, 2)
-                pending[1][cid] = np.frombuffer(c[6:6 + ln], dtype="<u8").reshape(-1, 2)
+                pending[1][cid] = np.frombuffer(c[6 : 6 + ln], dtype="<u8").reshape(-1, 2)
                 p = end
                 continue
             if pending is not None:
@@ -309,7 +329,7 @@ class _Parser:
                 log.metadata.setdefault(r.name, {}).update(r.metadata)
             elif op == 0x09:
                 self._attachment(c)
-            elif op == 0x0F:                                  # data end: the summary follows
+            elif op == 0x0F:  # data end: the summary follows
                 log.finalised = self._has_footer()
                 break
             p = end
@@ -323,17 +343,21 @@ class _Parser:
         return buf[-8 - 29] == 0x02
 
     def _attachment(self, c: memoryview) -> None:
-        r = _read(mr.Attachment, c)             # the library skips the CRC: checked here
+        r = _read(mr.Attachment, c)  # the library skips the CRC: checked here
         (crc,) = _U32(c, len(c) - 4)
-        if crc and crc != zlib.crc32(c[:len(c) - 4]):
+        if crc and crc != zlib.crc32(c[: len(c) - 4]):
             self.log.problems.append(f"attachment {r.name!r}: CRC mismatch")
-        self.log.attachments.append(Attachment(r.name, r.media_type, bytes(r.data), r.log_time, r.create_time))
+        self.log.attachments.append(
+            Attachment(r.name, r.media_type, bytes(r.data), r.log_time, r.create_time)
+        )
 
     def _open_chunk(self, c: memoryview) -> bytes | None:
         try:
             chunk = _read(mr.Chunk, c)
             if chunk.compression not in ("", "zstd", "lz4"):
-                self.log.problems.append(f"chunk with unknown compression {chunk.compression!r} skipped")
+                self.log.problems.append(
+                    f"chunk with unknown compression {chunk.compression!r} skipped"
+                )
                 return None
             stream, n = get_chunk_data_stream(chunk, validate_crc=True)
             records = stream.read(n)
@@ -378,11 +402,11 @@ class _Parser:
                 if lst is None:
                     lst = per[cid] = ([], [])
                 lst[0].append(lt)
-                lst[1].append(d[p + 31:e])
+                lst[1].append(d[p + 31 : e])
             elif op == 0x03:
-                self._schema(mv[p + 9:e])
+                self._schema(mv[p + 9 : e])
             elif op == 0x04:
-                self._channel(mv[p + 9:e])
+                self._channel(mv[p + 9 : e])
             p = e
         for cid, (lts, datas) in per.items():
             ch = self.log._chans.get(cid)
@@ -392,7 +416,9 @@ class _Parser:
             ch.lts.append(np.array(lts, dtype=np.uint64))
             codec = self.log._codec(ch)
             if codec is not None and codec.fixed and all(len(x) == codec.size for x in datas):
-                self._add_fixed(ch, np.frombuffer(b"".join(datas), np.uint8).reshape(-1, codec.size))
+                self._add_fixed(
+                    ch, np.frombuffer(b"".join(datas), np.uint8).reshape(-1, codec.size)
+                )
             else:
                 self._add_var(ch, datas)
             ch.count += len(lts)
@@ -429,7 +455,13 @@ class _Parser:
             offs = idx[:, 1].astype(np.int64)
             if offs.min() < 0 or offs.max() + 31 > n:
                 return False
-            lens = arr[offs[:, None] + 1 + np.arange(8)].copy().view("<u8").reshape(-1).astype(np.int64)
+            lens = (
+                arr[offs[:, None] + 1 + np.arange(8)]
+                .copy()
+                .view("<u8")
+                .reshape(-1)
+                .astype(np.int64)
+            )
             ops = arr[offs]
             cids = arr[offs[:, None] + 9 + np.arange(2)].copy().view("<u2").reshape(-1)
             if np.any(ops != 0x05) or np.any(cids != cid) or np.any(offs + 9 + lens > n):
@@ -446,7 +478,11 @@ class _Parser:
         if np.any(starts[1:] < ends[:-1]):
             return False
         holes = np.nonzero(starts[1:] != ends[:-1])[0]
-        edges = [(0, int(starts[0]))] + [(int(ends[i]), int(starts[i + 1])) for i in holes] + [(int(ends[-1]), n)]
+        edges = (
+            [(0, int(starts[0]))]
+            + [(int(ends[i]), int(starts[i + 1])) for i in holes]
+            + [(int(ends[-1]), n)]
+        )
         for a, b in edges:
             if a == b:
                 continue
@@ -462,9 +498,9 @@ class _Parser:
         mv = memoryview(d)
         for op, a, b in gaps:
             if op == 0x03:
-                self._schema(mv[a + 9:b])
+                self._schema(mv[a + 9 : b])
             elif op == 0x04:
-                self._channel(mv[a + 9:b])
+                self._channel(mv[a + 9 : b])
         for ch, idx, offs, lens in plans:
             ch.lts.append(idx[:, 0].astype(np.uint64))
             codec = self.log._codec(ch)
@@ -472,7 +508,9 @@ class _Parser:
             if codec is not None and codec.fixed and np.all(lens == lens[0]) and size == codec.size:
                 self._add_fixed(ch, arr[offs[:, None] + 31 + np.arange(size)])
             else:
-                self._add_var(ch, [d[o + 31:o + 9 + ln] for o, ln in zip(offs.tolist(), lens.tolist())])
+                self._add_var(
+                    ch, [d[o + 31 : o + 9 + ln] for o, ln in zip(offs.tolist(), lens.tolist())]
+                )
             ch.count += len(offs)
         return True
 

@@ -7,6 +7,7 @@ logs without project code; this module encodes and decodes them fast because it 
 
 docs/log-format.md documents every topic and field.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -16,17 +17,40 @@ from typing import Any, Iterable, Sequence
 
 import numpy as np
 
-__all__ = ["FieldDef", "TopicDef", "Codec", "TOPICS", "DEVICE_TOPICS", "HOST_TOPICS",
-           "LOG_FORMAT_VERSION", "SCHEMA_ENCODING", "MESSAGE_ENCODING", "schema_hash", "codec_for",
-           "EVENT_KINDS", "ESTIMATORS", "PRIMITIVES"]
+__all__ = [
+    "FieldDef",
+    "TopicDef",
+    "Codec",
+    "TOPICS",
+    "DEVICE_TOPICS",
+    "HOST_TOPICS",
+    "LOG_FORMAT_VERSION",
+    "SCHEMA_ENCODING",
+    "MESSAGE_ENCODING",
+    "schema_hash",
+    "codec_for",
+    "EVENT_KINDS",
+    "ESTIMATORS",
+    "PRIMITIVES",
+]
 
 LOG_FORMAT_VERSION = 1
 SCHEMA_ENCODING = "ros2msg"
 MESSAGE_ENCODING = "cdr"
 CDR_LE_HEADER = b"\x00\x01\x00\x00"  # encapsulation kind CDR_LE, options 0
 
-EVENT_KINDS = ("segment_start", "fault", "profile_done", "heartbeat_lost", "warning",
-               "capture_triggered", "stopped", "started", "link", "host")
+EVENT_KINDS = (
+    "segment_start",
+    "fault",
+    "profile_done",
+    "heartbeat_lost",
+    "warning",
+    "capture_triggered",
+    "stopped",
+    "started",
+    "link",
+    "host",
+)
 ESTIMATORS = ("nominal", "rls", "adaline", "nlms_adaline")
 
 # ros2msg type -> (struct code, size = alignment, numpy dtype, default value for a missing field)
@@ -48,7 +72,7 @@ PRIMITIVES: dict[str, tuple[str, int, str, Any]] = {
 @dataclass(frozen=True)
 class FieldDef:
     name: str
-    type: str          # a ros2msg primitive type or "string"
+    type: str  # a ros2msg primitive type or "string"
     unit: str = ""
     doc: str = ""
 
@@ -64,7 +88,7 @@ class TopicDef:
     fields: tuple[FieldDef, ...]
     rate: str = ""
     doc: str = ""
-    deterministic: bool = True   # same profile, rig and seed -> same values
+    deterministic: bool = True  # same profile, rig and seed -> same values
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -86,92 +110,173 @@ def _f(name: str, unit: str = "", doc: str = "", type: str = "float64") -> Field
 
 T = _f("t_s", "s", "device time: control periods since start x ts_s")
 
-TOPICS: dict[str, TopicDef] = {t.topic: t for t in (
-    TopicDef("/pmsm/telemetry", "pmsm_hil/msg/Telemetry", (
-        T,
-        _f("speed_ref_rpm", "r/min", "speed reference (after the profile's ramp)"),
-        _f("speed_rpm", "r/min", "encoder speed (truth when an encoder is fitted)"),
-        _f("speed_est_rpm", "r/min", "speed the firmware uses (encoder until a sensorless estimator runs)"),
-        _f("theta_e_rad", "rad", "electrical angle from the encoder, 0..2pi"),
-        _f("theta_e_est_rad", "rad", "electrical angle the firmware uses, 0..2pi"),
-        _f("i_d_a", "A", "measured d-axis current"),
-        _f("i_q_a", "A", "measured q-axis current"),
-        _f("i_d_ref_a", "A", "d-axis current reference"),
-        _f("i_q_ref_a", "A", "q-axis current reference"),
-        _f("u_d_v", "V", "applied d-axis voltage (as commanded)"),
-        _f("u_q_v", "V", "applied q-axis voltage (as commanded)"),
-        _f("load_nm", "N m", "load torque commanded by the profile"),
-    ), "telemetry.fast_hz (<= 2 kHz)", "fast telemetry frame"),
-    TopicDef("/pmsm/params", "pmsm_hil/msg/Params", (
-        T,
-        _f("estimator", "", "nominal, rls, adaline or nlms_adaline", "string"),
-        _f("l_d_h", "H", "estimated d-axis inductance"),
-        _f("l_q_h", "H", "estimated q-axis inductance"),
-        _f("psi_f_wb", "Wb", "estimated permanent-magnet flux linkage"),
-        _f("r_s_ohm", "ohm", "estimated stator resistance"),
-        _f("excited", "", "the operating point excites the estimator", "bool"),
-        _f("converged", "", "the estimate has settled", "bool"),
-        _f("feeds_predictor", "", "this estimator's values feed the MPCC predictor", "bool"),
-    ), "telemetry.params_hz (~100 Hz) per estimator", "identified motor parameters"),
-    TopicDef("/pmsm/capture", "pmsm_hil/msg/Capture", (
-        T,
-        _f("i_a_a", "A", "phase a current sample"),
-        _f("i_b_a", "A", "phase b current sample"),
-        _f("i_c_a", "A", "phase c current sample"),
-        _f("s_a", "", "switch state of leg a applied over the period (1 = upper on)", "uint8"),
-        _f("s_b", "", "switch state of leg b", "uint8"),
-        _f("s_c", "", "switch state of leg c", "uint8"),
-        _f("v_dc_v", "V", "DC-link voltage"),
-        _f("theta_e_rad", "rad", "electrical angle (encoder)"),
-        _f("omega_e_rad_s", "rad/s", "electrical angular speed"),
-    ), "1/ts_s in bursts (uploaded after the run)", "control-rate capture"),
-    TopicDef("/pmsm/status", "pmsm_hil/msg/Status", (
-        T,
-        _f("state", "", "idle, running, stopping, fault or done", "string"),
-        _f("segment", "", "index of the running profile segment", "int32"),
-        _f("faults", "", "fault bits: 1 over_current, 2 over_speed, 4 dc_under_voltage, "
-                         "8 dc_over_voltage, 16 heartbeat", "uint16"),
-        _f("v_dc_v", "V", "measured DC-link voltage"),
-        _f("tx_dropped", "", "frames the device dropped because its TX buffer was full", "uint32"),
-        _f("rx_bad", "", "frames the device rejected (CRC, COBS, length)", "uint32"),
-        _f("rx_frames", "", "frames the device received", "uint32"),
-        _f("hb_age_ms", "ms", "age of the last heartbeat", "uint16"),
-        _f("capture_count", "", "samples held in the capture buffer", "uint16"),
-    ), "telemetry.status_hz (10 Hz)", "device state and link counters", deterministic=False),
-    TopicDef("/pmsm/events", "pmsm_hil/msg/Event", (
-        T,
-        _f("kind", "", ", ".join(EVENT_KINDS[:-1]) + " or " + EVENT_KINDS[-1], "string"),
-        _f("code", "", "device event code (firmware/proto/pmsm_proto.yaml enum event), 0 for host events",
-           "int32"),
-        _f("arg", "", "segment index, fault bits, heartbeat age in ms, warning code, ...", "int32"),
-        _f("text", "", "human-readable description", "string"),
-    ), "on change", "segment changes, faults, warnings, link and host events"),
-    TopicDef("/sim/truth", "pmsm_hil/msg/SimTruth", (
-        T,
-        _f("l_d_h", "H", "true d-axis inductance of the plant"),
-        _f("l_q_h", "H", "true q-axis inductance"),
-        _f("psi_f_wb", "Wb", "true flux linkage"),
-        _f("r_s_ohm", "ohm", "true stator resistance"),
-        _f("theta_e_rad", "rad", "true electrical angle"),
-        _f("speed_rpm", "r/min", "true mechanical speed"),
-        _f("torque_nm", "N m", "electromagnetic torque"),
-        _f("temp_winding_c", "degC", "winding temperature"),
-        _f("temp_magnet_c", "degC", "magnet temperature"),
-        _f("effects", "", "bit mask of the rig effects that are on (pmsm_hil.profiles.EFFECT_BITS)", "uint32"),
-    ), "telemetry.truth_hz (emulator only)", "the emulated plant's true state"),
-    TopicDef("/host/link", "pmsm_hil/msg/HostLink", (
-        T,
-        _f("wall_s", "s", "host wall-clock seconds since the run started"),
-        _f("frames_ok", "", "frames decoded", "uint32"),
-        _f("crc_errors", "", "frames with a bad CRC", "uint32"),
-        _f("cobs_errors", "", "frames with bad COBS", "uint32"),
-        _f("len_errors", "", "frames of the wrong length", "uint32"),
-        _f("unknown_id", "", "frames with an unknown id", "uint32"),
-        _f("octets", "", "octets received", "uint32"),
-        _f("seq_gaps", "", "gaps in the frame sequence numbers", "uint32"),
-    ), "host side, about 1 Hz and at the end", "host-side link statistics (wall-clock based)",
-        deterministic=False),
-)}
+TOPICS: dict[str, TopicDef] = {
+    t.topic: t
+    for t in (
+        TopicDef(
+            "/pmsm/telemetry",
+            "pmsm_hil/msg/Telemetry",
+            (
+                T,
+                _f("speed_ref_rpm", "r/min", "speed reference (after the profile's ramp)"),
+                _f("speed_rpm", "r/min", "encoder speed (truth when an encoder is fitted)"),
+                _f(
+                    "speed_est_rpm",
+                    "r/min",
+                    "speed the firmware uses (encoder until a sensorless estimator runs)",
+                ),
+                _f("theta_e_rad", "rad", "electrical angle from the encoder, 0..2pi"),
+                _f("theta_e_est_rad", "rad", "electrical angle the firmware uses, 0..2pi"),
+                _f("i_d_a", "A", "measured d-axis current"),
+                _f("i_q_a", "A", "measured q-axis current"),
+                _f("i_d_ref_a", "A", "d-axis current reference"),
+                _f("i_q_ref_a", "A", "q-axis current reference"),
+                _f("u_d_v", "V", "applied d-axis voltage (as commanded)"),
+                _f("u_q_v", "V", "applied q-axis voltage (as commanded)"),
+                _f("load_nm", "N m", "load torque commanded by the profile"),
+            ),
+            "telemetry.fast_hz (<= 2 kHz)",
+            "fast telemetry frame",
+        ),
+        TopicDef(
+            "/pmsm/params",
+            "pmsm_hil/msg/Params",
+            (
+                T,
+                _f("estimator", "", "nominal, rls, adaline or nlms_adaline", "string"),
+                _f("l_d_h", "H", "estimated d-axis inductance"),
+                _f("l_q_h", "H", "estimated q-axis inductance"),
+                _f("psi_f_wb", "Wb", "estimated permanent-magnet flux linkage"),
+                _f("r_s_ohm", "ohm", "estimated stator resistance"),
+                _f("excited", "", "the operating point excites the estimator", "bool"),
+                _f("converged", "", "the estimate has settled", "bool"),
+                _f(
+                    "feeds_predictor", "", "this estimator's values feed the MPCC predictor", "bool"
+                ),
+            ),
+            "telemetry.params_hz (~100 Hz) per estimator",
+            "identified motor parameters",
+        ),
+        TopicDef(
+            "/pmsm/capture",
+            "pmsm_hil/msg/Capture",
+            (
+                T,
+                _f("i_a_a", "A", "phase a current sample"),
+                _f("i_b_a", "A", "phase b current sample"),
+                _f("i_c_a", "A", "phase c current sample"),
+                _f(
+                    "s_a",
+                    "",
+                    "switch state of leg a applied over the period (1 = upper on)",
+                    "uint8",
+                ),
+                _f("s_b", "", "switch state of leg b", "uint8"),
+                _f("s_c", "", "switch state of leg c", "uint8"),
+                _f("v_dc_v", "V", "DC-link voltage"),
+                _f("theta_e_rad", "rad", "electrical angle (encoder)"),
+                _f("omega_e_rad_s", "rad/s", "electrical angular speed"),
+            ),
+            "1/ts_s in bursts (uploaded after the run)",
+            "control-rate capture",
+        ),
+        TopicDef(
+            "/pmsm/status",
+            "pmsm_hil/msg/Status",
+            (
+                T,
+                _f("state", "", "idle, running, stopping, fault or done", "string"),
+                _f("segment", "", "index of the running profile segment", "int32"),
+                _f(
+                    "faults",
+                    "",
+                    "fault bits: 1 over_current, 2 over_speed, 4 dc_under_voltage, "
+                    "8 dc_over_voltage, 16 heartbeat",
+                    "uint16",
+                ),
+                _f("v_dc_v", "V", "measured DC-link voltage"),
+                _f(
+                    "tx_dropped",
+                    "",
+                    "frames the device dropped because its TX buffer was full",
+                    "uint32",
+                ),
+                _f("rx_bad", "", "frames the device rejected (CRC, COBS, length)", "uint32"),
+                _f("rx_frames", "", "frames the device received", "uint32"),
+                _f("hb_age_ms", "ms", "age of the last heartbeat", "uint16"),
+                _f("capture_count", "", "samples held in the capture buffer", "uint16"),
+            ),
+            "telemetry.status_hz (10 Hz)",
+            "device state and link counters",
+            deterministic=False,
+        ),
+        TopicDef(
+            "/pmsm/events",
+            "pmsm_hil/msg/Event",
+            (
+                T,
+                _f("kind", "", ", ".join(EVENT_KINDS[:-1]) + " or " + EVENT_KINDS[-1], "string"),
+                _f(
+                    "code",
+                    "",
+                    "device event code (firmware/proto/pmsm_proto.yaml enum event), 0 for host events",
+                    "int32",
+                ),
+                _f(
+                    "arg",
+                    "",
+                    "segment index, fault bits, heartbeat age in ms, warning code, ...",
+                    "int32",
+                ),
+                _f("text", "", "human-readable description", "string"),
+            ),
+            "on change",
+            "segment changes, faults, warnings, link and host events",
+        ),
+        TopicDef(
+            "/sim/truth",
+            "pmsm_hil/msg/SimTruth",
+            (
+                T,
+                _f("l_d_h", "H", "true d-axis inductance of the plant"),
+                _f("l_q_h", "H", "true q-axis inductance"),
+                _f("psi_f_wb", "Wb", "true flux linkage"),
+                _f("r_s_ohm", "ohm", "true stator resistance"),
+                _f("theta_e_rad", "rad", "true electrical angle"),
+                _f("speed_rpm", "r/min", "true mechanical speed"),
+                _f("torque_nm", "N m", "electromagnetic torque"),
+                _f("temp_winding_c", "degC", "winding temperature"),
+                _f("temp_magnet_c", "degC", "magnet temperature"),
+                _f(
+                    "effects",
+                    "",
+                    "bit mask of the rig effects that are on (pmsm_hil.profiles.EFFECT_BITS)",
+                    "uint32",
+                ),
+            ),
+            "telemetry.truth_hz (emulator only)",
+            "the emulated plant's true state",
+        ),
+        TopicDef(
+            "/host/link",
+            "pmsm_hil/msg/HostLink",
+            (
+                T,
+                _f("wall_s", "s", "host wall-clock seconds since the run started"),
+                _f("frames_ok", "", "frames decoded", "uint32"),
+                _f("crc_errors", "", "frames with a bad CRC", "uint32"),
+                _f("cobs_errors", "", "frames with bad COBS", "uint32"),
+                _f("len_errors", "", "frames of the wrong length", "uint32"),
+                _f("unknown_id", "", "frames with an unknown id", "uint32"),
+                _f("octets", "", "octets received", "uint32"),
+                _f("seq_gaps", "", "gaps in the frame sequence numbers", "uint32"),
+            ),
+            "host side, about 1 Hz and at the end",
+            "host-side link statistics (wall-clock based)",
+            deterministic=False,
+        ),
+    )
+}
 
 DEVICE_TOPICS = tuple(t for t in TOPICS if not t.startswith("/host/"))
 HOST_TOPICS = tuple(t for t in TOPICS if t.startswith("/host/"))
@@ -186,6 +291,7 @@ def schema_hash(topics: Iterable[TopicDef] | None = None) -> str:
 
 
 # ----------------------------------------------------------------------------------- CDR codec
+
 
 def _run_struct(fields: Sequence[FieldDef], start_mod8: int) -> tuple[struct.Struct, int]:
     """Struct for a run of primitive fields starting at CDR offset = start_mod8 (mod 8)."""
@@ -228,8 +334,8 @@ class Codec:
             self.plan.append(("run", len(run), [_run_struct(run, m) for m in range(8)]))
         if self.fixed:
             body, size = _run_struct(self.fields, 0)
-            self.body_format = body.format[1:]   # without "<"
-            self.size = 4 + size                 # data size incl. the encapsulation header
+            self.body_format = body.format[1:]  # without "<"
+            self.size = 4 + size  # data size incl. the encapsulation header
             self.data_struct = struct.Struct("<4s" + self.body_format)
             # numpy layout of the data (header + fields at their CDR offsets)
             names, formats, offsets = [], [], []
@@ -241,8 +347,9 @@ class Codec:
                 formats.append(dt)
                 offsets.append(4 + off)
                 off += sz
-            self.dtype = np.dtype({"names": names, "formats": formats, "offsets": offsets,
-                                   "itemsize": self.size})
+            self.dtype = np.dtype(
+                {"names": names, "formats": formats, "offsets": offsets, "itemsize": self.size}
+            )
         else:
             self.body_format = None
             self.size = None
@@ -260,12 +367,14 @@ class Codec:
         for kind, n, structs in self.plan:
             if kind == "run":
                 st, size = structs[off & 7]
-                parts.append(st.pack(*values[i:i + n]))
+                parts.append(st.pack(*values[i : i + n]))
                 off += size
             else:
                 v = values[i]
                 if not isinstance(v, str):
-                    raise TypeError(f"{self.topic.topic}.{self.names[i]}: expected text, got {type(v).__name__}")
+                    raise TypeError(
+                        f"{self.topic.topic}.{self.names[i]}: expected text, got {type(v).__name__}"
+                    )
                 b = v.encode("utf-8")
                 pad = (-off) & 3
                 parts.append(b"\0" * pad + struct.pack("<I", len(b) + 1) + b + b"\0")
@@ -277,7 +386,9 @@ class Codec:
     def decode(self, data: bytes | memoryview) -> tuple:
         """Values in field order from one message's CDR data."""
         if data[:2] != b"\x00\x01":
-            raise ValueError(f"{self.topic.topic}: not little-endian CDR (header {bytes(data[:4])!r})")
+            raise ValueError(
+                f"{self.topic.topic}: not little-endian CDR (header {bytes(data[:4])!r})"
+            )
         if self.fixed:
             return self.data_struct.unpack_from(data, 0)[1:]
         out: list[Any] = []
@@ -291,12 +402,16 @@ class Codec:
                 off += (-off) & 3
                 (length,) = struct.unpack_from("<I", data, 4 + off)
                 off += 4
-                raw = bytes(data[4 + off:4 + off + length])
-                out.append(raw[:-1].decode("utf-8") if length > 1 else (raw.rstrip(b"\0").decode("utf-8")))
+                raw = bytes(data[4 + off : 4 + off + length])
+                out.append(
+                    raw[:-1].decode("utf-8") if length > 1 else (raw.rstrip(b"\0").decode("utf-8"))
+                )
                 off += length
         return tuple(out)
 
-    def decode_columns(self, buf: bytes, count: int, sizes: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    def decode_columns(
+        self, buf: bytes, count: int, sizes: np.ndarray | None = None
+    ) -> dict[str, np.ndarray]:
         """Columns from ``count`` messages' data concatenated in ``buf`` (``sizes`` per message
         when the layout is variable)."""
         if self.fixed:
@@ -307,9 +422,9 @@ class Codec:
         rows = []
         mv = memoryview(buf)
         pos = 0
-        for sz in (sizes if sizes is not None else ()):
+        for sz in sizes if sizes is not None else ():
             sz = int(sz)
-            rows.append(self.decode(mv[pos:pos + sz]))
+            rows.append(self.decode(mv[pos : pos + sz]))
             pos += sz
         return self.columns_from_rows(rows)
 
@@ -323,13 +438,19 @@ class Codec:
                 cols[f.name] = a
             else:
                 cols[f.name] = np.array(vals, dtype=PRIMITIVES[f.type][2]).astype(
-                    np.dtype(PRIMITIVES[f.type][2]).newbyteorder("="))
+                    np.dtype(PRIMITIVES[f.type][2]).newbyteorder("=")
+                )
         return cols
 
     def empty(self) -> dict[str, np.ndarray]:
-        return {f.name: (np.empty(0, dtype=object) if f.type == "string"
-                         else np.empty(0, dtype=np.dtype(PRIMITIVES[f.type][2]).newbyteorder("=")))
-                for f in self.fields}
+        return {
+            f.name: (
+                np.empty(0, dtype=object)
+                if f.type == "string"
+                else np.empty(0, dtype=np.dtype(PRIMITIVES[f.type][2]).newbyteorder("="))
+            )
+            for f in self.fields
+        }
 
 
 _CODECS: dict[str, Codec] = {}

@@ -16,6 +16,7 @@
   recovers such unfinalised files. ``close()`` is idempotent and may be called from ``finally``
   or a signal handler; SIGINT/SIGTERM are held back while a chunk is being written.
 """
+
 from __future__ import annotations
 
 import atexit
@@ -32,16 +33,25 @@ import numpy as np
 from mcap.writer import CompressionType, Writer
 
 from pmsm_hil import __version__
-from pmsm_hil.log.schemas import (LOG_FORMAT_VERSION, MESSAGE_ENCODING, PRIMITIVES, SCHEMA_ENCODING,
-                                  TOPICS, Codec, TopicDef, codec_for, schema_hash)
+from pmsm_hil.log.schemas import (
+    LOG_FORMAT_VERSION,
+    MESSAGE_ENCODING,
+    PRIMITIVES,
+    SCHEMA_ENCODING,
+    TOPICS,
+    Codec,
+    TopicDef,
+    codec_for,
+    schema_hash,
+)
 
 __all__ = ["LogWriter", "MCAP_MAGIC", "available_compressions"]
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 PROFILE = "ros2"
 LIBRARY = f"pmsm-hil {__version__}"
-_MSG_RECORD = 31                      # octets of a message record around its data (opcode .. publish_time)
-_NEVER = 1 << 62                      # the library's own size bound: chunks are closed here
+_MSG_RECORD = 31  # octets of a message record around its data (opcode .. publish_time)
+_NEVER = 1 << 62  # the library's own size bound: chunks are closed here
 
 
 def available_compressions() -> list[str]:
@@ -62,7 +72,9 @@ def _compression_type(name: str) -> CompressionType:
     return types[name]
 
 
-_HELD_SIGNALS = {s for s in (getattr(signal, n, None) for n in ("SIGINT", "SIGTERM", "SIGHUP")) if s}
+_HELD_SIGNALS = {
+    s for s in (getattr(signal, n, None) for n in ("SIGINT", "SIGTERM", "SIGHUP")) if s
+}
 
 
 @contextlib.contextmanager
@@ -83,8 +95,20 @@ def _signals_held():
 
 
 class _Channel:
-    __slots__ = ("id", "topic", "codec", "seq", "count", "getter", "n", "pack", "fixed", "names",
-                 "name_set", "dtype")
+    __slots__ = (
+        "id",
+        "topic",
+        "codec",
+        "seq",
+        "count",
+        "getter",
+        "n",
+        "pack",
+        "fixed",
+        "names",
+        "name_set",
+        "dtype",
+    )
 
     def __init__(self, cid: int, topic: TopicDef):
         self.id = cid
@@ -92,10 +116,12 @@ class _Channel:
         self.codec: Codec = codec_for(topic)
         self.seq = 0
         self.count = 0
-        self.names = self.codec.names[1:]          # without t_s
+        self.names = self.codec.names[1:]  # without t_s
         self.name_set = frozenset(self.codec.names)
         self.n = len(self.names)
-        self.getter = itemgetter(*self.names) if self.n > 1 else (lambda d, _k=self.names[0]: (d[_k],))
+        self.getter = (
+            itemgetter(*self.names) if self.n > 1 else (lambda d, _k=self.names[0]: (d[_k],))
+        )
         self.fixed = self.codec.fixed
         # fixed layout: the whole CDR data (encapsulation header as a uint32, then the fields)
         self.pack = struct.Struct("<I" + self.codec.body_format).pack if self.fixed else None
@@ -105,10 +131,19 @@ class _Channel:
 class LogWriter:
     """Writes one MCAP log. See the module docstring; docs/log-format.md for the contract."""
 
-    def __init__(self, path: str | os.PathLike, metadata: Mapping[str, Mapping[str, str]] | None = None,
-                 attachments: Iterable[tuple[str, str, bytes]] = (), *, compression: str | None = None,
-                 chunk_size: int = 1 << 20, chunk_span_s: float = 1.0, fsync: bool = False,
-                 topics: Iterable[TopicDef] = (), wall_start_s: float | None = None):
+    def __init__(
+        self,
+        path: str | os.PathLike,
+        metadata: Mapping[str, Mapping[str, str]] | None = None,
+        attachments: Iterable[tuple[str, str, bytes]] = (),
+        *,
+        compression: str | None = None,
+        chunk_size: int = 1 << 20,
+        chunk_span_s: float = 1.0,
+        fsync: bool = False,
+        topics: Iterable[TopicDef] = (),
+        wall_start_s: float | None = None,
+    ):
         self.path = os.fspath(path)
         self._off_ns = int(round(wall_start_s * 1e9)) if wall_start_s else 0
         if compression is None:
@@ -135,9 +170,16 @@ class LogWriter:
 
         self._w.start(PROFILE, LIBRARY)
         meta = {str(k): {str(a): str(b) for a, b in v.items()} for k, v in (metadata or {}).items()}
-        meta.setdefault("log", {"format_version": str(LOG_FORMAT_VERSION), "schema_hash": schema_hash(),
-                                "library": LIBRARY, "compression": compression or "none",
-                                "log_time_offset_ns": str(self._off_ns)})
+        meta.setdefault(
+            "log",
+            {
+                "format_version": str(LOG_FORMAT_VERSION),
+                "schema_hash": schema_hash(),
+                "library": LIBRARY,
+                "compression": compression or "none",
+                "log_time_offset_ns": str(self._off_ns),
+            },
+        )
         for name, rec in meta.items():
             self.add_metadata(name, rec)
         for att in attachments:
@@ -154,26 +196,42 @@ class LogWriter:
             self._check_open()
             self._w.add_metadata(name, {str(k): str(v) for k, v in data.items()})
 
-    def add_attachment(self, name: str, media_type: str, data: bytes, log_time_s: float = 0.0,
-                       create_time_s: float = 0.0) -> None:
+    def add_attachment(
+        self,
+        name: str,
+        media_type: str,
+        data: bytes,
+        log_time_s: float = 0.0,
+        create_time_s: float = 0.0,
+    ) -> None:
         """An attachment (a file's bytes); written at once, outside the chunks."""
         with self._lock:
             self._check_open()
-            self._w.add_attachment(create_time=int(round(create_time_s * 1e9)),
-                                   log_time=int(round(log_time_s * 1e9)), name=name,
-                                   media_type=media_type, data=bytes(data))
+            self._w.add_attachment(
+                create_time=int(round(create_time_s * 1e9)),
+                log_time=int(round(log_time_s * 1e9)),
+                name=name,
+                media_type=media_type,
+                data=bytes(data),
+            )
 
     def _open_channel(self, topic: str) -> _Channel:
         td = self._topics.get(topic)
         if td is None:
-            raise KeyError(f"unknown topic {topic!r}: known are {', '.join(self._topics)} "
-                           f"(pass a TopicDef in topics= to add one)")
+            raise KeyError(
+                f"unknown topic {topic!r}: known are {', '.join(self._topics)} "
+                f"(pass a TopicDef in topics= to add one)"
+            )
         self._check_open()
         sid = self._schemas.get(td.schema_name)
         if sid is None:
             text = td.msgdef.encode("utf-8")
-            sid = self._schemas[td.schema_name] = self._w.register_schema(td.schema_name, SCHEMA_ENCODING, text)
-            self._size += 9 + 2 + 4 + len(td.schema_name.encode()) + 4 + len(SCHEMA_ENCODING) + 4 + len(text)
+            sid = self._schemas[td.schema_name] = self._w.register_schema(
+                td.schema_name, SCHEMA_ENCODING, text
+            )
+            self._size += (
+                9 + 2 + 4 + len(td.schema_name.encode()) + 4 + len(SCHEMA_ENCODING) + 4 + len(text)
+            )
         cid = self._w.register_channel(topic, MESSAGE_ENCODING, sid, {})
         self._size += 9 + 4 + 4 + len(topic.encode()) + 4 + len(MESSAGE_ENCODING) + 4
         ch = _Channel(cid, td)
@@ -200,7 +258,9 @@ class LogWriter:
                 raise ValueError
             lt += self._off_ns
         except (ValueError, OverflowError, TypeError):
-            raise ValueError(f"{topic}: t_s = {t_s!r} is not a device time (finite, >= 0 s)") from None
+            raise ValueError(
+                f"{topic}: t_s = {t_s!r} is not a device time (finite, >= 0 s)"
+            ) from None
         data = None
         if ch.fixed:
             nf = len(fields)
@@ -244,8 +304,10 @@ class LogWriter:
     def _values(ch: _Channel, t_s: float, fields: Mapping[str, Any]) -> list:
         unknown = [k for k in fields if k not in ch.name_set]
         if unknown:
-            raise KeyError(f"{ch.topic}: unknown field(s) {', '.join(map(repr, unknown))}; "
-                           f"fields are {', '.join(ch.codec.names)}")
+            raise KeyError(
+                f"{ch.topic}: unknown field(s) {', '.join(map(repr, unknown))}; "
+                f"fields are {', '.join(ch.codec.names)}"
+            )
         return [t_s] + [fields.get(n, d) for n, d in zip(ch.names, ch.codec.defaults[1:])]
 
     @staticmethod
@@ -294,14 +356,20 @@ class LogWriter:
         if count == 0:
             return 0
         if not ch.fixed:
-            present = [(nm, list(np.asarray(cols[nm], dtype=object).reshape(-1))) for nm in ch.names
-                       if nm in cols]
+            present = [
+                (nm, list(np.asarray(cols[nm], dtype=object).reshape(-1)))
+                for nm in ch.names
+                if nm in cols
+            ]
             for nm, c in present:
                 if len(c) != count:
                     raise ValueError(f"{topic}.{nm}: {len(c)} values for {count} rows")
             for i in range(count):
-                self.write(topic, float(t[i]), {nm: (c[i].item() if hasattr(c[i], "item") else c[i])
-                                                for nm, c in present})
+                self.write(
+                    topic,
+                    float(t[i]),
+                    {nm: (c[i].item() if hasattr(c[i], "item") else c[i]) for nm, c in present},
+                )
             return count
         if np.any(t < 0) or not np.all(np.isfinite(t)):
             raise ValueError(f"{topic}: t_s must be finite and >= 0")
@@ -316,7 +384,9 @@ class LogWriter:
             else:
                 c = np.asarray(c)
                 if c.shape != (count,) and c.ndim != 0:
-                    raise ValueError(f"{topic}.{nm}: {c.shape[0] if c.ndim else 1} values for {count} rows")
+                    raise ValueError(
+                        f"{topic}.{nm}: {c.shape[0] if c.ndim else 1} values for {count} rows"
+                    )
                 if f.type == "bool":
                     c = c.astype(bool)
                 elif f.type not in ("float32", "float64"):
@@ -329,7 +399,7 @@ class LogWriter:
         with self._lock:
             self._check_open()
             for i in range(count):
-                self._add(ch, lt[i], raw[i * size:(i + 1) * size])
+                self._add(ch, lt[i], raw[i * size : (i + 1) * size])
         return count
 
     # ------------------------------------------------------------------ chunks
@@ -343,7 +413,7 @@ class LogWriter:
         if not self._n or self._f.closed:
             return
         with _signals_held():
-            self._w.flush()            # the chunk, its message indexes; flushed to the OS
+            self._w.flush()  # the chunk, its message indexes; flushed to the OS
             if self._fsync:
                 os.fsync(self._f.fileno())
             self._msg_count += self._n

@@ -1,4 +1,5 @@
 """Common pydantic base and helpers for the profile, motor and rig models."""
+
 from __future__ import annotations
 
 import hashlib
@@ -11,8 +12,9 @@ from pydantic import BaseModel, ConfigDict, PrivateAttr
 class StrictModel(BaseModel):
     """extra='forbid', strict types (no "12" for 12), finite numbers only."""
 
-    model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False,
-                              validate_default=False)
+    model_config = ConfigDict(
+        extra="forbid", strict=True, allow_inf_nan=False, validate_default=False
+    )
 
 
 class FileModel(StrictModel):
@@ -65,4 +67,5 @@ def meta_value(v: Any) -> str:
 def default_file(rel: str) -> str:
     """A shipped file by its path in the shipped tree (``rel`` like "rigs/default.yaml")."""
     from .shipped import shipped_file
+
     return shipped_file(rel)

@@ -4,6 +4,7 @@ Every YAML file (profile, motor, rig) is read once with ``yaml.compose`` so that
 the line it was written on; the constructed data then goes through pydantic, and every pydantic or
 semantic problem is reported as ``file:line: field.path = value message``.
 """
+
 from __future__ import annotations
 
 import difflib
@@ -12,7 +13,8 @@ import os
 import re
 import types
 import typing
-from dataclasses import dataclass, field as dc_field
+from dataclasses import dataclass
+from dataclasses import field as dc_field
 from typing import Any
 
 import annotated_types
@@ -144,6 +146,7 @@ def loc_str(loc: tuple) -> str:
 
 # ----------------------------------------------------------------------------------- YAML reading
 
+
 class _Loader(yaml.SafeLoader):
     """SafeLoader that also reads YAML 1.2 floats without a dot (``50e-6``) as floats."""
 
@@ -164,7 +167,7 @@ class Source:
     data: Any = None
     lines: dict[tuple, int] = dc_field(default_factory=dict)
     problems: list[Problem] = dc_field(default_factory=list)  # fatal: nothing more can be checked
-    soft: list[Problem] = dc_field(default_factory=list)      # reported, but checking goes on
+    soft: list[Problem] = dc_field(default_factory=list)  # reported, but checking goes on
 
     def line(self, loc: tuple) -> int | None:
         """Line of ``loc``, else of its nearest ancestor that is in the file."""
@@ -180,12 +183,17 @@ class Source:
         return tuple(loc) in self.lines
 
     def problem(self, loc: tuple, message: str, value: Any = _NO_VALUE) -> Problem:
-        return Problem(self.path, self.line(loc), loc_str(loc) or None,
-                       None if value is _NO_VALUE else value, message,
-                       has_value=value is not _NO_VALUE)
+        return Problem(
+            self.path,
+            self.line(loc),
+            loc_str(loc) or None,
+            None if value is _NO_VALUE else value,
+            message,
+            has_value=value is not _NO_VALUE,
+        )
 
 
-MAX_NODES = 100_000          # a profile has a few hundred; aliases may not expand beyond this
+MAX_NODES = 100_000  # a profile has a few hundred; aliases may not expand beyond this
 
 
 def expanded_size(node: yaml.Node) -> int:
@@ -196,7 +204,7 @@ def expanded_size(node: yaml.Node) -> int:
     def size(n: yaml.Node) -> int:
         if id(n) in memo:
             return memo[id(n)]
-        memo[id(n)] = 1                  # a recursive alias counts once
+        memo[id(n)] = 1  # a recursive alias counts once
         if isinstance(n, yaml.MappingNode):
             total = 1 + sum(size(k) + size(v) for k, v in n.value)
         elif isinstance(n, yaml.SequenceNode):
@@ -205,6 +213,7 @@ def expanded_size(node: yaml.Node) -> int:
             total = 1
         memo[id(n)] = min(total, 1 << 62)
         return memo[id(n)]
+
     return size(node)
 
 
@@ -217,9 +226,16 @@ def _walk(node: yaml.Node, path: tuple, src: Source) -> None:
             key = key_node.value
             key_line = key_node.start_mark.line + 1
             if key in seen:
-                src.soft.append(Problem(
-                    src.path, key_line, loc_str(path + (key,)), None,
-                    f"is given twice (first on line {seen[key]})", has_value=False))
+                src.soft.append(
+                    Problem(
+                        src.path,
+                        key_line,
+                        loc_str(path + (key,)),
+                        None,
+                        f"is given twice (first on line {seen[key]})",
+                        has_value=False,
+                    )
+                )
                 continue
             seen[key] = key_line
             if isinstance(val_node, yaml.ScalarNode):
@@ -233,8 +249,9 @@ def _walk(node: yaml.Node, path: tuple, src: Source) -> None:
             _walk(item, path + (i,), src)
 
 
-def read_source(path: str, *, what: str = "file",
-                referenced_by: tuple[Source, tuple, Any] | None = None) -> Source:
+def read_source(
+    path: str, *, what: str = "file", referenced_by: tuple[Source, tuple, Any] | None = None
+) -> Source:
     """Read and parse one YAML file; problems (unreadable, invalid YAML) go to ``src.problems``.
 
     ``referenced_by`` = (source, loc, value) of the key that named this file, so that a file that
@@ -248,23 +265,37 @@ def read_source(path: str, *, what: str = "file",
         reason = e.strerror or str(e)
         if referenced_by is not None:
             ref, loc, value = referenced_by
-            src.problems.append(ref.problem(loc, f"names a {what} that cannot be read: {path}: {reason}",
-                                            value))
+            src.problems.append(
+                ref.problem(loc, f"names a {what} that cannot be read: {path}: {reason}", value)
+            )
         else:
-            src.problems.append(Problem(path, None, None, None, f"cannot read the {what}: {reason}",
-                                        has_value=False))
+            src.problems.append(
+                Problem(
+                    path, None, None, None, f"cannot read the {what}: {reason}", has_value=False
+                )
+            )
         return src
     except UnicodeDecodeError as e:
-        src.problems.append(Problem(path, None, None, None, f"is not UTF-8 text: {e}", has_value=False))
+        src.problems.append(
+            Problem(path, None, None, None, f"is not UTF-8 text: {e}", has_value=False)
+        )
         return src
 
     loader = _Loader(src.text)
     try:
         node = loader.get_single_node()
         if node is not None and expanded_size(node) > MAX_NODES:
-            src.problems.append(Problem(path, None, None, None,
-                                        f"is too large: its YAML aliases expand to more than "
-                                        f"{MAX_NODES} values (an alias bomb?)", has_value=False))
+            src.problems.append(
+                Problem(
+                    path,
+                    None,
+                    None,
+                    None,
+                    f"is too large: its YAML aliases expand to more than "
+                    f"{MAX_NODES} values (an alias bomb?)",
+                    has_value=False,
+                )
+            )
             return src
         data = loader.construct_document(node) if node is not None else None
     except yaml.MarkedYAMLError as e:
@@ -275,8 +306,17 @@ def read_source(path: str, *, what: str = "file",
             if e.context_mark is not None and e.context_mark is not mark:
                 msg += f" on line {e.context_mark.line + 1}"
             msg += ")"
-        src.problems.append(Problem(path, mark.line + 1 if mark else None, None, None, msg,
-                                    column=mark.column + 1 if mark else None, has_value=False))
+        src.problems.append(
+            Problem(
+                path,
+                mark.line + 1 if mark else None,
+                None,
+                None,
+                msg,
+                column=mark.column + 1 if mark else None,
+                has_value=False,
+            )
+        )
         return src
     except yaml.YAMLError as e:
         src.problems.append(Problem(path, None, None, None, f"invalid YAML: {e}", has_value=False))
@@ -288,9 +328,16 @@ def read_source(path: str, *, what: str = "file",
         src.problems.append(Problem(path, 1, None, None, f"the {what} is empty", has_value=False))
         return src
     if not isinstance(data, dict):
-        src.problems.append(Problem(path, node.start_mark.line + 1, None, None,
-                                    f"the {what} must be a mapping of `key: value` lines, "
-                                    f"not a {type(data).__name__}", has_value=False))
+        src.problems.append(
+            Problem(
+                path,
+                node.start_mark.line + 1,
+                None,
+                None,
+                f"the {what} must be a mapping of `key: value` lines, not a {type(data).__name__}",
+                has_value=False,
+            )
+        )
         return src
     src.data = data
     src.lines[()] = node.start_mark.line + 1
@@ -299,6 +346,7 @@ def read_source(path: str, *, what: str = "file",
 
 
 # ----------------------------------------------------------------------------------- pydantic -> problems
+
 
 def _unwrap(annotation: Any) -> Any:
     """Optional[X] -> X, list[X] -> list marker handled by caller."""
@@ -348,8 +396,10 @@ def range_text(info: Any, name: str) -> str:
     unit = unit_of(name)
     unit = f" {unit}" if unit else ""
     if lo is not None and hi is not None:
-        return (f"is outside the allowed range {'(' if lo_open else '['}{fmt_num(lo)}, "
-                f"{fmt_num(hi)}{')' if hi_open else ']'}{unit}")
+        return (
+            f"is outside the allowed range {'(' if lo_open else '['}{fmt_num(lo)}, "
+            f"{fmt_num(hi)}{')' if hi_open else ']'}{unit}"
+        )
     if lo is not None:
         return f"must be {'>' if lo_open else '>='} {fmt_num(lo)}{unit}"
     if hi is not None:
@@ -357,18 +407,24 @@ def range_text(info: Any, name: str) -> str:
     return "is out of range"
 
 
-def validation_problems(exc: ValidationError, src: Source, model: type[BaseModel],
-                        loc_prefix: tuple = ()) -> list[Problem]:
+def validation_problems(
+    exc: ValidationError, src: Source, model: type[BaseModel], loc_prefix: tuple = ()
+) -> list[Problem]:
     out: list[Problem] = []
     for err in exc.errors():
         loc = loc_prefix + tuple(p for p in err["loc"] if isinstance(p, (str, int)))
         typ = err["type"]
         value = err.get("input")
         name = str(loc[-1]) if loc else ""
-        owner, info = _resolve(model, loc[len(loc_prefix):]) if loc else (None, None)
+        owner, info = _resolve(model, loc[len(loc_prefix) :]) if loc else (None, None)
         if typ == "missing":
-            out.append(src.problem(loc, "is missing (required" + (
-                f": {info.description})" if info is not None and info.description else ")")))
+            out.append(
+                src.problem(
+                    loc,
+                    "is missing (required"
+                    + (f": {info.description})" if info is not None and info.description else ")"),
+                )
+            )
             continue
         if typ == "extra_forbidden":
             allowed = list(owner.model_fields) if owner is not None else []
@@ -381,7 +437,9 @@ def validation_problems(exc: ValidationError, src: Source, model: type[BaseModel
             out.append(src.problem(loc, msg, value))
             continue
         if typ in ("float_type", "float_parsing"):
-            msg = "is not a number" + (" (write numbers without quotes)" if isinstance(value, str) else "")
+            msg = "is not a number" + (
+                " (write numbers without quotes)" if isinstance(value, str) else ""
+            )
         elif typ in ("int_type", "int_parsing", "int_from_float"):
             msg = "is not a whole number"
         elif typ in ("bool_type", "bool_parsing"):

@@ -17,6 +17,7 @@ nothing on the device.
 The measured quantities are those of the run summary and the identification table
 (docs/analysis.md, docs/identification.md); the format is in docs/profiles.md.
 """
+
 from __future__ import annotations
 
 from typing import Literal
@@ -26,8 +27,15 @@ from pydantic import Field
 from ._base import StrictModel
 from ._source import Problem, Source
 
-__all__ = ["Acceptance", "RunAcceptance", "SegmentAcceptance", "IdentBound", "acceptance_problems",
-           "ESTIMATORS", "PARAMS"]
+__all__ = [
+    "Acceptance",
+    "RunAcceptance",
+    "SegmentAcceptance",
+    "IdentBound",
+    "acceptance_problems",
+    "ESTIMATORS",
+    "PARAMS",
+]
 
 ESTIMATORS = ("rls", "adaline", "nlms_adaline")
 PARAMS = ("l_d_h", "l_q_h", "psi_f_wb", "r_s_ohm")
@@ -35,27 +43,39 @@ PARAMS = ("l_d_h", "l_q_h", "psi_f_wb", "r_s_ohm")
 
 class Bounds(StrictModel):
     speed_error_max_rpm: float | Literal["band"] | None = Field(
-        None, description="largest |mean speed error| on a plateau, r/min, or `band`: max(1 %, 1 r/min)")
-    ripple_d_max_a: float | None = Field(None, gt=0, description="largest RMS of i_d - i_d* on a plateau, A")
-    ripple_q_max_a: float | None = Field(None, gt=0, description="largest RMS of i_q - i_q* on a plateau, A")
-    recovery_max_s: float | None = Field(None, gt=0, description="longest recovery after a load step, s")
+        None,
+        description="largest |mean speed error| on a plateau, r/min, or `band`: max(1 %, 1 r/min)",
+    )
+    ripple_d_max_a: float | None = Field(
+        None, gt=0, description="largest RMS of i_d - i_d* on a plateau, A"
+    )
+    ripple_q_max_a: float | None = Field(
+        None, gt=0, description="largest RMS of i_q - i_q* on a plateau, A"
+    )
+    recovery_max_s: float | None = Field(
+        None, gt=0, description="longest recovery after a load step, s"
+    )
     faults: Literal["forbidden", "expected"] | None = Field(
-        None, description="forbidden: no fault; expected: at least one fault (default: not checked)")
+        None, description="forbidden: no fault; expected: at least one fault (default: not checked)"
+    )
 
 
 class IdentBound(StrictModel):
     estimator: Literal[ESTIMATORS] = Field(description="rls, adaline or nlms_adaline")  # type: ignore[valid-type]
     param: Literal[PARAMS] = Field(description="l_d_h, l_q_h, psi_f_wb or r_s_ohm")  # type: ignore[valid-type]
-    error_max_rel: float | None = Field(None, gt=0, le=10,
-                                        description="largest |final - truth| / truth (0.02 = 2 %)")
-    conv_max_s: float | None = Field(None, gt=0, le=3600,
-                                     description="longest convergence time from the first update, s")
+    error_max_rel: float | None = Field(
+        None, gt=0, le=10, description="largest |final - truth| / truth (0.02 = 2 %)"
+    )
+    conv_max_s: float | None = Field(
+        None, gt=0, le=3600, description="longest convergence time from the first update, s"
+    )
 
 
 class RunAcceptance(Bounds):
     complete: bool = Field(True, description="the log shows the whole profile played to its end")
-    identification: list[IdentBound] = Field(default_factory=list,
-                                             description="bounds on the identification table")
+    identification: list[IdentBound] = Field(
+        default_factory=list, description="bounds on the identification table"
+    )
 
 
 class SegmentAcceptance(Bounds):
@@ -64,7 +84,9 @@ class SegmentAcceptance(Bounds):
 
 class Acceptance(StrictModel):
     run: RunAcceptance | None = Field(None, description="bounds on every plateau and the whole run")
-    segments: list[SegmentAcceptance] = Field(default_factory=list, description="bounds on one segment")
+    segments: list[SegmentAcceptance] = Field(
+        default_factory=list, description="bounds on one segment"
+    )
 
 
 def acceptance_problems(src: Source) -> list[Problem]:
@@ -86,22 +108,50 @@ def acceptance_problems(src: Source) -> list[Problem]:
         if isinstance(ref, bool):
             continue
         if isinstance(ref, int) and not 0 <= ref < len(segs):
-            out.append(src.problem(loc, f"is not a segment index (the profile has {len(segs)}: 0..{len(segs) - 1})",
-                                   ref))
+            out.append(
+                src.problem(
+                    loc,
+                    f"is not a segment index (the profile has {len(segs)}: 0..{len(segs) - 1})",
+                    ref,
+                )
+            )
         elif isinstance(ref, str) and ref not in names:
             import difflib
-            close = difflib.get_close_matches(ref, [n for n in names if isinstance(n, str)], n=1, cutoff=0.6)
-            out.append(src.problem(loc, "names no segment of the profile"
-                                   + (f"; did you mean {close[0]!r}?" if close else ""), ref))
+
+            close = difflib.get_close_matches(
+                ref, [n for n in names if isinstance(n, str)], n=1, cutoff=0.6
+            )
+            out.append(
+                src.problem(
+                    loc,
+                    "names no segment of the profile"
+                    + (f"; did you mean {close[0]!r}?" if close else ""),
+                    ref,
+                )
+            )
         elif isinstance(ref, str) and names.count(ref) > 1:
             out.append(src.problem(loc, "names more than one segment: give its index", ref))
         bounds = [k for k in Bounds.model_fields if item.get(k) is not None]
         if not bounds and "segment" in item:
-            out.append(src.problem(("acceptance", "segments", i), "gives no bound (known: "
-                                   + ", ".join(Bounds.model_fields) + ")"))
-    ident = (acc.get("run") or {}).get("identification") if isinstance(acc.get("run"), dict) else None
+            out.append(
+                src.problem(
+                    ("acceptance", "segments", i),
+                    "gives no bound (known: " + ", ".join(Bounds.model_fields) + ")",
+                )
+            )
+    ident = (
+        (acc.get("run") or {}).get("identification") if isinstance(acc.get("run"), dict) else None
+    )
     for i, item in enumerate(ident if isinstance(ident, list) else []):
-        if isinstance(item, dict) and item.get("error_max_rel") is None and item.get("conv_max_s") is None:
-            out.append(src.problem(("acceptance", "run", "identification", i),
-                                   "gives no bound (error_max_rel, conv_max_s)"))
+        if (
+            isinstance(item, dict)
+            and item.get("error_max_rel") is None
+            and item.get("conv_max_s") is None
+        ):
+            out.append(
+                src.problem(
+                    ("acceptance", "run", "identification", i),
+                    "gives no bound (error_max_rel, conv_max_s)",
+                )
+            )
     return out

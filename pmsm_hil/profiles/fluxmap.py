@@ -8,6 +8,7 @@ from their neighbours, repeated outwards until the rectangle is full (``fill_mis
 interpolates the rectangle by bicubic Hermite patches (firmware/sim/plant.c, plant_map_build) and
 extends it linearly beyond its edges.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -28,11 +29,11 @@ class FluxMapError(ValueError):
 class FluxMap:
     """A filled rectangular flux map; arrays indexed [k (i_q), j (i_d)]."""
 
-    i_d_a: np.ndarray          # node currents along i_d (nd,)
-    i_q_a: np.ndarray          # node currents along i_q (nq,)
-    psi_d_wb: np.ndarray       # (nq, nd)
-    psi_q_wb: np.ndarray       # (nq, nd)
-    measured: np.ndarray       # (nq, nd) bool: node given in the file
+    i_d_a: np.ndarray  # node currents along i_d (nd,)
+    i_q_a: np.ndarray  # node currents along i_q (nq,)
+    psi_d_wb: np.ndarray  # (nq, nd)
+    psi_q_wb: np.ndarray  # (nq, nd)
+    measured: np.ndarray  # (nq, nd) bool: node given in the file
     path: str = ""
     sha256: str = ""
 
@@ -43,11 +44,16 @@ class FluxMap:
     def settings(self) -> dict:
         """The sim board's keys for this map (emu_set / emu_set_array)."""
         nd, nq = self.shape
-        return {"sat_nd": nd, "sat_nq": nq,
-                "sat_id0_a": float(self.i_d_a[0]), "sat_did_a": float(self.i_d_a[1] - self.i_d_a[0]),
-                "sat_iq0_a": float(self.i_q_a[0]), "sat_diq_a": float(self.i_q_a[1] - self.i_q_a[0]),
-                "sat_psi_d_wb": [float(x) for x in self.psi_d_wb.ravel()],
-                "sat_psi_q_wb": [float(x) for x in self.psi_q_wb.ravel()]}
+        return {
+            "sat_nd": nd,
+            "sat_nq": nq,
+            "sat_id0_a": float(self.i_d_a[0]),
+            "sat_did_a": float(self.i_d_a[1] - self.i_d_a[0]),
+            "sat_iq0_a": float(self.i_q_a[0]),
+            "sat_diq_a": float(self.i_q_a[1] - self.i_q_a[0]),
+            "sat_psi_d_wb": [float(x) for x in self.psi_d_wb.ravel()],
+            "sat_psi_q_wb": [float(x) for x in self.psi_q_wb.ravel()],
+        }
 
     def node(self, i_d: float, i_q: float) -> tuple[float, float]:
         j = int(np.argmin(np.abs(self.i_d_a - i_d)))
@@ -56,11 +62,14 @@ class FluxMap:
 
     def metadata(self) -> dict[str, str]:
         nd, nq = self.shape
-        return {"map_file": os.path.basename(self.path), "map_sha256": self.sha256,
-                "map_grid": f"{nd}x{nq} i_d {self.i_d_a[0]:g}..{self.i_d_a[-1]:g} A, "
-                            f"i_q {self.i_q_a[0]:g}..{self.i_q_a[-1]:g} A",
-                "map_nodes_measured": str(int(self.measured.sum())),
-                "map_psi_d_0_0_wb": repr(float(self.node(0.0, 0.0)[0]))}
+        return {
+            "map_file": os.path.basename(self.path),
+            "map_sha256": self.sha256,
+            "map_grid": f"{nd}x{nq} i_d {self.i_d_a[0]:g}..{self.i_d_a[-1]:g} A, "
+            f"i_q {self.i_q_a[0]:g}..{self.i_q_a[-1]:g} A",
+            "map_nodes_measured": str(int(self.measured.sum())),
+            "map_psi_d_0_0_wb": repr(float(self.node(0.0, 0.0)[0])),
+        }
 
 
 def _axis(values: np.ndarray, name: str) -> np.ndarray:

@@ -1,4 +1,5 @@
 """Motor files (profiles/motors/*.yaml): the nominal machine model and its protection limits."""
+
 from __future__ import annotations
 
 import math
@@ -26,7 +27,9 @@ def mtpa_currents(i_s_a: float, psi_f_wb: float, l_d_h: float, l_q_h: float) -> 
     return i_d, i_q
 
 
-def mtpa_torque_nm(i_s_a: float, pole_pairs: int, psi_f_wb: float, l_d_h: float, l_q_h: float) -> float:
+def mtpa_torque_nm(
+    i_s_a: float, pole_pairs: int, psi_f_wb: float, l_d_h: float, l_q_h: float
+) -> float:
     """Electromagnetic torque for current magnitude ``i_s_a`` on the MTPA trajectory."""
     i_d, i_q = mtpa_currents(i_s_a, psi_f_wb, l_d_h, l_q_h)
     return 1.5 * pole_pairs * (psi_f_wb * i_q + (l_d_h - l_q_h) * i_d * i_q)
@@ -48,17 +51,28 @@ class Motor(FileModel):
     i_max_a: float = Field(gt=0, le=10000, description="current limit of the controller, A")
     i_trip_a: float = Field(gt=0, le=10000, description="over-current trip, A (> i_max_a)")
     speed_max_rpm: float = Field(gt=0, le=1e6, description="speed reference limit, r/min")
-    speed_trip_rpm: float = Field(gt=0, le=1e6, description="over-speed trip, r/min (> speed_max_rpm)")
+    speed_trip_rpm: float = Field(
+        gt=0, le=1e6, description="over-speed trip, r/min (> speed_max_rpm)"
+    )
     torque_max_nm: float = Field(gt=0, le=1e6, description="load/torque limit, N m")
     v_dc_min_v: float = Field(gt=0, le=2000, description="DC-link under-voltage trip, V")
     v_dc_max_v: float = Field(gt=0, le=2000, description="DC-link over-voltage trip, V")
-    dead_time_s: float = Field(0.0, ge=0, le=20e-6,
-                               description="nominal inverter dead time that the firmware compensates, s")
-    v_drop_v: float = Field(0.0, ge=0, le=20,
-                            description="nominal switch/diode drop that the firmware compensates, V")
-    i_dt_a: float = Field(0.0, ge=0, le=20,
-                          description="nominal current band of the dead-time distortion around the "
-                                      "current zero crossing (0: ideal sign), A")
+    dead_time_s: float = Field(
+        0.0,
+        ge=0,
+        le=20e-6,
+        description="nominal inverter dead time that the firmware compensates, s",
+    )
+    v_drop_v: float = Field(
+        0.0, ge=0, le=20, description="nominal switch/diode drop that the firmware compensates, V"
+    )
+    i_dt_a: float = Field(
+        0.0,
+        ge=0,
+        le=20,
+        description="nominal current band of the dead-time distortion around the "
+        "current zero crossing (0: ideal sign), A",
+    )
     source: str = Field("", description="where the numbers come from")
 
     # ------------------------------------------------------------------ derived quantities
@@ -90,20 +104,32 @@ def motor_checks(src: Source) -> list[Problem]:
         out.append(src.problem(("i_trip_a",), f"must be above i_max_a {fmt_num(i_max)} A", i_trip))
     s_max, s_trip = num(d, "speed_max_rpm"), num(d, "speed_trip_rpm")
     if s_max and s_trip is not None and s_trip <= s_max:
-        out.append(src.problem(("speed_trip_rpm",), f"must be above speed_max_rpm {fmt_num(s_max)} r/min",
-                               s_trip))
+        out.append(
+            src.problem(
+                ("speed_trip_rpm",), f"must be above speed_max_rpm {fmt_num(s_max)} r/min", s_trip
+            )
+        )
     v, v_min, v_max = num(d, "v_dc_v"), num(d, "v_dc_min_v"), num(d, "v_dc_max_v")
     if v is not None and v_min is not None and v_min >= v:
         out.append(src.problem(("v_dc_min_v",), f"must be below v_dc_v {fmt_num(v)} V", v_min))
     if v is not None and v_max is not None and v_max <= v:
         out.append(src.problem(("v_dc_max_v",), f"must be above v_dc_v {fmt_num(v)} V", v_max))
-    p, psi, l_d, l_q, t_max = (num(d, k) for k in ("pole_pairs", "psi_f_wb", "l_d_h", "l_q_h", "torque_max_nm"))
-    if all(x is not None and x > 0 for x in (p, psi, l_d, l_q, i_max, t_max)) and isinstance(p, int):
+    p, psi, l_d, l_q, t_max = (
+        num(d, k) for k in ("pole_pairs", "psi_f_wb", "l_d_h", "l_q_h", "torque_max_nm")
+    )
+    if all(x is not None and x > 0 for x in (p, psi, l_d, l_q, i_max, t_max)) and isinstance(
+        p, int
+    ):
         t_mtpa = mtpa_torque_nm(i_max, p, psi, l_d, l_q)
         if t_max > t_mtpa * 1.001:
-            out.append(src.problem(("torque_max_nm",),
-                                   f"is more than the {t_mtpa:.4g} N m that i_max_a {fmt_num(i_max)} A "
-                                   f"gives on the MTPA trajectory", t_max))
+            out.append(
+                src.problem(
+                    ("torque_max_nm",),
+                    f"is more than the {t_mtpa:.4g} N m that i_max_a {fmt_num(i_max)} A "
+                    f"gives on the MTPA trajectory",
+                    t_max,
+                )
+            )
     return out
 
 

@@ -1,187 +1,79 @@
 """Run profiles (profiles/*.yaml): control settings, telemetry rates, the link, and the segments
 of speed and load that the firmware plays on its own clock."""
+
 from __future__ import annotations
 
 import bisect
 import math
 import os
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
-from pydantic import Field, PrivateAttr, ValidationError
+from pydantic import ValidationError
 
-from ._base import StrictModel, meta_value, num
-from ._source import (Problem, ProfileError, Source, fmt_num, read_source, resolve_ref,
-                      validation_problems)
+from ._base import meta_value, num
+from ._source import (
+    Problem,
+    ProfileError,
+    Source,
+    fmt_num,
+    read_source,
+    resolve_ref,
+    validation_problems,
+)
 from .acceptance import Acceptance, acceptance_problems
 from .motor import Motor, _load_motor_source
 from .rig import Rig, _load_rig_source, plant_problems
 
-__all__ = ["Profile", "Control", "Telemetry", "Link", "Segment", "load_profile", "link_budget",
-           "TS_MIN_S", "TS_MAX_S", "MAX_TOTAL_DURATION_S", "MAX_SEGMENTS",
-           "FRAME_OVERHEAD_OCTETS", "PAYLOAD_OCTETS"]
+__all__ = [
+    "Profile",
+    "Control",
+    "Telemetry",
+    "Link",
+    "Segment",
+    "load_profile",
+    "link_budget",
+    "TS_MIN_S",
+    "TS_MAX_S",
+    "MAX_TOTAL_DURATION_S",
+    "MAX_SEGMENTS",
+    "FRAME_OVERHEAD_OCTETS",
+    "PAYLOAD_OCTETS",
+]
 
-TS_MIN_S = 20e-6
-TS_MAX_S = 1e-3
-MAX_TOTAL_DURATION_S = 3600.0
-MAX_SEGMENTS = 64   # PROFILE_MAX_SEGMENTS, the firmware's profile table (firmware/core/profile_exec.h)
-
-# Serial link budget. Payload octets per frame as in firmware/proto/pmsm_proto.yaml (the test
-# suite checks these against it); each frame adds id, seq, CRC-16 (2), the COBS code octet and
-# the 0x00 delimiter.
-FRAME_OVERHEAD_OCTETS = 6
-PAYLOAD_OCTETS = {"telem_fast": 28, "params": 22, "status": 25, "sim_truth": 44}
-OCTETS_PER_SYMBOL = 10  # UART 8N1: start + 8 data + stop bits
-
-
-# ----------------------------------------------------------------------------------- models
-
-class Control(StrictModel):
-    ts_s: float = Field(50e-6, ge=TS_MIN_S, le=TS_MAX_S, description="control (MPCC) period, s")
-    rho: float = Field(1.0, gt=0, le=1000, description="MPCC cost weight of the q-axis error")
-    current_ref: Literal["mtpa", "id_zero"] = Field("mtpa", description="d-axis current reference rule")
-    current_ctrl: Literal["mpcc"] = Field("mpcc", description="current controller")
-    speed_kp_a_per_rad_s: float | None = Field(
-        None, gt=0, le=1e4, description="speed PI proportional gain, A per mechanical rad/s (null: designed)")
-    speed_ki_a_per_rad: float | None = Field(
-        None, ge=0, le=1e7, description="speed PI integral gain, A per mechanical rad (null: designed)")
-    speed_obs_bw_rad_s: float | None = Field(
-        None, gt=0, le=1e5, description="encoder speed observer bandwidth, rad/s (null: the host's default)")
-    speed_loop_hz: float = Field(1000.0, gt=0, le=50_000, description="speed loop rate, Hz")
-    heartbeat_timeout_s: float = Field(0.5, ge=0.05, le=10, description="stop when the host is silent, s (the firmware refuses more than 10 s)")
-    dead_time_comp: bool = Field(True, description="firmware compensates the inverter dead time")
-    identify: bool = Field(False, description="run the three online estimators (RLS, Adaline, "
-                                              "NLMS-Adaline) and send their params frames")
-    predictor: Literal["nominal", "rls", "adaline", "nlms_adaline"] = Field(
-        "nominal", description="what feeds the MPCC predictor: the motor file (times predictor_scale) "
-                               "or an estimator once it has converged")
-    predictor_scale: "PredictorScale" = Field(default_factory=lambda: PredictorScale(),
-                                              description="mismatch factors on the motor file's values "
-                                                          "in the predictor")
-    id_window_s: float = Field(1e-3, ge=2 * TS_MIN_S, le=0.1,
-                               description="estimator update period: window over which u, i, w are averaged, s")
-
-
-class PredictorScale(StrictModel):
-    l_d_h: float = Field(1.0, gt=0, le=100, description="factor on the motor file's l_d_h")
-    l_q_h: float = Field(1.0, gt=0, le=100, description="factor on l_q_h")
-    psi_f_wb: float = Field(1.0, ge=0, le=100, description="factor on psi_f_wb")
-    r_s_ohm: float = Field(1.0, ge=0, le=100, description="factor on r_s_ohm")
-
-
-class PlantStep(StrictModel):
-    r_s_scale: float = Field(1.0, gt=0, lt=10, description="true R = motor value x this, from the segment start")
-    psi_f_scale: float = Field(1.0, gt=0, lt=10, description="true psi_f = motor value x this")
-
-
-class Telemetry(StrictModel):
-    fast_hz: float = Field(2000.0, ge=0, le=50_000, description="telem_fast frame rate, Hz (0: off)")
-    params_hz: float = Field(100.0, ge=0, le=50_000, description="params frames per estimator, Hz (0: off)")
-    status_hz: float = Field(10.0, gt=0, le=50_000, description="status frame rate, Hz")
-    truth_hz: float = Field(100.0, ge=0, le=50_000, description="sim_truth frame rate (emulator), Hz (0: off)")
-
-
-Control.model_rebuild()
-
-
-class CanLinkSettings(StrictModel):
-    """CAN link settings (docs/can.md); a rate left null is the `telemetry` section's."""
-    bitrate: int = Field(1_000_000, ge=10_000, le=1_000_000, description="CAN bit rate, bit/s")
-    node: int = Field(1, ge=0, le=15, description="CAN node ID of the drive")
-    fast_hz: float | None = Field(None, ge=0, le=50_000, description="telem_fast rate on CAN, Hz")
-    params_hz: float | None = Field(None, ge=0, le=50_000, description="params rate on CAN, Hz")
-    status_hz: float | None = Field(None, gt=0, le=50_000, description="status rate on CAN, Hz")
-    truth_hz: float | None = Field(None, ge=0, le=50_000, description="sim_truth rate on CAN, Hz")
-
-
-class Link(StrictModel):
-    baud: int = Field(921_600, ge=9_600, le=20_000_000, description="serial bit rate, bit/s")
-    can: CanLinkSettings = Field(default_factory=CanLinkSettings, description="CAN link (docs/can.md)")
-
-
-class Segment(StrictModel):
-    name: str | None = Field(None, description="label shown in the live view and the events")
-    duration_s: float = Field(gt=0, le=MAX_TOTAL_DURATION_S, description="length of the segment, s")
-    speed_rpm: float = Field(description="speed reference (target), r/min")
-    ramp_rpm_s: float = Field(0.0, ge=0, le=1e6, description="ramp rate towards speed_rpm, r/min/s (0: step)")
-    load_nm: float = Field(0.0, description="load torque during the segment, N m")
-    capture: bool = Field(False, description="trigger a control-rate capture at the segment start")
-    estimate: bool = Field(True, description="the online estimators update in this segment (false holds "
-                                             "them, e.g. while spinning up)")
-    kind: Literal["run", "identify_r"] = Field(
-        "run", description="run: speed/load as given; identify_r: R by d-axis current injection at "
-                           "standstill (speed_rpm must be 0)")
-    inject_a: float = Field(0.0, ge=-1000, le=1000,
-                            description="identify_r: d current (first half; half of it in the second half); "
-                                        "run: amplitude of a square-wave i_d excitation, A")
-    inject_hz: float = Field(10.0, ge=0, le=1000, description="run: frequency of the i_d excitation, Hz")
-    plant: PlantStep | None = Field(None, description="emulator only: step the plant's true R and psi_f "
-                                                      "at the segment start")
-
-    _index: int = PrivateAttr(default=0)
-    _t_start_s: float = PrivateAttr(default=0.0)
-    _speed_start_rpm: float = PrivateAttr(default=0.0)
-
-    @property
-    def index(self) -> int:
-        return self._index
-
-    @property
-    def t_start_s(self) -> float:
-        return self._t_start_s
-
-    @property
-    def t_end_s(self) -> float:
-        return self._t_start_s + self.duration_s
-
-    @property
-    def speed_start_rpm(self) -> float:
-        """Speed reference at the segment start (where the previous segment left it)."""
-        return self._speed_start_rpm
-
-    @property
-    def speed_end_rpm(self) -> float:
-        """Speed reference at the segment end (short of speed_rpm if the ramp is too slow)."""
-        if self.ramp_rpm_s <= 0.0:
-            return self.speed_rpm
-        gap = self.speed_rpm - self._speed_start_rpm
-        reach = self.ramp_rpm_s * self.duration_s
-        return self.speed_rpm if abs(gap) <= reach else self._speed_start_rpm + math.copysign(reach, gap)
-
-    @property
-    def flags(self) -> int:
-        """profile_segment.flags on the wire: bit0 = capture."""
-        return 1 if self.capture else 0
-
-    @property
-    def label(self) -> str:
-        return self.name if self.name else f"segment {self._index}"
-
-
-class ProfileFile(StrictModel):
-    """The profile file as written."""
-
-    name: str = Field(min_length=1, description="profile name")
-    description: str = Field("", description="text")
-    motor: str = Field(min_length=1, description="motor file, relative to the profile file")
-    rig: str | None = Field(None, description="rig file, relative to the profile file "
-                                              "(null: rigs/default.yaml beside the motors directory)")
-    control: Control = Field(default_factory=Control)
-    telemetry: Telemetry = Field(default_factory=Telemetry)
-    link: Link = Field(default_factory=Link)
-    segments: list[Segment] = Field(min_length=1, max_length=MAX_SEGMENTS,
-                                    description="list of segments played in order")
-    acceptance: Acceptance | None = Field(None, description="bounds a run must meet for `pmsm-hil test` "
-                                                            "(nothing on the device)")
-
+from .sections import (  # noqa: F401  (re-exported)
+    FRAME_OVERHEAD_OCTETS,
+    MAX_SEGMENTS,
+    MAX_TOTAL_DURATION_S,
+    OCTETS_PER_SYMBOL,
+    PAYLOAD_OCTETS,
+    TS_MAX_S,
+    TS_MIN_S,
+    CanLinkSettings,
+    Control,
+    Link,
+    PlantStep,
+    PredictorScale,
+    ProfileFile,
+    Segment,
+    Telemetry,
+)
 
 # ----------------------------------------------------------------------------------- the profile
+
 
 class Profile:
     """A validated profile with its motor and rig."""
 
-    def __init__(self, spec: ProfileFile, path: str, yaml_text: str, motor: Motor, rig: Rig,
-                 warnings: list[str] | None = None):
+    def __init__(
+        self,
+        spec: ProfileFile,
+        path: str,
+        yaml_text: str,
+        motor: Motor,
+        rig: Rig,
+        warnings: list[str] | None = None,
+    ):
         self.spec = spec
         self.name: str = spec.name
         self.description: str = spec.description
@@ -207,8 +99,10 @@ class Profile:
         self.warnings: list[str] = list(warnings or [])
 
     def __repr__(self) -> str:
-        return (f"Profile({self.name!r}, {len(self.segments)} segments, {self.total_duration_s:g} s, "
-                f"motor={self.motor.name!r}, rig={self.rig.name!r})")
+        return (
+            f"Profile({self.name!r}, {len(self.segments)} segments, {self.total_duration_s:g} s, "
+            f"motor={self.motor.name!r}, rig={self.rig.name!r})"
+        )
 
     # ------------------------------------------------------------------ rates
     @property
@@ -265,8 +159,11 @@ class Profile:
     @property
     def files(self) -> list[tuple[str, str, str]]:
         """(role, path, text) of every file read: profile, motor, rig."""
-        return [("profile", self.path, self.yaml_text), ("motor", self.motor.path, self.motor.yaml_text),
-                ("rig", self.rig.path, self.rig.yaml_text)]
+        return [
+            ("profile", self.path, self.yaml_text),
+            ("motor", self.motor.path, self.motor.yaml_text),
+            ("rig", self.rig.path, self.rig.yaml_text),
+        ]
 
     @property
     def yaml_texts(self) -> dict[str, str]:
@@ -275,15 +172,22 @@ class Profile:
 
     def attachments(self) -> list[tuple[str, str, bytes]]:
         """MCAP attachments: profile.yaml, motor.yaml, rig.yaml (the files' exact text)."""
-        return [(f"{role}.yaml", "application/yaml", text.encode("utf-8")) for role, _, text in self.files]
+        return [
+            (f"{role}.yaml", "application/yaml", text.encode("utf-8"))
+            for role, _, text in self.files
+        ]
 
     def metadata(self) -> dict[str, dict[str, str]]:
         """MCAP metadata records "profile", "motor" and "rig" (all values as text)."""
         import hashlib
 
-        prof = {"name": self.name, "file": os.path.basename(self.path),
-                "sha256": hashlib.sha256(self.yaml_text.encode("utf-8")).hexdigest(),
-                "total_duration_s": meta_value(self.total_duration_s), "segments": str(len(self.segments))}
+        prof = {
+            "name": self.name,
+            "file": os.path.basename(self.path),
+            "sha256": hashlib.sha256(self.yaml_text.encode("utf-8")).hexdigest(),
+            "total_duration_s": meta_value(self.total_duration_s),
+            "segments": str(len(self.segments)),
+        }
         for section in ("control", "telemetry", "link"):
             for k, v in getattr(self, section).model_dump().items():
                 if isinstance(v, dict):
@@ -299,7 +203,10 @@ class Profile:
 
 # ----------------------------------------------------------------------------------- link budget
 
-def link_budget(profile: Profile, *, emulator: bool = True, n_estimators: int | None = None) -> dict:
+
+def link_budget(
+    profile: Profile, *, emulator: bool = True, n_estimators: int | None = None
+) -> dict:
     """Octets/s that each telemetry stream needs against the serial link's capacity (baud / 10).
 
     Returns {"capacity_octets_s", "streams": {name: {"rate_hz", "count", "payload_octets",
@@ -311,8 +218,12 @@ def link_budget(profile: Profile, *, emulator: bool = True, n_estimators: int | 
     if n_estimators is None:
         n_estimators = 4 if profile.control.identify else 1
     tel = profile.telemetry
-    rates = {"telem_fast": (tel.fast_hz, 1), "params": (tel.params_hz, n_estimators),
-             "status": (tel.status_hz, 1), "sim_truth": (tel.truth_hz if emulator else 0.0, 1)}
+    rates = {
+        "telem_fast": (tel.fast_hz, 1),
+        "params": (tel.params_hz, n_estimators),
+        "status": (tel.status_hz, 1),
+        "sim_truth": (tel.truth_hz if emulator else 0.0, 1),
+    }
     capacity = profile.link.baud / OCTETS_PER_SYMBOL
     streams: dict[str, dict] = {}
     total = 0.0
@@ -320,8 +231,14 @@ def link_budget(profile: Profile, *, emulator: bool = True, n_estimators: int | 
         frame = PAYLOAD_OCTETS[name] + FRAME_OVERHEAD_OCTETS
         octets = hz * count * frame
         total += octets
-        streams[name] = {"rate_hz": hz, "count": count, "payload_octets": PAYLOAD_OCTETS[name],
-                         "frame_octets": frame, "octets_s": octets, "share": octets / capacity}
+        streams[name] = {
+            "rate_hz": hz,
+            "count": count,
+            "payload_octets": PAYLOAD_OCTETS[name],
+            "frame_octets": frame,
+            "octets_s": octets,
+            "share": octets / capacity,
+        }
     load = total / capacity
     warning = None
     others = total - streams["telem_fast"]["octets_s"]
@@ -331,16 +248,29 @@ def link_budget(profile: Profile, *, emulator: bool = True, n_estimators: int | 
     n = math.ceil(ctrl / fit) if fit > 0 else 0
     fast_hz_fit = min(tel.fast_hz, round(ctrl / n, 6)) if n else 0.0
     if load > 1.0:
-        hint = (f"lower telemetry.fast_hz to {fmt_num(round(ctrl / n, 6))} Hz or less" if n
-                else "lower the telemetry rates")
-        warning = (f"link overloaded: the telemetry needs {total:.0f} octets/s but {profile.link.baud} baud "
-                   f"carries {capacity:.0f} octets/s ({100 * load:.0f} %); frames will be dropped. "
-                   f"{hint[0].upper() + hint[1:]}, or raise link.baud.")
-    return {"capacity_octets_s": capacity, "streams": streams, "total_octets_s": total, "load": load,
-            "headroom_octets_s": capacity - total, "warning": warning, "fast_hz_fit": fast_hz_fit}
+        hint = (
+            f"lower telemetry.fast_hz to {fmt_num(round(ctrl / n, 6))} Hz or less"
+            if n
+            else "lower the telemetry rates"
+        )
+        warning = (
+            f"link overloaded: the telemetry needs {total:.0f} octets/s but {profile.link.baud} baud "
+            f"carries {capacity:.0f} octets/s ({100 * load:.0f} %); frames will be dropped. "
+            f"{hint[0].upper() + hint[1:]}, or raise link.baud."
+        )
+    return {
+        "capacity_octets_s": capacity,
+        "streams": streams,
+        "total_octets_s": total,
+        "load": load,
+        "headroom_octets_s": capacity - total,
+        "warning": warning,
+        "fast_hz_fit": fast_hz_fit,
+    }
 
 
 # ----------------------------------------------------------------------------------- loading
+
 
 def _divides(ctrl_hz: float, hz: float) -> bool:
     n = ctrl_hz / hz
@@ -351,15 +281,20 @@ def _rate_problem(src: Source, loc: tuple, hz: float, ctrl_hz: float) -> Problem
     if hz <= 0:
         return None
     if hz > ctrl_hz * (1 + 1e-9):
-        return src.problem(loc, f"is above the control rate {fmt_num(round(ctrl_hz, 6))} Hz "
-                                f"(1/control.ts_s)", hz)
+        return src.problem(
+            loc, f"is above the control rate {fmt_num(round(ctrl_hz, 6))} Hz (1/control.ts_s)", hz
+        )
     if _divides(ctrl_hz, hz):
         return None
     n = ctrl_hz / hz
     cands = sorted({round(ctrl_hz / m, 6) for m in (math.floor(n), math.ceil(n)) if m >= 1})
-    return src.problem(loc, f"does not divide the control rate {fmt_num(round(ctrl_hz, 6))} Hz "
-                            f"(1/control.ts_s); nearest valid: "
-                            f"{' or '.join(fmt_num(c) for c in cands)} Hz", hz)
+    return src.problem(
+        loc,
+        f"does not divide the control rate {fmt_num(round(ctrl_hz, 6))} Hz "
+        f"(1/control.ts_s); nearest valid: "
+        f"{' or '.join(fmt_num(c) for c in cands)} Hz",
+        hz,
+    )
 
 
 def _profile_checks(src: Source, motor: Motor | None) -> tuple[list[Problem], list[str]]:
@@ -392,9 +327,14 @@ def _profile_checks(src: Source, motor: Motor | None) -> tuple[list[Problem], li
     if kp_given != ki_given:
         missing = "speed_ki_a_per_rad" if kp_given else "speed_kp_a_per_rad_s"
         given = "speed_kp_a_per_rad_s" if kp_given else "speed_ki_a_per_rad"
-        problems.append(src.problem(("control", given), f"is given but control.{missing} is not: give both "
-                                                        f"speed gains, or neither to have them designed",
-                                    control.get(given)))
+        problems.append(
+            src.problem(
+                ("control", given),
+                f"is given but control.{missing} is not: give both "
+                f"speed gains, or neither to have them designed",
+                control.get(given),
+            )
+        )
 
     segments = d.get("segments") if isinstance(d.get("segments"), list) else []
     total = 0.0
@@ -411,23 +351,46 @@ def _profile_checks(src: Source, motor: Motor | None) -> tuple[list[Problem], li
             total += dur
         if seg.get("kind") == "identify_r":
             if v is not None and v != 0:
-                problems.append(src.problem(("segments", i, "speed_rpm"),
-                                            "must be 0 in an identify_r segment (R is identified at standstill)", v))
+                problems.append(
+                    src.problem(
+                        ("segments", i, "speed_rpm"),
+                        "must be 0 in an identify_r segment (R is identified at standstill)",
+                        v,
+                    )
+                )
             inj = num(seg, "inject_a", 0.0)
             if inj is not None and inj == 0:
-                problems.append(src.problem(("segments", i, "inject_a"),
-                                            "must be a non-zero d current in an identify_r segment", inj))
+                problems.append(
+                    src.problem(
+                        ("segments", i, "inject_a"),
+                        "must be a non-zero d current in an identify_r segment",
+                        inj,
+                    )
+                )
             if motor is not None and inj is not None and abs(inj) > motor.i_max_a:
-                problems.append(src.problem(("segments", i, "inject_a"),
-                                            f"is beyond the motor's i_max_a {fmt_num(motor.i_max_a)} ({mpath})", inj))
+                problems.append(
+                    src.problem(
+                        ("segments", i, "inject_a"),
+                        f"is beyond the motor's i_max_a {fmt_num(motor.i_max_a)} ({mpath})",
+                        inj,
+                    )
+                )
         if motor is not None and v is not None and abs(v) > motor.speed_max_rpm * (1 + 1e-12):
-            problems.append(src.problem(("segments", i, "speed_rpm"),
-                                        f"is beyond the motor's speed_max_rpm {fmt_num(motor.speed_max_rpm)} "
-                                        f"({mpath})", v))
+            problems.append(
+                src.problem(
+                    ("segments", i, "speed_rpm"),
+                    f"is beyond the motor's speed_max_rpm {fmt_num(motor.speed_max_rpm)} ({mpath})",
+                    v,
+                )
+            )
         if motor is not None and load is not None and abs(load) > motor.torque_max_nm * (1 + 1e-12):
-            problems.append(src.problem(("segments", i, "load_nm"),
-                                        f"is beyond the motor's torque_max_nm {fmt_num(motor.torque_max_nm)} "
-                                        f"({mpath})", load))
+            problems.append(
+                src.problem(
+                    ("segments", i, "load_nm"),
+                    f"is beyond the motor's torque_max_nm {fmt_num(motor.torque_max_nm)} ({mpath})",
+                    load,
+                )
+            )
         if v is None or dur is None or ramp is None or dur <= 0 or ramp < 0:
             speed = v if v is not None else speed
             continue
@@ -436,15 +399,21 @@ def _profile_checks(src: Source, motor: Motor | None) -> tuple[list[Problem], li
             reach = ramp * dur
             if abs(gap) > reach:
                 end = speed + math.copysign(reach, gap)
-                warnings.append(f"{src.path}:{src.line(('segments', i, 'ramp_rpm_s'))}: segments[{i}]: the ramp "
-                                f"of {fmt_num(ramp)} r/min/s reaches only {end:.4g} of {fmt_num(v)} r/min "
-                                f"within duration_s {fmt_num(dur)} (needs {abs(gap) / ramp:.3g} s)")
+                warnings.append(
+                    f"{src.path}:{src.line(('segments', i, 'ramp_rpm_s'))}: segments[{i}]: the ramp "
+                    f"of {fmt_num(ramp)} r/min/s reaches only {end:.4g} of {fmt_num(v)} r/min "
+                    f"within duration_s {fmt_num(dur)} (needs {abs(gap) / ramp:.3g} s)"
+                )
                 speed = end
                 continue
         speed = v
     if total > MAX_TOTAL_DURATION_S * (1 + 1e-12):
-        problems.append(src.problem(("segments",), f"last {total:.6g} s in total, beyond the "
-                                                   f"{fmt_num(MAX_TOTAL_DURATION_S)} s limit"))
+        problems.append(
+            src.problem(
+                ("segments",),
+                f"last {total:.6g} s in total, beyond the {fmt_num(MAX_TOTAL_DURATION_S)} s limit",
+            )
+        )
     return problems, warnings
 
 
@@ -453,9 +422,15 @@ def _rig_checks(rig_src: Source, rig: Rig, motor: Motor, src: Source) -> list[Pr
     problems: list[Problem] = []
     v = num(rig_src.data, "v_dc_v")
     if v is not None and not (motor.v_dc_min_v < v < motor.v_dc_max_v):
-        problems.append(rig_src.problem(("v_dc_v",), f"is outside the motor's DC-link trip limits "
-                                                     f"v_dc_min_v {fmt_num(motor.v_dc_min_v)} .. v_dc_max_v "
-                                                     f"{fmt_num(motor.v_dc_max_v)} V ({motor.path})", v))
+        problems.append(
+            rig_src.problem(
+                ("v_dc_v",),
+                f"is outside the motor's DC-link trip limits "
+                f"v_dc_min_v {fmt_num(motor.v_dc_min_v)} .. v_dc_max_v "
+                f"{fmt_num(motor.v_dc_max_v)} V ({motor.path})",
+                v,
+            )
+        )
     control = src.data.get("control") if isinstance(src.data.get("control"), dict) else {}
     ts = num(control, "ts_s", Control.model_fields["ts_s"].default)
     if ts is None or not TS_MIN_S <= ts <= TS_MAX_S:
@@ -463,8 +438,11 @@ def _rig_checks(rig_src: Source, rig: Rig, motor: Motor, src: Source) -> list[Pr
     return problems + plant_problems(rig_src, rig, motor.pole_pairs, ts)
 
 
-def load_profile(path: str | os.PathLike, rig_override: str | os.PathLike | None = None,
-                 motor_override: str | os.PathLike | None = None) -> Profile:
+def load_profile(
+    path: str | os.PathLike,
+    rig_override: str | os.PathLike | None = None,
+    motor_override: str | os.PathLike | None = None,
+) -> Profile:
     """Read and validate a profile with its motor and rig files.
 
     ``rig_override``/``motor_override``: a rig/motor file (relative to the working directory) used
@@ -492,7 +470,9 @@ def load_profile(path: str | os.PathLike, rig_override: str | os.PathLike | None
         problems += mprobs
     elif isinstance(d.get("motor"), str) and d["motor"]:
         motor_path = resolve_ref(path, d["motor"])
-        msrc = read_source(motor_path, what="motor file", referenced_by=(src, ("motor",), d["motor"]))
+        msrc = read_source(
+            motor_path, what="motor file", referenced_by=(src, ("motor",), d["motor"])
+        )
         motor, mprobs = _load_motor_source(msrc)
         problems += mprobs
 
@@ -506,11 +486,15 @@ def load_profile(path: str | os.PathLike, rig_override: str | os.PathLike | None
     elif rig_ref is None:
         base = os.path.dirname(os.path.dirname(motor_path)) if motor_path else os.path.dirname(path)
         rig_path = os.path.normpath(os.path.join(base, "rigs", "default.yaml"))
-        rsrc = read_source(rig_path, what="rig file",
-                           referenced_by=(src, ("rig",), None) if os.path.exists(rig_path) else None)
+        rsrc = read_source(
+            rig_path,
+            what="rig file",
+            referenced_by=(src, ("rig",), None) if os.path.exists(rig_path) else None,
+        )
         if not os.path.exists(rig_path):
-            rsrc.problems[:] = [src.problem(("rig",), f"is not given and the default rig {rig_path} "
-                                                      f"does not exist")]
+            rsrc.problems[:] = [
+                src.problem(("rig",), f"is not given and the default rig {rig_path} does not exist")
+            ]
     else:
         rsrc = None  # wrong type: pydantic reports it
     if rsrc is not None:

@@ -5,6 +5,7 @@ Adding an effect later (saturation, temperature, ...) means: a subclass of ``Eff
 parameters and defaults, one field in ``Effects`` (default: the effect disabled), and one bit in
 ``EFFECT_BITS`` (the bit the emulator sets in ``/sim/truth.effects`` while the effect is on).
 """
+
 from __future__ import annotations
 
 import math
@@ -16,14 +17,33 @@ from pydantic import Field, ValidationError
 from ._base import FileModel, StrictModel, default_file, meta_value
 from ._source import Problem, ProfileError, Source, read_source, validation_problems
 
-__all__ = ["Rig", "Effect", "Effects", "DeadTime", "AdcNoise", "AdcQuantisation", "Encoder",
-           "Friction", "Saturation", "Thermal", "FluxHarmonics", "Cogging", "SensorOffset",
-           "SensorGain", "Delay", "DcLink", "IronLoss", "EFFECT_BITS", "load_rig", "plant_problems"]
+__all__ = [
+    "Rig",
+    "Effect",
+    "Effects",
+    "DeadTime",
+    "AdcNoise",
+    "AdcQuantisation",
+    "Encoder",
+    "Friction",
+    "Saturation",
+    "Thermal",
+    "FluxHarmonics",
+    "Cogging",
+    "SensorOffset",
+    "SensorGain",
+    "Delay",
+    "DcLink",
+    "IronLoss",
+    "EFFECT_BITS",
+    "load_rig",
+    "plant_problems",
+]
 
 # limits of the emulated plant (firmware/sim/plant.h; tests/test_rig_checks.py reads the header)
-PLANT_THERMAL_DIV = 16      # the thermal network steps every PLANT_THERMAL_DIV control periods
-PLANT_DELAY_RING = 32       # sample_delay_s <= (PLANT_DELAY_RING - 3) ts_s
-COG_ORDER_MAX = 1000        # cogging periods per electrical revolution (plant_cfg_check)
+PLANT_THERMAL_DIV = 16  # the thermal network steps every PLANT_THERMAL_DIV control periods
+PLANT_DELAY_RING = 32  # sample_delay_s <= (PLANT_DELAY_RING - 3) ts_s
+COG_ORDER_MAX = 1000  # cogging periods per electrical revolution (plant_cfg_check)
 
 
 class Effect(StrictModel):
@@ -38,10 +58,13 @@ class DeadTime(Effect):
     v_drop_v; both oppose the phase current, with the sign smoothed over +-i_dt_a.
     The exact plant model is in docs/plant.md."""
 
-    dead_time_s: float = Field(2.0e-6, ge=0, le=20e-6, description="blanking time per switching edge, s")
+    dead_time_s: float = Field(
+        2.0e-6, ge=0, le=20e-6, description="blanking time per switching edge, s"
+    )
     v_drop_v: float = Field(1.0, ge=0, le=20, description="switch/diode on-state drop, V")
-    i_dt_a: float = Field(0.5, gt=0, le=50,
-                          description="current over which the error changes sign (linear zone), A")
+    i_dt_a: float = Field(
+        0.5, gt=0, le=50, description="current over which the error changes sign (linear zone), A"
+    )
 
 
 class AdcNoise(Effect):
@@ -53,17 +76,21 @@ class AdcNoise(Effect):
 class AdcQuantisation(Effect):
     """Current ADC resolution: samples are rounded to multiples of adc_lsb_a."""
 
-    adc_lsb_a: float = Field(100.0 / 4096.0, gt=0, le=10,
-                             description="one ADC step in A (12-bit over +-50 A = 0.0244 A)")
+    adc_lsb_a: float = Field(
+        100.0 / 4096.0, gt=0, le=10, description="one ADC step in A (12-bit over +-50 A = 0.0244 A)"
+    )
 
 
 class Encoder(Effect):
     """Incremental encoder: angle quantised to 4 * lines counts per mechanical revolution, with a
     misalignment between count 0 and the rotor's d axis."""
 
-    lines: int = Field(2500, ge=1, le=1_000_000, description="lines per revolution (counts = 4 lines)")
-    offset_e_rad: float = Field(0.0, ge=-math.pi, le=math.pi,
-                              description="electrical angle error of the encoder zero, rad")
+    lines: int = Field(
+        2500, ge=1, le=1_000_000, description="lines per revolution (counts = 4 lines)"
+    )
+    offset_e_rad: float = Field(
+        0.0, ge=-math.pi, le=math.pi, description="electrical angle error of the encoder zero, rad"
+    )
 
     @property
     def counts(self) -> int:
@@ -92,38 +119,76 @@ class Thermal(Effect):
     follow the temperatures. The motor file's r_s_ohm and psi_f_wb hold at temp_ref_c."""
 
     temp_ambient_c: float = Field(25.0, ge=-50, le=200, description="ambient temperature, degC")
-    temp_winding_c: float = Field(25.0, ge=-50, le=250, description="initial winding temperature, degC")
-    temp_magnet_c: float = Field(25.0, ge=-50, le=250, description="initial magnet temperature, degC")
-    temp_ref_c: float = Field(25.0, ge=-50, le=250,
-                              description="temperature at which the motor file's R and psi_f hold, degC")
-    alpha_r_per_k: float = Field(0.00393, ge=0, le=0.01, description="resistance coefficient (copper), 1/K")
-    alpha_psi_per_k: float = Field(-0.001, ge=-0.01, le=0, description="magnet flux coefficient (NdFeB), 1/K")
-    c_winding_j_k: float = Field(1500.0, gt=0, le=1e6, description="heat capacity of winding + stator, J/K")
-    c_magnet_j_k: float = Field(600.0, gt=0, le=1e6, description="heat capacity of rotor + magnets, J/K")
-    r_wa_k_w: float = Field(0.4, gt=0, le=100, description="thermal resistance winding -> ambient, K/W")
-    r_wm_k_w: float = Field(0.5, gt=0, le=100, description="thermal resistance winding -> magnet, K/W")
-    r_ma_k_w: float = Field(1.0, gt=0, le=100, description="thermal resistance magnet -> ambient, K/W")
-    r_fe_heat_ohm: float = Field(0.0, ge=0, le=1e6,
-                                 description="iron-loss resistance for the heating when the iron_loss "
-                                             "effect is off (0: no iron-loss heating), ohm")
+    temp_winding_c: float = Field(
+        25.0, ge=-50, le=250, description="initial winding temperature, degC"
+    )
+    temp_magnet_c: float = Field(
+        25.0, ge=-50, le=250, description="initial magnet temperature, degC"
+    )
+    temp_ref_c: float = Field(
+        25.0,
+        ge=-50,
+        le=250,
+        description="temperature at which the motor file's R and psi_f hold, degC",
+    )
+    alpha_r_per_k: float = Field(
+        0.00393, ge=0, le=0.01, description="resistance coefficient (copper), 1/K"
+    )
+    alpha_psi_per_k: float = Field(
+        -0.001, ge=-0.01, le=0, description="magnet flux coefficient (NdFeB), 1/K"
+    )
+    c_winding_j_k: float = Field(
+        1500.0, gt=0, le=1e6, description="heat capacity of winding + stator, J/K"
+    )
+    c_magnet_j_k: float = Field(
+        600.0, gt=0, le=1e6, description="heat capacity of rotor + magnets, J/K"
+    )
+    r_wa_k_w: float = Field(
+        0.4, gt=0, le=100, description="thermal resistance winding -> ambient, K/W"
+    )
+    r_wm_k_w: float = Field(
+        0.5, gt=0, le=100, description="thermal resistance winding -> magnet, K/W"
+    )
+    r_ma_k_w: float = Field(
+        1.0, gt=0, le=100, description="thermal resistance magnet -> ambient, K/W"
+    )
+    r_fe_heat_ohm: float = Field(
+        0.0,
+        ge=0,
+        le=1e6,
+        description="iron-loss resistance for the heating when the iron_loss "
+        "effect is off (0: no iron-loss heating), ohm",
+    )
 
 
 class FluxHarmonics(Effect):
     """5th and 7th harmonics of the magnet flux (so of the back-EMF); a 6th harmonic in dq."""
 
-    emf5_rel: float = Field(0.02, ge=-0.5, le=0.5,
-                            description="5th harmonic of the phase back-EMF relative to the fundamental")
-    emf7_rel: float = Field(0.01, ge=-0.5, le=0.5,
-                            description="7th harmonic of the phase back-EMF relative to the fundamental")
+    emf5_rel: float = Field(
+        0.02,
+        ge=-0.5,
+        le=0.5,
+        description="5th harmonic of the phase back-EMF relative to the fundamental",
+    )
+    emf7_rel: float = Field(
+        0.01,
+        ge=-0.5,
+        le=0.5,
+        description="7th harmonic of the phase back-EMF relative to the fundamental",
+    )
 
 
 class Cogging(Effect):
     """Cogging torque T = amplitude_nm sin(periods_per_rev theta_m + phase_rad)."""
 
     amplitude_nm: float = Field(0.05, ge=0, le=1e3, description="cogging torque amplitude, N m")
-    periods_per_rev: int = Field(24, ge=1, le=10_000,
-                                 description="cogging periods per mechanical revolution, lcm(slots, 2p); "
-                                             "a multiple of the pole pairs")
+    periods_per_rev: int = Field(
+        24,
+        ge=1,
+        le=10_000,
+        description="cogging periods per mechanical revolution, lcm(slots, 2p); "
+        "a multiple of the pole pairs",
+    )
     phase_rad: float = Field(0.0, ge=-math.pi, le=math.pi, description="phase, rad")
 
 
@@ -146,20 +211,29 @@ class SensorGain(Effect):
 class Delay(Effect):
     """Delays beyond the one control period that the firmware compensates."""
 
-    sample_delay_s: float = Field(0.0, ge=0, le=5e-4,
-                                  description="the currents are sampled this long before the period "
-                                              "boundary (filter and conversion latency), s")
-    pwm_delay_periods: int = Field(1, ge=0, le=16,
-                                   description="the switch command takes effect this many periods later")
+    sample_delay_s: float = Field(
+        0.0,
+        ge=0,
+        le=5e-4,
+        description="the currents are sampled this long before the period "
+        "boundary (filter and conversion latency), s",
+    )
+    pwm_delay_periods: int = Field(
+        1, ge=0, le=16, description="the switch command takes effect this many periods later"
+    )
 
 
 class DcLink(Effect):
     """DC link fed by a six-pulse diode rectifier (or a DC source) through a source resistance,
     buffered by a capacitor; the firmware sees the measured DC voltage."""
 
-    r_source_ohm: float = Field(0.5, gt=0, le=100, description="source resistance (grid, choke, rectifier), ohm")
+    r_source_ohm: float = Field(
+        0.5, gt=0, le=100, description="source resistance (grid, choke, rectifier), ohm"
+    )
     c_dc_f: float = Field(1.0e-3, gt=0, le=1, description="DC-link capacitance, F")
-    rectifier: bool = Field(True, description="six-pulse diode rectifier from the grid (false: a DC source)")
+    rectifier: bool = Field(
+        True, description="six-pulse diode rectifier from the grid (false: a DC source)"
+    )
     grid_hz: float = Field(50.0, ge=0, le=1000, description="grid frequency, Hz")
 
 
@@ -193,7 +267,9 @@ class Effects(StrictModel):
 
     dead_time: DeadTime = Field(default_factory=lambda: DeadTime(enabled=False))
     adc_noise: AdcNoise = Field(default_factory=lambda: AdcNoise(enabled=False))
-    adc_quantisation: AdcQuantisation = Field(default_factory=lambda: AdcQuantisation(enabled=False))
+    adc_quantisation: AdcQuantisation = Field(
+        default_factory=lambda: AdcQuantisation(enabled=False)
+    )
     encoder: Encoder = Field(default_factory=lambda: Encoder(enabled=False))
     friction: Friction = Field(default_factory=lambda: Friction(enabled=False))
     saturation: Saturation = Field(default_factory=lambda: Saturation(enabled=False))
@@ -228,8 +304,9 @@ class Rig(FileModel):
 
     name: str = Field(min_length=1, description="rig name")
     description: str = Field("", description="text")
-    v_dc_v: float | None = Field(None, gt=0, le=2000,
-                                 description="DC-link voltage of this rig, V (null: the motor's v_dc_v)")
+    v_dc_v: float | None = Field(
+        None, gt=0, le=2000, description="DC-link voltage of this rig, V (null: the motor's v_dc_v)"
+    )
     effects: Effects = Field(default_factory=Effects, description="named effects")
 
     def enabled(self, name: str) -> bool:
@@ -263,13 +340,19 @@ class Rig(FileModel):
         if path is None:
             return None
         from .fluxmap import load_flux_map
+
         return load_flux_map(path)
 
     def metadata(self) -> dict[str, str]:
         """Flat string record for the MCAP metadata ("effect.param": value)."""
-        out = {"name": self.name, "file": self.path.replace("\\", "/").rsplit("/", 1)[-1],
-               "sha256": self.sha256, "v_dc_v": meta_value(self.v_dc_v),
-               "effects": ",".join(self.enabled_effects), "effects_mask": str(self.effects_mask)}
+        out = {
+            "name": self.name,
+            "file": self.path.replace("\\", "/").rsplit("/", 1)[-1],
+            "sha256": self.sha256,
+            "v_dc_v": meta_value(self.v_dc_v),
+            "effects": ",".join(self.enabled_effects),
+            "effects_mask": str(self.effects_mask),
+        }
         for name, eff in self.effects.items():
             for k, v in eff.model_dump().items():
                 out[f"{name}.{k}"] = meta_value(v)
@@ -278,8 +361,11 @@ class Rig(FileModel):
     def effective_metadata(self) -> dict[str, str]:
         """The effects in force and their sizes, only those enabled ("effect.param": value), with
         what the flux map resolves to (file, sha256, grid, psi_f): the MCAP record "rig_effects"."""
-        out = {"rig": self.name, "effects": ",".join(self.enabled_effects),
-               "effects_mask": str(self.effects_mask)}
+        out = {
+            "rig": self.name,
+            "effects": ",".join(self.enabled_effects),
+            "effects_mask": str(self.effects_mask),
+        }
         for name, eff in self.effects.items():
             if not eff.enabled:
                 continue
@@ -306,9 +392,14 @@ def _load_rig_source(src: Source) -> tuple[Rig | None, list[Problem]]:
     if sat.enabled:
         loc = ("effects", "saturation", "map")
         if not sat.map:
-            return None, [src.problem(("effects", "saturation"),
-                                      "has no map: give map: FILE.csv (a flux map, docs/rigs.md)")]
+            return None, [
+                src.problem(
+                    ("effects", "saturation"),
+                    "has no map: give map: FILE.csv (a flux map, docs/rigs.md)",
+                )
+            ]
         from .fluxmap import FluxMapError, load_flux_map
+
         try:
             load_flux_map(rig.map_path())
         except (OSError, FluxMapError) as e:
@@ -326,36 +417,64 @@ def plant_problems(src: Source, rig: Rig, pole_pairs: int, ts_s: float | None) -
     if cg.enabled:
         loc = ("effects", "cogging", "periods_per_rev")
         if cg.periods_per_rev % pole_pairs:
-            out.append(src.problem(loc, f"is not a multiple of the motor's pole_pairs {pole_pairs}",
-                                   cg.periods_per_rev))
+            out.append(
+                src.problem(
+                    loc,
+                    f"is not a multiple of the motor's pole_pairs {pole_pairs}",
+                    cg.periods_per_rev,
+                )
+            )
         elif cg.amplitude_nm != 0 and cg.periods_per_rev // pole_pairs > COG_ORDER_MAX:
-            out.append(src.problem(loc, f"gives {cg.periods_per_rev // pole_pairs} periods per electrical "
-                                        f"revolution, above the plant's {COG_ORDER_MAX} "
-                                        f"(pole_pairs {pole_pairs})", cg.periods_per_rev))
+            out.append(
+                src.problem(
+                    loc,
+                    f"gives {cg.periods_per_rev // pole_pairs} periods per electrical "
+                    f"revolution, above the plant's {COG_ORDER_MAX} "
+                    f"(pole_pairs {pole_pairs})",
+                    cg.periods_per_rev,
+                )
+            )
     if ts_s is None:
         return out
     dt = eff.dead_time
     if dt.enabled and not dt.dead_time_s < ts_s:
-        out.append(src.problem(("effects", "dead_time", "dead_time_s"),
-                               f"is not shorter than the control period control.ts_s = {ts_s:g} s",
-                               dt.dead_time_s))
+        out.append(
+            src.problem(
+                ("effects", "dead_time", "dead_time_s"),
+                f"is not shorter than the control period control.ts_s = {ts_s:g} s",
+                dt.dead_time_s,
+            )
+        )
     dl = eff.delay
     if dl.enabled and not dl.sample_delay_s <= (PLANT_DELAY_RING - 3) * ts_s:
-        out.append(src.problem(("effects", "delay", "sample_delay_s"),
-                               f"is longer than {PLANT_DELAY_RING - 3} control periods "
-                               f"({(PLANT_DELAY_RING - 3) * ts_s:g} s at control.ts_s = {ts_s:g} s)",
-                               dl.sample_delay_s))
+        out.append(
+            src.problem(
+                ("effects", "delay", "sample_delay_s"),
+                f"is longer than {PLANT_DELAY_RING - 3} control periods "
+                f"({(PLANT_DELAY_RING - 3) * ts_s:g} s at control.ts_s = {ts_s:g} s)",
+                dl.sample_delay_s,
+            )
+        )
     th = eff.thermal
     if th.enabled:
         step = PLANT_THERMAL_DIV * ts_s
-        for c_name, r_name in (("c_winding_j_k", "r_wm_k_w"), ("c_magnet_j_k", "r_wm_k_w"),
-                               ("c_winding_j_k", "r_wa_k_w"), ("c_magnet_j_k", "r_ma_k_w")):
+        for c_name, r_name in (
+            ("c_winding_j_k", "r_wm_k_w"),
+            ("c_magnet_j_k", "r_wm_k_w"),
+            ("c_winding_j_k", "r_wa_k_w"),
+            ("c_magnet_j_k", "r_ma_k_w"),
+        ):
             c, r = getattr(th, c_name), getattr(th, r_name)
             if not step < 0.2 * c * r:
-                out.append(src.problem(("effects", "thermal", c_name),
-                                       f"gives with {r_name} = {r:g} K/W a time constant of {c * r:g} s, "
-                                       f"shorter than 5 thermal steps ({5 * step:g} s: "
-                                       f"{PLANT_THERMAL_DIV} x control.ts_s)", c))
+                out.append(
+                    src.problem(
+                        ("effects", "thermal", c_name),
+                        f"gives with {r_name} = {r:g} K/W a time constant of {c * r:g} s, "
+                        f"shorter than 5 thermal steps ({5 * step:g} s: "
+                        f"{PLANT_THERMAL_DIV} x control.ts_s)",
+                        c,
+                    )
+                )
                 break
     return out
 

@@ -7,6 +7,7 @@ The files live in the repository's `profiles/` folder, which is installed as the
     resolve("lab-typical", "rig")        -> .../shipped/rigs/lab-typical.yaml
     resolve("my/own.yaml", "profile")    -> my/own.yaml   (a path that exists always wins)
 """
+
 from __future__ import annotations
 
 import importlib.util
@@ -16,8 +17,12 @@ from pathlib import Path
 from ._source import Problem, ProfileError
 
 # kind -> sub-folder of the shipped tree and the files' suffix
-KINDS = {"profile": ("", ".yaml"), "motor": ("motors", ".yaml"), "rig": ("rigs", ".yaml"),
-         "map": ("maps", ".csv")}
+KINDS = {
+    "profile": ("", ".yaml"),
+    "motor": ("motors", ".yaml"),
+    "rig": ("rigs", ".yaml"),
+    "map": ("maps", ".csv"),
+}
 
 
 def shipped_root() -> Path:
@@ -57,7 +62,15 @@ def resolve(name: str | os.PathLike, kind: str) -> str:
         if candidate.is_file():
             return str(candidate)
         names = ", ".join(p.stem for p in shipped(kind))
-        raise ProfileError(Problem(text, None, None, None,
-                                   f"is neither a file nor a shipped {kind} (shipped: {names}; "
-                                   f"`pmsm-hil profiles` lists them)", has_value=False))
+        raise ProfileError(
+            Problem(
+                text,
+                None,
+                None,
+                None,
+                f"is neither a file nor a shipped {kind} (shipped: {names}; "
+                f"`pmsm-hil profiles` lists them)",
+                has_value=False,
+            )
+        )
     return text

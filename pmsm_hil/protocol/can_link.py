@@ -8,6 +8,7 @@
 `CanLink` presents the same interface as `SerialLink` (send, poll, decoder, name, bit_rate, close)
 over any python-can bus, so the session, runner, live view and recorder work unchanged.
 """
+
 from __future__ import annotations
 
 import time
@@ -21,8 +22,8 @@ from pmsm_hil.protocol.generated import BY_ID
 
 CRC_INIT = 0xFFFF
 NODE_MASK = (1 << cg.NODE_BITS) - 1
-TRANSFER_TIMEOUT_S = 1.0   # an unfinished transfer older than this is dropped (and counted)
-POLL_BATCH_S = 0.02        # at most this much wall time spent receiving in one poll
+TRANSFER_TIMEOUT_S = 1.0  # an unfinished transfer older than this is dropped (and counted)
+POLL_BATCH_S = 0.02  # at most this much wall time spent receiving in one poll
 
 
 def frame_bits_nominal(dlc: int) -> int:
@@ -40,8 +41,9 @@ def encode_message(name_or_id, seq: int, node: int = cg.NODE, **fields) -> list[
     return encode_payload_frames(spec.id, seq, codec.encode_payload(spec.id, **fields), node)
 
 
-def encode_payload_frames(msg_id: int, seq: int, payload: bytes, node: int = cg.NODE
-                          ) -> list[tuple[int, bytes]]:
+def encode_payload_frames(
+    msg_id: int, seq: int, payload: bytes, node: int = cg.NODE
+) -> list[tuple[int, bytes]]:
     lay = cg.LAYOUTS.get(msg_id)
     if lay is None:
         raise codec.ProtocolError(f"message 0x{msg_id:02X} has no CAN layout")
@@ -51,15 +53,17 @@ def encode_payload_frames(msg_id: int, seq: int, payload: bytes, node: int = cg.
         ident = can_id(lay.func, node)
         out = [(ident, bytes((0, msg_id, seq & 0xFF, len(payload), crc >> 8, crc & 0xFF)))]
         for k, at in enumerate(range(0, len(payload), cg.TRANSFER_DATA), start=1):
-            out.append((ident, bytes((k,)) + payload[at:at + cg.TRANSFER_DATA]))
+            out.append((ident, bytes((k,)) + payload[at : at + cg.TRANSFER_DATA]))
         return out
     data = bytes((seq & 0xFF,)) + payload
     out, at = [], 0
     for k, n in enumerate(lay.frame_octets):
-        out.append((can_id(lay.func + k, node), data[at:at + n]))
+        out.append((can_id(lay.func + k, node), data[at : at + n]))
         at += n
     if at != len(data):
-        raise codec.ProtocolError(f"{lay.name}: payload of {len(payload)} octets does not fit its layout")
+        raise codec.ProtocolError(
+            f"{lay.name}: payload of {len(payload)} octets does not fit its layout"
+        )
     return out
 
 
@@ -72,28 +76,33 @@ class CanDecoder:
     def __init__(self, node: int = cg.NODE, direction: str = "d2h"):
         self.node = node
         self.direction = direction
-        self.frames_ok = 0        # whole messages decoded
-        self.crc_errors = 0       # transfers with a bad CRC
-        self.len_errors = 0       # frames of the wrong length
-        self.order_errors = 0     # frames missing, repeated or out of place (message dropped)
-        self.unknown_id = 0       # a function code, or a transferred message id, this host does not know
-        self.cobs_errors = 0      # (serial only; kept for the common counters)
+        self.frames_ok = 0  # whole messages decoded
+        self.crc_errors = 0  # transfers with a bad CRC
+        self.len_errors = 0  # frames of the wrong length
+        self.order_errors = 0  # frames missing, repeated or out of place (message dropped)
+        self.unknown_id = 0  # a function code, or a transferred message id, this host does not know
+        self.cobs_errors = 0  # (serial only; kept for the common counters)
         self.short_errors = 0
         self.seq_gaps = 0
         self.octets = 0
         self.can_frames = 0
         self.bits = 0
         self._next_seq = -1
-        self._slots: dict[int, list] = {}        # msg_id -> [next frame, seq, parts]
-        self._xfer: list | None = None           # [msg_id, seq, len, crc, next, parts, t0]
+        self._slots: dict[int, list] = {}  # msg_id -> [next frame, seq, parts]
+        self._xfer: list | None = None  # [msg_id, seq, len, crc, next, parts, t0]
         xfunc = cg.FUNC_TRANSFER_D2H if direction == "d2h" else cg.FUNC_TRANSFER_H2D
         self._xfer_id = can_id(xfunc, node)
-        self._direct: dict[int, tuple] = {}       # identifier -> (msg_id, k, dlc, n_frames)
+        self._direct: dict[int, tuple] = {}  # identifier -> (msg_id, k, dlc, n_frames)
         for func, (msg_id, k) in cg.BY_FUNC.items():
             spec = BY_ID[msg_id]
             if spec.dir == direction:
                 lay = cg.LAYOUTS[msg_id]
-                self._direct[can_id(func, node)] = (msg_id, k, lay.frame_octets[k], len(lay.frame_octets))
+                self._direct[can_id(func, node)] = (
+                    msg_id,
+                    k,
+                    lay.frame_octets[k],
+                    len(lay.frame_octets),
+                )
         self._decoders = codec._DECODERS
 
     @property
@@ -101,8 +110,19 @@ class CanDecoder:
         return self.crc_errors + self.len_errors + self.order_errors
 
     def counters(self) -> dict[str, int]:
-        return {k: getattr(self, k) for k in ("frames_ok", "crc_errors", "len_errors", "order_errors",
-                                              "unknown_id", "seq_gaps", "octets", "can_frames")}
+        return {
+            k: getattr(self, k)
+            for k in (
+                "frames_ok",
+                "crc_errors",
+                "len_errors",
+                "order_errors",
+                "unknown_id",
+                "seq_gaps",
+                "octets",
+                "can_frames",
+            )
+        }
 
     def _done(self, out: list, msg_id: int, seq: int, payload: bytes) -> None:
         entry = self._decoders.get(msg_id)
@@ -156,8 +176,10 @@ class CanDecoder:
             elif ident == self._xfer_id:
                 self._feed_transfer(out, data)
             elif (ident >> cg.NODE_BITS) in cg.BY_FUNC or ident >> cg.NODE_BITS in (
-                    cg.FUNC_TRANSFER_D2H, cg.FUNC_TRANSFER_H2D):
-                continue   # the other direction's frame (e.g. our own, echoed)
+                cg.FUNC_TRANSFER_D2H,
+                cg.FUNC_TRANSFER_H2D,
+            ):
+                continue  # the other direction's frame (e.g. our own, echoed)
             else:
                 self.unknown_id += 1
         self.octets = self.bits // 10
@@ -206,8 +228,14 @@ class CanDecoder:
 class CanLink:
     """Protocol messages over a python-can bus (any interface), as a link for the session."""
 
-    def __init__(self, bus, node: int = cg.NODE, bit_rate: float = cg.BITRATE, name: str | None = None,
-                 on_close=None):
+    def __init__(
+        self,
+        bus,
+        node: int = cg.NODE,
+        bit_rate: float = cg.BITRATE,
+        name: str | None = None,
+        on_close=None,
+    ):
         self.bus = bus
         self.node = node
         self.bit_rate = float(bit_rate)
@@ -218,6 +246,7 @@ class CanLink:
 
     def send(self, name: str, seq: int, **fields) -> None:
         import can
+
         for ident, data in encode_message(name, seq, self.node, **fields):
             try:
                 self.bus.send(can.Message(arbitration_id=ident, data=data, is_extended_id=False))
@@ -227,9 +256,10 @@ class CanLink:
 
     def poll(self, timeout_s: float) -> list:
         import can
+
         frames = []
         batch = getattr(self.bus, "recv_batch", None)
-        if batch is not None:   # the in-process bus: one chunk of device time per poll
+        if batch is not None:  # the in-process bus: one chunk of device time per poll
             frames = batch()
             return self.decoder.feed(frames) if frames else []
         try:
@@ -258,8 +288,8 @@ class CanLink:
 
 # ------------------------------------------------------------------------------- link budget
 
-STUFF_MARGIN = 1.10      # stuff bits: the budget assumes 10 % on top of the nominal frame bits
-BUDGET_SHARE = 0.95      # share of the bus the telemetry plan may fill
+STUFF_MARGIN = 1.10  # stuff bits: the budget assumes 10 % on top of the nominal frame bits
+BUDGET_SHARE = 0.95  # share of the bus the telemetry plan may fill
 
 
 def message_bits(name: str) -> float:
@@ -275,12 +305,15 @@ def can_budget(rates_hz: dict[str, float], bitrate: float = cg.BITRATE) -> dict:
     return {"streams": streams, "total_bits_s": total, "load": total / bitrate}
 
 
-def can_fast_hz_max(other_rates_hz: dict[str, float], ts_s: float, bitrate: float = cg.BITRATE) -> float:
+def can_fast_hz_max(
+    other_rates_hz: dict[str, float], ts_s: float, bitrate: float = cg.BITRATE
+) -> float:
     """The highest telem_fast rate (a whole number of control periods) that fits the budget next to
     the other streams."""
     left = BUDGET_SHARE * bitrate - can_budget(other_rates_hz, bitrate)["total_bits_s"]
     if left <= 0:
         return 0.0
     import math
+
     div = max(1, math.ceil(1.0 / (left / message_bits("telem_fast") * ts_s)))
     return 1.0 / (div * ts_s)

@@ -7,6 +7,7 @@ Scaled fields are SI floats on this side: wire = floor(value / scale + 0.5), sat
 type's range, NaN -> 0 (the same rule as the firmware's proto_*_pack). Arrays are sequences in, tuples
 out. The decoder works on whole buffers (split at 0x00, C-implemented COBS and CRC) for speed.
 """
+
 from __future__ import annotations
 
 import math
@@ -19,8 +20,8 @@ from cobs.cobs import encode as _cobs_encode
 
 from .generated import BY_ID, BY_NAME, MAX_PAYLOAD, WIRE_TYPES, FieldSpec, MessageSpec
 
-MAX_RAW = MAX_PAYLOAD + 4                      # id, seq, payload, crc_hi, crc_lo
-MAX_ENCODED = MAX_RAW + MAX_RAW // 254 + 1     # COBS of the longest raw frame, without the delimiter
+MAX_RAW = MAX_PAYLOAD + 4  # id, seq, payload, crc_hi, crc_lo
+MAX_ENCODED = MAX_RAW + MAX_RAW // 254 + 1  # COBS of the longest raw frame, without the delimiter
 CRC_INIT = 0xFFFF
 
 
@@ -49,7 +50,7 @@ def spec_of(name_or_id: str | int) -> MessageSpec:
 
 def _quantiser(scale: float, wire_type: str) -> Callable[[Any], int]:
     _, _, lo, hi = WIRE_TYPES[wire_type]
-    inv = 1.0 / scale   # multiply by the reciprocal, as the firmware does
+    inv = 1.0 / scale  # multiply by the reciprocal, as the firmware does
 
     def quantise(value: Any) -> int:
         x = float(value) * inv
@@ -60,6 +61,7 @@ def _quantiser(scale: float, wire_type: str) -> Callable[[Any], int]:
         if x <= lo:
             return lo
         return math.floor(x + 0.5)
+
     return quantise
 
 
@@ -84,6 +86,7 @@ def _field_encoder(msg: str, f: FieldSpec) -> Callable[[Any], int | float]:
         if not lo <= n <= hi:
             raise ProtocolError(f"{where}={n} is outside the {f.type} range {lo}..{hi}")
         return n
+
     return integer
 
 
@@ -110,7 +113,7 @@ def encode_payload(name_or_id: str | int, **fields: Any) -> bytes:
         flat.extend(conv(x) for x in v)
     try:
         return spec.struct.pack(*flat)
-    except (OverflowError, ValueError) as e:   # struct.error is a ValueError; f32 overflow
+    except (OverflowError, ValueError) as e:  # struct.error is a ValueError; f32 overflow
         raise ProtocolError(f"{spec.name}: {e}") from None
 
 
@@ -140,7 +143,10 @@ def _payload_decoder(spec: MessageSpec) -> Callable[[bytes], dict[str, Any]]:
     the fields, which matters at tens of thousands of frames per second."""
     items, i = [], 0
     for f in spec.fields:
-        scaled = [f"v[{k}]" + ("" if f.scale is None else f" * {f.scale!r}") for k in range(i, i + f.count)]
+        scaled = [
+            f"v[{k}]" + ("" if f.scale is None else f" * {f.scale!r}")
+            for k in range(i, i + f.count)
+        ]
         items.append(f"{f.name!r}: " + (scaled[0] if f.count == 1 else f"({', '.join(scaled)},)"))
         i += f.count
     body = "    v = unpack(p)\n" if spec.fields else ""
@@ -175,14 +181,17 @@ def decode_payloads(msg_id: int, payloads: Iterable[bytes]) -> dict[str, Any]:
     import numpy as np
 
     spec = spec_of(msg_id)
-    dtype = np.dtype([(f.name, _NUMPY_TYPES[f.type], (f.count,) if f.count > 1 else ())
-                      for f in spec.fields])
+    dtype = np.dtype(
+        [(f.name, _NUMPY_TYPES[f.type], (f.count,) if f.count > 1 else ()) for f in spec.fields]
+    )
     data = b"".join(payloads)
     if len(data) % max(spec.length, 1):
         raise ProtocolError(f"{spec.name}: payloads are not all {spec.length} octets long")
     rec = np.frombuffer(data, dtype=dtype)
-    return {f.name: (rec[f.name] * f.scale if f.scale is not None else rec[f.name].copy())
-            for f in spec.fields}
+    return {
+        f.name: (rec[f.name] * f.scale if f.scale is not None else rec[f.name].copy())
+        for f in spec.fields
+    }
 
 
 class FrameDecoder:
@@ -194,25 +203,36 @@ class FrameDecoder:
     """
 
     def __init__(self) -> None:
-        self._tail = b""          # octets after the last delimiter
-        self._skipping = False    # the tail overflowed: drop octets up to the next delimiter
-        self.frames_ok = 0        # good frames returned (by feed: those with a known id)
+        self._tail = b""  # octets after the last delimiter
+        self._skipping = False  # the tail overflowed: drop octets up to the next delimiter
+        self.frames_ok = 0  # good frames returned (by feed: those with a known id)
         self.crc_errors = 0
         self.cobs_errors = 0
-        self.len_errors = 0       # too long, or a known id with the wrong payload length
-        self.short_errors = 0     # fewer than 4 octets after COBS
-        self.unknown_id = 0       # good frame but an id not in the protocol (feed only)
-        self.seq_gaps = 0         # frames missing according to the sequence numbers
+        self.len_errors = 0  # too long, or a known id with the wrong payload length
+        self.short_errors = 0  # fewer than 4 octets after COBS
+        self.unknown_id = 0  # good frame but an id not in the protocol (feed only)
+        self.seq_gaps = 0  # frames missing according to the sequence numbers
         self.octets = 0
-        self._next_seq = -1       # sequence number expected next; -1 before the first frame
+        self._next_seq = -1  # sequence number expected next; -1 before the first frame
 
     @property
     def bad_frames(self) -> int:
         return self.crc_errors + self.cobs_errors + self.len_errors + self.short_errors
 
     def counters(self) -> dict[str, int]:
-        return {k: getattr(self, k) for k in ("frames_ok", "crc_errors", "cobs_errors", "len_errors",
-                                              "short_errors", "unknown_id", "seq_gaps", "octets")}
+        return {
+            k: getattr(self, k)
+            for k in (
+                "frames_ok",
+                "crc_errors",
+                "cobs_errors",
+                "len_errors",
+                "short_errors",
+                "unknown_id",
+                "seq_gaps",
+                "octets",
+            )
+        }
 
     def feed_raw(self, data: bytes) -> list[tuple[int, int, bytes]]:
         """Octets in, [(msg_id, seq, payload)] out for every good frame: COBS and CRC good and, for a

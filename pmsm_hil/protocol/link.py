@@ -4,6 +4,7 @@ A link sends a message (name, seq, fields) and returns the decoded frames that a
 link frames with COBS + CRC-16 (docs/protocol.md) over any byte transport (a UART, the emulator's
 pty, the in-process emulator); the CAN link maps messages onto CAN frames. The session above sees
 no difference."""
+
 from __future__ import annotations
 
 from pmsm_hil.protocol import codec

@@ -1,5 +1,6 @@
 """A protocol session with one device: hello/identify with the version and schema check, commands
 with acknowledgement and retry, and a stream of decoded frames for everything else."""
+
 from __future__ import annotations
 
 import time
@@ -28,13 +29,13 @@ class Session:
     def __init__(self, transport):
         """`transport`: a link (serial or CAN), or a byte transport that gets the serial framing."""
         self.link = as_link(transport)
-        self.t = self.link            # .name for messages
-        self.decoder = self.link.decoder   # frame counters (link statistics)
-        self.inbox: deque = deque()   # frames that arrived while waiting for something else
+        self.t = self.link  # .name for messages
+        self.decoder = self.link.decoder  # frame counters (link statistics)
+        self.inbox: deque = deque()  # frames that arrived while waiting for something else
         self._seq = 0
         self.identity: Identity | None = None
-        self.capture_missing: list[int] = []   # capture chunks that did not arrive (read_capture)
-        self.capture_rejected = 0              # capture chunks refused as corrupt
+        self.capture_missing: list[int] = []  # capture chunks that did not arrive (read_capture)
+        self.capture_rejected = 0  # capture chunks refused as corrupt
 
     # ------------------------------------------------------------------ sending
     def send(self, name: str, **fields) -> int:
@@ -63,7 +64,7 @@ class Session:
                 if found is None and match(fr):
                     found = fr
                 else:
-                    held.append(fr)   # kept, in order, for the caller's next poll()
+                    held.append(fr)  # kept, in order, for the caller's next poll()
         self.inbox.extend(held)
         return found
 
@@ -72,17 +73,25 @@ class Session:
         msg_id = gen.BY_NAME[name].id
         for _attempt in range(retries):
             seq = self.send(name, **fields)
-            fr = self._wait_for(lambda f: f.name == "ack" and f.fields["cmd_id"] == msg_id
-                                and f.fields["cmd_seq"] == seq, timeout_s)
+            fr = self._wait_for(
+                lambda f: (
+                    f.name == "ack" and f.fields["cmd_id"] == msg_id and f.fields["cmd_seq"] == seq
+                ),
+                timeout_s,
+            )
             if fr is None:
                 continue
             status = fr.fields["status"]
             if status != gen.ENUMS["ack_status"]["ok"]:
-                raise DeviceError(f"device refused {name} ({ACK_TEXT.get(status, status)})"
-                                  + (f": {fields}" if fields else ""))
+                raise DeviceError(
+                    f"device refused {name} ({ACK_TEXT.get(status, status)})"
+                    + (f": {fields}" if fields else "")
+                )
             return
-        raise DeviceError(f"device did not acknowledge {name} after {retries} tries "
-                          f"({timeout_s:.1f} s each) on {self.t.name}")
+        raise DeviceError(
+            f"device did not acknowledge {name} after {retries} tries "
+            f"({timeout_s:.1f} s each) on {self.t.name}"
+        )
 
     def hello(self, timeout_s: float = 2.0) -> Identity:
         """Identify the device; refuse a protocol version or schema mismatch, naming both."""
@@ -92,20 +101,26 @@ class Session:
             if fr is not None:
                 break
         else:
-            raise DeviceError(f"no answer to hello within {timeout_s:.1f} s on {self.t.name}: "
-                              f"is the device powered, the port right and the baud rate matching?")
+            raise DeviceError(
+                f"no answer to hello within {timeout_s:.1f} s on {self.t.name}: "
+                f"is the device powered, the port right and the baud rate matching?"
+            )
         f = fr.fields
         if f["proto_version"] != gen.PROTOCOL_VERSION or f["schema_hash"] != gen.SCHEMA_HASH:
             raise DeviceError(
                 f"protocol mismatch: device speaks version {f['proto_version']} schema "
                 f"{f['schema_hash']:08x}, this host speaks version {gen.PROTOCOL_VERSION} schema "
                 f"{gen.SCHEMA_HASH:08x}; flash the firmware built from this tree or use the host "
-                f"that matches the firmware")
+                f"that matches the firmware"
+            )
         self.identity = Identity(
-            proto_version=f["proto_version"], schema_hash=f["schema_hash"],
+            proto_version=f["proto_version"],
+            schema_hash=f["schema_hash"],
             fw_version=f"{f['fw_major']}.{f['fw_minor']}.{f['fw_patch']}",
             board=BOARD_NAMES.get(f["board"], str(f["board"])),
-            tx_buf_octets=f["tx_buf_octets"], capture_len=f["capture_len"])
+            tx_buf_octets=f["tx_buf_octets"],
+            capture_len=f["capture_len"],
+        )
         return self.identity
 
     def read_capture(self, count: int, timeout_s: float = 0.5, retries: int = 3) -> list[dict]:
@@ -124,8 +139,10 @@ class Session:
             fr = None
             for _attempt in range(retries):
                 self.send("capture_read", offset=offset)
-                fr = self._wait_for(lambda f, o=offset: f.name == "capture_chunk"
-                                    and f.fields["offset"] == o, timeout_s)
+                fr = self._wait_for(
+                    lambda f, o=offset: f.name == "capture_chunk" and f.fields["offset"] == o,
+                    timeout_s,
+                )
                 if fr is not None and fr.fields["n_valid"] > min(per_chunk, count - offset):
                     self.capture_rejected += 1
                     fr = None

@@ -5,11 +5,25 @@ magnitudes and seeds, run in process on Dask workers, one row of metrics per run
     sweep = load_sweep("sweeps/tolerance.yaml")
     outcome = run_sweep(sweep, Path("sweep-out"), limit=8)
 """
+
 from .driver import SweepOutcome, run_sweep, write_inputs
 from .execute import execute_run, run_in_process
 from .plan import Run, plan_runs
 from .results import Journal, read_table, write_table
 from .spec import METRICS, Sweep, load_sweep
 
-__all__ = ["load_sweep", "plan_runs", "run_sweep", "execute_run", "run_in_process", "Sweep", "Run",
-           "SweepOutcome", "Journal", "read_table", "write_table", "write_inputs", "METRICS"]
+__all__ = [
+    "load_sweep",
+    "plan_runs",
+    "run_sweep",
+    "execute_run",
+    "run_in_process",
+    "Sweep",
+    "Run",
+    "SweepOutcome",
+    "Journal",
+    "read_table",
+    "write_table",
+    "write_inputs",
+    "METRICS",
+]

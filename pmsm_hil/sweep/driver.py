@@ -4,6 +4,7 @@ whose worker dies is run once more elsewhere (the scheduler's ``allowed-failures
 reported failed with the error. Finished runs go to the journal as they come back, so an
 interrupted sweep resumes where it stopped.
 """
+
 from __future__ import annotations
 
 import json
@@ -18,21 +19,30 @@ from .plan import FILES, Run, plan_runs
 from .results import Journal, write_table
 from .spec import Sweep
 
-__all__ = ["SweepOutcome", "run_sweep", "run_runs", "write_inputs", "ALLOWED_FAILURES", "SCHEDULER_CONFIG"]
+__all__ = [
+    "SweepOutcome",
+    "run_sweep",
+    "run_runs",
+    "write_inputs",
+    "ALLOWED_FAILURES",
+    "SCHEDULER_CONFIG",
+]
 
-ALLOWED_FAILURES = 1   # a task is re-run once after its worker died, then reported failed
+ALLOWED_FAILURES = 1  # a task is re-run once after its worker died, then reported failed
 # and a worker holds only the run it executes (no queued second run that its death would also
 # count against): the scheduler's settings for a local cluster, and what a cluster's scheduler
 # should be started with (docs/sweep.md)
-SCHEDULER_CONFIG = {"distributed.scheduler.allowed-failures": ALLOWED_FAILURES,
-                    "distributed.scheduler.worker-saturation": 1.0}
+SCHEDULER_CONFIG = {
+    "distributed.scheduler.allowed-failures": ALLOWED_FAILURES,
+    "distributed.scheduler.worker-saturation": 1.0,
+}
 
 
 @dataclass
 class SweepOutcome:
     out: Path
     planned: int
-    skipped: int = 0           # done in an earlier, interrupted sweep
+    skipped: int = 0  # done in an earlier, interrupted sweep
     ok: int = 0
     failed: int = 0
     interrupted: bool = False
@@ -57,7 +67,9 @@ def write_inputs(out: Path, run: Run) -> Path:
         p = d / name
         if not p.exists() or p.read_text(encoding="utf-8") != run.texts[name]:
             p.write_text(run.texts[name], encoding="utf-8")
-    (d / "run.json").write_text(json.dumps({"seed": run.seed, "values": run.values}, sort_keys=True) + "\n")
+    (d / "run.json").write_text(
+        json.dumps({"seed": run.seed, "values": run.values}, sort_keys=True) + "\n"
+    )
     return d
 
 
@@ -70,9 +82,15 @@ def _client(scheduler: str | None, workers: int | None):
     if scheduler:
         return Client(scheduler, timeout="10s"), None
     dask.config.set(SCHEDULER_CONFIG)
-    cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1,
-                           processes=True, host="127.0.0.1", dashboard_address=None,
-                           scheduler_kwargs={"dashboard": False}, silence_logs=logging.ERROR)
+    cluster = LocalCluster(
+        n_workers=workers or os.cpu_count() or 1,
+        threads_per_worker=1,
+        processes=True,
+        host="127.0.0.1",
+        dashboard_address=None,
+        scheduler_kwargs={"dashboard": False},
+        silence_logs=logging.ERROR,
+    )
     return Client(cluster), cluster
 
 
@@ -84,27 +102,63 @@ def _error_of(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {exc}"
 
 
-def run_sweep(sweep: Sweep, out: Path, *, limit: int | None = None, scheduler: str | None = None,
-              workers: int | None = None, progress: bool = True,
-              task_fn: Callable[[dict], dict] = execute_run, runs: list[Run] | None = None) -> SweepOutcome:
+def run_sweep(
+    sweep: Sweep,
+    out: Path,
+    *,
+    limit: int | None = None,
+    scheduler: str | None = None,
+    workers: int | None = None,
+    progress: bool = True,
+    task_fn: Callable[[dict], dict] = execute_run,
+    runs: list[Run] | None = None,
+) -> SweepOutcome:
     """Run the sweep (its first ``limit`` runs) into ``out``; skip the runs done there before."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     runs = plan_runs(sweep) if runs is None else runs
     if limit is not None:
         runs = runs[:limit]
-    (out / "sweep.json").write_text(json.dumps({
-        "name": sweep.name, "file": str(sweep.path), "profile": str(sweep.profile_path),
-        "axes": [{"name": a.name, "field": a.field, "kind": a.kind, "relative": a.relative}
-                 for a in sweep.axes]}, indent=1) + "\n")
-    return run_runs(runs, out, list(sweep.spec.metrics), keep_logs=sweep.spec.keep_logs,
-                    axes=[a.name for a in sweep.axes], scheduler=scheduler, workers=workers,
-                    progress=progress, task_fn=task_fn)
+    (out / "sweep.json").write_text(
+        json.dumps(
+            {
+                "name": sweep.name,
+                "file": str(sweep.path),
+                "profile": str(sweep.profile_path),
+                "axes": [
+                    {"name": a.name, "field": a.field, "kind": a.kind, "relative": a.relative}
+                    for a in sweep.axes
+                ],
+            },
+            indent=1,
+        )
+        + "\n"
+    )
+    return run_runs(
+        runs,
+        out,
+        list(sweep.spec.metrics),
+        keep_logs=sweep.spec.keep_logs,
+        axes=[a.name for a in sweep.axes],
+        scheduler=scheduler,
+        workers=workers,
+        progress=progress,
+        task_fn=task_fn,
+    )
 
 
-def run_runs(runs: list[Run], out: Path, metrics: list[str], *, keep_logs: bool = False,
-             axes: list[str] | None = None, scheduler: str | None = None, workers: int | None = None,
-             progress: bool = True, task_fn: Callable[[dict], dict] = execute_run) -> SweepOutcome:
+def run_runs(
+    runs: list[Run],
+    out: Path,
+    metrics: list[str],
+    *,
+    keep_logs: bool = False,
+    axes: list[str] | None = None,
+    scheduler: str | None = None,
+    workers: int | None = None,
+    progress: bool = True,
+    task_fn: Callable[[dict], dict] = execute_run,
+) -> SweepOutcome:
     """Run ``runs`` on Dask into ``out`` (the machinery of a sweep, also for `pmsm-hil test`)."""
     from distributed import as_completed
 
@@ -128,17 +182,31 @@ def run_runs(runs: list[Run], out: Path, metrics: list[str], *, keep_logs: bool 
             futures = []
             for r in todo:
                 log = str((out / "logs" / f"{r.key}.mcap").resolve()) if keep_logs else None
-                futures.append(client.submit(task_fn, r.task(metrics, log), key=f"pmsm-run-{r.key}",
-                                             pure=False))
+                futures.append(
+                    client.submit(
+                        task_fn, r.task(metrics, log), key=f"pmsm-run-{r.key}", pure=False
+                    )
+                )
             with bar:
                 for fut in as_completed(futures):
-                    run = by_key[fut.key[len("pmsm-run-"):]]
+                    run = by_key[fut.key[len("pmsm-run-") :]]
                     try:
                         row = fut.result()
                     except Exception as e:  # noqa: BLE001 - the worker died twice, or was lost
-                        row = {"key": run.key, "status": "failed", "error": _error_of(e), "log_path": ""}
+                        row = {
+                            "key": run.key,
+                            "status": "failed",
+                            "error": _error_of(e),
+                            "log_path": "",
+                        }
                     fut.release()
-                    row = {"index": run.index, "key": run.key, "seed": run.seed, **run.values, **row}
+                    row = {
+                        "index": run.index,
+                        "key": run.key,
+                        "seed": run.seed,
+                        **run.values,
+                        **row,
+                    }
                     journal.add(row)
                     if row["status"] == "ok":
                         res.ok += 1
@@ -166,13 +234,26 @@ class _Bar:
         self.total, self.done, self.failed = total, skipped, 0
         self.new = 0
         if enabled:
-            from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
-            self.progress = Progress(TextColumn("sweep"), BarColumn(), MofNCompleteColumn(),
-                                     TextColumn("{task.fields[failed]} failed"),
-                                     TextColumn("{task.fields[rate]}"), TimeRemainingColumn(),
-                                     transient=False)
-            self.task = self.progress.add_task("sweep", total=total, completed=skipped, failed=0,
-                                               rate="")
+            from rich.progress import (
+                BarColumn,
+                MofNCompleteColumn,
+                Progress,
+                TextColumn,
+                TimeRemainingColumn,
+            )
+
+            self.progress = Progress(
+                TextColumn("sweep"),
+                BarColumn(),
+                MofNCompleteColumn(),
+                TextColumn("{task.fields[failed]} failed"),
+                TextColumn("{task.fields[rate]}"),
+                TimeRemainingColumn(),
+                transient=False,
+            )
+            self.task = self.progress.add_task(
+                "sweep", total=total, completed=skipped, failed=0, rate=""
+            )
 
     def __enter__(self):
         if self.enabled:
@@ -189,5 +270,6 @@ class _Bar:
         self.failed += 0 if ok else 1
         if self.enabled:
             rate = 60.0 * self.new / elapsed_s if elapsed_s > 0 else 0.0
-            self.progress.update(self.task, completed=self.done, failed=self.failed,
-                                 rate=f"{rate:.1f} runs/min")
+            self.progress.update(
+                self.task, completed=self.done, failed=self.failed, rate=f"{rate:.1f} runs/min"
+            )

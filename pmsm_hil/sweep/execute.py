@@ -4,6 +4,7 @@ written directly, the metrics computed from it. This is what a Dask worker execu
 A run that cannot be made (invalid inputs, a host or device error) is returned with status
 "failed" and its error, never raised: one bad run does not end the sweep.
 """
+
 from __future__ import annotations
 
 import os
@@ -24,10 +25,15 @@ def run_in_process(profile, log_path: str | os.PathLike, seed: int):
     from pmsm_hil.runner import RunOptions, run_profile
     from pmsm_hil.transport.inproc import InProcessTransport
 
-    settings = emulator_settings(profile.motor, profile.rig, seed=seed, baud=profile.link.baud,
-                                 ts_s=profile.control.ts_s)
-    return run_profile(profile, Session(InProcessTransport(settings)), Path(log_path),
-                       RunOptions(seed=seed, rig_name=profile.rig.name))
+    settings = emulator_settings(
+        profile.motor, profile.rig, seed=seed, baud=profile.link.baud, ts_s=profile.control.ts_s
+    )
+    return run_profile(
+        profile,
+        Session(InProcessTransport(settings)),
+        Path(log_path),
+        RunOptions(seed=seed, rig_name=profile.rig.name),
+    )
 
 
 def execute_run(task: dict[str, Any]) -> dict[str, Any]:

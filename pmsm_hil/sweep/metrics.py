@@ -8,6 +8,7 @@ error| over the plateaus at a non-zero setpoint), ``ripple_q_max_a``, ``ripple_d
 start to the first plant step, or the whole run): ``id_{estimator}_{param}_error_rel`` and
 ``id_{estimator}_{param}_conv_s`` (NaN: never converged).
 """
+
 from __future__ import annotations
 
 import math

@@ -5,6 +5,7 @@ Order: for each random draw (one when no axis is random), the grid axes' Cartesi
 order the axes are written (the last axis varies fastest). The random draws come from one numpy
 generator seeded by ``draw_seed``, so a sweep file always expands to the same runs.
 """
+
 from __future__ import annotations
 
 import copy
@@ -34,15 +35,21 @@ _PART = re.compile(r"([a-z_][a-z0-9_]*)(?:\[(\d+)\])?")
 @dataclass
 class Run:
     index: int
-    values: dict[str, Any]                  # axis column name -> value
+    values: dict[str, Any]  # axis column name -> value
     seed: int
-    texts: dict[str, str] = field(default_factory=dict)   # FILES -> YAML text
+    texts: dict[str, str] = field(default_factory=dict)  # FILES -> YAML text
     key: str = ""
 
     def task(self, metrics: list[str], log_path: str | None) -> dict:
         """What a worker needs: plain data (picklable, no paths to read)."""
-        return {"key": self.key, "index": self.index, "seed": self.seed, "texts": dict(self.texts),
-                "metrics": list(metrics), "log_path": log_path}
+        return {
+            "key": self.key,
+            "index": self.index,
+            "seed": self.seed,
+            "texts": dict(self.texts),
+            "metrics": list(metrics),
+            "log_path": log_path,
+        }
 
 
 def _parts(path: str) -> list[str | int]:
@@ -106,12 +113,20 @@ class _Base:
     """The base profile, motor and rig as data (for editing) and as validated objects (for the
     base value of a field, defaults included)."""
 
-    def __init__(self, profile_path: str, rig_path: str | None = None, motor_path: str | None = None):
+    def __init__(
+        self, profile_path: str, rig_path: str | None = None, motor_path: str | None = None
+    ):
         self.profile = load_profile(profile_path, rig_override=rig_path, motor_override=motor_path)
-        self.data = {"profile": read_source(self.profile.path).data,
-                     "motor": read_source(self.profile.motor.path).data,
-                     "rig": read_source(self.profile.rig.path).data}
-        self.objects = {"profile": self.profile.spec, "motor": self.profile.motor, "rig": self.profile.rig}
+        self.data = {
+            "profile": read_source(self.profile.path).data,
+            "motor": read_source(self.profile.motor.path).data,
+            "rig": read_source(self.profile.rig.path).data,
+        }
+        self.objects = {
+            "profile": self.profile.spec,
+            "motor": self.profile.motor,
+            "rig": self.profile.rig,
+        }
         sat = (self.data["rig"].get("effects") or {}).get("saturation")
         if isinstance(sat, dict) and isinstance(sat.get("map"), str):
             sat["map"] = os.path.abspath(resolve_ref(self.profile.rig.path, sat["map"]))
@@ -129,15 +144,26 @@ def _check_axes(sweep: Sweep, base: _Base) -> None:
         try:
             value = _base_value(base.objects[root], rest)
         except KeyError as e:
-            problems.append(sweep.src.problem(("axes", i, "field"),
-                                              f"names no field of the {root} ({e.args[0]!r} is unknown)",
-                                              ax.field))
+            problems.append(
+                sweep.src.problem(
+                    ("axes", i, "field"),
+                    f"names no field of the {root} ({e.args[0]!r} is unknown)",
+                    ax.field,
+                )
+            )
             continue
         if hasattr(type(value), "model_fields") or isinstance(value, (list, dict)):
-            problems.append(sweep.src.problem(("axes", i, "field"), "names a section, not a value", ax.field))
+            problems.append(
+                sweep.src.problem(("axes", i, "field"), "names a section, not a value", ax.field)
+            )
         elif ax.relative and (isinstance(value, bool) or not isinstance(value, (int, float))):
-            problems.append(sweep.src.problem(("axes", i, "relative"), f"needs a number in the base file, "
-                                              f"which has {value!r}", True))
+            problems.append(
+                sweep.src.problem(
+                    ("axes", i, "relative"),
+                    f"needs a number in the base file, which has {value!r}",
+                    True,
+                )
+            )
     if problems:
         raise ProfileError(problems)
 
@@ -145,15 +171,21 @@ def _check_axes(sweep: Sweep, base: _Base) -> None:
 def _concrete(value: Any, base_value: Any, relative: bool) -> Any:
     if relative:
         value = base_value * value
-    if isinstance(base_value, int) and not isinstance(base_value, bool) and isinstance(value, float) \
-            and value.is_integer():
+    if (
+        isinstance(base_value, int)
+        and not isinstance(base_value, bool)
+        and isinstance(value, float)
+        and value.is_integer()
+    ):
         return int(value)
     if isinstance(base_value, float) and isinstance(value, int) and not isinstance(value, bool):
         return float(value)
     return value
 
 
-def materialise(base: _Base, axes: list[Axis], values: dict[str, Any], seed: int) -> tuple[dict[str, str], int]:
+def materialise(
+    base: _Base, axes: list[Axis], values: dict[str, Any], seed: int
+) -> tuple[dict[str, str], int]:
     """The three YAML texts and the seed of one run (``values``: axis field -> value)."""
     data = copy.deepcopy(base.data)
     for ax in axes:
@@ -164,8 +196,10 @@ def materialise(base: _Base, axes: list[Axis], values: dict[str, Any], seed: int
         parts = _parts(ax.field)
         root, rest = parts[0], parts[1:]
         _set(data[root], rest, _concrete(v, _base_value(base.objects[root], rest), ax.relative))
-    texts = {f"{k}.yaml": yaml.safe_dump(data[k], sort_keys=False, width=1_000_000)
-             for k in ("profile", "motor", "rig")}
+    texts = {
+        f"{k}.yaml": yaml.safe_dump(data[k], sort_keys=False, width=1_000_000)
+        for k in ("profile", "motor", "rig")
+    }
     return texts, seed
 
 
@@ -190,13 +224,21 @@ def plan_runs(sweep: Sweep) -> list[Run]:
             by_field.update({a.field: v for a, v in zip(grid, combo)})
             texts, seed = materialise(base, sweep.axes, by_field, sweep.spec.seed)
             values = {a.name: by_field[a.field] for a in sweep.axes}
-            runs.append(Run(index=len(runs), values=values, seed=seed, texts=texts,
-                            key=run_key(texts, seed)))
+            runs.append(
+                Run(
+                    index=len(runs), values=values, seed=seed, texts=texts, key=run_key(texts, seed)
+                )
+            )
     return runs
 
 
-def profile_run(profile_path: str, index: int = 0, seed: int = 1, rig_path: str | None = None,
-                motor_path: str | None = None) -> Run:
+def profile_run(
+    profile_path: str,
+    index: int = 0,
+    seed: int = 1,
+    rig_path: str | None = None,
+    motor_path: str | None = None,
+) -> Run:
     """One run of a profile as it is (with another rig or motor file if given): a sweep of one
     point. Raises ProfileError for an invalid profile."""
     texts, seed = materialise(_Base(profile_path, rig_path, motor_path), [], {}, seed)

@@ -2,6 +2,7 @@
 worst) in DIR/report/summary.md, one PNG per metric against each axis, and for a sweep with two
 grid axes a pass/fail map over the grid (pass: the run is ok, complete, without faults and, when
 the profile has acceptance criteria, within them)."""
+
 from __future__ import annotations
 
 import json
@@ -37,19 +38,28 @@ def passed(row: dict[str, Any]) -> bool:
         return False
     if row.get("complete") is False or (row.get("faults") or 0) > 0:
         return False
-    return row.get("acceptance_failed", 0) in (0, None) or (isinstance(row.get("acceptance_failed"), float)
-                                                           and math.isnan(row["acceptance_failed"]))
+    return row.get("acceptance_failed", 0) in (0, None) or (
+        isinstance(row.get("acceptance_failed"), float) and math.isnan(row["acceptance_failed"])
+    )
 
 
 def _finite(xs):
-    return [x for x in xs if isinstance(x, (int, float)) and not (isinstance(x, float) and math.isnan(x))]
+    return [
+        x
+        for x in xs
+        if isinstance(x, (int, float)) and not (isinstance(x, float) and math.isnan(x))
+    ]
 
 
 def _summary(rows, cols) -> str:
     ok = [r for r in rows if r.get("status") == "ok"]
-    lines = [f"# Sweep results: {len(rows)} runs, {len(ok)} ok, {len(rows) - len(ok)} failed, "
-             f"{sum(passed(r) for r in rows)} passed", "",
-             "| metric | runs | median | worst (largest magnitude) | min | max |", "|---|---|---|---|---|---|"]
+    lines = [
+        f"# Sweep results: {len(rows)} runs, {len(ok)} ok, {len(rows) - len(ok)} failed, "
+        f"{sum(passed(r) for r in rows)} passed",
+        "",
+        "| metric | runs | median | worst (largest magnitude) | min | max |",
+        "|---|---|---|---|---|---|",
+    ]
     for c in cols:
         v = _finite([float(r[c]) for r in ok if r.get(c) is not None])
         if not v:
@@ -71,11 +81,17 @@ def write_report(out: Path) -> list[Path]:
     from pmsm_hil.analysis.report_style import plt
 
     if not (out / "results.parquet").is_file():
-        raise ReportError(f"{out}: no results.parquet here (run `pmsm-hil sweep SWEEP --out {out}` first)")
+        raise ReportError(
+            f"{out}: no results.parquet here (run `pmsm-hil sweep SWEEP --out {out}` first)"
+        )
     rows = read_table(out)
     if not rows:
         raise ReportError(f"{out}/results.parquet: the table is empty")
-    meta = json.loads((out / "sweep.json").read_text()) if (out / "sweep.json").is_file() else {"axes": []}
+    meta = (
+        json.loads((out / "sweep.json").read_text())
+        if (out / "sweep.json").is_file()
+        else {"axes": []}
+    )
     axes = [a["name"] for a in meta["axes"] if a["name"] in rows[0]]
     cols = metric_columns(rows, axes)
     rep = out / "report"
@@ -86,14 +102,25 @@ def write_report(out: Path) -> list[Path]:
     num_axes = [a for a in axes if all(isinstance(r.get(a), (int, float)) for r in rows)]
     if num_axes and ok:
         for c in cols:
-            fig, axs = plt.subplots(1, len(num_axes), figsize=(3.2 * len(num_axes) + 1, 3.2),
-                                    squeeze=False, layout="constrained")
+            fig, axs = plt.subplots(
+                1,
+                len(num_axes),
+                figsize=(3.2 * len(num_axes) + 1, 3.2),
+                squeeze=False,
+                layout="constrained",
+            )
             for ax, a in zip(axs[0], num_axes):
                 good = [r for r in ok if passed(r)]
                 bad = [r for r in ok if not passed(r)]
                 ax.plot([r[a] for r in good], [float(r[c]) for r in good], "o", ms=4, label="pass")
                 if bad:
-                    ax.plot([r[a] for r in bad], [float(r[c]) for r in bad], "x", color="C3", label="fail")
+                    ax.plot(
+                        [r[a] for r in bad],
+                        [float(r[c]) for r in bad],
+                        "x",
+                        color="C3",
+                        label="fail",
+                    )
                 ax.set_xlabel(a, fontsize=8)
                 ax.grid(alpha=0.3)
             axs[0][0].set_ylabel(c, fontsize=8)
@@ -102,8 +129,13 @@ def write_report(out: Path) -> list[Path]:
             fig.savefig(p, dpi=90)
             plt.close(fig)
             written.append(p)
-    grid = [a["name"] for a in meta["axes"] if a["kind"] in ("values", "linspace") and a["name"] in rows[0]
-            and len({r[a["name"]] for r in rows}) > 1]
+    grid = [
+        a["name"]
+        for a in meta["axes"]
+        if a["kind"] in ("values", "linspace")
+        and a["name"] in rows[0]
+        and len({r[a["name"]] for r in rows}) > 1
+    ]
     if len(grid) == 2:
         written.append(_pass_map(rows, grid, rep, meta.get("name", out.name)))
     return written

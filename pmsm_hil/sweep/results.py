@@ -5,6 +5,7 @@ table made from it (OUT/results.parquet and OUT/results.csv, one row per run of 
 Rows are keyed by the run's inputs (``Run.key``: a hash of its profile, motor and rig texts and its
 seed); a resumed sweep skips the keys whose latest row has status "ok".
 """
+
 from __future__ import annotations
 
 import json
@@ -31,7 +32,7 @@ class Journal:
                     try:
                         row = json.loads(line)
                     except json.JSONDecodeError:
-                        continue   # a line cut short by a kill: that run is simply redone
+                        continue  # a line cut short by a kill: that run is simply redone
                     self.rows[row["key"]] = row
 
     def done(self) -> set[str]:
@@ -50,8 +51,12 @@ def _columns(rows: list[dict[str, Any]], axes: list[str]) -> list[str]:
         for k in r:
             seen.setdefault(k, None)
     rest = [k for k in seen if k not in FIRST_COLUMNS and k not in LAST_COLUMNS and k not in axes]
-    return ([c for c in FIRST_COLUMNS if c in seen] + [a for a in axes if a in seen] + rest
-            + [c for c in LAST_COLUMNS if c in seen])
+    return (
+        [c for c in FIRST_COLUMNS if c in seen]
+        + [a for a in axes if a in seen]
+        + rest
+        + [c for c in LAST_COLUMNS if c in seen]
+    )
 
 
 def _column_values(rows: list[dict[str, Any]], col: str) -> list[Any]:

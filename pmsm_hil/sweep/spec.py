@@ -15,6 +15,7 @@
 Validated with pydantic; every problem is reported as ``file:line: field = value message`` through
 the profile machinery (pmsm_hil/profiles/_source.py). The format is in docs/sweep.md.
 """
+
 from __future__ import annotations
 
 import os
@@ -24,8 +25,14 @@ from typing import Literal
 from pydantic import Field, ValidationError, model_validator
 
 from pmsm_hil.profiles._base import StrictModel
-from pmsm_hil.profiles._source import (Problem, ProfileError, Source, read_source, resolve_ref,
-                                       validation_problems)
+from pmsm_hil.profiles._source import (
+    Problem,
+    ProfileError,
+    Source,
+    read_source,
+    resolve_ref,
+    validation_problems,
+)
 
 __all__ = ["Axis", "SweepFile", "Sweep", "load_sweep", "METRICS", "FIELD_RE"]
 
@@ -60,22 +67,34 @@ class Linspace(StrictModel):
 class Axis(StrictModel):
     """One swept field: a list of values or a linspace (grid), or a distribution (random)."""
 
-    field: str = Field(min_length=1, description="what is varied: seed, profile.PATH, motor.FIELD or "
-                                                 "rig.PATH, e.g. rig.effects.dead_time.dead_time_s")
-    values: list[float | int | bool | str] | None = Field(None, min_length=1, description="grid values")
+    field: str = Field(
+        min_length=1,
+        description="what is varied: seed, profile.PATH, motor.FIELD or "
+        "rig.PATH, e.g. rig.effects.dead_time.dead_time_s",
+    )
+    values: list[float | int | bool | str] | None = Field(
+        None, min_length=1, description="grid values"
+    )
     linspace: Linspace | None = Field(None, description="grid: {start, stop, num}")
     uniform: Range | None = Field(None, description="random: uniform on {low, high}")
     normal: Normal | None = Field(None, description="random: normal {mean, std}")
-    log_uniform: Range | None = Field(None, description="random: log-uniform on {low, high} (both > 0)")
+    log_uniform: Range | None = Field(
+        None, description="random: log-uniform on {low, high} (both > 0)"
+    )
     relative: bool = Field(False, description="the values are factors on the base file's value")
 
     @model_validator(mode="after")
     def _one_kind(self):
-        given = [k for k in ("values", "linspace", "uniform", "normal", "log_uniform")
-                 if getattr(self, k) is not None]
+        given = [
+            k
+            for k in ("values", "linspace", "uniform", "normal", "log_uniform")
+            if getattr(self, k) is not None
+        ]
         if len(given) != 1:
-            raise ValueError("give exactly one of values, linspace, uniform, normal, log_uniform"
-                             + (f" (given: {', '.join(given)})" if given else ""))
+            raise ValueError(
+                "give exactly one of values, linspace, uniform, normal, log_uniform"
+                + (f" (given: {', '.join(given)})" if given else "")
+            )
         return self
 
     @property
@@ -100,24 +119,36 @@ class SweepFile(StrictModel):
 
     name: str = Field(min_length=1, description="sweep name")
     description: str = Field("", description="text")
-    profile: str = Field(min_length=1, description="base profile: a path relative to the sweep file, "
-                                                   "or a shipped name")
-    motor: str | None = Field(None, description="motor file or shipped name instead of the profile's")
+    profile: str = Field(
+        min_length=1,
+        description="base profile: a path relative to the sweep file, or a shipped name",
+    )
+    motor: str | None = Field(
+        None, description="motor file or shipped name instead of the profile's"
+    )
     rig: str | None = Field(None, description="rig file or shipped name instead of the profile's")
     seed: int = Field(1, ge=0, le=2**31 - 1, description="emulator seed when no axis sets it")
     axes: list[Axis] = Field(default_factory=list, description="the fields varied")
     draws: int | None = Field(None, ge=1, le=MAX_RUNS, description="number of random draws")
     draw_seed: int = Field(1, ge=0, description="seed of the random draws (not of the emulator)")
     metrics: list[Literal[METRICS]] = Field(  # type: ignore[valid-type]
-        default_factory=lambda: list(METRICS), min_length=1, description="metrics kept per run")
+        default_factory=lambda: list(METRICS), min_length=1, description="metrics kept per run"
+    )
     keep_logs: bool = Field(False, description="keep each run's MCAP log in OUT/logs/")
 
 
 class Sweep:
     """A validated sweep file with its base files resolved to paths."""
 
-    def __init__(self, spec: SweepFile, path: str, src: Source, profile_path: str,
-                 motor_path: str | None, rig_path: str | None):
+    def __init__(
+        self,
+        spec: SweepFile,
+        path: str,
+        src: Source,
+        profile_path: str,
+        motor_path: str | None,
+        rig_path: str | None,
+    ):
         self.spec = spec
         self.name = spec.name
         self.path = path
@@ -170,25 +201,44 @@ def load_sweep(path: str | os.PathLike) -> Sweep:
     seen: dict[str, int] = {}
     for i, ax in enumerate(spec.axes):
         if not FIELD_RE.match(ax.field):
-            problems.append(src.problem(("axes", i, "field"), "is not seed, profile.PATH, motor.FIELD or "
-                                        "rig.PATH (e.g. rig.effects.dead_time.dead_time_s, "
-                                        "profile.segments[2].load_nm)", ax.field))
+            problems.append(
+                src.problem(
+                    ("axes", i, "field"),
+                    "is not seed, profile.PATH, motor.FIELD or "
+                    "rig.PATH (e.g. rig.effects.dead_time.dead_time_s, "
+                    "profile.segments[2].load_nm)",
+                    ax.field,
+                )
+            )
         if ax.field in seen:
-            problems.append(src.problem(("axes", i, "field"), f"is swept twice (also axes[{seen[ax.field]}])",
-                                        ax.field))
+            problems.append(
+                src.problem(
+                    ("axes", i, "field"), f"is swept twice (also axes[{seen[ax.field]}])", ax.field
+                )
+            )
         seen.setdefault(ax.field, i)
         if ax.log_uniform is not None and ax.log_uniform.low <= 0:
-            problems.append(src.problem(("axes", i, "log_uniform", "low"), "must be > 0",
-                                        ax.log_uniform.low))
+            problems.append(
+                src.problem(("axes", i, "log_uniform", "low"), "must be > 0", ax.log_uniform.low)
+            )
         if ax.field == "seed" and ax.random:
-            problems.append(src.problem(("axes", i, "field"), "is drawn at random; give the seeds as "
-                                        "values or a linspace", ax.field))
+            problems.append(
+                src.problem(
+                    ("axes", i, "field"),
+                    "is drawn at random; give the seeds as values or a linspace",
+                    ax.field,
+                )
+            )
         if ax.relative and ax.field == "seed":
             problems.append(src.problem(("axes", i, "relative"), "cannot apply to the seed", True))
     has_random = any(a.random for a in spec.axes)
     if has_random and spec.draws is None:
-        problems.append(src.problem(("draws",), "is missing (required when an axis is random: the "
-                                                "number of random draws)"))
+        problems.append(
+            src.problem(
+                ("draws",),
+                "is missing (required when an axis is random: the number of random draws)",
+            )
+        )
     if not has_random and spec.draws is not None:
         problems.append(src.problem(("draws",), "is given but no axis is random", spec.draws))
     if problems:

@@ -5,6 +5,7 @@ measured value beside each bound; JUnit XML for CI.
 A profile without an `acceptance:` section is held to the default: the whole profile played, no
 fault.
 """
+
 from __future__ import annotations
 
 import json
@@ -27,11 +28,11 @@ METRICS = ["speed_error", "ripple", "recovery", "faults", "completeness"]
 
 @dataclass
 class SuiteCase:
-    profile: str                 # the path given
-    name: str = ""               # the profile's name
+    profile: str  # the path given
+    name: str = ""  # the profile's name
     run: Run | None = None
     default_criteria: bool = False
-    status: str = ""             # ok | failed (the run could not be made)
+    status: str = ""  # ok | failed (the run could not be made)
     error: str = ""
     checks: list[dict[str, Any]] = field(default_factory=list)
     log_path: str = ""
@@ -58,8 +59,15 @@ def plan_suite(profiles: list[str], seed: int = 1, rig: str | None = None) -> li
     return cases
 
 
-def run_suite(cases: list[SuiteCase], out: Path, *, workers: int | None = None,
-              scheduler: str | None = None, keep_logs: bool = True, progress: bool = False) -> list[SuiteCase]:
+def run_suite(
+    cases: list[SuiteCase],
+    out: Path,
+    *,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    keep_logs: bool = True,
+    progress: bool = False,
+) -> list[SuiteCase]:
     """Run every case into ``out`` (fresh: no resume; a firmware change is what is being tested)."""
     from .driver import run_runs, write_inputs
 
@@ -75,8 +83,15 @@ def run_suite(cases: list[SuiteCase], out: Path, *, workers: int | None = None,
         log = str((out / "logs" / f"{runs[0].key}.mcap").resolve()) if keep_logs else None
         rows = [execute_run(runs[0].task(METRICS, log))]
     else:
-        res = run_runs(runs, out, METRICS, keep_logs=keep_logs, scheduler=scheduler, workers=workers,
-                       progress=progress)
+        res = run_runs(
+            runs,
+            out,
+            METRICS,
+            keep_logs=keep_logs,
+            scheduler=scheduler,
+            workers=workers,
+            progress=progress,
+        )
         rows = res.rows
     by_key = {r["key"]: r for r in rows}
     for c in cases:
@@ -94,16 +109,22 @@ def junit_xml(cases: list[SuiteCase]) -> str:
         suite = ET.SubElement(root, "testsuite", name=c.name, file=c.profile)
         n = fails = errors = 0
         if c.status != "ok":
-            tc = ET.SubElement(suite, "testcase", classname=c.name, name="run", time=f"{c.wall_s:.3f}")
+            tc = ET.SubElement(
+                suite, "testcase", classname=c.name, name="run", time=f"{c.wall_s:.3f}"
+            )
             ET.SubElement(tc, "error", message=c.error or "the run failed").text = c.error
             n, errors = 1, 1
         for ch in c.checks:
             n += 1
-            tc = ET.SubElement(suite, "testcase", classname=c.name, name=f"{ch['scope']}: {ch['criterion']}")
+            tc = ET.SubElement(
+                suite, "testcase", classname=c.name, name=f"{ch['scope']}: {ch['criterion']}"
+            )
             ET.SubElement(tc, "system-out").text = f"measured {ch['measured']}, bound {ch['bound']}"
             if not ch["passed"]:
                 fails += 1
-                ET.SubElement(tc, "failure", message=f"measured {ch['measured']}, bound {ch['bound']}")
+                ET.SubElement(
+                    tc, "failure", message=f"measured {ch['measured']}, bound {ch['bound']}"
+                )
         suite.set("tests", str(n))
         suite.set("failures", str(fails))
         suite.set("errors", str(errors))

@@ -1,4 +1,5 @@
 """The transport interface: a byte pipe to the device, whatever carries it."""
+
 from __future__ import annotations
 
 from typing import Protocol
@@ -9,8 +10,8 @@ __all__ = ["Transport", "TransportError", "TransportSpecError"]
 
 
 class Transport(Protocol):
-    name: str          # e.g. "serial /dev/ttyUSB0 @ 921600"
-    bit_rate: float    # the link's bit rate, for the live view's link-use figure
+    name: str  # e.g. "serial /dev/ttyUSB0 @ 921600"
+    bit_rate: float  # the link's bit rate, for the live view's link-use figure
 
     def write(self, data: bytes) -> None: ...
 

@@ -7,6 +7,7 @@ SPEC = INTERFACE:CHANNEL[,bitrate=N][,node=N][,key=value...]   (extra keys go to
     socketcan:can0   pcan:PCAN_USBBUS1   kvaser:0   slcan:/dev/ttyACM0   ixxat:0   virtual:ch0
     emulator (or an empty SPEC)          start the emulator and talk to it over socketcand
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -14,21 +15,45 @@ from dataclasses import dataclass, field
 from pmsm_hil.emulator import process as emu_process
 from pmsm_hil.errors import TransportError, TransportSpecError
 
-INTERFACES = ("socketcand", "socketcan", "pcan", "kvaser", "slcan", "ixxat", "virtual", "vector",
-              "serial", "usb2can", "nican", "iscan", "neovi", "gs_usb", "cantact", "udp_multicast",
-              "seeedstudio", "canalystii", "systec", "etas", "nixnet", "robotell", "pcan_basic")
-SPEC_HELP = ("INTERFACE:CHANNEL[,bitrate=N][,node=N], e.g. socketcand:emu0@127.0.0.1:29536, "
-             "socketcan:can0, pcan:PCAN_USBBUS1, kvaser:0, slcan:/dev/ttyACM0, ixxat:0, virtual:ch0; "
-             "or `emulator`")
+INTERFACES = (
+    "socketcand",
+    "socketcan",
+    "pcan",
+    "kvaser",
+    "slcan",
+    "ixxat",
+    "virtual",
+    "vector",
+    "serial",
+    "usb2can",
+    "nican",
+    "iscan",
+    "neovi",
+    "gs_usb",
+    "cantact",
+    "udp_multicast",
+    "seeedstudio",
+    "canalystii",
+    "systec",
+    "etas",
+    "nixnet",
+    "robotell",
+    "pcan_basic",
+)
+SPEC_HELP = (
+    "INTERFACE:CHANNEL[,bitrate=N][,node=N], e.g. socketcand:emu0@127.0.0.1:29536, "
+    "socketcan:can0, pcan:PCAN_USBBUS1, kvaser:0, slcan:/dev/ttyACM0, ixxat:0, virtual:ch0; "
+    "or `emulator`"
+)
 
 
 @dataclass
 class CanSpec:
     interface: str
     channel: str
-    bitrate: int | None = None   # None: not given (the device factory fills in the profile's)
+    bitrate: int | None = None  # None: not given (the device factory fills in the profile's)
     node: int | None = None
-    host: str | None = None      # socketcand only
+    host: str | None = None  # socketcand only
     port: int | None = None
     extra: dict = field(default_factory=dict)
 
@@ -37,7 +62,11 @@ class CanSpec:
         return self.interface == "emulator"
 
     def text(self) -> str:
-        where = f"{self.channel}@{self.host}:{self.port}" if self.interface == "socketcand" else self.channel
+        where = (
+            f"{self.channel}@{self.host}:{self.port}"
+            if self.interface == "socketcand"
+            else self.channel
+        )
         opts = ""
         if self.bitrate is not None:
             opts += f",bitrate={self.bitrate}"
@@ -66,8 +95,10 @@ def parse_spec(spec: str | None) -> CanSpec:
         iface, channel = head.split(":", 1)
     iface = iface.strip().lower()
     if iface != "emulator" and iface not in INTERFACES:
-        raise TransportSpecError(f"--can {text}: unknown interface {iface!r} (python-can interfaces: "
-                             f"{', '.join(INTERFACES[:8])}, ...)")
+        raise TransportSpecError(
+            f"--can {text}: unknown interface {iface!r} (python-can interfaces: "
+            f"{', '.join(INTERFACES[:8])}, ...)"
+        )
     out = CanSpec(iface, channel)
     for opt in opts:
         if "=" not in opt:
@@ -76,8 +107,10 @@ def parse_spec(spec: str | None) -> CanSpec:
         if k == "bitrate":
             out.bitrate = _number(k, v, text)
             if not 10_000 <= out.bitrate <= 1_000_000:
-                raise TransportSpecError(f"--can {text}: bitrate {out.bitrate} is outside classic CAN's "
-                                     f"10 kbit/s .. 1 Mbit/s")
+                raise TransportSpecError(
+                    f"--can {text}: bitrate {out.bitrate} is outside classic CAN's "
+                    f"10 kbit/s .. 1 Mbit/s"
+                )
         elif k == "node":
             out.node = _number(k, v, text)
             if not 0 <= out.node <= 15:
@@ -90,8 +123,10 @@ def parse_spec(spec: str | None) -> CanSpec:
             host, port = hostport.rsplit(":", 1)
             out.channel, out.host, out.port = ch, host, int(port)
         except ValueError:
-            raise TransportSpecError(f"--can {text}: socketcand needs CHANNEL@HOST:PORT, "
-                                 f"e.g. socketcand:emu0@127.0.0.1:29536") from None
+            raise TransportSpecError(
+                f"--can {text}: socketcand needs CHANNEL@HOST:PORT, "
+                f"e.g. socketcand:emu0@127.0.0.1:29536"
+            ) from None
     elif iface != "emulator" and not channel:
         raise TransportSpecError(f"--can {text}: no channel given ({SPEC_HELP})")
     return out
@@ -107,30 +142,45 @@ def open_bus(spec: CanSpec):
     if spec.interface == "socketcand":
         kw.update(host=spec.host, port=spec.port)
         import socket
-        try:   # python-can retries a refused connection for 10 s: fail fast instead
+
+        try:  # python-can retries a refused connection for 10 s: fail fast instead
             socket.create_connection((spec.host, spec.port), timeout=2.0).close()
         except OSError as e:
-            raise TransportError(f"CAN socketcand {spec.host}:{spec.port}: cannot connect ({e}); is "
-                                 f"`pmsm-hil emulate --can` (or socketcand) running?") from e
+            raise TransportError(
+                f"CAN socketcand {spec.host}:{spec.port}: cannot connect ({e}); is "
+                f"`pmsm-hil emulate --can` (or socketcand) running?"
+            ) from e
     elif spec.interface not in ("virtual",) and spec.bitrate is not None:
         kw.setdefault("bitrate", spec.bitrate)
     try:
         return can.Bus(interface=spec.interface, channel=spec.channel, **kw)
     except ImportError as e:
-        raise TransportError(f"CAN interface {spec.interface}: a driver or package is missing ({e})") from e
+        raise TransportError(
+            f"CAN interface {spec.interface}: a driver or package is missing ({e})"
+        ) from e
     except (can.CanError, OSError, ValueError, TypeError, NotImplementedError) as e:
         raise TransportError(f"CAN {spec.text()}: cannot open the interface: {e}") from e
-    except Exception as e:   # python-can backends raise their own types
-        raise TransportError(f"CAN {spec.text()}: cannot open the interface: {type(e).__name__}: {e}") from e
+    except Exception as e:  # python-can backends raise their own types
+        raise TransportError(
+            f"CAN {spec.text()}: cannot open the interface: {type(e).__name__}: {e}"
+        ) from e
 
 
 class CanEmulator:
     """Starts the emulator on CAN (`python -P -m pmsm_hil.emulator --can`) as a process; `spec` is
     its socketcand endpoint."""
 
-    def __init__(self, motor_path: str | None, rig_path: str | None, seed: int, bitrate: int,
-                 node: int, start_timeout_s: float = 20.0, extra_args: list[str] | None = None,
-                 pace: float | None = None):
+    def __init__(
+        self,
+        motor_path: str | None,
+        rig_path: str | None,
+        seed: int,
+        bitrate: int,
+        node: int,
+        start_timeout_s: float = 20.0,
+        extra_args: list[str] | None = None,
+        pace: float | None = None,
+    ):
         args = ["--can", "--seed", str(seed), "--can-bitrate", str(bitrate), "--node", str(node)]
         if pace:
             args += ["--pace", repr(float(pace))]
@@ -162,7 +212,9 @@ class InProcessCanBus:
         self.fault_d2h = fault_d2h
         self.fault_h2d = fault_h2d
         self._rx: list = []
-        self.recorded: list[tuple[float, int, bytes]] | None = None   # set to [] to record (t, id, data)
+        self.recorded: list[tuple[float, int, bytes]] | None = (
+            None  # set to [] to record (t, id, data)
+        )
         self._ts = device.get("ts_s")
 
     def send(self, msg, timeout=None) -> None:
@@ -191,6 +243,7 @@ class InProcessCanBus:
 
     def recv(self, timeout=None):
         import can
+
         if not self._rx:
             self._rx = self._run_chunk()[::-1]
             if not self._rx:

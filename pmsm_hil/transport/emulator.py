@@ -1,4 +1,5 @@
 """Starts a local emulator process (`pmsm-hil emulate`) and talks to it over its pty."""
+
 from __future__ import annotations
 
 from pmsm_hil.emulator import process as emu_process
@@ -6,8 +7,16 @@ from pmsm_hil.transport.serial_port import SerialTransport
 
 
 class EmulatorTransport(SerialTransport):
-    def __init__(self, motor_path: str, rig_path: str | None, seed: int, baud: int,
-                 start_timeout_s: float = 20.0, corrupt_ppm: float = 0.0, pace: float | None = None):
+    def __init__(
+        self,
+        motor_path: str,
+        rig_path: str | None,
+        seed: int,
+        baud: int,
+        start_timeout_s: float = 20.0,
+        corrupt_ppm: float = 0.0,
+        pace: float | None = None,
+    ):
         args = ["--motor", str(motor_path), "--seed", str(seed), "--baud", str(baud)]
         if pace:
             args += ["--pace", repr(float(pace))]

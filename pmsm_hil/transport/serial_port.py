@@ -1,4 +1,5 @@
 """Serial transport over pyserial (a USB-UART to the F28335's SCI, or the emulator's pty)."""
+
 from __future__ import annotations
 
 import os
@@ -13,15 +14,19 @@ class SerialTransport:
         if not os.path.exists(port):
             raise TransportError(f"serial port {port} does not exist (is the adapter plugged in?)")
         try:
-            self._ser = serial.Serial(port, baudrate=baud, timeout=0, write_timeout=2.0,
-                                      exclusive=True)
+            self._ser = serial.Serial(
+                port, baudrate=baud, timeout=0, write_timeout=2.0, exclusive=True
+            )
         except serial.SerialException as e:
             text = str(e)
             if "busy" in text.lower() or "lock" in text.lower() or "Errno 16" in text:
-                raise TransportError(f"serial port {port} is busy: another program has it open") from e
+                raise TransportError(
+                    f"serial port {port} is busy: another program has it open"
+                ) from e
             if "Permission denied" in text or "Errno 13" in text:
-                raise TransportError(f"serial port {port}: permission denied (add yourself to the "
-                                     f"'dialout' group)") from e
+                raise TransportError(
+                    f"serial port {port}: permission denied (add yourself to the 'dialout' group)"
+                ) from e
             raise TransportError(f"serial port {port} cannot be opened: {text}") from e
         self.name = f"serial {port} @ {baud}"
         self.port = port

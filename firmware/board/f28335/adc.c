@@ -9,7 +9,7 @@
 #include "board.h"
 
 typedef struct {
-    float off_a, off_b, off_c;   /* LSB */
+    float off_a, off_b, off_c; /* LSB */
     bool cal_ok;
 } adc_state_t;
 
@@ -24,17 +24,17 @@ void adc_init(void)
     AdcRegs.ADCTRL1.all = 0u;
     AdcRegs.ADCTRL1.bit.ACQ_PS = BOARD_ADC_ACQ_PS;
     AdcRegs.ADCTRL1.bit.CPS = 0u;
-    AdcRegs.ADCTRL1.bit.CONT_RUN = 0u;      /* start-stop: one sequence per SOC */
-    AdcRegs.ADCTRL1.bit.SEQ_CASC = 1u;      /* one 16-state sequencer */
-    AdcRegs.ADCTRL3.bit.ADCCLKPS = 1u;      /* ADCCLK = 25 MHz / (2 x 1) = 12.5 MHz */
-    AdcRegs.ADCTRL3.bit.SMODE_SEL = 1u;     /* simultaneous sampling of the A/B pair */
-    AdcRegs.ADCMAXCONV.all = 0x0001u;       /* two pair conversions: RESULT0..3 */
+    AdcRegs.ADCTRL1.bit.CONT_RUN = 0u;  /* start-stop: one sequence per SOC */
+    AdcRegs.ADCTRL1.bit.SEQ_CASC = 1u;  /* one 16-state sequencer */
+    AdcRegs.ADCTRL3.bit.ADCCLKPS = 1u;  /* ADCCLK = 25 MHz / (2 x 1) = 12.5 MHz */
+    AdcRegs.ADCTRL3.bit.SMODE_SEL = 1u; /* simultaneous sampling of the A/B pair */
+    AdcRegs.ADCMAXCONV.all = 0x0001u;   /* two pair conversions: RESULT0..3 */
     AdcRegs.ADCCHSELSEQ1.bit.CONV00 = BOARD_ADC_PAIR_IAB;
     AdcRegs.ADCCHSELSEQ1.bit.CONV01 = BOARD_ADC_PAIR_ICV;
 
     AdcRegs.ADCTRL2.all = 0u;
     AdcRegs.ADCTRL2.bit.EPWM_SOCA_SEQ1 = 1u;
-    AdcRegs.ADCTRL2.bit.INT_MOD_SEQ1 = 0u;  /* interrupt at every end of sequence */
+    AdcRegs.ADCTRL2.bit.INT_MOD_SEQ1 = 0u; /* interrupt at every end of sequence */
     AdcRegs.ADCTRL2.bit.INT_ENA_SEQ1 = 1u;
     AdcRegs.ADCTRL2.bit.RST_SEQ1 = 1u;
     AdcRegs.ADCST.bit.INT_SEQ1_CLR = 1u;
@@ -68,7 +68,7 @@ bool adc_calibrate_offsets(void)
     AdcRegs.ADCST.bit.INT_SEQ1_CLR = 1u;
     while (n < BOARD_ADC_CAL_SAMPLES) {
         if ((uint32_t)(t0 - diag_now()) > timeout) {
-            break;   /* no conversions: the ePWM time base is not running */
+            break; /* no conversions: the ePWM time base is not running */
         }
         if (AdcRegs.ADCST.bit.INT_SEQ1 != 0u) {
             sum_a += AdcMirror.ADCRESULT0;

@@ -23,11 +23,11 @@ static inline uint32_t calc_sci_baud(uint32_t lspclk_hz, uint16_t brr)
  *   period = 2 TBPRD TBCLK, TBCLK = SYSCLKOUT / clkdiv, clkdiv the smallest power of two
  *   (TBCTL.CLKDIV code 0..7) that keeps TBPRD within 16 bits. */
 typedef struct {
-    uint16_t tbprd;         /* TBPRD */
-    uint16_t clkdiv_code;   /* TBCTL.CLKDIV (HSPCLKDIV stays /1) */
-    uint16_t dead_tbclk;    /* DBRED = DBFED (10 bits) */
-    uint16_t lead_tbclk;    /* CMPB: the ADC SOC on the down count, this many TBCLK before CTR = 0 */
-    float ts_actual_s;      /* the period the hardware really runs */
+    uint16_t tbprd;       /* TBPRD */
+    uint16_t clkdiv_code; /* TBCTL.CLKDIV (HSPCLKDIV stays /1) */
+    uint16_t dead_tbclk;  /* DBRED = DBFED (10 bits) */
+    uint16_t lead_tbclk;  /* CMPB: the ADC SOC on the down count, this many TBCLK before CTR = 0 */
+    float ts_actual_s;    /* the period the hardware really runs */
 } pwm_timing_t;
 
 static inline uint16_t calc_ns_to_tbclk(uint32_t ns, uint32_t clkdiv, uint32_t max)
@@ -45,7 +45,7 @@ static inline uint16_t calc_ns_to_tbclk(uint32_t ns, uint32_t clkdiv, uint32_t m
 static inline void calc_pwm_timing(float ts_s, uint32_t dead_ns, uint32_t lead_ns, pwm_timing_t *t)
 {
     const float ts_ok = (ts_s >= 1.0e-5f && ts_s <= 1.0e-3f) ? ts_s : BOARD_TS_DEFAULT_S;
-    const float half_f = ts_ok * ((float)BOARD_SYSCLK_HZ * 0.5f);   /* TBPRD at clkdiv 1 */
+    const float half_f = ts_ok * ((float)BOARD_SYSCLK_HZ * 0.5f); /* TBPRD at clkdiv 1 */
     uint32_t clkdiv = 1UL;
     uint16_t code = 0u;
     float prd;
@@ -74,7 +74,7 @@ static inline uint16_t calc_dac_cmpa(float value, float full_scale, uint16_t tbp
     const float periods = (float)tbprd + 1.0f;
     float duty = 0.5f + value * (0.5f / full_scale);
     if (duty != duty) {
-        duty = 0.5f;   /* NaN: no torque */
+        duty = 0.5f; /* NaN: no torque */
     }
     if (duty < 0.0f) {
         duty = 0.0f;
@@ -92,8 +92,8 @@ static inline uint16_t calc_dac_cmpa(float value, float full_scale, uint16_t tbp
  * shorter than one dead band (the dead-band unit would swallow the pulse) or the duty is not a
  * number (low). The codes are AQCSFRC.CSFA's. */
 #define CALC_LEG_COMPARE 0u
-#define CALC_LEG_LOW 1u
-#define CALC_LEG_HIGH 2u
+#define CALC_LEG_LOW     1u
+#define CALC_LEG_HIGH    2u
 
 static inline uint16_t calc_leg(float duty, uint16_t tbprd, uint16_t dead_tbclk, uint16_t *cmpa)
 {

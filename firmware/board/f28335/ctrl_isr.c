@@ -50,7 +50,7 @@ BOARD_RAMFUNC __interrupt void ctrl_isr(void)
     sci_tx_kick();
 
     if (adc_conversion_pending()) {
-        g_diag.isr_overruns++;   /* the next sequence ended before this ISR: deadline at risk */
+        g_diag.isr_overruns++; /* the next sequence ended before this ISR: deadline at risk */
     }
     diag_isr_end(t_entry);
     PieCtrlRegs.PIEACK.all = PIEACK_GROUP1;

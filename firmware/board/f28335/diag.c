@@ -31,8 +31,8 @@ void diag_init(void)
     CpuTimer1Regs.TCR.bit.TIE = 0u;
     CpuTimer1Regs.TCR.bit.FREE = 0u;
     CpuTimer1Regs.TCR.bit.SOFT = 0u;
-    CpuTimer1Regs.TCR.bit.TRB = 1u;     /* load PRD into the counter */
-    CpuTimer1Regs.TCR.bit.TSS = 0u;     /* run */
+    CpuTimer1Regs.TCR.bit.TRB = 1u; /* load PRD into the counter */
+    CpuTimer1Regs.TCR.bit.TSS = 0u; /* run */
 }
 
 BOARD_RAMFUNC uint32_t diag_now(void)
@@ -42,7 +42,7 @@ BOARD_RAMFUNC uint32_t diag_now(void)
 
 BOARD_RAMFUNC void diag_isr_end(uint32_t t_entry)
 {
-    const uint32_t cycles = t_entry - CpuTimer1Regs.TIM.all;   /* down counter, modulo 2^32 */
+    const uint32_t cycles = t_entry - CpuTimer1Regs.TIM.all; /* down counter, modulo 2^32 */
     g_diag.isr_count++;
     g_diag.isr_cycles_last = cycles;
     if (cycles > g_diag.isr_cycles_max) {

@@ -15,7 +15,7 @@ void load_init(void)
 {
     EALLOW;
     GpioCtrlRegs.GPAPUD.bit.GPIO6 = 1u;
-    GpioCtrlRegs.GPAMUX1.bit.GPIO6 = 1u;     /* EPWM4A */
+    GpioCtrlRegs.GPAMUX1.bit.GPIO6 = 1u; /* EPWM4A */
     EDIS;
 
     EPwm4Regs.TBCTL.all = 0u;
@@ -28,7 +28,7 @@ void load_init(void)
     EPwm4Regs.TBCTL.bit.FREE_SOFT = 2u;
     EPwm4Regs.TBPRD = LOAD_TBPRD;
     EPwm4Regs.TBCTR = 0u;
-    EPwm4Regs.CMPCTL.all = 0u;                /* CMPA shadowed, loaded at CTR = 0 */
+    EPwm4Regs.CMPCTL.all = 0u; /* CMPA shadowed, loaded at CTR = 0 */
     EPwm4Regs.CMPA.half.CMPA = calc_dac_cmpa(0.0f, BOARD_LOAD_FULLSCALE_NM, LOAD_TBPRD);
     EPwm4Regs.AQCTLA.all = 0u;
     EPwm4Regs.AQCTLA.bit.ZRO = AQ_SET;
@@ -36,7 +36,7 @@ void load_init(void)
     EPwm4Regs.AQCTLB.all = 0u;
     EPwm4Regs.DBCTL.all = 0u;
     EPwm4Regs.ETSEL.all = 0u;
-    EPwm4Regs.TBCTL.bit.CTRMODE = TB_COUNT_UP;   /* runs once TBCLKSYNC is set (pwm_start) */
+    EPwm4Regs.TBCTL.bit.CTRMODE = TB_COUNT_UP; /* runs once TBCLKSYNC is set (pwm_start) */
 }
 
 BOARD_RAMFUNC void load_set_torque(float load_nm)

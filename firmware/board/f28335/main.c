@@ -4,7 +4,7 @@
 
 #include "board.h"
 
-fw_t g_fw;   /* the application object: the core's whole state (COFF: .ebss is not zeroed) */
+fw_t g_fw; /* the application object: the core's whole state (COFF: .ebss is not zeroed) */
 
 int main(void)
 {
@@ -34,7 +34,7 @@ int main(void)
 
     /* 6. time bases run (ADC conversions start), current-sensor offsets with the legs off */
     pwm_start();
-    (void)adc_calibrate_offsets();   /* failure: every start is refused (ctrl_isr.c) */
+    (void)adc_calibrate_offsets(); /* failure: every start is refused (ctrl_isr.c) */
 
     /* 7. control and link interrupts, gate drivers, watchdog */
     sysinit_install_isrs();

@@ -20,13 +20,13 @@
 #include "board.h"
 #include "board_calc.h"
 
-#define PWM_CSF_LOW 1u    /* AQCSFRC.CSFA: continuous force low  -> lower switch on (after DB) */
-#define PWM_CSF_HIGH 2u   /* AQCSFRC.CSFA: continuous force high -> upper switch on */
+#define PWM_CSF_LOW  1u /* AQCSFRC.CSFA: continuous force low  -> lower switch on (after DB) */
+#define PWM_CSF_HIGH 2u /* AQCSFRC.CSFA: continuous force high -> upper switch on */
 
 typedef struct {
     pwm_timing_t t;
-    float ts_s;           /* requested period */
-    bool enabled;         /* trip-zone latch cleared by us (legs switching) */
+    float ts_s;   /* requested period */
+    bool enabled; /* trip-zone latch cleared by us (legs switching) */
 } pwm_state_t;
 
 static pwm_state_t s_pwm;
@@ -86,7 +86,7 @@ void pwm_init(float ts_s)
     uint16_t k;
 
     EALLOW;
-    SysCtrlRegs.PCLKCR0.bit.TBCLKSYNC = 0u;   /* configure stopped, start together (pwm_start) */
+    SysCtrlRegs.PCLKCR0.bit.TBCLKSYNC = 0u; /* configure stopped, start together (pwm_start) */
     EDIS;
     pwm_gpio();
 
@@ -117,7 +117,7 @@ void pwm_init(float ts_s)
         p->TBCTL.bit.PHSDIR = TB_UP;
         p->TBCTL.bit.SYNCOSEL = (k == 0u) ? TB_CTR_ZERO : TB_SYNC_IN;
         p->TBCTL.bit.HSPCLKDIV = TB_DIV1;
-        p->TBCTL.bit.FREE_SOFT = 0u;   /* emulation halt stops the counter (see the doc) */
+        p->TBCTL.bit.FREE_SOFT = 0u; /* emulation halt stops the counter (see the doc) */
         p->TBPHS.half.TBPHS = 0u;
         p->TBCTR = 0u;
 
@@ -135,7 +135,7 @@ void pwm_init(float ts_s)
         p->AQCTLA.bit.CAU = AQ_SET;
         p->AQCTLA.bit.CAD = AQ_CLEAR;
         p->AQCTLB.all = 0u;
-        p->AQSFRC.all = 0u;            /* RLDCSF = 0: AQCSFRC shadow -> active at CTR = 0 */
+        p->AQSFRC.all = 0u; /* RLDCSF = 0: AQCSFRC shadow -> active at CTR = 0 */
         p->AQCSFRC.all = PWM_CSF_LOW;
 
         /* dead band: A is the source of both outputs, B inverted, rising and falling delays */
@@ -144,7 +144,7 @@ void pwm_init(float ts_s)
         p->DBCTL.bit.POLSEL = DB_ACTV_HIC;
         p->DBCTL.bit.OUT_MODE = DB_FULL_ENABLE;
 
-        p->PCCTL.all = 0u;             /* chopper off */
+        p->PCCTL.all = 0u; /* chopper off */
         p->ETSEL.all = 0u;
         p->ETPS.all = 0u;
     }

@@ -15,27 +15,27 @@ void sci_init(void)
     const uint16_t brr = calc_sci_brr(BOARD_LSPCLK_HZ, BOARD_SCI_BAUD);
 
     EALLOW;
-    GpioCtrlRegs.GPAPUD.bit.GPIO28 = 0u;      /* pull-up: the line idles high */
+    GpioCtrlRegs.GPAPUD.bit.GPIO28 = 0u; /* pull-up: the line idles high */
     GpioCtrlRegs.GPAPUD.bit.GPIO29 = 0u;
-    GpioCtrlRegs.GPAQSEL2.bit.GPIO28 = 3u;    /* asynchronous: the SCI samples the bits itself */
-    GpioCtrlRegs.GPAMUX2.bit.GPIO28 = 1u;     /* SCIRXDA */
-    GpioCtrlRegs.GPAMUX2.bit.GPIO29 = 1u;     /* SCITXDA */
+    GpioCtrlRegs.GPAQSEL2.bit.GPIO28 = 3u; /* asynchronous: the SCI samples the bits itself */
+    GpioCtrlRegs.GPAMUX2.bit.GPIO28 = 1u;  /* SCIRXDA */
+    GpioCtrlRegs.GPAMUX2.bit.GPIO29 = 1u;  /* SCITXDA */
     EDIS;
 
-    SciaRegs.SCICTL1.all = 0x0000u;           /* held in software reset while configuring */
-    SciaRegs.SCICCR.all = 0x0007u;            /* 1 stop bit, no parity, 8 bits, async, idle-line */
+    SciaRegs.SCICTL1.all = 0x0000u; /* held in software reset while configuring */
+    SciaRegs.SCICCR.all = 0x0007u;  /* 1 stop bit, no parity, 8 bits, async, idle-line */
     SciaRegs.SCICTL2.all = 0x0000u;
     SciaRegs.SCICTL2.bit.TXINTENA = 1u;
     SciaRegs.SCICTL2.bit.RXBKINTENA = 1u;
     SciaRegs.SCIHBAUD = (uint16_t)((brr >> 8) & 0x00FFu);
     SciaRegs.SCILBAUD = (uint16_t)(brr & 0x00FFu);
-    SciaRegs.SCIPRI.bit.FREE = 1u;            /* keeps running while the debugger halts */
+    SciaRegs.SCIPRI.bit.FREE = 1u; /* keeps running while the debugger halts */
 
     SciaRegs.SCIFFTX.all = 0x0000u;
     SciaRegs.SCIFFTX.bit.SCIRST = 1u;
     SciaRegs.SCIFFTX.bit.SCIFFENA = 1u;
     SciaRegs.SCIFFTX.bit.TXFFIL = BOARD_SCI_TX_FIFO_LEVEL;
-    SciaRegs.SCIFFTX.bit.TXFFIENA = 0u;       /* enabled by sci_tx_kick when there is data */
+    SciaRegs.SCIFFTX.bit.TXFFIENA = 0u; /* enabled by sci_tx_kick when there is data */
     SciaRegs.SCIFFTX.bit.TXFFINTCLR = 1u;
 
     SciaRegs.SCIFFRX.all = 0x0000u;
@@ -43,9 +43,9 @@ void sci_init(void)
     SciaRegs.SCIFFRX.bit.RXFFIENA = 1u;
     SciaRegs.SCIFFRX.bit.RXFFOVRCLR = 1u;
     SciaRegs.SCIFFRX.bit.RXFFINTCLR = 1u;
-    SciaRegs.SCIFFCT.all = 0x0000u;           /* no delay between transmitted octets */
+    SciaRegs.SCIFFCT.all = 0x0000u; /* no delay between transmitted octets */
 
-    SciaRegs.SCICTL1.all = 0x0023u;           /* RX and TX enabled, out of software reset */
+    SciaRegs.SCICTL1.all = 0x0023u; /* RX and TX enabled, out of software reset */
     SciaRegs.SCIFFTX.bit.TXFIFOXRESET = 1u;
     SciaRegs.SCIFFRX.bit.RXFIFORESET = 1u;
 }
@@ -76,7 +76,7 @@ BOARD_RAMFUNC __interrupt void sci_rx_isr(void)
     }
     SciaRegs.SCIFFRX.bit.RXFFINTCLR = 1u;
     PieCtrlRegs.PIEACK.all = PIEACK_GROUP9;
-    sci_tx_kick();   /* acks and replies queued by the frames just handled */
+    sci_tx_kick(); /* acks and replies queued by the frames just handled */
 }
 
 BOARD_RAMFUNC __interrupt void sci_tx_isr(void)
@@ -90,7 +90,7 @@ BOARD_RAMFUNC __interrupt void sci_tx_isr(void)
         SciaRegs.SCITXBUF = buf[i];
     }
     if (n < room) {
-        SciaRegs.SCIFFTX.bit.TXFFIENA = 0u;   /* queue empty: wait for sci_tx_kick */
+        SciaRegs.SCIFFTX.bit.TXFFIENA = 0u; /* queue empty: wait for sci_tx_kick */
     }
     SciaRegs.SCIFFTX.bit.TXFFINTCLR = 1u;
     PieCtrlRegs.PIEACK.all = PIEACK_GROUP9;

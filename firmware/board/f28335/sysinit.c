@@ -23,7 +23,7 @@ void sysinit_copy_ramfuncs(void)
 
 static void sysinit_halt(void)
 {
-    ESTOP0;           /* stops here with the debugger attached; a no-op without it */
+    ESTOP0; /* stops here with the debugger attached; a no-op without it */
     for (;;) {
     }
 }
@@ -31,7 +31,7 @@ static void sysinit_halt(void)
 void sysinit_clocks(void)
 {
     EALLOW;
-    SysCtrlRegs.WDCR = 0x0068u;          /* WDDIS: watchdog off during start-up */
+    SysCtrlRegs.WDCR = 0x0068u; /* WDDIS: watchdog off during start-up */
     EDIS;
 
     /* limp mode (missing input clock): do not run the inverter on a 1-5 MHz clock */
@@ -46,7 +46,7 @@ void sysinit_clocks(void)
     }
     if (SysCtrlRegs.PLLCR.bit.DIV != BOARD_PLLCR_DIV) {
         EALLOW;
-        SysCtrlRegs.PLLSTS.bit.MCLKOFF = 1u;   /* missing-clock detect off while the PLL locks */
+        SysCtrlRegs.PLLSTS.bit.MCLKOFF = 1u; /* missing-clock detect off while the PLL locks */
         SysCtrlRegs.PLLCR.bit.DIV = BOARD_PLLCR_DIV;
         EDIS;
         while (SysCtrlRegs.PLLSTS.bit.PLLLOCKS != 1u) {
@@ -57,14 +57,14 @@ void sysinit_clocks(void)
     }
 
     EALLOW;
-    SysCtrlRegs.PLLSTS.bit.DIVSEL = BOARD_PLL_DIVSEL;   /* /2: 30 MHz x 10 / 2 = 150 MHz */
-    SysCtrlRegs.HISPCP.all = BOARD_HISPCP;              /* HSPCLK 25 MHz (ADC) */
-    SysCtrlRegs.LOSPCP.all = BOARD_LOSPCP;              /* LSPCLK 37.5 MHz (SCI) */
+    SysCtrlRegs.PLLSTS.bit.DIVSEL = BOARD_PLL_DIVSEL; /* /2: 30 MHz x 10 / 2 = 150 MHz */
+    SysCtrlRegs.HISPCP.all = BOARD_HISPCP;            /* HSPCLK 25 MHz (ADC) */
+    SysCtrlRegs.LOSPCP.all = BOARD_LOSPCP;            /* LSPCLK 37.5 MHz (SCI) */
 
-    SysCtrlRegs.PCLKCR0.bit.TBCLKSYNC = 0u;             /* ePWM time bases held until pwm_start */
+    SysCtrlRegs.PCLKCR0.bit.TBCLKSYNC = 0u; /* ePWM time bases held until pwm_start */
     SysCtrlRegs.PCLKCR0.bit.ADCENCLK = 1u;
     SysCtrlRegs.PCLKCR0.bit.SCIAENCLK = 1u;
-    ADC_cal();                                          /* needs the ADC clock */
+    ADC_cal(); /* needs the ADC clock */
 
     SysCtrlRegs.PCLKCR1.bit.EPWM1ENCLK = 1u;
     SysCtrlRegs.PCLKCR1.bit.EPWM2ENCLK = 1u;
@@ -88,7 +88,7 @@ BOARD_RAMFUNC void sysinit_flash(void)
     FlashRegs.FSTDBYWAIT.bit.STDBYWAIT = 0x01FFu;
     FlashRegs.FACTIVEWAIT.bit.ACTIVEWAIT = 0x01FFu;
     EDIS;
-    BOARD_PIPELINE_FLUSH();   /* the last write lands before returning to flash */
+    BOARD_PIPELINE_FLUSH(); /* the last write lands before returning to flash */
 }
 
 /* Any interrupt without a handler: legs off, gate drivers off, wait for the watchdog reset. */
@@ -107,7 +107,7 @@ void sysinit_pie(void)
 
     DINT;
     PieCtrlRegs.PIECTRL.bit.ENPIE = 0u;
-    pie_ier_ifr = &PieCtrlRegs.PIEIER1.all;       /* PIEIER1, PIEIFR1, ... PIEIER12, PIEIFR12 */
+    pie_ier_ifr = &PieCtrlRegs.PIEIER1.all; /* PIEIER1, PIEIFR1, ... PIEIER12, PIEIFR12 */
     for (i = 0u; i < 24u; i++) {
         pie_ier_ifr[i] = 0u;
     }
@@ -115,7 +115,7 @@ void sysinit_pie(void)
     IFR = 0x0000u;
 
     EALLOW;
-    vect = &PieVectTable.PIE1_RESERVED;          /* 128 vectors, 0xD00 .. 0xDFF */
+    vect = &PieVectTable.PIE1_RESERVED; /* 128 vectors, 0xD00 .. 0xDFF */
     for (i = 0u; i < 128u; i++) {
         vect[i] = &isr_unexpected;
     }
@@ -132,13 +132,13 @@ void sysinit_install_isrs(void)
     EDIS;
 
     PieCtrlRegs.PIEIFR1.bit.INTx6 = 0u;
-    PieCtrlRegs.PIEIER1.bit.INTx6 = 1u;           /* ADCINT: the control ISR */
-    PieCtrlRegs.PIEIER9.bit.INTx1 = 1u;           /* SCIRXINTA */
-    PieCtrlRegs.PIEIER9.bit.INTx2 = 1u;           /* SCITXINTA */
+    PieCtrlRegs.PIEIER1.bit.INTx6 = 1u; /* ADCINT: the control ISR */
+    PieCtrlRegs.PIEIER9.bit.INTx1 = 1u; /* SCIRXINTA */
+    PieCtrlRegs.PIEIER9.bit.INTx2 = 1u; /* SCITXINTA */
     PieCtrlRegs.PIEACK.all = (uint16_t)(PIEACK_GROUP1 | PIEACK_GROUP9);
     IER |= (uint16_t)(M_INT1 | M_INT9);
-    EINT;                                         /* INTM = 0 */
-    ERTM;                                         /* DBGM = 0: real-time debug mode allowed */
+    EINT; /* INTM = 0 */
+    ERTM; /* DBGM = 0: real-time debug mode allowed */
 }
 
 void sysinit_watchdog_service(void)
@@ -157,7 +157,7 @@ void sysinit_watchdog_enable(void)
 {
     sysinit_watchdog_service();
     EALLOW;
-    SysCtrlRegs.SCSR = 0x0000u;     /* WDENINT = 0: a timeout resets the device */
-    SysCtrlRegs.WDCR = 0x0028u;     /* WDCHK = 101, WDDIS = 0, WDPS = /1 */
+    SysCtrlRegs.SCSR = 0x0000u; /* WDENINT = 0: a timeout resets the device */
+    SysCtrlRegs.WDCR = 0x0028u; /* WDCHK = 101, WDDIS = 0, WDPS = /1 */
     EDIS;
 }

@@ -6,12 +6,12 @@
 
 static int failures;
 
-#define CHECK(cond)                                                        \
-    do {                                                                   \
-        if (!(cond)) {                                                     \
-            printf("FAIL %s:%d: %s\n", __FILE__, __LINE__, #cond);         \
-            failures++;                                                    \
-        }                                                                  \
+#define CHECK(cond)                                                                                \
+    do {                                                                                           \
+        if (!(cond)) {                                                                             \
+            printf("FAIL %s:%d: %s\n", __FILE__, __LINE__, #cond);                                 \
+            failures++;                                                                            \
+        }                                                                                          \
     } while (0)
 
 static void baud(uint32_t nominal, uint16_t want_brr, uint32_t want_actual)
@@ -19,8 +19,8 @@ static void baud(uint32_t nominal, uint16_t want_brr, uint32_t want_actual)
     const uint16_t brr = calc_sci_brr(BOARD_LSPCLK_HZ, nominal);
     const uint32_t actual = calc_sci_baud(BOARD_LSPCLK_HZ, brr);
     const double err = 100.0 * ((double)actual - (double)nominal) / (double)nominal;
-    printf("SCI %7lu baud: BRR %2u -> %7lu baud (%+.2f %%)\n", (unsigned long)nominal, (unsigned)brr,
-           (unsigned long)actual, err);
+    printf("SCI %7lu baud: BRR %2u -> %7lu baud (%+.2f %%)\n", (unsigned long)nominal,
+           (unsigned)brr, (unsigned long)actual, err);
     CHECK(brr == want_brr);
     CHECK(actual == want_actual);
 }
@@ -47,11 +47,11 @@ int main(void)
     baud(230400UL, 19u, 234375UL);
     baud(115200UL, 40u, 114329UL);
 
-    timing(50.0e-6f, 3750u, 0u, 300u, 150u);     /* the 20 kHz default */
+    timing(50.0e-6f, 3750u, 0u, 300u, 150u); /* the 20 kHz default */
     timing(100.0e-6f, 7500u, 0u, 300u, 150u);
     timing(10.0e-6f, 750u, 0u, 300u, 150u);
-    timing(1.0e-3f, 37500u, 1u, 150u, 75u);      /* 1 ms needs TBCLK / 2 */
-    timing(NAN, 3750u, 0u, 300u, 150u);          /* invalid: the default period */
+    timing(1.0e-3f, 37500u, 1u, 150u, 75u); /* 1 ms needs TBCLK / 2 */
+    timing(NAN, 3750u, 0u, 300u, 150u);     /* invalid: the default period */
 
     CHECK(load_prd == 1499u);
     CHECK(calc_dac_cmpa(0.0f, BOARD_LOAD_FULLSCALE_NM, load_prd) == 750u);
@@ -62,7 +62,7 @@ int main(void)
     printf("load PWM-DAC: TBPRD %u, 0 N m -> CMPA %u\n", (unsigned)load_prd,
            (unsigned)calc_dac_cmpa(0.0f, BOARD_LOAD_FULLSCALE_NM, load_prd));
 
-    {   /* duty legs at the 20 kHz default: TBPRD 3750, dead band 300 TBCLK */
+    { /* duty legs at the 20 kHz default: TBPRD 3750, dead band 300 TBCLK */
         uint16_t cmpa = 0u;
         CHECK(calc_leg(0.5f, 3750u, 300u, &cmpa) == CALC_LEG_COMPARE && cmpa == 1875u);
         CHECK(calc_leg(0.25f, 3750u, 300u, &cmpa) == CALC_LEG_COMPARE && cmpa == 2813u);
