@@ -10,10 +10,9 @@ import pytest
 from pmsm_hil.emulator.fwlib import EmulatedDevice
 from pmsm_hil.emulator.settings import emulator_settings
 from pmsm_hil.profiles import load_profile
-from pmsm_hil.profiles.motor import load_motor
-from pmsm_hil.profiles.rig import load_rig
 from pmsm_hil.profiles.fluxmap import MAX_NODES
-from pmsm_hil.profiles.rig import PLANT_DELAY_RING, PLANT_THERMAL_DIV
+from pmsm_hil.profiles.motor import load_motor
+from pmsm_hil.profiles.rig import PLANT_DELAY_RING, PLANT_THERMAL_DIV, load_rig
 
 # (file text of the effects section, profile control.ts_s, field named, value named)
 BAD = {

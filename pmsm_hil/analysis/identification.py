@@ -231,9 +231,9 @@ def convergence_plot(path, out_png, t0_s: float | None = None, t1_s: float | Non
     t_all = np.asarray(par["t_s"], dtype=float)
     names = np.asarray(par["estimator"]).astype(str)
     fig, axes = plt.subplots(4, 1, figsize=(9, 10), sharex=True)
-    for ax, p in zip(axes, ("l_d_h", "l_q_h", "psi_f_wb", "r_s_ohm")):
+    for ax, p in zip(axes, ("l_d_h", "l_q_h", "psi_f_wb", "r_s_ohm"), strict=False):
         name, unit, k = UNITS[p]
-        for est in ESTIMATORS + ("nominal",):
+        for est in (*ESTIMATORS, "nominal"):
             sel = names == est
             if t0_s is not None:
                 sel &= t_all >= t0_s

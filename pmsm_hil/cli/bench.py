@@ -64,7 +64,7 @@ def main(args: argparse.Namespace) -> int:
         path = resolve(args.profile, "profile") if args.profile else default_profile()
         rig = resolve(args.rig, "rig") if args.rig else None
         out = Path(args.out)
-        if args.only != "per-effect" and args.only != "mismatch":
+        if args.only not in {"per-effect", "mismatch"}:
             identify(path, out, args.seed, rig, args.until)
         if args.mismatch or args.only == "mismatch":
             out.mkdir(parents=True, exist_ok=True)

@@ -61,7 +61,7 @@ def _parameters(live: LiveState, errors: bool = True, fold: bool = False) -> Tab
     tr = live.truth or {}
     for name, p in live.params.items():
 
-        def cell(key, k, fmt):
+        def cell(key, k, fmt, p=p, name=name):
             v = p[key] * k
             ref = tr.get(key)
             if errors and name != "nominal" and ref:

@@ -116,7 +116,10 @@ def serve(args: argparse.Namespace) -> int:
     settings = emulator_settings(motor, rig, seed=args.seed, baud=args.baud)
     parent = os.getppid() if args.exit_with_parent else None
     plant = f"motor: {motor.name}  rig: {rig.name or 'default'}"
-    announce = lambda s: print(f"{s}\n{plant}", flush=True)
+
+    def announce(s):
+        return print(f"{s}\n{plant}", flush=True)
+
     if args.can:  # docs/can.md
         if not 10_000 <= args.can_bitrate <= 1_000_000 or not 0 <= args.node <= 15:
             return _error("--can-bitrate must be 10000..1000000 and --node 0..15")

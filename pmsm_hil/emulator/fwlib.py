@@ -126,7 +126,7 @@ class EmulatedDevice:
         keys = truth_keys()
         out = (ctypes.c_double * len(keys))()
         self._lib.emu_plant_truth(self._p, out, len(keys))
-        return dict(zip(keys, list(out)))
+        return dict(zip(keys, list(out), strict=False))
 
     def plant_flux(self, i_d_a: float, i_q_a: float, theta_e_rad: float = 0.0) -> dict[str, float]:
         """The plant's magnetics at one point (flux linkages, incremental inductances, torque)."""
@@ -142,7 +142,7 @@ class EmulatedDevice:
             "t_extra_nm",
             "torque_nm",
         )
-        return dict(zip(keys, list(out)))
+        return dict(zip(keys, list(out), strict=False))
 
     def get(self, key: str) -> float:
         v = ctypes.c_double()

@@ -33,7 +33,7 @@ from mcap.stream_reader import get_chunk_data_stream
 from pmsm_hil.log.schemas import PRIMITIVES, TOPICS, Codec, FieldDef, TopicDef, codec_for
 from pmsm_hil.log.writer import MCAP_MAGIC
 
-__all__ = ["read_log", "rewrite_log", "Log", "Attachment", "LogFormatError"]
+__all__ = ["Attachment", "Log", "LogFormatError", "read_log", "rewrite_log"]
 
 _REC = struct.Struct("<BQ")
 _U16 = struct.Struct("<H").unpack_from
@@ -509,7 +509,11 @@ class _Parser:
                 self._add_fixed(ch, arr[offs[:, None] + 31 + np.arange(size)])
             else:
                 self._add_var(
-                    ch, [d[o + 31 : o + 9 + ln] for o, ln in zip(offs.tolist(), lens.tolist())]
+                    ch,
+                    [
+                        d[o + 31 : o + 9 + ln]
+                        for o, ln in zip(offs.tolist(), lens.tolist(), strict=False)
+                    ],
                 )
             ch.count += len(offs)
         return True

@@ -12,26 +12,27 @@ from __future__ import annotations
 
 import hashlib
 import struct
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import Any, Iterable, Sequence
+from typing import Any
 
 import numpy as np
 
 __all__ = [
-    "FieldDef",
-    "TopicDef",
-    "Codec",
-    "TOPICS",
     "DEVICE_TOPICS",
+    "ESTIMATORS",
+    "EVENT_KINDS",
     "HOST_TOPICS",
     "LOG_FORMAT_VERSION",
-    "SCHEMA_ENCODING",
     "MESSAGE_ENCODING",
-    "schema_hash",
-    "codec_for",
-    "EVENT_KINDS",
-    "ESTIMATORS",
     "PRIMITIVES",
+    "SCHEMA_ENCODING",
+    "TOPICS",
+    "Codec",
+    "FieldDef",
+    "TopicDef",
+    "codec_for",
+    "schema_hash",
 ]
 
 LOG_FORMAT_VERSION = 1
@@ -393,7 +394,7 @@ class Codec:
             return self.data_struct.unpack_from(data, 0)[1:]
         out: list[Any] = []
         off = 0  # CDR offset (data offset - 4)
-        for kind, n, structs in self.plan:
+        for kind, _n, structs in self.plan:
             if kind == "run":
                 st, size = structs[off & 7]
                 out.extend(st.unpack_from(data, 4 + off))

@@ -28,13 +28,13 @@ from ._base import StrictModel
 from ._source import Problem, Source
 
 __all__ = [
-    "Acceptance",
-    "RunAcceptance",
-    "SegmentAcceptance",
-    "IdentBound",
-    "acceptance_problems",
     "ESTIMATORS",
     "PARAMS",
+    "Acceptance",
+    "IdentBound",
+    "RunAcceptance",
+    "SegmentAcceptance",
+    "acceptance_problems",
 ]
 
 ESTIMATORS = ("rls", "adaline", "nlms_adaline")

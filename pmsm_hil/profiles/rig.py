@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import os
-from typing import Iterator
+from collections.abc import Iterator
 
 from pydantic import Field, ValidationError
 
@@ -18,24 +18,24 @@ from ._base import FileModel, StrictModel, default_file, meta_value
 from ._source import Problem, ProfileError, Source, read_source, validation_problems
 
 __all__ = [
-    "Rig",
-    "Effect",
-    "Effects",
-    "DeadTime",
+    "EFFECT_BITS",
     "AdcNoise",
     "AdcQuantisation",
-    "Encoder",
-    "Friction",
-    "Saturation",
-    "Thermal",
-    "FluxHarmonics",
     "Cogging",
-    "SensorOffset",
-    "SensorGain",
-    "Delay",
     "DcLink",
+    "DeadTime",
+    "Delay",
+    "Effect",
+    "Effects",
+    "Encoder",
+    "FluxHarmonics",
+    "Friction",
     "IronLoss",
-    "EFFECT_BITS",
+    "Rig",
+    "Saturation",
+    "SensorGain",
+    "SensorOffset",
+    "Thermal",
     "load_rig",
     "plant_problems",
 ]

@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import math
 from binascii import crc_hqx
-from typing import Any, Callable, Iterable, NamedTuple
+from collections.abc import Callable, Iterable
+from typing import Any, NamedTuple
 
 from cobs.cobs import DecodeError as _CobsDecodeError
 from cobs.cobs import decode as _cobs_decode
@@ -54,7 +55,7 @@ def _quantiser(scale: float, wire_type: str) -> Callable[[Any], int]:
 
     def quantise(value: Any) -> int:
         x = float(value) * inv
-        if x != x:
+        if math.isnan(x):
             return 0
         if x >= hi:
             return hi

@@ -26,7 +26,7 @@ from pmsm_hil.profiles._source import Problem, read_source, resolve_ref
 
 from .spec import Axis, Sweep
 
-__all__ = ["Run", "plan_runs", "profile_run", "axis_values", "materialise"]
+__all__ = ["Run", "axis_values", "materialise", "plan_runs", "profile_run"]
 
 FILES = ("profile.yaml", "motor.yaml", "rig.yaml")
 _PART = re.compile(r"([a-z_][a-z0-9_]*)(?:\[(\d+)\])?")
@@ -82,7 +82,7 @@ def _base_value(obj: Any, parts: list[str | int]) -> Any:
 
 def _set(data: dict, parts: list[str | int], value: Any) -> None:
     obj: Any = data
-    for p, nxt in zip(parts, parts[1:]):
+    for p, nxt in itertools.pairwise(parts):
         if isinstance(p, int):
             obj = obj[p]
         else:
@@ -221,7 +221,7 @@ def plan_runs(sweep: Sweep) -> list[Run]:
         drawn = {a.field: axis_values(a, rng)[0] for a in rand}
         for combo in combos:
             by_field = dict(drawn)
-            by_field.update({a.field: v for a, v in zip(grid, combo)})
+            by_field.update({a.field: v for a, v in zip(grid, combo, strict=False)})
             texts, seed = materialise(base, sweep.axes, by_field, sweep.spec.seed)
             values = {a.name: by_field[a.field] for a in sweep.axes}
             runs.append(

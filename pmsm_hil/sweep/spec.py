@@ -34,7 +34,7 @@ from pmsm_hil.profiles._source import (
     validation_problems,
 )
 
-__all__ = ["Axis", "SweepFile", "Sweep", "load_sweep", "METRICS", "FIELD_RE"]
+__all__ = ["FIELD_RE", "METRICS", "Axis", "Sweep", "SweepFile", "load_sweep"]
 
 METRICS = ("speed_error", "ripple", "recovery", "faults", "completeness", "identification")
 # profile.FIELD.PATH / motor.FIELD / rig.FIELD.PATH (list items as [i]) or seed

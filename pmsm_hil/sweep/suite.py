@@ -20,7 +20,7 @@ import yaml
 from .execute import execute_run
 from .plan import Run, profile_run, run_key
 
-__all__ = ["SuiteCase", "plan_suite", "run_suite", "junit_xml", "DEFAULT_ACCEPTANCE"]
+__all__ = ["DEFAULT_ACCEPTANCE", "SuiteCase", "junit_xml", "plan_suite", "run_suite"]
 
 DEFAULT_ACCEPTANCE = {"run": {"complete": True, "faults": "forbidden"}}
 METRICS = ["speed_error", "ripple", "recovery", "faults", "completeness"]
