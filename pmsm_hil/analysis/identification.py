@@ -138,7 +138,7 @@ def identification_table(path, t0_s: float | None = None, t1_s: float | None = N
             final = float(np.mean(v[last]))
             tr = float(np.mean(truth[p][last]))
             conv = (
-                convergence_time(t[nz[0] :], v[nz[0] :], truth[p][nz[0] :], t_first)
+                convergence_time(t[nz[0] :], v[nz[0] :], truth[p][nz[0] :], float(t[nz[0]]))
                 if len(nz)
                 else None
             )
@@ -178,6 +178,7 @@ def markdown_table(table: IdentTable, with_paper: bool = True) -> str:
         row = [f"{name} ({unit})", _fmt(p, c0.truth) if c0 else "-"]
         for e in ests:
             c = table.cell(e, p)
+            assert c is not None  # every listed estimator has every parameter
             row += [
                 _fmt(p, c.final),
                 f"{100 * c.error_rel:+.2f} %",
@@ -206,6 +207,7 @@ def text_table(table: IdentTable, with_paper: bool = True) -> str:
         out.append(hdr)
         for p in ("l_d_h", "l_q_h", "r_s_ohm", "psi_f_wb"):
             c = table.cell(e, p)
+            assert c is not None  # the estimator has l_d_h, so it has all four
             name, unit, _ = UNITS[p]
             conv = "never" if c.conv_s is None else f"{c.conv_s:.3f}"
             line = (

@@ -28,10 +28,10 @@ def figure(ctx: RunContext, what: str, rows: int, sharex: bool = True) -> tuple[
         layout="constrained",
     )
     fig.suptitle(f"{what} — {ctx.tag}", fontsize=11)
-    axes = list(axes[:, 0])
-    for ax in axes:
+    column = list(axes[:, 0])
+    for ax in column:
         ax.grid(alpha=0.3)
-    return fig, axes
+    return fig, column
 
 
 def legend(ax, **kw) -> None:

@@ -376,7 +376,7 @@ def verdict_text(summary: RunSummary, interrupted: bool = False) -> str:
             i = idx[0]
             return f"segment {i} {names[i]!r}" if i < len(names) else f"segment {i}"
         runs, start = [], idx[0]
-        for a, b in zip(idx, [*idx[1:], None], strict=False):
+        for a, b in zip(idx, [*idx[1:], -1], strict=False):
             if b != a + 1:
                 runs.append(f"{start}" if start == a else f"{start}-{a}")
                 start = b

@@ -9,9 +9,9 @@ from functools import lru_cache
 @lru_cache(maxsize=1)
 def lib() -> ctypes.CDLL:
     """The extension's shared library, with argument types declared."""
-    from pmsm_hil import _fw
+    import importlib
 
-    so = ctypes.CDLL(_fw.__file__)
+    so = ctypes.CDLL(importlib.import_module("pmsm_hil._fw").__file__)
     so.emu_size.restype = ctypes.c_size_t
     so.emu_init.argtypes = [ctypes.c_void_p]
     so.emu_set.argtypes = [ctypes.c_void_p, ctypes.c_char_p, ctypes.c_double]

@@ -113,6 +113,8 @@ class SocketcandServer:
 
     def _alive(self) -> bool:
         """Whether the current client's connection is still open (a peek, nothing consumed)."""
+        if self.client is None:
+            return False
         try:
             return self.client.recv(1, socket.MSG_PEEK) != b""
         except BlockingIOError:
@@ -143,12 +145,16 @@ class SocketcandServer:
             self._reply("< echo >")
 
     def _reply(self, text: str) -> None:
+        if self.client is None:
+            return
         try:
             self.client.sendall(text.encode("ascii"))
         except OSError:
             self._drop_client()
 
     def _read_client(self) -> None:
+        if self.client is None:
+            return
         try:
             data = self.client.recv(65536)
         except BlockingIOError:

@@ -333,6 +333,10 @@ class Codec:
                 run.append(f)
         if run:
             self.plan.append(("run", len(run), [_run_struct(run, m) for m in range(8)]))
+        self.body_format: str | None
+        self.size: int | None
+        self.data_struct: struct.Struct | None
+        self.dtype: np.dtype | None
         if self.fixed:
             body, size = _run_struct(self.fields, 0)
             self.body_format = body.format[1:]  # without "<"
@@ -361,6 +365,7 @@ class Codec:
     def encode(self, values: Sequence[Any]) -> bytes:
         """CDR data (header included) for ``values`` in field order (t_s first)."""
         if self.fixed:
+            assert self.data_struct is not None  # set for every fixed-size schema
             return self.data_struct.pack(CDR_LE_HEADER, *values)
         parts = [CDR_LE_HEADER]
         off = 0
@@ -391,6 +396,7 @@ class Codec:
                 f"{self.topic.topic}: not little-endian CDR (header {bytes(data[:4])!r})"
             )
         if self.fixed:
+            assert self.data_struct is not None
             return self.data_struct.unpack_from(data, 0)[1:]
         out: list[Any] = []
         off = 0  # CDR offset (data offset - 4)

@@ -382,7 +382,8 @@ def _resolve(model: type[BaseModel], loc: tuple) -> tuple[type[BaseModel] | None
 
 
 def range_text(info: Any, name: str) -> str:
-    lo = hi = None
+    lo: Any = None
+    hi: Any = None
     lo_open = hi_open = False
     for m in getattr(info, "metadata", ()):
         if isinstance(m, annotated_types.Gt):

@@ -140,7 +140,7 @@ def _check_axes(sweep: Sweep, base: _Base) -> None:
         if ax.field == "seed":
             continue
         parts = _parts(ax.field)
-        root, rest = parts[0], parts[1:]
+        root, rest = str(parts[0]), parts[1:]
         try:
             value = _base_value(base.objects[root], rest)
         except KeyError as e:
@@ -194,7 +194,7 @@ def materialise(
             seed = int(v)
             continue
         parts = _parts(ax.field)
-        root, rest = parts[0], parts[1:]
+        root, rest = str(parts[0]), parts[1:]
         _set(data[root], rest, _concrete(v, _base_value(base.objects[root], rest), ax.relative))
     texts = {
         f"{k}.yaml": yaml.safe_dump(data[k], sort_keys=False, width=1_000_000)
