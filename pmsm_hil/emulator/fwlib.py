@@ -8,10 +8,13 @@ from functools import lru_cache
 
 @lru_cache(maxsize=1)
 def lib() -> ctypes.CDLL:
-    """The extension's shared library, with argument types declared."""
+    """The extension's shared library, with argument types declared. PMSM_HIL_FW_LIB names another
+    build of the same sources instead (the sanitizer build of `make -C firmware sanitize`)."""
     import importlib
+    import os
 
-    so = ctypes.CDLL(importlib.import_module("pmsm_hil._fw").__file__)
+    path = os.environ.get("PMSM_HIL_FW_LIB") or importlib.import_module("pmsm_hil._fw").__file__
+    so = ctypes.CDLL(path)
     so.emu_size.restype = ctypes.c_size_t
     so.emu_init.argtypes = [ctypes.c_void_p]
     so.emu_set.argtypes = [ctypes.c_void_p, ctypes.c_char_p, ctypes.c_double]
