@@ -114,7 +114,9 @@ def convergence_time(
     return max(0.0, float(t[k]) - t_first)
 
 
-def identification_table(path, t0_s: float | None = None, t1_s: float | None = None) -> IdentTable:
+def identification_table(
+    path: Path | str, t0_s: float | None = None, t1_s: float | None = None
+) -> IdentTable:
     """The table for the log at `path`, over device time [t0_s, t1_s] (default: the whole log)."""
     log = read_log(path)
     par = log.topic("/pmsm/params")
@@ -221,7 +223,9 @@ def text_table(table: IdentTable, with_paper: bool = True) -> str:
     return "\n".join(out)
 
 
-def convergence_plot(path, out_png, t0_s: float | None = None, t1_s: float | None = None) -> Path:
+def convergence_plot(
+    path: Path | str, out_png: Path | str, t0_s: float | None = None, t1_s: float | None = None
+) -> Path:
     """Per parameter: each estimator against the truth (PNG)."""
     import matplotlib
 

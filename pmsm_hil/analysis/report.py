@@ -96,7 +96,7 @@ def _tables(path: Path, notes: list[str]):
     return summary, ident
 
 
-def build_report(log_path, out_dir=None) -> Report:
+def build_report(log_path: Path | str, out_dir: Path | str | None = None) -> Report:
     """Write the report of the log at `log_path` into `out_dir` (default: LOG-report/ beside it)."""
     path = Path(log_path)
     if not path.is_file():

@@ -3,10 +3,15 @@ Each returns a matplotlib Figure, or a string saying why the panel has nothing t
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from pmsm_hil.analysis.report_context import RunContext
 from pmsm_hil.analysis.report_style import figure, legend, segment_markers, time_axis
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 TEL = "/pmsm/telemetry"
 
@@ -15,7 +20,7 @@ def _no_telemetry(ctx: RunContext) -> str | None:
     return None if ctx.has(TEL) else "no /pmsm/telemetry messages in the log"
 
 
-def speed(ctx: RunContext):
+def speed(ctx: RunContext) -> Figure | str:
     why = _no_telemetry(ctx)
     if why:
         return why
@@ -38,7 +43,7 @@ def speed(ctx: RunContext):
     return fig
 
 
-def currents(ctx: RunContext):
+def currents(ctx: RunContext) -> Figure | str:
     why = _no_telemetry(ctx)
     if why:
         return why
@@ -75,7 +80,7 @@ def _mean(t: np.ndarray, x: np.ndarray, window_s: float) -> np.ndarray:
 VOLTAGE_MEAN_S = 0.02
 
 
-def voltages(ctx: RunContext):
+def voltages(ctx: RunContext) -> Figure | str:
     why = _no_telemetry(ctx)
     if why:
         return why
@@ -112,7 +117,7 @@ def _wrap(x: np.ndarray) -> np.ndarray:
     return (x + np.pi) % (2.0 * np.pi) - np.pi
 
 
-def estimation_error(ctx: RunContext):
+def estimation_error(ctx: RunContext) -> Figure | str:
     why = _no_telemetry(ctx)
     if why:
         return why

@@ -16,10 +16,16 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from pmsm_hil.log.reader import read_log
+
+if TYPE_CHECKING:
+    from rich.console import Console
+
+    from pmsm_hil.log.reader import Log
 
 RECOVERY_LIMIT_S = 0.3
 AVG_WINDOW_S = 0.02
@@ -226,7 +232,7 @@ def summarize(
     return summary
 
 
-def log_problems(log) -> list[str]:
+def log_problems(log: Log) -> list[str]:
     """What is wrong with the file itself: truncation, a missing summary section, no data."""
     out = []
     total = sum(log.counts.values())
@@ -310,7 +316,9 @@ def _summary_rows(summary: RunSummary) -> list[dict[str, str]]:
     return rows
 
 
-def print_summary(summary: RunSummary, console=None, interrupted: bool = False) -> None:
+def print_summary(
+    summary: RunSummary, console: Console | None = None, interrupted: bool = False
+) -> None:
     """The per-segment table, fitted to the terminal: on a narrow one the least important columns
     are left out (and named) rather than cut short."""
     from rich import box
