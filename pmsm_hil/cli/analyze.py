@@ -5,11 +5,15 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from pmsm_hil.cli.errors import fail
 
+if TYPE_CHECKING:
+    from pmsm_hil.analysis.identification import IdentTable
 
-def add_parser(sub) -> None:
+
+def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "analyze",
         help="summarise a run log (per segment: speed error, ripple, faults)",
@@ -22,7 +26,7 @@ def add_parser(sub) -> None:
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
 
 
-def identification(path):
+def identification(path: Path | str) -> IdentTable | None:
     """The identification table of a log, or None when no estimator ran."""
     from pmsm_hil.analysis.identification import identification_table
 
@@ -33,7 +37,7 @@ def identification(path):
     return t if t.cells else None
 
 
-def print_identification(table) -> None:
+def print_identification(table: IdentTable) -> None:
     from pmsm_hil.analysis.identification import text_table
 
     print()

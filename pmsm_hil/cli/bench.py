@@ -8,7 +8,7 @@ from pathlib import Path
 from pmsm_hil.cli.errors import fail
 
 
-def add_parser(sub) -> None:
+def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "bench", help="reproducible benchmarks on the emulator (identify: paper A Table 2)"
     )

@@ -20,7 +20,7 @@ from pmsm_hil.cli.errors import fail
 ACTIONS = ("augment", "record", "selftest", "verify")
 
 
-def add_parser(sub) -> None:
+def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "gap",
         help="diagnose the sim-to-real gap of a log (also: augment, record, selftest)",

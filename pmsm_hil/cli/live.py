@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import sys
 import time
+from typing import Any, TextIO
 
 from rich.console import Console, Group, RenderableType
 from rich.live import Live
@@ -189,7 +190,7 @@ class _Screen:
         yield Panel(Group(*rows, *events), title="pmsm-hil run", border_style="blue", width=width)
 
 
-def render(live: LiveState, title: str, bit_rate: float, names: list[str]):
+def render(live: LiveState, title: str, bit_rate: float, names: list[str]) -> _Screen:
     """The live panel for `live` (a rich renderable that fits the console's width and height)."""
     return _Screen(live, title, bit_rate, names)
 
@@ -202,11 +203,11 @@ class LiveView:
         self._live = Live(refresh_per_second=10, transient=False)
         self._state: LiveState | None = None
 
-    def __enter__(self):
+    def __enter__(self) -> LiveView:
         self._live.__enter__()
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: Any) -> None:
         if self._state is not None:
             self._live.update(render(self._state, self.title, self.bit_rate, self.names))
         self._live.__exit__(*exc)
@@ -222,14 +223,14 @@ class LiveView:
 class PlainProgress:
     """Observer for --no-live: a line per second of wall time."""
 
-    def __init__(self, stream=sys.stdout, period_s: float = 1.0):
+    def __init__(self, stream: TextIO = sys.stdout, period_s: float = 1.0):
         self.stream, self.period_s = stream, period_s
         self._last = 0.0
 
-    def __enter__(self):
+    def __enter__(self) -> PlainProgress:
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> None:
         pass
 
     def update(self, live: LiveState) -> None:
@@ -251,7 +252,9 @@ class PlainProgress:
         print(text, file=self.stream, flush=True)
 
 
-def make_observer(no_live: bool, title: str, bit_rate: float, names: list[str], stream=None):
+def make_observer(
+    no_live: bool, title: str, bit_rate: float, names: list[str], stream: TextIO | None = None
+) -> PlainProgress | LiveView:
     """The live view on a terminal; plain lines with --no-live or when the output is piped."""
     stream = sys.stdout if stream is None else stream
     if no_live or not Console(file=stream).is_terminal:

@@ -6,11 +6,16 @@ import argparse
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from pmsm_hil.cli.errors import fail, report
 
+if TYPE_CHECKING:
+    from pmsm_hil.device import DeviceSpec
+    from pmsm_hil.profiles import Profile
 
-def add_parser(sub) -> None:
+
+def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "run",
         help="run a speed/load profile (on the emulator unless --port/--can)",
@@ -94,7 +99,7 @@ def default_log_path(profile_path: str) -> Path:
     return Path("runs") / f"{stem}-{time.strftime('%Y%m%d-%H%M%S')}.mcap"
 
 
-def device_spec(args):
+def device_spec(args: argparse.Namespace) -> DeviceSpec:
     from pmsm_hil.device import DeviceSpec
 
     return DeviceSpec(
@@ -121,7 +126,7 @@ def budget_text(budget: dict, baud: int) -> str:
     return "\n".join(lines)
 
 
-def check_link_budget(args, profile) -> int | None:
+def check_link_budget(args: argparse.Namespace, profile: Profile) -> int | None:
     """Serial links: refuse telemetry that the link cannot carry, or decimate it (--decimate)."""
     from pmsm_hil.profiles import link_budget
 

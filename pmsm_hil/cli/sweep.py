@@ -10,7 +10,7 @@ from pathlib import Path
 from pmsm_hil.cli.errors import fail
 
 
-def add_parser(sub) -> None:
+def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "sweep",
         help="run a profile over grids / random draws of parameters on Dask; "

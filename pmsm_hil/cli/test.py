@@ -12,7 +12,7 @@ from pmsm_hil.cli.errors import fail
 EXIT_FAILED = 1
 
 
-def add_parser(sub) -> None:
+def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "test",
         help="run profiles and check their acceptance criteria (regression suite)",
