@@ -13,11 +13,18 @@ neither of those packages imports the other (docs/architecture.md).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from pmsm_hil.protocol import can_generated as cg
 from pmsm_hil.protocol.can_link import CanLink, can_fast_hz_max
 from pmsm_hil.protocol.link import SerialLink
+
+if TYPE_CHECKING:
+    from pmsm_hil.emulator.fwlib import EmulatedDevice
+    from pmsm_hil.profiles import Profile
+    from pmsm_hil.transport.can_bus import CanSpec, FrameFault
 
 
 @dataclass
@@ -40,7 +47,7 @@ def _rig_path(spec: DeviceSpec, profile) -> str | None:
     return spec.rig_path or (str(profile.rig.path) if profile.rig.path else None)
 
 
-def open_device(spec: DeviceSpec, profile):
+def open_device(spec: DeviceSpec, profile: Profile) -> SerialLink | CanLink:
     """A link to the device that `spec` names, set up for `profile` (its motor and rig for an
     emulator; its CAN rates for a CAN link). Raises TransportError (TransportSpecError for a
     SPEC that cannot be meant)."""
@@ -76,7 +83,7 @@ def open_device(spec: DeviceSpec, profile):
     )
 
 
-def emulator_settings_for(profile, spec: DeviceSpec | None = None) -> dict[str, float]:
+def emulator_settings_for(profile: Profile, spec: DeviceSpec | None = None) -> dict[str, float]:
     """The sim board's settings for an emulator of `profile` (its motor, its rig or spec's)."""
     from pmsm_hil.emulator.settings import emulator_settings
     from pmsm_hil.profiles import load_rig
@@ -95,7 +102,9 @@ def emulator_settings_for(profile, spec: DeviceSpec | None = None) -> dict[str, 
 # ----------------------------------------------------------------------------------- CAN
 
 
-def open_can(bus_spec, on_close=None, name: str | None = None) -> CanLink:
+def open_can(
+    bus_spec: CanSpec, on_close: Callable[[], None] | None = None, name: str | None = None
+) -> CanLink:
     """The protocol's CAN link on a python-can bus named by a parsed CanSpec."""
     from pmsm_hil.transport.can_bus import open_bus
 
@@ -113,7 +122,10 @@ def open_can(bus_spec, on_close=None, name: str | None = None) -> CanLink:
 
 
 def inprocess_can_link(
-    settings: dict[str, float], chunk_ticks: int = 400, device=None, **faults
+    settings: dict[str, float],
+    chunk_ticks: int = 400,
+    device: EmulatedDevice | None = None,
+    **faults: FrameFault | None,
 ) -> CanLink:
     """The emulated device in this process behind a CAN link (no socket); `faults` as
     InProcessCanBus's fault_d2h/fault_h2d hooks."""
@@ -130,7 +142,7 @@ def inprocess_can_link(
     )
 
 
-def apply_can_rates(profile) -> None:
+def apply_can_rates(profile: Profile) -> None:
     """Use the profile's CAN telemetry rates (link.can.*_hz, where set) for a run over CAN; the
     fast-frame rate left unset is the serial one, lowered to what fits beside the other streams."""
     can_cfg = profile.link.can
@@ -150,7 +162,7 @@ def apply_can_rates(profile) -> None:
     profile.telemetry = tel
 
 
-def open_can_for_run(spec: DeviceSpec, profile) -> CanLink:
+def open_can_for_run(spec: DeviceSpec, profile: Profile) -> CanLink:
     """`run --can SPEC`: a rig's CAN interface, or (SPEC `emulator` or empty) a started emulator.
     The profile's link.can bit rate and node apply unless SPEC gives them."""
     from pmsm_hil.transport.can_bus import CanEmulator, parse_spec
