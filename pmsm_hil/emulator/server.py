@@ -16,7 +16,9 @@ import signal
 import sys
 import time
 import tty
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TextIO
 
 from pmsm_hil.emulator.fwlib import EmulatedDevice
 
@@ -88,7 +90,7 @@ class StateReporter:
     the device time and the device time since the last heartbeat, so that whoever started the
     emulator sees when (in device time) a lost host got its motor stopped."""
 
-    def __init__(self, device: EmulatedDevice, out=None):
+    def __init__(self, device: EmulatedDevice, out: TextIO | None = None):
         from pmsm_hil.protocol import generated as gen
 
         self.dev = device
@@ -173,7 +175,7 @@ class PtyServer:
         self.dropped_octets = 0  # the host not reading: what a full UART FIFO loses
         self._last_drain = time.monotonic()
 
-    def stop(self, *_args) -> None:
+    def stop(self, *_args: object) -> None:
         self._stop = True
 
     def serve(
@@ -236,7 +238,7 @@ class PtyServer:
 
 def serve_pty(
     settings: dict[str, float],
-    announce=print,
+    announce: Callable[[str], object] = print,
     corrupt_ppm: float = 0.0,
     pace: float | None = None,
     report_state: bool = False,

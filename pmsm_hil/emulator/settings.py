@@ -2,6 +2,11 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from pmsm_hil.profiles import Motor, Rig
+
 
 def _eff(rig, name: str):
     effects = getattr(rig, "effects", None) or {}
@@ -12,7 +17,12 @@ def _eff(rig, name: str):
 
 
 def emulator_settings(
-    motor, rig, seed: int = 1, baud: int = 921600, truth_hz: float = 100.0, ts_s: float = 50e-6
+    motor: Motor,
+    rig: Rig,
+    seed: int = 1,
+    baud: int = 921600,
+    truth_hz: float = 100.0,
+    ts_s: float = 50e-6,
 ) -> dict[str, float]:
     """The plant is the motor file's motor with the rig's effects; the firmware learns its own
     (nominal) view of the motor over the link."""
@@ -52,7 +62,7 @@ def emulator_settings(
     return s
 
 
-def effect_settings(motor, rig) -> dict:
+def effect_settings(motor: Motor, rig: Rig) -> dict:
     """The sim board's keys for the effects of issue 5 (docs/rigs.md). Every key is set, to its
     'off' value when the effect is disabled, so that a disabled effect leaves the ideal plant."""
     s: dict = {"effects_mask": int(getattr(rig, "effects_mask", 0) or 0)}

@@ -20,6 +20,7 @@ import signal
 import socket
 import sys
 import time
+from collections.abc import Callable
 
 from pmsm_hil.emulator.fwlib import EmulatedDevice
 from pmsm_hil.emulator.server import Pacer, ParentWatch, StateReporter
@@ -28,7 +29,7 @@ MAX_PENDING = 1 << 16  # octets of text waiting for the client before the device
 CHANNEL = "emu0"
 
 
-def format_frames(frames, ts_s: float) -> bytes:
+def format_frames(frames: list[tuple[int, bytes, int]], ts_s: float) -> bytes:
     out = []
     for ident, data, isr in frames:
         t = isr * ts_s
@@ -70,7 +71,7 @@ class SocketcandServer:
     def spec(self) -> str:
         return f"socketcand:{self.channel}@{self.host}:{self.port}"
 
-    def stop(self, *_args) -> None:
+    def stop(self, *_args: object) -> None:
         self._stop = True
 
     # ------------------------------------------------------------------ client handling
@@ -177,7 +178,9 @@ class SocketcandServer:
             self._handle(cmd)
 
     # ------------------------------------------------------------------ main loop
-    def serve(self, reporter=None, watch=None) -> None:
+    def serve(
+        self, reporter: StateReporter | None = None, watch: ParentWatch | None = None
+    ) -> None:
         while not self._stop:
             if reporter is not None:
                 reporter.poll()
@@ -221,7 +224,7 @@ class SocketcandServer:
 
 def serve_socketcand(
     settings: dict[str, float],
-    announce=print,
+    announce: Callable[[str], object] = print,
     port: int = 0,
     pace: float | None = None,
     report_state: bool = False,

@@ -11,11 +11,15 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Iterator
+from typing import TYPE_CHECKING
 
 from pydantic import Field, ValidationError
 
 from ._base import FileModel, StrictModel, default_file, meta_value
 from ._source import Problem, ProfileError, Source, read_source, validation_problems
+
+if TYPE_CHECKING:
+    from .fluxmap import FluxMap
 
 __all__ = [
     "EFFECT_BITS",
@@ -334,7 +338,7 @@ class Rig(FileModel):
             return sat.map
         return os.path.normpath(os.path.join(os.path.dirname(self.path or "."), sat.map))
 
-    def flux_map(self):
+    def flux_map(self) -> FluxMap | None:
         """The saturation effect's FluxMap (pmsm_hil.profiles.fluxmap), or None when off."""
         path = self.map_path()
         if path is None:
