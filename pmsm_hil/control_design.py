@@ -3,19 +3,24 @@ the speed-PI design when the profile leaves the gains to the tool (docs/control.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from pmsm_hil.protocol import generated as gen
+
+if TYPE_CHECKING:
+    from pmsm_hil.profiles import Motor, Profile, Rig
 
 DEFAULT_SPEED_BW_RAD_S = 450.0
 DEFAULT_OBSERVER_BW_RAD_S = 1000.0  # encoder speed observer (docs/control.md)
 CAPTURE_PRE = 256
 
 
-def torque_constant(motor) -> float:
+def torque_constant(motor: Motor) -> float:
     """k_t = 1.5 p psi_f (N·m/A), the surface-magnet part; MTPA adds reluctance torque on top."""
     return 1.5 * motor.pole_pairs * motor.psi_f_wb
 
 
-def design_speed_pi(motor, bw_rad_s: float = DEFAULT_SPEED_BW_RAD_S) -> tuple[float, float]:
+def design_speed_pi(motor: Motor, bw_rad_s: float = DEFAULT_SPEED_BW_RAD_S) -> tuple[float, float]:
     """PI on mechanical rad/s -> stator current (A): crossover at bw, PI zero at bw/4."""
     kp = motor.j_kgm2 * bw_rad_s / torque_constant(motor)
     ki = kp * bw_rad_s / 4.0
@@ -26,13 +31,13 @@ def _div(rate_hz: float, ts_s: float) -> int:
     return 0 if not rate_hz else max(1, round(1.0 / (rate_hz * ts_s)))
 
 
-def encoder_counts(rig) -> int:
+def encoder_counts(rig: Rig) -> int:
     """Counts per revolution of the rig's encoder (the model's default when the effect is off)."""
     enc = rig.effects.encoder
     return int(4 * (enc.lines if enc.enabled else type(enc).model_fields["lines"].default))
 
 
-def device_config(profile) -> tuple[dict, dict]:
+def device_config(profile: Profile) -> tuple[dict, dict]:
     """(config_motor fields, config_ctrl fields) for `profile`."""
     m, c, tel = profile.motor, profile.control, profile.telemetry
     motor_cfg = dict(
@@ -82,7 +87,7 @@ def device_config(profile) -> tuple[dict, dict]:
     return motor_cfg, ctrl_cfg
 
 
-def identification_config(profile) -> dict:
+def identification_config(profile: Profile) -> dict:
     """config_ctrl fields of the online identification (docs/identification.md)."""
     c = profile.control
     sc = c.predictor_scale

@@ -3,9 +3,22 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Iterable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Protocol
 
 from pmsm_hil.protocol import generated as gen
+
+if TYPE_CHECKING:
+    from pmsm_hil.log.writer import LogWriter
+    from pmsm_hil.protocol.codec import Frame
+
+
+class Sink(Protocol):
+    """An extra consumer of each logged device message (e.g. pmsm_hil.live.foxglove.FoxgloveSink)."""
+
+    def publish(self, topic: str, t_s: float, fields: dict) -> None: ...
+
 
 STATE_NAMES = {v: k for k, v in gen.ENUMS["state"].items()}
 EVENT_NAMES = {v: k for k, v in gen.ENUMS["event"].items()}
@@ -93,7 +106,9 @@ class LiveState:
 class Recorder:
     """Feeds frames to the log writer (device topics) and to the live state."""
 
-    def __init__(self, writer, ts_s: float, segment_names: list[str], sinks=()):
+    def __init__(
+        self, writer: LogWriter, ts_s: float, segment_names: list[str], sinks: Iterable[Sink] = ()
+    ):
         self.w = writer
         self.sinks = list(sinks)  # extra consumers, e.g. pmsm_hil.live.foxglove.FoxgloveSink
         self.ts_s = ts_s
@@ -113,7 +128,7 @@ class Recorder:
         self._write("/pmsm/events", t_s, {"kind": kind, "code": code, "arg": arg, "text": text})
         self.live.events.append((t_s, kind, arg, text))
 
-    def frames(self, frames) -> None:
+    def frames(self, frames: Iterable[Frame]) -> None:
         live = self.live
         for fr in frames:
             live.frames += 1
