@@ -16,6 +16,7 @@
     PROTO_SEGMENT_FLAG_HOLD_EST /* the online estimators hold their values in this segment */
 #define PROFILE_KIND_RUN        PROTO_SEGMENT_KIND_RUN
 #define PROFILE_KIND_IDENTIFY_R PROTO_SEGMENT_KIND_IDENTIFY_R
+#define PROFILE_KIND_COMMISSION PROTO_SEGMENT_KIND_COMMISSION
 
 typedef struct {
     float duration_s;
