@@ -104,10 +104,19 @@ float comm_smooth_sign(float i, float i_dt)
     return x * (27.0f + x2) / (27.0f + 9.0f * x2);
 }
 
+float comm_inv_plateau(const comm_t *c, float v_dc)
+{
+    const float drop = c->cfg.v_drop_nom_v < c->inv_v ? c->cfg.v_drop_nom_v : c->inv_v;
+    if (!c->have_inv) {
+        return 0.0f;
+    }
+    return c->inv_vdc_v > 1.0f ? (c->inv_v - drop) * v_dc / c->inv_vdc_v + drop : c->inv_v;
+}
+
 void comm_inv_dist(const comm_t *c, const float i_abc[3], float cs, float sn, float *d, float *q)
 {
     float al, be;
-    const float v = c->have_inv ? c->inv_v : 0.0f;
+    const float v = comm_inv_plateau(c, c->v_dc);
     tf_clarke(-v * comm_smooth_sign(i_abc[0], c->inv_i_dt_a),
               -v * comm_smooth_sign(i_abc[1], c->inv_i_dt_a),
               -v * comm_smooth_sign(i_abc[2], c->inv_i_dt_a), &al, &be);

@@ -29,6 +29,7 @@ typedef struct {
     float v_dc_min_v, v_dc_max_v;
     fw_motor_t motor; /* nominal values: plausibility ranges and controller gains */
     float i_dt_nom_a; /* the motor file's inverter model (starting point) */
+    float v_drop_nom_v; /* its device drop: the part of the plateau that does not scale with v_dc */
 } comm_cfg_t;
 
 typedef struct {
@@ -77,6 +78,7 @@ typedef struct {
     float enc_delta_rad; /* added to theta_enc_rad: the rotor's d axis */
     bool have_enc;
     float inv_v, inv_i_dt_a; /* inverter distortion plateau (per leg) and current band */
+    float inv_vdc_v;         /* the DC voltage inv_v was measured at (its dead-time part scales) */
     bool have_inv;
     float r_ohm;
     bool have_r;
@@ -104,7 +106,7 @@ typedef struct {
     float target_rad;
     /* staircase */
     float st_i[COMM_STAIR_MAX], st_u[COMM_STAIR_MAX], st_abc[COMM_STAIR_MAX][3];
-    float st_th[COMM_STAIR_MAX];
+    float st_th[COMM_STAIR_MAX], st_vdc[COMM_STAIR_MAX];
     uint16_t st_n, st_k;
     comm_reg_t reg[2];
     /* spin */
@@ -136,6 +138,8 @@ void comm_voltage(comm_t *c, float cs, float sn, float u_d, float u_q, comm_out_
 void comm_inv_dist(const comm_t *c, const float i_abc[3], float cs, float sn, float *d,
                    float *q);
 float comm_smooth_sign(float i, float i_dt);
+/* the plateau at the DC voltage v_dc: the dead-time part scales with it, the drop does not */
+float comm_inv_plateau(const comm_t *c, float v_dc);
 bool comm_over_current(comm_t *c);
 void comm_reg_reset(comm_reg_t *r);
 void comm_reg_add(comm_reg_t *r, const float x[COMM_REG_N], float y);

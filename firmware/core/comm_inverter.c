@@ -33,13 +33,26 @@ static float g_d(const comm_t *c, uint16_t k, float i_dt)
     return cosf(c->st_th[k]) * al + sinf(c->st_th[k]) * be;
 }
 
+/* The plateau's dead-time part scales with the DC voltage (v_dc t_d / Ts), the device drop does
+ * not: with the nominal drop, u - drop g = R i + V_dt (v_dc_k / v_dc_ref) g is linear in R, V_dt. */
+static float drop_v(const comm_t *c)
+{
+    return c->cfg.v_drop_nom_v;
+}
+
+static float scale_k(const comm_t *c, uint16_t k)
+{
+    return c->inv_vdc_v > 1.0f ? c->st_vdc[k] / c->inv_vdc_v : 1.0f;
+}
+
 /* least squares of u = R i + V g over points [k0, k1); returns the sum of squared residuals */
 static float fit(const comm_t *c, float i_dt, uint16_t k0, uint16_t k1, float *r, float *v)
 {
     float sii = 0.0f, sig = 0.0f, sgg = 0.0f, siu = 0.0f, sgu = 0.0f, det, sse = 0.0f;
     uint16_t k;
     for (k = k0; k < k1; k++) {
-        const float g = g_d(c, k, i_dt), i = c->st_i[k], u = c->st_u[k];
+        const float g0 = g_d(c, k, i_dt), g = g0 * scale_k(c, k), i = c->st_i[k];
+        const float u = c->st_u[k] - drop_v(c) * g0;
         sii += i * i;
         sig += i * g;
         sgg += g * g;
@@ -55,9 +68,11 @@ static float fit(const comm_t *c, float i_dt, uint16_t k0, uint16_t k1, float *r
     *r = (siu * sgg - sgu * sig) / det;
     *v = (sgu * sii - siu * sig) / det;
     for (k = k0; k < k1; k++) {
-        const float e = c->st_u[k] - *r * c->st_i[k] - *v * g_d(c, k, i_dt);
+        const float g0 = g_d(c, k, i_dt);
+        const float e = c->st_u[k] - drop_v(c) * g0 - *r * c->st_i[k] - *v * g0 * scale_k(c, k);
         sse += e * e;
     }
+    *v += drop_v(c); /* the plateau at v_dc_ref */
     return sse;
 }
 
@@ -67,11 +82,11 @@ static float fit_v(const comm_t *c, float i_dt, float r, uint16_t k0, uint16_t k
     float sgg = 0.0f, sgu = 0.0f;
     uint16_t k;
     for (k = k0; k < k1; k++) {
-        const float g = g_d(c, k, i_dt);
+        const float g0 = g_d(c, k, i_dt), g = g0 * scale_k(c, k);
         sgg += g * g;
-        sgu += g * (c->st_u[k] - r * c->st_i[k]);
+        sgu += g * (c->st_u[k] - drop_v(c) * g0 - r * c->st_i[k]);
     }
-    return sgg > 0.0f ? sgu / sgg : 0.0f;
+    return (sgg > 0.0f ? sgu / sgg : 0.0f) + drop_v(c);
 }
 
 static void finish(comm_t *c)
@@ -79,6 +94,7 @@ static void finish(comm_t *c)
     const float i_dt0 = c->cfg.i_dt_nom_a;
     float best = 1e30f, r_best = 0.0f, v_best = 0.0f, i_dt_best = i_dt0, vp, vn, rms, v_dc = 0.0f;
     uint16_t g, k;
+    c->inv_vdc_v = c->acc[7] / (float)(c->acc_n > 0u ? c->acc_n : 1u);
     for (g = 0u; g < INV_GRID_N; g++) {
         const float i_dt = i_dt0 * (0.2f + 0.1f * (float)g);
         float r, v;
@@ -102,7 +118,7 @@ static void finish(comm_t *c)
     c->res.value[2] = r_best;
     c->res.value[3] = rms;
     c->res.spread[0] = 0.5f * fabsf(vp - vn);
-    v_dc = c->acc[7] / (float)(c->acc_n > 0u ? c->acc_n : 1u);
+    v_dc = c->inv_vdc_v;
     c->res.ref[0] = v_dc;
     c->res.ref[1] = c->cfg.i_test_a;
     if (!(v_best >= 0.0f && v_best <= 0.25f * v_dc) ||
@@ -141,6 +157,7 @@ void comm_inverter_step(comm_t *c, comm_out_t *out)
             c->t = 0u;
             c->acc[0] = c->acc[1] = c->acc[2] = c->acc[3] = c->acc[4] = 0.0f;
             c->acc[5] = c->acc[6] = 0.0f;
+            c->st_vdc[k] = 0.0f;
         }
         return;
     }
@@ -149,6 +166,7 @@ void comm_inverter_step(comm_t *c, comm_out_t *out)
     c->acc[2] += c->ia;
     c->acc[3] += c->ib;
     c->acc[4] += c->ic;
+    c->st_vdc[k] += c->v_dc;
     c->acc[5] += c->c_rot;
     c->acc[6] += c->s_rot;
     if (!comm_elapsed(c, INV_MEAS_S)) {
@@ -162,6 +180,7 @@ void comm_inverter_step(comm_t *c, comm_out_t *out)
         c->st_abc[k][1] = c->acc[3] / n;
         c->st_abc[k][2] = c->acc[4] / n;
         c->st_th[k] = atan2f(c->acc[6], c->acc[5]);
+        c->st_vdc[k] /= n;
         c->st_n = (uint16_t)(k + 1u);
         c->st_k = (uint16_t)(k + 1u);
     }

@@ -311,6 +311,7 @@ static void start_commission(fw_t *f)
     cc.v_dc_max_v = f->limits.v_dc_max_v;
     cc.motor = f->motor;
     cc.i_dt_nom_a = f->ctrl.i_dt_a;
+    cc.v_drop_nom_v = f->ctrl.v_drop_v;
     comm_start(&f->comm, &cc);
 }
 
