@@ -15,7 +15,9 @@ def emulator_settings(
     motor, rig, seed: int = 1, baud: int = 921600, truth_hz: float = 100.0, ts_s: float = 50e-6
 ) -> dict[str, float]:
     """The plant is the motor file's motor with the rig's effects; the firmware learns its own
-    (nominal) view of the motor over the link."""
+    (nominal) view of the motor over the link. A commissioned motor file (docs/commissioning.md)
+    holds what the firmware measured; the plant stays the machine of its nominal values."""
+    motor = _nominal(motor)
     s: dict[str, float] = {
         "r_s_ohm": motor.r_s_ohm,
         "l_d_h": motor.l_d_h,
@@ -50,6 +52,24 @@ def emulator_settings(
         s["t_coulomb_nm"] += fr.t_coulomb_nm
     s.update(effect_settings(motor, rig))
     return s
+
+
+class _Nominal:
+    """A motor's attributes with the nominal machine values of a commissioned file."""
+
+    def __init__(self, motor, nominal: dict):
+        self._motor, self._nominal = motor, nominal
+
+    def __getattr__(self, name):
+        if name in self._nominal:
+            return self._nominal[name]
+        return getattr(self._motor, name)
+
+
+def _nominal(motor):
+    comm = getattr(motor, "commissioning", None)
+    nominal = comm.get("nominal") if isinstance(comm, dict) else None
+    return _Nominal(motor, nominal) if isinstance(nominal, dict) else motor
 
 
 def effect_settings(motor, rig) -> dict:
