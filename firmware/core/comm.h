@@ -27,8 +27,8 @@ typedef struct {
     float spin_rpm; /* top speed of the psi_f spin */
     float ts_s;
     float v_dc_min_v, v_dc_max_v;
-    fw_motor_t motor; /* nominal values: plausibility ranges and controller gains */
-    float i_dt_nom_a; /* the motor file's inverter model (starting point) */
+    fw_motor_t motor;   /* nominal values: plausibility ranges and controller gains */
+    float i_dt_nom_a;   /* the motor file's inverter model (starting point) */
     float v_drop_nom_v; /* its device drop: the part of the plateau that does not scale with v_dc */
 } comm_cfg_t;
 
@@ -90,8 +90,9 @@ typedef struct {
 
     /* current controller (frame angle given each period) */
     float kp_d, ki_d, kp_q, ki_q, int_d, int_q;
-    float u_d, u_q;   /* last commanded dq voltage (in the controller's frame) */
-    float adv_rad;    /* the voltage's frame leads the current's by this (rotation during the PWM delay) */
+    float u_d, u_q; /* last commanded dq voltage (in the controller's frame) */
+    float
+        adv_rad; /* the voltage's frame leads the current's by this (rotation during the PWM delay) */
     float u_hist[3];  /* commanded voltage on the tested axis, k, k-1, k-2 */
     float i_prev;     /* previous sample on the tested axis */
     float i_max_step; /* over-current limit of the running step */
@@ -135,8 +136,7 @@ void comm_current(comm_t *c, float cs, float sn, float i_d_ref, float i_q_ref, f
 void comm_voltage(comm_t *c, float cs, float sn, float u_d, float u_q, comm_out_t *out);
 /* The measured inverter model's distortion in the frame at (cos, sin) for phase currents i[3]:
  * what the inverter adds to the commanded voltage (negative along the current). */
-void comm_inv_dist(const comm_t *c, const float i_abc[3], float cs, float sn, float *d,
-                   float *q);
+void comm_inv_dist(const comm_t *c, const float i_abc[3], float cs, float sn, float *d, float *q);
 float comm_smooth_sign(float i, float i_dt);
 /* the plateau at the DC voltage v_dc: the dead-time part scales with it, the drop does not */
 float comm_inv_plateau(const comm_t *c, float v_dc);

@@ -114,9 +114,9 @@ static void measure(comm_t *c, const comm_in_t *in, uint16_t j, float target)
         const uint16_t x = (uint16_t)(j / 4u);
         const float w = 1.0f / comm_dt(c, AL_MEAS_S);
         c->blk[x][0] += (c->ia + c->ib + c->ic) * w;
-        c->blk[x][1] += sqrtf(c->ia * c->ia + (c->ia + 2.0f * c->ib) * (c->ia + 2.0f * c->ib) *
-                                                  (1.0f / 3.0f)) *
-                        w;
+        c->blk[x][1] +=
+            sqrtf(c->ia * c->ia + (c->ia + 2.0f * c->ib) * (c->ia + 2.0f * c->ib) * (1.0f / 3.0f)) *
+            w;
     }
 }
 
@@ -124,8 +124,8 @@ void comm_align_step(comm_t *c, const comm_in_t *in, comm_out_t *out)
 {
     const fw_motor_t *m = &c->cfg.motor;
     const float i_al = c->cfg.i_test_a;
-    const float wn = sqrtf(1.5f * (float)(m->pole_pairs * m->pole_pairs) * m->psi_f_wb * i_al /
-                           m->j_kgm2);
+    const float wn =
+        sqrtf(1.5f * (float)(m->pole_pairs * m->pole_pairs) * m->psi_f_wb * i_al / m->j_kgm2);
     const float kd = wn > 0.0f ? 2.0f * AL_ZETA / wn : 0.0f;
     float id, iq, target, th_v, ref = i_al;
     const uint16_t j = c->n_blk; /* point index, 0 .. 2 AL_POINTS */
@@ -165,12 +165,23 @@ void comm_align_step(comm_t *c, const comm_in_t *in, comm_out_t *out)
     } else { /* phase 2: hold at point j (measure at the end), then move to j + 1 */
         const float hold = comm_dt(c, AL_HOLD_S), meas = comm_dt(c, AL_MEAS_S);
         if ((float)c->t >= hold - meas && (float)c->t < hold) {
-            measure(c, in, j, target);
+            if (j != 1u) { /* point 1 was reached without the damper: it may still swing */
+                measure(c, in, j, target);
+            }
             if (j == 0u) {
                 c->acc[0] = c->theta_unwrap;
             }
         } else if ((float)c->t >= hold) {
             const float u = ((float)c->t - hold) / comm_dt(c, AL_MOVE_S);
+            /* after the first step: the rotor must have followed the field forward (swapped
+             * phases turn it backward, and the damper would then push instead of brake) */
+            if (j == 1u && (float)c->t < hold + 1.0f &&
+                c->theta_unwrap - c->acc[0] < -0.25f * (FW_TWO_PI_F / (float)AL_POINTS)) {
+                c->blk[3][0] = c->theta_unwrap - c->acc[0];
+                c->res.value[2] = c->blk[3][0] / FW_TWO_PI_F;
+                comm_fail(c, PROTO_COMMISSION_FAIL_WRONG_DIRECTION);
+                return;
+            }
             const float next = point_angle((uint16_t)(j + 1u));
             const float step = tf_wrap_pi(next - target);
             if (j >= 2u * AL_POINTS) {
@@ -189,6 +200,7 @@ void comm_align_step(comm_t *c, const comm_in_t *in, comm_out_t *out)
             }
         }
     }
-    th_v = target - kd * in->omega_e_rad_s;
+    /* the damper only once the rotor is known to follow the field forward */
+    th_v = target - (c->n_blk >= 2u ? kd * in->omega_e_rad_s : 0.0f);
     comm_current(c, cosf(th_v), sinf(th_v), ref, 0.0f, &id, &iq, out);
 }

@@ -36,11 +36,10 @@ void comm_offset_step(comm_t *c, comm_out_t *out)
         for (k = 0u; k < 3u; k++) {
             c->blk[c->n_blk][k] = c->acc[k] / n;
         }
-        var = c->acc[3] / (3.0f * n) -
-              (c->blk[c->n_blk][0] * c->blk[c->n_blk][0] +
-               c->blk[c->n_blk][1] * c->blk[c->n_blk][1] +
-               c->blk[c->n_blk][2] * c->blk[c->n_blk][2]) /
-                  3.0f;
+        var = c->acc[3] / (3.0f * n) - (c->blk[c->n_blk][0] * c->blk[c->n_blk][0] +
+                                        c->blk[c->n_blk][1] * c->blk[c->n_blk][1] +
+                                        c->blk[c->n_blk][2] * c->blk[c->n_blk][2]) /
+                                           3.0f;
         c->blk[c->n_blk][3] = var > 0.0f ? sqrtf(var) : 0.0f;
     }
     c->n_blk = (uint16_t)(c->n_blk + 1u);

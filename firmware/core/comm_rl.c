@@ -15,11 +15,11 @@
 #define R_MEAS_S   0.1f
 #define R_LEVELS   6u
 
-#define L_SETTLE_S  0.1f
-#define L_TEST_S    0.2f
-#define L_HALF_N    8u    /* periods per half-wave of the square wave */
-#define L_RIPPLE    0.15f /* ripple peak-to-peak as a fraction of the test current */
-#define L_SPREAD    0.05f
+#define L_SETTLE_S 0.1f
+#define L_TEST_S   0.2f
+#define L_HALF_N   8u    /* periods per half-wave of the square wave */
+#define L_RIPPLE   0.15f /* ripple peak-to-peak as a fraction of the test current */
+#define L_SPREAD   0.05f
 
 static float r_level(const comm_t *c, uint16_t k)
 {

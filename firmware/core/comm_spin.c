@@ -43,8 +43,8 @@ void comm_spin_step(comm_t *c, const comm_in_t *in, comm_out_t *out)
     const float kt = 1.5f * (float)m->pole_pairs * m->psi_f_wb;
     const float kp = m->j_kgm2 * SP_BW_RAD_S / kt, ki = kp * SP_BW_RAD_S / 4.0f;
     const float speed_rpm = in->omega_e_rad_s / (float)m->pole_pairs * SP_RPM_PER_RAD;
-    const float target = c->phase == 0u ? 0.3f * c->cfg.spin_rpm
-                                        : (c->phase == 1u ? c->cfg.spin_rpm : 0.0f);
+    const float target =
+        c->phase == 0u ? 0.3f * c->cfg.spin_rpm : (c->phase == 1u ? c->cfg.spin_rpm : 0.0f);
     const float i_lim = 0.5f * c->cfg.i_test_a;
     const float step = SP_RAMP_RPM_S * c->cfg.ts_s;
     float e, iq_ref, id, iq, i3[3], dd, dq;
@@ -114,9 +114,9 @@ void comm_spin_step(comm_t *c, const comm_in_t *in, comm_out_t *out)
     }
     {
         const float n = (float)c->acc_n, w = c->acc[3] / n;
-        c->psi_pt[c->phase] = (c->acc[0] / n - c->r_ohm * c->acc[1] / n -
-                               w * c->l_d_h * c->acc[2] / n) /
-                              (fabsf(w) > 1.0f ? w : 1.0f);
+        c->psi_pt[c->phase] =
+            (c->acc[0] / n - c->r_ohm * c->acc[1] / n - w * c->l_d_h * c->acc[2] / n) /
+            (fabsf(w) > 1.0f ? w : 1.0f);
     }
     comm_next_phase(c);
 }

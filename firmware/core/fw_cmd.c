@@ -155,8 +155,7 @@ static uint16_t cmd_config_commission(fw_t *f, const uint16_t *p, uint16_t n)
     }
     if ((c.steps & ~((1u << COMM_N_STEPS) - 1u)) != 0u || !(c.i_test_a > 0.0f) ||
         !(c.spin_rpm >= 0.0f && c.spin_rpm <= FW_SPEED_TRIP_MAX_RPM) ||
-        (f->have_motor &&
-         (c.i_test_a > f->motor.i_max_a || c.spin_rpm > f->motor.speed_max_rpm))) {
+        (f->have_motor && (c.i_test_a > f->motor.i_max_a || c.spin_rpm > f->motor.speed_max_rpm))) {
         return PROTO_ACK_STATUS_BAD_VALUE;
     }
     f->comm_cfg = c;

@@ -55,7 +55,8 @@ static void send_commission_result(fw_t *f)
     proto_commission_result_t r;
     const comm_result_t *c = &f->comm.res;
     uint16_t n, k;
-    r.tick = f->tick > 0u ? f->tick - 1u : 0u; /* the period that ended the step (flushed after it) */
+    r.tick =
+        f->tick > 0u ? f->tick - 1u : 0u; /* the period that ended the step (flushed after it) */
     r.step = c->step;
     r.status = c->status;
     for (k = 0u; k < 4u; k++) {

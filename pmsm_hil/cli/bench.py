@@ -28,6 +28,11 @@ def add_parser(sub) -> None:
     b.add_argument("--seed", type=int, default=1)
     b.add_argument("--rig", default=None, help="rig file for the emulator (default: the profile's)")
     b.add_argument(
+        "--motor",
+        default=None,
+        help="motor file instead of the profile's, e.g. a commissioned one (pmsm-hil commission)",
+    )
+    b.add_argument(
         "--until",
         type=float,
         default=None,
@@ -63,9 +68,10 @@ def main(args: argparse.Namespace) -> int:
     try:
         path = resolve(args.profile, "profile") if args.profile else default_profile()
         rig = resolve(args.rig, "rig") if args.rig else None
+        motor = resolve(args.motor, "motor") if args.motor else None
         out = Path(args.out)
         if args.only != "per-effect" and args.only != "mismatch":
-            identify(path, out, args.seed, rig, args.until)
+            identify(path, out, args.seed, rig, args.until, motor=motor)
         if args.mismatch or args.only == "mismatch":
             out.mkdir(parents=True, exist_ok=True)
             mismatch(path, out, args.seed)

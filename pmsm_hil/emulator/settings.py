@@ -76,6 +76,9 @@ def effect_settings(motor, rig) -> dict:
     """The sim board's keys for the effects of issue 5 (docs/rigs.md). Every key is set, to its
     'off' value when the effect is disabled, so that a disabled effect leaves the ideal plant."""
     s: dict = {"effects_mask": int(getattr(rig, "effects_mask", 0) or 0)}
+    wiring = getattr(rig, "wiring", None)
+    s["wiring_swap_bc"] = 1 if wiring is not None and wiring.phases == "acb" else 0
+    s["wiring_open"] = 1 if wiring is not None and not wiring.motor_connected else 0
     sat = _eff(rig, "saturation")
     fm = rig.flux_map() if sat is not None else None
     if fm is not None:
