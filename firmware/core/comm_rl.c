@@ -128,12 +128,27 @@ static float l_of(const comm_reg_t *a, const comm_reg_t *b, float ts_s)
     return (x[0] + x[1] + x[2]) > 0.0f ? ts_s / (x[0] + x[1] + x[2]) : 0.0f;
 }
 
-/* one test phase on axis ax (0 d, 1 q) */
-static void l_test(comm_t *c, uint16_t ax, float u0, float amp, float i_now, comm_out_t *out)
+/* one test phase on axis ax (0 d, 1 q): slow integral current loops (a tenth of the step's
+ * bandwidth) hold the operating point, so the rotor cannot be pushed away by the inverter's
+ * distortion turning with it; the square wave (started half a half-wave in, so the current's
+ * triangle is centred) rides on top. The regression sees the total commanded voltage. */
+static void l_test(comm_t *c, uint16_t ax, float amp, float id, float iq, float bias,
+                   comm_out_t *out)
 {
-    const float sq = ((c->t / L_HALF_N) % 2u) == 0u ? 1.0f : -1.0f;
-    const float u = u0 + sq * amp;
+    const float sq = (((c->t + L_HALF_N / 2u) / L_HALF_N) % 2u) == 0u ? 1.0f : -1.0f;
+    const float i_now = ax == 0u ? id : iq;
+    float u;
     const uint16_t half = (uint16_t)((float)c->t < comm_dt(c, 0.5f * L_TEST_S) ? 0u : 1u);
+    /* the other axis keeps its full loop, the tested one a slow PI (a fifth of the bandwidth) */
+    c->int_d += (ax == 0u ? 0.04f : 1.0f) * c->ki_d * c->cfg.ts_s * (bias - id);
+    c->int_q += (ax == 1u ? 0.04f : 1.0f) * c->ki_q * c->cfg.ts_s * (0.0f - iq);
+    {
+        const float ud = c->int_d + (ax == 0u ? 0.2f : 1.0f) * c->kp_d * (bias - id);
+        const float uq = c->int_q + (ax == 1u ? 0.2f : 1.0f) * c->kp_q * (0.0f - iq);
+        u = (ax == 0u ? ud : uq) + sq * amp;
+        c->u_d = ud;
+        c->u_q = uq;
+    }
     if (c->t >= 4u) {
         const float i_mid = 0.5f * (i_now + c->i_prev);
         float x[COMM_REG_N];
@@ -148,9 +163,9 @@ static void l_test(comm_t *c, uint16_t ax, float u0, float amp, float i_now, com
     c->u_hist[1] = c->u_hist[0];
     c->u_hist[0] = u;
     if (ax == 0u) {
-        comm_voltage(c, c->c_rot, c->s_rot, u, c->int_q, out);
+        comm_voltage(c, c->c_rot, c->s_rot, u, c->u_q, out);
     } else {
-        comm_voltage(c, c->c_rot, c->s_rot, c->int_d, u, out);
+        comm_voltage(c, c->c_rot, c->s_rot, c->u_d, u, out);
     }
 }
 
@@ -197,7 +212,7 @@ void comm_l_step(comm_t *c, comm_out_t *out)
         }
         break;
     case 1u:
-        l_test(c, 0u, c->int_d, amp_d, id, out);
+        l_test(c, 0u, amp_d, id, iq, bias, out);
         if (comm_elapsed(c, L_TEST_S)) {
             if (!l_result(c, 0u, c->cfg.motor.l_d_h)) {
                 return;
@@ -206,7 +221,7 @@ void comm_l_step(comm_t *c, comm_out_t *out)
         }
         break;
     default:
-        l_test(c, 1u, c->int_q, amp_q, iq, out);
+        l_test(c, 1u, amp_q, id, iq, bias, out);
         if (comm_elapsed(c, L_TEST_S)) {
             if (!l_result(c, 1u, c->cfg.motor.l_q_h)) {
                 return;
