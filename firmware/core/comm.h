@@ -30,6 +30,7 @@ typedef struct {
     fw_motor_t motor;   /* nominal values: plausibility ranges and controller gains */
     float i_dt_nom_a;   /* the motor file's inverter model (starting point) */
     float v_drop_nom_v; /* its device drop: the part of the plateau that does not scale with v_dc */
+    uint32_t enc_counts; /* encoder counts per revolution (the count's floor: half a count) */
 } comm_cfg_t;
 
 typedef struct {

@@ -40,6 +40,13 @@ static void track(comm_t *c, const comm_in_t *in)
     c->theta_last = in->theta_enc_rad;
 }
 
+static float half_count(const comm_t *c)
+{
+    return c->cfg.enc_counts > 0u
+               ? FW_PI_F * (float)c->cfg.motor.pole_pairs / (float)c->cfg.enc_counts
+               : 0.0f;
+}
+
 static void finish(comm_t *c)
 {
     const float n = c->acc[6] + c->acc[7];
@@ -53,7 +60,9 @@ static void finish(comm_t *c)
         e[x] = c->blk[x][1] > 0.0f ? c->blk[x][0] / (1.5f * c->blk[x][1]) : 0.0f;
         emax = fabsf(e[x]) > emax ? fabsf(e[x]) : emax;
     }
-    c->res.value[0] = tf_wrap_pi(c->acc[5] + mean);
+    /* the count is the floor of the angle: at rest it reads half a count behind on average; the
+     * offset is the encoder's own (ident.c adds the half count where it matters) */
+    c->res.value[0] = tf_wrap_pi(c->acc[5] + mean - half_count(c));
     c->res.value[1] = 0.5f * (fwd - bwd);
     c->res.value[2] = turns;
     c->res.value[3] = emax;

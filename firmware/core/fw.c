@@ -312,6 +312,7 @@ static void start_commission(fw_t *f)
     cc.motor = f->motor;
     cc.i_dt_nom_a = f->ctrl.i_dt_a;
     cc.v_drop_nom_v = f->ctrl.v_drop_v;
+    cc.enc_counts = f->ctrl.enc_counts;
     comm_start(&f->comm, &cc);
 }
 
