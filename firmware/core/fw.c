@@ -367,10 +367,17 @@ static void stage_current_refs(fw_t *f, float speed_ref_rpm)
         f->i_d_base_a = 0.0f;
         f->sig.i_q_ref_a = 0.0f;
     } else if (f->speed_div_count >= f->ctrl.speed_div) {
+        fw_motor_t m = f->motor;
+        cc_params_t p;
+        if (ident_converged_params(&f->ident, &p)) { /* MTPA on the identified machine */
+            m.l_d_h = p.l_d_h;
+            m.l_q_h = p.l_q_h;
+            m.psi_f_wb = p.psi_f_wb;
+        }
         f->speed_div_count = 0u;
         f->i_s_ref_a =
             speed_pi_step(&f->spi, speed_ref_rpm / FW_RPM_PER_RAD_S, f->ang.omega_m_rad_s);
-        mtpa_split(&f->motor, f->ctrl.current_ref, f->i_s_ref_a, &idq_ref);
+        mtpa_split(&m, f->ctrl.current_ref, f->i_s_ref_a, &idq_ref);
         f->i_d_base_a = idq_ref.d;
         f->sig.i_q_ref_a = idq_ref.q;
     }
@@ -381,11 +388,14 @@ static void stage_current_refs(fw_t *f, float speed_ref_rpm)
 static void stage_current_control(fw_t *f, const fw_meas_t *m, float c, float s)
 {
     cc_in_t ci;
+    cc_params_t p;
+    /* the dither's step: one vector's current step on L_q (the identified one once converged) */
+    const float l_q = ident_converged_params(&f->ident, &p) ? p.l_q_h : f->motor.l_q_h;
     ci.i_d_a = f->sig.i_d_a;
     ci.i_q_a = f->sig.i_q_a;
     ci.i_d_ref_a = f->sig.i_d_ref_a;
-    ci.i_q_ref_a = f->sig.i_q_ref_a +
-                   dither_step(&f->dither, 0.6666667f * m->v_dc_v * f->ctrl.ts_s / f->motor.l_q_h);
+    ci.i_q_ref_a =
+        f->sig.i_q_ref_a + dither_step(&f->dither, 0.6666667f * m->v_dc_v * f->ctrl.ts_s / l_q);
     ci.theta_e_rad = f->sig.theta_e_est_rad;
     ci.cos_theta = c;
     ci.sin_theta = s;
