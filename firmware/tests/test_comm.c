@@ -7,6 +7,8 @@
 #include <math.h>
 #include "check.h"
 #include "comm.h"
+#include "enc_angle.h"
+#include "plant.h"
 #include "transforms.h"
 
 static comm_cfg_t cfg(uint16_t steps)
@@ -147,8 +149,88 @@ static void test_offset_out_of_range_fails(void)
     CHECK(!o.pwm_on, "PWM off");
 }
 
+/* The whole sequence against the plant (a minimal board: sample, step, apply the previous
+ * command): planted sensor offsets, encoder offset and dead time come back. */
+static void test_sequence_on_the_plant(void)
+{
+    plant_cfg_t pc;
+    plant_t p;
+    comm_t c;
+    comm_cfg_t k = cfg((uint16_t)((1u << COMM_N_STEPS) - 1u));
+    enc_cfg_t ec;
+    enc_t e;
+    enc_out_t eo;
+    fw_cmd_t prev, cmd;
+    uint32_t n;
+    uint16_t st = COMM_RUNNING, seen = 0u;
+    float res[COMM_N_STEPS][4];
+    plant_cfg_default(&pc);
+    pc.dead_time_s = 2.5e-6;
+    pc.v_drop_v = 1.5;
+    pc.i_dt_a = 0.5;
+    pc.i_offset_a[0] = 0.05;
+    pc.i_offset_a[1] = -0.03;
+    pc.i_offset_a[2] = 0.02;
+    pc.enc_counts = 10000u;
+    pc.enc_offset_m_rad = 0.021 / 4.0;
+    pc.t_coulomb_nm = 0.05;
+    plant_init(&p, &pc);
+    ec.counts = 10000u;
+    ec.pole_pairs = 4u;
+    ec.offset_e_rad = 0.0f;
+    ec.bw_rad_s = 1000.0f;
+    ec.ts_s = 50e-6f;
+    enc_init(&e, &ec);
+    comm_start(&c, &k);
+    memset(&prev, 0, sizeof(prev));
+    memset(res, 0, sizeof(res));
+    for (n = 0u; n < 400000u && st == COMM_RUNNING; n++) {
+        fw_meas_t m;
+        comm_in_t in;
+        comm_out_t o;
+        plant_sample(&p, &m);
+        if (n == 0u) {
+            enc_reset(&e, m.enc_count);
+        }
+        enc_step(&e, m.enc_count, &eo);
+        in.i_a_a = m.i_a_a;
+        in.i_b_a = m.i_b_a;
+        in.i_c_a = m.i_c_a;
+        in.v_dc_v = m.v_dc_v;
+        in.theta_enc_rad = eo.theta_e_rad;
+        in.omega_e_rad_s = eo.omega_e_rad_s;
+        st = comm_step(&c, &in, &o);
+        if (c.result_due) {
+            memcpy(res[c.res.step], c.res.value, sizeof(res[0]));
+            seen = (uint16_t)(seen | (1u << c.res.step));
+            c.result_due = false;
+        }
+        memset(&cmd, 0, sizeof(cmd));
+        cmd.mode = FW_CMD_DUTIES;
+        cmd.duty_a = o.duty[0];
+        cmd.duty_b = o.duty[1];
+        cmd.duty_c = o.duty[2];
+        cmd.pwm_on = o.pwm_on;
+        plant_step(&p, &prev);
+        prev = cmd;
+    }
+    CHECK(st == COMM_DONE, "the sequence completed");
+    CHECK(seen == (1u << COMM_N_STEPS) - 1u, "every step reported");
+    CHECK_NEAR(res[PROTO_COMMISSION_STEP_OFFSETS][0], 0.05, 0.005, "offset a");
+    CHECK_NEAR(res[PROTO_COMMISSION_STEP_OFFSETS][1], -0.03, 0.005, "offset b");
+    CHECK_NEAR(res[PROTO_COMMISSION_STEP_OFFSETS][2], 0.02, 0.005, "offset c");
+    CHECK_NEAR(res[PROTO_COMMISSION_STEP_ENCODER][0], -0.021, 0.0035, "encoder offset (0.2 deg)");
+    CHECK_NEAR(res[PROTO_COMMISSION_STEP_INVERTER][0], 540.0 * 2.5e-6 / 50e-6 + 1.5,
+               0.05 * 28.5, "dead-time plateau");
+    CHECK_NEAR(res[PROTO_COMMISSION_STEP_R_S][0], 0.9, 0.018, "R");
+    CHECK_NEAR(res[PROTO_COMMISSION_STEP_L_DQ][0], 0.005, 0.00025, "L_d");
+    CHECK_NEAR(res[PROTO_COMMISSION_STEP_L_DQ][1], 0.012, 0.0006, "L_q");
+    CHECK_NEAR(res[PROTO_COMMISSION_STEP_PSI_F][0], 0.18, 0.0036, "psi_f");
+}
+
 int main(void)
 {
+    test_sequence_on_the_plant();
     test_regression();
     test_inverter_model();
     test_voltage_output();
