@@ -195,3 +195,24 @@ def test_flux_map_is_refused_plainly(tmp_path, capsys):
     code = cli_main(["commission", "--flux-map", "-o", str(tmp_path / "m.yaml")])
     assert code == 2
     assert "not implemented" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("stop_s", [2.0, 8.6])  # during the alignment, during the spin
+def test_a_host_stop_brakes_and_switches_off(tmp_path, stop_s):
+    profile = commission_profile(rig_path=resolve("lab-typical", "rig"))
+    link = open_device(DeviceSpec(in_process=True, seed=SEEDS[0]), profile)
+    log = tmp_path / "stopped.mcap"
+    try:
+        res = run_commission(
+            profile, Session(link), log, RunOptions(seed=SEEDS[0], stop_after_s=stop_s)
+        )
+    finally:
+        link.close()
+    assert not res.ok
+    assert res.run.stop_reason == "host stop"
+    lg = read_log(str(log))
+    assert lg.finalised
+    tr = lg.topic("/sim/truth")
+    t_stop = float(lg.topic("/pmsm/events")["t_s"][-1])
+    assert t_stop < stop_s + 1.0  # braked within a second of the request
+    assert abs(tr["speed_rpm"][-1]) < 5.0  # at rest when the PWM went off
