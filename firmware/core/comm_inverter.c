@@ -121,15 +121,21 @@ static void finish(comm_t *c)
     v_dc = c->inv_vdc_v;
     c->res.ref[0] = v_dc;
     c->res.ref[1] = c->cfg.i_test_a;
-    if (!(v_best >= 0.0f && v_best <= 0.25f * v_dc) ||
+    if (!(v_best >= -0.5f && v_best <= 0.25f * v_dc) ||
         !(r_best >= 0.25f * c->cfg.motor.r_s_ohm && r_best <= 4.0f * c->cfg.motor.r_s_ohm) ||
-        !(rms <= 0.5f + 0.05f * v_best)) {
+        !(rms <= 0.5f + 0.05f * fabsf(v_best))) {
         comm_fail(c, PROTO_COMMISSION_FAIL_IMPLAUSIBLE);
         return;
     }
     if (!(fabsf(vp - vn) <= 0.1f * v_best + 0.2f)) {
         comm_fail(c, PROTO_COMMISSION_FAIL_NOT_REPEATABLE);
         return;
+    }
+    if (v_best < 0.3f) { /* no measurable distortion (an ideal inverter): no model, no band */
+        v_best = 0.0f;
+        i_dt_best = i_dt0;
+        c->res.value[0] = 0.0f;
+        c->res.value[1] = i_dt0;
     }
     c->inv_v = v_best;
     c->inv_i_dt_a = i_dt_best;

@@ -104,3 +104,41 @@ def identify_rigs(
     (out / name).write_text(text)
     echo(f"table {out / name}")
     return text
+
+
+def per_effect_commissioned(path, seeds: list[int], out: Path, echo=print) -> str:
+    """What each rig effect still costs after commissioning: NLMS-Adaline's |error| (median /
+    worst over the seeds) on the ideal rig, each effect alone, default and lab-typical, each seed
+    commissioned first."""
+    from pmsm_hil.profiles.shipped import shipped_root
+
+    rigs_dir = shipped_root() / "rigs"
+    rigs = (
+        ["ideal"]
+        + sorted(f.stem for f in rigs_dir.glob("effect-*.yaml"))
+        + ["default", "lab-typical"]
+    )
+    out.mkdir(parents=True, exist_ok=True)
+    head = "| rig | " + " | ".join(n for _q, n in PARAMS) + " |"
+    lines = [
+        "# NLMS-Adaline after commissioning, per rig effect",
+        f"seeds {', '.join(map(str, seeds))}: |error| median / worst before the drift step",
+        "",
+        head,
+        "|---|" + "---|" * len(PARAMS),
+    ]
+    echo("\n".join(lines))
+    for r in rigs:
+        res = [_one(path, str(rigs_dir / f"{r}.yaml"), s, out, True) for s in seeds]
+        ok = [x["cells"] for x in res if "cells" in x]
+        cells = []
+        for q, _n in PARAMS:
+            vals = [c[("nlms_adaline", q)][0] for c in ok if ("nlms_adaline", q) in c]
+            cells.append(_fmt(vals) if vals else "-")
+        failed = [x["failed"] for x in res if "failed" in x]
+        row = f"| {r} | " + " | ".join(cells) + " |" + (f" {failed[0]}" if failed else "")
+        lines.append(row)
+        echo(row)
+    text = "\n".join(lines)
+    (out / "per-effect-commissioned.md").write_text(text + "\n")
+    return text

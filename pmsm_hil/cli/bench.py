@@ -64,7 +64,8 @@ def add_parser(sub) -> None:
     b.add_argument(
         "--commissioned",
         action="store_true",
-        help="with --rigs: commission each rig and seed first and identify with that motor file",
+        help="with --rigs or --per-effect: commission each rig and seed first and identify with "
+        "that motor file",
     )
     b.add_argument(
         "--only",
@@ -104,6 +105,12 @@ def main(args: argparse.Namespace) -> int:
         rig = resolve(args.rig, "rig") if args.rig else None
         motor = resolve(args.motor, "motor") if args.motor else None
         out = Path(args.out)
+        if args.per_effect and args.commissioned:
+            from pmsm_hil.bench.commission import parse_seeds
+            from pmsm_hil.bench.identify_rigs import per_effect_commissioned
+
+            per_effect_commissioned(path, parse_seeds(args.seeds or "1-2"), out)
+            return 0
         if args.rigs:
             from pmsm_hil.bench.commission import parse_seeds
             from pmsm_hil.bench.identify_rigs import identify_rigs
