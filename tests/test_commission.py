@@ -216,3 +216,21 @@ def test_a_host_stop_brakes_and_switches_off(tmp_path, stop_s):
     t_stop = float(lg.topic("/pmsm/events")["t_s"][-1])
     assert t_stop < stop_s + 1.0  # braked within a second of the request
     assert abs(tr["speed_rpm"][-1]) < 5.0  # at rest when the PWM went off
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_identification_after_commissioning_holds_on_the_default_rig(tmp_path, seed):
+    """NLMS-Adaline with the commissioned motor file, default rig: every parameter within 1 % of
+    the plant before the drift step (paper-a-identify's acceptance is 2 %), L_d, L_q, psi_f
+    converged within 0.5 s (docs/identification.md)."""
+    from pmsm_hil.bench.identify_rigs import _one
+
+    r = _one(
+        resolve("paper-a-identify", "profile"), resolve("default", "rig"), seed, tmp_path, True
+    )
+    cells = r["cells"]
+    for q in ("l_d_h", "l_q_h", "psi_f_wb", "r_s_ohm"):
+        err, conv = cells[("nlms_adaline", q)]
+        assert abs(err) <= 0.01, (q, err)
+        if q != "r_s_ohm":
+            assert conv is not None and conv <= 0.5, (q, conv)
