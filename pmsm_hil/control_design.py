@@ -76,7 +76,7 @@ def device_config(profile: Profile) -> tuple[dict, dict]:
         params_div=_div(tel.params_hz, c.ts_s),
         status_div=_div(tel.status_hz, c.ts_s),
         enc_counts=encoder_counts(profile.rig),
-        enc_offset_e_rad=0.0,
+        enc_offset_e_rad=getattr(m, "enc_offset_e_rad", 0.0) or 0.0,
         speed_obs_bw_rad_s=c.speed_obs_bw_rad_s or DEFAULT_OBSERVER_BW_RAD_S,
         dead_time_s=m.dead_time_s if comp else 0.0,
         v_drop_v=m.v_drop_v if comp else 0.0,
@@ -99,4 +99,20 @@ def identification_config(profile: Profile) -> dict:
         pred_scale_l_q=sc.l_q_h,
         pred_scale_psi_f=sc.psi_f_wb,
         pred_scale_r_s=sc.r_s_ohm,
+    )
+
+
+def calibration_config(motor) -> dict | None:
+    """config_calib fields from a commissioned motor file's current-sensor calibration, or None
+    when the file has none (the message is then not sent: the firmware uses raw samples)."""
+    cal = getattr(motor, "current_sensors", None)
+    if cal is None:
+        return None
+    return dict(
+        i_a_offset_a=cal.i_a_offset_a,
+        i_b_offset_a=cal.i_b_offset_a,
+        i_c_offset_a=cal.i_c_offset_a,
+        i_a_gain_err=cal.i_a_gain_err,
+        i_b_gain_err=cal.i_b_gain_err,
+        i_c_gain_err=cal.i_c_gain_err,
     )

@@ -25,6 +25,8 @@ EVENT_NAMES = {v: k for k, v in gen.ENUMS["event"].items()}
 ESTIMATOR_NAMES = {v: k for k, v in gen.ENUMS["estimator"].items()}
 FAULT_BITS = gen.ENUMS["fault"]
 STOP_REASONS = {v: k.replace("_", " ") for k, v in gen.ENUMS["stop_reason"].items()}
+COMMISSION_STEPS = {v: k for k, v in gen.ENUMS["commission_step"].items()}
+COMMISSION_FAILS = {v: k for k, v in gen.ENUMS["commission_fail"].items()}
 PARAMS_FLAGS = gen.ENUMS["params_flag"]
 
 TELEMETRY_FIELDS = (
@@ -92,6 +94,7 @@ class LiveState:
     events: list = field(default_factory=list)  # (t_s, kind, arg, text)
     stopped: bool = False
     stop_reason: str = ""
+    commission: list = field(default_factory=list)  # /pmsm/commission rows, in order
 
     @property
     def wall_s(self) -> float:
@@ -193,11 +196,29 @@ class Recorder:
             self.live.stop_reason = STOP_REASONS.get(arg, str(arg))
         elif kind == "heartbeat_lost":
             text = f"heartbeat lost: last heartbeat {arg} ms ago"
+        elif kind == "commission_step":
+            text = f"commissioning: {COMMISSION_STEPS.get(arg, arg)}"
+        elif kind == "commission_failed":
+            step, why = COMMISSION_STEPS.get(arg >> 8, arg >> 8), arg & 0xFF
+            text = f"commissioning failed in {step}: {COMMISSION_FAILS.get(why, why)}"
         elif kind == "capture_triggered":
             text = "capture triggered by " + ("a fault" if arg < 0 else f"segment {arg}")
         else:
             text = kind.replace("_", " ")
         self.event(t, kind, code, arg, text)
+
+    def _on_commission_result(self, f: dict) -> None:
+        t = self._t(f["tick"])
+        row = {
+            "step": COMMISSION_STEPS.get(f["step"], str(f["step"])),
+            "status": "ok" if f["status"] == 0 else COMMISSION_FAILS.get(f["status"], "failed"),
+        }
+        for k in range(4):
+            row[f"value_{k}"] = f["value"][k]
+            row[f"spread_{k}"] = f["spread"][k]
+        row["ref_0"], row["ref_1"] = f["truth_ref"][0], f["truth_ref"][1]
+        self._write("/pmsm/commission", t, row)
+        self.live.commission.append((t, row))
 
     def _on_sim_truth(self, f: dict) -> None:
         t = self._t(f["tick"])

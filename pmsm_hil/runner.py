@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from pmsm_hil import __version__
-from pmsm_hil.control_design import device_config
+from pmsm_hil.control_design import calibration_config, device_config
 from pmsm_hil.errors import DeviceError, TransportError
 from pmsm_hil.log.writer import LogWriter
 from pmsm_hil.protocol import generated as gen
@@ -32,6 +32,8 @@ class RunOptions:
     rig_name: str = ""
     on_update_s: float = 0.1  # wall time between observer updates
     sinks: list = field(default_factory=list)  # extra consumers of each logged device message
+    # further configuration messages sent after the profile, e.g. ("config_commission", {...})
+    requests: list = field(default_factory=list)
 
 
 @dataclass
@@ -146,6 +148,9 @@ def configure(session: Session, profile) -> None:
     motor_cfg, ctrl_cfg = device_config(profile)
     session.request("config_motor", **motor_cfg)
     session.request("config_ctrl", **ctrl_cfg)
+    calib = calibration_config(profile.motor)
+    if calib is not None:  # a commissioned motor file: the current sensors' calibration
+        session.request("config_calib", **calib)
     session.request("profile_clear", n_segments=len(profile.segments))
     for i, s in enumerate(profile.segments):
         session.request(
@@ -182,6 +187,8 @@ def run_profile(
     log_path = Path(log_path)
     session.hello()
     configure(session, profile)
+    for name, fields in options.requests:
+        session.request(name, **fields)
     names = [s.name or f"segment {i}" for i, s in enumerate(profile.segments)]
     interrupted = False
     error = ""

@@ -219,7 +219,7 @@ def test_feed_returns_decoded_frames():
 def test_corrupted_frames_are_counted_and_dropped():
     rng = random.Random(5)
     frames = random_frames(rng, 400)
-    stream, intact, corrupted, seen_gaps = [], [], 0, 0
+    stream, intact, corrupted, seen_gaps, lead = [], [], 0, 0, 0
     for frame, want in frames:
         if rng.random() < 0.3:
             b = bytearray(frame)
@@ -227,10 +227,11 @@ def test_corrupted_frames_are_counted_and_dropped():
             b[i] = rng.choice([x for x in range(1, 256) if x != b[i]])  # never a new 0x00
             stream.append(bytes(b))
             corrupted += 1
+            lead += 0 if intact else 1  # lost before the first good frame: no gap to see
         else:
             stream.append(frame)
             intact.append(want)
-            seen_gaps = corrupted  # a gap shows only when a good frame follows it
+            seen_gaps = corrupted - lead  # a gap shows only when a good frame follows it
     dec = codec.FrameDecoder()
     assert dec.feed_raw(b"".join(stream)) == intact
     assert dec.bad_frames == corrupted

@@ -132,6 +132,7 @@ def test_schema_names_and_fields():
         "/pmsm/capture",
         "/pmsm/status",
         "/pmsm/events",
+        "/pmsm/commission",
         "/sim/truth",
         "/host/link",
     }

@@ -150,6 +150,33 @@ VECTORS: list[tuple[str, str, int, dict]] = [
     ("heartbeat max", "heartbeat", 9, dict(counter=0xFFFFFFFF)),
     ("heartbeat zero", "heartbeat", 0, dict(counter=0)),
     ("capture_read", "capture_read", 10, dict(offset=4096)),
+    (
+        "config_calib",
+        "config_calib",
+        13,
+        dict(
+            i_a_offset_a=0.05,
+            i_b_offset_a=-0.03,
+            i_c_offset_a=0.0,
+            i_a_gain_err=0.0,
+            i_b_gain_err=0.01,
+            i_c_gain_err=-0.005,
+        ),
+    ),
+    ("config_commission", "config_commission", 14, dict(steps=127, i_test_a=8.0, spin_rpm=750.0)),
+    (
+        "commission_result",
+        "commission_result",
+        15,
+        dict(
+            tick=123456,
+            step=3,
+            status=0,
+            value=[28.5, 0.5, 1.02, 2.5e-6],
+            spread=[0.1, 0.0, 0.01, 0.0],
+            truth_ref=[8.0, 0.0],
+        ),
+    ),
     ("ack", "ack", 11, dict(cmd_id=0x05, cmd_seq=200, status=2)),
     (
         "identify",

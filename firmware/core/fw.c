@@ -191,6 +191,7 @@ uint16_t fw_start_run(fw_t *f)
     f->i_d_base_a = 0.0f;
     f->speed_div_count = 0u;
     f->faults = 0u;
+    f->commissioning = false;
     f->tick = 0u;
     f->hb_isr = f->isr_count;
     f->hb_lost = false;
@@ -297,6 +298,24 @@ static void stage_capture(fw_t *f, const fw_meas_t *m)
     capture_record(&f->cap, f->tick, &cs);
 }
 
+/* Commissioning (comm.h): the sequence's configuration from config_commission, or defaults. */
+static void start_commission(fw_t *f)
+{
+    comm_cfg_t cc;
+    const proto_config_commission_t *k = &f->comm_cfg;
+    cc.steps = k->steps != 0u ? k->steps : (uint16_t)((1u << COMM_N_STEPS) - 1u);
+    cc.i_test_a = k->i_test_a > 0.0f ? k->i_test_a : 0.5f * f->motor.i_max_a;
+    cc.spin_rpm = k->spin_rpm > 0.0f ? k->spin_rpm : 0.5f * f->motor.speed_max_rpm;
+    cc.ts_s = f->ctrl.ts_s;
+    cc.v_dc_min_v = f->limits.v_dc_min_v;
+    cc.v_dc_max_v = f->limits.v_dc_max_v;
+    cc.motor = f->motor;
+    cc.i_dt_nom_a = f->ctrl.i_dt_a;
+    cc.v_drop_nom_v = f->ctrl.v_drop_v;
+    cc.enc_counts = f->ctrl.enc_counts;
+    comm_start(&f->comm, &cc);
+}
+
 /* References: the profile (or the stop ramp) gives speed and load; the segment its kind. */
 static void stage_profile(fw_t *f, float *speed_ref_rpm, float *load_nm)
 {
@@ -305,6 +324,10 @@ static void stage_profile(fw_t *f, float *speed_ref_rpm, float *load_nm)
         profile_step(&f->prof, f->ctrl.ts_s, &po);
         if (po.segment_started) {
             fw_raise(f, PROTO_EVENT_SEGMENT_START, (int32_t)po.index);
+            f->commissioning = po.kind == PROFILE_KIND_COMMISSION;
+            if (f->commissioning) {
+                start_commission(f);
+            }
             if ((po.flags & PROFILE_FLAG_CAPTURE) != 0u && capture_trigger(&f->cap)) {
                 fw_raise(f, PROTO_EVENT_CAPTURE_TRIGGERED, (int32_t)po.index);
             }
@@ -344,10 +367,17 @@ static void stage_current_refs(fw_t *f, float speed_ref_rpm)
         f->i_d_base_a = 0.0f;
         f->sig.i_q_ref_a = 0.0f;
     } else if (f->speed_div_count >= f->ctrl.speed_div) {
+        fw_motor_t m = f->motor;
+        cc_params_t p;
+        if (ident_converged_params(&f->ident, &p)) { /* MTPA on the identified machine */
+            m.l_d_h = p.l_d_h;
+            m.l_q_h = p.l_q_h;
+            m.psi_f_wb = p.psi_f_wb;
+        }
         f->speed_div_count = 0u;
         f->i_s_ref_a =
             speed_pi_step(&f->spi, speed_ref_rpm / FW_RPM_PER_RAD_S, f->ang.omega_m_rad_s);
-        mtpa_split(&f->motor, f->ctrl.current_ref, f->i_s_ref_a, &idq_ref);
+        mtpa_split(&m, f->ctrl.current_ref, f->i_s_ref_a, &idq_ref);
         f->i_d_base_a = idq_ref.d;
         f->sig.i_q_ref_a = idq_ref.q;
     }
@@ -358,11 +388,14 @@ static void stage_current_refs(fw_t *f, float speed_ref_rpm)
 static void stage_current_control(fw_t *f, const fw_meas_t *m, float c, float s)
 {
     cc_in_t ci;
+    cc_params_t p;
+    /* the dither's step: one vector's current step on L_q (the identified one once converged) */
+    const float l_q = ident_converged_params(&f->ident, &p) ? p.l_q_h : f->motor.l_q_h;
     ci.i_d_a = f->sig.i_d_a;
     ci.i_q_a = f->sig.i_q_a;
     ci.i_d_ref_a = f->sig.i_d_ref_a;
-    ci.i_q_ref_a = f->sig.i_q_ref_a +
-                   dither_step(&f->dither, 0.6666667f * m->v_dc_v * f->ctrl.ts_s / f->motor.l_q_h);
+    ci.i_q_ref_a =
+        f->sig.i_q_ref_a + dither_step(&f->dither, 0.6666667f * m->v_dc_v * f->ctrl.ts_s / l_q);
     ci.theta_e_rad = f->sig.theta_e_est_rad;
     ci.cos_theta = c;
     ci.sin_theta = s;
@@ -423,6 +456,60 @@ static void cmd_safe(fw_cmd_t *cmd)
     cmd->load_nm = 0.0f;
 }
 
+/* The commissioning sequence in place of the control stages (PWM off at its end or failure). */
+static void stage_commission(fw_t *f, const fw_meas_t *m, fw_cmd_t *cmd)
+{
+    comm_in_t ci;
+    comm_out_t co;
+    comm_t *c = &f->comm;
+    ci.i_a_a = m->i_a_a;
+    ci.i_b_a = m->i_b_a;
+    ci.i_c_a = m->i_c_a;
+    ci.v_dc_v = m->v_dc_v;
+    ci.theta_enc_rad = f->enc_out.theta_e_rad;
+    ci.omega_e_rad_s = f->enc_out.omega_e_rad_s;
+    if (f->state == PROTO_STATE_STOPPING) {
+        if (comm_brake(c, &ci, &co)) {
+            fw_pwm_off(f,
+                       f->stop_reason == PROTO_STOP_REASON_PROFILE_END ? PROTO_STATE_DONE
+                                                                       : PROTO_STATE_IDLE,
+                       f->stop_reason);
+            return;
+        }
+    } else {
+        uint16_t st = comm_step(c, &ci, &co);
+        if (c->step_started) {
+            c->step_started = false;
+            fw_raise(f, PROTO_EVENT_COMMISSION_STEP, (int32_t)c->step);
+        }
+        if (st == COMM_FAILED) {
+            fw_raise(f, PROTO_EVENT_COMMISSION_FAILED,
+                     (int32_t)(((uint32_t)c->step << 8) | c->fail_reason));
+            fw_pwm_off(f, PROTO_STATE_IDLE, PROTO_STOP_REASON_COMMISSION_FAILED);
+            return;
+        }
+        if (st == COMM_DONE) {
+            fw_raise(f, PROTO_EVENT_PROFILE_DONE, (int32_t)f->prof.index);
+            fw_pwm_off(f, PROTO_STATE_DONE, PROTO_STOP_REASON_PROFILE_END);
+            return;
+        }
+    }
+    f->sig.i_d_a = co.i_d_a;
+    f->sig.i_q_a = co.i_q_a;
+    f->sig.i_d_ref_a = co.i_d_ref_a;
+    f->sig.i_q_ref_a = co.i_q_ref_a;
+    f->sig.u_d_v = co.u_d_v;
+    f->sig.u_q_v = co.u_q_v;
+    f->sig.speed_ref_rpm = co.speed_ref_rpm;
+    f->sig.load_nm = 0.0f;
+    cmd->mode = FW_CMD_DUTIES;
+    cmd->duty_a = co.duty[0];
+    cmd->duty_b = co.duty[1];
+    cmd->duty_c = co.duty[2];
+    cmd->pwm_on = co.pwm_on;
+    cmd->load_nm = 0.0f;
+}
+
 /* One control period of an active run. */
 static void period(fw_t *f, const fw_meas_t *m, fw_cmd_t *cmd)
 {
@@ -448,6 +535,12 @@ static void period(fw_t *f, const fw_meas_t *m, fw_cmd_t *cmd)
         f->tick++;
         return;
     }
+    if (f->commissioning) {
+        stage_commission(f, m, cmd);
+        fw_send_telemetry(f);
+        f->tick++;
+        return;
+    }
     f->sig.speed_ref_rpm = speed_ref_rpm;
     f->sig.load_nm = load_nm;
     stage_current_refs(f, speed_ref_rpm);
@@ -468,11 +561,19 @@ static void period(fw_t *f, const fw_meas_t *m, fw_cmd_t *cmd)
 
 void fw_isr(fw_t *f, const fw_meas_t *m, fw_cmd_t *cmd)
 {
+    fw_meas_t mc;
     f->isr_count++;
     f->sig.v_dc_v = m->v_dc_v;
     cmd_safe(cmd);
     if (!fw_active(f)) {
         return;
+    }
+    if (f->have_calib) { /* current-sensor calibration from commissioning (config_calib) */
+        mc = *m;
+        mc.i_a_a = (m->i_a_a - f->calib.i_a_offset_a) / (1.0f + f->calib.i_a_gain_err);
+        mc.i_b_a = (m->i_b_a - f->calib.i_b_offset_a) / (1.0f + f->calib.i_b_gain_err);
+        mc.i_c_a = (m->i_c_a - f->calib.i_c_offset_a) / (1.0f + f->calib.i_c_gain_err);
+        m = &mc;
     }
     period(f, m, cmd);
     fw_flush(f);

@@ -28,6 +28,7 @@
 #include "dither.h"
 #include "ident.h"
 #include "evq.h"
+#include "comm.h"
 
 #define FW_VERSION_MAJOR 0u
 #define FW_VERSION_MINOR 1u
@@ -113,6 +114,13 @@ typedef struct {
     fw_signals_t sig; /* telemetry */
     evq_t events;     /* raised during the period, sent at its end */
     bool status_due;  /* a status frame follows the period's events */
+
+    /* commissioning (comm.h): the sequence runs in a `commission` segment */
+    proto_config_calib_t calib; /* current-sensor calibration (all 0: none) */
+    bool have_calib;
+    proto_config_commission_t comm_cfg;
+    bool commissioning; /* the running segment is a commission segment */
+    comm_t comm;
 
     fw_board_msg_fn board_msg;
     void *board_ctx;

@@ -112,7 +112,7 @@ static uint16_t cmd_profile_segment(fw_t *f, const uint16_t *p, uint16_t n)
     seg.kind = s.kind;
     seg.inject_a = s.inject_a;
     seg.inject_hz = s.inject_hz;
-    if (s.kind > PROFILE_KIND_IDENTIFY_R || !(s.inject_hz >= 0.0f) ||
+    if (s.kind > PROFILE_KIND_COMMISSION || !(s.inject_hz >= 0.0f) ||
         !(fabsf(s.inject_a) <= 1e3f) ||
         (s.kind == PROFILE_KIND_IDENTIFY_R && (s.speed_rpm != 0.0f || !(s.inject_a != 0.0f)))) {
         return PROTO_ACK_STATUS_BAD_VALUE;
@@ -121,6 +121,45 @@ static uint16_t cmd_profile_segment(fw_t *f, const uint16_t *p, uint16_t n)
         return PROTO_ACK_STATUS_BAD_VALUE;
     }
     return profile_set(&f->prof, s.index, &seg) ? PROTO_ACK_STATUS_OK : PROTO_ACK_STATUS_BAD_VALUE;
+}
+
+static uint16_t cmd_config_calib(fw_t *f, const uint16_t *p, uint16_t n)
+{
+    proto_config_calib_t c;
+    if (!proto_config_calib_unpack(&c, p, n)) {
+        return PROTO_ACK_STATUS_BAD_VALUE;
+    }
+    if (fw_active(f)) {
+        return PROTO_ACK_STATUS_BUSY;
+    }
+    /* offsets within 10 A, gain errors within 20 % (a sensor beyond is broken, not calibrated) */
+    if (!within(c.i_a_offset_a, -10.0f, 10.0f) || !within(c.i_b_offset_a, -10.0f, 10.0f) ||
+        !within(c.i_c_offset_a, -10.0f, 10.0f) || !within(c.i_a_gain_err, -0.2f, 0.2f) ||
+        !within(c.i_b_gain_err, -0.2f, 0.2f) || !within(c.i_c_gain_err, -0.2f, 0.2f)) {
+        return PROTO_ACK_STATUS_BAD_VALUE;
+    }
+    f->calib = c;
+    f->have_calib = c.i_a_offset_a != 0.0f || c.i_b_offset_a != 0.0f || c.i_c_offset_a != 0.0f ||
+                    c.i_a_gain_err != 0.0f || c.i_b_gain_err != 0.0f || c.i_c_gain_err != 0.0f;
+    return PROTO_ACK_STATUS_OK;
+}
+
+static uint16_t cmd_config_commission(fw_t *f, const uint16_t *p, uint16_t n)
+{
+    proto_config_commission_t c;
+    if (!proto_config_commission_unpack(&c, p, n)) {
+        return PROTO_ACK_STATUS_BAD_VALUE;
+    }
+    if (fw_active(f)) {
+        return PROTO_ACK_STATUS_BUSY;
+    }
+    if ((c.steps & ~((1u << COMM_N_STEPS) - 1u)) != 0u || !(c.i_test_a > 0.0f) ||
+        !(c.spin_rpm >= 0.0f && c.spin_rpm <= FW_SPEED_TRIP_MAX_RPM) ||
+        (f->have_motor && (c.i_test_a > f->motor.i_max_a || c.spin_rpm > f->motor.speed_max_rpm))) {
+        return PROTO_ACK_STATUS_BAD_VALUE;
+    }
+    f->comm_cfg = c;
+    return PROTO_ACK_STATUS_OK;
 }
 
 static void handle_frame(fw_t *f, uint16_t id, uint16_t seq, const uint16_t *p, uint16_t n)
@@ -162,6 +201,12 @@ static void handle_frame(fw_t *f, uint16_t id, uint16_t seq, const uint16_t *p, 
     }
     case PROTO_ID_PROFILE_SEGMENT:
         st = cmd_profile_segment(f, p, n);
+        break;
+    case PROTO_ID_CONFIG_CALIB:
+        st = cmd_config_calib(f, p, n);
+        break;
+    case PROTO_ID_CONFIG_COMMISSION:
+        st = cmd_config_commission(f, p, n);
         break;
     case PROTO_ID_START:
         st = fw_start_run(f);

@@ -50,9 +50,33 @@ static void send_event(fw_t *f, const evq_entry_t *ev)
     (void)fw_send(f, PROTO_ID_EVENT, f->link.payload_buf, n);
 }
 
+static void send_commission_result(fw_t *f)
+{
+    proto_commission_result_t r;
+    const comm_result_t *c = &f->comm.res;
+    uint16_t n, k;
+    r.tick =
+        f->tick > 0u ? f->tick - 1u : 0u; /* the period that ended the step (flushed after it) */
+    r.step = c->step;
+    r.status = c->status;
+    for (k = 0u; k < 4u; k++) {
+        r.value[k] = c->value[k];
+        r.spread[k] = c->spread[k];
+    }
+    r.truth_ref[0] = c->ref[0];
+    r.truth_ref[1] = c->ref[1];
+    n = proto_commission_result_pack(&r, f->link.payload_buf);
+    (void)fw_send(f, PROTO_ID_COMMISSION_RESULT, f->link.payload_buf, n);
+    memset(&f->comm.res, 0, sizeof(f->comm.res));
+    f->comm.result_due = false;
+}
+
 void fw_flush(fw_t *f)
 {
     uint16_t i;
+    if (f->comm.result_due) { /* a commissioning step's result precedes the events it caused */
+        send_commission_result(f);
+    }
     for (i = 0u; i < evq_count(&f->events); i++) {
         send_event(f, evq_at(&f->events, i));
     }

@@ -313,6 +313,50 @@ bool proto_capture_read_unpack(proto_capture_read_t *m, const uint16_t *buf, uin
     return true;
 }
 
+uint16_t proto_config_calib_pack(const proto_config_calib_t *m, uint16_t *buf)
+{
+    put_f32(&buf[0], m->i_a_offset_a);
+    put_f32(&buf[4], m->i_b_offset_a);
+    put_f32(&buf[8], m->i_c_offset_a);
+    put_f32(&buf[12], m->i_a_gain_err);
+    put_f32(&buf[16], m->i_b_gain_err);
+    put_f32(&buf[20], m->i_c_gain_err);
+    return PROTO_LEN_CONFIG_CALIB;
+}
+
+bool proto_config_calib_unpack(proto_config_calib_t *m, const uint16_t *buf, uint16_t len)
+{
+    if (len != PROTO_LEN_CONFIG_CALIB) {
+        return false;
+    }
+    m->i_a_offset_a = get_f32(&buf[0]);
+    m->i_b_offset_a = get_f32(&buf[4]);
+    m->i_c_offset_a = get_f32(&buf[8]);
+    m->i_a_gain_err = get_f32(&buf[12]);
+    m->i_b_gain_err = get_f32(&buf[16]);
+    m->i_c_gain_err = get_f32(&buf[20]);
+    return true;
+}
+
+uint16_t proto_config_commission_pack(const proto_config_commission_t *m, uint16_t *buf)
+{
+    put_u16(&buf[0], m->steps);
+    put_f32(&buf[2], m->i_test_a);
+    put_f32(&buf[6], m->spin_rpm);
+    return PROTO_LEN_CONFIG_COMMISSION;
+}
+
+bool proto_config_commission_unpack(proto_config_commission_t *m, const uint16_t *buf, uint16_t len)
+{
+    if (len != PROTO_LEN_CONFIG_COMMISSION) {
+        return false;
+    }
+    m->steps = get_u16(&buf[0]);
+    m->i_test_a = get_f32(&buf[2]);
+    m->spin_rpm = get_f32(&buf[6]);
+    return true;
+}
+
 uint16_t proto_sim_plant_pack(const proto_sim_plant_t *m, uint16_t *buf)
 {
     put_u16(&buf[0], m->index);
@@ -561,6 +605,45 @@ bool proto_capture_chunk_unpack(proto_capture_chunk_t *m, const uint16_t *buf, u
     return true;
 }
 
+uint16_t proto_commission_result_pack(const proto_commission_result_t *m, uint16_t *buf)
+{
+    uint16_t i;
+    put_u32(&buf[0], m->tick);
+    put_u8(&buf[4], m->step);
+    put_u8(&buf[5], m->status);
+    for (i = 0u; i < 4u; i++) {
+        put_f32(&buf[6u + 4u * i], m->value[i]);
+    }
+    for (i = 0u; i < 4u; i++) {
+        put_f32(&buf[22u + 4u * i], m->spread[i]);
+    }
+    for (i = 0u; i < 2u; i++) {
+        put_f32(&buf[38u + 4u * i], m->truth_ref[i]);
+    }
+    return PROTO_LEN_COMMISSION_RESULT;
+}
+
+bool proto_commission_result_unpack(proto_commission_result_t *m, const uint16_t *buf, uint16_t len)
+{
+    uint16_t i;
+    if (len != PROTO_LEN_COMMISSION_RESULT) {
+        return false;
+    }
+    m->tick = get_u32(&buf[0]);
+    m->step = get_u8(&buf[4]);
+    m->status = get_u8(&buf[5]);
+    for (i = 0u; i < 4u; i++) {
+        m->value[i] = get_f32(&buf[6u + 4u * i]);
+    }
+    for (i = 0u; i < 4u; i++) {
+        m->spread[i] = get_f32(&buf[22u + 4u * i]);
+    }
+    for (i = 0u; i < 2u; i++) {
+        m->truth_ref[i] = get_f32(&buf[38u + 4u * i]);
+    }
+    return true;
+}
+
 uint16_t proto_sim_truth_pack(const proto_sim_truth_t *m, uint16_t *buf)
 {
     put_u32(&buf[0], m->tick);
@@ -609,6 +692,8 @@ int16_t proto_payload_len(uint16_t msg_id)
     case PROTO_ID_ABORT: return (int16_t)PROTO_LEN_ABORT;
     case PROTO_ID_HEARTBEAT: return (int16_t)PROTO_LEN_HEARTBEAT;
     case PROTO_ID_CAPTURE_READ: return (int16_t)PROTO_LEN_CAPTURE_READ;
+    case PROTO_ID_CONFIG_CALIB: return (int16_t)PROTO_LEN_CONFIG_CALIB;
+    case PROTO_ID_CONFIG_COMMISSION: return (int16_t)PROTO_LEN_CONFIG_COMMISSION;
     case PROTO_ID_SIM_PLANT: return (int16_t)PROTO_LEN_SIM_PLANT;
     case PROTO_ID_ACK: return (int16_t)PROTO_LEN_ACK;
     case PROTO_ID_IDENTIFY: return (int16_t)PROTO_LEN_IDENTIFY;
@@ -617,6 +702,7 @@ int16_t proto_payload_len(uint16_t msg_id)
     case PROTO_ID_STATUS: return (int16_t)PROTO_LEN_STATUS;
     case PROTO_ID_EVENT: return (int16_t)PROTO_LEN_EVENT;
     case PROTO_ID_CAPTURE_CHUNK: return (int16_t)PROTO_LEN_CAPTURE_CHUNK;
+    case PROTO_ID_COMMISSION_RESULT: return (int16_t)PROTO_LEN_COMMISSION_RESULT;
     case PROTO_ID_SIM_TRUTH: return (int16_t)PROTO_LEN_SIM_TRUTH;
     default: return -1;
     }

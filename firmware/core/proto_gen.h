@@ -10,9 +10,9 @@
 #include <stdbool.h>
 
 #define PROTO_VERSION 2u
-#define PROTO_SCHEMA_HASH 0xA20B0D51UL  /* CRC-32 of the canonical yaml */
+#define PROTO_SCHEMA_HASH 0x5D092F9AUL  /* CRC-32 of the canonical yaml */
 #define PROTO_MAX_PAYLOAD 111u  /* octets */
-#define PROTO_MSG_COUNT 19u
+#define PROTO_MSG_COUNT 22u
 
 /* enum state */
 #define PROTO_STATE_IDLE 0u
@@ -48,6 +48,7 @@
 #define PROTO_STOP_REASON_FAULT 2u
 #define PROTO_STOP_REASON_HEARTBEAT_LOST 3u
 #define PROTO_STOP_REASON_PROFILE_END 4u
+#define PROTO_STOP_REASON_COMMISSION_FAILED 5u
 
 /* enum segment_flag */
 #define PROTO_SEGMENT_FLAG_CAPTURE 1u
@@ -67,6 +68,7 @@
 /* enum segment_kind */
 #define PROTO_SEGMENT_KIND_RUN 0u
 #define PROTO_SEGMENT_KIND_IDENTIFY_R 1u
+#define PROTO_SEGMENT_KIND_COMMISSION 2u
 
 /* enum event */
 #define PROTO_EVENT_SEGMENT_START 1u
@@ -78,6 +80,28 @@
 #define PROTO_EVENT_STOPPED 7u
 #define PROTO_EVENT_STARTED 8u
 #define PROTO_EVENT_R_IDENTIFIED 9u
+#define PROTO_EVENT_COMMISSION_STEP 10u
+#define PROTO_EVENT_COMMISSION_FAILED 11u
+
+/* enum commission_step */
+#define PROTO_COMMISSION_STEP_OFFSETS 0u
+#define PROTO_COMMISSION_STEP_V_DC 1u
+#define PROTO_COMMISSION_STEP_ENCODER 2u
+#define PROTO_COMMISSION_STEP_INVERTER 3u
+#define PROTO_COMMISSION_STEP_R_S 4u
+#define PROTO_COMMISSION_STEP_L_DQ 5u
+#define PROTO_COMMISSION_STEP_PSI_F 6u
+
+/* enum commission_fail */
+#define PROTO_COMMISSION_FAIL_IMPLAUSIBLE 1u
+#define PROTO_COMMISSION_FAIL_NOT_REPEATABLE 2u
+#define PROTO_COMMISSION_FAIL_NO_CURRENT 3u
+#define PROTO_COMMISSION_FAIL_WRONG_DIRECTION 4u
+#define PROTO_COMMISSION_FAIL_POLE_PAIRS 5u
+#define PROTO_COMMISSION_FAIL_ROTOR_STUCK 6u
+#define PROTO_COMMISSION_FAIL_OVER_CURRENT 7u
+#define PROTO_COMMISSION_FAIL_OVER_SPEED 8u
+#define PROTO_COMMISSION_FAIL_V_DC 9u
 
 /* enum fault */
 #define PROTO_FAULT_OVER_CURRENT 1u
@@ -220,6 +244,31 @@ typedef struct {
 uint16_t proto_capture_read_pack(const proto_capture_read_t *m, uint16_t *buf);
 bool proto_capture_read_unpack(proto_capture_read_t *m, const uint16_t *buf, uint16_t len);
 
+/* config_calib: 0x0B, host -> device */
+#define PROTO_ID_CONFIG_CALIB 0x0Bu
+#define PROTO_LEN_CONFIG_CALIB 24u
+typedef struct {
+    float i_a_offset_a;            /* f32; subtracted from the phase-a sample */
+    float i_b_offset_a;            /* f32 */
+    float i_c_offset_a;            /* f32 */
+    float i_a_gain_err;            /* f32; relative gain error: sample / (1 + err) */
+    float i_b_gain_err;            /* f32 */
+    float i_c_gain_err;            /* f32 */
+} proto_config_calib_t;
+uint16_t proto_config_calib_pack(const proto_config_calib_t *m, uint16_t *buf);
+bool proto_config_calib_unpack(proto_config_calib_t *m, const uint16_t *buf, uint16_t len);
+
+/* config_commission: 0x0C, host -> device */
+#define PROTO_ID_CONFIG_COMMISSION 0x0Cu
+#define PROTO_LEN_CONFIG_COMMISSION 10u
+typedef struct {
+    uint16_t steps;                /* u16; bit k: run commission_step k */
+    float i_test_a;                /* f32; largest test current (alignment, staircase, R) */
+    float spin_rpm;                /* f32; top speed of the psi_f spin */
+} proto_config_commission_t;
+uint16_t proto_config_commission_pack(const proto_config_commission_t *m, uint16_t *buf);
+bool proto_config_commission_unpack(proto_config_commission_t *m, const uint16_t *buf, uint16_t len);
+
 /* sim_plant: 0x20, host -> device, emulator only */
 #define PROTO_ID_SIM_PLANT 0x20u
 #define PROTO_LEN_SIM_PLANT 10u
@@ -340,6 +389,20 @@ typedef struct {
 } proto_capture_chunk_t;
 uint16_t proto_capture_chunk_pack(const proto_capture_chunk_t *m, uint16_t *buf);
 bool proto_capture_chunk_unpack(proto_capture_chunk_t *m, const uint16_t *buf, uint16_t len);
+
+/* commission_result: 0x95, device -> host */
+#define PROTO_ID_COMMISSION_RESULT 0x95u
+#define PROTO_LEN_COMMISSION_RESULT 46u
+typedef struct {
+    uint32_t tick;                 /* u32 */
+    uint16_t step;                 /* u8; enum commission_step */
+    uint16_t status;               /* u8; 0 ok, else enum commission_fail */
+    float value[4];                /* f32[4]; the step's results (docs/commissioning.md) */
+    float spread[4];               /* f32[4]; their spread over repetitions */
+    float truth_ref[2];            /* f32[2]; step-specific operating point (e.g. test current) */
+} proto_commission_result_t;
+uint16_t proto_commission_result_pack(const proto_commission_result_t *m, uint16_t *buf);
+bool proto_commission_result_unpack(proto_commission_result_t *m, const uint16_t *buf, uint16_t len);
 
 /* sim_truth: 0xA0, device -> host, emulator only */
 #define PROTO_ID_SIM_TRUTH 0xA0u

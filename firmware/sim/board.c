@@ -34,6 +34,9 @@ struct emu {
     uint32_t state_isr, state_hb_isr;
     /* rig effects (docs/rigs.md): the mask reported in sim_truth, and the saturation flux map */
     uint32_t effects_mask;
+    /* wiring faults of the rig (commissioning tests): phases b and c swapped between inverter
+     * and motor, or the motor not connected */
+    int wiring_swap_bc, wiring_open;
     int sat_nd, sat_nq; /* 0: no map */
     double sat_id0_a, sat_did_a, sat_iq0_a, sat_diq_a;
     double sat_psi_d_wb[PLANT_MAP_MAX_N * PLANT_MAP_MAX_N];
@@ -288,6 +291,11 @@ uint32_t emu_run(emu_t *e, uint32_t max_ticks, uint8_t *out, uint32_t cap, uint3
     while (ticks < max_ticks && fw_active(&e->fw) && n + margin <= cap && can_sim_room(&e->can)) {
         e->was_active = 1;
         plant_sample(&e->plant, &meas);
+        if (e->wiring_swap_bc) { /* the sensor on leg b measures motor phase c */
+            float t = meas.i_b_a;
+            meas.i_b_a = meas.i_c_a;
+            meas.i_c_a = t;
+        }
         if (e->truth_div != 0u && e->truth_count == 0u) {
             send_truth(e);
         }
@@ -301,7 +309,21 @@ uint32_t emu_run(emu_t *e, uint32_t max_ticks, uint8_t *out, uint32_t cap, uint3
             record_period(e, &meas);
         }
         plant_steps(e);
-        plant_step(&e->plant, &e->prev_cmd); /* switch states or duties (plant_step_duty) */
+        if (e->wiring_swap_bc || e->wiring_open) {
+            fw_cmd_t w = e->prev_cmd;
+            if (e->wiring_swap_bc) { /* leg b drives motor phase c */
+                w.s_b = e->prev_cmd.s_c;
+                w.s_c = e->prev_cmd.s_b;
+                w.duty_b = e->prev_cmd.duty_c;
+                w.duty_c = e->prev_cmd.duty_b;
+            }
+            if (e->wiring_open) {
+                w.pwm_on = false;
+            }
+            plant_step(&e->plant, &w);
+        } else {
+            plant_step(&e->plant, &e->prev_cmd); /* switch states or duties (plant_step_duty) */
+        }
         e->prev_cmd = cmd;
         e->truth_count++;
         if (e->truth_count >= e->truth_div) {

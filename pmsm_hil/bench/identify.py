@@ -26,6 +26,7 @@ def identify(
     rig: str | None = None,
     until: float | None = None,
     echo=print,
+    motor: str | None = None,
 ) -> None:
     """The Table-2 run: identification table (markdown and text), convergence plot, drift step."""
     from pmsm_hil.analysis.identification import (
@@ -36,7 +37,7 @@ def identify(
     )
     from pmsm_hil.profiles import load_profile
 
-    profile = load_profile(path, rig_override=rig)
+    profile = load_profile(path, rig_override=rig, motor_override=motor)
     out.mkdir(parents=True, exist_ok=True)
     log = out / "identify.mcap"
     _, result = _run_profile(profile, log, seed)

@@ -28,6 +28,11 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     b.add_argument("--seed", type=int, default=1)
     b.add_argument("--rig", default=None, help="rig file for the emulator (default: the profile's)")
     b.add_argument(
+        "--motor",
+        default=None,
+        help="motor file instead of the profile's, e.g. a commissioned one (pmsm-hil commission)",
+    )
+    b.add_argument(
         "--until",
         type=float,
         default=None,
@@ -48,14 +53,49 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         "as a markdown table (about a minute)",
     )
     b.add_argument(
+        "--rigs",
+        default=None,
+        help="comma-separated rigs: one identification table per rig, median and worst over "
+        "--seeds (e.g. default,lab-typical)",
+    )
+    b.add_argument(
+        "--seeds", default=None, help="seeds for --rigs, e.g. 1-10 or 1,2,3 (default 1-10)"
+    )
+    b.add_argument(
+        "--commissioned",
+        action="store_true",
+        help="with --rigs or --per-effect: commission each rig and seed first and identify with "
+        "that motor file",
+    )
+    b.add_argument(
         "--only",
         choices=("mismatch", "per-effect"),
         default=None,
         help="run only that part (skips the Table-2 run)",
     )
 
+    c = bsub.add_parser(
+        "commission",
+        help="commissioning on the emulator: errors per step over rigs and seeds vs the targets",
+    )
+    c.add_argument("--rigs", default="default,lab-typical", help="comma-separated rigs")
+    c.add_argument("--seeds", default="1-10", help="e.g. 1-10 or 1,2,3")
+    c.add_argument("--out", "-o", default="runs/bench-commission", help="directory for logs, table")
+
 
 def main(args: argparse.Namespace) -> int:
+    if args.bench == "commission":
+        from pmsm_hil.bench.commission import bench_commission, parse_seeds
+
+        try:
+            bench_commission(
+                [r.strip() for r in args.rigs.split(",") if r.strip()],
+                parse_seeds(args.seeds),
+                Path(args.out),
+            )
+        except ValueError as e:
+            return fail("error", f"--seeds {args.seeds}: {e}", 2)
+        return 0
     from pmsm_hil.bench.identify import BenchError, default_profile, identify, mismatch, per_effect
     from pmsm_hil.profiles import ProfileError
     from pmsm_hil.profiles.shipped import resolve
@@ -63,9 +103,29 @@ def main(args: argparse.Namespace) -> int:
     try:
         path = resolve(args.profile, "profile") if args.profile else default_profile()
         rig = resolve(args.rig, "rig") if args.rig else None
+        motor = resolve(args.motor, "motor") if args.motor else None
         out = Path(args.out)
+        if args.per_effect and args.commissioned:
+            from pmsm_hil.bench.commission import parse_seeds
+            from pmsm_hil.bench.identify_rigs import per_effect_commissioned
+
+            per_effect_commissioned(path, parse_seeds(args.seeds or "1-2"), out)
+            return 0
+        if args.rigs:
+            from pmsm_hil.bench.commission import parse_seeds
+            from pmsm_hil.bench.identify_rigs import identify_rigs
+
+            identify_rigs(
+                path,
+                [r.strip() for r in args.rigs.split(",") if r.strip()],
+                parse_seeds(args.seeds or "1-10"),
+                out,
+                commissioned=args.commissioned,
+                motor=motor,
+            )
+            return 0
         if args.only not in {"per-effect", "mismatch"}:
-            identify(path, out, args.seed, rig, args.until)
+            identify(path, out, args.seed, rig, args.until, motor=motor)
         if args.mismatch or args.only == "mismatch":
             out.mkdir(parents=True, exist_ok=True)
             mismatch(path, out, args.seed)

@@ -9,6 +9,7 @@ from pmsm_hil import __version__
 from pmsm_hil.cli import (
     analyze,
     bench,
+    commission,
     emulate,
     gap,
     import_csv,
@@ -22,6 +23,7 @@ from pmsm_hil.cli import (
 
 COMMANDS = {
     "run": run,
+    "commission": commission,
     "emulate": emulate,
     "analyze": analyze,
     "report": report,

@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import math
 import os
+from typing import Any
 
 from pydantic import Field, ValidationError
 
-from ._base import FileModel, default_file, meta_value, num
+from ._base import FileModel, StrictModel, default_file, meta_value, num
 from ._source import Problem, ProfileError, Source, fmt_num, read_source, validation_problems
 
-__all__ = ["Motor", "load_motor", "mtpa_currents", "mtpa_torque_nm"]
+__all__ = ["CurrentSensors", "Motor", "load_motor", "mtpa_currents", "mtpa_torque_nm"]
 
 
 def mtpa_currents(i_s_a: float, psi_f_wb: float, l_d_h: float, l_q_h: float) -> tuple[float, float]:
@@ -33,6 +34,20 @@ def mtpa_torque_nm(
     """Electromagnetic torque for current magnitude ``i_s_a`` on the MTPA trajectory."""
     i_d, i_q = mtpa_currents(i_s_a, psi_f_wb, l_d_h, l_q_h)
     return 1.5 * pole_pairs * (psi_f_wb * i_q + (l_d_h - l_q_h) * i_d * i_q)
+
+
+class CurrentSensors(StrictModel):
+    """Current-sensor calibration measured by commissioning (docs/commissioning.md): the firmware
+    subtracts the offset and divides by (1 + gain error) before it uses a sample."""
+
+    i_a_offset_a: float = Field(0.0, ge=-10, le=10, description="phase-a sensor offset, A")
+    i_b_offset_a: float = Field(0.0, ge=-10, le=10, description="phase-b sensor offset, A")
+    i_c_offset_a: float = Field(0.0, ge=-10, le=10, description="phase-c sensor offset, A")
+    i_a_gain_err: float = Field(
+        0.0, ge=-0.2, le=0.2, description="phase-a gain relative to the mean of the three, -1"
+    )
+    i_b_gain_err: float = Field(0.0, ge=-0.2, le=0.2, description="phase-b gain error")
+    i_c_gain_err: float = Field(0.0, ge=-0.2, le=0.2, description="phase-c gain error")
 
 
 class Motor(FileModel):
@@ -73,6 +88,21 @@ class Motor(FileModel):
         description="nominal current band of the dead-time distortion around the "
         "current zero crossing (0: ideal sign), A",
     )
+    enc_offset_e_rad: float = Field(
+        0.0,
+        ge=-7,
+        le=7,
+        description="electrical angle of the rotor's d axis at encoder count 0, rad "
+        "(commissioning measures it; 0: the encoder is aligned)",
+    )
+    current_sensors: CurrentSensors | None = Field(
+        None, description="current-sensor calibration from commissioning (none: raw samples)"
+    )
+    commissioning: dict[str, Any] | None = Field(
+        None,
+        description="what commissioning measured: date, device, and each quantity with its "
+        "spread (written by `pmsm-hil commission`, docs/commissioning.md)",
+    )
     source: str = Field("", description="where the numbers come from")
 
     # ------------------------------------------------------------------ derived quantities
@@ -89,7 +119,12 @@ class Motor(FileModel):
 
     def metadata(self) -> dict[str, str]:
         """Flat string record for the MCAP metadata."""
-        out = {k: meta_value(v) for k, v in self.model_dump().items()}
+        out = {
+            k: meta_value(v)
+            for k, v in self.model_dump().items()
+            if k not in ("commissioning", "current_sensors", "enc_offset_e_rad")
+            or v not in (None, 0.0)
+        }
         out["file"] = self.path.replace("\\", "/").rsplit("/", 1)[-1]
         out["sha256"] = self.sha256
         return out

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Iterator
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Literal
 
 from pydantic import Field, ValidationError
 
@@ -303,6 +303,17 @@ class Effects(StrictModel):
         return getattr(self, name) if name in type(self).model_fields else default
 
 
+class Wiring(StrictModel):
+    """How the motor is connected to the inverter: a wiring fault that commissioning must catch
+    (docs/commissioning.md). Not a plant effect: the default is the correct wiring."""
+
+    phases: Literal["abc", "acb"] = Field(
+        "abc",
+        description="abc: as labelled; acb: phases b and c swapped between inverter and motor",
+    )
+    motor_connected: bool = Field(True, description="false: the motor cable is not connected")
+
+
 class Rig(FileModel):
     """The emulator's plant departures (issue 5 extends the effects)."""
 
@@ -312,6 +323,7 @@ class Rig(FileModel):
         None, gt=0, le=2000, description="DC-link voltage of this rig, V (null: the motor's v_dc_v)"
     )
     effects: Effects = Field(default_factory=Effects, description="named effects")
+    wiring: Wiring = Field(default_factory=Wiring, description="wiring faults (tests)")
 
     def enabled(self, name: str) -> bool:
         return bool(self.effects[name].enabled)

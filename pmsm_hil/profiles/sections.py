@@ -145,10 +145,11 @@ class Segment(StrictModel):
         description="the online estimators update in this segment (false holds "
         "them, e.g. while spinning up)",
     )
-    kind: Literal["run", "identify_r"] = Field(
+    kind: Literal["run", "identify_r", "commission"] = Field(
         "run",
         description="run: speed/load as given; identify_r: R by d-axis current injection at "
-        "standstill (speed_rpm must be 0)",
+        "standstill (speed_rpm must be 0); commission: the firmware's commissioning sequence "
+        "(docs/commissioning.md; `pmsm-hil commission`), the duration its time limit",
     )
     inject_a: float = Field(
         0.0,

@@ -6,7 +6,7 @@ import struct
 from typing import NamedTuple
 
 PROTOCOL_VERSION = 2
-SCHEMA_HASH = 0xA20B0D51
+SCHEMA_HASH = 0x5D092F9A
 MAX_PAYLOAD = 111  # octets
 
 # wire type: (struct code, octets, min, max); min/max are None for f32
@@ -77,6 +77,7 @@ ENUMS = {
         'fault': 2,
         'heartbeat_lost': 3,
         'profile_end': 4,
+        'commission_failed': 5,
     },
     'segment_flag': {
         'capture': 1,
@@ -96,6 +97,7 @@ ENUMS = {
     'segment_kind': {
         'run': 0,
         'identify_r': 1,
+        'commission': 2,
     },
     'event': {
         'segment_start': 1,
@@ -107,6 +109,28 @@ ENUMS = {
         'stopped': 7,
         'started': 8,
         'r_identified': 9,
+        'commission_step': 10,
+        'commission_failed': 11,
+    },
+    'commission_step': {
+        'offsets': 0,
+        'v_dc': 1,
+        'encoder': 2,
+        'inverter': 3,
+        'r_s': 4,
+        'l_dq': 5,
+        'psi_f': 6,
+    },
+    'commission_fail': {
+        'implausible': 1,
+        'not_repeatable': 2,
+        'no_current': 3,
+        'wrong_direction': 4,
+        'pole_pairs': 5,
+        'rotor_stuck': 6,
+        'over_current': 7,
+        'over_speed': 8,
+        'v_dc': 9,
     },
     'fault': {
         'over_current': 1,
@@ -189,6 +213,19 @@ MESSAGES = (
     MessageSpec(0x0A, 'capture_read', 'h2d', False, 2, (
         FieldSpec('offset', 'u16', 1, None, 0),
     ), struct.Struct('<H')),
+    MessageSpec(0x0B, 'config_calib', 'h2d', False, 24, (
+        FieldSpec('i_a_offset_a', 'f32', 1, None, 0),
+        FieldSpec('i_b_offset_a', 'f32', 1, None, 4),
+        FieldSpec('i_c_offset_a', 'f32', 1, None, 8),
+        FieldSpec('i_a_gain_err', 'f32', 1, None, 12),
+        FieldSpec('i_b_gain_err', 'f32', 1, None, 16),
+        FieldSpec('i_c_gain_err', 'f32', 1, None, 20),
+    ), struct.Struct('<ffffff')),
+    MessageSpec(0x0C, 'config_commission', 'h2d', False, 10, (
+        FieldSpec('steps', 'u16', 1, None, 0),
+        FieldSpec('i_test_a', 'f32', 1, None, 2),
+        FieldSpec('spin_rpm', 'f32', 1, None, 6),
+    ), struct.Struct('<Hff')),
     MessageSpec(0x20, 'sim_plant', 'h2d', True, 10, (
         FieldSpec('index', 'u16', 1, None, 0),
         FieldSpec('r_s_scale', 'f32', 1, None, 2),
@@ -262,6 +299,14 @@ MESSAGES = (
         FieldSpec('theta_e_rad', 'u16', 8, 9.587379924285257e-05, 79),
         FieldSpec('omega_e_rad_s', 'i16', 8, 0.1, 95),
     ), struct.Struct('<HBI8h8h8h8B8h8H8h')),
+    MessageSpec(0x95, 'commission_result', 'd2h', False, 46, (
+        FieldSpec('tick', 'u32', 1, None, 0),
+        FieldSpec('step', 'u8', 1, None, 4),
+        FieldSpec('status', 'u8', 1, None, 5),
+        FieldSpec('value', 'f32', 4, None, 6),
+        FieldSpec('spread', 'f32', 4, None, 22),
+        FieldSpec('truth_ref', 'f32', 2, None, 38),
+    ), struct.Struct('<IBB4f4f2f')),
     MessageSpec(0xA0, 'sim_truth', 'd2h', True, 44, (
         FieldSpec('tick', 'u32', 1, None, 0),
         FieldSpec('l_d_h', 'f32', 1, None, 4),
@@ -290,6 +335,8 @@ ID_STOP = 0x07
 ID_ABORT = 0x08
 ID_HEARTBEAT = 0x09
 ID_CAPTURE_READ = 0x0A
+ID_CONFIG_CALIB = 0x0B
+ID_CONFIG_COMMISSION = 0x0C
 ID_SIM_PLANT = 0x20
 ID_ACK = 0x80
 ID_IDENTIFY = 0x81
@@ -298,4 +345,5 @@ ID_PARAMS = 0x91
 ID_STATUS = 0x92
 ID_EVENT = 0x93
 ID_CAPTURE_CHUNK = 0x94
+ID_COMMISSION_RESULT = 0x95
 ID_SIM_TRUTH = 0xA0

@@ -43,11 +43,13 @@ class SuiteCase:
         return self.status == "ok" and bool(self.checks) and all(c["passed"] for c in self.checks)
 
 
-def plan_suite(profiles: list[str], seed: int = 1, rig: str | None = None) -> list[SuiteCase]:
+def plan_suite(
+    profiles: list[str], seed: int = 1, rig: str | None = None, motor: str | None = None
+) -> list[SuiteCase]:
     """One case per profile (validated here: raises ProfileError)."""
     cases = []
     for i, p in enumerate(profiles):
-        run = profile_run(p, index=i, seed=seed, rig_path=rig)
+        run = profile_run(p, index=i, seed=seed, rig_path=rig, motor_path=motor)
         data = yaml.safe_load(run.texts["profile.yaml"])
         case = SuiteCase(profile=p, name=str(data.get("name", p)), run=run)
         if not data.get("acceptance"):
