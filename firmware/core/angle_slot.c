@@ -34,6 +34,8 @@ void angle_init(angle_t *a, const angle_cfg_t *cfg)
         mc.l_d_h = cfg->l_d_h;
         mc.l_q_h = cfg->l_q_h;
         mc.psi_f_wb = cfg->psi_f_wb;
+        mc.j_kgm2 = cfg->j_kgm2;
+        mc.pole_pairs = cfg->pole_pairs;
         mras_init(&a->u.mras, &mc);
     }
 }

@@ -35,6 +35,7 @@ typedef struct {
     float max_speed_rpm; /* the estimate is clamped to +-this (the over-speed trip) */
     float theta0_rad;    /* initial estimated electrical angle */
     float r_s_ohm, l_d_h, l_q_h, psi_f_wb; /* the motor file's values */
+    float j_kgm2;
 } angle_cfg_t;
 
 typedef struct {

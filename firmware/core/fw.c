@@ -132,6 +132,7 @@ static void init_stages(fw_t *f)
     ac.l_d_h = f->motor.l_d_h;
     ac.l_q_h = f->motor.l_q_h;
     ac.psi_f_wb = f->motor.psi_f_wb;
+    ac.j_kgm2 = f->motor.j_kgm2;
     angle_init(&f->angle, &ac);
     memset(&f->ang, 0, sizeof(f->ang));
     memset(&f->est, 0, sizeof(f->est));

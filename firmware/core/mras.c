@@ -10,6 +10,7 @@
 #define MRAS_LOCK_EPS         0.25f  /* |filtered error signal| below this (rad) */
 #define MRAS_LOCK_EMF_REL     0.3f   /* |measured EMF| within this fraction of |w_hat| psi_ex */
 #define MRAS_L_MIN_H          1.0e-7f
+#define MRAS_ACC_MAX          1.0e7f /* clamp of the load-acceleration state, rad/s^2 */
 
 static float clampf(float x, float lo, float hi)
 {
@@ -34,9 +35,15 @@ void mras_init(mras_t *m, const mras_cfg_t *cfg)
     if (!(m->cfg.l_q_h > MRAS_L_MIN_H)) {
         m->cfg.l_q_h = MRAS_L_MIN_H;
     }
-    m->kp = 2.0f * m->cfg.bw_rad_s;
-    m->ki = m->cfg.bw_rad_s * m->cfg.bw_rad_s;
+    m->l1 = 3.0f * m->cfg.bw_rad_s;
+    m->l2 = 3.0f * m->cfg.bw_rad_s * m->cfg.bw_rad_s;
+    m->l3 = m->cfg.bw_rad_s * m->cfg.bw_rad_s * m->cfg.bw_rad_s;
+    m->acc_rad_s2 = 0.0f;
     m->theta_rad = tf_wrap_2pi(m->cfg.theta0_rad);
+    /* a_ff = 1.5 p^2 / J (psi_ex i_q): electrical rad/s^2 per (Wb A); 0 without an inertia */
+    m->ff_gain = (m->cfg.j_kgm2 > 0.0f && m->cfg.pole_pairs > 0u)
+                     ? 1.5f * (float)m->cfg.pole_pairs * (float)m->cfg.pole_pairs / m->cfg.j_kgm2
+                     : 0.0f;
     m->omega_i_rad_s = 0.0f;
     m->omega_rad_s = 0.0f;
     m->i_al_prev = 0.0f;
@@ -88,21 +95,24 @@ void mras_step(mras_t *m, const mras_in_t *in, mras_out_t *out)
     const float theta_prev = m->theta_rad - w * ts; /* theta_hat(k-1) */
     const float w_min = c->min_speed_rad_s;
     const float a_f = MRAS_FILT_RAD_S * ts;
-    float e_d = 0.0f, e_q = 0.0f, eps = 0.0f, ratio = 0.0f, psi_ex = c->psi_f_wb;
+    float e_d = 0.0f, e_q = 0.0f, eps = 0.0f, ratio = 0.0f, psi_ex = c->psi_f_wb, a_ff = 0.0f;
     float emf_d, emf_q, emf;
     bool adapt = false, locked;
 
     if (m->n > 0u) {
         float i_d, i_q;
+        const float sg = m->reverse ? -1.0f : 1.0f; /* the rotor's dq from the frame's */
         mras_model_error(c, m->i_al_prev, m->i_be_prev, in->i_alpha_a, in->i_beta_a, in->u_alpha_v,
                          in->u_beta_v, theta_prev, w, &e_d, &e_q);
         tf_park(in->i_alpha_a, in->i_beta_a, cosf(m->theta_rad), sinf(m->theta_rad), &i_d, &i_q);
+        i_d *= sg;
+        i_q *= sg;
         psi_ex = c->psi_f_wb + (c->l_d_h - c->l_q_h) * i_d;
         if (!(psi_ex > 0.05f * c->psi_f_wb)) {
             psi_ex = 0.05f * c->psi_f_wb;
         }
-        /* the motor's extended EMF in the estimated frame, w psi_ex (sin d, cos d): the model's
-         * own EMF (0, w_hat psi_ex) corrected by the model error */
+        /* torque feed-forward: the acceleration the measured current gives (electrical) */
+        a_ff = m->ff_gain * (c->psi_f_wb + (c->l_d_h - c->l_q_h) * i_d) * i_q;
         {
             /* the model's increment was turned by -w Ts / 2 into the frame of k: turn the error
              * back before reading the EMF from it */
@@ -114,7 +124,7 @@ void mras_step(mras_t *m, const mras_in_t *in, mras_out_t *out)
         if (emf == emf) {
             m->emf_f += a_f * (emf - m->emf_f);
         }
-        if (emf == emf && m->emf_f > w_min * psi_ex) {
+        if (emf == emf && a_ff == a_ff && m->emf_f > w_min * psi_ex) {
             /* the EMF phasor's angle in the model's frame (gain independent of speed) */
             eps = atan2f(emf_d, emf_q);
             ratio = emf / (psi_ex * (fabsf(w) > w_min ? fabsf(w) : w_min));
@@ -126,19 +136,24 @@ void mras_step(mras_t *m, const mras_in_t *in, mras_out_t *out)
     locked = fabsf(w) >= w_min && (float)m->n * ts > 4.0f / c->bw_rad_s &&
              fabsf(m->eps_f) < MRAS_LOCK_EPS && fabsf(m->e_w_f - 1.0f) < MRAS_LOCK_EMF_REL;
 
-    /* Popov PI adaptation on the error signal (held while the EMF is below the range) */
-    if (adapt) {
+    /* Adaptation (Popov's PI on the error, paper B (20), here with the torque feed-forward and a
+     * load-acceleration state: poles at -bw, -bw, -bw); held while the EMF is below the range */
+    {
         const float w_max = c->max_speed_rad_s;
-        m->omega_i_rad_s = clampf(m->omega_i_rad_s + m->ki * ts * eps, -w_max, w_max);
-        m->omega_rad_s = clampf(m->omega_i_rad_s + m->kp * eps, -w_max, w_max);
-    } else {
-        m->omega_rad_s = m->omega_i_rad_s;
+        if (adapt) {
+            m->omega_i_rad_s =
+                clampf(m->omega_i_rad_s + ts * (a_ff + m->acc_rad_s2 + m->l2 * eps), -w_max, w_max);
+            m->acc_rad_s2 = clampf(m->acc_rad_s2 + ts * m->l3 * eps, -MRAS_ACC_MAX, MRAS_ACC_MAX);
+            m->omega_rad_s = clampf(m->omega_i_rad_s + m->l1 * eps, -w_max, w_max);
+        } else {
+            m->omega_rad_s = m->omega_i_rad_s;
+        }
     }
     /* theta_hat(k): the model's frame tracks the EMF phasor, whose q axis is the rotor's for
      * w > 0 and its opposite for w < 0 (hysteresis around standstill) */
-    if (m->omega_rad_s > 0.5f * w_min) {
+    if (m->omega_i_rad_s > 0.5f * w_min) {
         m->reverse = false;
-    } else if (m->omega_rad_s < -0.5f * w_min) {
+    } else if (m->omega_i_rad_s < -0.5f * w_min) {
         m->reverse = true;
     }
     out->theta_e_rad = m->reverse ? tf_wrap_2pi(m->theta_rad + FW_PI_F) : m->theta_rad;
@@ -147,7 +162,7 @@ void mras_step(mras_t *m, const mras_in_t *in, mras_out_t *out)
     m->i_be_prev = in->i_beta_a;
     m->n++;
 
-    out->omega_e_rad_s = m->omega_rad_s;
+    out->omega_e_rad_s = m->omega_i_rad_s;
     out->eps_rad = eps;
     out->locked = locked;
     {

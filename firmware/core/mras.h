@@ -10,10 +10,14 @@
  * In the estimated frame the true extended EMF E = w (psi_f + (L_d - L_q) i_d) lies at the angle
  * error d = theta - theta_hat from the q axis, so the model error e = i(k) - i^(k) is
  *   e_d = Ts/L_d E sin d,    e_q = Ts/L_q (w_hat psi_ex - E cos d)   (psi_ex = E / w)
- * The adaptation (Popov: a PI on the error signal) uses the normalised error signal
- *   eps = e_d L_d / (Ts psi_ex w_hat)  (= sin d, rad for small d)
- * w_hat = w_i + Kp eps, w_i += Ki Ts eps, theta_hat += Ts w_hat (paper B (20), (21)). The PI is
- * designed for a critically damped angle loop of bandwidth bw: Kp = 2 bw, Ki = bw^2.
+ * The motor's EMF is read back from the error: E (sin d, cos d) with E_d = e_d L_d / Ts and
+ * E_q = w_hat psi_ex - e_q L_q / Ts (after undoing the half-period turn of the model's increment),
+ * and the error signal is its angle eps = atan2(E_d, E_q) = d: the gain does not depend on speed.
+ * Adaptation: paper B's PI (20) and theta = int w (21), extended by the torque feed-forward
+ * a_ff = 1.5 p^2 psi_ex i_q / J and a load-acceleration state a:
+ *   w_hat' = a_ff + a + l2 eps,  a' = l3 eps,  theta_hat' = w_hat + l1 eps
+ * with the three poles at -bw (l1 = 3 bw, l2 = 3 bw^2, l3 = bw^3); with J = 0 and l3 = 0 it is
+ * paper B's PI. The frame tracks the EMF phasor: for w < 0 the rotor's d axis is its -d.
  * Below min_speed the EMF carries no usable information: the estimator holds its speed, keeps
  * integrating the angle and reports itself not locked. C28x-safe: float only. */
 #ifndef MRAS_H
@@ -29,6 +33,8 @@ typedef struct {
     float max_speed_rad_s; /* electrical; the estimate is clamped to +-this */
     float theta0_rad;      /* initial estimated angle */
     float r_s_ohm, l_d_h, l_q_h, psi_f_wb;
+    float j_kgm2; /* inertia for the torque feed-forward (0: none) */
+    uint16_t pole_pairs;
 } mras_cfg_t;
 
 typedef struct {
@@ -46,9 +52,11 @@ typedef struct {
 
 typedef struct {
     mras_cfg_t cfg;
-    float kp, ki;                   /* adaptation PI, rad/s per rad and rad/s^2 per rad */
-    float theta_rad, omega_i_rad_s; /* angle at k, integral part of the speed */
-    float omega_rad_s;              /* speed used over [k-1, k) */
+    float l1, l2, l3;               /* observer gains: 3 bw, 3 bw^2, bw^3 */
+    float ff_gain;                  /* 1.5 p^2 / J: torque feed-forward */
+    float theta_rad, omega_i_rad_s; /* angle at k; the speed estimate (observer state) */
+    float acc_rad_s2;               /* load (and model error) acceleration state */
+    float omega_rad_s;              /* the frame's speed over [k-1, k): w_hat + l1 eps */
     float i_al_prev, i_be_prev;     /* measured i(k-1) */
     float emf_f;        /* filtered |E| (V): the adaptation runs above min_speed psi_ex */
     float eps_f, e_w_f; /* filtered error signal; filtered EMF ratio |E| / (|w_hat| psi_ex) */
