@@ -6,7 +6,7 @@
 #include <math.h>
 
 #define MRAS_BW_DEFAULT_RAD_S 300.0f
-#define MRAS_FILT_RAD_S       200.0f /* residual filters for the lock decision */
+#define MRAS_FILT_RAD_S       100.0f /* residual filters for the lock decision */
 #define MRAS_LOCK_EPS         0.25f  /* |filtered error signal| below this (rad) */
 #define MRAS_LOCK_EMF_REL     0.3f   /* |measured EMF| within this fraction of |w_hat| psi_ex */
 #define MRAS_L_MIN_H          1.0e-7f
@@ -52,6 +52,7 @@ void mras_init(mras_t *m, const mras_cfg_t *cfg)
     m->e_w_f = 0.0f;
     m->emf_f = 0.0f;
     m->reverse = false;
+    m->locked = false;
     m->n = 0u;
 }
 
@@ -127,14 +128,21 @@ void mras_step(mras_t *m, const mras_in_t *in, mras_out_t *out)
         if (emf == emf && a_ff == a_ff && m->emf_f > w_min * psi_ex) {
             /* the EMF phasor's angle in the model's frame (gain independent of speed) */
             eps = atan2f(emf_d, emf_q);
-            ratio = emf / (psi_ex * (fabsf(w) > w_min ? fabsf(w) : w_min));
+            const float w_hat = fabsf(m->omega_i_rad_s);
+            ratio = emf / (psi_ex * (w_hat > w_min ? w_hat : w_min));
             adapt = true;
         }
     }
     m->eps_f += a_f * (eps - m->eps_f);
     m->e_w_f += a_f * (ratio - m->e_w_f);
-    locked = fabsf(w) >= w_min && (float)m->n * ts > 4.0f / c->bw_rad_s &&
-             fabsf(m->eps_f) < MRAS_LOCK_EPS && fabsf(m->e_w_f - 1.0f) < MRAS_LOCK_EMF_REL;
+    {
+        /* lock with hysteresis: gained within the bounds, lost beyond 1.5 times them */
+        const float k = m->locked ? 1.5f : 1.0f;
+        locked = fabsf(m->omega_i_rad_s) >= w_min && (float)m->n * ts > 4.0f / c->bw_rad_s &&
+                 fabsf(m->eps_f) < k * MRAS_LOCK_EPS &&
+                 fabsf(m->e_w_f - 1.0f) < k * MRAS_LOCK_EMF_REL;
+        m->locked = locked;
+    }
 
     /* Adaptation (Popov's PI on the error, paper B (20), here with the torque feed-forward and a
      * load-acceleration state: poles at -bw, -bw, -bw); held while the EMF is below the range */
@@ -168,6 +176,8 @@ void mras_step(mras_t *m, const mras_in_t *in, mras_out_t *out)
     {
         const float q1 = fabsf(m->eps_f) / (2.0f * MRAS_LOCK_EPS);
         const float q2 = fabsf(m->e_w_f - 1.0f) / (2.0f * MRAS_LOCK_EMF_REL);
-        out->confidence = fabsf(w) >= w_min ? clampf(1.0f - (q1 > q2 ? q1 : q2), 0.0f, 1.0f) : 0.0f;
+        out->confidence = fabsf(m->omega_i_rad_s) >= w_min
+                              ? clampf(1.0f - (q1 > q2 ? q1 : q2), 0.0f, 1.0f)
+                              : 0.0f;
     }
 }

@@ -62,6 +62,7 @@ typedef struct {
     float eps_f, e_w_f; /* filtered error signal; filtered EMF ratio |E| / (|w_hat| psi_ex) */
     uint32_t n;         /* steps since init */
     bool reverse;       /* w_hat < 0: the rotor's d axis is the frame's -d */
+    bool locked;
 } mras_t;
 
 void mras_init(mras_t *m, const mras_cfg_t *cfg);

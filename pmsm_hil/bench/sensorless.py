@@ -103,6 +103,8 @@ class RunData:
     segments: dict  # name -> (t_start, t_end)
     lock_kept: bool
     faults: str
+    t_truth: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    theta_err_truth: np.ndarray = field(default_factory=lambda: np.zeros(0))  # vs the plant
 
 
 def read_run(log_path: Path, profile) -> RunData:
@@ -122,6 +124,15 @@ def read_run(log_path: Path, profile) -> RunData:
         ev = log.topic("/pmsm/events")
         faults = "; ".join(str(x) for k, x in zip(ev["kind"], ev["text"]) if k == "fault")
     segs = {s.label: (s.t_start_s, s.t_end_s) for s in profile.segments}
+    t_tr, err_tr = np.zeros(0), np.zeros(0)
+    if "/sim/truth" in log.topics:  # the plant's angle where a telemetry row has the same tick
+        tr = log.topic("/sim/truth")
+        tt = np.asarray(tr["t_s"], float)
+        idx = np.searchsorted(t, tt)
+        ok = (idx < len(t)) & (np.abs(t[np.minimum(idx, len(t) - 1)] - tt) < 1e-9)
+        t_tr = tt[ok]
+        est = np.asarray(tel["theta_e_est_rad"], float)[idx[ok]]
+        err_tr = wrap_pi(est - np.asarray(tr["theta_e_rad"], float)[ok])
     return RunData(
         t,
         err,
@@ -131,6 +142,8 @@ def read_run(log_path: Path, profile) -> RunData:
         segs,
         lock_kept and not faults,
         faults,
+        t_tr,
+        err_tr,
     )
 
 
@@ -139,7 +152,7 @@ def _window(run: RunData, t0: float, t1: float) -> np.ndarray:
 
 
 def steady_figures(run: RunData, w: Steady) -> dict:
-    """Angle error mean and RMS, speed-estimate error (mean, and worst of its 10 ms means), speed
+    """Angle error against the encoder (mean, RMS) and against the plant (mean), speed-estimate error (mean, and worst of its 10 ms means), speed
     tracking error (mean) over the window."""
     if w.segment not in run.segments:
         raise BenchError(f"no segment named {w.segment!r} in the run")
@@ -151,7 +164,9 @@ def steady_figures(run: RunData, w: Steady) -> dict:
     ds = run.speed_est[m] - run.speed[m]
     n10 = max(1, int(round(0.01 / max(np.median(np.diff(run.t)), 1e-9))))
     blocks = [ds[i : i + n10].mean() for i in range(0, len(ds) - n10 + 1, n10)] or [ds.mean()]
+    mt = (run.t_truth >= t_end - w.last_s) & (run.t_truth < t_end)
     return {
+        "angle_truth_mean_rad": float(run.theta_err_truth[mt].mean()) if mt.any() else math.nan,
         "angle_mean_rad": float(e.mean()),
         "angle_rms_rad": float(np.sqrt(np.mean(e**2))),
         "speed_est_err_rpm": float(ds.mean()),

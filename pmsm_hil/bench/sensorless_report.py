@@ -22,6 +22,7 @@ from pmsm_hil.bench.sensorless import (
 
 # figure key -> (column title, format, how "worst" is taken)
 STEADY_COLS = (
+    ("angle_truth_mean_rad", "angle mean vs plant rad", "{:+.4f}", "abs"),
     ("angle_mean_rad", "angle mean rad", "{:+.4f}", "abs"),
     ("angle_rms_rad", "angle RMS rad", "{:.4f}", "max"),
     ("speed_est_err_rpm", "speed est. err r/min", "{:+.2f}", "abs"),
