@@ -67,6 +67,11 @@ static float smooth_sign(float i, float i_dt)
     return x * (27.0f + x2) / (27.0f + 9.0f * x2);
 }
 
+static float clampf(float x, float lo, float hi)
+{
+    return x < lo ? lo : (x > hi ? hi : x);
+}
+
 static float clamp01(float x)
 {
     return x < 0.0f ? 0.0f : (x > 1.0f ? 1.0f : x);
@@ -131,9 +136,14 @@ void foc_step(foc_t *c, const foc_in_t *in, foc_out_t *out)
         float q_room = sqrtf(u_max * u_max - ud_l * ud_l);
         float uq_l = u_q > q_room ? q_room : (u_q < -q_room ? -q_room : u_q);
         if (ud_l != u_d || uq_l != u_q) {
+            /* conditional integration: this period's integration is taken back, and each
+             * integrator is held where its output alone (with the feed-forward) stays within
+             * the range */
             out->limited = true;
-            c->x_d_v += ud_l - u_d;
-            c->x_q_v += uq_l - u_q;
+            c->x_d_v -= ki_d * ts * e_d;
+            c->x_q_v -= ki_q * ts * e_q;
+            c->x_d_v = clampf(c->x_d_v, -u_max - ff_d, u_max - ff_d);
+            c->x_q_v = clampf(c->x_q_v, -u_max - ff_q, u_max - ff_q);
         }
         u_d = ud_l;
         u_q = uq_l;

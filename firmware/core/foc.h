@@ -8,8 +8,8 @@
  *        u_d = PI_d(i_d* - i_d(k+1)) - w L_q i_q(k+1)
  *        u_q = PI_q(i_q* - i_q(k+1)) + w (L_d i_d(k+1) + psi_f)
  *      (the PI's integral carries the resistive drop),
- *   3. limits |u| to the linear range v_dc / sqrt(3) (d axis first), holds the integrators
- *      where the limit cuts (back-calculation anti-windup),
+ *   3. limits |u| to the linear range v_dc / sqrt(3) (d axis first); while it cuts, the
+ *      integrators do not integrate and stay within what the range allows (anti-windup),
  *   4. turns u to the stationary frame at theta + 1.5 w Ts (the middle of [k+1, k+2)) and
  *      modulates it: min-max zero-sequence injection (= SVPWM) and per-leg dead-time
  *      compensation d += (Td / Ts + V_drop / v_dc) sigma(i_x).
