@@ -177,3 +177,39 @@ def test_bad_sensorless_options_are_reported_with_file_line_and_value(
     msg = str(ei.value)
     line = next(i + 1 for i, x in enumerate(path.read_text().splitlines()) if x.strip() == control)
     assert f"bad.yaml:{line}" in msg and field in msg and value in msg
+
+
+@pytest.mark.parametrize("cands", ["adjacent", "all"])
+def test_mpcc_candidate_set_is_selectable(tmp_path, cands):
+    """Paper A Table 1's set changes exactly one leg per period (single-leg flips); all 8 states
+    also switch two or three legs at once, or none."""
+    path = tmp_path / "p.yaml"
+    path.write_text(
+        profile_text(
+            f"""
+            current_ctrl: mpcc
+            mpcc_candidates: {cands}
+            """,
+            """
+            - {name: up, duration_s: 0.2, speed_rpm: 240, ramp_rpm_s: 2400, capture: true}
+            - {name: hold, duration_s: 0.1, speed_rpm: 240}
+            """,
+            MOTOR_A,
+            "50.0e-6",
+        )
+    )
+    out = tmp_path / "run.mcap"
+    _, result = run_inproc(path, out, seed=5)
+    assert result.faults == 0 and result.state == "done"
+    cap = read_log(out).topic("/pmsm/capture")
+    code = (
+        np.asarray(cap["s_a"], int)
+        | (np.asarray(cap["s_b"], int) << 1)
+        | (np.asarray(cap["s_c"], int) << 2)
+    )
+    assert len(code) > 500
+    flips = np.array([bin(int(x)).count("1") for x in code[1:] ^ code[:-1]])
+    if cands == "adjacent":
+        assert np.all(flips == 1)
+    else:
+        assert np.any(flips != 1)
