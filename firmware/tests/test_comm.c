@@ -220,8 +220,8 @@ static void test_sequence_on_the_plant(void)
     CHECK_NEAR(res[PROTO_COMMISSION_STEP_OFFSETS][1], -0.03, 0.005, "offset b");
     CHECK_NEAR(res[PROTO_COMMISSION_STEP_OFFSETS][2], 0.02, 0.005, "offset c");
     CHECK_NEAR(res[PROTO_COMMISSION_STEP_ENCODER][0], -0.021, 0.0035, "encoder offset (0.2 deg)");
-    CHECK_NEAR(res[PROTO_COMMISSION_STEP_INVERTER][0], 540.0 * 2.5e-6 / 50e-6 + 1.5,
-               0.05 * 28.5, "dead-time plateau");
+    CHECK_NEAR(res[PROTO_COMMISSION_STEP_INVERTER][0], 540.0 * 2.5e-6 / 50e-6 + 1.5, 0.05 * 28.5,
+               "dead-time plateau");
     CHECK_NEAR(res[PROTO_COMMISSION_STEP_R_S][0], 0.9, 0.018, "R");
     CHECK_NEAR(res[PROTO_COMMISSION_STEP_L_DQ][0], 0.005, 0.00025, "L_d");
     CHECK_NEAR(res[PROTO_COMMISSION_STEP_L_DQ][1], 0.012, 0.0006, "L_q");

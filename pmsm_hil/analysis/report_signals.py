@@ -132,13 +132,30 @@ def estimation_error(ctx: RunContext) -> Figure | str:
             "estimator ran): the estimation error is zero by construction"
         )
     t = tel["t_s"]
-    fig, axes = figure(ctx, "Angle and speed estimation error (estimate − encoder)", 2)
+    name, unlocked = "", []
+    if ctx.has("/pmsm/estimator"):
+        est = ctx.topic("/pmsm/estimator")
+        names = sorted(set(est["estimator"]))
+        name = f" - {', '.join(names)}" if names else ""
+        te = np.asarray(est["t_s"], float)
+        bad = ~np.asarray(est["locked"], bool) & np.asarray(est["in_loop"], bool)
+        unlocked = te[bad]
+    fig, axes = figure(ctx, f"Angle and speed estimation error (estimate − encoder){name}", 2)
     axes[0].plot(t, np.degrees(d_theta), lw=0.6, color="C4", label="θe,est − θe")
     axes[0].set_ylabel("angle error (° electrical)")
     axes[1].plot(t, d_speed, lw=0.6, color="C2", label="n_est − n")
     axes[1].set_ylabel("speed error (r/min)")
     for i, ax in enumerate(axes):
         ax.axhline(0.0, color="k", lw=0.6)
+        if len(unlocked):
+            ax.plot(
+                unlocked,
+                np.zeros(len(unlocked)),
+                "|",
+                color="C3",
+                ms=8,
+                label="closing the loop out of lock" if i == 0 else None,
+            )
         segment_markers(ax, ctx, label=i == 0)
         legend(ax)
     time_axis(axes[-1])

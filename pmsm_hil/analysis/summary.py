@@ -64,6 +64,7 @@ class RunSummary:
     partial: list[int] = field(default_factory=list)  # segments the log shows cut short
     ended: str = ""  # "profile end", "stopped: REASON", or "" (the log just ends)
     problems: list[str] = field(default_factory=list)  # truncated file, no summary section, ...
+    estimator: dict | None = None  # the angle estimator closing the loop (estimator_stats)
 
     @property
     def complete(self) -> bool:
@@ -94,6 +95,7 @@ class RunSummary:
             "partial": self.partial,
             "problems": self.problems,
             "segments": [asdict(s) for s in self.segments],
+            "estimator": self.estimator,
         }
 
 
@@ -272,7 +274,45 @@ def summarize_log(path: Path) -> RunSummary:
         log.topic("/pmsm/telemetry"), log.topic("/pmsm/events"), names, str(path), truth
     )
     summary.problems = log_problems(log)
+    if "/pmsm/estimator" in log.topics:
+        summary.estimator = estimator_stats(log.topic("/pmsm/estimator"))
     return summary
+
+
+def estimator_stats(est: dict) -> dict | None:
+    """The angle estimator's figures over its frames while it closed the loop: its name, the
+    angle error against the encoder (mean, RMS, largest), and where it was out of lock."""
+    in_loop = np.asarray(est["in_loop"], bool)
+    if not len(in_loop):
+        return None
+    t = np.asarray(est["t_s"], float)
+    err = np.asarray(est["theta_err_rad"], float)[in_loop]
+    unlocked = t[in_loop & ~np.asarray(est["locked"], bool)]
+    return {
+        "estimator": ", ".join(sorted(set(est["estimator"]))),
+        "in_loop_s": float(np.sum(in_loop) * np.median(np.diff(t))) if len(t) > 1 else 0.0,
+        "theta_err_mean_rad": float(err.mean()) if err.size else None,
+        "theta_err_rms_rad": float(np.sqrt(np.mean(err**2))) if err.size else None,
+        "theta_err_max_rad": float(np.max(np.abs(err))) if err.size else None,
+        "unlocked_frames": int(unlocked.size),
+        "first_unlocked_s": float(unlocked[0]) if unlocked.size else None,
+    }
+
+
+def estimator_text(e: dict) -> str:
+    if e["theta_err_mean_rad"] is None:
+        return f"estimator {e['estimator']}: ran beside the encoder only"
+    lock = (
+        "locked throughout"
+        if not e["unlocked_frames"]
+        else f"[red]out of lock in {e['unlocked_frames']} frames from t = "
+        f"{e['first_unlocked_s']:.3f} s[/]"
+    )
+    return (
+        f"estimator {e['estimator']} closed the loop for {e['in_loop_s']:.2f} s: theta_err "
+        f"mean {e['theta_err_mean_rad']:+.4f} rad, RMS {e['theta_err_rms_rad']:.4f}, largest "
+        f"{e['theta_err_max_rad']:.4f}; {lock}"
+    )
 
 
 # columns of the printed summary: (header, short header, priority: the lowest goes first when narrow)
@@ -368,6 +408,8 @@ def print_summary(
         console.print(f"[red]fault[/] {f}")
     for p in summary.problems:
         console.print(f"[yellow]log[/] {p}")
+    if summary.estimator:
+        console.print(estimator_text(summary.estimator), highlight=False)
     console.print(
         f"{len(summary.segments)} segments, {summary.duration_s:.2f} s: "
         f"{verdict_text(summary, interrupted)}",

@@ -10,7 +10,9 @@ from pmsm_hil.cli.errors import fail
 
 def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
-        "bench", help="reproducible benchmarks on the emulator (identify: paper A Table 2)"
+        "bench",
+        help="reproducible benchmarks on the emulator (identify: paper A Table 2; sensorless: "
+        "angle estimators closing the loop)",
     )
     bsub = p.add_subparsers(dest="bench", required=True, metavar="BENCH")
     b = bsub.add_parser(
@@ -81,9 +83,28 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     c.add_argument("--rigs", default="default,lab-typical", help="comma-separated rigs")
     c.add_argument("--seeds", default="1-10", help="e.g. 1-10 or 1,2,3")
     c.add_argument("--out", "-o", default="runs/bench-commission", help="directory for logs, table")
+    s = bsub.add_parser(
+        "sensorless",
+        help="sensorless estimators closing the loop: angle and speed errors per scenario and rig "
+        "(median and worst over seeds) beside the papers' figures, with plots",
+    )
+    s.add_argument(
+        "--out", "-o", default="runs/bench-sensorless", help="directory for logs, table, plots"
+    )
+    s.add_argument("--seeds", default="11,12,13", help="comma-separated seeds (default 11,12,13)")
+    s.add_argument(
+        "--rigs",
+        default="default,lab-typical",
+        help="comma-separated rigs (shipped names or files; default default,lab-typical)",
+    )
+    s.add_argument(
+        "--only", default=None, help="only the scenarios whose profile or name contains this"
+    )
 
 
 def main(args: argparse.Namespace) -> int:
+    if args.bench == "sensorless":
+        return _sensorless(args)
     if args.bench == "commission":
         from pmsm_hil.bench.commission import bench_commission, parse_seeds
 
@@ -132,6 +153,25 @@ def main(args: argparse.Namespace) -> int:
         if args.per_effect or args.only == "per-effect":
             out.mkdir(parents=True, exist_ok=True)
             per_effect(path, out, args.seed)
+    except ProfileError as e:
+        return fail("error", str(e), 2)
+    except BenchError as e:
+        return fail("error", str(e), 3)
+    return 0
+
+
+def _sensorless(args: argparse.Namespace) -> int:
+    from pmsm_hil.bench.identify import BenchError
+    from pmsm_hil.bench.sensorless_report import sensorless
+    from pmsm_hil.profiles import ProfileError
+
+    try:
+        seeds = tuple(int(x) for x in args.seeds.split(",") if x.strip())
+    except ValueError:
+        return fail("error", f"--seeds: not a list of integers: {args.seeds!r}", 2)
+    rigs = tuple(x.strip() for x in args.rigs.split(",") if x.strip())
+    try:
+        sensorless(Path(args.out), seeds, rigs, args.only)
     except ProfileError as e:
         return fail("error", str(e), 2)
     except BenchError as e:

@@ -108,6 +108,19 @@ def _width(console, options, renderable) -> int:
     return Measurement.get(console, options.update(width=10_000), renderable).maximum
 
 
+def estimator_text(e: dict, markup: bool = True) -> str:
+    """One line on the angle estimator: name, lock, confidence, angle error against the encoder."""
+    lock = "locked" if e.get("locked") else "NOT LOCKED"
+    if markup:
+        lock = f"[{'green' if e.get('locked') else 'red'}]{lock}[/]"
+    loop = "closes the loop" if e.get("in_loop") else "beside the encoder"
+    return (
+        f"estimator {e.get('estimator', '?')} {lock} ({loop}), confidence "
+        f"{e.get('confidence', 0.0):.2f}, theta_err {e.get('theta_err_rad', 0.0):+.4f} rad, "
+        f"speed err {e.get('speed_err_rpm', 0.0):+.1f} r/min"
+    )
+
+
 class _Screen:
     """The live panel, laid out for the console it is drawn on: the three tables side by side
     when they fit, else stacked; as many recent events as the height leaves room for."""
@@ -161,6 +174,8 @@ class _Screen:
                 if _width(console, options, par) > inner:
                     par = _parameters(live, errors=False, fold=True)
             rows.append(par)
+        if live.estimator:
+            rows.append(Text.from_markup(estimator_text(live.estimator)))
         if any(n != "nominal" or p.get("feeds_predictor") for n, p in live.params.items()):
             legend = next(
                 (x for x in (FLAGS_LEGEND, FLAGS_LEGEND_SHORT) if len(x) <= inner),
@@ -243,7 +258,8 @@ class PlainProgress:
             f"t={live.t_s:7.2f}/{live.total_s:.2f} s  seg {live.segment:2d}  {live.state:8s} "
             f"speed {t.get('speed_ref_rpm', 0):7.1f}/{t.get('speed_rpm', 0):7.1f} r/min  "
             f"i_d {t.get('i_d_a', 0):6.2f} A  i_q {t.get('i_q_a', 0):6.2f} A  "
-            f"frames {live.frames}  bad {live.bad_frames}  {live.realtime_factor:.1f}x",
+            f"frames {live.frames}  bad {live.bad_frames}  {live.realtime_factor:.1f}x"
+            + (f"\n    {estimator_text(live.estimator, markup=False)}" if live.estimator else ""),
             file=self.stream,
             flush=True,
         )

@@ -27,10 +27,18 @@ from pmsm_hil.log.schemas import TOPICS
 
 DEFAULT_PORT = 8765
 HOST = "127.0.0.1"
-LIVE_TOPICS = ("/pmsm/telemetry", "/pmsm/params", "/pmsm/status", "/pmsm/events", "/sim/truth")
+LIVE_TOPICS = (
+    "/pmsm/telemetry",
+    "/pmsm/estimator",
+    "/pmsm/params",
+    "/pmsm/status",
+    "/pmsm/events",
+    "/sim/truth",
+)
 # messages per second per key (topic, or topic + estimator), in device time and in wall time
 RATE_HZ = {
     "/pmsm/telemetry": 200.0,
+    "/pmsm/estimator": 100.0,
     "/pmsm/params": 50.0,
     "/sim/truth": 100.0,
     "/pmsm/status": 20.0,
