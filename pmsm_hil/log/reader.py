@@ -3,12 +3,18 @@
     log = read_log("run.mcap")
     tel = log.topic("/pmsm/telemetry")      # {"t_s": array, "speed_rpm": array, ...}
     log.metadata["run"]["seed"], log.attachment("profile.yaml").text
+    log = read_log("run.mcap", topics={"/pmsm/telemetry": ("t_s", "speed_rpm"), "/pmsm/events": None})
 
-The file is read front to back (the summary section is not needed), so a log whose writer was
-killed gives every message of every chunk that reached the disk; ``log.finalised`` tells whether
-the summary and footer are there. Flat schemas (primitives and strings: all of ours, and any other
-such ros2msg) are decoded by the project's CDR codec, vectorised with numpy for fixed layouts;
-anything else falls back to ``mcap_ros2``'s decoder.
+The file is read front to back, record by record and chunk by chunk (never whole), so a log whose
+writer was killed gives every message of every chunk that reached the disk; ``log.finalised``
+tells whether the summary and footer are there. With ``topics`` only those topics (and of each only
+the fields named; ``None``: all) are decoded, chunk by chunk into columns, so the memory held is
+what is asked for; in a finalised file (its summary names every channel) a chunk whose message
+indexes hold none of the asked topics is not even decompressed (``log.chunks_read``,
+``log.chunks_skipped``). A topic not asked for is read on first use by another pass over the file.
+Flat schemas (primitives and strings: all of ours, and any other such ros2msg) are decoded by the
+project's CDR codec, vectorised with numpy (pmsm_hil.log.columns); anything else falls back to
+``mcap_ros2``'s decoder.
 
 The records are read by the ``mcap`` library's record classes and chunk decompression; what is
 kept here is what its readers cannot do fast enough (docs/log-format.md, "Reading: the decision";
@@ -24,12 +30,14 @@ import re
 import struct
 import zlib
 from dataclasses import dataclass, field
+from typing import Iterable, Mapping
 
 import numpy as np
 from mcap import records as mr
 from mcap.data_stream import ReadDataStream
 from mcap.stream_reader import get_chunk_data_stream
 
+from pmsm_hil.log.columns import DecodeError, decode_columns, gather
 from pmsm_hil.log.schemas import PRIMITIVES, TOPICS, Codec, FieldDef, TopicDef, codec_for
 from pmsm_hil.log.writer import MCAP_MAGIC
 
@@ -38,7 +46,10 @@ __all__ = ["read_log", "rewrite_log", "Log", "Attachment", "LogFormatError"]
 _REC = struct.Struct("<BQ")
 _U16 = struct.Struct("<H").unpack_from
 _U32 = struct.Struct("<I").unpack_from
+_U64 = struct.Struct("<Q").unpack_from
 _MSG = struct.Struct("<HIQQ").unpack_from
+_FOOTER = 1 + 8 + 20  # opcode, length, summary_start, summary_offset_start, crc
+_BATCH_OCTETS = 8 << 20  # message data gathered across chunks before it is decoded at once
 
 
 def _read(cls, content) -> object:
@@ -70,9 +81,19 @@ class _Chan:
     schema_id: int
     encoding: str
     metadata: dict
-    lts: list = field(default_factory=list)  # arrays of log times (uint64)
-    fixed_blocks: list = field(default_factory=list)  # 2-D uint8 arrays (n, size): fixed layout
-    var_data: list = field(default_factory=list)  # bytes per message: other layouts
+    wanted: bool = True  # decoded (asked for, or all topics asked for)
+    fields: tuple | None = None  # the fields asked for (None: all)
+    lts: list = field(default_factory=list)  # arrays of log times (uint64), per batch
+    parts: dict = field(default_factory=dict)  # field -> decoded column arrays, per batch
+    pending: list = field(default_factory=list)  # message data not decoded yet (uint8 arrays)
+    pending_sizes: list = field(default_factory=list)  # their sizes (int64 arrays)
+    pending_octets: int = 0
+    expected: int = -1  # message count from the summary's statistics (-1: unknown)
+    out: dict = field(default_factory=dict)  # field -> column allocated for `expected` messages
+    out_lt: np.ndarray | None = None
+    filled: int = 0  # messages decoded into `out`
+    var_data: list = field(default_factory=list)  # bytes per message: schemas not flat
+    error: str = ""  # why the messages cannot be decoded (raised by Log.topic)
     count: int = 0
 
 
@@ -124,6 +145,8 @@ class Log:
         self.finalised = False  # summary and footer present
         self.truncated = False  # the file ends inside a record
         self.problems: list[str] = []
+        self.chunks_read = 0  # chunks decompressed
+        self.chunks_skipped = 0  # chunks left compressed: none of the asked topics in them
         self._schemas: dict[int, _Schema] = {}
         self._chans: dict[int, _Chan] = {}
         self._by_topic: dict[str, _Chan] = {}
@@ -165,7 +188,8 @@ class Log:
         return self._times.get(topic, np.empty(0, dtype=np.uint64))
 
     def topic(self, name: str) -> dict[str, np.ndarray]:
-        """Columns of a topic, one numpy array per field, ordered by log time (stable).
+        """Columns of a topic, one numpy array per field (those asked for in ``read_log``),
+        ordered by log time (stable).
 
         A topic of the log contract that has no message in the file gives empty columns; any other
         missing topic raises KeyError.
@@ -179,14 +203,50 @@ class Log:
             raise KeyError(
                 f"{self.path}: no topic {name!r} (topics: {', '.join(self.topics) or 'none'})"
             )
-        cols, lt = self._decode(ch)
-        if len(lt) > 1 and np.any(np.diff(lt.astype(np.int64)) < 0):
+        if not ch.wanted:  # not asked for: one more pass over the file for it alone
+            other = read_log(self.path, topics=[name])
+            self._cache[name] = other.topic(name)
+            self._times[name] = other._times[name]
+            return self._cache[name]
+        if ch.error:
+            raise ValueError(ch.error)
+        codec = self._codec(ch)
+        if codec is None:
+            lt = np.concatenate(ch.lts) if ch.lts else np.empty(0, dtype=np.uint64)
+            ch.lts = []
+            cols = self._decode_fallback(ch, ch.var_data)
+        else:
+            lt, cols = self._assemble(ch, codec)
+        if len(lt) > 1 and np.any(lt[1:] < lt[:-1]):
             order = np.argsort(lt, kind="stable")
             lt = lt[order]
             cols = {k: v[order] for k, v in cols.items()}
         self._cache[name] = cols
         self._times[name] = lt
         return cols
+
+    @staticmethod
+    def _assemble(ch: _Chan, codec: Codec) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """The decoded batches of a channel as whole columns: the columns allocated for the
+        count in the summary, else the batches joined one column at a time."""
+        empty = codec.empty()
+        names = [k for k in codec.names if ch.fields is None or k in ch.fields]
+        if ch.out_lt is not None and not ch.parts and ch.filled == len(ch.out_lt):
+            lt, cols = ch.out_lt, {k: ch.out[k] for k in names}
+            ch.out_lt, ch.out = None, {}
+            return lt, cols
+        if ch.out_lt is not None:  # fewer or more messages than the statistics said
+            ch.parts = {
+                k: [(ch.out_lt if k == "" else ch.out[k])[: ch.filled]] + ch.parts.get(k, [])
+                for k in ["", *names]
+            }
+            ch.out_lt, ch.out = None, {}
+        cols = {}
+        for k in ["", *names]:
+            parts = ch.parts.pop(k, [])
+            cols[k] = np.concatenate(parts) if parts else empty.get(k, np.empty(0, np.uint64))
+            del parts  # the batches go as each column is joined
+        return cols.pop("").astype(np.uint64), cols
 
     def _codec(self, ch: _Chan) -> Codec | None:
         if ch.id in self._codecs:
@@ -208,33 +268,6 @@ class Log:
         self._codecs[ch.id] = codec
         return codec
 
-    def _decode(self, ch: _Chan) -> tuple[dict[str, np.ndarray], np.ndarray]:
-        lt = np.concatenate(ch.lts).astype(np.uint64) if ch.lts else np.empty(0, dtype=np.uint64)
-        codec = self._codec(ch)
-        if codec is not None and codec.fixed:
-            blocks = list(ch.fixed_blocks)
-            if ch.var_data:  # then fixed_blocks is empty (see _Parser._add_var)
-                if any(len(d) != codec.size for d in ch.var_data):
-                    raise ValueError(
-                        f"{self.path}: {ch.topic}: messages of the wrong size for "
-                        f"{codec.topic.schema_name}"
-                    )
-                blocks.append(
-                    np.frombuffer(b"".join(ch.var_data), dtype=np.uint8).reshape(-1, codec.size)
-                )
-            buf = np.concatenate(blocks) if blocks else np.empty((0, codec.size), np.uint8)
-            if buf.shape[1] != codec.size:
-                raise ValueError(
-                    f"{self.path}: {ch.topic}: message size {buf.shape[1]} does not match "
-                    f"the schema ({codec.size})"
-                )
-            return codec.decode_columns(buf.tobytes(), len(buf)), lt
-        datas = ch.var_data + [bytes(r) for b in ch.fixed_blocks for r in b]
-        if codec is not None:
-            sizes = np.array([len(d) for d in datas], dtype=np.int64)
-            return codec.decode_columns(b"".join(datas), len(datas), sizes), lt
-        return self._decode_fallback(ch, datas), lt
-
     def _decode_fallback(self, ch: _Chan, datas: list[bytes]) -> dict[str, np.ndarray]:
         from mcap.records import Schema
         from mcap_ros2.decoder import DecoderFactory
@@ -255,6 +288,8 @@ class Log:
         names = list(getattr(type(msgs[0]), "__slots__", ()) or vars(msgs[0]).keys())
         cols = {}
         for n in names:
+            if ch.fields is not None and n not in ch.fields:
+                continue
             vals = [getattr(m, n) for m in msgs]
             arr = np.array(vals) if all(isinstance(v, (int, float, bool)) for v in vals) else None
             if arr is None:
@@ -266,83 +301,134 @@ class Log:
 
 # ----------------------------------------------------------------------------------- parsing
 
+Wanted = Mapping[str, "Iterable[str] | None"]
+
 
 class _Parser:
-    def __init__(self, log: Log, buf: bytes):
+    def __init__(self, log: Log, f, size: int, wanted: Wanted | None):
         self.log = log
-        self.buf = buf
-        self.mv = memoryview(buf)
+        self.f = f
+        self.size = size
+        self.wanted = (
+            None
+            if wanted is None
+            else {t: (None if v is None else tuple(v)) for t, v in wanted.items()}
+        )
+        # every channel known up front (the summary of a finalised file): chunks may be skipped
+        self.all_known = False
 
-    # records that may appear in the data section or inside chunks
-    def _schema(self, c: memoryview) -> None:
+    def _at(self, p: int, n: int) -> bytes:
+        self.f.seek(p)
+        return self.f.read(n)
+
+    # records that may appear in the data section, the summary or inside chunks
+    def _schema(self, c) -> None:
         r = _read(mr.Schema, c)
         self.log._schemas[r.id] = _Schema(r.id, r.name, r.encoding, bytes(r.data))
 
-    def _channel(self, c: memoryview) -> None:
+    def _channel(self, c) -> None:
         r = _read(mr.Channel, c)
-        if r.id not in self.log._chans:
-            ch = _Chan(r.id, r.topic, r.schema_id, r.message_encoding, dict(r.metadata))
-            self.log._chans[r.id] = ch
-            self.log._by_topic.setdefault(r.topic, ch)
+        if r.id in self.log._chans:
+            return
+        ch = _Chan(r.id, r.topic, r.schema_id, r.message_encoding, dict(r.metadata))
+        if self.wanted is not None:
+            ch.wanted = r.topic in self.wanted
+            ch.fields = self.wanted.get(r.topic)
+        self.log._chans[r.id] = ch
+        self.log._by_topic.setdefault(r.topic, ch)
 
     def run(self) -> None:
-        log, buf, mv = self.log, self.buf, self.mv
-        if not buf.startswith(MCAP_MAGIC):
+        log, size = self.log, self.size
+        if self._at(0, len(MCAP_MAGIC)) != MCAP_MAGIC:
             raise LogFormatError(f"{log.path}: not an MCAP file (bad magic)")
-        n = len(buf)
+        self._summary_channels()
         p = len(MCAP_MAGIC)
-        pending: tuple | None = None  # (chunk records, {channel: index array}) awaiting indexes
+        pending: tuple | None = None  # (chunk start, length, {channel: index array})
         while True:
-            if p + 9 > n:
-                if p < n:
+            if p + 9 > size:
+                if p < size:
                     log.truncated = True
                 break
-            op, length = _REC.unpack_from(buf, p)
+            op, length = _REC.unpack(self._at(p, 9))
             end = p + 9 + length
-            if end > n:
+            if end > size:
                 log.truncated = True
                 break
-            c = mv[p + 9 : end]
             if op == 0x07 and pending is not None:  # message index of the pending chunk
+                c = self.f.read(length)
                 (cid,) = _U16(c, 0)
                 (ln,) = _U32(c, 2)
-                pending[1][cid] = np.frombuffer(c[6 : 6 + ln], dtype="<u8").reshape(-1, 2)
+                pending[2][cid] = np.frombuffer(c, dtype="<u8", count=ln // 8, offset=6).reshape(
+                    -1, 2
+                )
                 p = end
                 continue
             if pending is not None:
                 self._chunk_done(*pending)
                 pending = None
             if op == 0x06:
-                pending = (self._open_chunk(c), {})
-            elif op == 0x05:
-                cid, _, lt, _ = _MSG(c, 0)
-                self._add_one(cid, lt, bytes(c[22:]))
-            elif op == 0x03:
-                self._schema(c)
-            elif op == 0x04:
-                self._channel(c)
-            elif op == 0x01:
-                r = _read(mr.Header, c)
-                log.profile, log.library = r.profile, r.library
-            elif op == 0x0C:
-                r = _read(mr.Metadata, c)
-                log.metadata.setdefault(r.name, {}).update(r.metadata)
-            elif op == 0x09:
-                self._attachment(c)
+                pending = (p + 9, length, {})
             elif op == 0x0F:  # data end: the summary follows
                 log.finalised = self._has_footer()
                 break
+            elif op in (0x05, 0x03, 0x04, 0x01, 0x0C, 0x09):
+                c = self._at(p + 9, length)
+                if op == 0x05:
+                    cid, _, lt, _ = _MSG(c, 0)
+                    self._add_one(cid, lt, c[22:])
+                elif op == 0x03:
+                    self._schema(c)
+                elif op == 0x04:
+                    self._channel(c)
+                elif op == 0x01:
+                    r = _read(mr.Header, c)
+                    log.profile, log.library = r.profile, r.library
+                elif op == 0x0C:
+                    r = _read(mr.Metadata, c)
+                    log.metadata.setdefault(r.name, {}).update(r.metadata)
+                else:
+                    self._attachment(c)
             p = end
         if pending is not None:
             self._chunk_done(*pending)
+        for ch in log._chans.values():
+            self._decode_pending(ch)
 
     def _has_footer(self) -> bool:
-        buf = self.buf
-        if len(buf) < 8 + 29 or not buf.endswith(MCAP_MAGIC):
+        if self.size < len(MCAP_MAGIC) + _FOOTER:
             return False
-        return buf[-8 - 29] == 0x02
+        tail = self._at(self.size - len(MCAP_MAGIC) - _FOOTER, len(MCAP_MAGIC) + _FOOTER)
+        return tail.endswith(MCAP_MAGIC) and tail[0] == 0x02
 
-    def _attachment(self, c: memoryview) -> None:
+    def _summary_channels(self) -> None:
+        """The schemas and channels of a finalised file's summary section: with every channel
+        known, a chunk without an asked topic need not be opened."""
+        if not self._has_footer():
+            return
+        (start,) = _U64(self._at(self.size - len(MCAP_MAGIC) - _FOOTER + 9, 8))
+        stop = self.size - len(MCAP_MAGIC) - _FOOTER
+        if not len(MCAP_MAGIC) <= start <= stop:
+            return
+        summary = self._at(start, stop - start)
+        p, n, seen, stats = 0, len(summary), False, None
+        while p + 9 <= n:
+            op, ln = _REC.unpack_from(summary, p)
+            c = summary[p + 9 : p + 9 + ln]
+            if op == 0x03:
+                self._schema(c)
+            elif op == 0x04:
+                self._channel(c)
+                seen = True
+            elif op == 0x0B:
+                stats = _read(mr.Statistics, c)
+            p += 9 + ln
+        self.all_known = seen and p == n
+        if self.all_known and stats is not None:
+            for cid, count in stats.channel_message_counts.items():
+                if cid in self.log._chans:
+                    self.log._chans[cid].expected = int(count)
+
+    def _attachment(self, c: bytes) -> None:
         r = _read(mr.Attachment, c)  # the library skips the CRC: checked here
         (crc,) = _U32(c, len(c) - 4)
         if crc and crc != zlib.crc32(c[: len(c) - 4]):
@@ -351,7 +437,7 @@ class _Parser:
             Attachment(r.name, r.media_type, bytes(r.data), r.log_time, r.create_time)
         )
 
-    def _open_chunk(self, c: memoryview) -> bytes | None:
+    def _open_chunk(self, c: bytes) -> bytes | None:
         try:
             chunk = _read(mr.Chunk, c)
             if chunk.compression not in ("", "zstd", "lz4"):
@@ -369,27 +455,96 @@ class _Parser:
             return None
         return records
 
+    def _chunk_done(self, start: int, length: int, indexes: dict[int, np.ndarray]) -> None:
+        chans = self.log._chans
+        if (
+            self.all_known
+            and indexes
+            and all(cid in chans for cid in indexes)
+            and not any(chans[cid].wanted for cid, idx in indexes.items() if len(idx))
+        ):
+            for cid, idx in indexes.items():
+                chans[cid].count += len(idx)
+            self.log.chunks_skipped += 1
+            return
+        records = self._open_chunk(self._at(start, length))
+        if records is None:
+            return
+        self.log.chunks_read += 1
+        if indexes and self._chunk_indexed(records, indexes):
+            return
+        self._chunk_sequential(records)
+
+    def _take(self, ch: _Chan, buf: np.ndarray, starts, sizes, lts) -> None:
+        """A batch of one channel's messages (data at ``starts`` in ``buf``) into its columns."""
+        ch.count += len(starts)
+        if not ch.wanted or ch.error:
+            return
+        lts = np.asarray(lts, dtype=np.uint64)
+        codec = self.log._codec(ch)
+        starts = np.asarray(starts, dtype=np.int64)
+        sizes = np.asarray(sizes, dtype=np.int64)
+        if codec is None:
+            ch.lts.append(lts)
+            ch.var_data.extend(
+                buf[a : a + n].tobytes() for a, n in zip(starts.tolist(), sizes.tolist())
+            )
+            return
+        if codec.fixed and np.any(sizes != codec.size):
+            ch.error = (
+                f"{self.log.path}: {ch.topic}: messages of the wrong size for "
+                f"{codec.topic.schema_name}"
+            )
+            return
+        ch.pending.append(gather(buf, starts, sizes))
+        ch.pending_sizes.append(sizes)
+        ch.lts.append(lts)
+        ch.pending_octets += int(sizes.sum())
+        if ch.pending_octets >= _BATCH_OCTETS:
+            self._decode_pending(ch)
+
+    def _decode_pending(self, ch: _Chan) -> None:
+        """The gathered messages of a channel decoded into its columns at once (few, large
+        numpy operations instead of a few per chunk)."""
+        if not ch.pending:
+            return
+        buf = np.concatenate(ch.pending) if len(ch.pending) > 1 else ch.pending[0]
+        sizes = np.concatenate(ch.pending_sizes)
+        lts = np.concatenate(ch.lts)
+        ch.pending, ch.pending_sizes, ch.pending_octets, ch.lts = [], [], 0, []
+        starts = np.cumsum(sizes) - sizes
+        try:
+            cols = decode_columns(self.log._codec(ch), buf, starts, sizes, ch.fields)
+        except (DecodeError, UnicodeDecodeError) as e:
+            ch.error = f"{self.log.path}: {ch.topic}: {e}"
+            return
+        n = len(lts)
+        if ch.expected >= 0 and ch.filled + n <= ch.expected and not ch.parts:
+            # into columns of the final length (a finalised file's statistics): no second copy
+            if ch.out_lt is None:
+                ch.out_lt = np.empty(ch.expected, np.uint64)
+                ch.out = {k: np.empty(ch.expected, v.dtype) for k, v in cols.items()}
+            a, b = ch.filled, ch.filled + n
+            ch.out_lt[a:b] = lts
+            for k, v in cols.items():
+                ch.out[k][a:b] = v
+            ch.filled = b
+            return
+        ch.parts.setdefault("", []).append(lts)
+        for k, v in cols.items():
+            ch.parts.setdefault(k, []).append(v)
+
     def _add_one(self, cid: int, lt: int, data: bytes) -> None:
         ch = self.log._chans.get(cid)
         if ch is None:
             self.log.problems.append(f"message on unknown channel {cid} skipped")
             return
-        ch.lts.append(np.array([lt], dtype=np.uint64))
-        self._add_var(ch, [data])
-        ch.count += 1
-
-    def _chunk_done(self, records: bytes | None, indexes: dict[int, np.ndarray]) -> None:
-        if records is None:
-            return
-        if indexes and self._chunk_indexed(records, indexes):
-            return
-        self._chunk_sequential(records)
+        self._take(ch, np.frombuffer(data, np.uint8), [0], [len(data)], [lt])
 
     def _chunk_sequential(self, d: bytes) -> None:
-        mv = memoryview(d)
         p, n = 0, len(d)
         unpack = _REC.unpack_from
-        per: dict[int, tuple[list, list]] = {}
+        per: dict[int, tuple[list, list, list]] = {}
         while p + 9 <= n:
             op, ln = unpack(d, p)
             e = p + 9 + ln
@@ -400,44 +555,22 @@ class _Parser:
                 cid, _, lt, _ = _MSG(d, p + 9)
                 lst = per.get(cid)
                 if lst is None:
-                    lst = per[cid] = ([], [])
+                    lst = per[cid] = ([], [], [])
                 lst[0].append(lt)
-                lst[1].append(d[p + 31 : e])
+                lst[1].append(p + 31)
+                lst[2].append(e - p - 31)
             elif op == 0x03:
-                self._schema(mv[p + 9 : e])
+                self._schema(d[p + 9 : e])
             elif op == 0x04:
-                self._channel(mv[p + 9 : e])
+                self._channel(d[p + 9 : e])
             p = e
-        for cid, (lts, datas) in per.items():
+        arr = np.frombuffer(d, dtype=np.uint8)
+        for cid, (lts, starts, sizes) in per.items():
             ch = self.log._chans.get(cid)
             if ch is None:
                 self.log.problems.append(f"{len(lts)} messages on unknown channel {cid} skipped")
                 continue
-            ch.lts.append(np.array(lts, dtype=np.uint64))
-            codec = self.log._codec(ch)
-            if codec is not None and codec.fixed and all(len(x) == codec.size for x in datas):
-                self._add_fixed(
-                    ch, np.frombuffer(b"".join(datas), np.uint8).reshape(-1, codec.size)
-                )
-            else:
-                self._add_var(ch, datas)
-            ch.count += len(lts)
-
-    # A channel keeps its messages either all as fixed-size blocks or (once one message did not
-    # fit the fixed layout) all as separate data, so that their order is kept.
-    @staticmethod
-    def _add_fixed(ch: _Chan, block: np.ndarray) -> None:
-        if ch.var_data:
-            ch.var_data.extend(bytes(r) for r in block)
-        else:
-            ch.fixed_blocks.append(block)
-
-    @staticmethod
-    def _add_var(ch: _Chan, datas: list) -> None:
-        if ch.fixed_blocks:
-            ch.var_data.extend(bytes(r) for b in ch.fixed_blocks for r in b)
-            ch.fixed_blocks = []
-        ch.var_data.extend(datas)
+            self._take(ch, arr, starts, sizes, lts)
 
     def _chunk_indexed(self, d: bytes, indexes: dict[int, np.ndarray]) -> bool:
         """Vectorised extraction using the chunk's message indexes; False if they do not
@@ -450,6 +583,7 @@ class _Parser:
             ch = self.log._chans.get(cid)
             if ch is None or len(idx) == 0:
                 if ch is None and len(idx):
+                    # the channel record may be in this chunk: scan it record by record
                     return False
                 continue
             offs = idx[:, 1].astype(np.int64)
@@ -495,33 +629,28 @@ class _Parser:
                     return False
                 gaps.append((op, p, p + 9 + ln))
                 p += 9 + ln
-        mv = memoryview(d)
         for op, a, b in gaps:
             if op == 0x03:
-                self._schema(mv[a + 9 : b])
+                self._schema(d[a + 9 : b])
             elif op == 0x04:
-                self._channel(mv[a + 9 : b])
+                self._channel(d[a + 9 : b])
         for ch, idx, offs, lens in plans:
-            ch.lts.append(idx[:, 0].astype(np.uint64))
-            codec = self.log._codec(ch)
-            size = int(lens[0]) - 22
-            if codec is not None and codec.fixed and np.all(lens == lens[0]) and size == codec.size:
-                self._add_fixed(ch, arr[offs[:, None] + 31 + np.arange(size)])
-            else:
-                self._add_var(
-                    ch, [d[o + 31 : o + 9 + ln] for o, ln in zip(offs.tolist(), lens.tolist())]
-                )
-            ch.count += len(offs)
+            self._take(ch, arr, offs + 31, lens - 22, idx[:, 0])
         return True
 
 
-def read_log(path: str | os.PathLike) -> Log:
-    """Read an MCAP log (finalised or not). Raises LogFormatError if it is not MCAP at all."""
+def read_log(path: str | os.PathLike, topics: Iterable[str] | Wanted | None = None) -> Log:
+    """Read an MCAP log (finalised or not). Raises LogFormatError if it is not MCAP at all.
+
+    ``topics``: None reads every topic; names (``["/pmsm/params"]``) read only those; a mapping
+    of names to field names (or None: all fields) reads only those fields of them."""
     path = os.fspath(path)
-    with open(path, "rb") as f:
-        buf = f.read()
+    if topics is not None and not isinstance(topics, Mapping):
+        topics = {t: None for t in ([topics] if isinstance(topics, str) else topics)}
     log = Log(path)
-    _Parser(log, buf).run()
+    with open(path, "rb") as f:
+        size = os.fstat(f.fileno()).st_size
+        _Parser(log, f, size, topics).run()
     return log
 
 
