@@ -114,9 +114,16 @@ def convergence_time(
     return max(0.0, float(t[k]) - t_first)
 
 
-def identification_table(path, t0_s: float | None = None, t1_s: float | None = None) -> IdentTable:
-    """The table for the log at `path`, over device time [t0_s, t1_s] (default: the whole log)."""
-    log = read_log(path)
+# what the table reads of a log (read_log(path, topics=...))
+IDENT_TOPICS = {"/pmsm/params": None, "/sim/truth": ("t_s", *PARAMS)}
+
+
+def identification_table(
+    path, t0_s: float | None = None, t1_s: float | None = None, log=None
+) -> IdentTable:
+    """The table for the log at `path` (or ``log``, the file already read with at least
+    IDENT_TOPICS), over device time [t0_s, t1_s] (default: the whole log)."""
+    log = log if log is not None else read_log(path, topics=IDENT_TOPICS)
     par = log.topic("/pmsm/params")
     t_all = np.asarray(par["t_s"], dtype=float)
     names = np.asarray(par["estimator"]).astype(str)
@@ -226,7 +233,7 @@ def convergence_plot(path, out_png, t0_s: float | None = None, t1_s: float | Non
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    log = read_log(path)
+    log = read_log(path, topics=IDENT_TOPICS)
     par = log.topic("/pmsm/params")
     t_all = np.asarray(par["t_s"], dtype=float)
     names = np.asarray(par["estimator"]).astype(str)

@@ -18,14 +18,14 @@ import numpy as np
 
 from pmsm_hil.log.schemas import PRIMITIVES, Codec
 
-__all__ = ["decode_columns", "gather", "DecodeError"]
+__all__ = ["decode_columns", "gather", "rows_at", "DecodeError"]
 
 
 class DecodeError(ValueError):
     """Messages that do not fit the schema (too short, not little-endian CDR)."""
 
 
-def _rows(buf: np.ndarray, pos: np.ndarray, width: int) -> np.ndarray:
+def rows_at(buf: np.ndarray, pos: np.ndarray, width: int) -> np.ndarray:
     """(n, width) uint8: the octets buf[pos[i] : pos[i] + width] of each message."""
     if width == 0 or len(buf) < width:
         return np.empty((len(pos), width), np.uint8)
@@ -39,7 +39,7 @@ def gather(buf: np.ndarray, starts: np.ndarray, sizes: np.ndarray) -> np.ndarray
     if total == 0:
         return np.empty(0, np.uint8)
     if len(sizes) and (sizes == sizes[0]).all():
-        return _rows(buf, starts, int(sizes[0])).reshape(-1)
+        return rows_at(buf, starts, int(sizes[0])).reshape(-1)
     first = np.cumsum(sizes) - sizes  # where each message goes in the output
     return buf[np.repeat(starts - first, sizes) + np.arange(total)]
 
@@ -54,8 +54,11 @@ def decode_columns(
     starts: np.ndarray,
     sizes: np.ndarray,
     names: Iterable[str] | None = None,
+    copy: bool = True,
 ) -> dict[str, np.ndarray]:
-    """Columns (only ``names``, default all fields) of the messages at ``starts`` in ``buf``."""
+    """Columns (only ``names``, default all fields) of the messages at ``starts`` in ``buf``.
+    ``copy=False``: the columns of a fixed layout may be strided views of one gathered block
+    (the caller copies them where they go)."""
     buf = np.asarray(buf, dtype=np.uint8).reshape(-1)
     starts = np.asarray(starts, dtype=np.int64)
     sizes = np.asarray(sizes, dtype=np.int64)
@@ -67,13 +70,13 @@ def decode_columns(
         raise DecodeError(f"{codec.topic.topic}: message data outside the buffer")
     if np.any(sizes < 4):
         raise DecodeError(f"{codec.topic.topic}: messages shorter than the CDR header")
-    head = _rows(buf, starts, 2)
+    head = rows_at(buf, starts, 2)
     if np.any(head[:, 0] != 0) or np.any(head[:, 1] != 1):
         raise DecodeError(f"{codec.topic.topic}: not little-endian CDR data")
     if codec.fixed and np.all(sizes == codec.size):
-        recs = _rows(buf, starts, codec.size).copy().view(codec.dtype).reshape(n)
+        recs = rows_at(buf, starts, codec.size).view(codec.dtype).reshape(n)
         return {
-            f.name: recs[f.name].astype(_native(PRIMITIVES[f.type][2]))
+            f.name: recs[f.name].astype(_native(PRIMITIVES[f.type][2]), copy=copy)
             for f in codec.fields
             if f.name in want
         }
@@ -90,7 +93,7 @@ def _decode_walk(
     def take(width: int, what: str) -> np.ndarray:
         if np.any(off + width > avail):
             raise DecodeError(f"{codec.topic.topic}.{what}: messages too short for the schema")
-        return _rows(buf, base + off, width)
+        return rows_at(buf, base + off, width)
 
     for f in codec.fields:
         if f.type == "string":
@@ -123,7 +126,7 @@ def _strings(buf: np.ndarray, pos: np.ndarray, length: np.ndarray) -> np.ndarray
         if w == 0:
             res[sel] = ""
             continue
-        raw = np.ascontiguousarray(_rows(buf, pos[sel], w))
+        raw = np.ascontiguousarray(rows_at(buf, pos[sel], w))
         # rows as one void scalar each: unique without NUL stripping
         keys = raw.view(np.dtype((np.void, w))).reshape(-1)
         uniq, inv = np.unique(keys, return_inverse=True)
