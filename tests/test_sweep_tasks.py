@@ -91,3 +91,28 @@ def test_gap_selftest_on_dask_equals_its_trials_run_in_process(tmp_path):
     assert res["answers"] == [o["selected"] for o in ref["outs"]]
     again = run_selftest(n, seed, workers=1, progress=False, out=tmp_path / "st")
     assert again == res  # from the journal, no trial run again
+
+
+def test_bench_runs_on_dask_give_the_figures_of_runs_in_process(tmp_path, monkeypatch):
+    from pmsm_hil.bench import identify as bench
+
+    path = bench.default_profile()
+    bench.mismatch(
+        path, tmp_path / "dask", 1, echo=lambda *a: None, cluster=bench.Cluster(workers=2)
+    )
+    journal = tmp_path / "dask" / "bench.jsonl"
+    assert len(journal.read_text().splitlines()) == 3
+    logs = sorted((tmp_path / "dask").glob("mismatch-*.mcap"))
+    stamps = [p.stat().st_mtime_ns for p in logs]
+    # again: every run is in the journal with its log, nothing runs
+    bench.mismatch(
+        path, tmp_path / "dask", 1, echo=lambda *a: None, cluster=bench.Cluster(workers=1)
+    )
+    assert [p.stat().st_mtime_ns for p in logs] == stamps
+    monkeypatch.setattr(
+        bench, "run_jobs", lambda jobs, out, cluster=None: [bench.bench_run(j) for j in jobs]
+    )
+    bench.mismatch(path, tmp_path / "here", 1, echo=lambda *a: None)
+    assert (tmp_path / "dask" / "mismatch.md").read_text() == (
+        tmp_path / "here" / "mismatch.md"
+    ).read_text()

@@ -52,10 +52,12 @@ def run_tasks(
     scheduler: str | None = None,
     workers: int | None = None,
     progress: bool = True,
+    done_if: Callable[[dict, dict], bool] | None = None,
 ) -> list[dict[str, Any]]:
     """``fn`` over ``tasks`` on Dask; the results in the order of ``tasks``. A trial whose worker
     died twice gives ``{"error": "..."}``. With ``out``, finished trials go to OUT/NAME.jsonl as
-    they end and a later call with the same trials runs only those not done."""
+    they end and a later call with the same trials runs only those not done (and, with
+    ``done_if(trial, result)``, those for which it holds: e.g. the trial's log is still there)."""
     from distributed import as_completed
 
     keys = [task_key(t) for t in tasks]
@@ -64,8 +66,10 @@ def run_tasks(
     if out is not None:
         Path(out).mkdir(parents=True, exist_ok=True)
         journal = Journal(Path(out), f"{name}.jsonl")
+        by_key = dict(zip(keys, tasks))
         for k in journal.done():
-            results[k] = journal.rows[k]["result"]
+            if k in by_key and (done_if is None or done_if(by_key[k], journal.rows[k]["result"])):
+                results[k] = journal.rows[k]["result"]
     todo = {k: t for k, t in zip(keys, tasks) if k not in results}
     bar = _Bar(
         len(set(keys)), len(set(keys)) - len(todo), enabled=progress, label=name, unit="trials"
