@@ -1,0 +1,159 @@
+"""End to end: `pmsm-hil run`, the emulator loop, and `analyze` of a one-hour log, as ratios.
+
+    nice python3 benchmarks/end_to_end.py [--repeat 5] [--log hour.mcap] [--skip run,loop,analyze]
+
+- **run**: `pmsm-hil run profiles/paper-a.yaml --seed 1 --no-live` in a fresh process (the CLI, the
+  emulator child on its pty, the recorder and MCAP writer, the summary): device time / wall time,
+  and the CPU time of the host and its emulator child together (user + sys).
+- **loop**: the emulator alone in this process (firmware core + sim board + plant, the UART's
+  octets produced and dropped; benchmarks/emulator_speed.py) on the default rig and on
+  lab-typical: device time / wall time and ns per 50 us control period; with gym-electric-motor
+  installed (`pip install -e '.[bench]'`) its finite-control-set environment beside it.
+- **analyze**: `pmsm-hil analyze` of a one-hour log at the contract's fastest rates (telemetry
+  2 kHz, params 4 x 100 Hz, status 10 Hz, truth 100 Hz; written once by benchmarks/log_reader.py's
+  generator and kept at --log): wall time, CPU time and peak RSS of that process.
+
+The machine this runs on is often shared: each figure is the median over --repeat runs (the worst
+beside it), wall-clock ratios move with the load, the CPU times less so; the load average at the
+start is printed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+CLI = [sys.executable, "-m", "pmsm_hil.cli.main"]
+PAPER_A_S = 32.55  # device time of profiles/paper-a.yaml
+
+
+def timed(cmd: list[str], **kw) -> dict:
+    """Wall time, CPU time (user + sys, of the process and of the children it waited for) and peak
+    RSS of a command."""
+    t0 = time.perf_counter()
+    p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, **kw)
+    _, status, ru = os.wait4(p.pid, 0)
+    wall = time.perf_counter() - t0
+    p.returncode = os.waitstatus_to_exitcode(status)
+    err = p.stderr.read().decode(errors="replace")
+    p.stderr.close()
+    return {
+        "wall_s": wall,
+        "cpu_s": ru.ru_utime + ru.ru_stime,
+        "rss_mib": ru.ru_maxrss / 1024,
+        "code": p.returncode,
+        "stderr": err,
+    }
+
+
+def med(values) -> float:
+    return statistics.median(values)
+
+
+def bench_run(repeat: int) -> None:
+    with tempfile.TemporaryDirectory() as d:
+        runs = []
+        for i in range(repeat):
+            out = os.path.join(d, f"a{i}.mcap")
+            cmd = CLI + ["run", str(ROOT / "profiles" / "paper-a.yaml"), "--seed", "1"]
+            r = timed(cmd + ["--no-live", "--out", out])  # CPU: its emulator child included
+            if r["code"] != 0:
+                sys.exit(f"run failed: {r['stderr'][-2000:]}")
+            runs.append(r)
+    walls = [r["wall_s"] for r in runs]
+    cpus = [r["cpu_s"] for r in runs]
+    print(
+        f"run paper-a ({PAPER_A_S} s of device time), {repeat} runs: median {med(walls):.2f} s wall "
+        f"= {PAPER_A_S / med(walls):.1f}x real time (worst {PAPER_A_S / max(walls):.1f}x); "
+        f"CPU host + emulator median {med(cpus):.2f} s = {PAPER_A_S / med(cpus):.1f}x"
+    )
+
+
+def bench_loop(repeat: int) -> None:
+    from emulator_speed import emulator_realtime_factor
+
+    rigs = {"default": None, "lab-typical": str(ROOT / "profiles" / "rigs" / "lab-typical.yaml")}
+    try:
+        import gym_electric_motor  # noqa: F401
+        from gem_fcs import gem_realtime_factor
+    except ImportError as e:
+        gem_realtime_factor = None
+        print(f"gym-electric-motor not measured: {e}")
+    ours: dict = {k: [] for k in rigs}
+    gems = []
+    for _ in range(repeat):
+        for name, rig in rigs.items():
+            ours[name].append(
+                emulator_realtime_factor(str(ROOT / "profiles" / "paper-a.yaml"), rig)
+            )
+        if gem_realtime_factor is not None:
+            gems.append(gem_realtime_factor(sim_seconds=0.5, tau=50e-6, repeats=1))
+    gem_med = med([g["realtime_factor"] for g in gems]) if gems else None
+    for name, runs in ours.items():
+        f = [r["realtime_factor"] for r in runs]
+        fc = [r["cpu_realtime_factor"] for r in runs]
+        ns = med([r["ns_per_period"] for r in runs])
+        line = (
+            f"emulator loop, rig {name}, {repeat} runs: median {med(f):.0f}x real time "
+            f"(worst {min(f):.0f}x), {ns:.0f} ns per 50 us period; per CPU second "
+            f"{med(fc):.0f}x (worst {min(fc):.0f}x)"
+        )
+        if gem_med:
+            line += f"; gym-electric-motor {gem_med:.2f}x, ratio {med(f) / gem_med:.0f}x"
+        print(line)
+
+
+def bench_analyze(repeat: int, log: str | None) -> None:
+    from log_reader import make_log
+
+    path = log or os.path.join(tempfile.gettempdir(), "pmsm-hil-hour.mcap")
+    if not os.path.exists(path):
+        t0 = time.perf_counter()
+        make_log(path, 60.0)
+        print(
+            f"wrote {path} ({os.path.getsize(path) / 2**20:.0f} MiB) in {time.perf_counter() - t0:.0f} s"
+        )
+    runs = [timed(CLI + ["analyze", path]) for _ in range(repeat)]
+    bad = [r for r in runs if r["code"] not in (0, 1)]
+    if bad:
+        sys.exit(f"analyze failed: {bad[0]['stderr'][-2000:]}")
+    w = [r["wall_s"] for r in runs]
+    c = [r["cpu_s"] for r in runs]
+    m = [r["rss_mib"] for r in runs]
+    print(
+        f"analyze one hour at 2 kHz ({os.path.getsize(path) / 2**20:.0f} MiB), {repeat} runs: "
+        f"median {med(w):.1f} s wall (worst {max(w):.1f} s), CPU {med(c):.1f} s "
+        f"(worst {max(c):.1f} s), peak RSS {med(m):.0f} MiB (worst {max(m):.0f} MiB)"
+    )
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--log", default=None, help="the one-hour log (written there if missing)")
+    ap.add_argument("--skip", default="", help="comma-separated: run, loop, analyze")
+    args = ap.parse_args()
+    skip = set(filter(None, args.skip.split(",")))
+    print(f"load average at the start: {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
+    if "run" not in skip:
+        bench_run(args.repeat)
+    if "loop" not in skip:
+        bench_loop(args.repeat)
+    if "analyze" not in skip:
+        bench_analyze(args.repeat, args.log)
+
+
+if __name__ == "__main__":
+    main()
