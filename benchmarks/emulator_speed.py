@@ -102,7 +102,7 @@ def main() -> None:
             ours[rig].append(emulator_realtime_factor(args.profile, rig))
         if gem is not None:
             gems.append(gem(sim_seconds=args.gem_seconds, tau=50e-6, repeats=1))
-    for rig, runs in ours.items():
+    for _rig, runs in ours.items():
         best = max(runs, key=lambda r: r["realtime_factor"])
         med = sorted(r["realtime_factor"] for r in runs)[len(runs) // 2]
         name = Path(best["rig"]).name
@@ -119,8 +119,10 @@ def main() -> None:
         f"gym-electric-motor {gems[0].get('env_id', '')} {gems[0].get('version', '')}: best "
         f"{gbest:.2f}x real time, median {gmed:.2f}x, over {len(gems)} runs"
     )
-    for rig, runs in ours.items():
-        ratios = sorted(r["realtime_factor"] / g["realtime_factor"] for r, g in zip(runs, gems))
+    for _rig, runs in ours.items():
+        ratios = sorted(
+            r["realtime_factor"] / g["realtime_factor"] for r, g in zip(runs, gems, strict=False)
+        )
         print(
             f"ratio pmsm-hil/gym-electric-motor, rig {Path(runs[0]['rig']).name}: median "
             f"{ratios[len(ratios) // 2]:.0f}x (per-run pairs; range {ratios[0]:.0f}-{ratios[-1]:.0f}x)"

@@ -3,7 +3,6 @@ the speed-PI design when the profile leaves the gains to the tool (docs/control.
 
 from __future__ import annotations
 
-
 from pmsm_hil.protocol import generated as gen
 
 DEFAULT_SPEED_BW_RAD_S = 450.0

@@ -3,6 +3,7 @@ keep the heartbeat, and end safely whatever happens (profile end, Ctrl-C, fault,
 
 from __future__ import annotations
 
+import contextlib
 import signal
 import threading
 import time
@@ -11,9 +12,9 @@ from pathlib import Path
 
 from pmsm_hil import __version__
 from pmsm_hil.control_design import device_config
+from pmsm_hil.errors import DeviceError, TransportError
 from pmsm_hil.log.writer import LogWriter
 from pmsm_hil.protocol import generated as gen
-from pmsm_hil.errors import DeviceError, TransportError
 from pmsm_hil.protocol.session import Session
 from pmsm_hil.recorder import LiveState, Recorder
 
@@ -95,7 +96,7 @@ class _Interrupts:
         self.count += 1
         self.signal_name = signal.Signals(signum).name
 
-    def __enter__(self) -> "_Interrupts":
+    def __enter__(self) -> _Interrupts:
         if threading.current_thread() is threading.main_thread():
             for s in self.SIGNALS:
                 self._old[s] = signal.signal(s, self._handler)
@@ -237,10 +238,8 @@ def run_profile(
 
 
 def _send_quietly(session: Session, what: str) -> None:
-    try:
+    with contextlib.suppress(Exception):  # the link is gone too: the device stops on its heartbeat
         session.send(what)
-    except Exception:  # the link is gone too: the device stops on its heartbeat timeout
-        pass
 
 
 class _SafeObserver:
@@ -294,10 +293,9 @@ def _stream(
         live.bad_frames = _bad_frames(session)
         if live.stopped and live.state in ("done", "idle", "fault"):
             return False
-        if live.stopped and not frames:
-            # stopped event seen; wait for the status frame that follows, then end
-            if now - last_data_wall > 0.3:
-                return False
+        if live.stopped and not frames and now - last_data_wall > 0.3:
+            # stopped event seen and the status frame that follows it waited for: end
+            return False
         if not live.stopped and not frames and now - last_data_wall > 0.3 and _stop_evident(live):
             # the stopped event was lost, but the status frames or the profile's end show the stop
             live.stopped = True

@@ -109,14 +109,10 @@ class HilDevice:
     def is_rig(self) -> bool:
         return self.kind != "emulator"
 
-    def _transport(self, profile, seed: int):
-        if self.port:
-            from pmsm_hil.transport.serial_port import SerialTransport
+    def _link(self, profile, seed: int):
+        from pmsm_hil.device import DeviceSpec, open_device
 
-            return SerialTransport(self.port, profile.link.baud)
-        from pmsm_hil.transport.can_bus import open_for_run
-
-        return open_for_run(self.can, profile, str(profile.rig.path), seed)
+        return open_device(DeviceSpec(port=self.port, can=self.can, seed=seed), profile)
 
     def run(
         self,
@@ -145,14 +141,14 @@ class HilDevice:
             from pmsm_hil.protocol.session import Session
             from pmsm_hil.runner import RunOptions, run_profile
 
-            transport = self._transport(prof, seed)
+            link = self._link(prof, seed)
             try:
-                on_emulator = bool(self.can) and self.can.startswith("emulator")  # the CAN emulator
+                on_emulator = self.can is not None and self.can.startswith("emulator")
                 result = run_profile(
-                    prof, Session(transport), log, RunOptions(seed=seed if on_emulator else None)
+                    prof, Session(link), log, RunOptions(seed=seed if on_emulator else None)
                 )
             finally:
-                transport.close()
+                link.close()
         return HilRun(profile=prof, result=result, log_path=log)
 
 

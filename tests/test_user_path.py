@@ -10,9 +10,9 @@ import time
 from pathlib import Path
 
 import pytest
+from emu_helpers import run_inproc
 from mcap.reader import make_reader
 
-from emu_helpers import run_inproc
 from pmsm_hil.emulator.server import Pacer
 from pmsm_hil.log.reader import read_log
 from pmsm_hil.profiles import ProfileError, load_profile
@@ -338,7 +338,7 @@ def test_a_lost_stopped_event_still_ends_the_run_cleanly(tmp_path, monkeypatch):
 
 def test_a_yaml_alias_bomb_is_refused_at_once(tmp_path):
     rows = ['a: &a ["x", "x", "x", "x", "x", "x", "x", "x", "x"]']
-    for prev, name in zip("abcdefgh", "bcdefghi"):
+    for prev, name in zip("abcdefgh", "bcdefghi", strict=False):
         rows.append(f"{name}: &{name} [" + ", ".join([f"*{prev}"] * 9) + "]")
     bomb = tmp_path / "bomb.yaml"
     bomb.write_text("\n".join(rows) + "\n")  # 9^9 values once expanded

@@ -322,7 +322,7 @@ def firmware_wire(value: float, f: FieldSpec) -> int:
     """The firmware's sat_x(value * (1/scale)) evaluated in float32, as the C code does it."""
     _, _, lo, hi = WIRE_TYPES[f.type]
     x = np.float32(value) * np.float32(1.0 / f.scale)
-    if x != x:
+    if np.isnan(x):
         return 0
     if x >= np.float32(hi):
         return hi
@@ -440,7 +440,7 @@ def c_vector(k: int, v: dict) -> str:
     for f in spec.fields:
         given = v["fields"][f.name] if f.count > 1 else [v["fields"][f.name]]
         want = v["decoded"][f.name] if f.count > 1 else [v["decoded"][f.name]]
-        for i, (g, w) in enumerate(zip(given, want)):
+        for i, (g, w) in enumerate(zip(given, want, strict=False)):
             lhs = f"m.{f.name}" + (f"[{i}]" if f.count > 1 else "")
             msg = f'"golden {k} {spec.name}.{f.name}' + (f"[{i}]" if f.count > 1 else "") + '"'
             if f.scale is not None:

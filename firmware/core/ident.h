@@ -28,8 +28,8 @@
 
 #define IDENT_R_SETTLE_FRAC 0.2f /* identify_r: part of each current level skipped (settling) */
 #define IDENT_STEP_A        0.5f /* an i_d reference step above this skips the window */
-#define IDENT_STEP_HOLD                                                                            \
-    5u /* ... and the windows of the next periods (the controller's transient) */
+/* ... and the windows of the next periods (the controller's transient) */
+#define IDENT_STEP_HOLD 5u
 
 /* One estimator behind the operations table. */
 typedef struct {

@@ -73,8 +73,7 @@ static void plant_steps(emu_t *e)
     const int seg = (int)fw_segment(&e->fw, &begun);
     if (seg != e->plant_seg && begun) {
         e->plant_seg = seg;
-        if (seg >= 0 && seg < (int)PROFILE_MAX_SEGMENTS &&
-            ((e->plant_step_mask >> seg) & 1u) != 0u) {
+        if (seg < (int)PROFILE_MAX_SEGMENTS && ((e->plant_step_mask >> seg) & 1u) != 0u) {
             plant_set_param_scale(&e->plant, &e->pcfg, (double)e->plant_r_scale[seg],
                                   (double)e->plant_psi_scale[seg]);
         }
@@ -359,7 +358,7 @@ int emu_active(const emu_t *e)
 /* CAN (docs/can.md): a frame from the host; the frames the controller sent (see can_sim_take). */
 void emu_can_rx(emu_t *e, uint32_t id, const uint8_t *data, uint32_t dlc)
 {
-    uint16_t d[8], k;
+    uint16_t d[8] = { 0 }, k;
     for (k = 0u; k < 8u && k < dlc; k++) {
         d[k] = data[k];
     }

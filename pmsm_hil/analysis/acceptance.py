@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass
 
-__all__ = ["Check", "evaluate", "checks_failed"]
+__all__ = ["Check", "checks_failed", "evaluate"]
 
 
 @dataclass

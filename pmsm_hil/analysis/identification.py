@@ -145,7 +145,7 @@ def identification_table(
             final = float(np.mean(v[last]))
             tr = float(np.mean(truth[p][last]))
             conv = (
-                convergence_time(t[nz[0] :], v[nz[0] :], truth[p][nz[0] :], t_first)
+                convergence_time(t[nz[0] :], v[nz[0] :], truth[p][nz[0] :], float(t[nz[0]]))
                 if len(nz)
                 else None
             )
@@ -185,6 +185,7 @@ def markdown_table(table: IdentTable, with_paper: bool = True) -> str:
         row = [f"{name} ({unit})", _fmt(p, c0.truth) if c0 else "-"]
         for e in ests:
             c = table.cell(e, p)
+            assert c is not None  # every listed estimator has every parameter
             row += [
                 _fmt(p, c.final),
                 f"{100 * c.error_rel:+.2f} %",
@@ -213,6 +214,7 @@ def text_table(table: IdentTable, with_paper: bool = True) -> str:
         out.append(hdr)
         for p in ("l_d_h", "l_q_h", "r_s_ohm", "psi_f_wb"):
             c = table.cell(e, p)
+            assert c is not None  # the estimator has l_d_h, so it has all four
             name, unit, _ = UNITS[p]
             conv = "never" if c.conv_s is None else f"{c.conv_s:.3f}"
             line = (
@@ -238,9 +240,9 @@ def convergence_plot(path, out_png, t0_s: float | None = None, t1_s: float | Non
     t_all = np.asarray(par["t_s"], dtype=float)
     names = np.asarray(par["estimator"]).astype(str)
     fig, axes = plt.subplots(4, 1, figsize=(9, 10), sharex=True)
-    for ax, p in zip(axes, ("l_d_h", "l_q_h", "psi_f_wb", "r_s_ohm")):
+    for ax, p in zip(axes, ("l_d_h", "l_q_h", "psi_f_wb", "r_s_ohm"), strict=False):
         name, unit, k = UNITS[p]
-        for est in ESTIMATORS + ("nominal",):
+        for est in (*ESTIMATORS, "nominal"):
             sel = names == est
             if t0_s is not None:
                 sel &= t_all >= t0_s

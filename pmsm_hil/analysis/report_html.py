@@ -99,9 +99,11 @@ def ident_html(table: IdentTable | None) -> str:
     for p in ("l_d_h", "l_q_h", "r_s_ohm", "psi_f_wb"):
         name, unit, k = UNITS[p]
         c0 = table.cell(ests[0], p)
+        assert c0 is not None  # every listed estimator has every parameter
         row = [escape(f"{name} ({unit})"), f"{c0.truth * k:.4g}"]
         for e in ests:
             c = table.cell(e, p)
+            assert c is not None
             ok = abs(c.error_rel) <= TOL
             row += [
                 f"{c.final * k:.4g}",

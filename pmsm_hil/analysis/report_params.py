@@ -42,7 +42,7 @@ def parameters(ctx: RunContext):
     present = [e for e in STYLE if np.any(names == e)]
     fig, axes = figure(ctx, f"Parameters vs truth (band: truth ±{100 * TOL:.0f} %)", 4)
     clipped = False
-    for ax, p in zip(axes, ORDER):
+    for ax, p in zip(axes, ORDER, strict=False):
         k, unit = SCALE[p]
         tt, tv = np.asarray(tr["t_s"], float), np.asarray(tr[p], float) * k
         ax.fill_between(

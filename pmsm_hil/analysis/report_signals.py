@@ -45,7 +45,7 @@ def currents(ctx: RunContext):
     tel = ctx.topic(TEL)
     t = tel["t_s"]
     fig, axes = figure(ctx, "dq currents", 2)
-    for ax, axis in zip(axes, ("d", "q")):
+    for ax, axis in zip(axes, ("d", "q"), strict=False):
         ax.plot(
             t,
             tel[f"i_{axis}_a"],
@@ -66,7 +66,7 @@ def _mean(t: np.ndarray, x: np.ndarray, window_s: float) -> np.ndarray:
     so single samples of u_d, u_q jump between vectors; their mean is the applied voltage)."""
     if len(t) < 3:
         return x
-    n = max(1, int(round(window_s / float(np.median(np.diff(t))))))
+    n = max(1, round(window_s / float(np.median(np.diff(t)))))
     if n <= 1 or len(x) < n:
         return x
     return np.convolve(x, np.ones(n) / n, mode="same")
@@ -88,7 +88,7 @@ def voltages(ctx: RunContext):
         if np.any(np.isfinite(v) & (v > 0)):
             lim = (st["t_s"], v)
     fig, axes = figure(ctx, "dq voltages (as commanded)", 2)
-    for ax, axis, c in zip(axes, ("d", "q"), ("C0", "C1")):
+    for ax, axis, c in zip(axes, ("d", "q"), ("C0", "C1"), strict=False):
         u = np.asarray(tel[f"u_{axis}_v"], float)
         ax.plot(t, u, lw=0.4, color=c, alpha=0.25, label=f"u_{axis}, each sample")
         ax.plot(

@@ -7,10 +7,10 @@ import matplotlib
 
 matplotlib.use("Agg")
 
-import matplotlib.pyplot as plt  # noqa: E402  (after the backend is chosen)
-from matplotlib.figure import Figure  # noqa: E402
+import matplotlib.pyplot as plt
+from matplotlib.figure import Figure
 
-from pmsm_hil.analysis.report_context import RunContext  # noqa: E402
+from pmsm_hil.analysis.report_context import RunContext
 
 WIDTH_IN = 11.0
 ROW_IN = 2.6
@@ -28,10 +28,10 @@ def figure(ctx: RunContext, what: str, rows: int, sharex: bool = True) -> tuple[
         layout="constrained",
     )
     fig.suptitle(f"{what} — {ctx.tag}", fontsize=11)
-    axes = list(axes[:, 0])
-    for ax in axes:
+    column = list(axes[:, 0])
+    for ax in column:
         ax.grid(alpha=0.3)
-    return fig, axes
+    return fig, column
 
 
 def legend(ax, **kw) -> None:

@@ -106,7 +106,7 @@ def recovery_time(t: np.ndarray, err: np.ndarray, band: float, t0: float) -> flo
     if len(t) < 2:
         return float("inf")
     dt = float(np.median(np.diff(t)))
-    avg = _moving_average(err, max(1, int(round(AVG_WINDOW_S / dt))))
+    avg = _moving_average(err, max(1, round(AVG_WINDOW_S / dt)))
     outside = np.nonzero(np.abs(avg) > band)[0]
     if len(outside) == 0:
         return 0.0
@@ -396,7 +396,7 @@ def verdict_text(summary: RunSummary, interrupted: bool = False) -> str:
             i = idx[0]
             return f"segment {i} {names[i]!r}" if i < len(names) else f"segment {i}"
         runs, start = [], idx[0]
-        for a, b in zip(idx, idx[1:] + [None]):
+        for a, b in zip(idx, [*idx[1:], -1], strict=False):
             if b != a + 1:
                 runs.append(f"{start}" if start == a else f"{start}-{a}")
                 start = b

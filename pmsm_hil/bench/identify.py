@@ -291,11 +291,12 @@ def per_effect(path, out: Path, seed: int = 1, echo=print, cluster: Cluster | No
         for s in src["segments"]
         if not s.get("plant")
     ]
-    rigs = (
-        ["ideal"]
-        + sorted(f.stem for f in rigs_dir.glob("effect-*.yaml"))
-        + ["default", "lab-typical"]
-    )
+    rigs = [
+        "ideal",
+        *sorted(f.stem for f in rigs_dir.glob("effect-*.yaml")),
+        "default",
+        "lab-typical",
+    ]
     head = (
         "| rig | "
         + " | ".join(f"{e} {n}" for e in ("rls", "nlms") for n in ("L_d", "L_q", "psi_f", "R"))

@@ -87,7 +87,7 @@ def main(args: argparse.Namespace) -> int:
         rig = resolve(args.rig, "rig") if args.rig else None
         out = Path(args.out)
         cluster = Cluster(workers=args.workers, scheduler=args.scheduler, progress=True)
-        if args.only != "per-effect" and args.only != "mismatch":
+        if args.only not in {"per-effect", "mismatch"}:
             identify(path, out, args.seed, rig, args.until)
         if args.mismatch or args.only == "mismatch":
             out.mkdir(parents=True, exist_ok=True)

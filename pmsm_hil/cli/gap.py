@@ -90,6 +90,11 @@ def _diagnose(args, path):
     if isinstance(rec, SteadyRecord):
         return diagnose_steady(rec, m), m, rec
     hold = load_record(args.holdout) if args.holdout else None
+    if isinstance(hold, SteadyRecord):
+        raise ValueError(
+            f"{args.holdout}: holds steady-state data; a held-out record for control-rate data "
+            "must be control-rate too"
+        )
     return diagnose(rec, m, holdout=hold, seed=args.seed), m, rec
 
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import sys
 import time
 
-from rich.console import Console, Group
+from rich.console import Console, Group, RenderableType
 from rich.live import Live
 from rich.measure import Measurement
 from rich.panel import Panel
@@ -61,7 +61,7 @@ def _parameters(live: LiveState, errors: bool = True, fold: bool = False) -> Tab
     tr = live.truth or {}
     for name, p in live.params.items():
 
-        def cell(key, k, fmt):
+        def cell(key, k, fmt, p=p, name=name):
             v = p[key] * k
             ref = tr.get(key)
             if errors and name != "nominal" and ref:
@@ -123,7 +123,7 @@ class _Screen:
             f"faults [{'red' if live.faults else 'green'}]{fault_text(live.faults)}[/]"
         )
         head = Text.from_markup(f"[bold]{self.title}[/]  {state}")
-        rows = (
+        rows: list[RenderableType] = (
             [head]
             if head.cell_len <= inner
             else [Text.from_markup(f"[bold]{self.title}[/]"), Text.from_markup(state)]
@@ -200,7 +200,7 @@ class LiveView:
     def __init__(self, title: str, bit_rate: float, names: list[str]):
         self.title, self.bit_rate, self.names = title, bit_rate, names
         self._live = Live(refresh_per_second=10, transient=False)
-        self._state = None
+        self._state: LiveState | None = None
 
     def __enter__(self):
         self._live.__enter__()

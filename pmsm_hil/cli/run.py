@@ -182,11 +182,11 @@ def _load(args):
 def main(args: argparse.Namespace) -> int:
     from pmsm_hil.analysis.summary import print_summary, summarize_log
     from pmsm_hil.cli.live import make_observer
+    from pmsm_hil.device import open_device
+    from pmsm_hil.errors import TransportError, TransportSpecError
     from pmsm_hil.profiles import ProfileError
     from pmsm_hil.protocol.session import DeviceError, Session
     from pmsm_hil.runner import HostError, PlantMismatch, RunOptions, run_profile
-    from pmsm_hil.device import open_device
-    from pmsm_hil.errors import TransportError, TransportSpecError
 
     try:
         profile = _load(args)

@@ -135,7 +135,10 @@ def serve(args: argparse.Namespace) -> int:
     if args.pace is not None and not 0.001 <= args.pace <= 1000:
         return _error(f"--pace {args.pace}: must be between 0.001 and 1000 (times real time)")
     parent = os.getppid() if args.exit_with_parent else None
-    announce = lambda s: print(f"{s}\n{plant}", flush=True)
+
+    def announce(s):
+        return print(f"{s}\n{plant}", flush=True)
+
     if args.can:  # docs/can.md
         if not 10_000 <= args.can_bitrate <= 1_000_000 or not 0 <= args.node <= 15:
             return _error("--can-bitrate must be 10000..1000000 and --node 0..15")

@@ -8,6 +8,7 @@ With a pace X (`--pace`), device time never runs faster than X times wall time e
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import os
 import select
@@ -143,7 +144,9 @@ class LinkCorrupter:
         if k == 0:
             return data
         buf = bytearray(data)
-        for i, bit in zip(self.rng.integers(0, len(data), k), self.rng.integers(0, 8, k)):
+        for i, bit in zip(
+            self.rng.integers(0, len(data), k), self.rng.integers(0, 8, k), strict=False
+        ):
             buf[int(i)] ^= 1 << int(bit)
         return bytes(buf)
 
@@ -196,7 +199,7 @@ class PtyServer:
             can_run = len(self._pending) < MAX_PENDING or self.pacer.pace is not None or stalled
             busy = self.dev.active and ticks_allowed > 0 and can_run
             wait = 0.0 if busy else 0.002
-            rlist, wlist, _ = select.select(
+            rlist, _wlist, _ = select.select(
                 [self.master], [self.master] if self._pending else [], [], wait
             )
             if rlist:
@@ -227,10 +230,8 @@ class PtyServer:
 
     def close(self) -> None:
         for fd in (self.master, self.slave):
-            try:
+            with contextlib.suppress(OSError):
                 os.close(fd)
-            except OSError:
-                pass
 
 
 def serve_pty(

@@ -27,7 +27,7 @@ def _dc_link(rec) -> dict:
     sd = float(np.std(v))
     # 95 % interval of the rms deviation: bootstrap over 20 ms blocks of the squared deviation
     sq = (v - np.mean(v)) ** 2
-    nb = max(len(v) // max(int(round(0.02 / rec.ts_s)), 1), 2)
+    nb = max(len(v) // max(round(0.02 / rec.ts_s), 1), 2)
     blocks = np.array([p.mean() for p in np.array_split(sq, nb)])
     rng = np.random.default_rng(0)
     boot = np.sqrt(blocks[rng.integers(0, nb, size=(400, nb))].mean(1))
@@ -61,7 +61,7 @@ def _mech(rec, m: MotorModel) -> list[dict]:
     ]
     if rec.load_nm is None or not m.j_kgm2:
         return none
-    w = max(int(round(WINDOW_S / rec.ts_s)), 4)
+    w = max(round(WINDOW_S / rec.ts_s), 4)
     idx = []
     for a, b in rec.runs:
         starts = np.arange(a, b - w, w)
@@ -128,4 +128,4 @@ def _mech(rec, m: MotorModel) -> list[dict]:
 
 
 def view_effects(rec, m: MotorModel) -> list[dict]:
-    return [_dc_link(rec)] + _mech(rec, m)
+    return [_dc_link(rec), *_mech(rec, m)]

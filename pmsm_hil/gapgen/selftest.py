@@ -77,7 +77,7 @@ def run_trial(trial: dict) -> dict:
     error, as text: a failed trial is reported, not dropped)."""
     try:
         return _run_trial(trial)
-    except Exception as e:  # noqa: BLE001 - reported in the scores
+    except Exception as e:
         return {"error": f"{type(e).__name__}: {e}"}
 
 
@@ -147,26 +147,26 @@ def _detectable(trial, out) -> bool:
 
 def score(trials: list[dict], outs: list[dict]) -> dict:
     errors = [o["error"] for o in outs if "error" in o]
-    kept = [(t, o) for t, o in zip(trials, outs) if "error" not in o]
+    kept = [(t, o) for t, o in zip(trials, outs, strict=False) if "error" not in o]
     trials, outs = [t for t, _ in kept], [o for _, o in kept]
-    single = [(t, o) for t, o in zip(trials, outs) if t["kind"] == "one"]
+    single = [(t, o) for t, o in zip(trials, outs, strict=False) if t["kind"] == "one"]
     det = [(t, o) for t, o in single if _detectable(t, o)]
     top1 = [o["selected"][:1] == list(t["effects"]) for t, o in det]
-    two = [(t, o) for t, o in zip(trials, outs) if t["kind"] == "two"]
+    two = [(t, o) for t, o in zip(trials, outs, strict=False) if t["kind"] == "two"]
     both = [set(t["effects"]) <= set(o["selected"]) for t, o in two]
-    null = [o for t, o in zip(trials, outs) if t["kind"] == "none"]
-    outside = [o for t, o in zip(trials, outs) if t["kind"] == "outside"]
+    null = [o for t, o in zip(trials, outs, strict=False) if t["kind"] == "none"]
+    outside = [o for t, o in zip(trials, outs, strict=False) if t["kind"] == "outside"]
     two_det = [(t, o) for t, o in two if _detectable(t, o)]
     confusion: dict[str, dict[str, int]] = {}
     for t, o in single:
-        truth = list(t["effects"])[0]
+        truth = next(iter(t["effects"]))
         got = o["selected"][0] if o["selected"] else "none"
         confusion.setdefault(truth, {}).setdefault(got, 0)
         confusion[truth][got] += 1
     clo = [o["closure"] for t, o in det + two_det if o["selected"]]
     clo_rec = [o["closure_record"] for t, o in det + two_det if o.get("closure_record") is not None]
     mag_err, cover, details = [], [], []
-    for t, o in zip(trials, outs):
+    for t, o in zip(trials, outs, strict=False):
         details.append(
             {
                 "kind": t["kind"],
@@ -184,7 +184,7 @@ def score(trials: list[dict], outs: list[dict]) -> dict:
             }
         )
     for t, o in det:
-        name = list(t["effects"])[0]
+        name = next(iter(t["effects"]))
         tv = true_primary(name, t["effects"][name])
         e = next((e for e in o["effects"] if e["name"] == name and e["selected"]), None)
         if tv is None or e is None or e["magnitude"] is None:

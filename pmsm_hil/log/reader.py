@@ -41,7 +41,7 @@ from pmsm_hil.log.parse import (  # noqa: F401 - Attachment and LogFormatError a
     _Schema,
 )
 
-__all__ = ["read_log", "rewrite_log", "merge_topics", "Log", "Attachment", "LogFormatError"]
+__all__ = ["Attachment", "Log", "LogFormatError", "merge_topics", "read_log", "rewrite_log"]
 
 _MSG_LINE = re.compile(r"^\s*([A-Za-z][\w/]*)\s+([a-z][a-z0-9_]*)\s*$")
 

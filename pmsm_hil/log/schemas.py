@@ -12,26 +12,27 @@ from __future__ import annotations
 
 import hashlib
 import struct
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import Any, Iterable, Sequence
+from typing import Any
 
 import numpy as np
 
 __all__ = [
-    "FieldDef",
-    "TopicDef",
-    "Codec",
-    "TOPICS",
     "DEVICE_TOPICS",
+    "ESTIMATORS",
+    "EVENT_KINDS",
     "HOST_TOPICS",
     "LOG_FORMAT_VERSION",
-    "SCHEMA_ENCODING",
     "MESSAGE_ENCODING",
-    "schema_hash",
-    "codec_for",
-    "EVENT_KINDS",
-    "ESTIMATORS",
     "PRIMITIVES",
+    "SCHEMA_ENCODING",
+    "TOPICS",
+    "Codec",
+    "FieldDef",
+    "TopicDef",
+    "codec_for",
+    "schema_hash",
 ]
 
 LOG_FORMAT_VERSION = 1
@@ -332,6 +333,10 @@ class Codec:
                 run.append(f)
         if run:
             self.plan.append(("run", len(run), [_run_struct(run, m) for m in range(8)]))
+        self.body_format: str | None
+        self.size: int | None
+        self.data_struct: struct.Struct | None
+        self.dtype: np.dtype | None
         if self.fixed:
             body, size = _run_struct(self.fields, 0)
             self.body_format = body.format[1:]  # without "<"
@@ -360,6 +365,7 @@ class Codec:
     def encode(self, values: Sequence[Any]) -> bytes:
         """CDR data (header included) for ``values`` in field order (t_s first)."""
         if self.fixed:
+            assert self.data_struct is not None  # set for every fixed-size schema
             return self.data_struct.pack(CDR_LE_HEADER, *values)
         parts = [CDR_LE_HEADER]
         off = 0
@@ -390,10 +396,11 @@ class Codec:
                 f"{self.topic.topic}: not little-endian CDR (header {bytes(data[:4])!r})"
             )
         if self.fixed:
+            assert self.data_struct is not None
             return self.data_struct.unpack_from(data, 0)[1:]
         out: list[Any] = []
         off = 0  # CDR offset (data offset - 4)
-        for kind, n, structs in self.plan:
+        for kind, _n, structs in self.plan:
             if kind == "run":
                 st, size = structs[off & 7]
                 out.extend(st.unpack_from(data, 4 + off))

@@ -143,7 +143,7 @@ def _load_motor_source(src: Source) -> tuple[Motor | None, list[Problem]]:
     except ValidationError as e:
         problems += validation_problems(e, src, Motor)
     problems += motor_checks(src)
-    if problems:
+    if problems or motor is None:
         return None, problems
     motor._path, motor._yaml_text = src.path, src.text
     return motor, []
@@ -154,6 +154,6 @@ def load_motor(path: str | os.PathLike | None = None) -> Motor:
     raises ProfileError."""
     path = default_file("motors/paper-a-ipmsm.yaml") if path is None else os.fspath(path)
     motor, problems = _load_motor_source(read_source(path, what="motor file"))
-    if problems:
+    if motor is None:
         raise ProfileError(problems)
     return motor

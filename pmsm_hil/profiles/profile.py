@@ -26,19 +26,19 @@ from .motor import Motor, _load_motor_source
 from .rig import Rig, _load_rig_source, plant_problems
 
 __all__ = [
-    "Profile",
-    "Control",
-    "Telemetry",
-    "Link",
-    "Segment",
-    "load_profile",
-    "link_budget",
-    "TS_MIN_S",
-    "TS_MAX_S",
-    "MAX_TOTAL_DURATION_S",
-    "MAX_SEGMENTS",
     "FRAME_OVERHEAD_OCTETS",
+    "MAX_SEGMENTS",
+    "MAX_TOTAL_DURATION_S",
     "PAYLOAD_OCTETS",
+    "TS_MAX_S",
+    "TS_MIN_S",
+    "Control",
+    "Link",
+    "Profile",
+    "Segment",
+    "Telemetry",
+    "link_budget",
+    "load_profile",
 ]
 
 from .sections import (  # noqa: F401  (re-exported)
@@ -111,7 +111,7 @@ class Profile:
 
     def divider(self, rate_hz: float) -> int:
         """Control periods per frame/loop period for ``rate_hz`` (0 for a rate of 0 = off)."""
-        return 0 if rate_hz <= 0 else int(round(self.control_hz / rate_hz))
+        return 0 if rate_hz <= 0 else round(self.control_hz / rate_hz)
 
     @property
     def speed_div(self) -> int:

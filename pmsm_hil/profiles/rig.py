@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import os
-from typing import Iterator
+from collections.abc import Iterator
 
 from pydantic import Field, ValidationError
 
@@ -18,24 +18,24 @@ from ._base import FileModel, StrictModel, default_file, meta_value
 from ._source import Problem, ProfileError, Source, read_source, validation_problems
 
 __all__ = [
-    "Rig",
-    "Effect",
-    "Effects",
-    "DeadTime",
+    "EFFECT_BITS",
     "AdcNoise",
     "AdcQuantisation",
-    "Encoder",
-    "Friction",
-    "Saturation",
-    "Thermal",
-    "FluxHarmonics",
     "Cogging",
-    "SensorOffset",
-    "SensorGain",
-    "Delay",
     "DcLink",
+    "DeadTime",
+    "Delay",
+    "Effect",
+    "Effects",
+    "Encoder",
+    "FluxHarmonics",
+    "Friction",
     "IronLoss",
-    "EFFECT_BITS",
+    "Rig",
+    "Saturation",
+    "SensorGain",
+    "SensorOffset",
+    "Thermal",
     "load_rig",
     "plant_problems",
 ]
@@ -400,8 +400,10 @@ def _load_rig_source(src: Source) -> tuple[Rig | None, list[Problem]]:
             ]
         from .fluxmap import FluxMapError, load_flux_map
 
+        map_path = rig.map_path()
+        assert map_path is not None  # saturation is on and names a map
         try:
-            load_flux_map(rig.map_path())
+            load_flux_map(map_path)
         except (OSError, FluxMapError) as e:
             return None, [src.problem(loc, f"names a flux map that cannot be used: {e}", sat.map)]
     return rig, []
@@ -484,6 +486,6 @@ def load_rig(path: str | os.PathLike | None = None) -> Rig:
     raises ProfileError."""
     path = default_file("rigs/default.yaml") if path is None else os.fspath(path)
     rig, problems = _load_rig_source(read_source(path, what="rig file"))
-    if problems:
+    if rig is None:
         raise ProfileError(problems)
     return rig

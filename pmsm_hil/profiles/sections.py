@@ -28,6 +28,13 @@ OCTETS_PER_SYMBOL = 10  # UART 8N1: start + 8 data + stop bits
 # ----------------------------------------------------------------------------------- models
 
 
+class PredictorScale(StrictModel):
+    l_d_h: float = Field(1.0, gt=0, le=100, description="factor on the motor file's l_d_h")
+    l_q_h: float = Field(1.0, gt=0, le=100, description="factor on l_q_h")
+    psi_f_wb: float = Field(1.0, ge=0, le=100, description="factor on psi_f_wb")
+    r_s_ohm: float = Field(1.0, ge=0, le=100, description="factor on r_s_ohm")
+
+
 class Control(StrictModel):
     ts_s: float = Field(50e-6, ge=TS_MIN_S, le=TS_MAX_S, description="control (MPCC) period, s")
     rho: float = Field(1.0, gt=0, le=1000, description="MPCC cost weight of the q-axis error")
@@ -71,8 +78,8 @@ class Control(StrictModel):
         description="what feeds the MPCC predictor: the motor file (times predictor_scale) "
         "or an estimator once it has converged",
     )
-    predictor_scale: "PredictorScale" = Field(
-        default_factory=lambda: PredictorScale(),
+    predictor_scale: PredictorScale = Field(
+        default_factory=PredictorScale,
         description="mismatch factors on the motor file's values in the predictor",
     )
     id_window_s: float = Field(
@@ -81,13 +88,6 @@ class Control(StrictModel):
         le=0.1,
         description="estimator update period: window over which u, i, w are averaged, s",
     )
-
-
-class PredictorScale(StrictModel):
-    l_d_h: float = Field(1.0, gt=0, le=100, description="factor on the motor file's l_d_h")
-    l_q_h: float = Field(1.0, gt=0, le=100, description="factor on l_q_h")
-    psi_f_wb: float = Field(1.0, ge=0, le=100, description="factor on psi_f_wb")
-    r_s_ohm: float = Field(1.0, ge=0, le=100, description="factor on r_s_ohm")
 
 
 class PlantStep(StrictModel):

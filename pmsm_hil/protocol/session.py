@@ -74,7 +74,7 @@ class Session:
         for _attempt in range(retries):
             seq = self.send(name, **fields)
             fr = self._wait_for(
-                lambda f: (
+                lambda f, seq=seq: (
                     f.name == "ack" and f.fields["cmd_id"] == msg_id and f.fields["cmd_seq"] == seq
                 ),
                 timeout_s,
@@ -161,4 +161,4 @@ class Session:
         return chunks
 
 
-__all__ = ["Session", "DeviceError", "Identity", "TransportError"]
+__all__ = ["DeviceError", "Identity", "Session", "TransportError"]

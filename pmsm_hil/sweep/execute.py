@@ -67,7 +67,7 @@ def execute_run(task: dict[str, Any]) -> dict[str, Any]:
             row["log_path"] = str(dest)
         row["status"] = "ok" if not result.error else "failed"
         return row
-    except Exception as e:  # noqa: BLE001 - a run's own failure is a result of the sweep
+    except Exception as e:
         row["error"] = f"{type(e).__name__}: {e}"
         return row
     finally:

@@ -15,7 +15,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-__all__ = ["run_metrics", "identification_window"]
+__all__ = ["identification_window", "run_metrics"]
 
 NAN = float("nan")
 

@@ -20,7 +20,7 @@ import yaml
 from .execute import execute_run
 from .plan import Run, profile_run, run_key
 
-__all__ = ["SuiteCase", "plan_suite", "run_suite", "junit_xml", "DEFAULT_ACCEPTANCE"]
+__all__ = ["DEFAULT_ACCEPTANCE", "SuiteCase", "junit_xml", "plan_suite", "run_suite"]
 
 DEFAULT_ACCEPTANCE = {"run": {"complete": True, "faults": "forbidden"}}
 METRICS = ["speed_error", "ripple", "recovery", "faults", "completeness"]
@@ -95,6 +95,7 @@ def run_suite(
         rows = res.rows
     by_key = {r["key"]: r for r in rows}
     for c in cases:
+        assert c.run is not None  # cases are made with their run (make_cases)
         row = by_key.get(c.run.key, {"status": "failed", "error": "no result"})
         c.status, c.error = row.get("status", "failed"), row.get("error", "")
         c.log_path, c.wall_s = row.get("log_path", ""), float(row.get("wall_s", 0.0) or 0.0)
