@@ -65,8 +65,8 @@ def bench_run(repeat: int) -> None:
         runs = []
         for i in range(repeat):
             out = os.path.join(d, f"a{i}.mcap")
-            cmd = CLI + ["run", str(ROOT / "profiles" / "paper-a.yaml"), "--seed", "1"]
-            r = timed(cmd + ["--no-live", "--out", out])  # CPU: its emulator child included
+            cmd = [*CLI, "run", str(ROOT / "profiles" / "paper-a.yaml"), "--seed", "1"]
+            r = timed([*cmd, "--no-live", "--out", out])  # CPU: its emulator child included
             if r["code"] != 0:
                 sys.exit(f"run failed: {r['stderr'][-2000:]}")
             runs.append(r)
@@ -123,7 +123,7 @@ def bench_analyze(repeat: int, log: str | None) -> None:
         print(
             f"wrote {path} ({os.path.getsize(path) / 2**20:.0f} MiB) in {time.perf_counter() - t0:.0f} s"
         )
-    runs = [timed(CLI + ["analyze", path]) for _ in range(repeat)]
+    runs = [timed([*CLI, "analyze", path]) for _ in range(repeat)]
     bad = [r for r in runs if r["code"] not in (0, 1)]
     if bad:
         sys.exit(f"analyze failed: {bad[0]['stderr'][-2000:]}")

@@ -6,23 +6,22 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from test_log import ATTACH, META, sample_rows, write_rows
 
 from pmsm_hil.log.columns import decode_columns
 from pmsm_hil.log.reader import read_log
 from pmsm_hil.log.schemas import CDR_LE_HEADER, TOPICS, codec_for
 from pmsm_hil.log.writer import LogWriter
 
-from test_log import ATTACH, META, sample_rows, write_rows
-
 
 def assert_same(a: dict, b: dict) -> None:
     assert list(a) == list(b)
-    for k in a:
-        assert a[k].dtype == b[k].dtype, k
-        if a[k].dtype == object:
-            assert list(a[k]) == list(b[k]), k
+    for k, va in a.items():
+        assert va.dtype == b[k].dtype, k
+        if va.dtype == object:
+            assert list(va) == list(b[k]), k
         else:
-            np.testing.assert_array_equal(a[k], b[k], err_msg=k)
+            np.testing.assert_array_equal(va, b[k], err_msg=k)
 
 
 @pytest.fixture()
@@ -104,4 +103,4 @@ def test_vectorised_decode_of_strings_equals_the_codec():
     bad = datas[0][: len(datas[0]) - 3]
     with pytest.raises(ValueError):
         decode_columns(codec, np.frombuffer(bad, np.uint8), [0], [len(bad)])
-    assert CDR_LE_HEADER == datas[0][:4]
+    assert datas[0][:4] == CDR_LE_HEADER

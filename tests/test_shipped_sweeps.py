@@ -66,8 +66,20 @@ def test_an_installed_pmsm_hil_runs_a_shipped_sweep_by_name_from_any_directory(t
     assert where.returncode == 0, where.stderr
     assert Path(where.stdout.strip()).is_relative_to(lib)
     r = subprocess.run(
-        [sys.executable, "-m", "pmsm_hil.cli.main", "sweep", "tolerance", "--out", "X"]
-        + ["--limit", "1", "--workers", "1", "--no-progress"],
+        [
+            sys.executable,
+            "-m",
+            "pmsm_hil.cli.main",
+            "sweep",
+            "tolerance",
+            "--out",
+            "X",
+            "--limit",
+            "1",
+            "--workers",
+            "1",
+            "--no-progress",
+        ],
         cwd=work,
         env=env,
         capture_output=True,
@@ -75,6 +87,7 @@ def test_an_installed_pmsm_hil_runs_a_shipped_sweep_by_name_from_any_directory(t
         timeout=600,
     )
     assert r.returncode == 0, r.stderr
-    rows = list(csv.DictReader(open(work / "X" / "results.csv")))
+    with open(work / "X" / "results.csv") as f:
+        rows = list(csv.DictReader(f))
     assert len(rows) == 1 and rows[0]["status"] == "ok", rows
     assert "rig_effects_sensor_gain_i_b_gain" in rows[0]

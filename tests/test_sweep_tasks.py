@@ -39,7 +39,7 @@ def test_results_come_in_order_and_a_second_call_resumes(tmp_path):
     assert len(os.listdir(calls)) == 3
     lines = [json.loads(s) for s in (out / "sq.jsonl").read_text().splitlines()]
     assert {r["key"] for r in lines} == {task_key(t) for t in tasks}
-    more = tasks + [{"x": 5, "calls": str(calls)}]
+    more = [*tasks, {"x": 5, "calls": str(calls)}]
     second = run_tasks(_square, more, out, name="sq", workers=1, progress=False)
     assert second[:3] == first and second[3]["square"] == 25
     assert len(os.listdir(calls)) == 4  # only the new trial ran

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pmsm_hil.log.reader import read_log
+from pmsm_hil.log.reader import Log, read_log
 
 PARAMS = ("l_d_h", "l_q_h", "psi_f_wb", "r_s_ohm")
 ESTIMATORS = ("rls", "adaline", "nlms_adaline")
@@ -119,7 +119,7 @@ IDENT_TOPICS = {"/pmsm/params": None, "/sim/truth": ("t_s", *PARAMS)}
 
 
 def identification_table(
-    path, t0_s: float | None = None, t1_s: float | None = None, log=None
+    path, t0_s: float | None = None, t1_s: float | None = None, log: Log | None = None
 ) -> IdentTable:
     """The table for the log at `path` (or ``log``, the file already read with at least
     IDENT_TOPICS), over device time [t0_s, t1_s] (default: the whole log)."""

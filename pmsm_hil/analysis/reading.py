@@ -3,6 +3,7 @@ and fields they use are decoded (pmsm_hil.log.reader, ``topics=``)."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 from pmsm_hil.analysis.identification import IDENT_TOPICS
@@ -12,7 +13,7 @@ from pmsm_hil.log.reader import Log, merge_topics, read_log
 ANALYSIS_TOPICS = merge_topics(SUMMARY_TOPICS, IDENT_TOPICS)
 
 
-def read_for_analysis(path) -> Log:
+def read_for_analysis(path: str | os.PathLike) -> Log:
     """The log at ``path`` with what summarize_log and identification_table read; raises
     LogFormatError (not MCAP) or ValueError (an empty file)."""
     if Path(path).stat().st_size == 0:

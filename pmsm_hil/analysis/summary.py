@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pmsm_hil.log.reader import read_log
+from pmsm_hil.log.reader import Log, read_log
 
 RECOVERY_LIMIT_S = 0.3
 AVG_WINDOW_S = 0.02
@@ -271,7 +271,7 @@ SUMMARY_TOPICS = {
 }
 
 
-def summarize_log(path: Path, log=None) -> RunSummary:
+def summarize_log(path: Path, log: Log | None = None) -> RunSummary:
     """The summary of a log file (or of ``log``, the file already read with at least
     SUMMARY_TOPICS); raises LogFormatError (not MCAP) or ValueError (empty file)."""
     if Path(path).stat().st_size == 0:

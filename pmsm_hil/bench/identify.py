@@ -225,7 +225,7 @@ def mismatch(path, out: Path, seed: int = 1, echo=print, cluster: Cluster | None
         for i, (_, ctrl) in enumerate(cases)
     ]
     results = run_jobs(jobs, out, cluster)
-    for (label, _), job, res in zip(cases, jobs, results):
+    for (label, _), job, res in zip(cases, jobs, results, strict=False):
         log = Path(job["log"])
         if res.get("faults") or res.get("error"):
             raise BenchError(
@@ -320,7 +320,7 @@ def per_effect(path, out: Path, seed: int = 1, echo=print, cluster: Cluster | No
         )
         jobs.append(_job(pr, out / f"per-effect-{r}.mcap", seed, rig=rigs_dir / f"{r}.yaml"))
     results = run_jobs(jobs, out, cluster)
-    for r, job, res in zip(rigs, jobs, results):
+    for r, job, res in zip(rigs, jobs, results, strict=False):
         log = Path(job["log"])
         if res.get("faults") or res.get("error"):
             why = res.get("error") or _fault_names(res["faults"])

@@ -5,6 +5,10 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from pmsm_hil.log.reader import Log
 
 from pmsm_hil.cli.errors import fail
 
@@ -22,7 +26,7 @@ def add_parser(sub) -> None:
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
 
 
-def identification(path, log=None):
+def identification(path, log: Log | None = None):
     """The identification table of a log, or None when no estimator ran."""
     from pmsm_hil.analysis.identification import identification_table
 

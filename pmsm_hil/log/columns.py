@@ -12,13 +12,13 @@ become Python ``str`` objects in object arrays, decoded once per distinct value.
 
 from __future__ import annotations
 
-from typing import Iterable
+from collections.abc import Iterable
 
 import numpy as np
 
 from pmsm_hil.log.schemas import PRIMITIVES, Codec
 
-__all__ = ["decode_columns", "gather", "rows_at", "DecodeError"]
+__all__ = ["DecodeError", "decode_columns", "gather", "rows_at"]
 
 
 class DecodeError(ValueError):
@@ -73,7 +73,12 @@ def decode_columns(
     head = rows_at(buf, starts, 2)
     if np.any(head[:, 0] != 0) or np.any(head[:, 1] != 1):
         raise DecodeError(f"{codec.topic.topic}: not little-endian CDR data")
-    if codec.fixed and np.all(sizes == codec.size):
+    if (
+        codec.fixed
+        and codec.size is not None
+        and codec.dtype is not None
+        and (sizes == codec.size).all()
+    ):
         recs = rows_at(buf, starts, codec.size).view(codec.dtype).reshape(n)
         return {
             f.name: recs[f.name].astype(_native(PRIMITIVES[f.type][2]), copy=copy)

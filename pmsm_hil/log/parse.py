@@ -7,17 +7,19 @@ from __future__ import annotations
 import io
 import struct
 import zlib
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
-from typing import Iterable, Mapping
+from typing import TypeVar
 
 import numpy as np
 from mcap import records as mr
 from mcap.data_stream import ReadDataStream
 from mcap.stream_reader import get_chunk_data_stream
 
-from pmsm_hil.log.columns import DecodeError, rows_at, decode_columns, gather
+from pmsm_hil.log.columns import DecodeError, decode_columns, gather, rows_at
 from pmsm_hil.log.writer import MCAP_MAGIC
 
+_R = TypeVar("_R")
 _REC = struct.Struct("<BQ")
 _U16 = struct.Struct("<H").unpack_from
 _U32 = struct.Struct("<I").unpack_from
@@ -27,9 +29,9 @@ _FOOTER = 1 + 8 + 20  # opcode, length, summary_start, summary_offset_start, crc
 _BATCH_OCTETS = 8 << 20  # message data gathered across chunks before it is decoded at once
 
 
-def _read(cls, content) -> object:
+def _read(cls: type[_R], content: bytes) -> _R:
     """One record's content (without opcode and length) parsed by the mcap library."""
-    return cls.read(ReadDataStream(io.BytesIO(content)))
+    return cls.read(ReadDataStream(io.BytesIO(content)))  # type: ignore[attr-defined]
 
 
 class LogFormatError(ValueError):
@@ -165,8 +167,8 @@ class _Parser:
                     r = _read(mr.Header, c)
                     log.profile, log.library = r.profile, r.library
                 elif op == 0x0C:
-                    r = _read(mr.Metadata, c)
-                    log.metadata.setdefault(r.name, {}).update(r.metadata)
+                    meta = _read(mr.Metadata, c)
+                    log.metadata.setdefault(meta.name, {}).update(meta.metadata)
                 else:
                     self._attachment(c)
             p = end
@@ -268,7 +270,8 @@ class _Parser:
         if codec is None:
             ch.lts.append(lts)
             ch.var_data.extend(
-                buf[a : a + n].tobytes() for a, n in zip(starts.tolist(), sizes.tolist())
+                buf[a : a + n].tobytes()
+                for a, n in zip(starts.tolist(), sizes.tolist(), strict=False)
             )
             return
         if codec.fixed and np.any(sizes != codec.size):

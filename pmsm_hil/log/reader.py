@@ -26,20 +26,12 @@ from __future__ import annotations
 
 import os
 import re
-from typing import Iterable, Mapping
+from collections.abc import Iterable, Mapping
 
 import numpy as np
 
+from pmsm_hil.log.parse import Attachment, LogFormatError, Wanted, _Chan, _Parser, _Schema
 from pmsm_hil.log.schemas import PRIMITIVES, TOPICS, Codec, FieldDef, TopicDef, codec_for
-
-from pmsm_hil.log.parse import (  # noqa: F401 - Attachment and LogFormatError are public here
-    Attachment,
-    LogFormatError,
-    Wanted,
-    _Chan,
-    _Parser,
-    _Schema,
-)
 
 __all__ = ["Attachment", "Log", "LogFormatError", "merge_topics", "read_log", "rewrite_log"]
 
@@ -175,7 +167,7 @@ class Log:
             return lt, cols
         if ch.out_lt is not None:  # fewer or more messages than the statistics said
             ch.parts = {
-                k: [(ch.out_lt if k == "" else ch.out[k])[: ch.filled]] + ch.parts.get(k, [])
+                k: [(ch.out_lt if k == "" else ch.out[k])[: ch.filled], *ch.parts.get(k, [])]
                 for k in ["", *names]
             }
             ch.out_lt, ch.out = None, {}
@@ -257,10 +249,11 @@ def merge_topics(*wants: Wanted) -> dict[str, tuple | None]:
     out: dict[str, tuple | None] = {}
     for want in wants:
         for topic, fields in want.items():
-            if fields is None or (topic in out and out[topic] is None):
+            before = out.get(topic, ())
+            if fields is None or before is None:
                 out[topic] = None
             else:
-                out[topic] = tuple(dict.fromkeys((*out.get(topic, ()), *fields)))
+                out[topic] = tuple(dict.fromkeys((*before, *fields)))
     return out
 
 

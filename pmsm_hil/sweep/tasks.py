@@ -22,13 +22,14 @@ from __future__ import annotations
 import hashlib
 import json
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 from .driver import _Bar, _client, _error_of
 from .results import Journal
 
-__all__ = ["run_tasks", "task_key", "BLAS_THREADS"]
+__all__ = ["BLAS_THREADS", "run_tasks", "task_key"]
 
 BLAS_THREADS = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
 
@@ -66,11 +67,11 @@ def run_tasks(
     if out is not None:
         Path(out).mkdir(parents=True, exist_ok=True)
         journal = Journal(Path(out), f"{name}.jsonl")
-        by_key = dict(zip(keys, tasks))
+        by_key = dict(zip(keys, tasks, strict=False))
         for k in journal.done():
             if k in by_key and (done_if is None or done_if(by_key[k], journal.rows[k]["result"])):
                 results[k] = journal.rows[k]["result"]
-    todo = {k: t for k, t in zip(keys, tasks) if k not in results}
+    todo = {k: t for k, t in zip(keys, tasks, strict=False) if k not in results}
     bar = _Bar(
         len(set(keys)), len(set(keys)) - len(todo), enabled=progress, label=name, unit="trials"
     )
@@ -88,7 +89,7 @@ def run_tasks(
                     status = "ok"
                     try:
                         res = _normal(fut.result())
-                    except Exception as e:  # noqa: BLE001 - the worker died twice, or was lost
+                    except Exception as e:
                         res, status = {"error": _error_of(e)}, "failed"
                     fut.release()
                     results[k] = res
