@@ -13,6 +13,11 @@
   2 kHz, params 4 x 100 Hz, status 10 Hz, truth 100 Hz; written once by benchmarks/log_reader.py's
   generator and kept at --log): wall time, CPU time and peak RSS of that process.
 
+`--base DIR`: the same `run` and `analyze` commands with another source tree of pmsm-hil (e.g.
+`git archive COMMIT | tar -x -C DIR` and the compiled extension `pmsm_hil/_fw*.so` copied in; on
+PYTHONPATH, so its emulator child is that tree's too), interleaved with this one's, and the speed-up
+as the median of the per-pair ratios: a comparison that holds on a loaded machine.
+
 The machine this runs on is often shared: each figure is the median over --repeat runs (the worst
 beside it), wall-clock ratios move with the load, the CPU times less so; the load average at the
 start is printed.
@@ -41,6 +46,7 @@ def timed(cmd: list[str], **kw) -> dict:
     """Wall time, CPU time (user + sys, of the process and of the children it waited for) and peak
     RSS of a command."""
     t0 = time.perf_counter()
+    kw.setdefault("cwd", tempfile.gettempdir())  # not a source tree: `-m` would import from it
     p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, **kw)
     _, status, ru = os.wait4(p.pid, 0)
     wall = time.perf_counter() - t0
@@ -60,23 +66,46 @@ def med(values) -> float:
     return statistics.median(values)
 
 
-def bench_run(repeat: int) -> None:
+def _envs(base: str | None) -> dict[str, dict | None]:
+    envs: dict[str, dict | None] = {"this tree": None}
+    if base:
+        envs["base"] = {**os.environ, "PYTHONPATH": os.path.abspath(base)}
+    return envs
+
+
+def _pairs(name: str, runs: dict[str, list[dict]], key: str) -> None:
+    """The speed-up of this tree over the base, per interleaved pair."""
+    if "base" in runs:
+        ratios = [b[key] / a[key] for a, b in zip(runs["this tree"], runs["base"], strict=True)]
+        print(
+            f"  {name}: this tree / base, {key}: median {med(ratios):.2f}x faster "
+            f"(range {min(ratios):.2f}-{max(ratios):.2f}x over {len(ratios)} pairs)"
+        )
+
+
+def bench_run(repeat: int, base: str | None = None) -> None:
+    envs = _envs(base)
+    runs: dict[str, list[dict]] = {k: [] for k in envs}
     with tempfile.TemporaryDirectory() as d:
-        runs = []
         for i in range(repeat):
-            out = os.path.join(d, f"a{i}.mcap")
-            cmd = [*CLI, "run", str(ROOT / "profiles" / "paper-a.yaml"), "--seed", "1"]
-            r = timed([*cmd, "--no-live", "--out", out])  # CPU: its emulator child included
-            if r["code"] != 0:
-                sys.exit(f"run failed: {r['stderr'][-2000:]}")
-            runs.append(r)
-    walls = [r["wall_s"] for r in runs]
-    cpus = [r["cpu_s"] for r in runs]
-    print(
-        f"run paper-a ({PAPER_A_S} s of device time), {repeat} runs: median {med(walls):.2f} s wall "
-        f"= {PAPER_A_S / med(walls):.1f}x real time (worst {PAPER_A_S / max(walls):.1f}x); "
-        f"CPU host + emulator median {med(cpus):.2f} s = {PAPER_A_S / med(cpus):.1f}x"
-    )
+            for label, env in envs.items():
+                out = os.path.join(d, f"a{i}.mcap")
+                cmd = [*CLI, "run", str(ROOT / "profiles" / "paper-a.yaml"), "--seed", "1"]
+                r = timed([*cmd, "--no-live", "--out", out], env=env)  # CPU: its child included
+                if r["code"] != 0 or "Traceback" in r["stderr"]:
+                    sys.exit(f"run ({label}) failed: {r['stderr'][-2000:]}")
+                runs[label].append(r)
+    for label, rs in runs.items():
+        walls = [r["wall_s"] for r in rs]
+        cpus = [r["cpu_s"] for r in rs]
+        print(
+            f"run paper-a ({PAPER_A_S} s of device time), {label}, {repeat} runs: median "
+            f"{med(walls):.2f} s wall = {PAPER_A_S / med(walls):.1f}x real time (worst "
+            f"{PAPER_A_S / max(walls):.1f}x); CPU host + emulator median {med(cpus):.2f} s = "
+            f"{PAPER_A_S / med(cpus):.1f}x"
+        )
+    _pairs("run", runs, "wall_s")
+    _pairs("run", runs, "cpu_s")
 
 
 def bench_loop(repeat: int) -> None:
@@ -113,7 +142,7 @@ def bench_loop(repeat: int) -> None:
         print(line)
 
 
-def bench_analyze(repeat: int, log: str | None) -> None:
+def bench_analyze(repeat: int, log: str | None, base: str | None = None) -> None:
     from log_reader import make_log
 
     path = log or os.path.join(tempfile.gettempdir(), "pmsm-hil-hour.mcap")
@@ -123,18 +152,27 @@ def bench_analyze(repeat: int, log: str | None) -> None:
         print(
             f"wrote {path} ({os.path.getsize(path) / 2**20:.0f} MiB) in {time.perf_counter() - t0:.0f} s"
         )
-    runs = [timed([*CLI, "analyze", path]) for _ in range(repeat)]
-    bad = [r for r in runs if r["code"] not in (0, 1)]
-    if bad:
-        sys.exit(f"analyze failed: {bad[0]['stderr'][-2000:]}")
-    w = [r["wall_s"] for r in runs]
-    c = [r["cpu_s"] for r in runs]
-    m = [r["rss_mib"] for r in runs]
-    print(
-        f"analyze one hour at 2 kHz ({os.path.getsize(path) / 2**20:.0f} MiB), {repeat} runs: "
-        f"median {med(w):.1f} s wall (worst {max(w):.1f} s), CPU {med(c):.1f} s "
-        f"(worst {max(c):.1f} s), peak RSS {med(m):.0f} MiB (worst {max(m):.0f} MiB)"
-    )
+    envs = _envs(base)
+    runs: dict[str, list[dict]] = {k: [] for k in envs}
+    for _ in range(repeat):
+        for label, env in envs.items():
+            r = timed([*CLI, "analyze", path], env=env)
+            # exit 1 is "bounds missed" (a synthetic log); anything on stderr is a failure
+            if r["code"] not in (0, 1) or r["stderr"].strip():
+                sys.exit(f"analyze ({label}) failed: {r['stderr'][-2000:]}")
+            runs[label].append(r)
+    size = os.path.getsize(path) / 2**20
+    for label, rs in runs.items():
+        w = [r["wall_s"] for r in rs]
+        c = [r["cpu_s"] for r in rs]
+        m = [r["rss_mib"] for r in rs]
+        print(
+            f"analyze one hour at 2 kHz ({size:.0f} MiB), {label}, {repeat} runs: median "
+            f"{med(w):.1f} s wall (worst {max(w):.1f} s), CPU {med(c):.1f} s (worst {max(c):.1f} s), "
+            f"peak RSS {med(m):.0f} MiB (worst {max(m):.0f} MiB)"
+        )
+    _pairs("analyze", runs, "wall_s")
+    _pairs("analyze", runs, "cpu_s")
 
 
 def main() -> None:
@@ -144,15 +182,18 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--log", default=None, help="the one-hour log (written there if missing)")
     ap.add_argument("--skip", default="", help="comma-separated: run, loop, analyze")
+    ap.add_argument(
+        "--base", default=None, help="another source tree to compare with (run, analyze)"
+    )
     args = ap.parse_args()
     skip = set(filter(None, args.skip.split(",")))
     print(f"load average at the start: {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
     if "run" not in skip:
-        bench_run(args.repeat)
+        bench_run(args.repeat, args.base)
     if "loop" not in skip:
         bench_loop(args.repeat)
     if "analyze" not in skip:
-        bench_analyze(args.repeat, args.log)
+        bench_analyze(args.repeat, args.log, args.base)
 
 
 if __name__ == "__main__":
