@@ -42,6 +42,7 @@ def emulator_realtime_factor(profile_path: str, rig: str | None = None, seed: in
     ticks = 0
     octets = 0
     t0 = time.perf_counter()
+    c0 = time.process_time()
     while dev.active:
         n, out = dev.run(4000)  # 0.2 s: within the heartbeat timeout
         ticks += n
@@ -49,6 +50,7 @@ def emulator_realtime_factor(profile_path: str, rig: str | None = None, seed: in
         # keep the heartbeat alive the way the host would (no decoding)
         s.send("heartbeat", counter=ticks)
     wall = time.perf_counter() - t0
+    cpu = time.process_time() - c0
     device_s = ticks * profile.control.ts_s
     return {
         "device_s": device_s,
@@ -57,6 +59,8 @@ def emulator_realtime_factor(profile_path: str, rig: str | None = None, seed: in
         "octets": octets,
         "ns_per_period": wall / ticks * 1e9,
         "realtime_factor": device_s / wall,
+        "cpu_s": cpu,  # this process's CPU time: less moved by other jobs on a shared machine
+        "cpu_realtime_factor": device_s / cpu if cpu > 0 else float("inf"),
         "rig": rig or str(getattr(profile.rig, "path", "default")),
     }
 

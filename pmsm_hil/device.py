@@ -71,6 +71,7 @@ def open_device(spec: DeviceSpec, profile: Profile) -> SerialLink | CanLink:
         return SerialLink(SerialTransport(spec.port, baud))
     from pmsm_hil.transport.emulator import EmulatorTransport
 
+    settings, plant = _child_settings(spec, profile, baud)
     return SerialLink(
         EmulatorTransport(
             str(profile.motor.path),
@@ -79,8 +80,23 @@ def open_device(spec: DeviceSpec, profile: Profile) -> SerialLink | CanLink:
             baud,
             corrupt_ppm=spec.corrupt_ppm,
             pace=spec.pace,
+            settings=settings,
+            plant=plant,
         )
     )
+
+
+def _child_settings(spec: DeviceSpec, profile, baud: int) -> tuple[dict[str, float], str]:
+    """The settings the emulator child would build from the motor and rig files it is named
+    (the same files, loaded the same way), and its plant line."""
+    from pmsm_hil.emulator.settings import emulator_settings
+    from pmsm_hil.profiles import load_motor, load_rig
+
+    motor = load_motor(str(profile.motor.path))
+    rig_path = _rig_path(spec, profile)
+    rig = load_rig(rig_path) if rig_path else load_rig(None)
+    settings = emulator_settings(motor, rig, seed=spec.seed, baud=baud)
+    return settings, f"motor: {motor.name}  rig: {rig.name or 'default'}"
 
 
 def emulator_settings_for(profile: Profile, spec: DeviceSpec | None = None) -> dict[str, float]:

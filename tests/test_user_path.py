@@ -376,3 +376,39 @@ def test_can_run_with_the_live_view_on_a_terminal(data, tmp_path):
     assert b"state" in screen  # the live view was drawn
     log = read_log(out)
     assert log.finalised and "profile_done" in list(log.topic("/pmsm/events")["kind"])
+
+
+def test_the_emulator_child_takes_the_hosts_settings_and_imports_no_profile_loader(tmp_path):
+    """The host builds the sim board's settings (it has loaded the files already) and hands them
+    over in a file: the child reads neither motor nor rig and imports no pydantic."""
+    from pmsm_hil.device import DeviceSpec, _child_settings
+
+    profile = load_profile(
+        resolve("paper-a", "profile"), rig_override=resolve("lab-typical", "rig")
+    )
+    settings, plant = _child_settings(
+        DeviceSpec(rig_path=resolve("lab-typical", "rig")), profile, 921600
+    )
+    assert "rig: lab-typical" in plant and isinstance(settings["sat_psi_d_wb"], list)
+    f = tmp_path / "settings.json"
+    import json
+
+    f.write_text(json.dumps({"settings": settings, "plant": plant}))
+    p = subprocess.Popen(
+        [sys.executable, "-X", "importtime", "-m", "pmsm_hil.emulator", "--settings-file", str(f)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert p.stdout.readline().startswith("serial: /dev/")
+        assert p.stdout.readline().strip() == plant
+    finally:
+        p.terminate()
+        _, err = p.communicate(timeout=10)
+    imported = {line.split("|")[-1].strip() for line in err.splitlines() if "|" in line}
+    assert "pmsm_hil.emulator.fwlib" in imported
+    assert not {m for m in imported if m.startswith(("pydantic", "pmsm_hil.profiles"))}
+    f.write_text("{not json")
+    r = cli("emulate", "--settings-file", f)
+    assert r.returncode == 2 and "settings.json" in r.stderr and "Traceback" not in r.stderr

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pmsm_hil.log.reader import read_log
+from pmsm_hil.log.reader import Log, read_log
 
 PARAMS = ("l_d_h", "l_q_h", "psi_f_wb", "r_s_ohm")
 ESTIMATORS = ("rls", "adaline", "nlms_adaline")
@@ -114,11 +114,16 @@ def convergence_time(
     return max(0.0, float(t[k]) - t_first)
 
 
+# what the table reads of a log (read_log(path, topics=...))
+IDENT_TOPICS = {"/pmsm/params": None, "/sim/truth": ("t_s", *PARAMS)}
+
+
 def identification_table(
-    path: Path | str, t0_s: float | None = None, t1_s: float | None = None
+    path: Path | str, t0_s: float | None = None, t1_s: float | None = None, log: Log | None = None
 ) -> IdentTable:
-    """The table for the log at `path`, over device time [t0_s, t1_s] (default: the whole log)."""
-    log = read_log(path)
+    """The table for the log at `path` (or ``log``, the file already read with at least
+    IDENT_TOPICS), over device time [t0_s, t1_s] (default: the whole log)."""
+    log = log if log is not None else read_log(path, topics=IDENT_TOPICS)
     par = log.topic("/pmsm/params")
     t_all = np.asarray(par["t_s"], dtype=float)
     names = np.asarray(par["estimator"]).astype(str)
@@ -232,7 +237,7 @@ def convergence_plot(
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    log = read_log(path)
+    log = read_log(path, topics=IDENT_TOPICS)
     par = log.topic("/pmsm/params")
     t_all = np.asarray(par["t_s"], dtype=float)
     names = np.asarray(par["estimator"]).astype(str)

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from pmsm_hil.log.reader import read_log
+from pmsm_hil.log.reader import Log, read_log
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -260,11 +260,31 @@ def log_problems(log: Log) -> list[str]:
     return out
 
 
-def summarize_log(path: Path) -> RunSummary:
-    """The summary of a log file; raises LogFormatError (not MCAP) or ValueError (empty file)."""
+# what the summary reads of a log (read_log(path, topics=...)): nothing else is decoded
+SUMMARY_TOPICS = {
+    "/pmsm/telemetry": (
+        "t_s",
+        "speed_ref_rpm",
+        "speed_rpm",
+        "load_nm",
+        "i_d_a",
+        "i_d_ref_a",
+        "i_q_a",
+        "i_q_ref_a",
+    ),
+    "/pmsm/events": None,
+    "/sim/truth": ("t_s", "speed_rpm"),
+    "/pmsm/status": ("t_s", "tx_dropped"),
+    "/host/link": ("t_s", "seq_gaps", "crc_errors", "cobs_errors", "len_errors"),
+}
+
+
+def summarize_log(path: Path, log: Log | None = None) -> RunSummary:
+    """The summary of a log file (or of ``log``, the file already read with at least
+    SUMMARY_TOPICS); raises LogFormatError (not MCAP) or ValueError (empty file)."""
     if Path(path).stat().st_size == 0:
         raise ValueError(f"{path}: the file is empty (0 octets): no run was recorded")
-    log = read_log(path)
+    log = log if log is not None else read_log(path, topics=SUMMARY_TOPICS)
     names = None
     meta = log.metadata.get("run", {})
     if meta.get("segment_names"):

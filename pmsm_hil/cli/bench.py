@@ -75,6 +75,21 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         default=None,
         help="run only that part (skips the Table-2 run)",
     )
+    b.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        metavar="N",
+        help="--mismatch / --per-effect runs: worker processes of the local Dask cluster "
+        "(default: one per core; docs/sweep.md)",
+    )
+    b.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDR",
+        help="--mismatch / --per-effect runs on this Dask scheduler, e.g. tcp://HOST:8786 "
+        "(the output folder must be on a filesystem the workers share)",
+    )
 
     c = bsub.add_parser(
         "commission",
@@ -117,7 +132,14 @@ def main(args: argparse.Namespace) -> int:
         except ValueError as e:
             return fail("error", f"--seeds {args.seeds}: {e}", 2)
         return 0
-    from pmsm_hil.bench.identify import BenchError, default_profile, identify, mismatch, per_effect
+    from pmsm_hil.bench.identify import (
+        BenchError,
+        Cluster,
+        default_profile,
+        identify,
+        mismatch,
+        per_effect,
+    )
     from pmsm_hil.profiles import ProfileError
     from pmsm_hil.profiles.shipped import resolve
 
@@ -145,14 +167,15 @@ def main(args: argparse.Namespace) -> int:
                 motor=motor,
             )
             return 0
+        cluster = Cluster(workers=args.workers, scheduler=args.scheduler, progress=True)
         if args.only not in {"per-effect", "mismatch"}:
             identify(path, out, args.seed, rig, args.until, motor=motor)
         if args.mismatch or args.only == "mismatch":
             out.mkdir(parents=True, exist_ok=True)
-            mismatch(path, out, args.seed)
+            mismatch(path, out, args.seed, cluster=cluster)
         if args.per_effect or args.only == "per-effect":
             out.mkdir(parents=True, exist_ok=True)
-            per_effect(path, out, args.seed)
+            per_effect(path, out, args.seed, cluster=cluster)
     except ProfileError as e:
         return fail("error", str(e), 2)
     except BenchError as e:

@@ -261,11 +261,13 @@ def main(args: argparse.Namespace) -> int:
 def _finish(result, print_summary, summarize_log) -> int:
     try:
         print(f"log: {result.log_path}")
-        summary = summarize_log(result.log_path)
-        print_summary(summary, interrupted=result.interrupted or bool(result.error))
+        from pmsm_hil.analysis.reading import read_for_analysis
         from pmsm_hil.cli.analyze import identification, print_identification
 
-        ident = identification(result.log_path)
+        log = read_for_analysis(result.log_path)
+        summary = summarize_log(result.log_path, log)
+        print_summary(summary, interrupted=result.interrupted or bool(result.error))
+        ident = identification(result.log_path, log)
         if ident is not None:
             print_identification(ident)
     except (

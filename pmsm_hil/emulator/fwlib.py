@@ -162,7 +162,7 @@ class EmulatedDevice:
         ticks = self._lib.emu_run(
             self._p, max(0, int(max_ticks)), self._out, self._out_cap, ctypes.byref(self._n)
         )
-        return ticks, self._out.raw[: self._n.value]
+        return ticks, ctypes.string_at(self._out, self._n.value)  # only the octets written
 
     def can_rx(self, ident: int, data: bytes) -> None:
         """A CAN frame from the host (docs/can.md)."""

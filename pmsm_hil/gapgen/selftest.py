@@ -4,7 +4,9 @@ The labels of all trials are drawn first and sealed: their SHA-256 is printed be
 runs. Each trial records a 2 s random profile on the in-process emulator with the hidden effects
 (plus a held-out record on another random profile, and the same run without the effects for the
 detectability oracle), gives the diagnoser only the control-rate log, and keeps its answer; the
-scores are computed when every trial is done. Trials run in a process pool."""
+scores are computed when every trial is done. Trials run on the sweep's Dask machinery
+(pmsm_hil.sweep.tasks: a local cluster or a scheduler, a trial whose worker dies re-run once, and
+with an output folder a journal keyed by each trial's inputs, so an interrupted self-test resumes)."""
 
 from __future__ import annotations
 
@@ -12,7 +14,6 @@ import hashlib
 import json
 import os
 import tempfile
-from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 import yaml
@@ -226,7 +227,12 @@ def score(trials: list[dict], outs: list[dict]) -> dict:
 
 
 def run_selftest(
-    n_trials: int, seed: int, workers: int | None = None, progress: bool = True
+    n_trials: int,
+    seed: int,
+    workers: int | None = None,
+    progress: bool = True,
+    out: str | os.PathLike | None = None,
+    scheduler: str | None = None,
 ) -> dict:
     rng = np.random.default_rng(seed)
     trials = [draw_trial(rng) for _ in range(n_trials)]
@@ -237,9 +243,19 @@ def run_selftest(
     digest = hashlib.sha256(sealed).hexdigest()
     if progress:
         print(f"labels sealed: sha256 {digest}", flush=True)
-    workers = workers or os.cpu_count() or 1
-    with ProcessPoolExecutor(max_workers=workers) as ex:
-        outs = list(ex.map(run_trial, trials))
+    from pathlib import Path
+
+    from pmsm_hil.sweep.tasks import run_tasks
+
+    outs = run_tasks(
+        run_trial,
+        trials,
+        Path(out) if out is not None else None,
+        name="selftest",
+        scheduler=scheduler,
+        workers=workers,
+        progress=progress,
+    )
     res = score(trials, outs)
     res.update(
         {

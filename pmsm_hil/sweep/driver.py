@@ -230,7 +230,10 @@ def run_runs(
 class _Bar:
     """rich progress: runs done (and skipped), failed, runs per minute, time left."""
 
-    def __init__(self, total: int, skipped: int, enabled: bool):
+    def __init__(
+        self, total: int, skipped: int, enabled: bool, label: str = "sweep", unit: str = "runs"
+    ):
+        self.unit = unit
         self.enabled = enabled
         self.total, self.done, self.failed = total, skipped, 0
         self.new = 0
@@ -244,7 +247,7 @@ class _Bar:
             )
 
             self.progress = Progress(
-                TextColumn("sweep"),
+                TextColumn(label),
                 BarColumn(),
                 MofNCompleteColumn(),
                 TextColumn("{task.fields[failed]} failed"),
@@ -272,5 +275,8 @@ class _Bar:
         if self.enabled:
             rate = 60.0 * self.new / elapsed_s if elapsed_s > 0 else 0.0
             self.progress.update(
-                self.task, completed=self.done, failed=self.failed, rate=f"{rate:.1f} runs/min"
+                self.task,
+                completed=self.done,
+                failed=self.failed,
+                rate=f"{rate:.1f} {self.unit}/min",
             )

@@ -79,9 +79,11 @@ def run_metrics(log_path: str | Path, profile: Profile, metrics: list[str]) -> d
     ``acceptance_checks`` (every check, as JSON)."""
     import json
 
+    from pmsm_hil.analysis.reading import read_for_analysis
     from pmsm_hil.analysis.summary import summarize_log
 
-    summary = summarize_log(Path(log_path))
+    log = read_for_analysis(log_path)
+    summary = summarize_log(Path(log_path), log)
     out = summary_metrics(summary, metrics)
     acc = getattr(profile, "acceptance", None)
     wants_ident = acc is not None and acc.run is not None and acc.run.identification
@@ -90,7 +92,7 @@ def run_metrics(log_path: str | Path, profile: Profile, metrics: list[str]) -> d
         from pmsm_hil.analysis.identification import identification_table
 
         t0, t1 = identification_window(profile)
-        table = identification_table(Path(log_path), t0, t1)
+        table = identification_table(Path(log_path), t0, t1, log=log)
         if "identification" in metrics:
             out.update(ident_metrics(table))
     if acc is not None:

@@ -21,8 +21,8 @@ LAST_COLUMNS = ("state", "stop_reason", "log_path", "error", "acceptance_checks"
 
 
 class Journal:
-    def __init__(self, out: Path):
-        self.path = Path(out) / "results.jsonl"
+    def __init__(self, out: Path, filename: str = "results.jsonl"):
+        self.path = Path(out) / filename
         self.rows: dict[str, dict[str, Any]] = {}
         if self.path.exists():
             with open(self.path, encoding="utf-8") as f:
