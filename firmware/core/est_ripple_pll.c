@@ -96,7 +96,7 @@ void rpll_step(rpll_t *e, const rpll_in_t *in, rpll_out_t *out)
         di_q -= w * ts * im_d;
         rerr_gamma_at(&c->gamma, im_d, im_q, &ri.g);
         ri.e_d_a = di_d - ts * (ri.g.g_dd * ud + ri.g.g_dq * uq);
-        ri.e_q_a = di_q - ts * (ri.g.g_dq * ud + ri.g.g_qq * uq);
+        ri.e_q_a = di_q - ts * (ri.g.g_qd * ud + ri.g.g_qq * uq);
         /* the ripple only: the slow parts of e and U (back-EMF and flux errors of a wrong angle,
          * correlated with each other, not with the switching) are removed by running means */
         e->m_ed += e->k_hp * (ri.e_d_a - e->m_ed);

@@ -18,17 +18,32 @@
 #ifndef RIPPLE_ERR_H
 #define RIPPLE_ERR_H
 
+#include <stdint.h>
+
 /* Gamma(i_d, i_q) in 1/H:  g_dd = a0 + a1 i_d + a2 i_d^2 + a3 i_q^2
  *                          g_qq = b0 + b1 i_d + b2 i_d^2 + b3 i_q^2
  *                          g_dq = i_q (c0 + c1 i_d) */
+/* Or a table of Gamma over a regular (i_d, i_q) grid, bilinear inside, clamped to the edges
+ * (from the motor's flux map: the inverse of its incremental inductance matrix). */
+#define RERR_TAB_MAX 1600 /* nodes */
+typedef struct {
+    uint16_t nd, nq;     /* nodes along i_d and i_q (0: no table) */
+    float id0_a, iq0_a;  /* first node */
+    float inv_did, inv_diq;
+    float g[RERR_TAB_MAX][4]; /* g_dd, g_qq, g_dq, g_qd at node k * nd + j */
+} rerr_tab_t;
+
 typedef struct {
     float a0, a1, a2, a3;
     float b0, b1, b2, b3;
     float c0, c1;
+    const rerr_tab_t *tab; /* NULL: the polynomial above */
 } rerr_gamma_t;
 
 typedef struct {
-    float g_dd, g_qq, g_dq; /* 1/H */
+    float g_dd, g_qq, g_dq, g_qd; /* 1/H; g_dq: d row, q column (a measured map is not exactly
+                                     symmetric: the antisymmetric part a J turns with the frame,
+                                     R a J R^T = a J, so it only has to be in the prediction) */
 } rerr_g_t;
 
 typedef struct {

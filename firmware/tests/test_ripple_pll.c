@@ -24,6 +24,7 @@ static void test_detector_hand_case(void)
     in.g.g_dd = 200.0f;
     in.g.g_qq = 83.33333f;
     in.g.g_dq = 0.0f;
+    in.g.g_qd = 0.0f;
     in.u_d_v = 100.0f;
     in.u_q_v = 300.0f;
     in.e_d_a = 0.168021f;
@@ -61,6 +62,7 @@ static void test_detector_cross_saturation(void)
             in.g.g_dd = (float)a;
             in.g.g_qq = (float)b;
             in.g.g_dq = (float)gdq;
+            in.g.g_qd = (float)gdq;
             in.u_d_v = (float)uu[j][0];
             in.u_q_v = (float)uu[j][1];
             in.e_d_a = (float)(ts * ((r00 - a) * uu[j][0] + (r01 - gdq) * uu[j][1]));
