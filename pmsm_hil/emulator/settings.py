@@ -58,6 +58,9 @@ def effect_settings(motor, rig) -> dict:
     s: dict = {"effects_mask": int(getattr(rig, "effects_mask", 0) or 0)}
     sat = _eff(rig, "saturation")
     fm = rig.flux_map() if sat is not None else None
+    if fm is None and getattr(motor, "flux_map", None):
+        # the motor's own measured magnetics: the rig departs from them, not from a linear model
+        fm = motor.load_flux_map()
     if fm is not None:
         s.update(fm.settings())
     else:
