@@ -95,6 +95,17 @@ void rpll_step(rpll_t *e, const rpll_in_t *in, rpll_out_t *out)
         di_d += w * ts * im_q;
         di_q -= w * ts * im_d;
         rerr_gamma_at(&c->gamma, im_d, im_q, &ri.g);
+        if (c->gamma.tab != NULL) { /* Simpson over the step: Gamma varies along a 3 A ripple */
+            rerr_g_t g0, g1;
+            float i0d, i0q;
+            tf_park(e->i_al_prev, e->i_be_prev, cm, sm, &i0d, &i0q);
+            rerr_gamma_at(&c->gamma, i0d, i0q, &g0);
+            rerr_gamma_at(&c->gamma, 2.0f * im_d - i0d, 2.0f * im_q - i0q, &g1);
+            ri.g.g_dd = (g0.g_dd + 4.0f * ri.g.g_dd + g1.g_dd) * (1.0f / 6.0f);
+            ri.g.g_qq = (g0.g_qq + 4.0f * ri.g.g_qq + g1.g_qq) * (1.0f / 6.0f);
+            ri.g.g_dq = (g0.g_dq + 4.0f * ri.g.g_dq + g1.g_dq) * (1.0f / 6.0f);
+            ri.g.g_qd = (g0.g_qd + 4.0f * ri.g.g_qd + g1.g_qd) * (1.0f / 6.0f);
+        }
         ri.e_d_a = di_d - ts * (ri.g.g_dd * ud + ri.g.g_dq * uq);
         ri.e_q_a = di_q - ts * (ri.g.g_qd * ud + ri.g.g_qq * uq);
         /* the ripple only: the slow parts of e and U (back-EMF and flux errors of a wrong angle,
