@@ -52,9 +52,7 @@ def gamma_nodes(fm: FluxMap) -> np.ndarray:
     return np.stack([l_qq / det, l_dd / det, -l_dq / det, -l_qd / det], axis=-1)
 
 
-def gamma_table(
-    fm: FluxMap, i_d_min_a: float, i_max_a: float, ripple_a: float = 4.0
-) -> GammaTable:
+def gamma_table(fm: FluxMap, i_d_min_a: float, i_max_a: float, ripple_a: float = 4.0) -> GammaTable:
     """The nodes the drive can reach, one node beyond: i_d from i_d_min_a - ripple_a (the most
     negative reference, MTPA at the current limit) to +ripple_a, i_q within +-(i_max_a +
     ripple_a); thinned by taking every n-th node until the table fits the firmware's."""

@@ -207,7 +207,9 @@ def _load_motor_source(src: Source) -> tuple[Motor | None, list[Problem]]:
             motor.load_flux_map()
         except (OSError, FluxMapError) as e:
             return None, [
-                src.problem(("flux_map",), f"names a flux map that cannot be used: {e}", motor.flux_map)
+                src.problem(
+                    ("flux_map",), f"names a flux map that cannot be used: {e}", motor.flux_map
+                )
             ]
     return motor, []
 
