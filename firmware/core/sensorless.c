@@ -1,10 +1,7 @@
 /* The sensorless angle source: ripple PLL, polarity test, hybrid, supervision (sensorless.h). */
 #include "sensorless.h"
 
-#include <math.h>
 #include <string.h>
-
-#include "transforms.h"
 
 void snl_init(snl_t *s, const snl_cfg_t *cfg)
 {
@@ -32,12 +29,11 @@ void snl_step(snl_t *s, const snl_in_t *in, snl_out_t *out)
     rpll_out_t po;
     pol_in_t qi;
     pol_out_t qo;
-    const float thm = s->th_out + 0.5f * s->w_out * s->cfg.pll.ts_s;
     memset(out, 0, sizeof(*out));
     pi.i_alpha_a = in->i_alpha_a;
     pi.i_beta_a = in->i_beta_a;
-    tf_inv_park(in->u_d_prev_v, in->u_q_prev_v, cosf(thm), sinf(thm), &pi.u_alpha_v,
-                &pi.u_beta_v);
+    pi.u_alpha_v = in->u_alpha_prev_v;
+    pi.u_beta_v = in->u_beta_prev_v;
     pi.u_valid = in->u_valid;
     rpll_step(&s->pll, &pi, &po);
 
@@ -98,6 +94,4 @@ void snl_step(snl_t *s, const snl_in_t *in, snl_out_t *out)
     out->lock = s->lock;
     out->valid = !qo.active && s->lock == SNL_LOCK_OK &&
                  (qo.result == POL_KEPT || qo.result == POL_FLIPPED);
-    s->th_out = out->theta_e_rad;
-    s->w_out = out->omega_e_rad_s;
 }

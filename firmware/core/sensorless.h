@@ -35,8 +35,7 @@ typedef struct {
 
 typedef struct {
     float i_alpha_a, i_beta_a;      /* measured at k */
-    float u_d_prev_v, u_q_prev_v;   /* average dq voltage over [k-1, k) in the frame this object
-                                       gave (its last output, at the period's middle) */
+    float u_alpha_prev_v, u_beta_prev_v; /* the inverter's average voltage over [k-1, k) */
     bool u_valid;                   /* PWM on during [k-1, k) */
     float theta_mras_rad, omega_mras_rad_s; /* hybrid mode */
 } snl_in_t;
@@ -61,7 +60,6 @@ typedef struct {
     rpll_t pll;
     pol_t pol;
     hyb_t hyb;
-    float th_out, w_out; /* the last output: the frame of u_dq_prev */
     uint16_t lock;
     uint32_t n_low, n_low_max;
 } snl_t;
