@@ -1,7 +1,8 @@
 /* Magnet polarity at start-up (docs/sensorless.md, "Polarity"): the saliency PLL locks to the d
  * axis or to its opposite (sin 2d). With the rotor at rest and locked, the d-axis current is
  * pulsed to +I then -I along the estimated d axis, and the inverse incremental inductance is
- * measured on each side from the ripple, g = sum(di_d U_d) / sum(Ts U_d^2). Iron saturates
+ * measured on each side from the ripple (while the PLL settles, a d-axis square wave of a third
+ * of the pulse makes the ripple), g = sum(di_d U_d) / sum(Ts U_d^2). Iron saturates
  * asymmetrically in i_d because the magnet's flux adds to one side, so the relative asymmetry
  *     a = (g+ - g-) / (g+ + g-)
  * has the sign of the nominal magnetics' own (asym_expected: from the motor's flux map, or the
@@ -19,6 +20,8 @@
 #define POL_FLIPPED    2u /* it was half a turn off and has been turned */
 #define POL_UNRESOLVED 3u /* |asymmetry| below asym_min: polarity not resolved */
 #define POL_NO_LOCK    4u /* the PLL did not lock before the pulses */
+
+#define POL_SETTLE_EXCITE 0.33f /* d-axis square wave while settling, fraction of the pulse */
 
 typedef struct {
     float ts_s;
