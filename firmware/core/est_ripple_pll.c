@@ -83,8 +83,8 @@ void rpll_step(rpll_t *e, const rpll_in_t *in, rpll_out_t *out)
         float im_d, im_q, di_d, di_q, u_d, u_q, ud, uq, psi_d, psi_q;
         rerr_in_t ri;
         rerr_out_t ro;
-        tf_park(0.5f * (in->i_alpha_a + e->i_al_prev), 0.5f * (in->i_beta_a + e->i_be_prev), cm,
-                sm, &im_d, &im_q);
+        tf_park(0.5f * (in->i_alpha_a + e->i_al_prev), 0.5f * (in->i_beta_a + e->i_be_prev), cm, sm,
+                &im_d, &im_q);
         tf_park(in->i_alpha_a - e->i_al_prev, in->i_beta_a - e->i_be_prev, cm, sm, &di_d, &di_q);
         tf_park(in->u_alpha_v, in->u_beta_v, cm, sm, &u_d, &u_q);
         psi_d = c->psi_f_wb + c->l_d_h * im_d;

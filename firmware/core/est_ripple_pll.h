@@ -24,22 +24,22 @@
 
 #include "ripple_err.h"
 
-#define RPLL_BW_DEFAULT_RAD_S   400.0f
-#define RPLL_NORM_TAU_DEFAULT_S 2.0e-3f
-#define RPLL_CONF_TAU_DEFAULT_S 10.0e-3f
-#define RPLL_HP_TAU_S           1.0e-3f /* running means removed from e and U */
-#define RPLL_EXCITE_A           1.0f    /* d-axis square wave when the ripple is too small */
-#define RPLL_EXCITE_HALF_PERIODS 10u    /* 1 kHz at 20 kHz */
+#define RPLL_BW_DEFAULT_RAD_S    400.0f
+#define RPLL_NORM_TAU_DEFAULT_S  2.0e-3f
+#define RPLL_CONF_TAU_DEFAULT_S  10.0e-3f
+#define RPLL_HP_TAU_S            1.0e-3f /* running means removed from e and U */
+#define RPLL_EXCITE_A            1.0f    /* d-axis square wave when the ripple is too small */
+#define RPLL_EXCITE_HALF_PERIODS 10u     /* 1 kHz at 20 kHz */
 
 typedef struct {
     float ts_s;
     uint16_t pole_pairs;
     float r_s_ohm, l_d_h, l_q_h, psi_f_wb, j_kgm2; /* nominal model (flux, torque) */
-    rerr_gamma_t gamma;                           /* inverse incremental inductances */
-    float bw_rad_s;                               /* observer poles at -bw (0: default) */
-    float norm_tau_s;                             /* normaliser time constant (0: default) */
-    float conf_tau_s;                             /* confidence time constant (0: default) */
-    bool torque_ff;                               /* feed the model torque forward */
+    rerr_gamma_t gamma;                            /* inverse incremental inductances */
+    float bw_rad_s;                                /* observer poles at -bw (0: default) */
+    float norm_tau_s;                              /* normaliser time constant (0: default) */
+    float conf_tau_s;                              /* confidence time constant (0: default) */
+    bool torque_ff;                                /* feed the model torque forward */
 } rpll_cfg_t;
 
 typedef struct {
@@ -51,13 +51,13 @@ typedef struct {
 typedef struct {
     float theta_e_rad; /* at k, [0, 2pi) */
     float omega_e_rad_s;
-    float err_rad;    /* this period's detector output sin(2d)/2 (about d near lock) */
-    float conf;       /* running mean of cos 2d: 1 locked, 0 at d = pi/4, -1 at pi/2 */
-    bool excited;     /* the normaliser is above its floor (the ripple carries information) */
-    float di_d_a;     /* d-axis current change over the period, rotation removed */
-    float u_d_v;      /* voltage across the d inductance U_d */
-    float i_d_mid_a;  /* mid-period d current */
-    float torque_nm;  /* model torque at the mid-period current */
+    float err_rad;      /* this period's detector output sin(2d)/2 (about d near lock) */
+    float conf;         /* running mean of cos 2d: 1 locked, 0 at d = pi/4, -1 at pi/2 */
+    bool excited;       /* the normaliser is above its floor (the ripple carries information) */
+    float di_d_a;       /* d-axis current change over the period, rotation removed */
+    float u_d_v;        /* voltage across the d inductance U_d */
+    float i_d_mid_a;    /* mid-period d current */
+    float torque_nm;    /* model torque at the mid-period current */
     float i_d_excite_a; /* d-axis current the estimator asks for (0: enough ripple already) */
 } rpll_out_t;
 

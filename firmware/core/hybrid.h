@@ -38,7 +38,7 @@ typedef struct {
 
 typedef struct {
     float theta_e_rad, omega_e_rad_s;
-    float w_mras; /* weight of the MRAS in the output, [0, 1] */
+    float w_mras;   /* weight of the MRAS in the output, [0, 1] */
     float diff_rad; /* wrap(theta_mras - theta_pll) */
     bool flip_pll;  /* the PLL sits on the other pole: turn it by pi */
     uint16_t lock;  /* HYB_LOCK_* (latched) */

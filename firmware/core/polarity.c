@@ -61,7 +61,7 @@ void pol_step(pol_t *p, const pol_in_t *in, pol_out_t *out)
         /* settling: a d-axis square wave (1 kHz at 20 kHz, a third of the pulse) so that the
          * MPCC's vectors carry the saliency while the PLL locks; no torque on the d axis */
         out->i_d_ref_a = ((t / 10u) & 1u) != 0u ? -POL_SETTLE_EXCITE * p->cfg.i_pulse_a
-                                                 : POL_SETTLE_EXCITE * p->cfg.i_pulse_a;
+                                                : POL_SETTLE_EXCITE * p->cfg.i_pulse_a;
     }
     if (t >= t_pos && t < t_rel) {
         const int side = t < t_neg ? 0 : 1;

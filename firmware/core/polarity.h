@@ -41,11 +41,11 @@ typedef struct {
 } pol_in_t;
 
 typedef struct {
-    float i_d_ref_a;  /* the test's d-axis current reference (q axis: zero) */
-    bool active;      /* the test owns the current references */
-    bool flip_now;    /* this period: turn the estimate by pi */
-    uint16_t result;  /* POL_* */
-    float asym;       /* measured a (valid once the pulses are done) */
+    float i_d_ref_a; /* the test's d-axis current reference (q axis: zero) */
+    bool active;     /* the test owns the current references */
+    bool flip_now;   /* this period: turn the estimate by pi */
+    uint16_t result; /* POL_* */
+    float asym;      /* measured a (valid once the pulses are done) */
 } pol_out_t;
 
 typedef struct {

@@ -27,8 +27,8 @@
  * (from the motor's flux map: the inverse of its incremental inductance matrix). */
 #define RERR_TAB_MAX 1600 /* nodes */
 typedef struct {
-    uint16_t nd, nq;     /* nodes along i_d and i_q (0: no table) */
-    float id0_a, iq0_a;  /* first node */
+    uint16_t nd, nq;    /* nodes along i_d and i_q (0: no table) */
+    float id0_a, iq0_a; /* first node */
     float inv_did, inv_diq;
     float g[RERR_TAB_MAX][4]; /* g_dd, g_qq, g_dq, g_qd at node k * nd + j */
 } rerr_tab_t;

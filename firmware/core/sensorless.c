@@ -92,6 +92,6 @@ void snl_step(snl_t *s, const snl_in_t *in, snl_out_t *out)
         }
     }
     out->lock = s->lock;
-    out->valid = !qo.active && s->lock == SNL_LOCK_OK &&
-                 (qo.result == POL_KEPT || qo.result == POL_FLIPPED);
+    out->valid =
+        !qo.active && s->lock == SNL_LOCK_OK && (qo.result == POL_KEPT || qo.result == POL_FLIPPED);
 }

@@ -20,11 +20,11 @@
 #define SNL_MODE_PLL    0u
 #define SNL_MODE_HYBRID 1u
 
-#define SNL_LOCK_OK           0u
-#define SNL_LOCK_DISAGREE     1u /* hybrid: the PLL and the MRAS disagree */
-#define SNL_LOCK_LOW_CONF     2u /* the PLL's confidence stayed low */
-#define SNL_LOCK_POLARITY     3u /* polarity not resolved (a plant that does not saturate) */
-#define SNL_LOCK_NO_START     4u /* the PLL did not lock at rest before the polarity test */
+#define SNL_LOCK_OK       0u
+#define SNL_LOCK_DISAGREE 1u /* hybrid: the PLL and the MRAS disagree */
+#define SNL_LOCK_LOW_CONF 2u /* the PLL's confidence stayed low */
+#define SNL_LOCK_POLARITY 3u /* polarity not resolved (a plant that does not saturate) */
+#define SNL_LOCK_NO_START 4u /* the PLL did not lock at rest before the polarity test */
 
 typedef struct {
     uint16_t mode; /* SNL_MODE_* */
@@ -34,9 +34,9 @@ typedef struct {
 } snl_cfg_t;
 
 typedef struct {
-    float i_alpha_a, i_beta_a;      /* measured at k */
-    float u_alpha_prev_v, u_beta_prev_v; /* the inverter's average voltage over [k-1, k) */
-    bool u_valid;                   /* PWM on during [k-1, k) */
+    float i_alpha_a, i_beta_a;              /* measured at k */
+    float u_alpha_prev_v, u_beta_prev_v;    /* the inverter's average voltage over [k-1, k) */
+    bool u_valid;                           /* PWM on during [k-1, k) */
     float theta_mras_rad, omega_mras_rad_s; /* hybrid mode */
 } snl_in_t;
 
@@ -50,9 +50,9 @@ typedef struct {
     float w_mras;        /* hybrid: the MRAS's weight */
     uint16_t pol_result; /* POL_* */
     float pol_asym;
-    bool pol_done_now;   /* this period the polarity test ended (raise its event) */
-    uint16_t lock;       /* SNL_LOCK_* (latched) */
-    bool lock_lost_now;  /* this period the lock was lost (raise the fault) */
+    bool pol_done_now;  /* this period the polarity test ended (raise its event) */
+    uint16_t lock;      /* SNL_LOCK_* (latched) */
+    bool lock_lost_now; /* this period the lock was lost (raise the fault) */
 } snl_out_t;
 
 typedef struct {

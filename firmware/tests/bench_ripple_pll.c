@@ -13,7 +13,8 @@ static plant_map_t map;
 static rerr_tab_t tab;
 
 /* Gamma table from the plant's own map (symmetric part of the inverse incremental inductance) */
-static void fill_tab(const plant_t *p, double id0, double did, int nd, double iq0, double diq, int nq)
+static void fill_tab(const plant_t *p, double id0, double did, int nd, double iq0, double diq,
+                     int nq)
 {
     int j, k;
     tab.nd = (uint16_t)nd;

@@ -23,7 +23,7 @@ typedef struct {
     fw_cmd_t cmd_prev;
     float th_used, w_used; /* the angle and speed the MPCC used in the last period */
     float i_d_ref_a, i_q_ref_a;
-    float i_d_est_a; /* d current in the estimated frame, this period */
+    float i_d_est_a;  /* d current in the estimated frame, this period */
     double th_true_k; /* the rotor's electrical angle at this period's sample */
 } sl_t;
 
@@ -64,8 +64,7 @@ static inline void sl_init(sl_t *s, const plant_cfg_t *pc, const rpll_cfg_t *ec,
 /* Electrical angle error, estimate minus truth, wrapped to (-pi, pi]. */
 static inline double sl_err(const sl_t *s)
 {
-    double d = fmod((double)s->th_used - s->th_true_k,
-                    2.0 * 3.14159265358979323846);
+    double d = fmod((double)s->th_used - s->th_true_k, 2.0 * 3.14159265358979323846);
     if (d > 3.14159265358979323846) {
         d -= 2.0 * 3.14159265358979323846;
     } else if (d <= -3.14159265358979323846) {

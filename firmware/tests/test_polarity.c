@@ -177,8 +177,9 @@ static void test_hybrid_bumpless(void)
         in.omega_mras_rad_s = (float)w;
         hyb_step(&h, &in, &o);
         if (k > 0) {
-            double d = fmod((double)o.theta_e_rad - prev - w * 50e-6 + 9.42477796, 6.283185307179586) -
-                       3.14159265358979;
+            double d =
+                fmod((double)o.theta_e_rad - prev - w * 50e-6 + 9.42477796, 6.283185307179586) -
+                3.14159265358979;
             max_step = fabs(d) > max_step ? fabs(d) : max_step;
         }
         prev = o.theta_e_rad;
