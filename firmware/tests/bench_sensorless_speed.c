@@ -85,11 +85,14 @@ int main(int argc, char **argv)
     if (argc > 2) {
         ec.bw_rad_s = (float)atof(argv[2]);
     }
+    if (argc > 3) {
+        pc.seed = (uint32_t)atoi(argv[3]);
+    }
     for (a = 0; a < 3; a++) {
         sl_t s;
         speed_pi_t spi;
         speed_pi_cfg_t sc = { 1.50f, 169.0f, 1e-3f, 15.0f };
-        double s2 = 0.0, peak = 0.0, sw = 0.0, sw_n = 0.0;
+        double s2 = 0.0, peak = 0.0, sw = 0.0, sw_n = 0.0, speak = 0.0, lp = 0.0, lpeak = 0.0;
         int n2 = 0;
         const double wm = rpm[a] * 3.14159265358979 / 30.0;
         const int n_on = 10000, n_off = 20000, n_end = 30000; /* 0.5 s, 1.0 s, 1.5 s */
@@ -121,13 +124,20 @@ int main(int argc, char **argv)
                 sw += (double)s.w_used / 4.0 - s.p.omega_m_rad_s;
                 sw_n += 1.0;
             }
+            lp += (e - lp) * 0.05; /* 1 ms mean */
+            if (k >= 6000 && k < n_on && k % 10 == 0) {
+                speak = fabs(e) > speak ? fabs(e) : speak;
+            }
             if (k >= n_on) {
+                lpeak = fabs(lp) > lpeak ? fabs(lp) : lpeak;
+            }
+            if (k >= n_on && k % 10 == 0) { /* as the 2 kHz telemetry samples it */
                 peak = fabs(e) > peak ? fabs(e) : peak;
             }
         }
         printf("%5.0f r/min: steady rms %.4f rad, peak through the steps %.4f rad, speed est "
-               "mean err %+.3f r/min\n",
-               rpm[a], sqrt(s2 / n2), peak, sw / sw_n * 30.0 / 3.14159265358979);
+               "mean err %+.3f r/min (steady peak %.4f, 1 ms mean peak %.4f)\n",
+               rpm[a], sqrt(s2 / n2), peak, sw / sw_n * 30.0 / 3.14159265358979, speak, lpeak);
     }
     return 0;
 }
