@@ -24,7 +24,7 @@ def polarity_pulse_a(motor) -> float:
     return motor.polarity_pulse_a or 0.5 * motor.i_max_a
 
 
-def sensorless_config(motor) -> tuple[dict, list[dict]]:
+def estimator_frames(motor) -> tuple[dict, list[dict]]:
     """(config_sensorless fields, gamma_node frames) for `motor`."""
     fm = motor.load_flux_map()
     i_pulse = polarity_pulse_a(motor)

@@ -88,6 +88,25 @@ int main(int argc, char **argv)
     if (argc > 3) {
         pc.seed = (uint32_t)atoi(argv[3]);
     }
+    if (argc > 4) { /* lab-typical's inverter and sensors, by bits */
+        const int fx = atoi(argv[4]);
+        if (fx & 1) {
+            pc.dead_time_s = 2.5e-6;
+            pc.v_drop_v = 1.5;
+        }
+        if (fx & 2) {
+            pc.sample_delay_s = 2e-6;
+        }
+        if (fx & 4) {
+            pc.i_gain[1] = 1.01;
+            pc.i_gain[2] = 0.995;
+        }
+        if (fx & 8) {
+            pc.i_offset_a[0] = 0.05;
+            pc.i_offset_a[1] = -0.03;
+            pc.i_offset_a[2] = 0.02;
+        }
+    }
     for (a = 0; a < 3; a++) {
         sl_t s;
         speed_pi_t spi;
