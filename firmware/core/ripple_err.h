@@ -25,7 +25,7 @@
  *                          g_dq = i_q (c0 + c1 i_d) */
 /* Or a table of Gamma over a regular (i_d, i_q) grid, bilinear inside, clamped to the edges
  * (from the motor's flux map: the inverse of its incremental inductance matrix). */
-#define RERR_TAB_MAX 1600 /* nodes */
+#define RERR_TAB_MAX 400 /* nodes */
 typedef struct {
     uint16_t nd, nq;    /* nodes along i_d and i_q (0: no table) */
     float id0_a, iq0_a; /* first node */
