@@ -63,6 +63,7 @@ void snl_step(snl_t *s, const snl_in_t *in, snl_out_t *out)
 
     out->theta_pll_rad = po.theta_e_rad;
     out->conf = po.conf;
+    out->err_rad = po.err_rad;
     out->theta_e_rad = po.theta_e_rad;
     out->omega_e_rad_s = po.omega_e_rad_s;
     if (s->cfg.mode == SNL_MODE_HYBRID && !qo.active) {

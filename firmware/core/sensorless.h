@@ -46,6 +46,7 @@ typedef struct {
     bool startup;        /* the polarity test runs: hold the speed loop, i_q* = 0 */
     float i_d_inject_a;  /* add to the d-axis current reference */
     float conf;          /* the PLL's confidence (cos 2d) */
+    float err_rad;       /* the PLL's detector output this period, sin(2d)/2 */
     float theta_pll_rad; /* the PLL's own angle (hybrid: beside the blend) */
     float w_mras;        /* hybrid: the MRAS's weight */
     uint16_t pol_result; /* POL_* */
