@@ -101,6 +101,10 @@ int main(int argc, char **argv)
             pc.i_gain[1] = 1.01;
             pc.i_gain[2] = 0.995;
         }
+        if (fx & 16) { /* an ideal inverter */
+            pc.dead_time_s = 0.0;
+            pc.v_drop_v = 0.0;
+        }
         if (fx & 8) {
             pc.i_offset_a[0] = 0.05;
             pc.i_offset_a[1] = -0.03;
@@ -111,14 +115,19 @@ int main(int argc, char **argv)
         sl_t s;
         speed_pi_t spi;
         speed_pi_cfg_t sc = { 1.50f, 169.0f, 1e-3f, 15.0f };
-        double s2 = 0.0, peak = 0.0, sw = 0.0, sw_n = 0.0, speak = 0.0, lp = 0.0, lpeak = 0.0;
+        if (getenv("SBW") != NULL) { /* speed-loop bandwidth, rad/s */
+            const float bw = (float)atof(getenv("SBW"));
+            sc.kp_a_per_rad_s = 0.0036f * bw / 1.08f;
+            sc.ki_a_per_rad = sc.kp_a_per_rad_s * bw / 4.0f;
+        }
+        double s2 = 0.0, peak = 0.0, sw = 0.0, sw_n = 0.0, speak = 0.0, lp = 0.0, lpeak = 0.0, sw2 = 0.0, tw = 0.0, tw2 = 0.0;
         int n2 = 0;
         const double wm = rpm[a] * 3.14159265358979 / 30.0;
         const int n_on = 10000, n_off = 20000, n_end = 30000; /* 0.5 s, 1.0 s, 1.5 s */
         sl_init(&s, &pc, &ec, 0.3, wm, 0.3f);
         plant_set_mech(&s.p, s.p.theta_m_rad, wm, false);
-        s.m.cfg.dead_time_s = 2e-6f;
-        s.m.cfg.v_drop_v = 1.0f;
+        s.m.cfg.dead_time_s = (float)pc.dead_time_s > 0.0f ? 2e-6f : 0.0f;
+        s.m.cfg.v_drop_v = (float)pc.v_drop_v > 0.0f ? 1.0f : 0.0f;
         s.m.cfg.i_dt_a = 0.5f;
         mpcc_init(&s.m, &s.m.cfg);
         speed_pi_init(&spi, &sc);
@@ -141,6 +150,9 @@ int main(int argc, char **argv)
                 s2 += e * e;
                 n2++;
                 sw += (double)s.w_used / 4.0 - s.p.omega_m_rad_s;
+                sw2 += pow((double)s.w_used / 4.0 - s.p.omega_m_rad_s, 2.0);
+                tw += s.p.omega_m_rad_s - wm;
+                tw2 += pow(s.p.omega_m_rad_s - wm, 2.0);
                 sw_n += 1.0;
             }
             lp += (e - lp) * 0.05; /* 1 ms mean */
@@ -155,8 +167,11 @@ int main(int argc, char **argv)
             }
         }
         printf("%5.0f r/min: steady rms %.4f rad, peak through the steps %.4f rad, speed est "
-               "mean err %+.3f r/min (steady peak %.4f, 1 ms mean peak %.4f)\n",
-               rpm[a], sqrt(s2 / n2), peak, sw / sw_n * 30.0 / 3.14159265358979, speak, lpeak);
+               "mean err %+.3f r/min (steady peak %.4f, 1 ms mean peak %.4f)\n"
+               "        speed est err rms %.2f r/min, true speed ripple rms %.2f r/min\n",
+               rpm[a], sqrt(s2 / n2), peak, sw / sw_n * 30.0 / 3.14159265358979, speak, lpeak,
+               sqrt(sw2 / sw_n) * 30.0 / 3.14159265358979,
+               sqrt(tw2 / sw_n - pow(tw / sw_n, 2.0)) * 30.0 / 3.14159265358979);
     }
     return 0;
 }
