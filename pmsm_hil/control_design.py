@@ -3,6 +3,7 @@ the speed-PI design when the profile leaves the gains to the tool (docs/control.
 
 from __future__ import annotations
 
+import math
 
 from pmsm_hil.protocol import generated as gen
 
@@ -65,8 +66,8 @@ def device_config(profile) -> tuple[dict, dict]:
         speed_ki_a_per_rad=ki,
         speed_div=_div(c.speed_loop_hz, c.ts_s),
         current_ref=gen.ENUMS["current_ref"]["mtpa" if c.current_ref == "mtpa" else "id_zero"],
-        current_ctrl=gen.ENUMS["current_ctrl"]["mpcc"],
-        angle_src=gen.ENUMS["angle_src"]["encoder"],
+        current_ctrl=gen.ENUMS["current_ctrl"][c.current_ctrl],
+        angle_src=gen.ENUMS["angle_src"][c.angle_src],
         heartbeat_timeout_s=c.heartbeat_timeout_s,
         fast_div=_div(tel.fast_hz, c.ts_s),
         params_div=_div(tel.params_hz, c.ts_s),
@@ -80,7 +81,43 @@ def device_config(profile) -> tuple[dict, dict]:
         capture_pre=CAPTURE_PRE,
     )
     ctrl_cfg.update(identification_config(profile))
+    ctrl_cfg.update(sensorless_config(profile))
     return motor_cfg, ctrl_cfg
+
+
+DEFAULT_EST_BW_RAD_S = 300.0  # angle estimator tracking bandwidth (docs/sensorless.md)
+MRAS_MIN_SPEED_SHARE = (
+    0.05  # MRAS: not used below 5 % of the motor's speed_max_rpm (its rated speed)
+)
+
+
+def foc_bandwidth(profile) -> float:
+    """FOC current-loop bandwidth, rad/s: the profile's, or 2 pi / (20 ts_s) (docs/sensorless.md)."""
+    c = profile.control
+    return c.foc_bw_rad_s or 2.0 * math.pi / (20.0 * c.ts_s)
+
+
+def estimator_min_speed_rpm(profile) -> float:
+    """The speed below which the angle estimator is not locked (and not used), r/min."""
+    est = profile.control.estimator
+    if est.min_speed_rpm is not None:
+        return est.min_speed_rpm
+    return MRAS_MIN_SPEED_SHARE * profile.motor.speed_max_rpm
+
+
+def sensorless_config(profile) -> dict:
+    """config_ctrl fields of the current controller's options and the angle estimator."""
+    c, tel = profile.control, profile.telemetry
+    est = c.estimator
+    return dict(
+        mpcc_candidates=gen.ENUMS["mpcc_candidates"][c.mpcc_candidates],
+        foc_bw_rad_s=foc_bandwidth(profile),
+        est_bw_rad_s=est.bw_rad_s or DEFAULT_EST_BW_RAD_S,
+        est_min_speed_rpm=estimator_min_speed_rpm(profile),
+        est_lock_timeout_s=est.lock_timeout_s,
+        est_theta0_rad=est.theta0_rad,
+        est_div=_div(tel.est_hz, c.ts_s),
+    )
 
 
 def identification_config(profile) -> dict:

@@ -136,16 +136,15 @@ def apply_can_rates(profile) -> None:
     can_cfg = profile.link.can
     update = {
         k: getattr(can_cfg, k)
-        for k in ("fast_hz", "params_hz", "status_hz", "truth_hz")
+        for k in ("fast_hz", "params_hz", "status_hz", "truth_hz", "est_hz")
         if getattr(can_cfg, k) is not None
     }
     tel = profile.telemetry.model_copy(update=update)
     if can_cfg.fast_hz is None and tel.fast_hz:
-        fit = can_fast_hz_max(
-            {"params": tel.params_hz, "status": tel.status_hz, "sim_truth": tel.truth_hz},
-            profile.control.ts_s,
-            can_cfg.bitrate,
-        )
+        others = {"params": tel.params_hz, "status": tel.status_hz, "sim_truth": tel.truth_hz}
+        if profile.control.angle_src != "encoder":
+            others["telem_est"] = tel.est_hz
+        fit = can_fast_hz_max(others, profile.control.ts_s, can_cfg.bitrate)
         tel = tel.model_copy(update={"fast_hz": min(tel.fast_hz, fit)})
     profile.telemetry = tel
 

@@ -10,6 +10,8 @@ from pmsm_hil.protocol import generated as gen
 STATE_NAMES = {v: k for k, v in gen.ENUMS["state"].items()}
 EVENT_NAMES = {v: k for k, v in gen.ENUMS["event"].items()}
 ESTIMATOR_NAMES = {v: k for k, v in gen.ENUMS["estimator"].items()}
+ANGLE_SRC_NAMES = {v: k for k, v in gen.ENUMS["angle_src"].items()}
+EST_FLAGS = gen.ENUMS["est_flag"]
 FAULT_BITS = gen.ENUMS["fault"]
 STOP_REASONS = {v: k.replace("_", " ") for k, v in gen.ENUMS["stop_reason"].items()}
 PARAMS_FLAGS = gen.ENUMS["params_flag"]
@@ -68,6 +70,7 @@ class LiveState:
     faults: int = 0
     telemetry: dict = field(default_factory=dict)
     params: dict = field(default_factory=dict)  # estimator -> fields
+    estimator: dict = field(default_factory=dict)  # the angle estimator's last frame
     truth: dict = field(default_factory=dict)
     status: dict = field(default_factory=dict)
     frames: int = 0
@@ -131,6 +134,21 @@ class Recorder:
         self._write("/pmsm/telemetry", t, row)
         self.live.t_s = t
         self.live.telemetry = row
+
+    def _on_telem_est(self, f: dict) -> None:
+        t = self._t(f["tick"])
+        flags = f["flags"]
+        row = {
+            "estimator": ANGLE_SRC_NAMES.get(f["estimator"], str(f["estimator"])),
+            "locked": bool(flags & EST_FLAGS["locked"]),
+            "in_loop": bool(flags & EST_FLAGS["in_loop"]),
+            "confidence": f["confidence"],
+            "theta_err_rad": f["theta_err_rad"],
+            "speed_err_rpm": f["speed_err_rpm"],
+            "err_signal": f["err_signal"],
+        }
+        self._write("/pmsm/estimator", t, row)
+        self.live.estimator = row
 
     def _on_params(self, f: dict) -> None:
         t = self._t(f["tick"])

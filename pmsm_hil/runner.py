@@ -157,6 +157,7 @@ def configure(session: Session, profile) -> None:
             flags=(
                 (gen.ENUMS["segment_flag"]["capture"] if s.capture else 0)
                 | (0 if s.estimate else gen.ENUMS["segment_flag"]["hold_est"])
+                | (gen.ENUMS["segment_flag"]["angle_encoder"] if s.angle_encoder else 0)
             ),
             kind=gen.ENUMS["segment_kind"][s.kind],
             inject_a=s.inject_a,

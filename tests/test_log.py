@@ -126,8 +126,19 @@ def test_schema_names_and_fields():
         "u_q_v",
         "load_nm",
     )
+    assert TOPICS["/pmsm/estimator"].names == (
+        "t_s",
+        "estimator",
+        "locked",
+        "in_loop",
+        "confidence",
+        "theta_err_rad",
+        "speed_err_rpm",
+        "err_signal",
+    )
     assert set(TOPICS) == {
         "/pmsm/telemetry",
+        "/pmsm/estimator",
         "/pmsm/params",
         "/pmsm/capture",
         "/pmsm/status",

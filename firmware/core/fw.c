@@ -124,8 +124,21 @@ static void init_stages(fw_t *f)
     ac.src = c->angle_src;
     ac.pole_pairs = f->motor.pole_pairs;
     ac.ts_s = c->ts_s;
+    ac.bw_rad_s = c->est_bw_rad_s;
+    ac.min_speed_rpm = c->est_min_speed_rpm;
+    ac.max_speed_rpm = f->limits.speed_trip_rpm;
+    ac.theta0_rad = c->est_theta0_rad;
+    ac.r_s_ohm = f->motor.r_s_ohm;
+    ac.l_d_h = f->motor.l_d_h;
+    ac.l_q_h = f->motor.l_q_h;
+    ac.psi_f_wb = f->motor.psi_f_wb;
     angle_init(&f->angle, &ac);
     memset(&f->ang, 0, sizeof(f->ang));
+    memset(&f->est, 0, sizeof(f->est));
+    f->unlock_ticks = 0u;
+    /* the first segment's choice holds from the first period on */
+    f->seg_angle_encoder =
+        f->prof.n_declared > 0u && (f->prof.seg[0].flags & PROTO_SEGMENT_FLAG_ANGLE_ENCODER) != 0u;
 
     sc.kp_a_per_rad_s = c->speed_kp_a_per_rad_s;
     sc.ki_a_per_rad = c->speed_ki_a_per_rad;
@@ -145,6 +158,14 @@ static void init_stages(fw_t *f)
     cc.mpcc.dead_time_s = c->dead_time_s;
     cc.mpcc.v_drop_v = c->v_drop_v;
     cc.mpcc.i_dt_a = c->i_dt_a;
+    cc.mpcc.cand_set =
+        c->mpcc_candidates == PROTO_MPCC_CANDIDATES_ADJACENT ? MPCC_CAND_ADJACENT : MPCC_CAND_ALL8;
+    foc_cfg_default(&cc.foc);
+    cc.foc.ts_s = c->ts_s;
+    cc.foc.bw_rad_s = c->foc_bw_rad_s;
+    cc.foc.dead_time_s = c->dead_time_s;
+    cc.foc.v_drop_v = c->v_drop_v;
+    cc.foc.i_dt_a = c->i_dt_a;
     cc_init(&f->cc, &cc);
     memset(&f->cc_out, 0, sizeof(f->cc_out));
 
@@ -273,14 +294,54 @@ static void stage_angle(fw_t *f, float i_al, float i_be)
     ai.enc = &f->enc_out;
     ai.i_alpha_a = i_al;
     ai.i_beta_a = i_be;
+    ai.u_alpha_prev_v = f->cc_out.u_alpha_v;
+    ai.u_beta_prev_v = f->cc_out.u_beta_v;
     ai.u_d_prev_v = f->cc_out.u_d_avg_v;
     ai.u_q_prev_v = f->cc_out.u_q_avg_v;
     ai.i_d_pred_a = f->cc_out.i_d_pred_a;
     ai.i_q_pred_a = f->cc_out.i_q_pred_a;
-    angle_step(&f->angle, &ai, &f->ang);
-    f->sig.theta_e_est_rad = f->ang.theta_e_rad;
-    f->sig.speed_est_rpm = f->ang.speed_rpm;
+    if (!angle_src_is_estimator(f->ctrl.angle_src)) {
+        angle_step(&f->angle, &ai, &f->ang);
+        f->est = f->ang;
+        f->sig.theta_e_est_rad = f->ang.theta_e_rad;
+        f->sig.speed_est_rpm = f->ang.speed_rpm;
+        f->sig.omega_e_rad_s = f->ang.omega_e_rad_s;
+        return;
+    }
+    /* an estimator: it runs every period; its angle closes the loop unless the segment asks for
+     * the encoder. The telemetry's estimate is always the estimator's. */
+    angle_step(&f->angle, &ai, &f->est);
+    if (f->seg_angle_encoder) {
+        angle_encoder_out(&ai, &f->ang);
+    } else {
+        f->ang = f->est;
+    }
+    f->sig.theta_e_est_rad = f->est.theta_e_rad;
+    f->sig.speed_est_rpm = f->est.speed_rpm;
     f->sig.omega_e_rad_s = f->ang.omega_e_rad_s;
+}
+
+/* Loss of lock: the estimator closing the loop out of lock for est_lock_timeout_s trips the
+ * lost_lock fault (PWM off at once). While stopping, its loss ends the stop instead: PWM off, the
+ * rotor coasts (the estimator cannot brake it below its speed range). */
+static void check_lock(fw_t *f)
+{
+    if (!angle_src_is_estimator(f->ctrl.angle_src) || f->seg_angle_encoder || f->est.locked) {
+        f->unlock_ticks = 0u;
+        return;
+    }
+    f->unlock_ticks++;
+    if ((float)f->unlock_ticks * f->ctrl.ts_s < f->ctrl.est_lock_timeout_s) {
+        return;
+    }
+    if (f->state == PROTO_STATE_RUNNING) {
+        fw_trip(f, PROTO_FAULT_LOST_LOCK);
+    } else if (f->state == PROTO_STATE_STOPPING) {
+        fw_pwm_off(f,
+                   f->stop_reason == PROTO_STOP_REASON_PROFILE_END ? PROTO_STATE_DONE
+                                                                   : PROTO_STATE_IDLE,
+                   f->stop_reason);
+    }
 }
 
 /* Capture: the sample with the switch state applied while it was taken (encoder angle). */
@@ -321,6 +382,7 @@ static void stage_profile(fw_t *f, float *speed_ref_rpm, float *load_nm)
             f->seg.inject_hz = po.inject_hz;
             f->seg.tick = po.tick_in_seg;
             f->seg.ticks = po.seg_ticks;
+            f->seg_angle_encoder = (po.flags & PROTO_SEGMENT_FLAG_ANGLE_ENCODER) != 0u;
             return;
         }
     }
@@ -361,9 +423,12 @@ static void stage_current_control(fw_t *f, const fw_meas_t *m, float c, float s)
     ci.i_d_a = f->sig.i_d_a;
     ci.i_q_a = f->sig.i_q_a;
     ci.i_d_ref_a = f->sig.i_d_ref_a;
-    ci.i_q_ref_a = f->sig.i_q_ref_a +
-                   dither_step(&f->dither, 0.6666667f * m->v_dc_v * f->ctrl.ts_s / f->motor.l_q_h);
-    ci.theta_e_rad = f->sig.theta_e_est_rad;
+    ci.i_q_ref_a = f->sig.i_q_ref_a;
+    if (!cc_uses_duties(&f->cc)) { /* the finite-control-set dither; a modulator needs none */
+        ci.i_q_ref_a +=
+            dither_step(&f->dither, 0.6666667f * m->v_dc_v * f->ctrl.ts_s / f->motor.l_q_h);
+    }
+    ci.theta_e_rad = f->ang.theta_e_rad;
     ci.cos_theta = c;
     ci.sin_theta = s;
     ci.omega_e_rad_s = f->ang.omega_e_rad_s;
@@ -398,7 +463,7 @@ static void stage_estimators(fw_t *f, const fw_meas_t *m)
     ii.i_q_a = f->sig.i_q_a;
     ii.u_d_avg_v = f->cc_out.u_d_avg_v;
     ii.u_q_avg_v = f->cc_out.u_q_avg_v;
-    ii.theta_e_rad = f->sig.theta_e_est_rad;
+    ii.theta_e_rad = f->ang.theta_e_rad;
     ii.omega_e_rad_s = f->ang.omega_e_rad_s;
     ii.i_a_a = m->i_a_a;
     ii.i_b_a = m->i_b_a;
@@ -432,13 +497,16 @@ static void period(fw_t *f, const fw_meas_t *m, fw_cmd_t *cmd)
     i_al = m->i_a_a;
     i_be = (m->i_a_a + 2.0f * m->i_b_a) * 0.57735026918963f;
     stage_angle(f, i_al, i_be);
-    c = cosf(f->sig.theta_e_est_rad);
-    s = sinf(f->sig.theta_e_est_rad);
+    c = cosf(f->ang.theta_e_rad);
+    s = sinf(f->ang.theta_e_rad);
     f->sig.i_d_a = c * i_al + s * i_be;
     f->sig.i_q_a = -s * i_al + c * i_be;
     stage_capture(f, m);
 
     check_faults(f, m);
+    if (fw_active(f)) {
+        check_lock(f);
+    }
     if (fw_active(f)) {
         check_heartbeat(f);
         stage_profile(f, &speed_ref_rpm, &load_nm);

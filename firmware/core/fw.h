@@ -98,8 +98,11 @@ typedef struct {
     ident_seg_t seg;     /* the running segment as the identification sees it */
     enc_t enc;           /* measure: the encoder (truth), when fitted */
     enc_out_t enc_out;
-    angle_t angle; /* angle slot */
-    angle_out_t ang;
+    angle_t angle;   /* angle slot */
+    angle_out_t est; /* its occupant's output (an estimator's, or the encoder's) */
+    angle_out_t ang; /* what the control uses: est, or the encoder in an angle_encoder segment */
+    bool seg_angle_encoder; /* the running segment closes the loop on the encoder */
+    uint32_t unlock_ticks;  /* periods the estimator in the loop has been out of lock */
     speed_pi_t spi;
     float i_s_ref_a;
     float i_d_base_a; /* d-current reference before the excitation */

@@ -77,7 +77,13 @@ static uint16_t cmd_config_ctrl(fw_t *f, const uint16_t *p, uint16_t n)
         !(c.pred_scale_l_d > 0.0f) || !(c.pred_scale_l_q > 0.0f) || !(c.pred_scale_psi_f >= 0.0f) ||
         !(c.pred_scale_r_s >= 0.0f) ||
         !(c.pred_scale_l_d <= 100.0f && c.pred_scale_l_q <= 100.0f &&
-          c.pred_scale_psi_f <= 100.0f && c.pred_scale_r_s <= 100.0f)) {
+          c.pred_scale_psi_f <= 100.0f && c.pred_scale_r_s <= 100.0f) ||
+        c.mpcc_candidates > PROTO_MPCC_CANDIDATES_ADJACENT ||
+        !within(c.foc_bw_rad_s, 0.0f, 0.5f / c.ts_s) ||
+        !within(c.est_bw_rad_s, 0.0f, 0.5f / c.ts_s) ||
+        !within(c.est_min_speed_rpm, 0.0f, FW_SPEED_TRIP_MAX_RPM) ||
+        !within(c.est_lock_timeout_s, 0.0f, FW_HEARTBEAT_MAX_S) ||
+        !within(c.est_theta0_rad, -7.0f, 7.0f)) {
         return PROTO_ACK_STATUS_BAD_VALUE;
     }
     f->ctrl = c;

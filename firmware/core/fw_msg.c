@@ -170,6 +170,26 @@ void fw_send_params(fw_t *f, uint16_t slot)
  * case stays within budget on the F28335 (docs/board-f28335.md). */
 #define FW_PHASE_PARAMS 1u
 #define FW_PHASE_STATUS (FW_PHASE_PARAMS + IDENT_N_EST + 1u)
+#define FW_PHASE_EST    (FW_PHASE_STATUS + 2u)
+
+/* The angle estimator's frame (only when an estimator occupies the angle slot): its identity,
+ * lock, confidence, and its errors against the encoder (the truth when one is fitted). */
+static void send_est(fw_t *f)
+{
+    proto_telem_est_t t;
+    uint16_t n;
+    const bool in_loop = !f->seg_angle_encoder;
+    t.tick = f->tick;
+    t.estimator = f->ctrl.angle_src;
+    t.flags = (uint16_t)((f->est.locked ? PROTO_EST_FLAG_LOCKED : 0u) |
+                         (in_loop ? PROTO_EST_FLAG_IN_LOOP : 0u));
+    t.confidence = f->est.confidence;
+    t.theta_err_rad = tf_wrap_pi(f->est.theta_e_rad - f->enc_out.theta_e_rad);
+    t.speed_err_rpm = f->est.speed_rpm - f->enc_out.speed_rpm;
+    t.err_signal = f->est.err_rad;
+    n = proto_telem_est_pack(&t, f->link.payload_buf);
+    (void)fw_send(f, PROTO_ID_TELEM_EST, f->link.payload_buf, n);
+}
 
 void fw_send_telemetry(fw_t *f)
 {
@@ -202,5 +222,9 @@ void fw_send_telemetry(fw_t *f)
     }
     if (c->status_div != 0u && (f->tick % c->status_div) == FW_PHASE_STATUS % c->status_div) {
         fw_send_status(f);
+    }
+    if (c->est_div != 0u && angle_src_is_estimator(c->angle_src) &&
+        (f->tick % c->est_div) == FW_PHASE_EST % c->est_div) {
+        send_est(f);
     }
 }

@@ -25,7 +25,7 @@ bool proto_can_layout(uint16_t msg_id, proto_can_layout_t *l)
     case PROTO_ID_CONFIG_CTRL:
         l->func = 0x0Cu;
         l->transfer = 1u;
-        l->n_frames = 12u;
+        l->n_frames = 16u;
         l->h2d = 1u;
         return true;
     case PROTO_ID_PROFILE_CLEAR:
@@ -154,6 +154,14 @@ bool proto_can_layout(uint16_t msg_id, proto_can_layout_t *l)
         l->len[4] = 8u;
         l->len[5] = 8u;
         return true;
+    case PROTO_ID_TELEM_EST:
+        l->func = 0x25u;
+        l->transfer = 0u;
+        l->n_frames = 2u;
+        l->h2d = 0u;
+        l->len[0] = 8u;
+        l->len[1] = 6u;
+        return true;
     default:
         return false;
     }
@@ -193,6 +201,8 @@ int16_t proto_can_func_msg(uint16_t func, uint16_t *frame)
     case 0x22u: *frame = 3u; return (int16_t)PROTO_ID_SIM_TRUTH;
     case 0x23u: *frame = 4u; return (int16_t)PROTO_ID_SIM_TRUTH;
     case 0x24u: *frame = 5u; return (int16_t)PROTO_ID_SIM_TRUTH;
+    case 0x25u: *frame = 0u; return (int16_t)PROTO_ID_TELEM_EST;
+    case 0x26u: *frame = 1u; return (int16_t)PROTO_ID_TELEM_EST;
     default: *frame = 0u; return -1;
     }
 }

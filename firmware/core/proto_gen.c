@@ -51,6 +51,15 @@ static float get_f32(const uint16_t *b)
     return bits.f;
 }
 
+/* Round half up and saturate to the u8 range; NaN gives 0. */
+static uint16_t sat_u8(float x)
+{
+    if (x != x) { return 0; }
+    if (x >= 255.0f) { return 255u; }
+    if (x <= 0.0f) { return 0u; }
+    return (uint16_t)floorf(x + 0.5f);
+}
+
 /* Round half up and saturate to the u16 range; NaN gives 0. */
 static uint16_t sat_u16(float x)
 {
@@ -149,6 +158,13 @@ uint16_t proto_config_ctrl_pack(const proto_config_ctrl_t *m, uint16_t *buf)
     put_f32(&buf[65], m->pred_scale_l_q);
     put_f32(&buf[69], m->pred_scale_psi_f);
     put_f32(&buf[73], m->pred_scale_r_s);
+    put_u8(&buf[77], m->mpcc_candidates);
+    put_f32(&buf[78], m->foc_bw_rad_s);
+    put_f32(&buf[82], m->est_bw_rad_s);
+    put_f32(&buf[86], m->est_min_speed_rpm);
+    put_f32(&buf[90], m->est_lock_timeout_s);
+    put_f32(&buf[94], m->est_theta0_rad);
+    put_u16(&buf[98], m->est_div);
     return PROTO_LEN_CONFIG_CTRL;
 }
 
@@ -183,6 +199,13 @@ bool proto_config_ctrl_unpack(proto_config_ctrl_t *m, const uint16_t *buf, uint1
     m->pred_scale_l_q = get_f32(&buf[65]);
     m->pred_scale_psi_f = get_f32(&buf[69]);
     m->pred_scale_r_s = get_f32(&buf[73]);
+    m->mpcc_candidates = get_u8(&buf[77]);
+    m->foc_bw_rad_s = get_f32(&buf[78]);
+    m->est_bw_rad_s = get_f32(&buf[82]);
+    m->est_min_speed_rpm = get_f32(&buf[86]);
+    m->est_lock_timeout_s = get_f32(&buf[90]);
+    m->est_theta0_rad = get_f32(&buf[94]);
+    m->est_div = get_u16(&buf[98]);
     return true;
 }
 
@@ -596,6 +619,33 @@ bool proto_sim_truth_unpack(proto_sim_truth_t *m, const uint16_t *buf, uint16_t 
     return true;
 }
 
+uint16_t proto_telem_est_pack(const proto_telem_est_t *m, uint16_t *buf)
+{
+    put_u32(&buf[0], m->tick);
+    put_u8(&buf[4], m->estimator);
+    put_u8(&buf[5], m->flags);
+    put_u8(&buf[6], sat_u8(m->confidence * 250.0f));
+    put_i16(&buf[7], sat_i16(m->theta_err_rad * 10000.0f));
+    put_i16(&buf[9], sat_i16(m->speed_err_rpm * 10.0f));
+    put_i16(&buf[11], sat_i16(m->err_signal * 10000.0f));
+    return PROTO_LEN_TELEM_EST;
+}
+
+bool proto_telem_est_unpack(proto_telem_est_t *m, const uint16_t *buf, uint16_t len)
+{
+    if (len != PROTO_LEN_TELEM_EST) {
+        return false;
+    }
+    m->tick = get_u32(&buf[0]);
+    m->estimator = get_u8(&buf[4]);
+    m->flags = get_u8(&buf[5]);
+    m->confidence = (float)get_u8(&buf[6]) * 0.004f;
+    m->theta_err_rad = (float)get_i16(&buf[7]) * 0.0001f;
+    m->speed_err_rpm = (float)get_i16(&buf[9]) * 0.1f;
+    m->err_signal = (float)get_i16(&buf[11]) * 0.0001f;
+    return true;
+}
+
 int16_t proto_payload_len(uint16_t msg_id)
 {
     switch (msg_id) {
@@ -618,6 +668,7 @@ int16_t proto_payload_len(uint16_t msg_id)
     case PROTO_ID_EVENT: return (int16_t)PROTO_LEN_EVENT;
     case PROTO_ID_CAPTURE_CHUNK: return (int16_t)PROTO_LEN_CAPTURE_CHUNK;
     case PROTO_ID_SIM_TRUTH: return (int16_t)PROTO_LEN_SIM_TRUTH;
+    case PROTO_ID_TELEM_EST: return (int16_t)PROTO_LEN_TELEM_EST;
     default: return -1;
     }
 }

@@ -10,9 +10,9 @@
 #include <stdbool.h>
 
 #define PROTO_VERSION 2u
-#define PROTO_SCHEMA_HASH 0xA20B0D51UL  /* CRC-32 of the canonical yaml */
+#define PROTO_SCHEMA_HASH 0xA96F5960UL  /* CRC-32 of the canonical yaml */
 #define PROTO_MAX_PAYLOAD 111u  /* octets */
-#define PROTO_MSG_COUNT 19u
+#define PROTO_MSG_COUNT 20u
 
 /* enum state */
 #define PROTO_STATE_IDLE 0u
@@ -34,9 +34,17 @@
 
 /* enum current_ctrl */
 #define PROTO_CURRENT_CTRL_MPCC 0u
+#define PROTO_CURRENT_CTRL_FOC 1u
 
 /* enum angle_src */
 #define PROTO_ANGLE_SRC_ENCODER 0u
+#define PROTO_ANGLE_SRC_MRAS 1u
+#define PROTO_ANGLE_SRC_RIPPLE_PLL 2u
+#define PROTO_ANGLE_SRC_HYBRID 3u
+
+/* enum mpcc_candidates */
+#define PROTO_MPCC_CANDIDATES_ALL 0u
+#define PROTO_MPCC_CANDIDATES_ADJACENT 1u
 
 /* enum board */
 #define PROTO_BOARD_EMULATOR 0u
@@ -52,6 +60,11 @@
 /* enum segment_flag */
 #define PROTO_SEGMENT_FLAG_CAPTURE 1u
 #define PROTO_SEGMENT_FLAG_HOLD_EST 2u
+#define PROTO_SEGMENT_FLAG_ANGLE_ENCODER 4u
+
+/* enum est_flag */
+#define PROTO_EST_FLAG_LOCKED 1u
+#define PROTO_EST_FLAG_IN_LOOP 2u
 
 /* enum params_flag */
 #define PROTO_PARAMS_FLAG_EXCITED 1u
@@ -85,6 +98,7 @@
 #define PROTO_FAULT_DC_UNDER_VOLTAGE 4u
 #define PROTO_FAULT_DC_OVER_VOLTAGE 8u
 #define PROTO_FAULT_HEARTBEAT 16u
+#define PROTO_FAULT_LOST_LOCK 32u
 
 /* hello: 0x01, host -> device */
 #define PROTO_ID_HELLO 0x01u
@@ -117,7 +131,7 @@ bool proto_config_motor_unpack(proto_config_motor_t *m, const uint16_t *buf, uin
 
 /* config_ctrl: 0x03, host -> device */
 #define PROTO_ID_CONFIG_CTRL 0x03u
-#define PROTO_LEN_CONFIG_CTRL 77u
+#define PROTO_LEN_CONFIG_CTRL 100u
 typedef struct {
     float ts_s;                    /* f32 */
     float rho;                     /* f32; MPCC q-axis weighting factor */
@@ -145,6 +159,13 @@ typedef struct {
     float pred_scale_l_q;          /* f32 */
     float pred_scale_psi_f;        /* f32 */
     float pred_scale_r_s;          /* f32 */
+    uint16_t mpcc_candidates;      /* u8; enum mpcc_candidates: MPCC candidate set */
+    float foc_bw_rad_s;            /* f32; FOC: current-loop bandwidth the PI gains are designed for */
+    float est_bw_rad_s;            /* f32; angle estimator: tracking (adaptation) bandwidth */
+    float est_min_speed_rpm;       /* f32; angle estimator: not locked below this speed */
+    float est_lock_timeout_s;      /* f32; lost_lock fault after this long out of lock in the loop */
+    float est_theta0_rad;          /* f32; angle estimator's initial electrical angle */
+    uint16_t est_div;              /* u16; control periods per telem_est frame (0 = off) */
 } proto_config_ctrl_t;
 uint16_t proto_config_ctrl_pack(const proto_config_ctrl_t *m, uint16_t *buf);
 bool proto_config_ctrl_unpack(proto_config_ctrl_t *m, const uint16_t *buf, uint16_t len);
@@ -359,6 +380,21 @@ typedef struct {
 } proto_sim_truth_t;
 uint16_t proto_sim_truth_pack(const proto_sim_truth_t *m, uint16_t *buf);
 bool proto_sim_truth_unpack(proto_sim_truth_t *m, const uint16_t *buf, uint16_t len);
+
+/* telem_est: 0x95, device -> host */
+#define PROTO_ID_TELEM_EST 0x95u
+#define PROTO_LEN_TELEM_EST 13u
+typedef struct {
+    uint32_t tick;                 /* u32 */
+    uint16_t estimator;            /* u8; enum angle_src: the angle slot's occupant */
+    uint16_t flags;                /* u8; enum est_flag bits */
+    float confidence;              /* u8 x 0.004 on the wire, 0 .. 1.02; 0..1: 1 = residual fully explained */
+    float theta_err_rad;           /* i16 x 0.0001 on the wire, -3.2768 .. 3.2767; estimate minus encoder, wrapped to (-pi, pi] */
+    float speed_err_rpm;           /* i16 x 0.1 on the wire, -3276.8 .. 3276.7; speed estimate minus encoder speed */
+    float err_signal;              /* i16 x 0.0001 on the wire, -3.2768 .. 3.2767; the estimator's normalised error signal (rad) */
+} proto_telem_est_t;
+uint16_t proto_telem_est_pack(const proto_telem_est_t *m, uint16_t *buf);
+bool proto_telem_est_unpack(proto_telem_est_t *m, const uint16_t *buf, uint16_t len);
 
 /* Payload octets of a message id, or -1 for an unknown id. */
 int16_t proto_payload_len(uint16_t msg_id);

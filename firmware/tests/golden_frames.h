@@ -168,7 +168,9 @@ static const uint16_t golden_3_payload[] = {
     0x00u, 0x80u, 0xBEu, 0x00u, 0x00u, 0x48u, 0x43u, 0xBDu, 0x37u, 0x06u, 0x36u, 0x9Au,
     0x99u, 0x99u, 0x3Fu, 0x00u, 0x00u, 0x00u, 0x3Fu, 0x00u, 0x01u, 0x01u, 0x03u, 0x14u,
     0x00u, 0x00u, 0x00u, 0x00u, 0x3Fu, 0x00u, 0x00u, 0x00u, 0x3Fu, 0x00u, 0x00u, 0xC0u,
-    0x3Fu, 0x00u, 0x00u, 0x80u, 0x3Fu
+    0x3Fu, 0x00u, 0x00u, 0x80u, 0x3Fu, 0x01u, 0x00u, 0x00u, 0xFAu, 0x44u, 0x00u, 0x00u,
+    0x96u, 0x43u, 0x00u, 0x00u, 0x96u, 0x42u, 0xCDu, 0xCCu, 0x4Cu, 0x3Du, 0x00u, 0x00u,
+    0xA0u, 0xBFu, 0x28u, 0x00u
 };
 static const uint16_t golden_3_frame[] = {
     0x07u, 0x03u, 0x03u, 0x17u, 0xB7u, 0x51u, 0x38u, 0x01u, 0x03u, 0x80u, 0x3Fu, 0x01u,
@@ -177,7 +179,9 @@ static const uint16_t golden_3_frame[] = {
     0x01u, 0x01u, 0x01u, 0x03u, 0x80u, 0xBEu, 0x01u, 0x0Bu, 0x48u, 0x43u, 0xBDu, 0x37u,
     0x06u, 0x36u, 0x9Au, 0x99u, 0x99u, 0x3Fu, 0x01u, 0x01u, 0x02u, 0x3Fu, 0x05u, 0x01u,
     0x01u, 0x03u, 0x14u, 0x01u, 0x01u, 0x01u, 0x02u, 0x3Fu, 0x01u, 0x01u, 0x02u, 0x3Fu,
-    0x01u, 0x03u, 0xC0u, 0x3Fu, 0x01u, 0x05u, 0x80u, 0x3Fu, 0x80u, 0x46u, 0x00u
+    0x01u, 0x03u, 0xC0u, 0x3Fu, 0x01u, 0x04u, 0x80u, 0x3Fu, 0x01u, 0x01u, 0x03u, 0xFAu,
+    0x44u, 0x01u, 0x03u, 0x96u, 0x43u, 0x01u, 0x07u, 0x96u, 0x42u, 0xCDu, 0xCCu, 0x4Cu,
+    0x3Du, 0x01u, 0x04u, 0xA0u, 0xBFu, 0x28u, 0x03u, 0x92u, 0xDAu, 0x00u
 };
 
 static uint16_t golden_3_pack(uint16_t *buf)
@@ -210,6 +214,13 @@ static uint16_t golden_3_pack(uint16_t *buf)
     m.pred_scale_l_q = 0.5f;
     m.pred_scale_psi_f = 1.5f;
     m.pred_scale_r_s = 1.0f;
+    m.mpcc_candidates = 1u;
+    m.foc_bw_rad_s = 2000.0f;
+    m.est_bw_rad_s = 300.0f;
+    m.est_min_speed_rpm = 75.0f;
+    m.est_lock_timeout_s = 0.05000000074505806f;
+    m.est_theta0_rad = -1.25f;
+    m.est_div = 40u;
     return proto_config_ctrl_pack(&m, buf);
 }
 
@@ -247,6 +258,13 @@ static void golden_3_check(const uint16_t *payload, uint16_t len)
     CHECK_NEAR(m.pred_scale_l_q, 0.5, 0.0, "golden 3 config_ctrl.pred_scale_l_q");
     CHECK_NEAR(m.pred_scale_psi_f, 1.5, 0.0, "golden 3 config_ctrl.pred_scale_psi_f");
     CHECK_NEAR(m.pred_scale_r_s, 1.0, 0.0, "golden 3 config_ctrl.pred_scale_r_s");
+    CHECK(m.mpcc_candidates == 1u, "golden 3 config_ctrl.mpcc_candidates");
+    CHECK_NEAR(m.foc_bw_rad_s, 2000.0, 0.0, "golden 3 config_ctrl.foc_bw_rad_s");
+    CHECK_NEAR(m.est_bw_rad_s, 300.0, 0.0, "golden 3 config_ctrl.est_bw_rad_s");
+    CHECK_NEAR(m.est_min_speed_rpm, 75.0, 0.0, "golden 3 config_ctrl.est_min_speed_rpm");
+    CHECK_NEAR(m.est_lock_timeout_s, 0.05000000074505806, 0.0, "golden 3 config_ctrl.est_lock_timeout_s");
+    CHECK_NEAR(m.est_theta0_rad, -1.25, 0.0, "golden 3 config_ctrl.est_theta0_rad");
+    CHECK(m.est_div == 40u, "golden 3 config_ctrl.est_div");
 }
 
 /* 4: profile_clear */
@@ -846,18 +864,59 @@ static void golden_19_check(const uint16_t *payload, uint16_t len)
     CHECK_NEAR(m.load_nm, 0.0, 1e-09, "golden 19 telem_fast.load_nm");
 }
 
-/* 20: params */
+/* 20: telem_est */
 static const uint16_t golden_20_payload[] = {
+    0xCDu, 0x81u, 0x01u, 0x00u, 0x01u, 0x03u, 0xD6u, 0x85u, 0xFFu, 0x19u, 0x00u, 0xC8u,
+    0x01u
+};
+static const uint16_t golden_20_frame[] = {
+    0x06u, 0x95u, 0x15u, 0xCDu, 0x81u, 0x01u, 0x07u, 0x01u, 0x03u, 0xD6u, 0x85u, 0xFFu,
+    0x19u, 0x05u, 0xC8u, 0x01u, 0x9Du, 0xC0u, 0x00u
+};
+
+static uint16_t golden_20_pack(uint16_t *buf)
+{
+    proto_telem_est_t m;
+    memset(&m, 0, sizeof m);
+    m.tick = 98765UL;
+    m.estimator = 1u;
+    m.flags = 3u;
+    m.confidence = 0.8567f;
+    m.theta_err_rad = -0.0123f;
+    m.speed_err_rpm = 2.5f;
+    m.err_signal = 0.0456f;
+    return proto_telem_est_pack(&m, buf);
+}
+
+static void golden_20_check(const uint16_t *payload, uint16_t len)
+{
+    proto_telem_est_t m;
+    bool ok = proto_telem_est_unpack(&m, payload, len);
+    CHECK(ok, "golden 20 telem_est: unpack");
+    if (!ok) {
+        return;
+    }
+    CHECK(m.tick == 98765UL, "golden 20 telem_est.tick");
+    CHECK(m.estimator == 1u, "golden 20 telem_est.estimator");
+    CHECK(m.flags == 3u, "golden 20 telem_est.flags");
+    CHECK_NEAR(m.confidence, 0.856, 8.56e-07, "golden 20 telem_est.confidence");
+    CHECK_NEAR(m.theta_err_rad, -0.0123, 1.23e-08, "golden 20 telem_est.theta_err_rad");
+    CHECK_NEAR(m.speed_err_rpm, 2.5, 2.5e-06, "golden 20 telem_est.speed_err_rpm");
+    CHECK_NEAR(m.err_signal, 0.0456, 4.56e-08, "golden 20 telem_est.err_signal");
+}
+
+/* 21: params */
+static const uint16_t golden_21_payload[] = {
     0xD0u, 0x07u, 0x00u, 0x00u, 0x03u, 0x07u, 0x18u, 0x44u, 0xA4u, 0x3Bu, 0x4Eu, 0x97u,
     0x45u, 0x3Cu, 0x35u, 0x5Eu, 0x3Au, 0x3Eu, 0x5Au, 0x64u, 0x7Bu, 0x3Fu
 };
-static const uint16_t golden_20_frame[] = {
+static const uint16_t golden_21_frame[] = {
     0x05u, 0x91u, 0x10u, 0xD0u, 0x07u, 0x01u, 0x15u, 0x03u, 0x07u, 0x18u, 0x44u, 0xA4u,
     0x3Bu, 0x4Eu, 0x97u, 0x45u, 0x3Cu, 0x35u, 0x5Eu, 0x3Au, 0x3Eu, 0x5Au, 0x64u, 0x7Bu,
     0x3Fu, 0x54u, 0xB5u, 0x00u
 };
 
-static uint16_t golden_20_pack(uint16_t *buf)
+static uint16_t golden_21_pack(uint16_t *buf)
 {
     proto_params_t m;
     memset(&m, 0, sizeof m);
@@ -871,36 +930,36 @@ static uint16_t golden_20_pack(uint16_t *buf)
     return proto_params_pack(&m, buf);
 }
 
-static void golden_20_check(const uint16_t *payload, uint16_t len)
+static void golden_21_check(const uint16_t *payload, uint16_t len)
 {
     proto_params_t m;
     bool ok = proto_params_unpack(&m, payload, len);
-    CHECK(ok, "golden 20 params: unpack");
+    CHECK(ok, "golden 21 params: unpack");
     if (!ok) {
         return;
     }
-    CHECK(m.tick == 2000UL, "golden 20 params.tick");
-    CHECK(m.estimator == 3u, "golden 20 params.estimator");
-    CHECK(m.flags == 7u, "golden 20 params.flags");
-    CHECK_NEAR(m.l_d_h, 0.0050130002200603485, 0.0, "golden 20 params.l_d_h");
-    CHECK_NEAR(m.l_q_h, 0.012059999629855156, 0.0, "golden 20 params.l_q_h");
-    CHECK_NEAR(m.psi_f_wb, 0.18199999630451202, 0.0, "golden 20 params.psi_f_wb");
-    CHECK_NEAR(m.r_s_ohm, 0.9819999933242798, 0.0, "golden 20 params.r_s_ohm");
+    CHECK(m.tick == 2000UL, "golden 21 params.tick");
+    CHECK(m.estimator == 3u, "golden 21 params.estimator");
+    CHECK(m.flags == 7u, "golden 21 params.flags");
+    CHECK_NEAR(m.l_d_h, 0.0050130002200603485, 0.0, "golden 21 params.l_d_h");
+    CHECK_NEAR(m.l_q_h, 0.012059999629855156, 0.0, "golden 21 params.l_q_h");
+    CHECK_NEAR(m.psi_f_wb, 0.18199999630451202, 0.0, "golden 21 params.psi_f_wb");
+    CHECK_NEAR(m.r_s_ohm, 0.9819999933242798, 0.0, "golden 21 params.r_s_ohm");
 }
 
-/* 21: status */
-static const uint16_t golden_21_payload[] = {
+/* 22: status */
+static const uint16_t golden_22_payload[] = {
     0x20u, 0x4Eu, 0x00u, 0x00u, 0x01u, 0x02u, 0x00u, 0x00u, 0x00u, 0x29u, 0x0Cu, 0x00u,
     0x00u, 0x00u, 0x00u, 0x03u, 0x00u, 0x87u, 0xD6u, 0x12u, 0x00u, 0x78u, 0x00u, 0x00u,
     0x20u
 };
-static const uint16_t golden_21_frame[] = {
+static const uint16_t golden_22_frame[] = {
     0x05u, 0x92u, 0x11u, 0x20u, 0x4Eu, 0x01u, 0x03u, 0x01u, 0x02u, 0x01u, 0x01u, 0x03u,
     0x29u, 0x0Cu, 0x01u, 0x01u, 0x01u, 0x02u, 0x03u, 0x04u, 0x87u, 0xD6u, 0x12u, 0x02u,
     0x78u, 0x01u, 0x04u, 0x20u, 0x15u, 0xA6u, 0x00u
 };
 
-static uint16_t golden_21_pack(uint16_t *buf)
+static uint16_t golden_22_pack(uint16_t *buf)
 {
     proto_status_t m;
     memset(&m, 0, sizeof m);
@@ -917,39 +976,39 @@ static uint16_t golden_21_pack(uint16_t *buf)
     return proto_status_pack(&m, buf);
 }
 
-static void golden_21_check(const uint16_t *payload, uint16_t len)
+static void golden_22_check(const uint16_t *payload, uint16_t len)
 {
     proto_status_t m;
     bool ok = proto_status_unpack(&m, payload, len);
-    CHECK(ok, "golden 21 status: unpack");
+    CHECK(ok, "golden 22 status: unpack");
     if (!ok) {
         return;
     }
-    CHECK(m.tick == 20000UL, "golden 21 status.tick");
-    CHECK(m.state == 1u, "golden 21 status.state");
-    CHECK(m.segment == 2u, "golden 21 status.segment");
-    CHECK(m.faults == 0u, "golden 21 status.faults");
-    CHECK_NEAR(m.v_dc_v, 311.3, 0.000311, "golden 21 status.v_dc_v");
-    CHECK(m.tx_dropped == 0UL, "golden 21 status.tx_dropped");
-    CHECK(m.rx_bad == 3u, "golden 21 status.rx_bad");
-    CHECK(m.rx_frames == 1234567UL, "golden 21 status.rx_frames");
-    CHECK(m.hb_age_ms == 120u, "golden 21 status.hb_age_ms");
-    CHECK(m.capture_count == 8192u, "golden 21 status.capture_count");
+    CHECK(m.tick == 20000UL, "golden 22 status.tick");
+    CHECK(m.state == 1u, "golden 22 status.state");
+    CHECK(m.segment == 2u, "golden 22 status.segment");
+    CHECK(m.faults == 0u, "golden 22 status.faults");
+    CHECK_NEAR(m.v_dc_v, 311.3, 0.000311, "golden 22 status.v_dc_v");
+    CHECK(m.tx_dropped == 0UL, "golden 22 status.tx_dropped");
+    CHECK(m.rx_bad == 3u, "golden 22 status.rx_bad");
+    CHECK(m.rx_frames == 1234567UL, "golden 22 status.rx_frames");
+    CHECK(m.hb_age_ms == 120u, "golden 22 status.hb_age_ms");
+    CHECK(m.capture_count == 8192u, "golden 22 status.capture_count");
 }
 
-/* 22: status fault, undervoltage */
-static const uint16_t golden_22_payload[] = {
+/* 23: status fault, undervoltage */
+static const uint16_t golden_23_payload[] = {
     0x70u, 0x11u, 0x01u, 0x00u, 0x03u, 0xFFu, 0xFFu, 0x05u, 0x00u, 0xCEu, 0xFFu, 0xFFu,
     0xFFu, 0xFFu, 0xFFu, 0xFFu, 0xFFu, 0x00u, 0x00u, 0x00u, 0x00u, 0x00u, 0x00u, 0x00u,
     0x00u
 };
-static const uint16_t golden_22_frame[] = {
+static const uint16_t golden_23_frame[] = {
     0x06u, 0x92u, 0x12u, 0x70u, 0x11u, 0x01u, 0x05u, 0x03u, 0xFFu, 0xFFu, 0x05u, 0x09u,
     0xCEu, 0xFFu, 0xFFu, 0xFFu, 0xFFu, 0xFFu, 0xFFu, 0xFFu, 0x01u, 0x01u, 0x01u, 0x01u,
     0x01u, 0x01u, 0x01u, 0x03u, 0x8Bu, 0xA5u, 0x00u
 };
 
-static uint16_t golden_22_pack(uint16_t *buf)
+static uint16_t golden_23_pack(uint16_t *buf)
 {
     proto_status_t m;
     memset(&m, 0, sizeof m);
@@ -966,74 +1025,42 @@ static uint16_t golden_22_pack(uint16_t *buf)
     return proto_status_pack(&m, buf);
 }
 
-static void golden_22_check(const uint16_t *payload, uint16_t len)
+static void golden_23_check(const uint16_t *payload, uint16_t len)
 {
     proto_status_t m;
     bool ok = proto_status_unpack(&m, payload, len);
-    CHECK(ok, "golden 22 status: unpack");
+    CHECK(ok, "golden 23 status: unpack");
     if (!ok) {
         return;
     }
-    CHECK(m.tick == 70000UL, "golden 22 status.tick");
-    CHECK(m.state == 3u, "golden 22 status.state");
-    CHECK(m.segment == 65535u, "golden 22 status.segment");
-    CHECK(m.faults == 5u, "golden 22 status.faults");
-    CHECK_NEAR(m.v_dc_v, -5.0, 5e-06, "golden 22 status.v_dc_v");
-    CHECK(m.tx_dropped == 4294967295UL, "golden 22 status.tx_dropped");
-    CHECK(m.rx_bad == 65535u, "golden 22 status.rx_bad");
-    CHECK(m.rx_frames == 0UL, "golden 22 status.rx_frames");
-    CHECK(m.hb_age_ms == 0u, "golden 22 status.hb_age_ms");
-    CHECK(m.capture_count == 0u, "golden 22 status.capture_count");
+    CHECK(m.tick == 70000UL, "golden 23 status.tick");
+    CHECK(m.state == 3u, "golden 23 status.state");
+    CHECK(m.segment == 65535u, "golden 23 status.segment");
+    CHECK(m.faults == 5u, "golden 23 status.faults");
+    CHECK_NEAR(m.v_dc_v, -5.0, 5e-06, "golden 23 status.v_dc_v");
+    CHECK(m.tx_dropped == 4294967295UL, "golden 23 status.tx_dropped");
+    CHECK(m.rx_bad == 65535u, "golden 23 status.rx_bad");
+    CHECK(m.rx_frames == 0UL, "golden 23 status.rx_frames");
+    CHECK(m.hb_age_ms == 0u, "golden 23 status.hb_age_ms");
+    CHECK(m.capture_count == 0u, "golden 23 status.capture_count");
 }
 
-/* 23: event capture_triggered by fault */
-static const uint16_t golden_23_payload[] = {
+/* 24: event capture_triggered by fault */
+static const uint16_t golden_24_payload[] = {
     0x7Bu, 0x00u, 0x00u, 0x00u, 0x06u, 0x00u, 0xFFu, 0xFFu, 0xFFu, 0xFFu
 };
-static const uint16_t golden_23_frame[] = {
+static const uint16_t golden_24_frame[] = {
     0x04u, 0x93u, 0x13u, 0x7Bu, 0x01u, 0x01u, 0x02u, 0x06u, 0x07u, 0xFFu, 0xFFu, 0xFFu,
     0xFFu, 0x01u, 0x7Bu, 0x00u
-};
-
-static uint16_t golden_23_pack(uint16_t *buf)
-{
-    proto_event_t m;
-    memset(&m, 0, sizeof m);
-    m.tick = 123UL;
-    m.code = 6u;
-    m.arg = (int32_t)-1L;
-    return proto_event_pack(&m, buf);
-}
-
-static void golden_23_check(const uint16_t *payload, uint16_t len)
-{
-    proto_event_t m;
-    bool ok = proto_event_unpack(&m, payload, len);
-    CHECK(ok, "golden 23 event: unpack");
-    if (!ok) {
-        return;
-    }
-    CHECK(m.tick == 123UL, "golden 23 event.tick");
-    CHECK(m.code == 6u, "golden 23 event.code");
-    CHECK(m.arg == (int32_t)-1L, "golden 23 event.arg");
-}
-
-/* 24: event extremes */
-static const uint16_t golden_24_payload[] = {
-    0xFFu, 0xFFu, 0xFFu, 0xFFu, 0x02u, 0x00u, 0x00u, 0x00u, 0x00u, 0x80u
-};
-static const uint16_t golden_24_frame[] = {
-    0x08u, 0x93u, 0x14u, 0xFFu, 0xFFu, 0xFFu, 0xFFu, 0x02u, 0x01u, 0x01u, 0x01u, 0x04u,
-    0x80u, 0xD2u, 0x22u, 0x00u
 };
 
 static uint16_t golden_24_pack(uint16_t *buf)
 {
     proto_event_t m;
     memset(&m, 0, sizeof m);
-    m.tick = 4294967295UL;
-    m.code = 2u;
-    m.arg = INT32_MIN;
+    m.tick = 123UL;
+    m.code = 6u;
+    m.arg = (int32_t)-1L;
     return proto_event_pack(&m, buf);
 }
 
@@ -1045,13 +1072,45 @@ static void golden_24_check(const uint16_t *payload, uint16_t len)
     if (!ok) {
         return;
     }
-    CHECK(m.tick == 4294967295UL, "golden 24 event.tick");
-    CHECK(m.code == 2u, "golden 24 event.code");
-    CHECK(m.arg == INT32_MIN, "golden 24 event.arg");
+    CHECK(m.tick == 123UL, "golden 24 event.tick");
+    CHECK(m.code == 6u, "golden 24 event.code");
+    CHECK(m.arg == (int32_t)-1L, "golden 24 event.arg");
 }
 
-/* 25: capture_chunk max length */
+/* 25: event extremes */
 static const uint16_t golden_25_payload[] = {
+    0xFFu, 0xFFu, 0xFFu, 0xFFu, 0x02u, 0x00u, 0x00u, 0x00u, 0x00u, 0x80u
+};
+static const uint16_t golden_25_frame[] = {
+    0x08u, 0x93u, 0x14u, 0xFFu, 0xFFu, 0xFFu, 0xFFu, 0x02u, 0x01u, 0x01u, 0x01u, 0x04u,
+    0x80u, 0xD2u, 0x22u, 0x00u
+};
+
+static uint16_t golden_25_pack(uint16_t *buf)
+{
+    proto_event_t m;
+    memset(&m, 0, sizeof m);
+    m.tick = 4294967295UL;
+    m.code = 2u;
+    m.arg = INT32_MIN;
+    return proto_event_pack(&m, buf);
+}
+
+static void golden_25_check(const uint16_t *payload, uint16_t len)
+{
+    proto_event_t m;
+    bool ok = proto_event_unpack(&m, payload, len);
+    CHECK(ok, "golden 25 event: unpack");
+    if (!ok) {
+        return;
+    }
+    CHECK(m.tick == 4294967295UL, "golden 25 event.tick");
+    CHECK(m.code == 2u, "golden 25 event.code");
+    CHECK(m.arg == INT32_MIN, "golden 25 event.arg");
+}
+
+/* 26: capture_chunk max length */
+static const uint16_t golden_26_payload[] = {
     0xF8u, 0x0Fu, 0x08u, 0xCDu, 0x81u, 0x01u, 0x00u, 0x00u, 0x80u, 0xEBu, 0xD8u, 0x97u,
     0xFDu, 0x00u, 0x00u, 0xD8u, 0x00u, 0x83u, 0x06u, 0x0Bu, 0x27u, 0xFFu, 0x7Fu, 0x8Du,
     0x13u, 0x7Fu, 0x0Du, 0x71u, 0x07u, 0x63u, 0x01u, 0x55u, 0xFBu, 0x47u, 0xF5u, 0x39u,
@@ -1063,7 +1122,7 @@ static const uint16_t golden_25_payload[] = {
     0x18u, 0x75u, 0xE7u, 0x00u, 0x00u, 0x64u, 0x00u, 0x00u, 0x80u, 0xFFu, 0x7Fu, 0x0Cu,
     0x00u, 0xF8u, 0xFFu
 };
-static const uint16_t golden_25_frame[] = {
+static const uint16_t golden_26_frame[] = {
     0x09u, 0x94u, 0x15u, 0xF8u, 0x0Fu, 0x08u, 0xCDu, 0x81u, 0x01u, 0x01u, 0x06u, 0x80u,
     0xEBu, 0xD8u, 0x97u, 0xFDu, 0x01u, 0x02u, 0xD8u, 0x27u, 0x83u, 0x06u, 0x0Bu, 0x27u,
     0xFFu, 0x7Fu, 0x8Du, 0x13u, 0x7Fu, 0x0Du, 0x71u, 0x07u, 0x63u, 0x01u, 0x55u, 0xFBu,
@@ -1076,7 +1135,7 @@ static const uint16_t golden_25_frame[] = {
     0xFFu, 0x7Fu, 0x0Cu, 0x05u, 0xF8u, 0xFFu, 0xA3u, 0x6Fu, 0x00u
 };
 
-static uint16_t golden_25_pack(uint16_t *buf)
+static uint16_t golden_26_pack(uint16_t *buf)
 {
     proto_capture_chunk_t m;
     memset(&m, 0, sizeof m);
@@ -1142,83 +1201,83 @@ static uint16_t golden_25_pack(uint16_t *buf)
     return proto_capture_chunk_pack(&m, buf);
 }
 
-static void golden_25_check(const uint16_t *payload, uint16_t len)
+static void golden_26_check(const uint16_t *payload, uint16_t len)
 {
     proto_capture_chunk_t m;
     bool ok = proto_capture_chunk_unpack(&m, payload, len);
-    CHECK(ok, "golden 25 capture_chunk: unpack");
+    CHECK(ok, "golden 26 capture_chunk: unpack");
     if (!ok) {
         return;
     }
-    CHECK(m.offset == 4088u, "golden 25 capture_chunk.offset");
-    CHECK(m.n_valid == 8u, "golden 25 capture_chunk.n_valid");
-    CHECK(m.tick0 == 98765UL, "golden 25 capture_chunk.tick0");
-    CHECK_NEAR(m.i_a_a[0], -65.536, 6.55e-05, "golden 25 capture_chunk.i_a_a[0]");
-    CHECK_NEAR(m.i_a_a[1], -20.01, 2e-05, "golden 25 capture_chunk.i_a_a[1]");
-    CHECK_NEAR(m.i_a_a[2], -1.234, 1.23e-06, "golden 25 capture_chunk.i_a_a[2]");
-    CHECK_NEAR(m.i_a_a[3], 0.0, 2e-09, "golden 25 capture_chunk.i_a_a[3]");
-    CHECK_NEAR(m.i_a_a[4], 0.432, 4.32e-07, "golden 25 capture_chunk.i_a_a[4]");
-    CHECK_NEAR(m.i_a_a[5], 3.334, 3.33e-06, "golden 25 capture_chunk.i_a_a[5]");
-    CHECK_NEAR(m.i_a_a[6], 19.990000000000002, 2e-05, "golden 25 capture_chunk.i_a_a[6]");
-    CHECK_NEAR(m.i_a_a[7], 65.534, 6.55e-05, "golden 25 capture_chunk.i_a_a[7]");
-    CHECK_NEAR(m.i_b_a[0], 10.01, 1e-05, "golden 25 capture_chunk.i_b_a[0]");
-    CHECK_NEAR(m.i_b_a[1], 6.91, 6.91e-06, "golden 25 capture_chunk.i_b_a[1]");
-    CHECK_NEAR(m.i_b_a[2], 3.81, 3.81e-06, "golden 25 capture_chunk.i_b_a[2]");
-    CHECK_NEAR(m.i_b_a[3], 0.71, 7.1e-07, "golden 25 capture_chunk.i_b_a[3]");
-    CHECK_NEAR(m.i_b_a[4], -2.39, 2.39e-06, "golden 25 capture_chunk.i_b_a[4]");
-    CHECK_NEAR(m.i_b_a[5], -5.49, 5.49e-06, "golden 25 capture_chunk.i_b_a[5]");
-    CHECK_NEAR(m.i_b_a[6], -8.59, 8.59e-06, "golden 25 capture_chunk.i_b_a[6]");
-    CHECK_NEAR(m.i_b_a[7], -11.69, 1.17e-05, "golden 25 capture_chunk.i_b_a[7]");
-    CHECK_NEAR(m.i_c_a[0], -5.0, 5e-06, "golden 25 capture_chunk.i_c_a[0]");
-    CHECK_NEAR(m.i_c_a[1], -3.6, 3.6e-06, "golden 25 capture_chunk.i_c_a[1]");
-    CHECK_NEAR(m.i_c_a[2], -2.2, 2.2e-06, "golden 25 capture_chunk.i_c_a[2]");
-    CHECK_NEAR(m.i_c_a[3], -0.8, 8e-07, "golden 25 capture_chunk.i_c_a[3]");
-    CHECK_NEAR(m.i_c_a[4], 0.6, 6e-07, "golden 25 capture_chunk.i_c_a[4]");
-    CHECK_NEAR(m.i_c_a[5], 2.0, 2e-06, "golden 25 capture_chunk.i_c_a[5]");
-    CHECK_NEAR(m.i_c_a[6], 3.4, 3.4e-06, "golden 25 capture_chunk.i_c_a[6]");
-    CHECK_NEAR(m.i_c_a[7], 4.8, 4.8e-06, "golden 25 capture_chunk.i_c_a[7]");
-    CHECK(m.s_abc[0] == 0u, "golden 25 capture_chunk.s_abc[0]");
-    CHECK(m.s_abc[1] == 1u, "golden 25 capture_chunk.s_abc[1]");
-    CHECK(m.s_abc[2] == 3u, "golden 25 capture_chunk.s_abc[2]");
-    CHECK(m.s_abc[3] == 2u, "golden 25 capture_chunk.s_abc[3]");
-    CHECK(m.s_abc[4] == 6u, "golden 25 capture_chunk.s_abc[4]");
-    CHECK(m.s_abc[5] == 4u, "golden 25 capture_chunk.s_abc[5]");
-    CHECK(m.s_abc[6] == 5u, "golden 25 capture_chunk.s_abc[6]");
-    CHECK(m.s_abc[7] == 7u, "golden 25 capture_chunk.s_abc[7]");
-    CHECK_NEAR(m.v_dc_v[0], 311.20000000000005, 0.000311, "golden 25 capture_chunk.v_dc_v[0]");
-    CHECK_NEAR(m.v_dc_v[1], 311.3, 0.000311, "golden 25 capture_chunk.v_dc_v[1]");
-    CHECK_NEAR(m.v_dc_v[2], 310.90000000000003, 0.000311, "golden 25 capture_chunk.v_dc_v[2]");
-    CHECK_NEAR(m.v_dc_v[3], 0.0, 1e-07, "golden 25 capture_chunk.v_dc_v[3]");
-    CHECK_NEAR(m.v_dc_v[4], 0.0, 1e-07, "golden 25 capture_chunk.v_dc_v[4]");
-    CHECK_NEAR(m.v_dc_v[5], 3276.7000000000003, 0.00328, "golden 25 capture_chunk.v_dc_v[5]");
-    CHECK_NEAR(m.v_dc_v[6], 3276.7000000000003, 0.00328, "golden 25 capture_chunk.v_dc_v[6]");
-    CHECK_NEAR(m.v_dc_v[7], 300.0, 0.0003, "golden 25 capture_chunk.v_dc_v[7]");
-    CHECK_NEAR(m.theta_e_rad[0], 0.0, 9.59e-11, "golden 25 capture_chunk.theta_e_rad[0]");
-    CHECK_NEAR(m.theta_e_rad[1], 0.7999709808823618, 8e-07, "golden 25 capture_chunk.theta_e_rad[1]");
-    CHECK_NEAR(m.theta_e_rad[2], 1.6000378355639666, 1.6e-06, "golden 25 capture_chunk.theta_e_rad[2]");
-    CHECK_NEAR(m.theta_e_rad[3], 2.4000088164463285, 2.4e-06, "golden 25 capture_chunk.theta_e_rad[3]");
-    CHECK_NEAR(m.theta_e_rad[4], 3.1999797973286905, 3.2e-06, "golden 25 capture_chunk.theta_e_rad[4]");
-    CHECK_NEAR(m.theta_e_rad[5], 4.000046652010295, 4e-06, "golden 25 capture_chunk.theta_e_rad[5]");
-    CHECK_NEAR(m.theta_e_rad[6], 6.19996684943679, 6.2e-06, "golden 25 capture_chunk.theta_e_rad[6]");
-    CHECK_NEAR(m.theta_e_rad[7], 6.2830894333803435, 6.28e-06, "golden 25 capture_chunk.theta_e_rad[7]");
-    CHECK_NEAR(m.omega_e_rad_s[0], 628.3000000000001, 0.000628, "golden 25 capture_chunk.omega_e_rad_s[0]");
-    CHECK_NEAR(m.omega_e_rad_s[1], -628.3000000000001, 0.000628, "golden 25 capture_chunk.omega_e_rad_s[1]");
-    CHECK_NEAR(m.omega_e_rad_s[2], 0.0, 1e-07, "golden 25 capture_chunk.omega_e_rad_s[2]");
-    CHECK_NEAR(m.omega_e_rad_s[3], 10.0, 1e-05, "golden 25 capture_chunk.omega_e_rad_s[3]");
-    CHECK_NEAR(m.omega_e_rad_s[4], -3276.8, 0.00328, "golden 25 capture_chunk.omega_e_rad_s[4]");
-    CHECK_NEAR(m.omega_e_rad_s[5], 3276.7000000000003, 0.00328, "golden 25 capture_chunk.omega_e_rad_s[5]");
-    CHECK_NEAR(m.omega_e_rad_s[6], 1.2000000000000002, 1.2e-06, "golden 25 capture_chunk.omega_e_rad_s[6]");
-    CHECK_NEAR(m.omega_e_rad_s[7], -0.8, 8e-07, "golden 25 capture_chunk.omega_e_rad_s[7]");
+    CHECK(m.offset == 4088u, "golden 26 capture_chunk.offset");
+    CHECK(m.n_valid == 8u, "golden 26 capture_chunk.n_valid");
+    CHECK(m.tick0 == 98765UL, "golden 26 capture_chunk.tick0");
+    CHECK_NEAR(m.i_a_a[0], -65.536, 6.55e-05, "golden 26 capture_chunk.i_a_a[0]");
+    CHECK_NEAR(m.i_a_a[1], -20.01, 2e-05, "golden 26 capture_chunk.i_a_a[1]");
+    CHECK_NEAR(m.i_a_a[2], -1.234, 1.23e-06, "golden 26 capture_chunk.i_a_a[2]");
+    CHECK_NEAR(m.i_a_a[3], 0.0, 2e-09, "golden 26 capture_chunk.i_a_a[3]");
+    CHECK_NEAR(m.i_a_a[4], 0.432, 4.32e-07, "golden 26 capture_chunk.i_a_a[4]");
+    CHECK_NEAR(m.i_a_a[5], 3.334, 3.33e-06, "golden 26 capture_chunk.i_a_a[5]");
+    CHECK_NEAR(m.i_a_a[6], 19.990000000000002, 2e-05, "golden 26 capture_chunk.i_a_a[6]");
+    CHECK_NEAR(m.i_a_a[7], 65.534, 6.55e-05, "golden 26 capture_chunk.i_a_a[7]");
+    CHECK_NEAR(m.i_b_a[0], 10.01, 1e-05, "golden 26 capture_chunk.i_b_a[0]");
+    CHECK_NEAR(m.i_b_a[1], 6.91, 6.91e-06, "golden 26 capture_chunk.i_b_a[1]");
+    CHECK_NEAR(m.i_b_a[2], 3.81, 3.81e-06, "golden 26 capture_chunk.i_b_a[2]");
+    CHECK_NEAR(m.i_b_a[3], 0.71, 7.1e-07, "golden 26 capture_chunk.i_b_a[3]");
+    CHECK_NEAR(m.i_b_a[4], -2.39, 2.39e-06, "golden 26 capture_chunk.i_b_a[4]");
+    CHECK_NEAR(m.i_b_a[5], -5.49, 5.49e-06, "golden 26 capture_chunk.i_b_a[5]");
+    CHECK_NEAR(m.i_b_a[6], -8.59, 8.59e-06, "golden 26 capture_chunk.i_b_a[6]");
+    CHECK_NEAR(m.i_b_a[7], -11.69, 1.17e-05, "golden 26 capture_chunk.i_b_a[7]");
+    CHECK_NEAR(m.i_c_a[0], -5.0, 5e-06, "golden 26 capture_chunk.i_c_a[0]");
+    CHECK_NEAR(m.i_c_a[1], -3.6, 3.6e-06, "golden 26 capture_chunk.i_c_a[1]");
+    CHECK_NEAR(m.i_c_a[2], -2.2, 2.2e-06, "golden 26 capture_chunk.i_c_a[2]");
+    CHECK_NEAR(m.i_c_a[3], -0.8, 8e-07, "golden 26 capture_chunk.i_c_a[3]");
+    CHECK_NEAR(m.i_c_a[4], 0.6, 6e-07, "golden 26 capture_chunk.i_c_a[4]");
+    CHECK_NEAR(m.i_c_a[5], 2.0, 2e-06, "golden 26 capture_chunk.i_c_a[5]");
+    CHECK_NEAR(m.i_c_a[6], 3.4, 3.4e-06, "golden 26 capture_chunk.i_c_a[6]");
+    CHECK_NEAR(m.i_c_a[7], 4.8, 4.8e-06, "golden 26 capture_chunk.i_c_a[7]");
+    CHECK(m.s_abc[0] == 0u, "golden 26 capture_chunk.s_abc[0]");
+    CHECK(m.s_abc[1] == 1u, "golden 26 capture_chunk.s_abc[1]");
+    CHECK(m.s_abc[2] == 3u, "golden 26 capture_chunk.s_abc[2]");
+    CHECK(m.s_abc[3] == 2u, "golden 26 capture_chunk.s_abc[3]");
+    CHECK(m.s_abc[4] == 6u, "golden 26 capture_chunk.s_abc[4]");
+    CHECK(m.s_abc[5] == 4u, "golden 26 capture_chunk.s_abc[5]");
+    CHECK(m.s_abc[6] == 5u, "golden 26 capture_chunk.s_abc[6]");
+    CHECK(m.s_abc[7] == 7u, "golden 26 capture_chunk.s_abc[7]");
+    CHECK_NEAR(m.v_dc_v[0], 311.20000000000005, 0.000311, "golden 26 capture_chunk.v_dc_v[0]");
+    CHECK_NEAR(m.v_dc_v[1], 311.3, 0.000311, "golden 26 capture_chunk.v_dc_v[1]");
+    CHECK_NEAR(m.v_dc_v[2], 310.90000000000003, 0.000311, "golden 26 capture_chunk.v_dc_v[2]");
+    CHECK_NEAR(m.v_dc_v[3], 0.0, 1e-07, "golden 26 capture_chunk.v_dc_v[3]");
+    CHECK_NEAR(m.v_dc_v[4], 0.0, 1e-07, "golden 26 capture_chunk.v_dc_v[4]");
+    CHECK_NEAR(m.v_dc_v[5], 3276.7000000000003, 0.00328, "golden 26 capture_chunk.v_dc_v[5]");
+    CHECK_NEAR(m.v_dc_v[6], 3276.7000000000003, 0.00328, "golden 26 capture_chunk.v_dc_v[6]");
+    CHECK_NEAR(m.v_dc_v[7], 300.0, 0.0003, "golden 26 capture_chunk.v_dc_v[7]");
+    CHECK_NEAR(m.theta_e_rad[0], 0.0, 9.59e-11, "golden 26 capture_chunk.theta_e_rad[0]");
+    CHECK_NEAR(m.theta_e_rad[1], 0.7999709808823618, 8e-07, "golden 26 capture_chunk.theta_e_rad[1]");
+    CHECK_NEAR(m.theta_e_rad[2], 1.6000378355639666, 1.6e-06, "golden 26 capture_chunk.theta_e_rad[2]");
+    CHECK_NEAR(m.theta_e_rad[3], 2.4000088164463285, 2.4e-06, "golden 26 capture_chunk.theta_e_rad[3]");
+    CHECK_NEAR(m.theta_e_rad[4], 3.1999797973286905, 3.2e-06, "golden 26 capture_chunk.theta_e_rad[4]");
+    CHECK_NEAR(m.theta_e_rad[5], 4.000046652010295, 4e-06, "golden 26 capture_chunk.theta_e_rad[5]");
+    CHECK_NEAR(m.theta_e_rad[6], 6.19996684943679, 6.2e-06, "golden 26 capture_chunk.theta_e_rad[6]");
+    CHECK_NEAR(m.theta_e_rad[7], 6.2830894333803435, 6.28e-06, "golden 26 capture_chunk.theta_e_rad[7]");
+    CHECK_NEAR(m.omega_e_rad_s[0], 628.3000000000001, 0.000628, "golden 26 capture_chunk.omega_e_rad_s[0]");
+    CHECK_NEAR(m.omega_e_rad_s[1], -628.3000000000001, 0.000628, "golden 26 capture_chunk.omega_e_rad_s[1]");
+    CHECK_NEAR(m.omega_e_rad_s[2], 0.0, 1e-07, "golden 26 capture_chunk.omega_e_rad_s[2]");
+    CHECK_NEAR(m.omega_e_rad_s[3], 10.0, 1e-05, "golden 26 capture_chunk.omega_e_rad_s[3]");
+    CHECK_NEAR(m.omega_e_rad_s[4], -3276.8, 0.00328, "golden 26 capture_chunk.omega_e_rad_s[4]");
+    CHECK_NEAR(m.omega_e_rad_s[5], 3276.7000000000003, 0.00328, "golden 26 capture_chunk.omega_e_rad_s[5]");
+    CHECK_NEAR(m.omega_e_rad_s[6], 1.2000000000000002, 1.2e-06, "golden 26 capture_chunk.omega_e_rad_s[6]");
+    CHECK_NEAR(m.omega_e_rad_s[7], -0.8, 8e-07, "golden 26 capture_chunk.omega_e_rad_s[7]");
 }
 
-/* 26: sim_truth */
-static const uint16_t golden_26_payload[] = {
+/* 27: sim_truth */
+static const uint16_t golden_27_payload[] = {
     0x20u, 0xA1u, 0x07u, 0x00u, 0x0Au, 0xD7u, 0xA3u, 0x3Bu, 0xA6u, 0x9Bu, 0x44u, 0x3Cu,
     0xECu, 0x51u, 0x38u, 0x3Eu, 0x33u, 0x33u, 0x73u, 0x3Fu, 0x66u, 0x66u, 0x46u, 0xC0u,
     0x00u, 0xE0u, 0x79u, 0xC4u, 0x00u, 0x00u, 0x10u, 0x40u, 0x00u, 0x00u, 0xABu, 0x42u,
     0x00u, 0x00u, 0x71u, 0x42u, 0x05u, 0x00u, 0x00u, 0x00u
 };
-static const uint16_t golden_26_frame[] = {
+static const uint16_t golden_27_frame[] = {
     0x06u, 0xA0u, 0x16u, 0x20u, 0xA1u, 0x07u, 0x15u, 0x0Au, 0xD7u, 0xA3u, 0x3Bu, 0xA6u,
     0x9Bu, 0x44u, 0x3Cu, 0xECu, 0x51u, 0x38u, 0x3Eu, 0x33u, 0x33u, 0x73u, 0x3Fu, 0x66u,
     0x66u, 0x46u, 0xC0u, 0x04u, 0xE0u, 0x79u, 0xC4u, 0x01u, 0x03u, 0x10u, 0x40u, 0x01u,
@@ -1226,7 +1285,7 @@ static const uint16_t golden_26_frame[] = {
     0x3Du, 0x00u
 };
 
-static uint16_t golden_26_pack(uint16_t *buf)
+static uint16_t golden_27_pack(uint16_t *buf)
 {
     proto_sim_truth_t m;
     memset(&m, 0, sizeof m);
@@ -1244,32 +1303,32 @@ static uint16_t golden_26_pack(uint16_t *buf)
     return proto_sim_truth_pack(&m, buf);
 }
 
-static void golden_26_check(const uint16_t *payload, uint16_t len)
+static void golden_27_check(const uint16_t *payload, uint16_t len)
 {
     proto_sim_truth_t m;
     bool ok = proto_sim_truth_unpack(&m, payload, len);
-    CHECK(ok, "golden 26 sim_truth: unpack");
+    CHECK(ok, "golden 27 sim_truth: unpack");
     if (!ok) {
         return;
     }
-    CHECK(m.tick == 500000UL, "golden 26 sim_truth.tick");
-    CHECK_NEAR(m.l_d_h, 0.004999999888241291, 0.0, "golden 26 sim_truth.l_d_h");
-    CHECK_NEAR(m.l_q_h, 0.012000000104308128, 0.0, "golden 26 sim_truth.l_q_h");
-    CHECK_NEAR(m.psi_f_wb, 0.18000000715255737, 0.0, "golden 26 sim_truth.psi_f_wb");
-    CHECK_NEAR(m.r_s_ohm, 0.949999988079071, 0.0, "golden 26 sim_truth.r_s_ohm");
-    CHECK_NEAR(m.theta_e_rad, -3.0999999046325684, 0.0, "golden 26 sim_truth.theta_e_rad");
-    CHECK_NEAR(m.speed_rpm, -999.5, 0.0, "golden 26 sim_truth.speed_rpm");
-    CHECK_NEAR(m.torque_nm, 2.25, 0.0, "golden 26 sim_truth.torque_nm");
-    CHECK_NEAR(m.temp_winding_c, 85.5, 0.0, "golden 26 sim_truth.temp_winding_c");
-    CHECK_NEAR(m.temp_magnet_c, 60.25, 0.0, "golden 26 sim_truth.temp_magnet_c");
-    CHECK(m.effects == 5UL, "golden 26 sim_truth.effects");
+    CHECK(m.tick == 500000UL, "golden 27 sim_truth.tick");
+    CHECK_NEAR(m.l_d_h, 0.004999999888241291, 0.0, "golden 27 sim_truth.l_d_h");
+    CHECK_NEAR(m.l_q_h, 0.012000000104308128, 0.0, "golden 27 sim_truth.l_q_h");
+    CHECK_NEAR(m.psi_f_wb, 0.18000000715255737, 0.0, "golden 27 sim_truth.psi_f_wb");
+    CHECK_NEAR(m.r_s_ohm, 0.949999988079071, 0.0, "golden 27 sim_truth.r_s_ohm");
+    CHECK_NEAR(m.theta_e_rad, -3.0999999046325684, 0.0, "golden 27 sim_truth.theta_e_rad");
+    CHECK_NEAR(m.speed_rpm, -999.5, 0.0, "golden 27 sim_truth.speed_rpm");
+    CHECK_NEAR(m.torque_nm, 2.25, 0.0, "golden 27 sim_truth.torque_nm");
+    CHECK_NEAR(m.temp_winding_c, 85.5, 0.0, "golden 27 sim_truth.temp_winding_c");
+    CHECK_NEAR(m.temp_magnet_c, 60.25, 0.0, "golden 27 sim_truth.temp_magnet_c");
+    CHECK(m.effects == 5UL, "golden 27 sim_truth.effects");
 }
 
 static const golden_frame_t golden_frames[] = {
     {"hello", 0x01u, 0u, golden_0_payload, 2u, golden_0_frame, 8u, golden_0_pack, golden_0_check},
     {"config_motor paper A", 0x02u, 1u, golden_1_payload, 46u, golden_1_frame, 52u, golden_1_pack, golden_1_check},
     {"config_motor paper B, zeros", 0x02u, 2u, golden_2_payload, 46u, golden_2_frame, 52u, golden_2_pack, golden_2_check},
-    {"config_ctrl", 0x03u, 3u, golden_3_payload, 77u, golden_3_frame, 83u, golden_3_pack, golden_3_check},
+    {"config_ctrl", 0x03u, 3u, golden_3_payload, 100u, golden_3_frame, 106u, golden_3_pack, golden_3_check},
     {"profile_clear", 0x04u, 4u, golden_4_payload, 2u, golden_4_frame, 8u, golden_4_pack, golden_4_check},
     {"profile_segment step", 0x05u, 5u, golden_5_payload, 29u, golden_5_frame, 35u, golden_5_pack, golden_5_check},
     {"profile_segment negative", 0x05u, 6u, golden_6_payload, 29u, golden_6_frame, 35u, golden_6_pack, golden_6_check},
@@ -1286,14 +1345,15 @@ static const golden_frame_t golden_frames[] = {
     {"telem_fast negative", 0x90u, 14u, golden_17_payload, 28u, golden_17_frame, 34u, golden_17_pack, golden_17_check},
     {"telem_fast saturation", 0x90u, 15u, golden_18_payload, 28u, golden_18_frame, 34u, golden_18_pack, golden_18_check},
     {"telem_fast all zero", 0x90u, 0u, golden_19_payload, 28u, golden_19_frame, 34u, golden_19_pack, golden_19_check},
-    {"params", 0x91u, 16u, golden_20_payload, 22u, golden_20_frame, 28u, golden_20_pack, golden_20_check},
-    {"status", 0x92u, 17u, golden_21_payload, 25u, golden_21_frame, 31u, golden_21_pack, golden_21_check},
-    {"status fault, undervoltage", 0x92u, 18u, golden_22_payload, 25u, golden_22_frame, 31u, golden_22_pack, golden_22_check},
-    {"event capture_triggered by fault", 0x93u, 19u, golden_23_payload, 10u, golden_23_frame, 16u, golden_23_pack, golden_23_check},
-    {"event extremes", 0x93u, 20u, golden_24_payload, 10u, golden_24_frame, 16u, golden_24_pack, golden_24_check},
-    {"capture_chunk max length", 0x94u, 21u, golden_25_payload, 111u, golden_25_frame, 117u, golden_25_pack, golden_25_check},
-    {"sim_truth", 0xA0u, 22u, golden_26_payload, 44u, golden_26_frame, 50u, golden_26_pack, golden_26_check},
+    {"telem_est", 0x95u, 21u, golden_20_payload, 13u, golden_20_frame, 19u, golden_20_pack, golden_20_check},
+    {"params", 0x91u, 16u, golden_21_payload, 22u, golden_21_frame, 28u, golden_21_pack, golden_21_check},
+    {"status", 0x92u, 17u, golden_22_payload, 25u, golden_22_frame, 31u, golden_22_pack, golden_22_check},
+    {"status fault, undervoltage", 0x92u, 18u, golden_23_payload, 25u, golden_23_frame, 31u, golden_23_pack, golden_23_check},
+    {"event capture_triggered by fault", 0x93u, 19u, golden_24_payload, 10u, golden_24_frame, 16u, golden_24_pack, golden_24_check},
+    {"event extremes", 0x93u, 20u, golden_25_payload, 10u, golden_25_frame, 16u, golden_25_pack, golden_25_check},
+    {"capture_chunk max length", 0x94u, 21u, golden_26_payload, 111u, golden_26_frame, 117u, golden_26_pack, golden_26_check},
+    {"sim_truth", 0xA0u, 22u, golden_27_payload, 44u, golden_27_frame, 50u, golden_27_pack, golden_27_check},
 };
-#define GOLDEN_FRAME_COUNT 27u
+#define GOLDEN_FRAME_COUNT 28u
 
 #endif

@@ -139,6 +139,32 @@ TOPICS: dict[str, TopicDef] = {
             "fast telemetry frame",
         ),
         TopicDef(
+            "/pmsm/estimator",
+            "pmsm_hil/msg/Estimator",
+            (
+                T,
+                _f(
+                    "estimator",
+                    "",
+                    "the angle slot's occupant: mras, ripple_pll or hybrid",
+                    "string",
+                ),
+                _f("locked", "", "the estimator tracks the rotor", "bool"),
+                _f(
+                    "in_loop",
+                    "",
+                    "its angle closes the loop (not an angle_encoder segment)",
+                    "bool",
+                ),
+                _f("confidence", "", "0..1, 1 = its residual fully explained"),
+                _f("theta_err_rad", "rad", "estimated minus encoder electrical angle, wrapped"),
+                _f("speed_err_rpm", "r/min", "estimated minus encoder speed"),
+                _f("err_signal", "rad", "the estimator's normalised error signal"),
+            ),
+            "telemetry.est_hz (only when control.angle_src is an estimator)",
+            "the angle estimator's state against the encoder",
+        ),
+        TopicDef(
             "/pmsm/params",
             "pmsm_hil/msg/Params",
             (
@@ -191,7 +217,7 @@ TOPICS: dict[str, TopicDef] = {
                     "faults",
                     "",
                     "fault bits: 1 over_current, 2 over_speed, 4 dc_under_voltage, "
-                    "8 dc_over_voltage, 16 heartbeat",
+                    "8 dc_over_voltage, 16 heartbeat, 32 lost_lock",
                     "uint16",
                 ),
                 _f("v_dc_v", "V", "measured DC-link voltage"),

@@ -223,6 +223,7 @@ def link_budget(
         "params": (tel.params_hz, n_estimators),
         "status": (tel.status_hz, 1),
         "sim_truth": (tel.truth_hz if emulator else 0.0, 1),
+        "telem_est": (tel.est_hz if profile.control.angle_src != "encoder" else 0.0, 1),
     }
     capacity = profile.link.baud / OCTETS_PER_SYMBOL
     streams: dict[str, dict] = {}
@@ -310,7 +311,7 @@ def _profile_checks(src: Source, motor: Motor | None) -> tuple[list[Problem], li
     ts = num(control, "ts_s", defaults_c["ts_s"].default)
     if ts is not None and TS_MIN_S <= ts <= TS_MAX_S:
         ctrl_hz = 1.0 / ts
-        for key in ("fast_hz", "params_hz", "status_hz", "truth_hz"):
+        for key in ("fast_hz", "params_hz", "status_hz", "truth_hz", "est_hz"):
             hz = num(telemetry, key, defaults_t[key].default)
             if hz is not None and hz >= 0:
                 p = _rate_problem(src, ("telemetry", key), hz, ctrl_hz)

@@ -25,7 +25,7 @@ class CanLayout(NamedTuple):
 LAYOUTS = {
     0x01: CanLayout(0x01, 'hello', 0x08, False, (3,)),
     0x02: CanLayout(0x02, 'config_motor', 0x0C, True, (6, 8, 8, 8, 8, 8, 8, 5)),
-    0x03: CanLayout(0x03, 'config_ctrl', 0x0C, True, (6, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8)),
+    0x03: CanLayout(0x03, 'config_ctrl', 0x0C, True, (6, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 3)),
     0x04: CanLayout(0x04, 'profile_clear', 0x10, False, (3,)),
     0x05: CanLayout(0x05, 'profile_segment', 0x0C, True, (6, 8, 8, 8, 8, 2)),
     0x06: CanLayout(0x06, 'start', 0x04, False, (1,)),
@@ -42,6 +42,7 @@ LAYOUTS = {
     0x93: CanLayout(0x93, 'event', 0x05, False, (7, 4)),
     0x94: CanLayout(0x94, 'capture_chunk', 0x7E, True, (6, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 7)),
     0xA0: CanLayout(0xA0, 'sim_truth', 0x1F, False, (5, 8, 8, 8, 8, 8)),
+    0x95: CanLayout(0x95, 'telem_est', 0x25, False, (8, 6)),
 }
 
 # function code -> (message id, frame index), direct messages only
@@ -77,4 +78,6 @@ BY_FUNC = {
     0x22: (0xA0, 3),
     0x23: (0xA0, 4),
     0x24: (0xA0, 5),
+    0x25: (0x95, 0),
+    0x26: (0x95, 1),
 }

@@ -6,7 +6,7 @@ import struct
 from typing import NamedTuple
 
 PROTOCOL_VERSION = 2
-SCHEMA_HASH = 0xA20B0D51
+SCHEMA_HASH = 0xA96F5960
 MAX_PAYLOAD = 111  # octets
 
 # wire type: (struct code, octets, min, max); min/max are None for f32
@@ -63,9 +63,17 @@ ENUMS = {
     },
     'current_ctrl': {
         'mpcc': 0,
+        'foc': 1,
     },
     'angle_src': {
         'encoder': 0,
+        'mras': 1,
+        'ripple_pll': 2,
+        'hybrid': 3,
+    },
+    'mpcc_candidates': {
+        'all': 0,
+        'adjacent': 1,
     },
     'board': {
         'emulator': 0,
@@ -81,6 +89,11 @@ ENUMS = {
     'segment_flag': {
         'capture': 1,
         'hold_est': 2,
+        'angle_encoder': 4,
+    },
+    'est_flag': {
+        'locked': 1,
+        'in_loop': 2,
     },
     'params_flag': {
         'excited': 1,
@@ -114,6 +127,7 @@ ENUMS = {
         'dc_under_voltage': 4,
         'dc_over_voltage': 8,
         'heartbeat': 16,
+        'lost_lock': 32,
     },
 }
 
@@ -135,7 +149,7 @@ MESSAGES = (
         FieldSpec('v_dc_min_v', 'f32', 1, None, 38),
         FieldSpec('v_dc_max_v', 'f32', 1, None, 42),
     ), struct.Struct('<Hfffffffffff')),
-    MessageSpec(0x03, 'config_ctrl', 'h2d', False, 77, (
+    MessageSpec(0x03, 'config_ctrl', 'h2d', False, 100, (
         FieldSpec('ts_s', 'f32', 1, None, 0),
         FieldSpec('rho', 'f32', 1, None, 4),
         FieldSpec('speed_kp_a_per_rad_s', 'f32', 1, None, 8),
@@ -162,7 +176,14 @@ MESSAGES = (
         FieldSpec('pred_scale_l_q', 'f32', 1, None, 65),
         FieldSpec('pred_scale_psi_f', 'f32', 1, None, 69),
         FieldSpec('pred_scale_r_s', 'f32', 1, None, 73),
-    ), struct.Struct('<ffffHBBBfHHHIfffffHBBHffff')),
+        FieldSpec('mpcc_candidates', 'u8', 1, None, 77),
+        FieldSpec('foc_bw_rad_s', 'f32', 1, None, 78),
+        FieldSpec('est_bw_rad_s', 'f32', 1, None, 82),
+        FieldSpec('est_min_speed_rpm', 'f32', 1, None, 86),
+        FieldSpec('est_lock_timeout_s', 'f32', 1, None, 90),
+        FieldSpec('est_theta0_rad', 'f32', 1, None, 94),
+        FieldSpec('est_div', 'u16', 1, None, 98),
+    ), struct.Struct('<ffffHBBBfHHHIfffffHBBHffffBfffffH')),
     MessageSpec(0x04, 'profile_clear', 'h2d', False, 2, (
         FieldSpec('n_segments', 'u16', 1, None, 0),
     ), struct.Struct('<H')),
@@ -275,6 +296,15 @@ MESSAGES = (
         FieldSpec('temp_magnet_c', 'f32', 1, None, 36),
         FieldSpec('effects', 'u32', 1, None, 40),
     ), struct.Struct('<IfffffffffI')),
+    MessageSpec(0x95, 'telem_est', 'd2h', False, 13, (
+        FieldSpec('tick', 'u32', 1, None, 0),
+        FieldSpec('estimator', 'u8', 1, None, 4),
+        FieldSpec('flags', 'u8', 1, None, 5),
+        FieldSpec('confidence', 'u8', 1, 0.004, 6),
+        FieldSpec('theta_err_rad', 'i16', 1, 0.0001, 7),
+        FieldSpec('speed_err_rpm', 'i16', 1, 0.1, 9),
+        FieldSpec('err_signal', 'i16', 1, 0.0001, 11),
+    ), struct.Struct('<IBBBhhh')),
 )
 
 BY_ID = {m.id: m for m in MESSAGES}
@@ -299,3 +329,4 @@ ID_STATUS = 0x92
 ID_EVENT = 0x93
 ID_CAPTURE_CHUNK = 0x94
 ID_SIM_TRUTH = 0xA0
+ID_TELEM_EST = 0x95
