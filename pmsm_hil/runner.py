@@ -11,6 +11,7 @@ from pathlib import Path
 
 from pmsm_hil import __version__
 from pmsm_hil.control_design import device_config
+from pmsm_hil.sensorless_design import estimator_frames
 from pmsm_hil.log.writer import LogWriter
 from pmsm_hil.protocol import generated as gen
 from pmsm_hil.errors import DeviceError, TransportError
@@ -145,6 +146,12 @@ def configure(session: Session, profile) -> None:
     motor_cfg, ctrl_cfg = device_config(profile)
     session.request("config_motor", **motor_cfg)
     session.request("config_ctrl", **ctrl_cfg)
+    if profile.control.angle_src in ("ripple_pll", "hybrid"):
+        # the ripple PLL's magnetics, polarity signature, hybrid band (docs/sensorless.md)
+        snl_cfg, nodes = estimator_frames(profile.motor)
+        session.request("config_sensorless", **snl_cfg)
+        for node in nodes:
+            session.request("gamma_node", **node)
     session.request("profile_clear", n_segments=len(profile.segments))
     for i, s in enumerate(profile.segments):
         session.request(
