@@ -76,23 +76,8 @@ bool proto_can_layout(uint16_t msg_id, proto_can_layout_t *l)
         l->h2d = 1u;
         l->len[0] = 3u;
         return true;
-    case PROTO_ID_CONFIG_SENSORLESS:
-        l->func = 0x0Cu;
-        l->transfer = 1u;
-        l->n_frames = 10u;
-        l->h2d = 1u;
-        return true;
-    case PROTO_ID_GAMMA_NODE:
-        l->func = 0x12u;
-        l->transfer = 0u;
-        l->n_frames = 3u;
-        l->h2d = 1u;
-        l->len[0] = 7u;
-        l->len[1] = 8u;
-        l->len[2] = 4u;
-        return true;
     case PROTO_ID_SIM_PLANT:
-        l->func = 0x15u;
+        l->func = 0x12u;
         l->transfer = 0u;
         l->n_frames = 2u;
         l->h2d = 1u;
@@ -115,7 +100,7 @@ bool proto_can_layout(uint16_t msg_id, proto_can_layout_t *l)
         l->len[1] = 7u;
         return true;
     case PROTO_ID_TELEM_FAST:
-        l->func = 0x17u;
+        l->func = 0x14u;
         l->transfer = 0u;
         l->n_frames = 4u;
         l->h2d = 0u;
@@ -125,7 +110,7 @@ bool proto_can_layout(uint16_t msg_id, proto_can_layout_t *l)
         l->len[3] = 6u;
         return true;
     case PROTO_ID_PARAMS:
-        l->func = 0x1Bu;
+        l->func = 0x18u;
         l->transfer = 0u;
         l->n_frames = 3u;
         l->h2d = 0u;
@@ -134,7 +119,7 @@ bool proto_can_layout(uint16_t msg_id, proto_can_layout_t *l)
         l->len[2] = 8u;
         return true;
     case PROTO_ID_STATUS:
-        l->func = 0x1Eu;
+        l->func = 0x1Bu;
         l->transfer = 0u;
         l->n_frames = 4u;
         l->h2d = 0u;
@@ -158,7 +143,7 @@ bool proto_can_layout(uint16_t msg_id, proto_can_layout_t *l)
         l->h2d = 0u;
         return true;
     case PROTO_ID_SIM_TRUTH:
-        l->func = 0x22u;
+        l->func = 0x1Fu;
         l->transfer = 0u;
         l->n_frames = 6u;
         l->h2d = 0u;
@@ -170,12 +155,27 @@ bool proto_can_layout(uint16_t msg_id, proto_can_layout_t *l)
         l->len[5] = 8u;
         return true;
     case PROTO_ID_TELEM_EST:
-        l->func = 0x28u;
+        l->func = 0x25u;
         l->transfer = 0u;
         l->n_frames = 2u;
         l->h2d = 0u;
         l->len[0] = 8u;
         l->len[1] = 6u;
+        return true;
+    case PROTO_ID_CONFIG_SENSORLESS:
+        l->func = 0x0Cu;
+        l->transfer = 1u;
+        l->n_frames = 10u;
+        l->h2d = 1u;
+        return true;
+    case PROTO_ID_GAMMA_NODE:
+        l->func = 0x27u;
+        l->transfer = 0u;
+        l->n_frames = 3u;
+        l->h2d = 1u;
+        l->len[0] = 7u;
+        l->len[1] = 8u;
+        l->len[2] = 4u;
         return true;
     default:
         return false;
@@ -192,35 +192,35 @@ int16_t proto_can_func_msg(uint16_t func, uint16_t *frame)
     case 0x01u: *frame = 0u; return (int16_t)PROTO_ID_ABORT;
     case 0x03u: *frame = 0u; return (int16_t)PROTO_ID_HEARTBEAT;
     case 0x11u: *frame = 0u; return (int16_t)PROTO_ID_CAPTURE_READ;
-    case 0x12u: *frame = 0u; return (int16_t)PROTO_ID_GAMMA_NODE;
-    case 0x13u: *frame = 1u; return (int16_t)PROTO_ID_GAMMA_NODE;
-    case 0x14u: *frame = 2u; return (int16_t)PROTO_ID_GAMMA_NODE;
-    case 0x15u: *frame = 0u; return (int16_t)PROTO_ID_SIM_PLANT;
-    case 0x16u: *frame = 1u; return (int16_t)PROTO_ID_SIM_PLANT;
+    case 0x12u: *frame = 0u; return (int16_t)PROTO_ID_SIM_PLANT;
+    case 0x13u: *frame = 1u; return (int16_t)PROTO_ID_SIM_PLANT;
     case 0x07u: *frame = 0u; return (int16_t)PROTO_ID_ACK;
     case 0x09u: *frame = 0u; return (int16_t)PROTO_ID_IDENTIFY;
     case 0x0Au: *frame = 1u; return (int16_t)PROTO_ID_IDENTIFY;
-    case 0x17u: *frame = 0u; return (int16_t)PROTO_ID_TELEM_FAST;
-    case 0x18u: *frame = 1u; return (int16_t)PROTO_ID_TELEM_FAST;
-    case 0x19u: *frame = 2u; return (int16_t)PROTO_ID_TELEM_FAST;
-    case 0x1Au: *frame = 3u; return (int16_t)PROTO_ID_TELEM_FAST;
-    case 0x1Bu: *frame = 0u; return (int16_t)PROTO_ID_PARAMS;
-    case 0x1Cu: *frame = 1u; return (int16_t)PROTO_ID_PARAMS;
-    case 0x1Du: *frame = 2u; return (int16_t)PROTO_ID_PARAMS;
-    case 0x1Eu: *frame = 0u; return (int16_t)PROTO_ID_STATUS;
-    case 0x1Fu: *frame = 1u; return (int16_t)PROTO_ID_STATUS;
-    case 0x20u: *frame = 2u; return (int16_t)PROTO_ID_STATUS;
-    case 0x21u: *frame = 3u; return (int16_t)PROTO_ID_STATUS;
+    case 0x14u: *frame = 0u; return (int16_t)PROTO_ID_TELEM_FAST;
+    case 0x15u: *frame = 1u; return (int16_t)PROTO_ID_TELEM_FAST;
+    case 0x16u: *frame = 2u; return (int16_t)PROTO_ID_TELEM_FAST;
+    case 0x17u: *frame = 3u; return (int16_t)PROTO_ID_TELEM_FAST;
+    case 0x18u: *frame = 0u; return (int16_t)PROTO_ID_PARAMS;
+    case 0x19u: *frame = 1u; return (int16_t)PROTO_ID_PARAMS;
+    case 0x1Au: *frame = 2u; return (int16_t)PROTO_ID_PARAMS;
+    case 0x1Bu: *frame = 0u; return (int16_t)PROTO_ID_STATUS;
+    case 0x1Cu: *frame = 1u; return (int16_t)PROTO_ID_STATUS;
+    case 0x1Du: *frame = 2u; return (int16_t)PROTO_ID_STATUS;
+    case 0x1Eu: *frame = 3u; return (int16_t)PROTO_ID_STATUS;
     case 0x05u: *frame = 0u; return (int16_t)PROTO_ID_EVENT;
     case 0x06u: *frame = 1u; return (int16_t)PROTO_ID_EVENT;
-    case 0x22u: *frame = 0u; return (int16_t)PROTO_ID_SIM_TRUTH;
-    case 0x23u: *frame = 1u; return (int16_t)PROTO_ID_SIM_TRUTH;
-    case 0x24u: *frame = 2u; return (int16_t)PROTO_ID_SIM_TRUTH;
-    case 0x25u: *frame = 3u; return (int16_t)PROTO_ID_SIM_TRUTH;
-    case 0x26u: *frame = 4u; return (int16_t)PROTO_ID_SIM_TRUTH;
-    case 0x27u: *frame = 5u; return (int16_t)PROTO_ID_SIM_TRUTH;
-    case 0x28u: *frame = 0u; return (int16_t)PROTO_ID_TELEM_EST;
-    case 0x29u: *frame = 1u; return (int16_t)PROTO_ID_TELEM_EST;
+    case 0x1Fu: *frame = 0u; return (int16_t)PROTO_ID_SIM_TRUTH;
+    case 0x20u: *frame = 1u; return (int16_t)PROTO_ID_SIM_TRUTH;
+    case 0x21u: *frame = 2u; return (int16_t)PROTO_ID_SIM_TRUTH;
+    case 0x22u: *frame = 3u; return (int16_t)PROTO_ID_SIM_TRUTH;
+    case 0x23u: *frame = 4u; return (int16_t)PROTO_ID_SIM_TRUTH;
+    case 0x24u: *frame = 5u; return (int16_t)PROTO_ID_SIM_TRUTH;
+    case 0x25u: *frame = 0u; return (int16_t)PROTO_ID_TELEM_EST;
+    case 0x26u: *frame = 1u; return (int16_t)PROTO_ID_TELEM_EST;
+    case 0x27u: *frame = 0u; return (int16_t)PROTO_ID_GAMMA_NODE;
+    case 0x28u: *frame = 1u; return (int16_t)PROTO_ID_GAMMA_NODE;
+    case 0x29u: *frame = 2u; return (int16_t)PROTO_ID_GAMMA_NODE;
     default: *frame = 0u; return -1;
     }
 }

@@ -243,43 +243,6 @@ typedef struct {
 uint16_t proto_capture_read_pack(const proto_capture_read_t *m, uint16_t *buf);
 bool proto_capture_read_unpack(proto_capture_read_t *m, const uint16_t *buf, uint16_t len);
 
-/* config_sensorless: 0x0B, host -> device */
-#define PROTO_ID_CONFIG_SENSORLESS 0x0Bu
-#define PROTO_LEN_CONFIG_SENSORLESS 60u
-typedef struct {
-    float pol_i_pulse_a;           /* f32; polarity test: d-axis pulse amplitude */
-    float pol_asym_expected;       /* f32; the motor's own signature (g+ - g-)/(g+ + g-) at +-pulse */
-    float pol_asym_min;            /* f32; smallest |measured asymmetry| that resolves the polarity */
-    float hyb_pll_on_rpm;          /* f32; hybrid: the ripple PLL carries the angle below this speed */
-    float hyb_mras_on_rpm;         /* f32; hybrid: the MRAS carries it above this speed */
-    float hyb_blend_s;             /* f32; hybrid: duration of a handover */
-    float lock_disagree_rad;       /* f32; loss of lock: PLL and MRAS further apart than this ... */
-    float lock_disagree_s;         /* f32; ... for this long */
-    float lock_conf_min;           /* f32; loss of lock: the PLL's confidence (cos 2d) below this ... */
-    float lock_lost_s;             /* f32; ... for this long */
-    uint16_t gam_nd;               /* u16; Gamma table: nodes along i_d (0: none, nominal 1/L_d, 1/L_q) */
-    uint16_t gam_nq;               /* u16; nodes along i_q */
-    float gam_id0_a;               /* f32; first node */
-    float gam_iq0_a;               /* f32 */
-    float gam_did_a;               /* f32; node spacing */
-    float gam_diq_a;               /* f32 */
-} proto_config_sensorless_t;
-uint16_t proto_config_sensorless_pack(const proto_config_sensorless_t *m, uint16_t *buf);
-bool proto_config_sensorless_unpack(proto_config_sensorless_t *m, const uint16_t *buf, uint16_t len);
-
-/* gamma_node: 0x0C, host -> device */
-#define PROTO_ID_GAMMA_NODE 0x0Cu
-#define PROTO_LEN_GAMMA_NODE 18u
-typedef struct {
-    uint16_t index;                /* u16; node k * gam_nd + j */
-    float g_dd;                    /* f32; inverse incremental inductance matrix, 1/H */
-    float g_qq;                    /* f32 */
-    float g_dq;                    /* f32 */
-    float g_qd;                    /* f32 */
-} proto_gamma_node_t;
-uint16_t proto_gamma_node_pack(const proto_gamma_node_t *m, uint16_t *buf);
-bool proto_gamma_node_unpack(proto_gamma_node_t *m, const uint16_t *buf, uint16_t len);
-
 /* sim_plant: 0x20, host -> device, emulator only */
 #define PROTO_ID_SIM_PLANT 0x20u
 #define PROTO_LEN_SIM_PLANT 10u
@@ -434,6 +397,43 @@ typedef struct {
 } proto_telem_est_t;
 uint16_t proto_telem_est_pack(const proto_telem_est_t *m, uint16_t *buf);
 bool proto_telem_est_unpack(proto_telem_est_t *m, const uint16_t *buf, uint16_t len);
+
+/* config_sensorless: 0x0B, host -> device */
+#define PROTO_ID_CONFIG_SENSORLESS 0x0Bu
+#define PROTO_LEN_CONFIG_SENSORLESS 60u
+typedef struct {
+    float pol_i_pulse_a;           /* f32; polarity test: d-axis pulse amplitude */
+    float pol_asym_expected;       /* f32; the motor's own signature (g+ - g-)/(g+ + g-) at +-pulse */
+    float pol_asym_min;            /* f32; smallest |measured asymmetry| that resolves the polarity */
+    float hyb_pll_on_rpm;          /* f32; hybrid: the ripple PLL carries the angle below this speed */
+    float hyb_mras_on_rpm;         /* f32; hybrid: the MRAS carries it above this speed */
+    float hyb_blend_s;             /* f32; hybrid: duration of a handover */
+    float lock_disagree_rad;       /* f32; loss of lock: PLL and MRAS further apart than this ... */
+    float lock_disagree_s;         /* f32; ... for this long */
+    float lock_conf_min;           /* f32; loss of lock: the PLL's confidence (cos 2d) below this ... */
+    float lock_lost_s;             /* f32; ... for this long */
+    uint16_t gam_nd;               /* u16; Gamma table: nodes along i_d (0: none, nominal 1/L_d, 1/L_q) */
+    uint16_t gam_nq;               /* u16; nodes along i_q */
+    float gam_id0_a;               /* f32; first node */
+    float gam_iq0_a;               /* f32 */
+    float gam_did_a;               /* f32; node spacing */
+    float gam_diq_a;               /* f32 */
+} proto_config_sensorless_t;
+uint16_t proto_config_sensorless_pack(const proto_config_sensorless_t *m, uint16_t *buf);
+bool proto_config_sensorless_unpack(proto_config_sensorless_t *m, const uint16_t *buf, uint16_t len);
+
+/* gamma_node: 0x0C, host -> device */
+#define PROTO_ID_GAMMA_NODE 0x0Cu
+#define PROTO_LEN_GAMMA_NODE 18u
+typedef struct {
+    uint16_t index;                /* u16; node k * gam_nd + j */
+    float g_dd;                    /* f32; inverse incremental inductance matrix, 1/H */
+    float g_qq;                    /* f32 */
+    float g_dq;                    /* f32 */
+    float g_qd;                    /* f32 */
+} proto_gamma_node_t;
+uint16_t proto_gamma_node_pack(const proto_gamma_node_t *m, uint16_t *buf);
+bool proto_gamma_node_unpack(proto_gamma_node_t *m, const uint16_t *buf, uint16_t len);
 
 /* Payload octets of a message id, or -1 for an unknown id. */
 int16_t proto_payload_len(uint16_t msg_id);
