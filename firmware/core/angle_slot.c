@@ -107,6 +107,7 @@ static void step_sensorless(angle_t *a, const angle_in_t *in, angle_out_t *out)
         mras_step(&a->u.sl.mras, &mi, &mo);
         si.theta_mras_rad = mo.theta_e_rad;
         si.omega_mras_rad_s = mo.omega_e_rad_s;
+        si.mras_locked = mo.locked;
     }
     snl_step(&a->u.sl.snl, &si, &so);
     memset(out, 0, sizeof(*out));

@@ -36,22 +36,16 @@ void hyb_step(hyb_t *h, const hyb_in_t *in, hyb_out_t *out)
     const float diff = tf_wrap_pi(in->theta_mras_rad - in->theta_pll_rad);
     const float omega = in->omega_pll_rad_s + h->w * (in->omega_mras_rad_s - in->omega_pll_rad_s);
     const float rpm = fabsf(omega) * h->rpm_per_rad_s;
-    const bool both = rpm > h->cfg.pll_on_rpm;
+    const bool both = rpm > h->cfg.pll_on_rpm && in->mras_locked;
     memset(out, 0, sizeof(*out));
-    if (rpm > h->cfg.mras_on_rpm) {
+    if (rpm > h->cfg.mras_on_rpm && in->mras_locked) {
         h->to_mras = true;
-    } else if (rpm < h->cfg.pll_on_rpm) {
+    } else if (rpm < h->cfg.pll_on_rpm || !in->mras_locked) {
         h->to_mras = false;
     }
-    /* the pole ambiguity of the PLL: the MRAS knows the pole once both are valid */
-    if (both && fabsf(diff) > 0.5f * FW_PI_F + 0.3f) {
-        out->flip_pll = true;
-    }
-    if (!out->flip_pll) {
-        h->w += h->to_mras ? h->dw : -h->dw;
-        h->w = h->w > 1.0f ? 1.0f : (h->w < 0.0f ? 0.0f : h->w);
-    }
-    if (both && !out->flip_pll && fabsf(diff) > h->cfg.disagree_rad) {
+    h->w += h->to_mras ? h->dw : -h->dw;
+    h->w = h->w > 1.0f ? 1.0f : (h->w < 0.0f ? 0.0f : h->w);
+    if (both && fabsf(diff) > h->cfg.disagree_rad) {
         h->n_dis++;
     } else {
         h->n_dis = 0u;
@@ -70,7 +64,7 @@ void hyb_step(hyb_t *h, const hyb_in_t *in, hyb_out_t *out)
     }
     out->diff_rad = diff;
     out->w_mras = h->w;
-    out->theta_e_rad = tf_wrap_2pi(in->theta_pll_rad + h->w * (out->flip_pll ? 0.0f : diff));
+    out->theta_e_rad = tf_wrap_2pi(in->theta_pll_rad + h->w * diff);
     out->omega_e_rad_s = in->omega_pll_rad_s + h->w * (in->omega_mras_rad_s - in->omega_pll_rad_s);
     out->lock = h->lock;
 }

@@ -9,9 +9,10 @@
  *
  * Supervision (loss of lock): above pll_on_rpm both estimators are valid, and a difference of
  * more than disagree_rad for longer than disagree_s is a loss of lock; the PLL's confidence
- * below conf_min for longer than lost_s while it carries the output (w < 1) is another. A
- * difference near pi is not a loss of lock but the PLL's magnet-pole ambiguity: flip_pll asks
- * the caller to turn the PLL by pi (the MRAS knows the pole from the back-EMF). */
+ * below conf_min for longer than lost_s while it carries the output (w < 1) is another. The MRAS
+ * counts only while it reports lock: until then the output stays the PLL's. The PLL's pole comes
+ * from the start-up polarity test; a difference near pi is a disagreement like any other (turning
+ * the PLL on the MRAS's word would trust the less robust estimator with the pole). */
 #ifndef HYBRID_H
 #define HYBRID_H
 
@@ -34,13 +35,13 @@ typedef struct {
 typedef struct {
     float theta_pll_rad, omega_pll_rad_s, conf_pll;
     float theta_mras_rad, omega_mras_rad_s;
+    bool mras_locked; /* the MRAS reports lock (converged, within its speed range) */
 } hyb_in_t;
 
 typedef struct {
     float theta_e_rad, omega_e_rad_s;
     float w_mras;   /* weight of the MRAS in the output, [0, 1] */
     float diff_rad; /* wrap(theta_mras - theta_pll) */
-    bool flip_pll;  /* the PLL sits on the other pole: turn it by pi */
     uint16_t lock;  /* HYB_LOCK_* (latched) */
 } hyb_out_t;
 

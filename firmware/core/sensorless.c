@@ -74,10 +74,8 @@ void snl_step(snl_t *s, const snl_in_t *in, snl_out_t *out)
         hi.conf_pll = po.conf;
         hi.theta_mras_rad = in->theta_mras_rad;
         hi.omega_mras_rad_s = in->omega_mras_rad_s;
+        hi.mras_locked = in->mras_locked;
         hyb_step(&s->hyb, &hi, &ho);
-        if (ho.flip_pll) {
-            rpll_flip(&s->pll);
-        }
         out->theta_e_rad = ho.theta_e_rad;
         out->omega_e_rad_s = ho.omega_e_rad_s;
         out->w_mras = ho.w_mras;
@@ -93,6 +91,9 @@ void snl_step(snl_t *s, const snl_in_t *in, snl_out_t *out)
         }
     }
     out->lock = s->lock;
+    /* no torque on an angle that cannot be trusted: the references stay held (zero current) from
+     * a loss of lock until the caller's fault switches the PWM off */
+    out->startup = out->startup || s->lock != SNL_LOCK_OK;
     out->valid =
         !qo.active && s->lock == SNL_LOCK_OK && (qo.result == POL_KEPT || qo.result == POL_FLIPPED);
 }

@@ -38,12 +38,14 @@ typedef struct {
     float u_alpha_prev_v, u_beta_prev_v;    /* the inverter's average voltage over [k-1, k) */
     bool u_valid;                           /* PWM on during [k-1, k) */
     float theta_mras_rad, omega_mras_rad_s; /* hybrid mode */
+    bool mras_locked;
 } snl_in_t;
 
 typedef struct {
     float theta_e_rad, omega_e_rad_s;
     bool valid;          /* the polarity is resolved and the lock holds */
-    bool startup;        /* the polarity test runs: hold the speed loop, i_q* = 0 */
+    bool startup;        /* the polarity test runs, or the lock is lost: hold the speed loop,
+                            i_q* = 0 */
     float i_d_inject_a;  /* add to the d-axis current reference */
     float conf;          /* the PLL's confidence (cos 2d) */
     float err_rad;       /* the PLL's detector output this period, sin(2d)/2 */

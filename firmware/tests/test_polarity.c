@@ -175,6 +175,7 @@ static void test_hybrid_bumpless(void)
         in.conf_pll = 0.95f;
         in.theta_mras_rad = (float)fmod(th + 0.05, 6.283185307179586);
         in.omega_mras_rad_s = (float)w;
+        in.mras_locked = true;
         hyb_step(&h, &in, &o);
         if (k > 0) {
             double d =
