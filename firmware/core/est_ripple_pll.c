@@ -55,6 +55,9 @@ void rpll_reset(rpll_t *e, float theta_e_rad, float omega_e_rad_s)
     e->m_eq = 0.0f;
     e->m_ud = 0.0f;
     e->m_uq = 0.0f;
+    e->u_prev_d = 0.0f;
+    e->u_prev_q = 0.0f;
+    e->r2_f = 0.0f;
     e->exc_tick = 0u;
     e->have_prev = false;
 }
@@ -108,6 +111,23 @@ void rpll_step(rpll_t *e, const rpll_in_t *in, rpll_out_t *out)
         }
         ri.e_d_a = di_d - ts * (ri.g.g_dd * ud + ri.g.g_dq * uq);
         ri.e_q_a = di_q - ts * (ri.g.g_qd * ud + ri.g.g_qq * uq);
+        {
+            /* current-sample delay tau: the sampled step holds tau of the previous period's
+             * slope instead of this one's, di_s = di - tau Gamma (U - U_prev); tau by NLMS */
+            const float dud = ud - e->u_prev_d, duq = uq - e->u_prev_q;
+            const float r_d = -(ri.g.g_dd * dud + ri.g.g_dq * duq);
+            const float r_q = -(ri.g.g_qd * dud + ri.g.g_qq * duq);
+            const float r2 = r_d * r_d + r_q * r_q;
+            ri.e_d_a -= e->tau_s * r_d;
+            ri.e_q_a -= e->tau_s * r_q;
+            e->r2_f += e->k_norm * (r2 - e->r2_f);
+            if (e->r2_f > 0.0f && e->conf_f > 0.8f) {
+                e->tau_s += RPLL_TAU_GAIN * (ri.e_d_a * r_d + ri.e_q_a * r_q) / e->r2_f;
+                e->tau_s = e->tau_s < 0.0f ? 0.0f : (e->tau_s > 0.5f * ts ? 0.5f * ts : e->tau_s);
+            }
+            e->u_prev_d = ud;
+            e->u_prev_q = uq;
+        }
         /* the ripple only: the slow parts of e and U (back-EMF and flux errors of a wrong angle,
          * correlated with each other, not with the switching) are removed by running means */
         e->m_ed += e->k_hp * (ri.e_d_a - e->m_ed);

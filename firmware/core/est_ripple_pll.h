@@ -27,6 +27,7 @@
 #define RPLL_BW_DEFAULT_RAD_S    400.0f
 #define RPLL_NORM_TAU_DEFAULT_S  2.0e-3f
 #define RPLL_CONF_TAU_DEFAULT_S  10.0e-3f
+#define RPLL_TAU_GAIN            2.0e-3f /* NLMS gain of the sample-delay estimate */
 #define RPLL_HP_TAU_S            1.0e-3f /* running means removed from e and U */
 #define RPLL_EXCITE_A            1.0f    /* d-axis square wave when the ripple is too small */
 #define RPLL_EXCITE_HALF_PERIODS 10u     /* 1 kHz at 20 kHz */
@@ -67,7 +68,8 @@ typedef struct {
     float th, w, acc; /* angle at k, speed, disturbance acceleration */
     float norm_f, conf_f, norm_floor;
     float k_norm, k_conf, k_hp, norm_excite;
-    float m_ed, m_eq, m_ud, m_uq; /* running means of e and U */
+    float m_ed, m_eq, m_ud, m_uq;          /* running means of e and U */
+    float u_prev_d, u_prev_q, r2_f, tau_s; /* current-sample delay: last U, regressor power, tau */
     uint16_t exc_tick;
     float i_al_prev, i_be_prev;
     bool have_prev;
