@@ -8,7 +8,9 @@
  * with i_m = (i(k) + i(k-1))/2 and u the inverter's average voltage over the period (constant in
  * alpha-beta): the midpoint rule, so the forward-Euler bias of a one-step prediction at speed
  * (a term Ts^2 w Gamma J L Gamma U/2, correlated with U) does not enter. The error e = di - di^
- * goes through the phase detector (ripple_err.h): sin 2d with d = theta - theta^, normalised by a
+ * (with the current-sample delay tau: the sampled step holds tau of the previous period's slope,
+ * -tau Gamma (U - U_prev) is added to the prediction, tau estimated online by NLMS on e while the
+ * confidence is high) goes through the phase detector (ripple_err.h): sin 2d with d = theta - theta^, normalised by a
  * running mean of Ts D^2 |U|^2 (a ratio of means, so that periods of a zero vector add no noise).
  *
  * Tracking observer with torque feed-forward (triple pole at -bw):
