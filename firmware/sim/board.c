@@ -35,7 +35,7 @@ struct emu {
     /* rig effects (docs/rigs.md): the mask reported in sim_truth, and the saturation flux map */
     uint32_t effects_mask;
     double theta_e0_rad; /* the rotor's electrical angle at the start of a run (sensorless tests) */
-    int sat_nd, sat_nq; /* 0: no map */
+    int sat_nd, sat_nq;  /* 0: no map */
     double sat_id0_a, sat_did_a, sat_iq0_a, sat_diq_a;
     double sat_psi_d_wb[PLANT_MAP_MAX_N * PLANT_MAP_MAX_N];
     double sat_psi_q_wb[PLANT_MAP_MAX_N * PLANT_MAP_MAX_N];

@@ -120,7 +120,8 @@ int main(int argc, char **argv)
             sc.kp_a_per_rad_s = 0.0036f * bw / 1.08f;
             sc.ki_a_per_rad = sc.kp_a_per_rad_s * bw / 4.0f;
         }
-        double s2 = 0.0, peak = 0.0, sw = 0.0, sw_n = 0.0, speak = 0.0, lp = 0.0, lpeak = 0.0, sw2 = 0.0, tw = 0.0, tw2 = 0.0;
+        double s2 = 0.0, peak = 0.0, sw = 0.0, sw_n = 0.0, speak = 0.0, lp = 0.0, lpeak = 0.0,
+               sw2 = 0.0, tw = 0.0, tw2 = 0.0;
         int n2 = 0;
         const double wm = rpm[a] * 3.14159265358979 / 30.0;
         const int n_on = 10000, n_off = 20000, n_end = 30000; /* 0.5 s, 1.0 s, 1.5 s */
