@@ -37,6 +37,7 @@ class DeviceSpec:
     seed: int = 1  # the emulator's noise seed
     pace: float | None = None  # the emulator at X times real time (None: as fast as it can)
     corrupt_ppm: float = 0.0  # the emulator flips bits on its serial output (tests)
+    theta_e0_rad: float = 0.0  # the emulator's rotor angle at the start of a run (sensorless tests)
 
     @property
     def is_rig(self) -> bool:
@@ -106,13 +107,16 @@ def emulator_settings_for(profile: Profile, spec: DeviceSpec | None = None) -> d
 
     spec = spec or DeviceSpec()
     rig = load_rig(spec.rig_path) if spec.rig_path else profile.rig
-    return emulator_settings(
+    s = emulator_settings(
         profile.motor,
         rig,
         seed=spec.seed,
         baud=spec.baud or profile.link.baud,
         ts_s=profile.control.ts_s,
     )
+    if spec.theta_e0_rad:
+        s["theta_e0_rad"] = spec.theta_e0_rad
+    return s
 
 
 # ----------------------------------------------------------------------------------- CAN

@@ -17,6 +17,7 @@ from pmsm_hil.log.writer import LogWriter
 from pmsm_hil.protocol import generated as gen
 from pmsm_hil.protocol.session import Session
 from pmsm_hil.recorder import LiveState, Recorder
+from pmsm_hil.sensorless_design import estimator_frames
 
 
 @dataclass
@@ -151,6 +152,12 @@ def configure(session: Session, profile) -> None:
     calib = calibration_config(profile.motor)
     if calib is not None:  # a commissioned motor file: the current sensors' calibration
         session.request("config_calib", **calib)
+    if profile.control.angle_src in ("ripple_pll", "hybrid"):
+        # the ripple PLL's magnetics, polarity signature, hybrid band (docs/sensorless.md)
+        snl_cfg, nodes = estimator_frames(profile.motor)
+        session.request("config_sensorless", **snl_cfg)
+        for node in nodes:
+            session.request("gamma_node", **node)
     session.request("profile_clear", n_segments=len(profile.segments))
     for i, s in enumerate(profile.segments):
         session.request(

@@ -18,6 +18,7 @@
 
 #include "enc_angle.h"
 #include "mras.h"
+#include "sensorless.h"
 #include "proto_gen.h"
 
 #define ANGLE_SRC_ENCODER    PROTO_ANGLE_SRC_ENCODER /* config_ctrl angle_src */
@@ -36,6 +37,7 @@ typedef struct {
     float theta0_rad;    /* initial estimated electrical angle */
     float r_s_ohm, l_d_h, l_q_h, psi_f_wb; /* the motor file's values */
     float j_kgm2;
+    const snl_cfg_t *snl; /* ripple PLL, hybrid: the sensorless configuration (sensorless.h) */
 } angle_cfg_t;
 
 typedef struct {
@@ -55,6 +57,13 @@ typedef struct {
     bool locked;      /* the occupant tracks the rotor (the encoder: whenever valid) */
     float confidence; /* 0..1 */
     float err_rad;    /* an estimator's normalised error signal (0 for the encoder) */
+    /* ripple PLL, hybrid: the start-up polarity test owns the current references while it runs
+     * (hold the speed loop, i_q* = 0), and the d axis gets i_d_inject_a added (test pulses or the
+     * estimator's excitation at rest) */
+    bool hold_refs;
+    float i_d_inject_a;
+    uint16_t pol_result_now; /* POL_* when the polarity test ended this period, else 0 */
+    float pol_asym;
 } angle_out_t;
 
 typedef struct {
@@ -62,6 +71,10 @@ typedef struct {
     angle_out_t last;
     union {
         mras_t mras;
+        struct {
+            mras_t mras; /* hybrid only */
+            snl_t snl;
+        } sl;
     } u;
 } angle_t;
 

@@ -133,6 +133,8 @@ static void init_stages(fw_t *f)
     ac.l_q_h = f->motor.l_q_h;
     ac.psi_f_wb = f->motor.psi_f_wb;
     ac.j_kgm2 = f->motor.j_kgm2;
+    fw_snl_config(f, &f->snl_cfg);
+    ac.snl = &f->snl_cfg;
     angle_init(&f->angle, &ac);
     memset(&f->ang, 0, sizeof(f->ang));
     memset(&f->est, 0, sizeof(f->est));
@@ -320,6 +322,10 @@ static void stage_angle(fw_t *f, float i_al, float i_be)
     }
     f->sig.theta_e_est_rad = f->est.theta_e_rad;
     f->sig.speed_est_rpm = f->est.speed_rpm;
+    if (f->est.pol_result_now != 0u) {
+        fw_raise(f, PROTO_EVENT_POLARITY, (int32_t)f->est.pol_result_now);
+        fw_raise(f, PROTO_EVENT_POLARITY_ASYM, (int32_t)(f->est.pol_asym * 10000.0f));
+    }
     f->sig.omega_e_rad_s = f->ang.omega_e_rad_s;
 }
 
@@ -424,7 +430,8 @@ static void stage_current_refs(fw_t *f, float speed_ref_rpm)
 {
     fw_dq_t idq_ref;
     f->speed_div_count++;
-    if (f->seg.identify_r) {
+    const bool est_in_loop = angle_src_is_estimator(f->ctrl.angle_src) && !f->seg_angle_encoder;
+    if (f->seg.identify_r || (est_in_loop && f->est.hold_refs)) {
         speed_pi_reset(&f->spi, 0.0f);
         f->i_s_ref_a = 0.0f;
         f->i_d_base_a = 0.0f;
@@ -445,6 +452,9 @@ static void stage_current_refs(fw_t *f, float speed_ref_rpm)
         f->sig.i_q_ref_a = idq_ref.q;
     }
     f->sig.i_d_ref_a = ident_d_ref(&f->ident, &f->seg, f->i_d_base_a);
+    if (est_in_loop) { /* the sensorless start's pulses, or the estimator's excitation at rest */
+        f->sig.i_d_ref_a += f->est.i_d_inject_a;
+    }
 }
 
 /* Current-control slot, with the q-current dither and the identification's predictor feed. */

@@ -112,6 +112,12 @@ typedef struct {
     cc_t cc; /* current-control slot */
     cc_out_t cc_out;
     ident_t ident; /* estimators */
+    /* the sensorless estimator's configuration (config_sensorless, gamma_node; docs/sensorless.md) */
+    proto_config_sensorless_t snl_msg;
+    bool have_snl;
+    uint16_t gamma_nodes; /* nodes received since the last config_sensorless */
+    rerr_tab_t gamma_tab;
+    snl_cfg_t snl_cfg;
     capture_t cap;
     fw_stop_t stop;
     fw_signals_t sig; /* telemetry */

@@ -186,6 +186,21 @@ bool proto_can_layout(uint16_t msg_id, proto_can_layout_t *l)
         l->len[0] = 8u;
         l->len[1] = 6u;
         return true;
+    case PROTO_ID_CONFIG_SENSORLESS:
+        l->func = 0x0Cu;
+        l->transfer = 1u;
+        l->n_frames = 10u;
+        l->h2d = 1u;
+        return true;
+    case PROTO_ID_GAMMA_NODE:
+        l->func = 0x2Du;
+        l->transfer = 0u;
+        l->n_frames = 3u;
+        l->h2d = 1u;
+        l->len[0] = 7u;
+        l->len[1] = 8u;
+        l->len[2] = 4u;
+        return true;
     default:
         return false;
     }
@@ -233,6 +248,9 @@ int16_t proto_can_func_msg(uint16_t func, uint16_t *frame)
     case 0x2Au: *frame = 5u; return (int16_t)PROTO_ID_SIM_TRUTH;
     case 0x2Bu: *frame = 0u; return (int16_t)PROTO_ID_TELEM_EST;
     case 0x2Cu: *frame = 1u; return (int16_t)PROTO_ID_TELEM_EST;
+    case 0x2Du: *frame = 0u; return (int16_t)PROTO_ID_GAMMA_NODE;
+    case 0x2Eu: *frame = 1u; return (int16_t)PROTO_ID_GAMMA_NODE;
+    case 0x2Fu: *frame = 2u; return (int16_t)PROTO_ID_GAMMA_NODE;
     default: *frame = 0u; return -1;
     }
 }

@@ -729,6 +729,74 @@ bool proto_telem_est_unpack(proto_telem_est_t *m, const uint16_t *buf, uint16_t 
     return true;
 }
 
+uint16_t proto_config_sensorless_pack(const proto_config_sensorless_t *m, uint16_t *buf)
+{
+    put_f32(&buf[0], m->pol_i_pulse_a);
+    put_f32(&buf[4], m->pol_asym_expected);
+    put_f32(&buf[8], m->pol_asym_min);
+    put_f32(&buf[12], m->hyb_pll_on_rpm);
+    put_f32(&buf[16], m->hyb_mras_on_rpm);
+    put_f32(&buf[20], m->hyb_blend_s);
+    put_f32(&buf[24], m->lock_disagree_rad);
+    put_f32(&buf[28], m->lock_disagree_s);
+    put_f32(&buf[32], m->lock_conf_min);
+    put_f32(&buf[36], m->lock_lost_s);
+    put_u16(&buf[40], m->gam_nd);
+    put_u16(&buf[42], m->gam_nq);
+    put_f32(&buf[44], m->gam_id0_a);
+    put_f32(&buf[48], m->gam_iq0_a);
+    put_f32(&buf[52], m->gam_did_a);
+    put_f32(&buf[56], m->gam_diq_a);
+    return PROTO_LEN_CONFIG_SENSORLESS;
+}
+
+bool proto_config_sensorless_unpack(proto_config_sensorless_t *m, const uint16_t *buf, uint16_t len)
+{
+    if (len != PROTO_LEN_CONFIG_SENSORLESS) {
+        return false;
+    }
+    m->pol_i_pulse_a = get_f32(&buf[0]);
+    m->pol_asym_expected = get_f32(&buf[4]);
+    m->pol_asym_min = get_f32(&buf[8]);
+    m->hyb_pll_on_rpm = get_f32(&buf[12]);
+    m->hyb_mras_on_rpm = get_f32(&buf[16]);
+    m->hyb_blend_s = get_f32(&buf[20]);
+    m->lock_disagree_rad = get_f32(&buf[24]);
+    m->lock_disagree_s = get_f32(&buf[28]);
+    m->lock_conf_min = get_f32(&buf[32]);
+    m->lock_lost_s = get_f32(&buf[36]);
+    m->gam_nd = get_u16(&buf[40]);
+    m->gam_nq = get_u16(&buf[42]);
+    m->gam_id0_a = get_f32(&buf[44]);
+    m->gam_iq0_a = get_f32(&buf[48]);
+    m->gam_did_a = get_f32(&buf[52]);
+    m->gam_diq_a = get_f32(&buf[56]);
+    return true;
+}
+
+uint16_t proto_gamma_node_pack(const proto_gamma_node_t *m, uint16_t *buf)
+{
+    put_u16(&buf[0], m->index);
+    put_f32(&buf[2], m->g_dd);
+    put_f32(&buf[6], m->g_qq);
+    put_f32(&buf[10], m->g_dq);
+    put_f32(&buf[14], m->g_qd);
+    return PROTO_LEN_GAMMA_NODE;
+}
+
+bool proto_gamma_node_unpack(proto_gamma_node_t *m, const uint16_t *buf, uint16_t len)
+{
+    if (len != PROTO_LEN_GAMMA_NODE) {
+        return false;
+    }
+    m->index = get_u16(&buf[0]);
+    m->g_dd = get_f32(&buf[2]);
+    m->g_qq = get_f32(&buf[6]);
+    m->g_dq = get_f32(&buf[10]);
+    m->g_qd = get_f32(&buf[14]);
+    return true;
+}
+
 int16_t proto_payload_len(uint16_t msg_id)
 {
     switch (msg_id) {
@@ -755,6 +823,8 @@ int16_t proto_payload_len(uint16_t msg_id)
     case PROTO_ID_COMMISSION_RESULT: return (int16_t)PROTO_LEN_COMMISSION_RESULT;
     case PROTO_ID_SIM_TRUTH: return (int16_t)PROTO_LEN_SIM_TRUTH;
     case PROTO_ID_TELEM_EST: return (int16_t)PROTO_LEN_TELEM_EST;
+    case PROTO_ID_CONFIG_SENSORLESS: return (int16_t)PROTO_LEN_CONFIG_SENSORLESS;
+    case PROTO_ID_GAMMA_NODE: return (int16_t)PROTO_LEN_GAMMA_NODE;
     default: return -1;
     }
 }

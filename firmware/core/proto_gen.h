@@ -10,9 +10,9 @@
 #include <stdbool.h>
 
 #define PROTO_VERSION 2u
-#define PROTO_SCHEMA_HASH 0x32A57AD6UL  /* CRC-32 of the canonical yaml */
+#define PROTO_SCHEMA_HASH 0xF1583257UL  /* CRC-32 of the canonical yaml */
 #define PROTO_MAX_PAYLOAD 111u  /* octets */
-#define PROTO_MSG_COUNT 23u
+#define PROTO_MSG_COUNT 25u
 
 /* enum state */
 #define PROTO_STATE_IDLE 0u
@@ -95,6 +95,8 @@
 #define PROTO_EVENT_R_IDENTIFIED 9u
 #define PROTO_EVENT_COMMISSION_STEP 10u
 #define PROTO_EVENT_COMMISSION_FAILED 11u
+#define PROTO_EVENT_POLARITY 12u
+#define PROTO_EVENT_POLARITY_ASYM 13u
 
 /* enum commission_step */
 #define PROTO_COMMISSION_STEP_OFFSETS 0u
@@ -458,6 +460,43 @@ typedef struct {
 } proto_telem_est_t;
 uint16_t proto_telem_est_pack(const proto_telem_est_t *m, uint16_t *buf);
 bool proto_telem_est_unpack(proto_telem_est_t *m, const uint16_t *buf, uint16_t len);
+
+/* config_sensorless: 0x0B, host -> device */
+#define PROTO_ID_CONFIG_SENSORLESS 0x0Bu
+#define PROTO_LEN_CONFIG_SENSORLESS 60u
+typedef struct {
+    float pol_i_pulse_a;           /* f32; polarity test: d-axis pulse amplitude */
+    float pol_asym_expected;       /* f32; the motor's own signature (g+ - g-)/(g+ + g-) at +-pulse */
+    float pol_asym_min;            /* f32; smallest |measured asymmetry| that resolves the polarity */
+    float hyb_pll_on_rpm;          /* f32; hybrid: the ripple PLL carries the angle below this speed */
+    float hyb_mras_on_rpm;         /* f32; hybrid: the MRAS carries it above this speed */
+    float hyb_blend_s;             /* f32; hybrid: duration of a handover */
+    float lock_disagree_rad;       /* f32; loss of lock: PLL and MRAS further apart than this ... */
+    float lock_disagree_s;         /* f32; ... for this long */
+    float lock_conf_min;           /* f32; loss of lock: the PLL's confidence (cos 2d) below this ... */
+    float lock_lost_s;             /* f32; ... for this long */
+    uint16_t gam_nd;               /* u16; Gamma table: nodes along i_d (0: none, nominal 1/L_d, 1/L_q) */
+    uint16_t gam_nq;               /* u16; nodes along i_q */
+    float gam_id0_a;               /* f32; first node */
+    float gam_iq0_a;               /* f32 */
+    float gam_did_a;               /* f32; node spacing */
+    float gam_diq_a;               /* f32 */
+} proto_config_sensorless_t;
+uint16_t proto_config_sensorless_pack(const proto_config_sensorless_t *m, uint16_t *buf);
+bool proto_config_sensorless_unpack(proto_config_sensorless_t *m, const uint16_t *buf, uint16_t len);
+
+/* gamma_node: 0x0C, host -> device */
+#define PROTO_ID_GAMMA_NODE 0x0Cu
+#define PROTO_LEN_GAMMA_NODE 18u
+typedef struct {
+    uint16_t index;                /* u16; node k * gam_nd + j */
+    float g_dd;                    /* f32; inverse incremental inductance matrix, 1/H */
+    float g_qq;                    /* f32 */
+    float g_dq;                    /* f32 */
+    float g_qd;                    /* f32 */
+} proto_gamma_node_t;
+uint16_t proto_gamma_node_pack(const proto_gamma_node_t *m, uint16_t *buf);
+bool proto_gamma_node_unpack(proto_gamma_node_t *m, const uint16_t *buf, uint16_t len);
 
 /* Payload octets of a message id, or -1 for an unknown id. */
 int16_t proto_payload_len(uint16_t msg_id);

@@ -37,7 +37,8 @@ struct emu {
     /* wiring faults of the rig (commissioning tests): phases b and c swapped between inverter
      * and motor, or the motor not connected */
     int wiring_swap_bc, wiring_open;
-    int sat_nd, sat_nq; /* 0: no map */
+    double theta_e0_rad; /* the rotor's electrical angle at the start of a run (sensorless tests) */
+    int sat_nd, sat_nq;  /* 0: no map */
     double sat_id0_a, sat_did_a, sat_iq0_a, sat_diq_a;
     double sat_psi_d_wb[PLANT_MAP_MAX_N * PLANT_MAP_MAX_N];
     double sat_psi_q_wb[PLANT_MAP_MAX_N * PLANT_MAP_MAX_N];
@@ -283,6 +284,9 @@ uint32_t emu_run(emu_t *e, uint32_t max_ticks, uint8_t *out, uint32_t cap, uint3
         per_tick = e->baud / 10.0 * e->pcfg.ts_s;
         margin = (uint32_t)per_tick + 2u;
         plant_init(&e->plant, &e->pcfg);
+        if (e->theta_e0_rad != 0.0) {
+            plant_set_mech(&e->plant, e->theta_e0_rad / (double)e->pcfg.pole_pairs, 0.0, false);
+        }
         memset(&e->prev_cmd, 0, sizeof(e->prev_cmd));
         e->octet_budget = 0.0;
         e->truth_count = 0u;

@@ -91,6 +91,9 @@ def effect_settings(motor: Motor, rig: Rig) -> dict:
     s["wiring_open"] = 1 if wiring is not None and not wiring.motor_connected else 0
     sat = _eff(rig, "saturation")
     fm = rig.flux_map() if sat is not None else None
+    if fm is None and getattr(motor, "flux_map", None):
+        # the motor's own measured magnetics: the rig departs from them, not from a linear model
+        fm = motor.load_flux_map()
     if fm is not None:
         s.update(fm.settings())
     else:

@@ -103,6 +103,34 @@ class Motor(FileModel):
         description="what commissioning measured: date, device, and each quantity with its "
         "spread (written by `pmsm-hil commission`, docs/commissioning.md)",
     )
+    flux_map: str | None = Field(
+        None,
+        description="the motor's measured flux map (CSV, relative to the motor file; "
+        "docs/rigs.md): the emulator's magnetics when the rig has no saturation effect, and "
+        "the sensorless estimator's inverse incremental inductances and polarity signature",
+    )
+    hybrid_pll_on_rpm: float = Field(
+        150.0,
+        gt=0,
+        le=1e5,
+        description="hybrid angle source: below this speed the ripple PLL carries the angle, r/min",
+    )
+    hybrid_mras_on_rpm: float = Field(
+        250.0,
+        gt=0,
+        le=1e5,
+        description="hybrid angle source: above this speed the MRAS carries it, r/min "
+        "(> hybrid_pll_on_rpm: the band between is the hysteresis)",
+    )
+    hybrid_blend_s: float = Field(
+        0.02, gt=0, le=1, description="hybrid angle source: time of a handover, s"
+    )
+    polarity_pulse_a: float | None = Field(
+        None,
+        gt=0,
+        le=10000,
+        description="d-axis current of the start-up polarity pulses, A (null: half of i_max_a)",
+    )
     source: str = Field("", description="where the numbers come from")
 
     # ------------------------------------------------------------------ derived quantities
@@ -111,6 +139,23 @@ class Motor(FileModel):
 
     def torque_mtpa_nm(self, i_s_a: float) -> float:
         return mtpa_torque_nm(i_s_a, self.pole_pairs, self.psi_f_wb, self.l_d_h, self.l_q_h)
+
+    def flux_map_path(self) -> str | None:
+        """The motor's flux map path (relative to the motor file's directory), or None."""
+        if not self.flux_map:
+            return None
+        if os.path.isabs(self.flux_map):
+            return self.flux_map
+        return os.path.normpath(os.path.join(os.path.dirname(self.path or "."), self.flux_map))
+
+    def load_flux_map(self):
+        """The motor's FluxMap (pmsm_hil.profiles.fluxmap), or None."""
+        path = self.flux_map_path()
+        if path is None:
+            return None
+        from .fluxmap import load_flux_map
+
+        return load_flux_map(path)
 
     @property
     def speed_max_rad_s(self) -> float:
@@ -152,6 +197,15 @@ def motor_checks(src: Source) -> list[Problem]:
     p, psi, l_d, l_q, t_max = (
         num(d, k) for k in ("pole_pairs", "psi_f_wb", "l_d_h", "l_q_h", "torque_max_nm")
     )
+    pll_on, mras_on = num(d, "hybrid_pll_on_rpm"), num(d, "hybrid_mras_on_rpm")
+    if pll_on is not None and mras_on is not None and mras_on <= pll_on:
+        out.append(
+            src.problem(
+                ("hybrid_mras_on_rpm",),
+                f"must be above hybrid_pll_on_rpm {fmt_num(pll_on)} r/min (the hysteresis band)",
+                mras_on,
+            )
+        )
     if all(x is not None and x > 0 for x in (p, psi, l_d, l_q, i_max, t_max)) and isinstance(
         p, int
     ):
@@ -181,6 +235,17 @@ def _load_motor_source(src: Source) -> tuple[Motor | None, list[Problem]]:
     if problems or motor is None:
         return None, problems
     motor._path, motor._yaml_text = src.path, src.text
+    if motor.flux_map:
+        from .fluxmap import FluxMapError
+
+        try:
+            motor.load_flux_map()
+        except (OSError, FluxMapError) as e:
+            return None, [
+                src.problem(
+                    ("flux_map",), f"names a flux map that cannot be used: {e}", motor.flux_map
+                )
+            ]
     return motor, []
 
 

@@ -46,6 +46,8 @@ LAYOUTS = {
     0x96: CanLayout(0x96, 'commission_result', 0x7E, True, (6, 8, 8, 8, 8, 8, 8, 5)),
     0xA0: CanLayout(0xA0, 'sim_truth', 0x25, False, (5, 8, 8, 8, 8, 8)),
     0x95: CanLayout(0x95, 'telem_est', 0x2B, False, (8, 6)),
+    0x0B: CanLayout(0x0B, 'config_sensorless', 0x0C, True, (6, 8, 8, 8, 8, 8, 8, 8, 8, 5)),
+    0x0C: CanLayout(0x0C, 'gamma_node', 0x2D, False, (7, 8, 4)),
 }
 
 # function code -> (message id, frame index), direct messages only
@@ -89,4 +91,7 @@ BY_FUNC = {
     0x2A: (0xA0, 5),
     0x2B: (0x95, 0),
     0x2C: (0x95, 1),
+    0x2D: (0x0C, 0),
+    0x2E: (0x0C, 1),
+    0x2F: (0x0C, 2),
 }

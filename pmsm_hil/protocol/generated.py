@@ -6,7 +6,7 @@ import struct
 from typing import NamedTuple
 
 PROTOCOL_VERSION = 2
-SCHEMA_HASH = 0x32A57AD6
+SCHEMA_HASH = 0xF1583257
 MAX_PAYLOAD = 111  # octets
 
 # wire type: (struct code, octets, min, max); min/max are None for f32
@@ -124,6 +124,8 @@ ENUMS = {
         'r_identified': 9,
         'commission_step': 10,
         'commission_failed': 11,
+        'polarity': 12,
+        'polarity_asym': 13,
     },
     'commission_step': {
         'offsets': 0,
@@ -350,6 +352,31 @@ MESSAGES = (
         FieldSpec('speed_err_rpm', 'i16', 1, 0.1, 9),
         FieldSpec('err_signal', 'i16', 1, 0.0001, 11),
     ), struct.Struct('<IBBBhhh')),
+    MessageSpec(0x0B, 'config_sensorless', 'h2d', False, 60, (
+        FieldSpec('pol_i_pulse_a', 'f32', 1, None, 0),
+        FieldSpec('pol_asym_expected', 'f32', 1, None, 4),
+        FieldSpec('pol_asym_min', 'f32', 1, None, 8),
+        FieldSpec('hyb_pll_on_rpm', 'f32', 1, None, 12),
+        FieldSpec('hyb_mras_on_rpm', 'f32', 1, None, 16),
+        FieldSpec('hyb_blend_s', 'f32', 1, None, 20),
+        FieldSpec('lock_disagree_rad', 'f32', 1, None, 24),
+        FieldSpec('lock_disagree_s', 'f32', 1, None, 28),
+        FieldSpec('lock_conf_min', 'f32', 1, None, 32),
+        FieldSpec('lock_lost_s', 'f32', 1, None, 36),
+        FieldSpec('gam_nd', 'u16', 1, None, 40),
+        FieldSpec('gam_nq', 'u16', 1, None, 42),
+        FieldSpec('gam_id0_a', 'f32', 1, None, 44),
+        FieldSpec('gam_iq0_a', 'f32', 1, None, 48),
+        FieldSpec('gam_did_a', 'f32', 1, None, 52),
+        FieldSpec('gam_diq_a', 'f32', 1, None, 56),
+    ), struct.Struct('<ffffffffffHHffff')),
+    MessageSpec(0x0C, 'gamma_node', 'h2d', False, 18, (
+        FieldSpec('index', 'u16', 1, None, 0),
+        FieldSpec('g_dd', 'f32', 1, None, 2),
+        FieldSpec('g_qq', 'f32', 1, None, 6),
+        FieldSpec('g_dq', 'f32', 1, None, 10),
+        FieldSpec('g_qd', 'f32', 1, None, 14),
+    ), struct.Struct('<Hffff')),
 )
 
 BY_ID = {m.id: m for m in MESSAGES}
@@ -378,3 +405,5 @@ ID_CAPTURE_CHUNK = 0x94
 ID_COMMISSION_RESULT = 0x96
 ID_SIM_TRUTH = 0xA0
 ID_TELEM_EST = 0x95
+ID_CONFIG_SENSORLESS = 0x0B
+ID_GAMMA_NODE = 0x0C
