@@ -4,9 +4,15 @@ the median and the worst error over the seeds beside the target (docs/commission
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from pmsm_hil.commission.sequence import CommissionResult
+    from pmsm_hil.profiles import Profile
 
 # quantity -> (label, unit, scale for printing, target on |error|)
 TARGETS = {
@@ -35,7 +41,9 @@ def parse_seeds(text: str) -> list[int]:
     return out
 
 
-def commission_once(rig_path: str | None, seed: int, log: Path, motor_path=None):
+def commission_once(
+    rig_path: str | None, seed: int, log: Path, motor_path: Path | str | None = None
+) -> tuple[Profile, CommissionResult, dict[str, float]]:
     """One in-process commissioning run: (result, errors against the plant)."""
     from pmsm_hil.commission.score import commission_errors
     from pmsm_hil.commission.sequence import commission_profile, run_commission
@@ -49,13 +57,13 @@ def commission_once(rig_path: str | None, seed: int, log: Path, motor_path=None)
         res = run_commission(profile, Session(link), log, RunOptions(seed=seed))
     finally:
         link.close()
-    errs = (
+    errs: dict[str, float] = (
         commission_errors(log, res.quantities, profile.rig, profile.control.ts_s) if res.ok else {}
     )
     return profile, res, errs
 
 
-def table(rig_name: str, runs: list[tuple[int, object, dict]]) -> str:
+def table(rig_name: str, runs: list[tuple[int, CommissionResult, dict[str, float]]]) -> str:
     """Markdown: per quantity, target, median and worst |error|, seeds within the target."""
     n = len(runs)
     ok = [r for r in runs if r[1].ok]
@@ -80,7 +88,9 @@ def table(rig_name: str, runs: list[tuple[int, object, dict]]) -> str:
     return "\n".join(lines)
 
 
-def bench_commission(rigs: list[str], seeds: list[int], out: Path, echo=print) -> str:
+def bench_commission(
+    rigs: list[str], seeds: list[int], out: Path, echo: Callable[[str], None] = print
+) -> str:
     """Runs every (rig, seed), prints and writes the tables (out/commission.md)."""
     from pmsm_hil.profiles.shipped import resolve
 
@@ -95,7 +105,7 @@ def bench_commission(rigs: list[str], seeds: list[int], out: Path, echo=print) -
     ]
     for rig in rigs:
         path = resolve(rig, "rig")
-        runs = []
+        runs: list[tuple[int, CommissionResult, dict[str, float]]] = []
         for s in seeds:
             _p, res, errs = commission_once(path, s, out / f"commission-{Path(path).stem}-{s}.mcap")
             runs.append((s, res, errs))

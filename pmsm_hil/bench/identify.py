@@ -11,8 +11,10 @@ logs, whichever process ran them."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from pmsm_hil.device import DeviceSpec, open_device
 
@@ -33,7 +35,7 @@ def identify(
     seed: int = 1,
     rig: str | None = None,
     until: float | None = None,
-    echo=print,
+    echo: Callable[[str], None] = print,
     motor: str | None = None,
 ) -> None:
     """The Table-2 run: identification table (markdown and text), convergence plot, drift step."""
@@ -80,6 +82,7 @@ def identify(
     png = convergence_plot(log, out / "identify.png")
     if drift:
         d = drift[0]
+        assert d.plant is not None  # drift holds only the segments with a plant step
         dt = identification_table(log, d.t_start_s, d.t_end_s)
         echo(
             f"\ndrift step at t = {d.t_start_s:g} s (R x {d.plant.r_s_scale:g}, psi_f x "
@@ -166,7 +169,11 @@ def _run(profile_path, log: Path, seed: int, rig=None):
 
 
 def _variant(
-    path, out: Path, name: str, control: dict | None = None, segments: list[str] | None = None
+    path: Path | str,
+    out: Path,
+    name: str,
+    control: dict[str, Any] | None = None,
+    segments: list[str] | None = None,
 ) -> Path:
     """A copy of the profile at `path` (motor and rig paths made absolute) with control fields
     replaced or added and, optionally, other segments; written to out/NAME.yaml."""
@@ -192,7 +199,13 @@ MISMATCH_SCALE = 1.5  # "50 % off": L_d, L_q, psi_f of the predictor x 1.5
 MISMATCH_WINDOW = (3.0, 4.0)  # device time evaluated: 1000 r/min, 5 N m, steady
 
 
-def mismatch(path, out: Path, seed: int = 1, echo=print, cluster: Cluster | None = None) -> None:
+def mismatch(
+    path: Path | str,
+    out: Path,
+    seed: int = 1,
+    echo: Callable[[str], None] = print,
+    cluster: Cluster | None = None,
+) -> None:
     """i_d/i_q tracking-error RMS at 1000 r/min under load: true parameters, predictor frozen 50 %
     off, NLMS-Adaline feeding the predictor (from the same 50 % off start)."""
     import numpy as np
@@ -212,7 +225,7 @@ def mismatch(path, out: Path, seed: int = 1, echo=print, cluster: Cluster | None
         "psi_f_wb": MISMATCH_SCALE,
         "r_s_ohm": 1.0,
     }
-    cases = [
+    cases: list[tuple[str, dict[str, Any]]] = [
         ("true parameters", {"predictor": "nominal"}),
         (
             f"frozen x{MISMATCH_SCALE:g} (L_d, L_q, psi_f)",
@@ -276,7 +289,13 @@ def _fault_names(bits: int) -> str:
     return "fault " + (", ".join(names) if names else f"0x{bits:x}")
 
 
-def per_effect(path, out: Path, seed: int = 1, echo=print, cluster: Cluster | None = None) -> None:
+def per_effect(
+    path: Path | str,
+    out: Path,
+    seed: int = 1,
+    echo: Callable[[str], None] = print,
+    cluster: Cluster | None = None,
+) -> None:
     """The identification run (without its drift step) on the ideal rig, each effect alone and the
     default rig: errors of RLS and NLMS-Adaline before the drift step, as a markdown table."""
     import yaml

@@ -5,6 +5,7 @@ on several rigs and seeds, one table per rig with the median and the worst error
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -13,7 +14,14 @@ PARAMS = (("l_d_h", "L_d"), ("l_q_h", "L_q"), ("psi_f_wb", "psi_f"), ("r_s_ohm",
 ESTIMATORS = ("rls", "nlms_adaline")
 
 
-def _one(path, rig_path, seed: int, out: Path, commissioned: bool, motor=None) -> dict:
+def _one(
+    path: Path | str,
+    rig_path: str,
+    seed: int,
+    out: Path,
+    commissioned: bool,
+    motor: Path | str | None = None,
+) -> dict:
     from pmsm_hil.analysis.identification import identification_table
     from pmsm_hil.bench.identify import _run_profile
     from pmsm_hil.profiles import load_profile
@@ -56,7 +64,13 @@ def _fmt(vals: list[float]) -> str:
 
 
 def identify_rigs(
-    path, rigs: list[str], seeds: list[int], out: Path, commissioned=False, motor=None, echo=print
+    path: Path | str,
+    rigs: list[str],
+    seeds: list[int],
+    out: Path,
+    commissioned: bool = False,
+    motor: Path | str | None = None,
+    echo: Callable[[str], None] = print,
 ) -> str:
     from pmsm_hil.profiles.shipped import resolve
 
@@ -106,7 +120,9 @@ def identify_rigs(
     return text
 
 
-def per_effect_commissioned(path, seeds: list[int], out: Path, echo=print) -> str:
+def per_effect_commissioned(
+    path: Path | str, seeds: list[int], out: Path, echo: Callable[[str], None] = print
+) -> str:
     """What each rig effect still costs after commissioning: NLMS-Adaline's |error| (median /
     worst over the seeds) on the ideal rig, each effect alone, default and lab-typical, each seed
     commissioned first."""

@@ -8,11 +8,15 @@ import argparse
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING, Literal, TextIO
 
 from pmsm_hil.cli.errors import fail, report
 
+if TYPE_CHECKING:
+    from pmsm_hil.recorder import LiveState
 
-def add_parser(sub) -> None:
+
+def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "commission",
         help="commission a drive: sensor offsets, encoder offset, inverter, R, L, psi_f "
@@ -59,24 +63,26 @@ def add_parser(sub) -> None:
 class StepPrinter:
     """Prints each step as it begins and its result as it arrives (the runner's observer)."""
 
-    def __init__(self, stream=None):
+    def __init__(self, stream: TextIO | None = None):
         self.stream = stream or sys.stdout
         self.n_events = 0
         self.n_rows = 0
 
-    def __enter__(self):
+    def __enter__(self) -> StepPrinter:
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> Literal[False]:
         return False
 
     def message(self, text: str) -> None:
         print(text, file=self.stream, flush=True)
 
-    def update(self, live) -> None:
+    def update(self, live: LiveState) -> None:
         from pmsm_hil.commission.steps import STEP_TITLES, step_quantities
 
-        lines = []  # (t_s, order, text): a step's results before the next step's start
+        lines: list[
+            tuple[float, int, str]
+        ] = []  # (t_s, order, text): a step's results before the next step's start
         for t_s, kind, _arg, text in live.events[self.n_events :]:
             if kind in ("commission_step", "commission_failed", "fault", "stopped"):
                 step = text.split(": ", 1)[-1]

@@ -7,11 +7,12 @@ from __future__ import annotations
 
 import datetime as _dt
 import math
+from typing import Any
 
 import yaml
 
 from pmsm_hil.commission.steps import Measured
-from pmsm_hil.profiles.motor import mtpa_torque_nm
+from pmsm_hil.profiles.motor import Motor, mtpa_torque_nm
 
 # the machine values a commissioned file replaces; the nominal ones are kept in the record
 NOMINAL_KEYS = ("r_s_ohm", "l_d_h", "l_q_h", "psi_f_wb", "dead_time_s", "v_drop_v", "i_dt_a")
@@ -21,9 +22,9 @@ def _wrap_pi(x: float) -> float:
     return math.atan2(math.sin(x), math.cos(x))
 
 
-def commissioned_values(motor, q: dict[str, Measured], ts_s: float) -> dict:
+def commissioned_values(motor: Motor, q: dict[str, Measured], ts_s: float) -> dict[str, Any]:
     """The motor-file fields that commissioning measured (only those of the steps that ran)."""
-    out: dict = {}
+    out: dict[str, Any] = {}
     if "r_s_ohm" in q:
         out["r_s_ohm"] = q["r_s_ohm"].value
     if "l_d_h" in q:
@@ -43,7 +44,7 @@ def commissioned_values(motor, q: dict[str, Measured], ts_s: float) -> dict:
         out["enc_offset_e_rad"] = _wrap_pi(
             float(motor.enc_offset_e_rad) + q["enc_offset_delta_e_rad"].value
         )
-    sensors = {}
+    sensors: dict[str, float] = {}
     old = motor.current_sensors
     for ph in "abc":
         key = f"i_{ph}_offset_a"
@@ -59,7 +60,12 @@ def commissioned_values(motor, q: dict[str, Measured], ts_s: float) -> dict:
 
 
 def commissioned_motor_yaml(
-    motor, q: dict[str, Measured], ts_s: float, device: str, log_path: str, now=None
+    motor: Motor,
+    q: dict[str, Measured],
+    ts_s: float,
+    device: str,
+    log_path: str,
+    now: _dt.datetime | None = None,
 ) -> str:
     """The text of the commissioned motor file."""
     raw = yaml.safe_load(motor.yaml_text) or {}

@@ -5,19 +5,24 @@ its rig file): the errors that `pmsm-hil bench commission` tabulates and the tes
 from __future__ import annotations
 
 import math
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from pmsm_hil.commission.steps import Measured
 from pmsm_hil.log.reader import read_log
 
+if TYPE_CHECKING:
+    from pmsm_hil.profiles import Rig
 
-def step_windows(log_path) -> dict[str, tuple[float, float]]:
+
+def step_windows(log_path: Path | str) -> dict[str, tuple[float, float]]:
     """(start, end) device time of each step, from the commission_step events and results."""
     log = read_log(str(log_path))
     ev = log.topic("/pmsm/events")
     rows = log.topic("/pmsm/commission")
-    starts = {}
+    starts: dict[str, float] = {}
     for kind, t, text in zip(ev["kind"], ev["t_s"], ev["text"], strict=False):
         if kind == "commission_step":
             starts[str(text).split(": ", 1)[-1]] = float(t)
@@ -27,14 +32,16 @@ def step_windows(log_path) -> dict[str, tuple[float, float]]:
     }
 
 
-def truth_in(log_path, t0: float, t1: float) -> dict[str, float]:
+def truth_in(log_path: Path | str, t0: float, t1: float) -> dict[str, float]:
     """Mean of each /sim/truth field over [t0, t1]."""
     tr = read_log(str(log_path)).topic("/sim/truth")
     m = (tr["t_s"] >= t0) & (tr["t_s"] <= t1)
     return {k: float(np.mean(v[m])) for k, v in tr.items() if k != "t_s" and m.any()}
 
 
-def commission_errors(log_path, q: dict[str, Measured], rig, ts_s: float) -> dict[str, float]:
+def commission_errors(
+    log_path: Path | str, q: dict[str, Measured], rig: Rig, ts_s: float
+) -> dict[str, float]:
     """Error of each commissioned quantity against the plant: absolute for the sensor offsets
     (A) and the encoder offset (degrees electrical), relative for the rest."""
     win = step_windows(log_path)

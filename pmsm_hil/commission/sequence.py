@@ -5,22 +5,34 @@ firmware runs every step, the host only configures, logs and reads the results."
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any, Protocol
 
 from pmsm_hil.commission.steps import Measured, failure_text, step_quantities
-from pmsm_hil.profiles import load_profile
+from pmsm_hil.profiles import Profile, load_profile
 from pmsm_hil.profiles._base import default_file
 from pmsm_hil.protocol import generated as gen
-from pmsm_hil.runner import RunOptions, run_profile
+from pmsm_hil.protocol.session import Session
+from pmsm_hil.recorder import LiveState
+from pmsm_hil.runner import RunOptions, RunResult, run_profile
 
 STEPS = tuple(gen.ENUMS["commission_step"])  # firmware order
 
 
+class Observer(Protocol):
+    """What the runner tells while a run goes on (e.g. the CLI's step printer)."""
+
+    def message(self, text: str) -> None: ...
+
+    def update(self, live: LiveState) -> None: ...
+
+
 @dataclass
 class CommissionResult:
-    run: object  # runner.RunResult
-    rows: list[dict] = field(default_factory=list)  # /pmsm/commission rows in order
+    run: RunResult
+    rows: list[dict[str, Any]] = field(default_factory=list)  # /pmsm/commission rows in order
     quantities: dict[str, Measured] = field(default_factory=dict)
     failure: str = ""  # readable reason when a step failed
     failed_step: str = ""
@@ -37,7 +49,11 @@ class CommissionResult:
         )
 
 
-def commission_profile(motor_path=None, rig_path=None, profile_path=None):
+def commission_profile(
+    motor_path: Path | str | None = None,
+    rig_path: Path | str | None = None,
+    profile_path: Path | str | None = None,
+) -> Profile:
     """The commissioning profile with the caller's motor and rig files."""
     return load_profile(
         profile_path or default_file("commission.yaml"),
@@ -46,7 +62,12 @@ def commission_profile(motor_path=None, rig_path=None, profile_path=None):
     )
 
 
-def commission_request(profile, steps=None, i_test_a=None, spin_rpm=None) -> tuple[str, dict]:
+def commission_request(
+    profile: Profile,
+    steps: Iterable[str] | None = None,
+    i_test_a: float | None = None,
+    spin_rpm: float | None = None,
+) -> tuple[str, dict[str, float | int]]:
     """The config_commission message: which steps (names, default all), the test current and the
     spin speed (defaults: half the motor's current and speed limits)."""
     m = profile.motor
@@ -65,7 +86,12 @@ def commission_request(profile, steps=None, i_test_a=None, spin_rpm=None) -> tup
 
 
 def run_commission(
-    profile, session, log_path: Path, options: RunOptions | None = None, observer=None, **request
+    profile: Profile,
+    session: Session,
+    log_path: Path,
+    options: RunOptions | None = None,
+    observer: Observer | None = None,
+    **request: Any,
 ) -> CommissionResult:
     """Run the sequence on the device behind `session`; the motor stops safely whatever happens
     (the runner's guarantees) and the log is left readable."""

@@ -86,7 +86,7 @@ def truth_keys() -> tuple[str, ...]:
     return _names(lib().emu_truth_name)
 
 
-def __getattr__(name: str):
+def __getattr__(name: str) -> tuple[str, ...]:
     # SETTING_KEYS and TRUTH_KEYS come from the C table, read when first asked for
     if name == "SETTING_KEYS":
         return setting_keys()
