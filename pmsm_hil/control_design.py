@@ -95,13 +95,13 @@ MRAS_MIN_SPEED_SHARE = (
 )
 
 
-def foc_bandwidth(profile) -> float:
+def foc_bandwidth(profile: Profile) -> float:
     """FOC current-loop bandwidth, rad/s: the profile's, or 2 pi / (20 ts_s) (docs/sensorless.md)."""
     c = profile.control
     return c.foc_bw_rad_s or 2.0 * math.pi / (20.0 * c.ts_s)
 
 
-def estimator_min_speed_rpm(profile) -> float:
+def estimator_min_speed_rpm(profile: Profile) -> float:
     """The speed below which the angle estimator is not locked (and not used), r/min."""
     est = profile.control.estimator
     if est.min_speed_rpm is not None:
@@ -109,7 +109,7 @@ def estimator_min_speed_rpm(profile) -> float:
     return MRAS_MIN_SPEED_SHARE * profile.motor.speed_max_rpm
 
 
-def sensorless_config(profile) -> dict:
+def sensorless_config(profile: Profile) -> dict:
     """config_ctrl fields of the current controller's options and the angle estimator."""
     c, tel = profile.control, profile.telemetry
     est = c.estimator
@@ -139,7 +139,7 @@ def identification_config(profile: Profile) -> dict:
     )
 
 
-def calibration_config(motor) -> dict | None:
+def calibration_config(motor: Motor) -> dict | None:
     """config_calib fields from a commissioned motor file's current-sensor calibration, or None
     when the file has none (the message is then not sent: the firmware uses raw samples)."""
     cal = getattr(motor, "current_sensors", None)

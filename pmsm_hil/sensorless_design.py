@@ -4,7 +4,12 @@ inverse incremental inductances from the motor's flux map (one gamma_node frame 
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from pmsm_hil.profiles.magnetics import gamma_table, polarity_signature
+
+if TYPE_CHECKING:
+    from pmsm_hil.profiles.motor import Motor
 
 # Supervision (docs/sensorless.md): a difference of more than LOCK_DISAGREE_RAD between the PLL and
 # the MRAS for LOCK_DISAGREE_S, or the PLL's confidence (cos 2 d) below LOCK_CONF_MIN for
@@ -20,11 +25,11 @@ ASYM_MIN_FLOOR = 0.02
 RIPPLE_A = 4.0  # the MPCC's current ripple beyond the references that the table must cover
 
 
-def polarity_pulse_a(motor) -> float:
+def polarity_pulse_a(motor: Motor) -> float:
     return motor.polarity_pulse_a or 0.5 * motor.i_max_a
 
 
-def estimator_frames(motor) -> tuple[dict, list[dict]]:
+def estimator_frames(motor: Motor) -> tuple[dict, list[dict]]:
     """(config_sensorless fields, gamma_node frames) for `motor`."""
     fm = motor.load_flux_map()
     i_pulse = polarity_pulse_a(motor)

@@ -12,10 +12,14 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from pmsm_hil.bench.identify import BenchError, _run_profile
+
+if TYPE_CHECKING:
+    from pmsm_hil.profiles import Profile
 
 DEFAULT_SEEDS = (11, 12, 13)  # tuning used seed 1; figures are reported on these
 DEFAULT_RIGS = ("default", "lab-typical")
@@ -107,7 +111,7 @@ class RunData:
     theta_err_truth: np.ndarray = field(default_factory=lambda: np.zeros(0))  # vs the plant
 
 
-def read_run(log_path: Path, profile) -> RunData:
+def read_run(log_path: Path, profile: Profile) -> RunData:
     from pmsm_hil.log.reader import read_log
 
     log = read_log(log_path)
@@ -242,6 +246,6 @@ def scenario_figures(sc: Scenario, run: RunData) -> dict:
     out = {"lock_kept": run.lock_kept, "faults": run.faults}
     for w in sc.steady:
         out[w.label] = steady_figures(run, w)
-    for w in sc.transients:
-        out[w.label] = transient_figures(run, w)
+    for tw in sc.transients:
+        out[tw.label] = transient_figures(run, tw)
     return out

@@ -5,6 +5,7 @@ text) and the PNG plots of angle error and speed."""
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -64,12 +65,12 @@ def scenario_table(sc: Scenario, per_seed: list[dict]) -> list[str]:
         "| transient | " + " | ".join(c[1] for c in TRANSIENT_COLS) + " |",
         "|---|" + "---|" * len(TRANSIENT_COLS),
     ]
-    for w in sc.transients:
+    for tw in sc.transients:
         cells = [
-            _cell([f[w.label].get(k) for f in per_seed], fmt, how)
+            _cell([f[tw.label].get(k) for f in per_seed], fmt, how)
             for k, _, fmt, how in TRANSIENT_COLS
         ]
-        lines.append(f"| {w.label} | " + " | ".join(cells) + " |")
+        lines.append(f"| {tw.label} | " + " | ".join(cells) + " |")
     kept = sum(1 for f in per_seed if f["lock_kept"])
     lines.append("")
     lines.append(f"lock kept in {kept} of {len(per_seed)} runs")
@@ -142,7 +143,11 @@ def plot_run(run: RunData, title: str, png: Path) -> Path:
 
 
 def sensorless(
-    out: Path, seeds=DEFAULT_SEEDS, rigs=DEFAULT_RIGS, only: str | None = None, echo=print
+    out: Path,
+    seeds: Sequence[int] = DEFAULT_SEEDS,
+    rigs: Sequence[str] = DEFAULT_RIGS,
+    only: str | None = None,
+    echo: Callable[[str], None] = print,
 ) -> dict:
     """Run every scenario (or those whose profile or name contains `only`) on each rig and seed;
     write out/sensorless.md and the plots; return {(scenario, rig): [figures per seed]}."""

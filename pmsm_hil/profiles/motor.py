@@ -4,12 +4,15 @@ from __future__ import annotations
 
 import math
 import os
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from pydantic import Field, ValidationError
 
 from ._base import FileModel, StrictModel, default_file, meta_value, num
 from ._source import Problem, ProfileError, Source, fmt_num, read_source, validation_problems
+
+if TYPE_CHECKING:
+    from .fluxmap import FluxMap
 
 __all__ = ["CurrentSensors", "Motor", "load_motor", "mtpa_currents", "mtpa_torque_nm"]
 
@@ -148,7 +151,7 @@ class Motor(FileModel):
             return self.flux_map
         return os.path.normpath(os.path.join(os.path.dirname(self.path or "."), self.flux_map))
 
-    def load_flux_map(self):
+    def load_flux_map(self) -> FluxMap | None:
         """The motor's FluxMap (pmsm_hil.profiles.fluxmap), or None."""
         path = self.flux_map_path()
         if path is None:
