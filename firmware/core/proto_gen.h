@@ -10,7 +10,7 @@
 #include <stdbool.h>
 
 #define PROTO_VERSION 2u
-#define PROTO_SCHEMA_HASH 0xA20B0D51UL  /* CRC-32 of the canonical yaml */
+#define PROTO_SCHEMA_HASH 0x19E2C99BUL  /* CRC-32 of the canonical yaml */
 #define PROTO_MAX_PAYLOAD 111u  /* octets */
 #define PROTO_MSG_COUNT 19u
 

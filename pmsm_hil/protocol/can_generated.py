@@ -11,6 +11,8 @@ FUNC_TRANSFER_H2D = 0x0C
 FUNC_TRANSFER_D2H = 0x7E
 TRANSFER_DATA = 7
 TRANSFER_HEADER = 6
+CRC_OCTETS = 2
+NO_CRC = 0xFF
 MAX_FRAMES = 6
 
 
@@ -20,28 +22,29 @@ class CanLayout(NamedTuple):
     func: int                        # base function code (transfer: the direction's code)
     transfer: bool
     frame_octets: tuple[int, ...]    # octets per frame (frame 0 incl. seq; transfer: header, data)
+    crc_frame: int                   # direct, 2+ frames: the frame ending in crc_hi, crc_lo
 
 
 LAYOUTS = {
-    0x01: CanLayout(0x01, 'hello', 0x08, False, (3,)),
-    0x02: CanLayout(0x02, 'config_motor', 0x0C, True, (6, 8, 8, 8, 8, 8, 8, 5)),
-    0x03: CanLayout(0x03, 'config_ctrl', 0x0C, True, (6, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8)),
-    0x04: CanLayout(0x04, 'profile_clear', 0x10, False, (3,)),
-    0x05: CanLayout(0x05, 'profile_segment', 0x0C, True, (6, 8, 8, 8, 8, 2)),
-    0x06: CanLayout(0x06, 'start', 0x04, False, (1,)),
-    0x07: CanLayout(0x07, 'stop', 0x02, False, (1,)),
-    0x08: CanLayout(0x08, 'abort', 0x01, False, (1,)),
-    0x09: CanLayout(0x09, 'heartbeat', 0x03, False, (5,)),
-    0x0A: CanLayout(0x0A, 'capture_read', 0x11, False, (3,)),
-    0x20: CanLayout(0x20, 'sim_plant', 0x12, False, (7, 4)),
-    0x80: CanLayout(0x80, 'ack', 0x07, False, (4,)),
-    0x81: CanLayout(0x81, 'identify', 0x09, False, (8, 7)),
-    0x90: CanLayout(0x90, 'telem_fast', 0x14, False, (7, 8, 8, 6)),
-    0x91: CanLayout(0x91, 'params', 0x18, False, (7, 8, 8)),
-    0x92: CanLayout(0x92, 'status', 0x1B, False, (8, 8, 8, 2)),
-    0x93: CanLayout(0x93, 'event', 0x05, False, (7, 4)),
-    0x94: CanLayout(0x94, 'capture_chunk', 0x7E, True, (6, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 7)),
-    0xA0: CanLayout(0xA0, 'sim_truth', 0x1F, False, (5, 8, 8, 8, 8, 8)),
+    0x01: CanLayout(0x01, 'hello', 0x08, False, (3,), 0xFF),
+    0x02: CanLayout(0x02, 'config_motor', 0x0C, True, (6, 8, 8, 8, 8, 8, 8, 5), 0xFF),
+    0x03: CanLayout(0x03, 'config_ctrl', 0x0C, True, (6, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8), 0xFF),
+    0x04: CanLayout(0x04, 'profile_clear', 0x10, False, (3,), 0xFF),
+    0x05: CanLayout(0x05, 'profile_segment', 0x0C, True, (6, 8, 8, 8, 8, 2), 0xFF),
+    0x06: CanLayout(0x06, 'start', 0x04, False, (1,), 0xFF),
+    0x07: CanLayout(0x07, 'stop', 0x02, False, (1,), 0xFF),
+    0x08: CanLayout(0x08, 'abort', 0x01, False, (1,), 0xFF),
+    0x09: CanLayout(0x09, 'heartbeat', 0x03, False, (5,), 0xFF),
+    0x0A: CanLayout(0x0A, 'capture_read', 0x11, False, (3,), 0xFF),
+    0x20: CanLayout(0x20, 'sim_plant', 0x12, False, (7, 6), 0x01),
+    0x80: CanLayout(0x80, 'ack', 0x07, False, (4,), 0xFF),
+    0x81: CanLayout(0x81, 'identify', 0x09, False, (8, 7, 2), 0x02),
+    0x90: CanLayout(0x90, 'telem_fast', 0x14, False, (7, 8, 8, 8), 0x03),
+    0x91: CanLayout(0x91, 'params', 0x18, False, (7, 8, 8, 2), 0x03),
+    0x92: CanLayout(0x92, 'status', 0x1C, False, (8, 8, 8, 4), 0x03),
+    0x93: CanLayout(0x93, 'event', 0x05, False, (7, 6), 0x01),
+    0x94: CanLayout(0x94, 'capture_chunk', 0x7E, True, (6, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 7), 0xFF),
+    0xA0: CanLayout(0xA0, 'sim_truth', 0x20, False, (7, 8, 8, 8, 8, 8), 0x00),
 }
 
 # function code -> (message id, frame index), direct messages only
@@ -58,6 +61,7 @@ BY_FUNC = {
     0x07: (0x80, 0),
     0x09: (0x81, 0),
     0x0A: (0x81, 1),
+    0x0B: (0x81, 2),
     0x14: (0x90, 0),
     0x15: (0x90, 1),
     0x16: (0x90, 2),
@@ -65,16 +69,17 @@ BY_FUNC = {
     0x18: (0x91, 0),
     0x19: (0x91, 1),
     0x1A: (0x91, 2),
-    0x1B: (0x92, 0),
-    0x1C: (0x92, 1),
-    0x1D: (0x92, 2),
-    0x1E: (0x92, 3),
+    0x1B: (0x91, 3),
+    0x1C: (0x92, 0),
+    0x1D: (0x92, 1),
+    0x1E: (0x92, 2),
+    0x1F: (0x92, 3),
     0x05: (0x93, 0),
     0x06: (0x93, 1),
-    0x1F: (0xA0, 0),
-    0x20: (0xA0, 1),
-    0x21: (0xA0, 2),
-    0x22: (0xA0, 3),
-    0x23: (0xA0, 4),
-    0x24: (0xA0, 5),
+    0x20: (0xA0, 0),
+    0x21: (0xA0, 1),
+    0x22: (0xA0, 2),
+    0x23: (0xA0, 3),
+    0x24: (0xA0, 4),
+    0x25: (0xA0, 5),
 }

@@ -6,7 +6,7 @@ import struct
 from typing import NamedTuple
 
 PROTOCOL_VERSION = 2
-SCHEMA_HASH = 0xA20B0D51
+SCHEMA_HASH = 0x19E2C99B
 MAX_PAYLOAD = 111  # octets
 
 # wire type: (struct code, octets, min, max); min/max are None for f32
