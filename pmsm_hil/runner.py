@@ -17,6 +17,10 @@ from pmsm_hil.errors import DeviceError, TransportError
 from pmsm_hil.protocol.session import Session
 from pmsm_hil.recorder import LiveState, Recorder
 
+# The log of a run is flushed to the OS at least this often (wall time): a host killed outright
+# loses at most the messages it received in that time (docs/log-format.md).
+LOG_FLUSH_WALL_S = 0.25
+
 
 @dataclass
 class RunOptions:
@@ -189,6 +193,7 @@ def run_profile(
         _metadata(profile, session, options),
         _attachments(profile),
         wall_start_s=time.time(),
+        flush_wall_s=LOG_FLUSH_WALL_S,
     )
     rec = Recorder(writer, profile.control.ts_s, names, options.sinks)
     rec.live.total_s = profile.total_duration_s
@@ -290,6 +295,7 @@ def _stream(
                 if why:
                     rec.event(live.t_s, "host", 0, 0, why)
                     raise PlantMismatch(why)
+        rec.w.flush_if_due()
         live.octets = session.decoder.octets
         live.bad_frames = _bad_frames(session)
         if live.stopped and live.state in ("done", "idle", "fault"):

@@ -12,8 +12,10 @@
   the CDR payloads by the project's codecs (pmsm_hil.log.schemas: one ``struct.pack`` per
   message, byte-identical to ``mcap_ros2``'s encoder). benchmarks/log_writer.py measures the rate.
 - A chunk is closed and written (then flushed to the OS) when it holds ``chunk_size`` octets or
-  spans ``chunk_span_s`` of device time, so a killed process loses at most that much; the reader
-  recovers such unfinalised files. ``close()`` is idempotent and may be called from ``finally``
+  spans ``chunk_span_s`` of device time, and, with ``flush_wall_s``, once it has been open that long
+  in wall time (checked at each message and by ``flush_if_due()``): a killed process loses at most
+  the open chunk, i.e. the messages of the last ``flush_wall_s`` of wall time (and never more than
+  ``chunk_span_s`` of device time); the reader recovers such unfinalised files. ``close()`` is idempotent and may be called from ``finally``
   or a signal handler; SIGINT/SIGTERM are held back while a chunk is being written.
 """
 
@@ -25,6 +27,7 @@ import os
 import signal
 import struct
 import threading
+import time
 import weakref
 from operator import itemgetter
 from typing import Any, Iterable, Mapping, Sequence
@@ -143,6 +146,7 @@ class LogWriter:
         fsync: bool = False,
         topics: Iterable[TopicDef] = (),
         wall_start_s: float | None = None,
+        flush_wall_s: float | None = None,
     ):
         self.path = os.fspath(path)
         self._off_ns = int(round(wall_start_s * 1e9)) if wall_start_s else 0
@@ -151,6 +155,8 @@ class LogWriter:
         ctype = _compression_type(compression)
         self._chunk_size = int(chunk_size)
         self._span_ns = int(round(chunk_span_s * 1e9))
+        self._flush_wall_s = float(flush_wall_s) if flush_wall_s else 0.0
+        self._wall0 = 0.0  # wall time (monotonic) of the open chunk's first message
         self._fsync = fsync
         self._topics: dict[str, TopicDef] = dict(TOPICS)
         for t in topics:
@@ -170,16 +176,17 @@ class LogWriter:
 
         self._w.start(PROFILE, LIBRARY)
         meta = {str(k): {str(a): str(b) for a, b in v.items()} for k, v in (metadata or {}).items()}
-        meta.setdefault(
-            "log",
-            {
-                "format_version": str(LOG_FORMAT_VERSION),
-                "schema_hash": schema_hash(),
-                "library": LIBRARY,
-                "compression": compression or "none",
-                "log_time_offset_ns": str(self._off_ns),
-            },
-        )
+        log_meta = {
+            "format_version": str(LOG_FORMAT_VERSION),
+            "schema_hash": schema_hash(),
+            "library": LIBRARY,
+            "compression": compression or "none",
+            "log_time_offset_ns": str(self._off_ns),
+        }
+        if self._flush_wall_s:  # the loss bound of a killed writer, for `pmsm-hil log recover`
+            log_meta["chunk_span_s"] = repr(float(chunk_span_s))
+            log_meta["flush_wall_s"] = repr(self._flush_wall_s)
+        meta.setdefault("log", log_meta)
         for name, rec in meta.items():
             self.add_metadata(name, rec)
         for att in attachments:
@@ -288,10 +295,15 @@ class LogWriter:
     def _add(self, ch: _Channel, lt: int, data: bytes) -> None:
         """One message into the open chunk; the chunk is closed before it when it spans
         chunk_span_s, after it when it holds chunk_size octets. Called with the lock held."""
-        if self._n and lt - self._t0 >= self._span_ns:
+        if self._n and (
+            lt - self._t0 >= self._span_ns
+            or (self._flush_wall_s and time.monotonic() - self._wall0 >= self._flush_wall_s)
+        ):
             self._flush_chunk()
         if not self._n:
             self._t0 = lt
+            if self._flush_wall_s:
+                self._wall0 = time.monotonic()
         self._w.add_message(ch.id, lt, data, lt, ch.seq)
         ch.seq = (ch.seq + 1) & 0xFFFFFFFF
         ch.count += 1
@@ -408,6 +420,12 @@ class LogWriter:
         with self._lock:
             if not self._closed:
                 self._flush_chunk()
+
+    def flush_if_due(self) -> None:
+        """Close the open chunk if it has been open ``flush_wall_s`` of wall time (call it when
+        no message comes, so that a quiet link does not keep data unwritten)."""
+        if self._flush_wall_s and self._n and time.monotonic() - self._wall0 >= self._flush_wall_s:
+            self.flush()
 
     def _flush_chunk(self) -> None:
         if not self._n or self._f.closed:
