@@ -11,7 +11,7 @@ from pathlib import Path
 
 from pmsm_hil import __version__
 from pmsm_hil.control_design import device_config
-from pmsm_hil.log.writer import LogWriter
+from pmsm_hil.log.writer import LogWriteError, LogWriter
 from pmsm_hil.protocol import generated as gen
 from pmsm_hil.errors import DeviceError, TransportError
 from pmsm_hil.protocol.session import Session
@@ -212,6 +212,8 @@ def run_profile(
             except PlantMismatch:
                 _send_quietly(session, "abort")
                 raise
+            except LogWriteError as e:  # a full disk: stop the motor under control, then report
+                error = _stop_after_log_failure(session, rec, observer, sig, e)
             except (TransportError, DeviceError) as e:
                 error = str(e)
                 rec.event(rec.live.t_s, "host", 0, 0, f"link error: {error}")
@@ -225,9 +227,9 @@ def run_profile(
             n_cap = 0
             if options.capture and not error and not sig.count > 1:
                 n_cap = _upload_capture(session, rec, observer)
-            _write_link_stats(writer, session, rec)
+            _write_link_stats(rec.w, session, rec)
     finally:
-        writer.close()
+        writer.close()  # raises LogWriteError when the end of the log cannot be written
     live = rec.live
     return RunResult(
         log_path=log_path,
@@ -239,6 +241,30 @@ def run_profile(
         capture_samples=n_cap if not error else 0,
         live=live,
     )
+
+
+class _NoLog:
+    """Stands in for a writer that failed: the live state goes on, nothing is written."""
+
+    def write(self, *_a, **_k) -> None:
+        pass
+
+    write_many = write
+    flush_if_due = write
+
+
+def _stop_after_log_failure(session, rec, observer, sig, err: LogWriteError) -> str:
+    """The log cannot be written: a controlled stop (abort after 5 s without it), as for Ctrl-C;
+    returns the error for the exit message, with how the motor stopped and what the log holds."""
+    rec.w = _NoLog()
+    _stop_device(session, rec, observer, sig, reason=err.strerror)
+    live = rec.live
+    how = (
+        f"the motor was stopped (device {live.state}, {live.stop_reason or 'stop'})"
+        if live.stopped
+        else "stop and abort were sent to the device"
+    )
+    return f"{err.strerror}; {how}; recover the log with `pmsm-hil log recover {err.path}`"
 
 
 def _send_quietly(session: Session, what: str) -> None:
@@ -349,13 +375,16 @@ def _bad_frames(session: Session) -> int:
     return d.crc_errors + d.cobs_errors + d.len_errors + d.unknown_id
 
 
-def _stop_device(session: Session, rec: Recorder, observer, sig) -> None:
-    """A signal: ask for a controlled stop, keep logging until the device reports it; a second
-    signal, or 5 s without the stop, sends abort."""
+def _stop_device(session: Session, rec: Recorder, observer, sig, reason: str = "") -> None:
+    """A signal (or `reason`: a host failure): ask for a controlled stop, keep logging until the
+    device reports it; a second signal, or 5 s without the stop, sends abort."""
     live = rec.live
     why = sig.signal_name or "SIGINT"
-    rec.event(live.t_s, "host", 0, 0, f"interrupted by {why}: stop sent")
-    observer.message("interrupted: stopping the motor (Ctrl-C again to abort)")
+    if reason:
+        observer.message(f"{reason}: stopping the motor (Ctrl-C to abort)")
+    else:
+        rec.event(live.t_s, "host", 0, 0, f"interrupted by {why}: stop sent")
+        observer.message("interrupted: stopping the motor (Ctrl-C again to abort)")
     first = sig.count
     try:
         session.send("stop")

@@ -48,7 +48,23 @@ from pmsm_hil.log.schemas import (
     schema_hash,
 )
 
-__all__ = ["LogWriter", "MCAP_MAGIC", "available_compressions"]
+__all__ = ["LogWriter", "LogWriteError", "MCAP_MAGIC", "available_compressions"]
+
+
+class LogWriteError(OSError):
+    """The log file cannot be written (a full disk, a file size limit, an I/O error). The file
+    keeps every chunk written before (``disk_t_s``: device time of the last message on disk);
+    the writer writes nothing more and ``close()`` only releases the file."""
+
+    def __init__(self, path: str, err: OSError, octets: int, disk_t_s: float | None):
+        self.path, self.octets, self.disk_t_s = path, octets, disk_t_s
+        upto = f"up to t = {disk_t_s:.3f} s" if disk_t_s is not None else "no messages"
+        super().__init__(
+            err.errno,
+            f"cannot write the log {path}: {err.strerror or err} after {octets} octets; "
+            f"the file holds the messages {upto}",
+        )
+
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 PROFILE = "ros2"
@@ -164,6 +180,9 @@ class LogWriter:
         self._lock = threading.RLock()
         self._closed = False
         self._closing = False
+        self._failed: LogWriteError | None = None
+        self._last_lt = 0  # log time of the last message added
+        self._disk_lt: int | None = None  # ... of the last message in a chunk on disk
         self._f = open(self.path, "wb")
         self._w = Writer(self._f, chunk_size=_NEVER, compression=ctype, enable_data_crcs=True)
         self._schemas: dict[str, int] = {}
@@ -246,8 +265,26 @@ class LogWriter:
         return ch
 
     def _check_open(self) -> None:
+        if self._failed is not None:
+            raise self._failed
         if self._closed or self._closing:
             raise ValueError(f"{self.path}: the log writer is closed")
+
+    def _fail(self, err: OSError) -> LogWriteError:
+        """An I/O error: the writer stops writing for good (see LogWriteError)."""
+        if self._failed is None:
+            try:
+                octets = os.fstat(self._f.fileno()).st_size
+            except (OSError, ValueError):
+                octets = 0
+            t = None if self._disk_lt is None else (self._disk_lt - self._off_ns) / 1e9
+            self._failed = LogWriteError(self.path, err, octets, t)
+        return self._failed
+
+    @property
+    def failed(self) -> LogWriteError | None:
+        """The write error that stopped this writer, or None."""
+        return self._failed
 
     # ------------------------------------------------------------------ messages
     def write(self, topic: str, t_s: float, fields: Mapping[str, Any]) -> None:
@@ -258,7 +295,7 @@ class LogWriter:
             with self._lock:
                 ch = self._channels.get(topic) or self._open_channel(topic)
         if self._closed:
-            raise ValueError(f"{self.path}: the log writer is closed")
+            self._check_open()  # LogWriteError after a write error, else ValueError
         try:
             lt = round(t_s * 1e9)
             if lt < 0:
@@ -305,6 +342,7 @@ class LogWriter:
             if self._flush_wall_s:
                 self._wall0 = time.monotonic()
         self._w.add_message(ch.id, lt, data, lt, ch.seq)
+        self._last_lt = lt
         ch.seq = (ch.seq + 1) & 0xFFFFFFFF
         ch.count += 1
         self._n += 1
@@ -431,10 +469,14 @@ class LogWriter:
         if not self._n or self._f.closed:
             return
         with _signals_held():
-            self._w.flush()  # the chunk, its message indexes; flushed to the OS
-            if self._fsync:
-                os.fsync(self._f.fileno())
+            try:
+                self._w.flush()  # the chunk, its message indexes; flushed to the OS
+                if self._fsync:
+                    os.fsync(self._f.fileno())
+            except OSError as e:
+                raise self._fail(e) from e
             self._msg_count += self._n
+            self._disk_lt = self._last_lt
             self._size = 0
             self._n = 0
 
@@ -447,16 +489,21 @@ class LogWriter:
         self._closing = True
         try:
             with self._lock, _signals_held():
-                if not self._f.closed:
+                if not self._f.closed and self._failed is None:
                     self._flush_chunk()
-                    self._w.finish()
-                    self._f.flush()
-                    if self._fsync:
-                        os.fsync(self._f.fileno())
+                    try:
+                        self._w.finish()
+                        self._f.flush()
+                        if self._fsync:
+                            os.fsync(self._f.fileno())
+                    except OSError as e:
+                        raise self._fail(e) from e
         finally:
             self._closed = True
             try:
                 self._f.close()
+            except OSError:  # the buffer could not go out: the write error was already raised
+                pass
             finally:
                 atexit.unregister(self._atexit)
 

@@ -1,0 +1,114 @@
+"""Resource faults during a run, end to end: the log's disk fills up (a file size limit on the host
+process: its writes fail as on a full disk) and the link is noisy. Each stops the motor safely
+(seen from the emulator's own state), leaves a readable log and ends with a clear message."""
+
+from __future__ import annotations
+
+import resource
+import subprocess
+import sys
+import threading
+import time
+
+import pytest
+
+from pmsm_hil.emulator.fwlib import EmulatedDevice
+from pmsm_hil.emulator.server import PtyServer
+from pmsm_hil.emulator.settings import emulator_settings
+from pmsm_hil.log.reader import read_log
+from pmsm_hil.profiles import load_profile
+from pmsm_hil.protocol import generated as gen
+
+STATE = gen.ENUMS["state"]
+LIMIT_OCTETS = 400_000  # about 3 s of long.yaml's log
+
+
+def _limit_file_size() -> None:
+    resource.setrlimit(resource.RLIMIT_FSIZE, (LIMIT_OCTETS, LIMIT_OCTETS))
+
+
+def test_a_full_disk_mid_run_stops_the_motor_and_leaves_a_readable_log(data, tmp_path):
+    profile = load_profile(str(data / "long.yaml"))  # 600 s: only the fault ends it
+    settings = emulator_settings(
+        profile.motor, profile.rig, seed=1, baud=profile.link.baud, ts_s=profile.control.ts_s
+    )
+    dev = EmulatedDevice(settings)
+    server = PtyServer(dev)
+    thread = threading.Thread(target=server.serve, daemon=True)
+    thread.start()
+    out = tmp_path / "full.mcap"
+    try:
+        r = subprocess.run(
+            [sys.executable, "-m", "pmsm_hil.cli.main", "run", str(data / "long.yaml")]
+            + ["--port", server.path, "--out", str(out), "--no-live"],
+            preexec_fn=_limit_file_size,
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
+        t_exit = time.monotonic()
+        assert r.returncode == 3, r.stderr
+        assert "Traceback" not in r.stderr
+        assert f"cannot write the log {out}: File too large" in r.stderr
+        assert "the motor was stopped (device idle, host stop)" in r.stderr
+        assert "pmsm-hil log recover" in r.stderr
+        # the emulator's own view: the motor came to rest under the host's stop command
+        while dev.active and time.monotonic() - t_exit < 10:
+            time.sleep(0.01)
+        assert dev.state == STATE["idle"]
+    finally:
+        server.stop()
+        thread.join(timeout=5)
+        server.close()
+    assert out.stat().st_size <= LIMIT_OCTETS
+    log = read_log(out)  # everything up to the last chunk that fit
+    assert not log.finalised
+    tel = log.topic("/pmsm/telemetry")
+    assert len(tel["t_s"]) > 1000 and tel["t_s"][-1] > 1.0
+    fixed = tmp_path / "fixed.mcap"
+    rec = subprocess.run(
+        [sys.executable, "-m", "pmsm_hil.cli.main", "log", "recover", str(out), "-o", str(fixed)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert rec.returncode == 0 and read_log(fixed).finalised, rec.stderr
+
+
+@pytest.mark.parametrize("when", ["start", "close"])
+def test_a_write_error_is_a_log_write_error_and_the_file_stays_readable(tmp_path, when):
+    """The writer itself: an I/O error while a chunk (or the summary) goes out raises
+    LogWriteError, saying what the file holds; nothing more is written, close() is quiet."""
+    import errno
+
+    from pmsm_hil.log.writer import LogWriteError, LogWriter
+
+    path = tmp_path / "enospc.mcap"
+    w = LogWriter(path, chunk_span_s=0.1)
+    for k in range(10):  # chunks of 0.1 s: 4 on disk, the 5th (0.40, 0.45) open
+        w.write("/pmsm/events", 0.05 * k, {"kind": "host", "text": f"{k}"})
+
+    class Full:  # the stream under the mcap writer: the disk is full from here on
+        def __init__(self, f):
+            self.f = f
+
+        def write(self, data):
+            raise OSError(errno.ENOSPC, "No space left on device")
+
+        def __getattr__(self, name):
+            return getattr(self.f, name)
+
+    w._w._Writer__stream = Full(w._f)  # noqa: SLF001 (the mcap library's stream)
+    with pytest.raises(LogWriteError) as e:
+        if when == "start":
+            w.write("/pmsm/events", 1.0, {"kind": "host", "text": "x"})
+        else:
+            w.close()
+    assert e.value.errno == errno.ENOSPC
+    assert "No space left on device" in e.value.strerror
+    assert e.value.disk_t_s == pytest.approx(0.35)  # the chunks before: 0 .. 0.35 s
+    assert "up to t = 0.350 s" in e.value.strerror
+    with pytest.raises(LogWriteError):
+        w.write("/pmsm/events", 2.0, {"kind": "host", "text": "y"})
+    w.close()  # quiet now
+    assert read_log(path).counts["/pmsm/events"] == 8
