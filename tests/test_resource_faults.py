@@ -112,3 +112,87 @@ def test_a_write_error_is_a_log_write_error_and_the_file_stays_readable(tmp_path
         w.write("/pmsm/events", 2.0, {"kind": "host", "text": "y"})
     w.close()  # quiet now
     assert read_log(path).counts["/pmsm/events"] == 8
+
+
+def _noisy_run(data, tmp_path, flip_ppm, drop_ppm, seed, after_s=0.0):
+    """short.yaml in process, noise both ways (from device time after_s on); returns (result or
+    error, device, accepted-not-sent, host decoder, log path)."""
+    from pmsm_hil.emulator.link_noise import LinkNoise
+    from pmsm_hil.protocol import codec
+    from pmsm_hil.protocol.link import SerialLink
+    from pmsm_hil.protocol.session import Session
+    from pmsm_hil.runner import RunOptions, run_profile
+    from pmsm_hil.transport.inproc import InProcessTransport
+
+    profile = load_profile(str(data / "short.yaml"))
+    settings = emulator_settings(
+        profile.motor, profile.rig, seed=1, baud=profile.link.baud, ts_s=profile.control.ts_s
+    )
+    dev = EmulatedDevice(settings)
+    clean, sent = codec.FrameDecoder(), set()
+    noisy = lambda: dev.isr_count * profile.control.ts_s >= after_s  # noqa: E731
+
+    def d2h(b, noise=LinkNoise(flip_ppm, drop_ppm, seed)):
+        sent.update((f.msg_id, f.seq, repr(f.fields)) for f in clean.feed(b))
+        return noise(b) if noisy() else b
+
+    def h2d(b, noise=LinkNoise(flip_ppm, drop_ppm, seed + 1)):
+        return noise(b) if noisy() else b
+
+    link = SerialLink(InProcessTransport(settings, device=dev, noise_d2h=d2h, noise_h2d=h2d))
+    accepted = []
+    feed = link.decoder.feed
+
+    def host_feed(b):
+        frames = feed(b)
+        accepted.extend(frames)
+        return frames
+
+    link.decoder.feed = host_feed
+    out = tmp_path / f"noise-{flip_ppm}-{drop_ppm}-{seed}.mcap"
+    try:
+        result = run_profile(profile, Session(link), out, RunOptions(seed=1))
+    except Exception as e:  # noqa: BLE001 (a refused configuration is an outcome here)
+        result = e
+    limit = int((profile.control.heartbeat_timeout_s + 1.0) / profile.control.ts_s)
+    ran = 0
+    while dev.active and ran < limit:  # the host is gone: the device runs on alone
+        dev.run(400)
+        ran += 400
+    bad = [f for f in accepted if (f.msg_id, f.seq, repr(f.fields)) not in sent]
+    return result, dev, bad, link.decoder, out
+
+
+@pytest.mark.parametrize(
+    "flip_ppm, drop_ppm, seed", [(1000, 0, 21), (0, 1000, 22), (20000, 5000, 23), (50000, 0, 24)]
+)
+def test_a_noisy_serial_link_lets_nothing_corrupt_through_and_ends_safely(
+    data, tmp_path, flip_ppm, drop_ppm, seed
+):
+    result, dev, bad, dec, out = _noisy_run(data, tmp_path, flip_ppm, drop_ppm, seed)
+    assert bad == []  # no message accepted that the device had not sent
+    assert not dev.active  # the motor at rest, whatever ended the run
+    if isinstance(result, Exception):  # refused before the start: the motor never ran
+        assert "did not acknowledge" in str(result) and dev.state == STATE["idle"]
+        return
+    assert read_log(out).finalised
+    if flip_ppm + drop_ppm <= 1000:  # a mildly noisy line: the run completes, losses counted
+        assert (result.state, result.stop_reason) == ("done", "profile end")
+        assert dec.crc_errors + dec.cobs_errors + dec.len_errors > 0 and dec.seq_gaps > 0
+    else:
+        assert result.state in ("done", "idle", "fault") and result.stop_reason
+
+
+@pytest.mark.parametrize("flip_ppm, drop_ppm, seed", [(50000, 0, 31), (20000, 20000, 32)])
+def test_heavy_noise_in_the_middle_of_a_run_stops_the_motor_safely(
+    data, tmp_path, flip_ppm, drop_ppm, seed
+):
+    """The line turns bad 1 s into the run: whatever ends it (the device's heartbeat timeout, the
+    host's silence check), the motor comes to rest, nothing corrupt is accepted, the log is whole."""
+    result, dev, bad, dec, out = _noisy_run(data, tmp_path, flip_ppm, drop_ppm, seed, after_s=1.0)
+    assert bad == [] and not dev.active
+    assert not isinstance(result, Exception), result
+    assert result.stop_reason or result.error
+    assert dec.crc_errors + dec.cobs_errors + dec.len_errors > 50
+    log = read_log(out)
+    assert log.finalised and log.topic("/pmsm/telemetry")["t_s"][-1] > 1.0
