@@ -196,3 +196,62 @@ def test_heavy_noise_in_the_middle_of_a_run_stops_the_motor_safely(
     assert dec.crc_errors + dec.cobs_errors + dec.len_errors > 50
     log = read_log(out)
     assert log.finalised and log.topic("/pmsm/telemetry")["t_s"][-1] > 1.0
+
+
+def test_burst_frame_loss_on_can_mid_run_lets_nothing_corrupt_through(data, tmp_path):
+    """CAN at 20 % of the frames lost in bursts of 1..8, both ways, from 1 s into the run: every
+    message the host accepts is one the device sent, the motor comes to rest, the log is whole."""
+    import random
+
+    from pmsm_hil.device import apply_can_rates, inprocess_can_link
+    from pmsm_hil.protocol.can_link import CanDecoder
+    from pmsm_hil.protocol.session import Session
+    from pmsm_hil.runner import RunOptions, run_profile
+
+    profile = load_profile(str(data / "short.yaml"))
+    apply_can_rates(profile)
+    settings = emulator_settings(
+        profile.motor, profile.rig, seed=1, baud=profile.link.baud, ts_s=profile.control.ts_s
+    )
+    dev = EmulatedDevice(settings)
+    noisy = lambda: dev.isr_count * profile.control.ts_s >= 1.0  # noqa: E731
+
+    def bursts(seed):
+        rng, left = random.Random(seed), [0]
+
+        def hook(frames):
+            out = []
+            for f in frames:
+                if noisy() and not left[0] and rng.random() < 0.2 / (4.5 * 0.8):
+                    left[0] = rng.randint(1, 8)
+                if left[0]:
+                    left[0] -= 1
+                    continue
+                out.append(f)
+            return out
+
+        return hook
+
+    clean, sent, lose_d2h = CanDecoder(), set(), bursts(41)
+
+    def d2h(frames):
+        sent.update((f.msg_id, f.seq, repr(f.fields)) for f in clean.feed(frames))
+        return lose_d2h(frames)
+
+    link = inprocess_can_link(settings, device=dev, fault_d2h=d2h, fault_h2d=bursts(42))
+    accepted, feed = [], link.decoder.feed
+
+    def host_feed(frames):
+        got = feed(frames)
+        accepted.extend(got)
+        return got
+
+    link.decoder.feed = host_feed
+    out = tmp_path / "can-bursts.mcap"
+    result = run_profile(profile, Session(link), out, RunOptions(seed=1))
+    for _ in range(40):  # the host is gone: the device runs on alone
+        dev.run(400)
+    assert [f for f in accepted if (f.msg_id, f.seq, repr(f.fields)) not in sent] == []
+    assert link.decoder.crc_errors + link.decoder.order_errors > 20  # losses seen and counted
+    assert not dev.active and (result.stop_reason or result.error)
+    assert read_log(out).finalised
