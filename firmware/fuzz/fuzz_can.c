@@ -1,8 +1,9 @@
 /* libFuzzer target: CAN reassembly of the firmware (core/can_link.c), two ways.
  *
  * Raw (first octet even): the rest is a sequence of frames [id_hi, id_lo, dlc, data...] fed to
- * can_link_rx. Every message it accepts must be a host-to-device message of the protocol's length,
- * its end-to-end CRC (a transfer's header CRC, a multi-frame direct message's CRC frame) must match
+ * can_link_rx. Every message it accepts must have the protocol's length for its id (an unknown or
+ * device-to-host id can come only by transfer, for the dispatcher to refuse, as on serial), its
+ * end-to-end CRC (a transfer's header CRC, a multi-frame direct message's CRC frame) must match
  * msg_id, seq and payload, and the counters must add up.
  *
  * Lossy (first octet odd): messages of the h2d kinds are built from the input, queued as frames by
@@ -10,6 +11,7 @@
  * can_link_rx. An accepted message that was not sent is a splice that passed every check; it is
  * counted (a CRC-16 lets one in 65536 such splices through, so it is a figure, not a crash) and
  * reported at exit with the number of splices the CRC stopped. */
+#include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -42,15 +44,19 @@ static void check_accepted(const can_link_t *c)
     proto_can_layout_t l;
     uint16_t in[PROTO_MAX_PAYLOAD + 2u], i;
     int16_t want = proto_payload_len(c->msg_id);
-    check(proto_can_layout(c->msg_id, &l) != 0 && l.h2d != 0u);
-    check(want >= 0 && (uint16_t)want == c->payload_len && c->payload_len <= PROTO_MAX_PAYLOAD);
+    bool known = proto_can_layout(c->msg_id, &l);
+    check(c->payload_len <= PROTO_MAX_PAYLOAD && c->msg_id <= 0xFFu && c->seq <= 0xFFu);
+    /* a known id has its length; an id the protocol does not know, or a device-to-host id, can
+     * only come by transfer (as on serial, the dispatcher refuses it: ack "unknown") */
+    check(want < 0 || (uint16_t)want == c->payload_len);
+    check((known && l.h2d != 0u && l.transfer == 0u) || c->x_len == c->payload_len);
     in[0] = c->msg_id;
     in[1] = c->seq;
     for (i = 0u; i < c->payload_len; i++) {
         check(c->payload[i] <= 0xFFu);
         in[2u + i] = c->payload[i];
     }
-    if (l.transfer != 0u) {
+    if (!known || l.transfer != 0u || l.h2d == 0u) {
         check(frame_crc16(in, (uint16_t)(c->payload_len + 2u)) == c->x_crc);
     } else if (l.crc_frame != PROTO_CAN_NO_CRC) {
         check(frame_crc16(in, (uint16_t)(c->payload_len + 2u)) == c->rx_crc);
