@@ -141,7 +141,7 @@ def run_case(kind: str, level: float, seed: int, rig, tmp: Path, after_s: float 
         ran += 400
     dec = link.decoder
     res.update(
-        completed=res["state"] == "done" and res["stop"] == "profile end",
+        completed=res["stop"] == "profile end" and not res["error"],
         at_rest=not dev.active,
         end_state=STATE.get(dev.state, str(dev.state)),
         rejected=dec.crc_errors
