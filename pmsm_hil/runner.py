@@ -13,11 +13,15 @@ from pathlib import Path
 from pmsm_hil import __version__
 from pmsm_hil.control_design import calibration_config, device_config
 from pmsm_hil.errors import DeviceError, TransportError
-from pmsm_hil.log.writer import LogWriter
+from pmsm_hil.log.writer import LogWriteError, LogWriter
 from pmsm_hil.protocol import generated as gen
 from pmsm_hil.protocol.session import Session
 from pmsm_hil.recorder import LiveState, Recorder
 from pmsm_hil.sensorless_design import estimator_frames
+
+# The log of a run is flushed to the OS at least this often (wall time): a host killed outright
+# loses at most the messages it received in that time (docs/log-format.md).
+LOG_FLUSH_WALL_S = 0.25
 
 
 @dataclass
@@ -205,6 +209,7 @@ def run_profile(
         _metadata(profile, session, options),
         _attachments(profile),
         wall_start_s=time.time(),
+        flush_wall_s=LOG_FLUSH_WALL_S,
     )
     rec = Recorder(writer, profile.control.ts_s, names, options.sinks)
     rec.live.total_s = profile.total_duration_s
@@ -223,6 +228,8 @@ def run_profile(
             except PlantMismatch:
                 _send_quietly(session, "abort")
                 raise
+            except LogWriteError as e:  # a full disk: stop the motor under control, then report
+                error = _stop_after_log_failure(session, rec, observer, sig, e)
             except (TransportError, DeviceError) as e:
                 error = str(e)
                 rec.event(rec.live.t_s, "host", 0, 0, f"link error: {error}")
@@ -236,9 +243,9 @@ def run_profile(
             n_cap = 0
             if options.capture and not error and not sig.count > 1:
                 n_cap = _upload_capture(session, rec, observer)
-            _write_link_stats(writer, session, rec)
+            _write_link_stats(rec.w, session, rec)
     finally:
-        writer.close()
+        writer.close()  # raises LogWriteError when the end of the log cannot be written
     live = rec.live
     return RunResult(
         log_path=log_path,
@@ -250,6 +257,30 @@ def run_profile(
         capture_samples=n_cap if not error else 0,
         live=live,
     )
+
+
+class _NoLog:
+    """Stands in for a writer that failed: the live state goes on, nothing is written."""
+
+    def write(self, *_a, **_k) -> None:
+        pass
+
+    write_many = write
+    flush_if_due = write
+
+
+def _stop_after_log_failure(session, rec, observer, sig, err: LogWriteError) -> str:
+    """The log cannot be written: a controlled stop (abort after 5 s without it), as for Ctrl-C;
+    returns the error for the exit message, with how the motor stopped and what the log holds."""
+    rec.w = _NoLog()
+    _stop_device(session, rec, observer, sig, reason=err.strerror)
+    live = rec.live
+    how = (
+        f"the motor was stopped (device {live.state}, {live.stop_reason or 'stop'})"
+        if live.stopped
+        else "stop and abort were sent to the device"
+    )
+    return f"{err.strerror}; {how}; recover the log with `pmsm-hil log recover {err.path}`"
 
 
 def _send_quietly(session: Session, what: str) -> None:
@@ -304,6 +335,7 @@ def _stream(
                 if why:
                     rec.event(live.t_s, "host", 0, 0, why)
                     raise PlantMismatch(why)
+        rec.w.flush_if_due()
         live.octets = session.decoder.octets
         live.bad_frames = _bad_frames(session)
         if live.stopped and live.state in ("done", "idle", "fault"):
@@ -356,13 +388,16 @@ def _bad_frames(session: Session) -> int:
     return d.crc_errors + d.cobs_errors + d.len_errors + d.unknown_id
 
 
-def _stop_device(session: Session, rec: Recorder, observer, sig) -> None:
-    """A signal: ask for a controlled stop, keep logging until the device reports it; a second
-    signal, or 5 s without the stop, sends abort."""
+def _stop_device(session: Session, rec: Recorder, observer, sig, reason: str = "") -> None:
+    """A signal (or `reason`: a host failure): ask for a controlled stop, keep logging until the
+    device reports it; a second signal, or 5 s without the stop, sends abort."""
     live = rec.live
     why = sig.signal_name or "SIGINT"
-    rec.event(live.t_s, "host", 0, 0, f"interrupted by {why}: stop sent")
-    observer.message("interrupted: stopping the motor (Ctrl-C again to abort)")
+    if reason:
+        observer.message(f"{reason}: stopping the motor (Ctrl-C to abort)")
+    else:
+        rec.event(live.t_s, "host", 0, 0, f"interrupted by {why}: stop sent")
+        observer.message("interrupted: stopping the motor (Ctrl-C again to abort)")
     first = sig.count
     try:
         session.send("stop")

@@ -101,3 +101,22 @@ def test_the_include_check_catches_a_stray_include(tmp_path):
         '#include "a.h"\n#include "../sim/plant.h"\n#include "b.h"\n#include <windows.h>\n'
     )
     assert stray_includes(core) == [("a.c", "../sim/plant.h"), ("a.c", "b.h"), ("a.c", "windows.h")]
+
+
+def test_fuzz_targets_run_clean_for_a_few_seconds(root, tmp_path):
+    """firmware/fuzz/ (libFuzzer + ASan + UBSan): the frame parser and the CAN reassembly, from the
+    committed seed corpus, a few seconds each; no crash, no sanitizer report, no invariant broken.
+    libFuzzer comes with clang only: without clang this is skipped (the long run: `make -C
+    firmware fuzz FUZZ_SECONDS=...`, docs/faults.md)."""
+    if shutil.which("clang") is None:
+        pytest.skip("clang (libFuzzer) is not installed")
+    r = subprocess.run(
+        ["make", "-C", str(root / "firmware"), "fuzz", "FUZZ_SECONDS=3", f"BUILD={tmp_path}"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert r.returncode == 0, r.stdout[-5000:] + r.stderr[-3000:]
+    runs = [int(n) for n in re.findall(r"stat::number_of_executed_units: (\d+)", r.stdout)]
+    assert len(runs) == 2 and min(runs) > 100, r.stdout
+    assert "fuzz_can: accepted" in r.stdout and "not-sent accepted" in r.stdout

@@ -20,6 +20,7 @@ from pmsm_hil.emulator.server import PtyServer
 from pmsm_hil.emulator.settings import emulator_settings
 from pmsm_hil.profiles import load_profile
 from pmsm_hil.protocol import generated as gen
+from pmsm_hil.runner import LOG_FLUSH_WALL_S
 
 STATE = gen.ENUMS["state"]
 
@@ -103,13 +104,15 @@ def test_a_killed_hosts_log_is_recovered_for_any_mcap_reader(data, tmp_path):
         start_new_session=True,
     )
     deadline = time.monotonic() + 60
+    t_line = 0.0
     while time.monotonic() < deadline:
         line = host.stdout.readline()
         m = re.match(r"t=\s*([0-9.]+)/", line)
         if m and float(m.group(1)) >= 2.5:
+            t_line = float(m.group(1))  # the host had received (and logged) up to here
             break
     children = emulator_children(host.pid)
-    assert children
+    assert children and t_line
     os.killpg(host.pid, signal.SIGKILL)
     host.wait(timeout=10)
     deadline = time.monotonic() + 20  # its emulator stops the motor, then ends
@@ -128,11 +131,21 @@ def test_a_killed_hosts_log_is_recovered_for_any_mcap_reader(data, tmp_path):
     )
     assert r.returncode == 0, r.stderr
     assert f"{n} messages" in r.stdout
+    n_tel = log.counts["/pmsm/telemetry"]
+    assert f"/pmsm/telemetry: {n_tel} messages" in r.stdout
+    assert f"all {n} messages rewritten" in r.stdout
+    assert f"last {LOG_FLUSH_WALL_S:g} s of wall time" in r.stdout  # the loss bound, stated
     fixed = out.with_suffix(".recovered.mcap")
+    offset_ns = int(log.metadata["log"]["log_time_offset_ns"])
     with open(fixed, "rb") as f:  # the generic reader's default path, through the index
         reader = make_reader(f)
         assert reader.get_summary() is not None
-        assert sum(1 for _ in reader.iter_messages()) == n
+        msgs = [(c.topic, m.log_time) for _, c, m in reader.iter_messages()]
+    assert len(msgs) == n
+    t_last = max(lt for topic, lt in msgs if topic == "/pmsm/telemetry")
+    # paced at real time: the log holds everything up to the flush bound before the kill, which
+    # came after the progress line (+ one poll and the telemetry period of slack)
+    assert (t_last - offset_ns) / 1e9 >= t_line - LOG_FLUSH_WALL_S - 0.05, (t_last, t_line)
     assert (
         read_log(fixed).metadata["log"]["log_time_offset_ns"]
         == log.metadata["log"]["log_time_offset_ns"]

@@ -515,3 +515,27 @@ def test_damaged_chunk_is_skipped_and_reported(tmp_path):
     assert 0 < len(t) < len(rows)
     missing = {r["t_s"] for r in rows} - set(t.tolist())
     assert missing and min(missing) > t[0] and max(missing) < t[-1]  # a middle piece
+
+
+def test_flush_wall_s_puts_a_quiet_writers_data_on_disk(tmp_path):
+    """With flush_wall_s the open chunk reaches the file once it has been open that long in wall
+    time, whatever the device time: by the next message, or by flush_if_due() on a quiet link."""
+    import time
+
+    path = tmp_path / "wall.mcap"
+    w = LogWriter(path, flush_wall_s=0.05)
+    w.write("/pmsm/events", 0.0, {"kind": "host", "text": "a"})
+    w.flush_if_due()
+    assert "/pmsm/events" not in read_log(path).topics  # still in the open chunk
+    time.sleep(0.06)
+    w.flush_if_due()
+    assert read_log(path).counts["/pmsm/events"] == 1  # on disk, the writer still open
+    w.write("/pmsm/events", 0.001, {"kind": "host", "text": "b"})
+    time.sleep(0.06)
+    w.write("/pmsm/events", 0.002, {"kind": "host", "text": "c"})  # closes the chunk before it
+    assert read_log(path).counts["/pmsm/events"] == 2
+    assert w._msg_count == 2 and w.message_count == 3
+    meta = read_log(path).metadata["log"]
+    assert (meta["flush_wall_s"], meta["chunk_span_s"]) == ("0.05", "1.0")
+    w.close()
+    assert read_log(path).counts["/pmsm/events"] == 3

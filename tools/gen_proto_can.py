@@ -6,7 +6,7 @@ edit of the `can:` section. Outputs:
 
     firmware/core/proto_can_gen.h, proto_can_gen.c   layouts for the firmware (C28x-safe, no tables in RAM)
     pmsm_hil/protocol/can_generated.py                 the same for the host
-    firmware/proto/pmsm_proto.dbc                      every CAN frame and signal, for cantools & co
+    firmware/proto/pmsm_proto.dbc                      every CAN frame and signal (tools/gen_proto_can_dbc.py)
     docs/can.md (between its GENERATED markers)        the identifier and frame tables
 """
 
@@ -28,6 +28,8 @@ DOC_END = "<!-- END GENERATED -->"
 FRAME_OCTETS = 8  # classic CAN
 TRANSFER_DATA = 7  # payload octets per transfer data frame (the first octet is the index)
 TRANSFER_HEADER = 6  # [0, msg_id, seq, len, crc_hi, crc_lo]
+CRC_OCTETS = 2  # direct messages of 2+ frames: [crc_hi, crc_lo] at the end of one frame
+NO_CRC = 0xFF  # crc_frame of a single-frame message (and of a transfer: its CRC is in the header)
 FUNC_MAX = 0x7E  # CAN 2.0A: the 7 most significant identifier bits must not all be recessive
 NODE_BITS = 4
 
@@ -70,6 +72,7 @@ class CanMessage:
     func: int  # base function code (transfer: the direction's transfer code)
     transfer: bool
     frames: tuple  # direct: per frame, the fields in it (frame 0 also holds seq)
+    crc_frame: int = NO_CRC  # direct, 2+ frames: the frame that ends with [crc_hi, crc_lo]
 
     @property
     def frame_octets(self) -> tuple[int, ...]:
@@ -78,7 +81,10 @@ class CanMessage:
             data = [min(TRANSFER_DATA, n - i) + 1 for i in range(0, n, TRANSFER_DATA)]
             return (TRANSFER_HEADER, *data)
         return tuple(
-            sum(f.octets for f in fr) + (1 if k == 0 else 0) for k, fr in enumerate(self.frames)
+            sum(f.octets for f in fr)
+            + (1 if k == 0 else 0)
+            + (CRC_OCTETS if k == self.crc_frame else 0)
+            for k, fr in enumerate(self.frames)
         )
 
     @property
@@ -116,13 +122,38 @@ def cut_fields(msg) -> list[list] | None:
     return frames
 
 
+def place_crc(frames: list[list] | None) -> tuple[list[list] | None, int]:
+    """The end-to-end check of a direct message of 2+ frames (docs/can.md): a CRC-16 over msg_id,
+    seq and payload, at the end of the first frame with 2 octets free, else in a frame of its own
+    at the end. Returns the frames (maybe one more) and the CRC's frame (NO_CRC: one frame)."""
+    if frames is None or len(frames) < 2:
+        return frames, NO_CRC
+    for k, fr in enumerate(frames):
+        if sum(f.octets for f in fr) + (1 if k == 0 else 0) + CRC_OCTETS <= FRAME_OCTETS:
+            return frames, k
+    return [*frames, []], len(frames)
+
+
 def load_can(doc: dict, messages) -> CanSchema:
     raw = doc.get("can")
     if not isinstance(raw, dict):
         raise CanSchemaError("pmsm_proto.yaml: the `can:` section is missing")
-    unknown = set(raw) - {"bitrate", "node", "max_frames", "transfer", "functions", "auto_from"}
+    unknown = set(raw) - {
+        "bitrate",
+        "node",
+        "max_frames",
+        "direct_crc",
+        "transfer",
+        "functions",
+        "auto_from",
+    }
     if unknown:
         raise CanSchemaError(f"can: unknown keys {sorted(unknown)}")
+    if raw.get("direct_crc") != "crc16_ccitt_false":
+        raise CanSchemaError(
+            f"can.direct_crc: must be crc16_ccitt_false (the only end-to-end check), "
+            f"got {raw.get('direct_crc')!r}"
+        )
     by_name = {m.name: m for m in messages}
     transfer = list(raw.get("transfer") or [])
     for name in transfer:
@@ -149,9 +180,9 @@ def load_can(doc: dict, messages) -> CanSchema:
     used[functions["transfer_d2h"]] = "transfer_d2h"
     plan = []
     for m in messages:
-        frames = cut_fields(m)
+        frames, crc_frame = place_crc(cut_fields(m))
         by_transfer = m.name in transfer or frames is None or len(frames) > max_frames
-        plan.append((m, frames, by_transfer))
+        plan.append((m, frames, crc_frame, by_transfer))
         if by_transfer and m.name in functions:
             raise CanSchemaError(
                 f"can.functions.{m.name}: the message goes by transfer, it has no code"
@@ -168,21 +199,23 @@ def load_can(doc: dict, messages) -> CanSchema:
             used[c] = who
 
     out = {}
-    for m, frames, by_transfer in plan:
+    for m, frames, crc_frame, by_transfer in plan:
         if by_transfer:
             func = functions["transfer_h2d" if m.dir == "h2d" else "transfer_d2h"]
             out[m.name] = CanMessage(m, func, True, ())
         elif m.name in functions:
             claim(functions[m.name], len(frames), m.name)
-            out[m.name] = CanMessage(m, functions[m.name], False, tuple(tuple(f) for f in frames))
+            out[m.name] = CanMessage(
+                m, functions[m.name], False, tuple(tuple(f) for f in frames), crc_frame
+            )
     code = int(raw.get("auto_from", 0x10))
-    for m, frames, _by_transfer in plan:
+    for m, frames, crc_frame, _by_transfer in plan:
         if m.name in out:
             continue
         while any(c in used for c in range(code, code + len(frames))):
             code += 1
         claim(code, len(frames), m.name)
-        out[m.name] = CanMessage(m, code, False, tuple(tuple(f) for f in frames))
+        out[m.name] = CanMessage(m, code, False, tuple(tuple(f) for f in frames), crc_frame)
         code += len(frames)
     return CanSchema(
         int(raw.get("bitrate", 1_000_000)),
@@ -207,8 +240,8 @@ def render_c_header(s: CanSchema, banner: str) -> str:
     out = [
         f"/* CAN mapping: {banner}.",
         " * 11-bit identifier = function << 4 | node; frame k of a direct message uses function base + k,",
-        " * frame 0 starts with the seq octet; transfer messages go as a header and data frames",
-        " * (docs/can.md). */",
+        " * frame 0 starts with the seq octet, a message of 2+ frames carries [crc_hi, crc_lo] at the",
+        " * end of frame crc_frame; transfer messages go as a header and data frames (docs/can.md). */",
         "#ifndef PROTO_CAN_GEN_H",
         "#define PROTO_CAN_GEN_H",
         "",
@@ -223,13 +256,16 @@ def render_c_header(s: CanSchema, banner: str) -> str:
         f"#define PROTO_CAN_TRANSFER_DATA {TRANSFER_DATA}u   /* payload octets per data frame */",
         f"#define PROTO_CAN_TRANSFER_HEADER {TRANSFER_HEADER}u /* [0, msg_id, seq, len, crc_hi, crc_lo] */",
         f"#define PROTO_CAN_MAX_FRAMES {s.direct_max_frames}u  /* frames of the longest direct message */",
+        f"#define PROTO_CAN_CRC_OCTETS {CRC_OCTETS}u  /* end-to-end CRC of a direct message of 2+ frames */",
+        f"#define PROTO_CAN_NO_CRC 0x{NO_CRC:02X}u  /* crc_frame of a single frame (or a transfer) */",
         "",
         "typedef struct {",
         "    uint16_t func;       /* base function code (transfer: the direction's transfer code) */",
         "    uint16_t transfer;   /* 1: sent by multi-frame transfer */",
         "    uint16_t n_frames;   /* direct: frames; transfer: header + data frames */",
         "    uint16_t h2d;        /* 1: host to device */",
-        "    uint16_t len[PROTO_CAN_MAX_FRAMES];  /* direct: octets per frame (frame 0 incl. seq) */",
+        "    uint16_t crc_frame;  /* direct, 2+ frames: the frame ending in [crc_hi, crc_lo]; else NO_CRC */",
+        "    uint16_t len[PROTO_CAN_MAX_FRAMES];  /* direct: octets per frame (incl. seq and CRC) */",
         "} proto_can_layout_t;",
         "",
         "/* The CAN layout of a message id; false for an id the protocol does not know. */",
@@ -263,6 +299,7 @@ def render_c_source(s: CanSchema, banner: str) -> str:
         out.append(f"        l->transfer = {1 if cm.transfer else 0}u;")
         out.append(f"        l->n_frames = {cm.n_frames}u;")
         out.append(f"        l->h2d = {1 if cm.msg.dir == 'h2d' else 0}u;")
+        out.append(f"        l->crc_frame = 0x{cm.crc_frame:02X}u;")
         if not cm.transfer:
             for k, n in enumerate(cm.frame_octets):
                 out.append(f"        l->len[{k}] = {n}u;")
@@ -306,6 +343,8 @@ def render_python(s: CanSchema, banner: str) -> str:
         f"FUNC_TRANSFER_D2H = 0x{s.func_transfer_d2h:02X}",
         f"TRANSFER_DATA = {TRANSFER_DATA}",
         f"TRANSFER_HEADER = {TRANSFER_HEADER}",
+        f"CRC_OCTETS = {CRC_OCTETS}",
+        f"NO_CRC = 0x{NO_CRC:02X}",
         f"MAX_FRAMES = {s.direct_max_frames}",
         "",
         "",
@@ -315,6 +354,7 @@ def render_python(s: CanSchema, banner: str) -> str:
         "    func: int                        # base function code (transfer: the direction's code)",
         "    transfer: bool",
         "    frame_octets: tuple[int, ...]    # octets per frame (frame 0 incl. seq; transfer: header, data)",
+        "    crc_frame: int                   # direct, 2+ frames: the frame ending in crc_hi, crc_lo",
         "",
         "",
         "LAYOUTS = {",
@@ -322,7 +362,7 @@ def render_python(s: CanSchema, banner: str) -> str:
     for cm in s.messages:
         out.append(
             f"    0x{cm.msg.id:02X}: CanLayout(0x{cm.msg.id:02X}, {cm.msg.name!r}, 0x{cm.func:02X}, "
-            f"{cm.transfer}, {cm.frame_octets!r}),"
+            f"{cm.transfer}, {cm.frame_octets!r}, 0x{cm.crc_frame:02X}),"
         )
     out += [
         "}",
@@ -336,163 +376,6 @@ def render_python(s: CanSchema, banner: str) -> str:
                 out.append(f"    0x{cm.func + k:02X}: (0x{cm.msg.id:02X}, {k}),")
     out += ["}", ""]
     return "\n".join(out)
-
-
-# ------------------------------------------------------------------------------------------ DBC
-
-
-def _signal(name: str, start_octet: int, wt, scale, signed_override=None, **kw):
-    from cantools.database.can import Signal
-    from cantools.database.conversion import BaseConversion
-
-    is_float = wt.name == "f32"
-    signed = wt.name.startswith("i") if signed_override is None else signed_override
-    conv = BaseConversion.factory(
-        scale=scale if scale is not None else 1, offset=0, is_float=is_float
-    )
-    return Signal(
-        name,
-        start_octet * 8,
-        wt.octets * 8,
-        "little_endian",
-        signed,
-        conversion=conv,
-        unit=unit_of(name) or None,
-        **kw,
-    )
-
-
-def render_dbc(s: CanSchema, wire_types: dict) -> str:
-    from cantools.database.can import Database, Message, Node
-
-    u8 = wire_types["u8"]
-    host, dev = "host", "device"
-    msgs = []
-    node = s.node
-    for cm in s.messages:
-        m = cm.msg
-        sender = host if m.dir == "h2d" else dev
-        receiver = [dev if m.dir == "h2d" else host]
-        if cm.transfer:
-            continue
-        for k, fields in enumerate(cm.frames):
-            sigs, at = [], 0
-            if k == 0:
-                sigs.append(_signal("seq", 0, u8, None, receivers=receiver))
-                at = 1
-            for f in fields:
-                sigs.append(
-                    _signal(f.name, at, f.type, f.scale, receivers=receiver, comment=f.note or None)
-                )
-                at += f.octets
-            name = m.name if cm.n_frames == 1 else f"{m.name}_{k}"
-            comment = f"{m.name} (0x{m.id:02X}) frame {k + 1} of {cm.n_frames}"
-            msgs.append(
-                Message(
-                    (cm.func + k) << NODE_BITS | node,
-                    name,
-                    at,
-                    sigs,
-                    senders=[sender],
-                    comment=comment,
-                    strict=True,
-                )
-            )
-    for func, direction, sender, receiver in (
-        (s.func_transfer_h2d, "h2d", host, dev),
-        (s.func_transfer_d2h, "d2h", dev, host),
-    ):
-        names = ", ".join(
-            f"{cm.msg.name} (0x{cm.msg.id:02X})"
-            for cm in s.messages
-            if cm.transfer and cm.msg.dir == direction
-        )
-        n_data = max(
-            (cm.n_frames - 1 for cm in s.messages if cm.transfer and cm.msg.dir == direction),
-            default=1,
-        )
-        sigs = [
-            _signal("index", 0, u8, None, is_multiplexer=True, receivers=[receiver]),
-            _signal(
-                "msg_id",
-                1,
-                u8,
-                None,
-                multiplexer_ids=[0],
-                multiplexer_signal="index",
-                receivers=[receiver],
-            ),
-            _signal(
-                "seq",
-                2,
-                u8,
-                None,
-                multiplexer_ids=[0],
-                multiplexer_signal="index",
-                receivers=[receiver],
-            ),
-            _signal(
-                "len",
-                3,
-                u8,
-                None,
-                multiplexer_ids=[0],
-                multiplexer_signal="index",
-                receivers=[receiver],
-            ),
-            _signal(
-                "crc_hi",
-                4,
-                u8,
-                None,
-                multiplexer_ids=[0],
-                multiplexer_signal="index",
-                receivers=[receiver],
-            ),
-            _signal(
-                "crc_lo",
-                5,
-                u8,
-                None,
-                multiplexer_ids=[0],
-                multiplexer_signal="index",
-                receivers=[receiver],
-            ),
-        ]
-        from cantools.database.can import Signal
-
-        sigs.append(
-            Signal(
-                "data",
-                8,
-                8 * TRANSFER_DATA,
-                "little_endian",
-                False,
-                multiplexer_ids=list(range(1, n_data + 1)),
-                multiplexer_signal="index",
-                receivers=[receiver],
-                comment="7 payload octets (the last frame: fewer, zero-padded)",
-            )
-        )
-        msgs.append(
-            Message(
-                func << NODE_BITS | node,
-                f"transfer_{direction}",
-                8,
-                sigs,
-                senders=[sender],
-                comment=f"multi-frame transfer {direction}: {names}",
-                strict=True,
-            )
-        )
-    msgs.sort(key=lambda x: x.frame_id)
-    db = Database(
-        msgs,
-        [Node(host, comment="pmsm-hil host"), Node(dev, comment=f"drive, node {node}")],
-        version="",
-        strict=True,
-    )
-    return db.as_dbc_string().replace("\r\n", "\n")  # cantools writes CRLF
 
 
 # ----------------------------------------------------------------------------------------- docs
@@ -526,13 +409,19 @@ def render_doc(s: CanSchema) -> str:
         out.append(
             f"| `{m.name}` | 0x{m.id:02X} | {m.dir} | {funcs} | {ids} | {cm.n_frames} | {octs} | {bits} |"
         )
-    out += ["", "Direct messages, fields per frame (frame 0 starts with `seq`):", ""]
+    out += [
+        "",
+        "Direct messages, fields per frame (frame 0 starts with `seq`; a message of 2+ frames "
+        "carries `crc` = crc_hi, crc_lo):",
+        "",
+    ]
     for cm in s.messages:
         if cm.transfer:
             continue
         parts = []
         for k, fields in enumerate(cm.frames):
             names = (["seq"] if k == 0 else []) + [f.name for f in fields]
+            names += ["crc"] if k == cm.crc_frame else []
             parts.append(f"[{', '.join(names)}]")
         out.append(f"- `{cm.msg.name}`: " + " ".join(parts))
     out += ["", DOC_END]
@@ -549,6 +438,8 @@ def splice(text: str, block: str) -> str:
 def render_all(
     root: Path, yaml_path: str, messages, wire_types: dict, banner: str
 ) -> dict[str, str]:
+    from tools.gen_proto_can_dbc import render_dbc
+
     doc = yaml.safe_load((root / yaml_path).read_text(encoding="utf-8"))
     s = load_can(doc, messages)
     files = {

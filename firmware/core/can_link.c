@@ -15,6 +15,7 @@ void can_link_init(can_link_t *c, uint16_t node)
     c->rx_msg = CAN_NONE;
     c->rx_next = 0u;
     c->rx_n = 0u;
+    c->rx_crc = 0u;
     c->x_active = false;
     c->x_len = 0u;
     c->x_got = 0u;
@@ -91,21 +92,39 @@ bool can_link_send(can_link_t *c, uint16_t msg_id, uint16_t seq, const uint16_t 
         return true;
     }
     {
-        uint16_t total = 0u;
+        uint16_t total = 0u, crc = 0u;
+        bool has_crc = l.crc_frame != PROTO_CAN_NO_CRC;
         for (k = 0u; k < l.n_frames; k++) {
             total = (uint16_t)(total + l.len[k]);
+        }
+        if (has_crc) {
+            total = (uint16_t)(total - PROTO_CAN_CRC_OCTETS);
         }
         if (total != (uint16_t)(n + 1u) || l.n_frames > (uint16_t)(CAN_TXQ_FRAMES - c->level)) {
             return false;
         }
+        if (has_crc) { /* the end-to-end check: the serial frame's CRC */
+            c->tx_scratch[0] = (uint16_t)(msg_id & 0xFFu);
+            c->tx_scratch[1] = (uint16_t)(seq & 0xFFu);
+            for (i = 0u; i < n; i++) {
+                c->tx_scratch[2u + i] = (uint16_t)(payload[i] & 0xFFu);
+            }
+            crc = frame_crc16(c->tx_scratch, (uint16_t)(n + 2u));
+        }
         for (k = 0u; k < l.n_frames; k++) {
             can_frame_t *fr = tx_slot(c, (uint16_t)(l.func + k), l.len[k]);
+            uint16_t end = l.len[k];
+            if (k == l.crc_frame) {
+                end = (uint16_t)(end - PROTO_CAN_CRC_OCTETS);
+                fr->data[end] = (uint16_t)(crc >> 8);
+                fr->data[end + 1u] = (uint16_t)(crc & 0xFFu);
+            }
             i = 0u;
             if (k == 0u) {
                 fr->data[0] = (uint16_t)(seq & 0xFFu);
                 i = 1u;
             }
-            for (; i < l.len[k]; i++) {
+            for (; i < end; i++) {
                 fr->data[i] = (uint16_t)(payload[at++] & 0xFFu);
             }
         }
@@ -223,7 +242,7 @@ static int16_t rx_transfer(can_link_t *c, const uint16_t *data, uint16_t dlc)
 int16_t can_link_rx(can_link_t *c, uint16_t id, const uint16_t *data, uint16_t dlc)
 {
     uint16_t func = (uint16_t)((id >> PROTO_CAN_NODE_BITS) & 0x7Fu);
-    uint16_t k, i, start;
+    uint16_t k, i, start, end;
     int16_t msg;
     proto_can_layout_t l;
     if ((id & CAN_NODE_MASK) != c->node || dlc > 8u) {
@@ -250,7 +269,8 @@ int16_t can_link_rx(can_link_t *c, uint16_t id, const uint16_t *data, uint16_t d
         c->rx_msg = (uint16_t)msg;
         c->rx_next = 0u;
         c->rx_n = 0u;
-        c->rx_buf[0] = (uint16_t)(data[0] & 0xFFu); /* seq, kept in front of the payload */
+        c->rx_buf[0] = (uint16_t)msg; /* msg_id, seq in front of the payload: the CRC's input */
+        c->rx_buf[1] = (uint16_t)(data[0] & 0xFFu);
         start = 1u;
     } else {
         if (c->rx_msg != (uint16_t)msg || c->rx_next != k) {
@@ -258,8 +278,13 @@ int16_t can_link_rx(can_link_t *c, uint16_t id, const uint16_t *data, uint16_t d
         }
         start = 0u;
     }
-    for (i = start; i < dlc; i++) {
-        c->rx_buf[1u + c->rx_n] = (uint16_t)(data[i] & 0xFFu);
+    end = dlc;
+    if (k == l.crc_frame) {
+        end = (uint16_t)(dlc - PROTO_CAN_CRC_OCTETS);
+        c->rx_crc = (uint16_t)(((data[end] & 0xFFu) << 8) | (data[end + 1u] & 0xFFu));
+    }
+    for (i = start; i < end; i++) {
+        c->rx_buf[2u + c->rx_n] = (uint16_t)(data[i] & 0xFFu);
         c->rx_n++;
     }
     c->rx_next = (uint16_t)(k + 1u);
@@ -267,5 +292,11 @@ int16_t can_link_rx(can_link_t *c, uint16_t id, const uint16_t *data, uint16_t d
         return CAN_RX_NONE;
     }
     c->rx_msg = CAN_NONE;
-    return rx_done(c, (uint16_t)msg, c->rx_buf[0], &c->rx_buf[1], c->rx_n);
+    if (l.crc_frame != PROTO_CAN_NO_CRC) {
+        /* end to end: frames of two messages joined after a lost burst do not pass */
+        if (frame_crc16(c->rx_buf, (uint16_t)(c->rx_n + 2u)) != c->rx_crc) {
+            return rx_error(c, CAN_RX_ERR_CRC);
+        }
+    }
+    return rx_done(c, (uint16_t)msg, c->rx_buf[1], &c->rx_buf[2], c->rx_n);
 }

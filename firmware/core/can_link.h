@@ -5,7 +5,9 @@
  * not fit whole is dropped whole (counted by the caller), never cut.
  * RX: frames are reassembled into the same (msg_id, seq, payload) that the serial parser yields.
  * Direct messages: frame k of a message uses function base + k, frame 0 starts with seq, each frame
- * has a fixed length. Transfers: header [0, msg_id, seq, len, crc_hi, crc_lo], then data frames
+ * has a fixed length; a message of 2+ frames ends one frame (crc_frame) with [crc_hi, crc_lo], the
+ * CRC-16 over msg_id, seq, payload, checked once the message is whole (a splice of two messages
+ * after a lost burst fails it). Transfers: header [0, msg_id, seq, len, crc_hi, crc_lo], then data frames
  * [index 1.., up to 7 octets]; CRC-16/CCITT-FALSE over msg_id, seq, payload. A missing, repeated or
  * misplaced frame, a wrong length or CRC rejects the whole message; a new header or frame 0 starts
  * over (the host retries: commands are acknowledged, capture chunks re-requested).
@@ -28,7 +30,7 @@
 #define CAN_RX_ERR_LEN (-2) /* a frame with the wrong length, or a transfer of the wrong length */
 /* a frame missing, repeated or out of place: the message is dropped */
 #define CAN_RX_ERR_ORDER (-3)
-#define CAN_RX_ERR_CRC   (-4) /* a transfer whose CRC does not match */
+#define CAN_RX_ERR_CRC   (-4) /* a transfer or multi-frame message whose CRC does not match */
 
 typedef struct {
     uint16_t id;  /* 11-bit identifier */
@@ -46,6 +48,7 @@ typedef struct {
     uint16_t rx_msg;  /* 0xFFFF: none */
     uint16_t rx_next; /* next frame index */
     uint16_t rx_n;    /* octets of payload so far */
+    uint16_t rx_crc;  /* the message's end-to-end CRC (from its crc_frame) */
     /* RX: transfer being assembled; x_buf = msg_id, seq, payload (the CRC's input) */
     bool x_active;
     uint16_t x_len, x_got, x_next, x_crc;

@@ -14,6 +14,7 @@ bool proto_can_layout(uint16_t msg_id, proto_can_layout_t *l)
         l->transfer = 0u;
         l->n_frames = 1u;
         l->h2d = 1u;
+        l->crc_frame = 0xFFu;
         l->len[0] = 3u;
         return true;
     case PROTO_ID_CONFIG_MOTOR:
@@ -21,18 +22,21 @@ bool proto_can_layout(uint16_t msg_id, proto_can_layout_t *l)
         l->transfer = 1u;
         l->n_frames = 8u;
         l->h2d = 1u;
+        l->crc_frame = 0xFFu;
         return true;
     case PROTO_ID_CONFIG_CTRL:
         l->func = 0x0Cu;
         l->transfer = 1u;
         l->n_frames = 16u;
         l->h2d = 1u;
+        l->crc_frame = 0xFFu;
         return true;
     case PROTO_ID_PROFILE_CLEAR:
         l->func = 0x10u;
         l->transfer = 0u;
         l->n_frames = 1u;
         l->h2d = 1u;
+        l->crc_frame = 0xFFu;
         l->len[0] = 3u;
         return true;
     case PROTO_ID_PROFILE_SEGMENT:
@@ -40,12 +44,14 @@ bool proto_can_layout(uint16_t msg_id, proto_can_layout_t *l)
         l->transfer = 1u;
         l->n_frames = 6u;
         l->h2d = 1u;
+        l->crc_frame = 0xFFu;
         return true;
     case PROTO_ID_START:
         l->func = 0x04u;
         l->transfer = 0u;
         l->n_frames = 1u;
         l->h2d = 1u;
+        l->crc_frame = 0xFFu;
         l->len[0] = 1u;
         return true;
     case PROTO_ID_STOP:
@@ -53,6 +59,7 @@ bool proto_can_layout(uint16_t msg_id, proto_can_layout_t *l)
         l->transfer = 0u;
         l->n_frames = 1u;
         l->h2d = 1u;
+        l->crc_frame = 0xFFu;
         l->len[0] = 1u;
         return true;
     case PROTO_ID_ABORT:
@@ -60,6 +67,7 @@ bool proto_can_layout(uint16_t msg_id, proto_can_layout_t *l)
         l->transfer = 0u;
         l->n_frames = 1u;
         l->h2d = 1u;
+        l->crc_frame = 0xFFu;
         l->len[0] = 1u;
         return true;
     case PROTO_ID_HEARTBEAT:
@@ -67,6 +75,7 @@ bool proto_can_layout(uint16_t msg_id, proto_can_layout_t *l)
         l->transfer = 0u;
         l->n_frames = 1u;
         l->h2d = 1u;
+        l->crc_frame = 0xFFu;
         l->len[0] = 5u;
         return true;
     case PROTO_ID_CAPTURE_READ:
@@ -74,6 +83,7 @@ bool proto_can_layout(uint16_t msg_id, proto_can_layout_t *l)
         l->transfer = 0u;
         l->n_frames = 1u;
         l->h2d = 1u;
+        l->crc_frame = 0xFFu;
         l->len[0] = 3u;
         return true;
     case PROTO_ID_CONFIG_CALIB:
@@ -81,7 +91,8 @@ bool proto_can_layout(uint16_t msg_id, proto_can_layout_t *l)
         l->transfer = 0u;
         l->n_frames = 4u;
         l->h2d = 1u;
-        l->len[0] = 5u;
+        l->crc_frame = 0x00u;
+        l->len[0] = 7u;
         l->len[1] = 8u;
         l->len[2] = 8u;
         l->len[3] = 4u;
@@ -91,87 +102,100 @@ bool proto_can_layout(uint16_t msg_id, proto_can_layout_t *l)
         l->transfer = 0u;
         l->n_frames = 2u;
         l->h2d = 1u;
+        l->crc_frame = 0x01u;
         l->len[0] = 7u;
-        l->len[1] = 4u;
+        l->len[1] = 6u;
         return true;
     case PROTO_ID_SIM_PLANT:
         l->func = 0x18u;
         l->transfer = 0u;
         l->n_frames = 2u;
         l->h2d = 1u;
+        l->crc_frame = 0x01u;
         l->len[0] = 7u;
-        l->len[1] = 4u;
+        l->len[1] = 6u;
         return true;
     case PROTO_ID_ACK:
         l->func = 0x07u;
         l->transfer = 0u;
         l->n_frames = 1u;
         l->h2d = 0u;
+        l->crc_frame = 0xFFu;
         l->len[0] = 4u;
         return true;
     case PROTO_ID_IDENTIFY:
         l->func = 0x09u;
         l->transfer = 0u;
-        l->n_frames = 2u;
+        l->n_frames = 3u;
         l->h2d = 0u;
+        l->crc_frame = 0x02u;
         l->len[0] = 8u;
         l->len[1] = 7u;
+        l->len[2] = 2u;
         return true;
     case PROTO_ID_TELEM_FAST:
         l->func = 0x1Au;
         l->transfer = 0u;
         l->n_frames = 4u;
         l->h2d = 0u;
+        l->crc_frame = 0x03u;
         l->len[0] = 7u;
         l->len[1] = 8u;
         l->len[2] = 8u;
-        l->len[3] = 6u;
+        l->len[3] = 8u;
         return true;
     case PROTO_ID_PARAMS:
         l->func = 0x1Eu;
         l->transfer = 0u;
-        l->n_frames = 3u;
+        l->n_frames = 4u;
         l->h2d = 0u;
+        l->crc_frame = 0x03u;
         l->len[0] = 7u;
         l->len[1] = 8u;
         l->len[2] = 8u;
+        l->len[3] = 2u;
         return true;
     case PROTO_ID_STATUS:
-        l->func = 0x21u;
+        l->func = 0x22u;
         l->transfer = 0u;
         l->n_frames = 4u;
         l->h2d = 0u;
+        l->crc_frame = 0x03u;
         l->len[0] = 8u;
         l->len[1] = 8u;
         l->len[2] = 8u;
-        l->len[3] = 2u;
+        l->len[3] = 4u;
         return true;
     case PROTO_ID_EVENT:
         l->func = 0x05u;
         l->transfer = 0u;
         l->n_frames = 2u;
         l->h2d = 0u;
+        l->crc_frame = 0x01u;
         l->len[0] = 7u;
-        l->len[1] = 4u;
+        l->len[1] = 6u;
         return true;
     case PROTO_ID_CAPTURE_CHUNK:
         l->func = 0x7Eu;
         l->transfer = 1u;
         l->n_frames = 17u;
         l->h2d = 0u;
+        l->crc_frame = 0xFFu;
         return true;
     case PROTO_ID_COMMISSION_RESULT:
         l->func = 0x7Eu;
         l->transfer = 1u;
         l->n_frames = 8u;
         l->h2d = 0u;
+        l->crc_frame = 0xFFu;
         return true;
     case PROTO_ID_SIM_TRUTH:
-        l->func = 0x25u;
+        l->func = 0x26u;
         l->transfer = 0u;
         l->n_frames = 6u;
         l->h2d = 0u;
-        l->len[0] = 5u;
+        l->crc_frame = 0x00u;
+        l->len[0] = 7u;
         l->len[1] = 8u;
         l->len[2] = 8u;
         l->len[3] = 8u;
@@ -179,27 +203,30 @@ bool proto_can_layout(uint16_t msg_id, proto_can_layout_t *l)
         l->len[5] = 8u;
         return true;
     case PROTO_ID_TELEM_EST:
-        l->func = 0x2Bu;
+        l->func = 0x2Cu;
         l->transfer = 0u;
         l->n_frames = 2u;
         l->h2d = 0u;
+        l->crc_frame = 0x01u;
         l->len[0] = 8u;
-        l->len[1] = 6u;
+        l->len[1] = 8u;
         return true;
     case PROTO_ID_CONFIG_SENSORLESS:
         l->func = 0x0Cu;
         l->transfer = 1u;
         l->n_frames = 10u;
         l->h2d = 1u;
+        l->crc_frame = 0xFFu;
         return true;
     case PROTO_ID_GAMMA_NODE:
-        l->func = 0x2Du;
+        l->func = 0x2Eu;
         l->transfer = 0u;
         l->n_frames = 3u;
         l->h2d = 1u;
+        l->crc_frame = 0x02u;
         l->len[0] = 7u;
         l->len[1] = 8u;
-        l->len[2] = 4u;
+        l->len[2] = 6u;
         return true;
     default:
         return false;
@@ -227,6 +254,7 @@ int16_t proto_can_func_msg(uint16_t func, uint16_t *frame)
     case 0x07u: *frame = 0u; return (int16_t)PROTO_ID_ACK;
     case 0x09u: *frame = 0u; return (int16_t)PROTO_ID_IDENTIFY;
     case 0x0Au: *frame = 1u; return (int16_t)PROTO_ID_IDENTIFY;
+    case 0x0Bu: *frame = 2u; return (int16_t)PROTO_ID_IDENTIFY;
     case 0x1Au: *frame = 0u; return (int16_t)PROTO_ID_TELEM_FAST;
     case 0x1Bu: *frame = 1u; return (int16_t)PROTO_ID_TELEM_FAST;
     case 0x1Cu: *frame = 2u; return (int16_t)PROTO_ID_TELEM_FAST;
@@ -234,23 +262,24 @@ int16_t proto_can_func_msg(uint16_t func, uint16_t *frame)
     case 0x1Eu: *frame = 0u; return (int16_t)PROTO_ID_PARAMS;
     case 0x1Fu: *frame = 1u; return (int16_t)PROTO_ID_PARAMS;
     case 0x20u: *frame = 2u; return (int16_t)PROTO_ID_PARAMS;
-    case 0x21u: *frame = 0u; return (int16_t)PROTO_ID_STATUS;
-    case 0x22u: *frame = 1u; return (int16_t)PROTO_ID_STATUS;
-    case 0x23u: *frame = 2u; return (int16_t)PROTO_ID_STATUS;
-    case 0x24u: *frame = 3u; return (int16_t)PROTO_ID_STATUS;
+    case 0x21u: *frame = 3u; return (int16_t)PROTO_ID_PARAMS;
+    case 0x22u: *frame = 0u; return (int16_t)PROTO_ID_STATUS;
+    case 0x23u: *frame = 1u; return (int16_t)PROTO_ID_STATUS;
+    case 0x24u: *frame = 2u; return (int16_t)PROTO_ID_STATUS;
+    case 0x25u: *frame = 3u; return (int16_t)PROTO_ID_STATUS;
     case 0x05u: *frame = 0u; return (int16_t)PROTO_ID_EVENT;
     case 0x06u: *frame = 1u; return (int16_t)PROTO_ID_EVENT;
-    case 0x25u: *frame = 0u; return (int16_t)PROTO_ID_SIM_TRUTH;
-    case 0x26u: *frame = 1u; return (int16_t)PROTO_ID_SIM_TRUTH;
-    case 0x27u: *frame = 2u; return (int16_t)PROTO_ID_SIM_TRUTH;
-    case 0x28u: *frame = 3u; return (int16_t)PROTO_ID_SIM_TRUTH;
-    case 0x29u: *frame = 4u; return (int16_t)PROTO_ID_SIM_TRUTH;
-    case 0x2Au: *frame = 5u; return (int16_t)PROTO_ID_SIM_TRUTH;
-    case 0x2Bu: *frame = 0u; return (int16_t)PROTO_ID_TELEM_EST;
-    case 0x2Cu: *frame = 1u; return (int16_t)PROTO_ID_TELEM_EST;
-    case 0x2Du: *frame = 0u; return (int16_t)PROTO_ID_GAMMA_NODE;
-    case 0x2Eu: *frame = 1u; return (int16_t)PROTO_ID_GAMMA_NODE;
-    case 0x2Fu: *frame = 2u; return (int16_t)PROTO_ID_GAMMA_NODE;
+    case 0x26u: *frame = 0u; return (int16_t)PROTO_ID_SIM_TRUTH;
+    case 0x27u: *frame = 1u; return (int16_t)PROTO_ID_SIM_TRUTH;
+    case 0x28u: *frame = 2u; return (int16_t)PROTO_ID_SIM_TRUTH;
+    case 0x29u: *frame = 3u; return (int16_t)PROTO_ID_SIM_TRUTH;
+    case 0x2Au: *frame = 4u; return (int16_t)PROTO_ID_SIM_TRUTH;
+    case 0x2Bu: *frame = 5u; return (int16_t)PROTO_ID_SIM_TRUTH;
+    case 0x2Cu: *frame = 0u; return (int16_t)PROTO_ID_TELEM_EST;
+    case 0x2Du: *frame = 1u; return (int16_t)PROTO_ID_TELEM_EST;
+    case 0x2Eu: *frame = 0u; return (int16_t)PROTO_ID_GAMMA_NODE;
+    case 0x2Fu: *frame = 1u; return (int16_t)PROTO_ID_GAMMA_NODE;
+    case 0x30u: *frame = 2u; return (int16_t)PROTO_ID_GAMMA_NODE;
     default: *frame = 0u; return -1;
     }
 }

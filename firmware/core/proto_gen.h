@@ -10,7 +10,7 @@
 #include <stdbool.h>
 
 #define PROTO_VERSION 2u
-#define PROTO_SCHEMA_HASH 0xF1583257UL  /* CRC-32 of the canonical yaml */
+#define PROTO_SCHEMA_HASH 0x15F2AA59UL  /* CRC-32 of the canonical yaml */
 #define PROTO_MAX_PAYLOAD 111u  /* octets */
 #define PROTO_MSG_COUNT 25u
 

@@ -56,7 +56,8 @@ static void test_can_tx_direct(void)
     static can_link_t c;
     proto_telem_fast_t t;
     proto_can_layout_t l;
-    uint16_t payload[PROTO_MAX_PAYLOAD], got[PROTO_MAX_PAYLOAD + 8u], n, k, i, m = 0u;
+    uint16_t payload[PROTO_MAX_PAYLOAD], got[PROTO_MAX_PAYLOAD + 8u], n, k, i, m = 0u, crc = 0u;
+    uint16_t crc_in[PROTO_MAX_PAYLOAD + 2u];
     can_frame_t fr;
     bool ids_ok = true;
     memset(&t, 0, sizeof t);
@@ -69,11 +70,16 @@ static void test_can_tx_direct(void)
     can_link_init(&c, 5u);
     CHECK(can_link_send(&c, PROTO_ID_TELEM_FAST, 0x42u, payload, n), "can: direct send queued");
     CHECK(can_link_tx_level(&c) == l.n_frames, "can: one frame per layout frame");
+    CHECK(l.n_frames >= 2u && l.crc_frame < l.n_frames, "can: telem_fast carries a CRC");
     for (k = 0u; k < l.n_frames; k++) {
+        uint16_t end = (uint16_t)(k == l.crc_frame ? l.len[k] - PROTO_CAN_CRC_OCTETS : l.len[k]);
         CHECK(can_link_tx_pop(&c, &fr), "can: frame pops");
         ids_ok = ids_ok && fr.id == can_id((uint16_t)(l.func + k), 5u) && fr.dlc == l.len[k];
-        for (i = (k == 0u) ? 1u : 0u; i < fr.dlc; i++) {
+        for (i = (k == 0u) ? 1u : 0u; i < end; i++) {
             got[m++] = fr.data[i];
+        }
+        if (k == l.crc_frame) {
+            crc = (uint16_t)((fr.data[end] << 8) | fr.data[end + 1u]);
         }
         if (k == 0u) {
             CHECK(fr.data[0] == 0x42u, "can: frame 0 starts with the seq octet");
@@ -82,6 +88,11 @@ static void test_can_tx_direct(void)
     CHECK(ids_ok, "can: identifiers function + k << 4 | node, lengths of the layout");
     CHECK(m == n && memcmp(got, payload, n * sizeof(uint16_t)) == 0,
           "can: the frames carry the payload in order");
+    crc_in[0] = PROTO_ID_TELEM_FAST;
+    crc_in[1] = 0x42u;
+    memcpy(&crc_in[2], payload, n * sizeof(uint16_t));
+    CHECK(crc == frame_crc16(crc_in, (uint16_t)(n + 2u)),
+          "can: the CRC frame ends with the CRC-16 over msg_id, seq, payload");
     CHECK(can_link_tx_peek(&c) == 0, "can: queue empty afterwards");
 }
 
@@ -127,14 +138,22 @@ static uint16_t h2d_frames(uint16_t msg_id, uint16_t seq, const uint16_t *payloa
                            can_frame_t *fr, uint16_t node)
 {
     proto_can_layout_t l;
-    uint16_t k, i, p = 0u;
-    (void)n;
+    uint16_t k, i, p = 0u, crc_in[PROTO_MAX_PAYLOAD + 2u], crc;
     (void)proto_can_layout(msg_id, &l);
+    crc_in[0] = msg_id;
+    crc_in[1] = seq;
+    memcpy(&crc_in[2], payload, n * sizeof(uint16_t));
+    crc = frame_crc16(crc_in, (uint16_t)(n + 2u));
     for (k = 0u; k < l.n_frames; k++) {
+        uint16_t end = (uint16_t)(k == l.crc_frame ? l.len[k] - PROTO_CAN_CRC_OCTETS : l.len[k]);
         fr[k].id = can_id((uint16_t)(l.func + k), node);
         fr[k].dlc = l.len[k];
-        for (i = 0u; i < l.len[k]; i++) {
+        for (i = 0u; i < end; i++) {
             fr[k].data[i] = (k == 0u && i == 0u) ? seq : payload[p++];
+        }
+        if (k == l.crc_frame) {
+            fr[k].data[end] = (uint16_t)(crc >> 8);
+            fr[k].data[end + 1u] = (uint16_t)(crc & 0xFFu);
         }
     }
     return l.n_frames;
@@ -169,6 +188,38 @@ static uint16_t h2d_transfer(uint16_t msg_id, uint16_t seq, const uint16_t *payl
     return k;
 }
 
+/* Frames of two messages joined after a lost burst (head of one, tail of the next) pass every
+ * order check; the end-to-end CRC must reject them, count them and deliver nothing. */
+static void test_can_rx_splice(can_link_t *c, const uint16_t *payload_a, uint16_t n)
+{
+    proto_sim_plant_t sp;
+    can_frame_t a[PROTO_CAN_MAX_FRAMES], b[PROTO_CAN_MAX_FRAMES];
+    uint16_t payload_b[PROTO_MAX_PAYLOAD], nf, k;
+    uint32_t crc_before = c->err_crc, ok_before = c->msgs_ok;
+    int16_t r = CAN_RX_NONE;
+    sp.index = 4u;
+    sp.r_s_scale = 1.0f;
+    sp.psi_f_scale = 0.5f;
+    (void)proto_sim_plant_pack(&sp, payload_b);
+    nf = h2d_frames(PROTO_ID_SIM_PLANT, 20u, payload_a, n, a, 3u);
+    (void)h2d_frames(PROTO_ID_SIM_PLANT, 21u, payload_b, n, b, 3u);
+    for (k = 0u; k < nf; k++) { /* head of A, the rest of A and the head of B lost, tail of B */
+        const can_frame_t *f = k == 0u ? &a[0] : &b[k];
+        r = can_link_rx(c, f->id, f->data, f->dlc);
+    }
+    CHECK(r == CAN_RX_ERR_CRC && c->err_crc == crc_before + 1u && c->msgs_ok == ok_before,
+          "can rx: a spliced message (head of one, tail of the next) is rejected and counted");
+    for (k = 0u; k < nf; k++) {
+        r = can_link_rx(c, b[k].id, b[k].data, b[k].dlc);
+    }
+    CHECK(r == CAN_RX_MSG && c->seq == 21u, "can rx: the next whole message passes");
+    b[nf - 1u].data[0] ^= 0x04u; /* one flipped bit that the frame CRC would have caught */
+    for (k = 0u; k < nf; k++) {
+        r = can_link_rx(c, b[k].id, b[k].data, b[k].dlc);
+    }
+    CHECK(r == CAN_RX_ERR_CRC, "can rx: a changed octet fails the end-to-end CRC");
+}
+
 static void test_can_rx(void)
 {
     static can_link_t c;
@@ -178,6 +229,7 @@ static void test_can_rx(void)
     can_frame_t fr[40];
     uint16_t payload[PROTO_MAX_PAYLOAD], n, nf, k;
     int16_t r = CAN_RX_NONE;
+    uint32_t crc_before;
     bool none_before = true;
     sp.index = 3u;
     sp.r_s_scale = 1.25f;
@@ -202,6 +254,7 @@ static void test_can_rx(void)
           "can rx: a frame without its first one is out of order");
     CHECK(can_link_rx(&c, fr[0].id, fr[0].data, (uint16_t)(fr[0].dlc - 1u)) == CAN_RX_ERR_LEN,
           "can rx: a frame of the wrong length");
+    test_can_rx_splice(&c, payload, n);
 
     memset(&m, 0, sizeof m);
     m.pole_pairs = 4u;
@@ -215,11 +268,12 @@ static void test_can_rx(void)
     CHECK(r == CAN_RX_MSG && c.msg_id == PROTO_ID_CONFIG_MOTOR && c.seq == 17u &&
               c.payload_len == n && memcmp(c.payload, payload, n * sizeof(uint16_t)) == 0,
           "can rx: a transfer reassembled, CRC checked");
+    crc_before = c.err_crc;
     nf = h2d_transfer(PROTO_ID_CONFIG_MOTOR, 18u, payload, n, fr, 3u, 0x0100u);
     for (k = 0u; k < nf; k++) {
         r = can_link_rx(&c, fr[k].id, fr[k].data, fr[k].dlc);
     }
-    CHECK(r == CAN_RX_ERR_CRC && c.err_crc == 1u,
+    CHECK(r == CAN_RX_ERR_CRC && c.err_crc == crc_before + 1u,
           "can rx: a transfer with a bad CRC is rejected and counted");
     nf = h2d_transfer(PROTO_ID_CONFIG_MOTOR, 19u, payload, n, fr, 3u, 0u);
     (void)can_link_rx(&c, fr[0].id, fr[0].data, fr[0].dlc);

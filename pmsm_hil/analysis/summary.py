@@ -250,12 +250,24 @@ def log_problems(log: Log) -> list[str]:
     dropped = int(np.max(status["tx_dropped"])) if len(status.get("tx_dropped", [])) else 0
     if dropped:
         out.append(f"the device dropped {dropped} telemetry frames (the link could not carry them)")
+    rx_bad = int(np.max(status["rx_bad"])) if len(status.get("rx_bad", [])) else 0
+    if rx_bad:
+        out.append(
+            f"the device rejected {rx_bad} received frames (corrupted, incomplete or spliced)"
+        )
     link = log.topic("/host/link") if "/host/link" in log.topics else {}
-    gaps = int(np.sum(link.get("seq_gaps", 0)))
-    bad = int(sum(np.sum(link.get(k, 0)) for k in ("crc_errors", "cobs_errors", "len_errors")))
+
+    def last(key: str) -> int:  # the counters are running totals: the last row holds the run's
+        v = link.get(key)
+        return int(np.max(v)) if v is not None and len(v) else 0
+
+    gaps = last("seq_gaps")
+    crc = last("crc_errors")
+    bad = crc + last("cobs_errors") + last("len_errors")
     if gaps or bad:
         out.append(
-            f"the host lost frames on the link: {gaps} sequence gaps, {bad} corrupted frames"
+            f"the host lost frames on the link: {gaps} sequence gaps, {bad} corrupted frames "
+            f"rejected ({crc} failed their CRC)"
         )
     return out
 

@@ -189,6 +189,7 @@ def main(args: argparse.Namespace) -> int:
     from pmsm_hil.cli.live import make_observer
     from pmsm_hil.device import open_device
     from pmsm_hil.errors import TransportError, TransportSpecError
+    from pmsm_hil.log.writer import LogWriteError
     from pmsm_hil.profiles import ProfileError
     from pmsm_hil.protocol.session import DeviceError, Session
     from pmsm_hil.runner import HostError, PlantMismatch, RunOptions, run_profile
@@ -251,6 +252,13 @@ def main(args: argparse.Namespace) -> int:
         return fail("error", str(e), 3)
     except HostError as e:
         return fail("error", f"{e} (log: {out})", 3)
+    except LogWriteError as e:  # the end of the run (capture, summary) could not be written
+        return fail(
+            "error",
+            f"{e.strerror}; the run had ended (the motor was stopped); recover the log with "
+            f"`pmsm-hil log recover {out}`",
+            3,
+        )
     finally:
         link.close()
         for s in sinks:

@@ -87,6 +87,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         metavar="PPM",
         help="flip bits in this many of a million octets sent (tests the host's framing)",
     )
+    p.add_argument(
+        "--drop-ppm",
+        type=float,
+        default=0.0,
+        metavar="PPM",
+        help="lose this many of a million octets sent (a noisy line; docs/faults.md)",
+    )
+    p.add_argument(
+        "--noise-h2d",
+        action="store_true",
+        help="apply --corrupt-ppm and --drop-ppm to the octets from the host too",
+    )
 
 
 def _error(message: str) -> int:
@@ -134,6 +146,9 @@ def serve(args: argparse.Namespace) -> int:
         return _error(f"--baud {args.baud}: must be a positive bit rate")
     if args.pace is not None and not 0.001 <= args.pace <= 1000:
         return _error(f"--pace {args.pace}: must be between 0.001 and 1000 (times real time)")
+    for flag, v in (("--corrupt-ppm", args.corrupt_ppm), ("--drop-ppm", args.drop_ppm)):
+        if not 0 <= v <= 1e6:
+            return _error(f"{flag} {v}: must be 0..1000000 (octets in a million)")
     parent = os.getppid() if args.exit_with_parent else None
 
     def announce(s):
@@ -160,6 +175,8 @@ def serve(args: argparse.Namespace) -> int:
         settings,
         announce=announce,
         corrupt_ppm=args.corrupt_ppm,
+        drop_ppm=args.drop_ppm,
+        noise_h2d=args.noise_h2d,
         pace=args.pace,
         report_state=args.report_state,
         parent_pid=parent,

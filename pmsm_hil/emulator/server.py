@@ -132,27 +132,6 @@ class ParentWatch:
         return os.getppid() != self.parent_pid and not self.dev.active
 
 
-class LinkCorrupter:
-    """Flips random bits in the octets sent to the host (a noisy line, for testing the host)."""
-
-    def __init__(self, ppm: float, seed: int):
-        import numpy as np
-
-        self.p = ppm * 1e-6
-        self.rng = np.random.default_rng(seed)
-
-    def __call__(self, data: bytes) -> bytes:
-        k = self.rng.binomial(len(data), self.p)
-        if k == 0:
-            return data
-        buf = bytearray(data)
-        for i, bit in zip(
-            self.rng.integers(0, len(data), k), self.rng.integers(0, 8, k), strict=False
-        ):
-            buf[int(i)] ^= 1 << int(bit)
-        return bytes(buf)
-
-
 class PtyServer:
     """Serves one EmulatedDevice on a pty until stopped."""
 
@@ -162,10 +141,18 @@ class PtyServer:
         corrupt_ppm: float = 0.0,
         seed: int = 1,
         pace: float | None = None,
+        drop_ppm: float = 0.0,
+        noise_h2d: bool = False,
     ):
+        from pmsm_hil.emulator.link_noise import LinkNoise
+
         self.dev = device
         self.pacer = Pacer(pace=pace)
-        self.corrupt = LinkCorrupter(corrupt_ppm, seed) if corrupt_ppm > 0 else None
+        self.corrupt = LinkNoise(corrupt_ppm, drop_ppm, seed) or None  # device -> host
+        # host -> device: the same rates, another stream of the same seed
+        self.noise_h2d = (
+            (LinkNoise(corrupt_ppm, drop_ppm, seed + 7919) or None) if noise_h2d else None
+        )
         self.master, self.slave = os.openpty()
         tty.setraw(self.slave)
         os.set_blocking(self.master, False)
@@ -211,6 +198,8 @@ class PtyServer:
                     if e.errno not in (errno.EIO, errno.EAGAIN):
                         raise
                     data = b""
+                if self.noise_h2d is not None and data:
+                    data = self.noise_h2d(data)
                 self.dev.rx(data)
             if can_run:
                 _, out = self.dev.run(ticks_allowed if self.dev.active else 0)
@@ -243,10 +232,19 @@ def serve_pty(
     pace: float | None = None,
     report_state: bool = False,
     parent_pid: int | None = None,
+    drop_ppm: float = 0.0,
+    noise_h2d: bool = False,
 ) -> None:
     """Run the emulator on a pty, printing `serial: PATH`, until SIGINT/SIGTERM."""
     dev = EmulatedDevice(settings)
-    server = PtyServer(dev, corrupt_ppm, int(settings.get("seed", 1)), pace=pace)
+    server = PtyServer(
+        dev,
+        corrupt_ppm,
+        int(settings.get("seed", 1)),
+        pace=pace,
+        drop_ppm=drop_ppm,
+        noise_h2d=noise_h2d,
+    )
     signal.signal(signal.SIGTERM, server.stop)
     signal.signal(signal.SIGINT, server.stop)
     announce(f"serial: {server.path}")

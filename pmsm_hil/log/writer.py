@@ -12,8 +12,10 @@
   the CDR payloads by the project's codecs (pmsm_hil.log.schemas: one ``struct.pack`` per
   message, byte-identical to ``mcap_ros2``'s encoder). benchmarks/log_writer.py measures the rate.
 - A chunk is closed and written (then flushed to the OS) when it holds ``chunk_size`` octets or
-  spans ``chunk_span_s`` of device time, so a killed process loses at most that much; the reader
-  recovers such unfinalised files. ``close()`` is idempotent and may be called from ``finally``
+  spans ``chunk_span_s`` of device time, and, with ``flush_wall_s``, once it has been open that long
+  in wall time (checked at each message and by ``flush_if_due()``): a killed process loses at most
+  the open chunk, i.e. the messages of the last ``flush_wall_s`` of wall time (and never more than
+  ``chunk_span_s`` of device time); the reader recovers such unfinalised files. ``close()`` is idempotent and may be called from ``finally``
   or a signal handler; SIGINT/SIGTERM are held back while a chunk is being written.
 """
 
@@ -25,6 +27,7 @@ import os
 import signal
 import struct
 import threading
+import time
 import weakref
 from collections.abc import Iterable, Mapping, Sequence
 from operator import itemgetter
@@ -46,7 +49,23 @@ from pmsm_hil.log.schemas import (
     schema_hash,
 )
 
-__all__ = ["MCAP_MAGIC", "LogWriter", "available_compressions"]
+__all__ = ["MCAP_MAGIC", "LogWriteError", "LogWriter", "available_compressions"]
+
+
+class LogWriteError(OSError):
+    """The log file cannot be written (a full disk, a file size limit, an I/O error). The file
+    keeps every chunk written before (``disk_t_s``: device time of the last message on disk);
+    the writer writes nothing more and ``close()`` only releases the file."""
+
+    def __init__(self, path: str, err: OSError, octets: int, disk_t_s: float | None):
+        self.path, self.octets, self.disk_t_s = path, octets, disk_t_s
+        upto = f"up to t = {disk_t_s:.3f} s" if disk_t_s is not None else "no messages"
+        super().__init__(
+            err.errno,
+            f"cannot write the log {path}: {err.strerror or err} after {octets} octets; "
+            f"the file holds the messages {upto}",
+        )
+
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 PROFILE = "ros2"
@@ -144,6 +163,7 @@ class LogWriter:
         fsync: bool = False,
         topics: Iterable[TopicDef] = (),
         wall_start_s: float | None = None,
+        flush_wall_s: float | None = None,
     ):
         self.path = os.fspath(path)
         self._off_ns = round(wall_start_s * 1e9) if wall_start_s else 0
@@ -152,6 +172,8 @@ class LogWriter:
         ctype = _compression_type(compression)
         self._chunk_size = int(chunk_size)
         self._span_ns = round(chunk_span_s * 1e9)
+        self._flush_wall_s = float(flush_wall_s) if flush_wall_s else 0.0
+        self._wall0 = 0.0  # wall time (monotonic) of the open chunk's first message
         self._fsync = fsync
         self._topics: dict[str, TopicDef] = dict(TOPICS)
         for t in topics:
@@ -159,6 +181,9 @@ class LogWriter:
         self._lock = threading.RLock()
         self._closed = False
         self._closing = False
+        self._failed: LogWriteError | None = None
+        self._last_lt = 0  # log time of the last message added
+        self._disk_lt: int | None = None  # ... of the last message in a chunk on disk
         self._f = open(self.path, "wb")  # noqa: SIM115  (held by the writer until close())
         self._w = Writer(self._f, chunk_size=_NEVER, compression=ctype, enable_data_crcs=True)
         self._schemas: dict[str, int] = {}
@@ -171,16 +196,17 @@ class LogWriter:
 
         self._w.start(PROFILE, LIBRARY)
         meta = {str(k): {str(a): str(b) for a, b in v.items()} for k, v in (metadata or {}).items()}
-        meta.setdefault(
-            "log",
-            {
-                "format_version": str(LOG_FORMAT_VERSION),
-                "schema_hash": schema_hash(),
-                "library": LIBRARY,
-                "compression": compression or "none",
-                "log_time_offset_ns": str(self._off_ns),
-            },
-        )
+        log_meta = {
+            "format_version": str(LOG_FORMAT_VERSION),
+            "schema_hash": schema_hash(),
+            "library": LIBRARY,
+            "compression": compression or "none",
+            "log_time_offset_ns": str(self._off_ns),
+        }
+        if self._flush_wall_s:  # the loss bound of a killed writer, for `pmsm-hil log recover`
+            log_meta["chunk_span_s"] = repr(float(chunk_span_s))
+            log_meta["flush_wall_s"] = repr(self._flush_wall_s)
+        meta.setdefault("log", log_meta)
         for name, rec in meta.items():
             self.add_metadata(name, rec)
         for att in attachments:
@@ -240,8 +266,26 @@ class LogWriter:
         return ch
 
     def _check_open(self) -> None:
+        if self._failed is not None:
+            raise self._failed
         if self._closed or self._closing:
             raise ValueError(f"{self.path}: the log writer is closed")
+
+    def _fail(self, err: OSError) -> LogWriteError:
+        """An I/O error: the writer stops writing for good (see LogWriteError)."""
+        if self._failed is None:
+            try:
+                octets = os.fstat(self._f.fileno()).st_size
+            except (OSError, ValueError):
+                octets = 0
+            t = None if self._disk_lt is None else (self._disk_lt - self._off_ns) / 1e9
+            self._failed = LogWriteError(self.path, err, octets, t)
+        return self._failed
+
+    @property
+    def failed(self) -> LogWriteError | None:
+        """The write error that stopped this writer, or None."""
+        return self._failed
 
     # ------------------------------------------------------------------ messages
     def write(self, topic: str, t_s: float, fields: Mapping[str, Any]) -> None:
@@ -252,7 +296,7 @@ class LogWriter:
             with self._lock:
                 ch = self._channels.get(topic) or self._open_channel(topic)
         if self._closed:
-            raise ValueError(f"{self.path}: the log writer is closed")
+            self._check_open()  # LogWriteError after a write error, else ValueError
         try:
             lt = round(t_s * 1e9)
             if lt < 0:
@@ -289,11 +333,17 @@ class LogWriter:
     def _add(self, ch: _Channel, lt: int, data: bytes) -> None:
         """One message into the open chunk; the chunk is closed before it when it spans
         chunk_span_s, after it when it holds chunk_size octets. Called with the lock held."""
-        if self._n and lt - self._t0 >= self._span_ns:
+        if self._n and (
+            lt - self._t0 >= self._span_ns
+            or (self._flush_wall_s and time.monotonic() - self._wall0 >= self._flush_wall_s)
+        ):
             self._flush_chunk()
         if not self._n:
             self._t0 = lt
+            if self._flush_wall_s:
+                self._wall0 = time.monotonic()
         self._w.add_message(ch.id, lt, data, lt, ch.seq)
+        self._last_lt = lt
         ch.seq = (ch.seq + 1) & 0xFFFFFFFF
         ch.count += 1
         self._n += 1
@@ -412,14 +462,24 @@ class LogWriter:
             if not self._closed:
                 self._flush_chunk()
 
+    def flush_if_due(self) -> None:
+        """Close the open chunk if it has been open ``flush_wall_s`` of wall time (call it when
+        no message comes, so that a quiet link does not keep data unwritten)."""
+        if self._flush_wall_s and self._n and time.monotonic() - self._wall0 >= self._flush_wall_s:
+            self.flush()
+
     def _flush_chunk(self) -> None:
         if not self._n or self._f.closed:
             return
         with _signals_held():
-            self._w.flush()  # the chunk, its message indexes; flushed to the OS
-            if self._fsync:
-                os.fsync(self._f.fileno())
+            try:
+                self._w.flush()  # the chunk, its message indexes; flushed to the OS
+                if self._fsync:
+                    os.fsync(self._f.fileno())
+            except OSError as e:
+                raise self._fail(e) from e
             self._msg_count += self._n
+            self._disk_lt = self._last_lt
             self._size = 0
             self._n = 0
 
@@ -432,16 +492,21 @@ class LogWriter:
         self._closing = True
         try:
             with self._lock, _signals_held():
-                if not self._f.closed:
+                if not self._f.closed and self._failed is None:
                     self._flush_chunk()
-                    self._w.finish()
-                    self._f.flush()
-                    if self._fsync:
-                        os.fsync(self._f.fileno())
+                    try:
+                        self._w.finish()
+                        self._f.flush()
+                        if self._fsync:
+                            os.fsync(self._f.fileno())
+                    except OSError as e:
+                        raise self._fail(e) from e
         finally:
             self._closed = True
             try:
                 self._f.close()
+            except OSError:  # the buffer could not go out: the write error was already raised
+                pass
             finally:
                 atexit.unregister(self._atexit)
 

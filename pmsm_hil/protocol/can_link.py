@@ -1,7 +1,8 @@
 """Protocol messages over CAN (docs/can.md): the host side of firmware/core/can_link.c.
 
     identifier = function << 4 | node
-    direct message:  frame k on function base + k; frame 0 = [seq, fields...]; fields never straddle
+    direct message:  frame k on function base + k; frame 0 = [seq, fields...]; fields never straddle;
+                     2+ frames: frame crc_frame ends with [crc_hi, crc_lo], the CRC-16 below
     transfer:        header [0, msg_id, seq, len, crc_hi, crc_lo], data [index 1.., <= 7 octets]
                      CRC-16/CCITT-FALSE over msg_id, seq, payload (as the serial frame's)
 
@@ -57,9 +58,16 @@ def encode_payload_frames(
             out.append((ident, bytes((k,)) + payload[at : at + cg.TRANSFER_DATA]))
         return out
     data = bytes((seq & 0xFF,)) + payload
+    crc = b""
+    if lay.crc_frame != cg.NO_CRC:  # the end-to-end check (docs/can.md)
+        crc = crc_hqx(bytes((msg_id, seq & 0xFF)) + payload, CRC_INIT).to_bytes(2, "big")
     out, at = [], 0
     for k, n in enumerate(lay.frame_octets):
-        out.append((can_id(lay.func + k, node), data[at : at + n]))
+        if k == lay.crc_frame:
+            n -= cg.CRC_OCTETS
+            out.append((can_id(lay.func + k, node), data[at : at + n] + crc))
+        else:
+            out.append((can_id(lay.func + k, node), data[at : at + n]))
         at += n
     if at != len(data):
         raise codec.ProtocolError(
@@ -78,7 +86,7 @@ class CanDecoder:
         self.node = node
         self.direction = direction
         self.frames_ok = 0  # whole messages decoded
-        self.crc_errors = 0  # transfers with a bad CRC
+        self.crc_errors = 0  # transfers and multi-frame messages whose CRC fails (dropped)
         self.len_errors = 0  # frames of the wrong length
         self.order_errors = 0  # frames missing, repeated or out of place (message dropped)
         self.unknown_id = 0  # a function code, or a transferred message id, this host does not know
@@ -93,7 +101,7 @@ class CanDecoder:
         self._xfer: list | None = None  # [msg_id, seq, len, crc, next, parts, t0]
         xfunc = cg.FUNC_TRANSFER_D2H if direction == "d2h" else cg.FUNC_TRANSFER_H2D
         self._xfer_id = can_id(xfunc, node)
-        self._direct: dict[int, tuple] = {}  # identifier -> (msg_id, k, dlc, n_frames)
+        self._direct: dict[int, tuple] = {}  # identifier -> (msg_id, k, dlc, n_frames, crc_frame)
         for func, (msg_id, k) in cg.BY_FUNC.items():
             spec = BY_ID[msg_id]
             if spec.dir == direction:
@@ -103,6 +111,7 @@ class CanDecoder:
                     k,
                     lay.frame_octets[k],
                     len(lay.frame_octets),
+                    lay.crc_frame,
                 )
         self._decoders = codec._DECODERS
 
@@ -150,7 +159,7 @@ class CanDecoder:
                 continue
             d = direct.get(ident)
             if d is not None:
-                msg_id, k, dlc, n_frames = d
+                msg_id, k, dlc, n_frames, crc_frame = d
                 if n != dlc:
                     self.len_errors += 1
                     slots.pop(msg_id, None)
@@ -162,18 +171,23 @@ class CanDecoder:
                         slots.pop(msg_id, None)
                         self._done(out, msg_id, data[0], bytes(data[1:]))
                     else:
-                        slots[msg_id] = [1, data[0], [bytes(data[1:])]]
+                        slots[msg_id] = [0, data[0], [], None]
+                        self._part(slots[msg_id], bytes(data[1:]), 0, crc_frame)
                     continue
                 slot = slots.get(msg_id)
                 if slot is None or slot[0] != k:
                     self.order_errors += 1
                     slots.pop(msg_id, None)
                     continue
-                slot[2].append(bytes(data))
-                slot[0] = k + 1
+                self._part(slot, bytes(data), k, crc_frame)
                 if k + 1 == n_frames:
                     del slots[msg_id]
-                    self._done(out, msg_id, slot[1], b"".join(slot[2]))
+                    payload = b"".join(slot[2])
+                    # end to end: frames of two messages joined after a lost burst fail here
+                    if crc_hqx(bytes((msg_id, slot[1])) + payload, CRC_INIT) != slot[3]:
+                        self.crc_errors += 1
+                        continue
+                    self._done(out, msg_id, slot[1], payload)
             elif ident == self._xfer_id:
                 self._feed_transfer(out, data)
             elif (ident >> cg.NODE_BITS) in cg.BY_FUNC or ident >> cg.NODE_BITS in (
@@ -185,6 +199,15 @@ class CanDecoder:
                 self.unknown_id += 1
         self.octets = self.bits // 10
         return out
+
+    @staticmethod
+    def _part(slot: list, part: bytes, k: int, crc_frame: int) -> None:
+        """Frame k's payload octets into slot [next frame, seq, parts, crc]."""
+        if k == crc_frame:
+            slot[3] = int.from_bytes(part[-cg.CRC_OCTETS :], "big")
+            part = part[: -cg.CRC_OCTETS]
+        slot[2].append(part)
+        slot[0] = k + 1
 
     def _feed_transfer(self, out: list, data: bytes) -> None:
         now = time.monotonic()

@@ -1,0 +1,174 @@
+"""The DBC of the CAN mapping (firmware/proto/pmsm_proto.dbc), built with cantools' database API
+from the layouts of tools/gen_proto_can.py: every direct frame with its signals (seq, the fields,
+crc_hi/crc_lo in a message's CRC frame) and the two transfer codes as multiplexed messages."""
+
+from __future__ import annotations
+
+from tools.gen_proto_can import NODE_BITS, TRANSFER_DATA, CanSchema, unit_of
+
+
+def _signal(name: str, start_octet: int, wt, scale, signed_override=None, **kw):
+    from cantools.database.can import Signal
+    from cantools.database.conversion import BaseConversion
+
+    is_float = wt.name == "f32"
+    signed = wt.name.startswith("i") if signed_override is None else signed_override
+    conv = BaseConversion.factory(
+        scale=scale if scale is not None else 1, offset=0, is_float=is_float
+    )
+    return Signal(
+        name,
+        start_octet * 8,
+        wt.octets * 8,
+        "little_endian",
+        signed,
+        conversion=conv,
+        unit=unit_of(name) or None,
+        **kw,
+    )
+
+
+def render_dbc(s: CanSchema, wire_types: dict) -> str:
+    from cantools.database.can import Database, Message, Node
+
+    u8 = wire_types["u8"]
+    host, dev = "host", "device"
+    msgs = []
+    node = s.node
+    for cm in s.messages:
+        m = cm.msg
+        sender = host if m.dir == "h2d" else dev
+        receiver = [dev if m.dir == "h2d" else host]
+        if cm.transfer:
+            continue
+        for k, fields in enumerate(cm.frames):
+            sigs, at = [], 0
+            if k == 0:
+                sigs.append(_signal("seq", 0, u8, None, receivers=receiver))
+                at = 1
+            for f in fields:
+                sigs.append(
+                    _signal(f.name, at, f.type, f.scale, receivers=receiver, comment=f.note or None)
+                )
+                at += f.octets
+            if k == cm.crc_frame:
+                for part in ("crc_hi", "crc_lo"):
+                    sigs.append(
+                        _signal(
+                            part,
+                            at,
+                            u8,
+                            None,
+                            receivers=receiver,
+                            comment="CRC-16/CCITT-FALSE over msg_id, seq, payload",
+                        )
+                    )
+                    at += 1
+            name = m.name if cm.n_frames == 1 else f"{m.name}_{k}"
+            comment = f"{m.name} (0x{m.id:02X}) frame {k + 1} of {cm.n_frames}"
+            msgs.append(
+                Message(
+                    (cm.func + k) << NODE_BITS | node,
+                    name,
+                    at,
+                    sigs,
+                    senders=[sender],
+                    comment=comment,
+                    strict=True,
+                )
+            )
+    for func, direction, sender, receiver in (
+        (s.func_transfer_h2d, "h2d", host, dev),
+        (s.func_transfer_d2h, "d2h", dev, host),
+    ):
+        names = ", ".join(
+            f"{cm.msg.name} (0x{cm.msg.id:02X})"
+            for cm in s.messages
+            if cm.transfer and cm.msg.dir == direction
+        )
+        n_data = max(
+            (cm.n_frames - 1 for cm in s.messages if cm.transfer and cm.msg.dir == direction),
+            default=1,
+        )
+        sigs = [
+            _signal("index", 0, u8, None, is_multiplexer=True, receivers=[receiver]),
+            _signal(
+                "msg_id",
+                1,
+                u8,
+                None,
+                multiplexer_ids=[0],
+                multiplexer_signal="index",
+                receivers=[receiver],
+            ),
+            _signal(
+                "seq",
+                2,
+                u8,
+                None,
+                multiplexer_ids=[0],
+                multiplexer_signal="index",
+                receivers=[receiver],
+            ),
+            _signal(
+                "len",
+                3,
+                u8,
+                None,
+                multiplexer_ids=[0],
+                multiplexer_signal="index",
+                receivers=[receiver],
+            ),
+            _signal(
+                "crc_hi",
+                4,
+                u8,
+                None,
+                multiplexer_ids=[0],
+                multiplexer_signal="index",
+                receivers=[receiver],
+            ),
+            _signal(
+                "crc_lo",
+                5,
+                u8,
+                None,
+                multiplexer_ids=[0],
+                multiplexer_signal="index",
+                receivers=[receiver],
+            ),
+        ]
+        from cantools.database.can import Signal
+
+        sigs.append(
+            Signal(
+                "data",
+                8,
+                8 * TRANSFER_DATA,
+                "little_endian",
+                False,
+                multiplexer_ids=list(range(1, n_data + 1)),
+                multiplexer_signal="index",
+                receivers=[receiver],
+                comment="7 payload octets (the last frame: fewer, zero-padded)",
+            )
+        )
+        msgs.append(
+            Message(
+                func << NODE_BITS | node,
+                f"transfer_{direction}",
+                8,
+                sigs,
+                senders=[sender],
+                comment=f"multi-frame transfer {direction}: {names}",
+                strict=True,
+            )
+        )
+    msgs.sort(key=lambda x: x.frame_id)
+    db = Database(
+        msgs,
+        [Node(host, comment="pmsm-hil host"), Node(dev, comment=f"drive, node {node}")],
+        version="",
+        strict=True,
+    )
+    return db.as_dbc_string().replace("\r\n", "\n")  # cantools writes CRLF
