@@ -44,9 +44,13 @@ def _smooth_rows(x: np.ndarray, sg_n: int) -> np.ndarray:
     return savgol_filter(x, sg_n, 2, axis=0)
 
 
-def balance_windows(rec, m: MotorModel, sg_n: int, w_s: float, orders=()) -> Windows | None:
+def balance_windows(
+    rec, m: MotorModel, sg_n: int, w_s: float, orders=(), recorded_speed: bool = False
+) -> Windows | None:
     """Windows of the torque balance and the regressors (see the module doc); ``orders``: cogging
-    periods per mechanical revolution whose sin/cos regressors are wanted (``sin{N}``, ``cos{N}``)."""
+    periods per mechanical revolution whose sin/cos regressors are wanted (``sin{N}``, ``cos{N}``).
+    recorded_speed: use the record's own speed column instead (biased where it lags; kept to show
+    the bias)."""
     ts = rec.ts_s
     w = max(int(round(w_s / ts)), 4)
     h = sg_n // 2
@@ -70,6 +74,8 @@ def balance_windows(rec, m: MotorModel, sg_n: int, w_s: float, orders=()) -> Win
             continue
         th_m = np.unwrap(rec.theta_e_rad[a:b]) / p
         wm = savgol_filter(th_m, sg_n, 2, deriv=1, delta=ts)
+        if recorded_speed:
+            wm = rec.omega_e_rad_s[a:b] / p
         load = rec.load_nm[a:b]
         y0 = te[a:b] - load - m.b_visc_nms * wm - m.t_coulomb_nm * np.sign(wm)
         sig = [
@@ -168,32 +174,40 @@ def torque_balance_effects(rec, m: MotorModel) -> list[dict]:
     ]
     if rec.load_nm is None or not m.j_kgm2 or np.any(np.isnan(rec.load_nm)):
         return none
-    slow = balance_windows(rec, m, *SLOW)
     p = m.pole_pairs
     # cogging: lcm(slots, 2p) periods per revolution, a multiple of p; orders p and 2p are left
     # out (an offset and a relative gain error of the current sensors ripple there)
     orders = list(range(3 * p, 30 * p + 1, p))
     fast = balance_windows(rec, m, *FAST, orders=orders)
-    if slow is None or fast is None or len(slow.y) < 50:
+    if fast is None or len(fast.y) < 50:
         return none
-    # friction: Coulomb and viscous terms beyond the motor file's nominal friction
-    b, cov = ols(slow, NUIS + OFFS + FRIC)
-    tc, bv = float(b[-2]), float(b[-1])
-    se_tc = float(np.sqrt(cov[-2, -2]))
-    z_tc = tc / se_tc if se_tc > 0 else 0.0
-    fric = {
-        "name": "friction",
-        "selected": bool(z_tc > MECH_Z),
-        "magnitude": tc,
-        "quantity": "t_coulomb_nm",
-        "interval": [tc - 1.96 * se_tc, tc + 1.96 * se_tc],
+    best = None
+    for n_per in orders:
+        names = [f"sin{n_per}", f"cos{n_per}"]
+        bb, cc = ols(fast, NUIS + FRIC + OFFS + names)
+        z = wald_z(bb[-2:], cc[-2:, -2:])
+        if best is None or z > best[0]:
+            amp = float(np.hypot(*bb[-2:]))
+            g = bb[-2:] / max(amp, 1e-12)
+            se = float(np.sqrt(max(g @ cc[-2:, -2:] @ g, 0.0)))
+            # the balance error is minus the cogging torque A sin(N theta_m + phase)
+            phase = float(np.arctan2(-bb[-1], -bb[-2]))
+            best = (z, n_per, amp, se, phase, bb, cc)
+    z, n_per, amp, se, phase, bb, cc = best
+    cog_cols = [f"sin{n_per}", f"cos{n_per}"]  # the likeliest cogging, a nuisance of the others
+    cog = {
+        "name": "cogging",
+        "selected": bool(z > MECH_Z + COG_EXTRA_Z),
+        "magnitude": amp,
+        "quantity": "amplitude_nm",
+        "interval": [max(amp - 1.96 * se, 0.0), amp + 1.96 * se],
         "closure": None,
-        "parameters": {"t_coulomb_nm": tc, "b_visc_nms": bv},
-        "evidence": f"torque balance over {SLOW[1] * 1e3:g} ms windows: Coulomb term "
-        f"{tc:.3g} N m, t = {z_tc:.1f} (threshold {MECH_Z:g})",
+        "parameters": {"amplitude_nm": amp, "periods_per_rev": n_per, "phase_rad": phase},
+        "evidence": f"torque balance: {n_per} periods per revolution, {amp:.3g} N m, z = {z:.1f} "
+        f"(threshold {MECH_Z + COG_EXTRA_Z:g})",
     }
     # sensor offsets: the ripple at the electrical frequency
-    b, cov = ols(fast, NUIS + FRIC + OFFS)
+    b, cov = ols(fast, NUIS + FRIC + cog_cols + OFFS)
     o, co = b[-2:], cov[-2:, -2:]
     z_o = wald_z(o, co)
     norm = float(np.hypot(*o))
@@ -212,28 +226,23 @@ def torque_balance_effects(rec, m: MotorModel) -> list[dict]:
         "evidence": f"torque balance: ripple at the electrical frequency of a current offset "
         f"{norm:.3g} A, z = {z_o:.1f} (threshold {MECH_Z:g})",
     }
-    best = None
-    for n_per in orders:
-        names = [f"sin{n_per}", f"cos{n_per}"]
-        bb, cc = ols(fast, NUIS + FRIC + OFFS + names)
-        z = wald_z(bb[-2:], cc[-2:, -2:])
-        if best is None or z > best[0]:
-            amp = float(np.hypot(*bb[-2:]))
-            g = bb[-2:] / max(amp, 1e-12)
-            se = float(np.sqrt(max(g @ cc[-2:, -2:] @ g, 0.0)))
-            # the balance error is minus the cogging torque A sin(N theta_m + phase)
-            phase = float(np.arctan2(-bb[-1], -bb[-2]))
-            best = (z, n_per, amp, se, phase)
-    z, n_per, amp, se, phase = best
-    cog = {
-        "name": "cogging",
-        "selected": bool(z > MECH_Z + COG_EXTRA_Z),
-        "magnitude": amp,
-        "quantity": "amplitude_nm",
-        "interval": [max(amp - 1.96 * se, 0.0), amp + 1.96 * se],
+    # friction: Coulomb and viscous terms beyond the motor file's nominal friction
+    slow = balance_windows(rec, m, *SLOW, orders=[n_per])
+    if slow is None or len(slow.y) < 20:
+        return [_entry("friction", "t_coulomb_nm", "record too short"), cog, offs]
+    b, cov = ols(slow, NUIS + OFFS + cog_cols + FRIC)
+    tc, bv = float(b[-2]), float(b[-1])
+    se_tc = float(np.sqrt(cov[-2, -2]))
+    z_tc = tc / se_tc if se_tc > 0 else 0.0
+    fric = {
+        "name": "friction",
+        "selected": bool(z_tc > MECH_Z),
+        "magnitude": tc,
+        "quantity": "t_coulomb_nm",
+        "interval": [tc - 1.96 * se_tc, tc + 1.96 * se_tc],
         "closure": None,
-        "parameters": {"amplitude_nm": amp, "periods_per_rev": n_per, "phase_rad": phase},
-        "evidence": f"torque balance: {n_per} periods per revolution, {amp:.3g} N m, z = {z:.1f} "
-        f"(threshold {MECH_Z + COG_EXTRA_Z:g})",
+        "parameters": {"t_coulomb_nm": tc, "b_visc_nms": bv},
+        "evidence": f"torque balance over {SLOW[1] * 1e3:g} ms windows: Coulomb term "
+        f"{tc:.3g} N m, t = {z_tc:.1f} (threshold {MECH_Z:g})",
     }
     return [fric, cog, offs]
