@@ -65,8 +65,11 @@ def balance_windows(
     c, s = np.cos(rec.theta_e_rad), np.sin(rec.theta_e_rad)
     off_a = g_d * c - g_q * s
     off_b = g_d * s + g_q * c
+    # 5th and 7th harmonics of the EMF give a torque ripple at 6 theta_e proportional to the current
+    c6, s6 = np.cos(6 * rec.theta_e_rad), np.sin(6 * rec.theta_e_rad)
+    harm = [id_ * c6, id_ * s6, iq * c6, iq * s6]
     ys, cols_out, run_id = [], [], []
-    names = ["one", "iq", "fric_c", "fric_v", "off_a", "off_b"]
+    names = ["one", "iq", "fric_c", "fric_v", "off_a", "off_b"] + HARM
     for n_per in orders:
         names += [f"sin{n_per}", f"cos{n_per}"]
     for a, b in rec.runs:
@@ -86,7 +89,7 @@ def balance_windows(
             wm,
             off_a[a:b],
             off_b[a:b],
-        ]
+        ] + [h[a:b] for h in harm]
         for n_per in orders:
             sig += [np.sin(n_per * th_m), np.cos(n_per * th_m)]
         sm = _smooth_rows(np.stack(sig, 1), sg_n)
@@ -150,6 +153,7 @@ def wald_z(beta: np.ndarray, cov: np.ndarray) -> float:
 NUIS = ["one", "iq"]
 FRIC = ["fric_c", "fric_v"]
 OFFS = ["off_a", "off_b"]
+HARM = ["h_dc", "h_ds", "h_qc", "h_qs"]
 
 
 def _entry(name, quantity, why):
@@ -184,7 +188,10 @@ def torque_balance_effects(rec, m: MotorModel) -> list[dict]:
     best = None
     for n_per in orders:
         names = [f"sin{n_per}", f"cos{n_per}"]
-        bb, cc = ols(fast, NUIS + FRIC + OFFS + names)
+        # at 6p periods per turn a cogging torque is told from the EMF harmonics' torque ripple by
+        # not following the current
+        nuis = NUIS + FRIC + OFFS + (HARM if n_per == 6 * p else [])
+        bb, cc = ols(fast, nuis + names)
         z = wald_z(bb[-2:], cc[-2:, -2:])
         if best is None or z > best[0]:
             amp = float(np.hypot(*bb[-2:]))
