@@ -87,7 +87,11 @@ def main(args: argparse.Namespace) -> int:
 
             res = run_selftest(args.trials, args.seed, workers=args.workers, progress=not args.json)
             if args.json:
-                print(json.dumps(res, indent=1))
+                print(
+                    json.dumps(
+                        res, indent=1, default=lambda o: o.item() if hasattr(o, "item") else str(o)
+                    )
+                )
             else:
                 print_selftest(res)
             return 0

@@ -165,11 +165,11 @@ def _detectable(trial, out) -> bool:
         return out["v_dc_rel"] > 0.002
     t_min = DETECT_TORQUE_REL * _motor().torque_max_nm
     if all(n in ("friction", "cogging") for n in names):
-        return max(_hidden_torque_nm(n, trial["effects"][n]) for n in names) >= t_min
+        return bool(max(_hidden_torque_nm(n, trial["effects"][n]) for n in names) >= t_min)
     if names == ["sensor_offset"]:
         if _hidden_torque_nm(names[0], trial["effects"][names[0]]) >= t_min:
             return True
-    return out["d_mse"] > DETECT_REL * out["floor"]
+    return bool(out["d_mse"] > DETECT_REL * out["floor"])
 
 
 def score(trials: list[dict], outs: list[dict]) -> dict:
