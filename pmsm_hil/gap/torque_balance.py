@@ -25,12 +25,16 @@ from scipy.signal import savgol_filter
 from pmsm_hil.gap.model import MotorModel, abc_to_ab, rot
 
 MECH_Z = 5.0  # Wald statistic (as a z) for a mechanical effect or an offset
-COG_EXTRA_Z = 1.5  # many cogging orders are tried: demand more than for one
+COG_EXTRA_Z = 0.5  # 28 orders and two window lengths are tried: demand more than for one
+# model-form uncertainty added to the statistical error of the magnitudes, relative to them (the
+# smoothing and window discretisation of the balance; calibrated on single-effect records)
+MODEL_FORM_REL = 0.03
 OMEGA_COULOMB_RAD_S = 1.0  # width of the smooth sign of the speed in the Coulomb regressor
 # (Savitzky-Golay window in samples, balance window in s): long windows for the slowly varying
 # friction terms, short ones for the ripple terms (offsets at the electrical frequency, cogging)
 SLOW = (41, 5e-3)
 FAST = (21, 1e-3)
+MID = (41, 2.5e-3)
 
 
 @dataclass
@@ -185,21 +189,27 @@ def torque_balance_effects(rec, m: MotorModel) -> list[dict]:
     fast = balance_windows(rec, m, *FAST, orders=orders)
     if fast is None or len(fast.y) < 50:
         return none
+    mid = balance_windows(rec, m, *MID, orders=orders)
     best = None
-    for n_per in orders:
-        names = [f"sin{n_per}", f"cos{n_per}"]
-        # at 6p periods per turn a cogging torque is told from the EMF harmonics' torque ripple by
-        # not following the current
-        nuis = NUIS + FRIC + OFFS + (HARM if n_per == 6 * p else [])
-        bb, cc = ols(fast, nuis + names)
-        z = wald_z(bb[-2:], cc[-2:, -2:])
-        if best is None or z > best[0]:
-            amp = float(np.hypot(*bb[-2:]))
-            g = bb[-2:] / max(amp, 1e-12)
-            se = float(np.sqrt(max(g @ cc[-2:, -2:] @ g, 0.0)))
-            # the balance error is minus the cogging torque A sin(N theta_m + phase)
-            phase = float(np.arctan2(-bb[-1], -bb[-2]))
-            best = (z, n_per, amp, se, phase, bb, cc)
+    # two window lengths: the short one keeps the high cogging frequencies, the longer one has a
+    # quieter speed at the low ones; the best (order, window) is taken
+    for wins in (fast, mid):
+        if wins is None or len(wins.y) < 50:
+            continue
+        for n_per in orders:
+            names = [f"sin{n_per}", f"cos{n_per}"]
+            # at 6p periods per turn a cogging torque is told from the EMF harmonics' torque
+            # ripple by not following the current
+            nuis = NUIS + FRIC + OFFS + (HARM if n_per == 6 * p else [])
+            bb, cc = ols(wins, nuis + names)
+            z = wald_z(bb[-2:], cc[-2:, -2:])
+            if best is None or z > best[0]:
+                amp = float(np.hypot(*bb[-2:]))
+                g = bb[-2:] / max(amp, 1e-12)
+                se = float(np.hypot(np.sqrt(max(g @ cc[-2:, -2:] @ g, 0.0)), MODEL_FORM_REL * amp))
+                # the balance error is minus the cogging torque A sin(N theta_m + phase)
+                phase = float(np.arctan2(-bb[-1], -bb[-2]))
+                best = (z, n_per, amp, se, phase, bb, cc)
     z, n_per, amp, se, phase, bb, cc = best
     cog_cols = [f"sin{n_per}", f"cos{n_per}"]  # the likeliest cogging, a nuisance of the others
     cog = {
@@ -219,7 +229,7 @@ def torque_balance_effects(rec, m: MotorModel) -> list[dict]:
     z_o = wald_z(o, co)
     norm = float(np.hypot(*o))
     gdir = o / max(norm, 1e-12)
-    se_n = float(np.sqrt(max(gdir @ co @ gdir, 0.0)))
+    se_n = float(np.hypot(np.sqrt(max(gdir @ co @ gdir, 0.0)), MODEL_FORM_REL * norm))
     i_a = float(o[0])
     i_b = float((np.sqrt(3.0) * o[1] - o[0]) / 2.0)
     offs = {
@@ -239,8 +249,9 @@ def torque_balance_effects(rec, m: MotorModel) -> list[dict]:
         return [_entry("friction", "t_coulomb_nm", "record too short"), cog, offs]
     b, cov = ols(slow, NUIS + OFFS + cog_cols + FRIC)
     tc, bv = float(b[-2]), float(b[-1])
-    se_tc = float(np.sqrt(cov[-2, -2]))
-    z_tc = tc / se_tc if se_tc > 0 else 0.0
+    se_stat = float(np.sqrt(cov[-2, -2]))
+    z_tc = tc / se_stat if se_stat > 0 else 0.0
+    se_tc = float(np.hypot(se_stat, MODEL_FORM_REL * tc))
     fric = {
         "name": "friction",
         "selected": bool(z_tc > MECH_Z),
