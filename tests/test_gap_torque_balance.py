@@ -112,3 +112,19 @@ def test_sensor_offset_named_right_not_cogging(recs, motor):
     assert e["parameters"]["i_a_a"] == pytest.approx(0.12, abs=0.02)
     assert e["parameters"]["i_b_a"] == pytest.approx(-0.06, abs=0.02)
     assert "sensor_offset" in res["verdict"]
+
+
+def test_probe_speed_follows_the_angle_so_no_resistance_bias(recs, motor):
+    # the probe's EMF uses a speed consistent with the angle; with the observer's lagging speed the
+    # ramps put psi_f * lag * acceleration on the q axis, read as a higher resistance
+    from pmsm_hil.gap.fit import fit_effects
+    from pmsm_hil.gap.probe import Probe
+
+    rec = recs["null"]
+    p = Probe(rec, motor)
+    sel = np.arange(len(p.idx))[::2]
+    r_scale = fit_effects(p, ["parameters"], sel).x["parameters"][0]
+    assert abs(r_scale - 1.0) < 0.04  # what is left: the smoothing at the ramps' corners
+    p.omega = rec.omega_e_rad_s  # the recorded (observer) speed
+    r_lagged = fit_effects(p, ["parameters"], sel).x["parameters"][0]
+    assert r_lagged > 1.08
