@@ -122,6 +122,7 @@ def _run_trial(trial: dict) -> dict:
             for e in res["effects"]
             if e.get("selected") and e["name"] not in res["selected"]
         ],
+        "selected_residual": res["selected"],
         "effects": eff_out,
         "closure": res["closure"]["closure"],
         "closure_record": res.get("closure_record", {}).get("closure"),
@@ -191,8 +192,11 @@ def score(trials: list[dict], outs: list[dict]) -> dict:
         got = o["selected"][0] if o["selected"] else "none"
         confusion.setdefault(truth, {}).setdefault(got, 0)
         confusion[truth][got] += 1
-    clo = [o["closure"] for t, o in det + two_det if o["selected"]]
-    clo_rec = [o["closure_record"] for t, o in det + two_det if o.get("closure_record") is not None]
+    # closure is the one-step residual's: over the trials whose residual selected an effect (the
+    # views' effects - dc_link, friction, cogging, an offset seen by the torque balance - have none)
+    fitted = [(t, o) for t, o in det + two_det if o.get("selected_residual", o["selected"])]
+    clo = [o["closure"] for t, o in fitted]
+    clo_rec = [o["closure_record"] for t, o in fitted if o.get("closure_record") is not None]
     mag_err, cover, details = [], [], []
     for t, o in zip(trials, outs):
         details.append(
