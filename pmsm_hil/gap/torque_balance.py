@@ -25,7 +25,7 @@ from scipy.signal import savgol_filter
 from pmsm_hil.gap.model import MotorModel, abc_to_ab, rot
 
 MECH_Z = 5.0  # Wald statistic (as a z) for a mechanical effect or an offset
-COG_Z = 4.5  # geometric mean of the z on the two window lengths, for the best of 28 orders
+COG_Z = 7.0  # geometric mean of the z on the two window lengths, for the best of 28 orders
 # model-form uncertainty added to the statistical error of the magnitudes, relative to them (the
 # smoothing and window discretisation of the balance; calibrated on single-effect records)
 MODEL_FORM_REL = 0.03
