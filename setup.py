@@ -10,13 +10,15 @@ from setuptools import Extension, find_packages, setup
 sources = sorted(glob("firmware/core/*.c")) + sorted(glob("firmware/sim/*.c")) + ["pmsm_hil/_fw_module.c"]
 
 # The shipped profiles, motor, rig and flux-map files (profiles/) are package data of
-# pmsm_hil.shipped, so that an installed pmsm-hil finds them from any directory (docs/profiles.md).
+# pmsm_hil.shipped, so that an installed pmsm-hil finds them from any directory (docs/profiles.md);
+# the shipped sweep files (sweeps/) likewise, as pmsm_hil.shipped.sweeps (docs/sweep.md).
 SHIPPED = ["*.yaml", "motors/*.yaml", "rigs/*.yaml", "maps/*.csv"]
 
 setup(
-    packages=find_packages(include=["pmsm_hil", "pmsm_hil.*"]) + ["pmsm_hil.shipped"],
-    package_dir={"pmsm_hil.shipped": "profiles"},
-    package_data={"pmsm_hil.shipped": SHIPPED},
+    packages=find_packages(include=["pmsm_hil", "pmsm_hil.*"])
+    + ["pmsm_hil.shipped", "pmsm_hil.shipped.sweeps"],
+    package_dir={"pmsm_hil.shipped": "profiles", "pmsm_hil.shipped.sweeps": "sweeps"},
+    package_data={"pmsm_hil.shipped": SHIPPED, "pmsm_hil.shipped.sweeps": ["*.yaml"]},
     ext_modules=[
         Extension(
             "pmsm_hil._fw",

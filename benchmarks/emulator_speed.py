@@ -42,6 +42,7 @@ def emulator_realtime_factor(profile_path: str, rig: str | None = None, seed: in
     ticks = 0
     octets = 0
     t0 = time.perf_counter()
+    c0 = time.process_time()
     while dev.active:
         n, out = dev.run(4000)  # 0.2 s: within the heartbeat timeout
         ticks += n
@@ -49,6 +50,7 @@ def emulator_realtime_factor(profile_path: str, rig: str | None = None, seed: in
         # keep the heartbeat alive the way the host would (no decoding)
         s.send("heartbeat", counter=ticks)
     wall = time.perf_counter() - t0
+    cpu = time.process_time() - c0
     device_s = ticks * profile.control.ts_s
     return {
         "device_s": device_s,
@@ -57,6 +59,8 @@ def emulator_realtime_factor(profile_path: str, rig: str | None = None, seed: in
         "octets": octets,
         "ns_per_period": wall / ticks * 1e9,
         "realtime_factor": device_s / wall,
+        "cpu_s": cpu,  # this process's CPU time: less moved by other jobs on a shared machine
+        "cpu_realtime_factor": device_s / cpu if cpu > 0 else float("inf"),
         "rig": rig or str(getattr(profile.rig, "path", "default")),
     }
 
@@ -98,7 +102,7 @@ def main() -> None:
             ours[rig].append(emulator_realtime_factor(args.profile, rig))
         if gem is not None:
             gems.append(gem(sim_seconds=args.gem_seconds, tau=50e-6, repeats=1))
-    for rig, runs in ours.items():
+    for _rig, runs in ours.items():
         best = max(runs, key=lambda r: r["realtime_factor"])
         med = sorted(r["realtime_factor"] for r in runs)[len(runs) // 2]
         name = Path(best["rig"]).name
@@ -115,8 +119,10 @@ def main() -> None:
         f"gym-electric-motor {gems[0].get('env_id', '')} {gems[0].get('version', '')}: best "
         f"{gbest:.2f}x real time, median {gmed:.2f}x, over {len(gems)} runs"
     )
-    for rig, runs in ours.items():
-        ratios = sorted(r["realtime_factor"] / g["realtime_factor"] for r, g in zip(runs, gems))
+    for _rig, runs in ours.items():
+        ratios = sorted(
+            r["realtime_factor"] / g["realtime_factor"] for r, g in zip(runs, gems, strict=False)
+        )
         print(
             f"ratio pmsm-hil/gym-electric-motor, rig {Path(runs[0]['rig']).name}: median "
             f"{ratios[len(ratios) // 2]:.0f}x (per-run pairs; range {ratios[0]:.0f}-{ratios[-1]:.0f}x)"

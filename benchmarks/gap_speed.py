@@ -19,13 +19,13 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
-from pmsm_hil.gap.diagnose import diagnose  # noqa: E402
-from pmsm_hil.gap.model import MotorModel  # noqa: E402
-from pmsm_hil.gap.record import load_record  # noqa: E402
-from pmsm_hil.gapgen.draw import SENSOR_SPEC, draw_profile  # noqa: E402
-from pmsm_hil.gapgen.selftest import _write_inputs  # noqa: E402
-from pmsm_hil.profiles import load_motor  # noqa: E402
-from pmsm_hil.profiles._base import default_file  # noqa: E402
+from pmsm_hil.gap.diagnose import diagnose
+from pmsm_hil.gap.model import MotorModel
+from pmsm_hil.gap.record import load_record
+from pmsm_hil.gapgen.draw import SENSOR_SPEC, draw_profile
+from pmsm_hil.gapgen.selftest import _write_inputs
+from pmsm_hil.profiles import load_motor
+from pmsm_hil.profiles._base import default_file
 
 
 def main() -> None:

@@ -88,7 +88,7 @@ def gem_realtime_factor(
     except Exception:  # pragma: no cover - metadata missing
         gem_version = getattr(gem, "__version__", "unknown")
 
-    n = max(1, int(round(sim_seconds / tau)))
+    n = max(1, round(sim_seconds / tau))
     env = _make_env(tau, solver)
     rng = random.Random(seed)
     actions = [rng.randrange(8) for _ in range(n)] if action == "random" else [0] * n

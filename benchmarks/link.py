@@ -27,6 +27,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from pmsm_hil.device import apply_can_rates, inprocess_can_link  # noqa: E402
 from pmsm_hil.emulator.fwlib import lib  # noqa: E402
 from pmsm_hil.emulator.settings import emulator_settings  # noqa: E402
 from pmsm_hil.log.writer import LogWriter  # noqa: E402
@@ -37,7 +38,6 @@ from pmsm_hil.protocol.can_link import CanDecoder  # noqa: E402
 from pmsm_hil.protocol.session import Session  # noqa: E402
 from pmsm_hil.recorder import Recorder  # noqa: E402
 from pmsm_hil.runner import RunOptions, run_profile  # noqa: E402
-from pmsm_hil.device import apply_can_rates, inprocess_can_link  # noqa: E402
 from pmsm_hil.transport.inproc import InProcessTransport  # noqa: E402
 
 PROFILE = ROOT / "profiles" / "paper-a.yaml"

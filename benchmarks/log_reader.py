@@ -49,7 +49,7 @@ def make_log(path: str, minutes: float) -> dict[str, int]:
                 names = TOPICS[topic].names
                 t = sec + np.arange(hz) / hz
                 cols = {"t_s": t}
-                for n, f in zip(names[1:], TOPICS[topic].fields[1:]):
+                for n, f in zip(names[1:], TOPICS[topic].fields[1:], strict=False):
                     if f.type == "string":
                         cols[n] = np.array(["running"] * hz, dtype=object)
                     elif f.type.startswith("float"):

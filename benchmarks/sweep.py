@@ -42,7 +42,7 @@ def _sweep_file(d: Path, n: int) -> Path:
 def _same(a: list[dict], b: list[dict]) -> tuple[bool, str]:
     if len(a) != len(b):
         return False, f"{len(a)} rows against {len(b)}"
-    for ra, rb in zip(a, b):
+    for ra, rb in zip(a, b, strict=False):
         keys = (set(ra) | set(rb)) - SKIP
         for k in sorted(keys):
             x, y = ra.get(k), rb.get(k)

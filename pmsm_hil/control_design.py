@@ -3,20 +3,25 @@ the speed-PI design when the profile leaves the gains to the tool (docs/control.
 
 from __future__ import annotations
 
+import math
+from typing import TYPE_CHECKING
 
 from pmsm_hil.protocol import generated as gen
+
+if TYPE_CHECKING:
+    from pmsm_hil.profiles import Motor, Profile, Rig
 
 DEFAULT_SPEED_BW_RAD_S = 450.0
 DEFAULT_OBSERVER_BW_RAD_S = 1000.0  # encoder speed observer (docs/control.md)
 CAPTURE_PRE = 256
 
 
-def torque_constant(motor) -> float:
+def torque_constant(motor: Motor) -> float:
     """k_t = 1.5 p psi_f (N·m/A), the surface-magnet part; MTPA adds reluctance torque on top."""
     return 1.5 * motor.pole_pairs * motor.psi_f_wb
 
 
-def design_speed_pi(motor, bw_rad_s: float = DEFAULT_SPEED_BW_RAD_S) -> tuple[float, float]:
+def design_speed_pi(motor: Motor, bw_rad_s: float = DEFAULT_SPEED_BW_RAD_S) -> tuple[float, float]:
     """PI on mechanical rad/s -> stator current (A): crossover at bw, PI zero at bw/4."""
     kp = motor.j_kgm2 * bw_rad_s / torque_constant(motor)
     ki = kp * bw_rad_s / 4.0
@@ -27,13 +32,13 @@ def _div(rate_hz: float, ts_s: float) -> int:
     return 0 if not rate_hz else max(1, round(1.0 / (rate_hz * ts_s)))
 
 
-def encoder_counts(rig) -> int:
+def encoder_counts(rig: Rig) -> int:
     """Counts per revolution of the rig's encoder (the model's default when the effect is off)."""
     enc = rig.effects.encoder
     return int(4 * (enc.lines if enc.enabled else type(enc).model_fields["lines"].default))
 
 
-def device_config(profile) -> tuple[dict, dict]:
+def device_config(profile: Profile) -> tuple[dict, dict]:
     """(config_motor fields, config_ctrl fields) for `profile`."""
     m, c, tel = profile.motor, profile.control, profile.telemetry
     motor_cfg = dict(
@@ -65,14 +70,14 @@ def device_config(profile) -> tuple[dict, dict]:
         speed_ki_a_per_rad=ki,
         speed_div=_div(c.speed_loop_hz, c.ts_s),
         current_ref=gen.ENUMS["current_ref"]["mtpa" if c.current_ref == "mtpa" else "id_zero"],
-        current_ctrl=gen.ENUMS["current_ctrl"]["mpcc"],
-        angle_src=gen.ENUMS["angle_src"]["encoder"],
+        current_ctrl=gen.ENUMS["current_ctrl"][c.current_ctrl],
+        angle_src=gen.ENUMS["angle_src"][c.angle_src],
         heartbeat_timeout_s=c.heartbeat_timeout_s,
         fast_div=_div(tel.fast_hz, c.ts_s),
         params_div=_div(tel.params_hz, c.ts_s),
         status_div=_div(tel.status_hz, c.ts_s),
         enc_counts=encoder_counts(profile.rig),
-        enc_offset_e_rad=0.0,
+        enc_offset_e_rad=getattr(m, "enc_offset_e_rad", 0.0) or 0.0,
         speed_obs_bw_rad_s=c.speed_obs_bw_rad_s or DEFAULT_OBSERVER_BW_RAD_S,
         dead_time_s=m.dead_time_s if comp else 0.0,
         v_drop_v=m.v_drop_v if comp else 0.0,
@@ -80,10 +85,46 @@ def device_config(profile) -> tuple[dict, dict]:
         capture_pre=CAPTURE_PRE,
     )
     ctrl_cfg.update(identification_config(profile))
+    ctrl_cfg.update(sensorless_config(profile))
     return motor_cfg, ctrl_cfg
 
 
-def identification_config(profile) -> dict:
+DEFAULT_EST_BW_RAD_S = 300.0  # angle estimator tracking bandwidth (docs/sensorless.md)
+MRAS_MIN_SPEED_SHARE = (
+    0.05  # MRAS: not used below 5 % of the motor's speed_max_rpm (its rated speed)
+)
+
+
+def foc_bandwidth(profile: Profile) -> float:
+    """FOC current-loop bandwidth, rad/s: the profile's, or 2 pi / (20 ts_s) (docs/sensorless.md)."""
+    c = profile.control
+    return c.foc_bw_rad_s or 2.0 * math.pi / (20.0 * c.ts_s)
+
+
+def estimator_min_speed_rpm(profile: Profile) -> float:
+    """The speed below which the angle estimator is not locked (and not used), r/min."""
+    est = profile.control.estimator
+    if est.min_speed_rpm is not None:
+        return est.min_speed_rpm
+    return MRAS_MIN_SPEED_SHARE * profile.motor.speed_max_rpm
+
+
+def sensorless_config(profile: Profile) -> dict:
+    """config_ctrl fields of the current controller's options and the angle estimator."""
+    c, tel = profile.control, profile.telemetry
+    est = c.estimator
+    return dict(
+        mpcc_candidates=gen.ENUMS["mpcc_candidates"][c.mpcc_candidates],
+        foc_bw_rad_s=foc_bandwidth(profile),
+        est_bw_rad_s=est.bw_rad_s or DEFAULT_EST_BW_RAD_S,
+        est_min_speed_rpm=estimator_min_speed_rpm(profile),
+        est_lock_timeout_s=est.lock_timeout_s,
+        est_theta0_rad=est.theta0_rad,
+        est_div=_div(tel.est_hz, c.ts_s),
+    )
+
+
+def identification_config(profile: Profile) -> dict:
     """config_ctrl fields of the online identification (docs/identification.md)."""
     c = profile.control
     sc = c.predictor_scale
@@ -95,4 +136,20 @@ def identification_config(profile) -> dict:
         pred_scale_l_q=sc.l_q_h,
         pred_scale_psi_f=sc.psi_f_wb,
         pred_scale_r_s=sc.r_s_ohm,
+    )
+
+
+def calibration_config(motor: Motor) -> dict | None:
+    """config_calib fields from a commissioned motor file's current-sensor calibration, or None
+    when the file has none (the message is then not sent: the firmware uses raw samples)."""
+    cal = getattr(motor, "current_sensors", None)
+    if cal is None:
+        return None
+    return dict(
+        i_a_offset_a=cal.i_a_offset_a,
+        i_b_offset_a=cal.i_b_offset_a,
+        i_c_offset_a=cal.i_c_offset_a,
+        i_a_gain_err=cal.i_a_gain_err,
+        i_b_gain_err=cal.i_b_gain_err,
+        i_c_gain_err=cal.i_c_gain_err,
     )

@@ -13,11 +13,18 @@ neither of those packages imports the other (docs/architecture.md).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from pmsm_hil.protocol import can_generated as cg
 from pmsm_hil.protocol.can_link import CanLink, can_fast_hz_max
 from pmsm_hil.protocol.link import SerialLink
+
+if TYPE_CHECKING:
+    from pmsm_hil.emulator.fwlib import EmulatedDevice
+    from pmsm_hil.profiles import Profile
+    from pmsm_hil.transport.can_bus import CanSpec, FrameFault
 
 
 @dataclass
@@ -30,6 +37,7 @@ class DeviceSpec:
     seed: int = 1  # the emulator's noise seed
     pace: float | None = None  # the emulator at X times real time (None: as fast as it can)
     corrupt_ppm: float = 0.0  # the emulator flips bits on its serial output (tests)
+    theta_e0_rad: float = 0.0  # the emulator's rotor angle at the start of a run (sensorless tests)
 
     @property
     def is_rig(self) -> bool:
@@ -40,7 +48,7 @@ def _rig_path(spec: DeviceSpec, profile) -> str | None:
     return spec.rig_path or (str(profile.rig.path) if profile.rig.path else None)
 
 
-def open_device(spec: DeviceSpec, profile):
+def open_device(spec: DeviceSpec, profile: Profile) -> SerialLink | CanLink:
     """A link to the device that `spec` names, set up for `profile` (its motor and rig for an
     emulator; its CAN rates for a CAN link). Raises TransportError (TransportSpecError for a
     SPEC that cannot be meant)."""
@@ -64,6 +72,7 @@ def open_device(spec: DeviceSpec, profile):
         return SerialLink(SerialTransport(spec.port, baud))
     from pmsm_hil.transport.emulator import EmulatorTransport
 
+    settings, plant = _child_settings(spec, profile, baud)
     return SerialLink(
         EmulatorTransport(
             str(profile.motor.path),
@@ -72,30 +81,50 @@ def open_device(spec: DeviceSpec, profile):
             baud,
             corrupt_ppm=spec.corrupt_ppm,
             pace=spec.pace,
+            settings=settings,
+            plant=plant,
         )
     )
 
 
-def emulator_settings_for(profile, spec: DeviceSpec | None = None) -> dict[str, float]:
+def _child_settings(spec: DeviceSpec, profile, baud: int) -> tuple[dict[str, float], str]:
+    """The settings the emulator child would build from the motor and rig files it is named
+    (the same files, loaded the same way), and its plant line."""
+    from pmsm_hil.emulator.settings import emulator_settings
+    from pmsm_hil.profiles import load_motor, load_rig
+
+    motor = load_motor(str(profile.motor.path))
+    rig_path = _rig_path(spec, profile)
+    rig = load_rig(rig_path) if rig_path else load_rig(None)
+    settings = emulator_settings(motor, rig, seed=spec.seed, baud=baud)
+    return settings, f"motor: {motor.name}  rig: {rig.name or 'default'}"
+
+
+def emulator_settings_for(profile: Profile, spec: DeviceSpec | None = None) -> dict[str, float]:
     """The sim board's settings for an emulator of `profile` (its motor, its rig or spec's)."""
     from pmsm_hil.emulator.settings import emulator_settings
     from pmsm_hil.profiles import load_rig
 
     spec = spec or DeviceSpec()
     rig = load_rig(spec.rig_path) if spec.rig_path else profile.rig
-    return emulator_settings(
+    s = emulator_settings(
         profile.motor,
         rig,
         seed=spec.seed,
         baud=spec.baud or profile.link.baud,
         ts_s=profile.control.ts_s,
     )
+    if spec.theta_e0_rad:
+        s["theta_e0_rad"] = spec.theta_e0_rad
+    return s
 
 
 # ----------------------------------------------------------------------------------- CAN
 
 
-def open_can(bus_spec, on_close=None, name: str | None = None) -> CanLink:
+def open_can(
+    bus_spec: CanSpec, on_close: Callable[[], None] | None = None, name: str | None = None
+) -> CanLink:
     """The protocol's CAN link on a python-can bus named by a parsed CanSpec."""
     from pmsm_hil.transport.can_bus import open_bus
 
@@ -113,7 +142,10 @@ def open_can(bus_spec, on_close=None, name: str | None = None) -> CanLink:
 
 
 def inprocess_can_link(
-    settings: dict[str, float], chunk_ticks: int = 400, device=None, **faults
+    settings: dict[str, float],
+    chunk_ticks: int = 400,
+    device: EmulatedDevice | None = None,
+    **faults: FrameFault | None,
 ) -> CanLink:
     """The emulated device in this process behind a CAN link (no socket); `faults` as
     InProcessCanBus's fault_d2h/fault_h2d hooks."""
@@ -130,27 +162,26 @@ def inprocess_can_link(
     )
 
 
-def apply_can_rates(profile) -> None:
+def apply_can_rates(profile: Profile) -> None:
     """Use the profile's CAN telemetry rates (link.can.*_hz, where set) for a run over CAN; the
     fast-frame rate left unset is the serial one, lowered to what fits beside the other streams."""
     can_cfg = profile.link.can
     update = {
         k: getattr(can_cfg, k)
-        for k in ("fast_hz", "params_hz", "status_hz", "truth_hz")
+        for k in ("fast_hz", "params_hz", "status_hz", "truth_hz", "est_hz")
         if getattr(can_cfg, k) is not None
     }
     tel = profile.telemetry.model_copy(update=update)
     if can_cfg.fast_hz is None and tel.fast_hz:
-        fit = can_fast_hz_max(
-            {"params": tel.params_hz, "status": tel.status_hz, "sim_truth": tel.truth_hz},
-            profile.control.ts_s,
-            can_cfg.bitrate,
-        )
+        others = {"params": tel.params_hz, "status": tel.status_hz, "sim_truth": tel.truth_hz}
+        if profile.control.angle_src != "encoder":
+            others["telem_est"] = tel.est_hz
+        fit = can_fast_hz_max(others, profile.control.ts_s, can_cfg.bitrate)
         tel = tel.model_copy(update={"fast_hz": min(tel.fast_hz, fit)})
     profile.telemetry = tel
 
 
-def open_can_for_run(spec: DeviceSpec, profile) -> CanLink:
+def open_can_for_run(spec: DeviceSpec, profile: Profile) -> CanLink:
     """`run --can SPEC`: a rig's CAN interface, or (SPEC `emulator` or empty) a started emulator.
     The profile's link.can bit rate and node apply unless SPEC gives them."""
     from pmsm_hil.transport.can_bus import CanEmulator, parse_spec

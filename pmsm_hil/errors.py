@@ -16,4 +16,4 @@ class DeviceError(Exception):
     """The device refused, did not answer, or speaks another protocol; the message says which."""
 
 
-__all__ = ["TransportError", "TransportSpecError", "DeviceError"]
+__all__ = ["DeviceError", "TransportError", "TransportSpecError"]

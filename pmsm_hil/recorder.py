@@ -3,15 +3,32 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Iterable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Protocol
 
 from pmsm_hil.protocol import generated as gen
+
+if TYPE_CHECKING:
+    from pmsm_hil.log.writer import LogWriter
+    from pmsm_hil.protocol.codec import Frame
+
+
+class Sink(Protocol):
+    """An extra consumer of each logged device message (e.g. pmsm_hil.live.foxglove.FoxgloveSink)."""
+
+    def publish(self, topic: str, t_s: float, fields: dict) -> None: ...
+
 
 STATE_NAMES = {v: k for k, v in gen.ENUMS["state"].items()}
 EVENT_NAMES = {v: k for k, v in gen.ENUMS["event"].items()}
 ESTIMATOR_NAMES = {v: k for k, v in gen.ENUMS["estimator"].items()}
+ANGLE_SRC_NAMES = {v: k for k, v in gen.ENUMS["angle_src"].items()}
+EST_FLAGS = gen.ENUMS["est_flag"]
 FAULT_BITS = gen.ENUMS["fault"]
 STOP_REASONS = {v: k.replace("_", " ") for k, v in gen.ENUMS["stop_reason"].items()}
+COMMISSION_STEPS = {v: k for k, v in gen.ENUMS["commission_step"].items()}
+COMMISSION_FAILS = {v: k for k, v in gen.ENUMS["commission_fail"].items()}
 PARAMS_FLAGS = gen.ENUMS["params_flag"]
 
 TELEMETRY_FIELDS = (
@@ -68,6 +85,7 @@ class LiveState:
     faults: int = 0
     telemetry: dict = field(default_factory=dict)
     params: dict = field(default_factory=dict)  # estimator -> fields
+    estimator: dict = field(default_factory=dict)  # the angle estimator's last frame
     truth: dict = field(default_factory=dict)
     status: dict = field(default_factory=dict)
     frames: int = 0
@@ -79,6 +97,7 @@ class LiveState:
     events: list = field(default_factory=list)  # (t_s, kind, arg, text)
     stopped: bool = False
     stop_reason: str = ""
+    commission: list = field(default_factory=list)  # /pmsm/commission rows, in order
 
     @property
     def wall_s(self) -> float:
@@ -93,7 +112,9 @@ class LiveState:
 class Recorder:
     """Feeds frames to the log writer (device topics) and to the live state."""
 
-    def __init__(self, writer, ts_s: float, segment_names: list[str], sinks=()):
+    def __init__(
+        self, writer: LogWriter, ts_s: float, segment_names: list[str], sinks: Iterable[Sink] = ()
+    ):
         self.w = writer
         self.sinks = list(sinks)  # extra consumers, e.g. pmsm_hil.live.foxglove.FoxgloveSink
         self.ts_s = ts_s
@@ -113,7 +134,7 @@ class Recorder:
         self._write("/pmsm/events", t_s, {"kind": kind, "code": code, "arg": arg, "text": text})
         self.live.events.append((t_s, kind, arg, text))
 
-    def frames(self, frames) -> None:
+    def frames(self, frames: Iterable[Frame]) -> None:
         live = self.live
         for fr in frames:
             live.frames += 1
@@ -131,6 +152,21 @@ class Recorder:
         self._write("/pmsm/telemetry", t, row)
         self.live.t_s = t
         self.live.telemetry = row
+
+    def _on_telem_est(self, f: dict) -> None:
+        t = self._t(f["tick"])
+        flags = f["flags"]
+        row = {
+            "estimator": ANGLE_SRC_NAMES.get(f["estimator"], str(f["estimator"])),
+            "locked": bool(flags & EST_FLAGS["locked"]),
+            "in_loop": bool(flags & EST_FLAGS["in_loop"]),
+            "confidence": f["confidence"],
+            "theta_err_rad": f["theta_err_rad"],
+            "speed_err_rpm": f["speed_err_rpm"],
+            "err_signal": f["err_signal"],
+        }
+        self._write("/pmsm/estimator", t, row)
+        self.live.estimator = row
 
     def _on_params(self, f: dict) -> None:
         t = self._t(f["tick"])
@@ -178,11 +214,29 @@ class Recorder:
             self.live.stop_reason = STOP_REASONS.get(arg, str(arg))
         elif kind == "heartbeat_lost":
             text = f"heartbeat lost: last heartbeat {arg} ms ago"
+        elif kind == "commission_step":
+            text = f"commissioning: {COMMISSION_STEPS.get(arg, arg)}"
+        elif kind == "commission_failed":
+            step, why = COMMISSION_STEPS.get(arg >> 8, arg >> 8), arg & 0xFF
+            text = f"commissioning failed in {step}: {COMMISSION_FAILS.get(why, why)}"
         elif kind == "capture_triggered":
             text = "capture triggered by " + ("a fault" if arg < 0 else f"segment {arg}")
         else:
             text = kind.replace("_", " ")
         self.event(t, kind, code, arg, text)
+
+    def _on_commission_result(self, f: dict) -> None:
+        t = self._t(f["tick"])
+        row = {
+            "step": COMMISSION_STEPS.get(f["step"], str(f["step"])),
+            "status": "ok" if f["status"] == 0 else COMMISSION_FAILS.get(f["status"], "failed"),
+        }
+        for k in range(4):
+            row[f"value_{k}"] = f["value"][k]
+            row[f"spread_{k}"] = f["spread"][k]
+        row["ref_0"], row["ref_1"] = f["truth_ref"][0], f["truth_ref"][1]
+        self._write("/pmsm/commission", t, row)
+        self.live.commission.append((t, row))
 
     def _on_sim_truth(self, f: dict) -> None:
         t = self._t(f["tick"])

@@ -3,6 +3,7 @@ keep the heartbeat, and end safely whatever happens (profile end, Ctrl-C, fault,
 
 from __future__ import annotations
 
+import contextlib
 import signal
 import threading
 import time
@@ -10,12 +11,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from pmsm_hil import __version__
-from pmsm_hil.control_design import device_config
+from pmsm_hil.control_design import calibration_config, device_config
+from pmsm_hil.errors import DeviceError, TransportError
 from pmsm_hil.log.writer import LogWriter
 from pmsm_hil.protocol import generated as gen
-from pmsm_hil.errors import DeviceError, TransportError
 from pmsm_hil.protocol.session import Session
 from pmsm_hil.recorder import LiveState, Recorder
+from pmsm_hil.sensorless_design import estimator_frames
 
 
 @dataclass
@@ -31,6 +33,8 @@ class RunOptions:
     rig_name: str = ""
     on_update_s: float = 0.1  # wall time between observer updates
     sinks: list = field(default_factory=list)  # extra consumers of each logged device message
+    # further configuration messages sent after the profile, e.g. ("config_commission", {...})
+    requests: list = field(default_factory=list)
 
 
 @dataclass
@@ -95,7 +99,7 @@ class _Interrupts:
         self.count += 1
         self.signal_name = signal.Signals(signum).name
 
-    def __enter__(self) -> "_Interrupts":
+    def __enter__(self) -> _Interrupts:
         if threading.current_thread() is threading.main_thread():
             for s in self.SIGNALS:
                 self._old[s] = signal.signal(s, self._handler)
@@ -145,6 +149,15 @@ def configure(session: Session, profile) -> None:
     motor_cfg, ctrl_cfg = device_config(profile)
     session.request("config_motor", **motor_cfg)
     session.request("config_ctrl", **ctrl_cfg)
+    calib = calibration_config(profile.motor)
+    if calib is not None:  # a commissioned motor file: the current sensors' calibration
+        session.request("config_calib", **calib)
+    if profile.control.angle_src in ("ripple_pll", "hybrid"):
+        # the ripple PLL's magnetics, polarity signature, hybrid band (docs/sensorless.md)
+        snl_cfg, nodes = estimator_frames(profile.motor)
+        session.request("config_sensorless", **snl_cfg)
+        for node in nodes:
+            session.request("gamma_node", **node)
     session.request("profile_clear", n_segments=len(profile.segments))
     for i, s in enumerate(profile.segments):
         session.request(
@@ -157,6 +170,7 @@ def configure(session: Session, profile) -> None:
             flags=(
                 (gen.ENUMS["segment_flag"]["capture"] if s.capture else 0)
                 | (0 if s.estimate else gen.ENUMS["segment_flag"]["hold_est"])
+                | (gen.ENUMS["segment_flag"]["angle_encoder"] if s.angle_encoder else 0)
             ),
             kind=gen.ENUMS["segment_kind"][s.kind],
             inject_a=s.inject_a,
@@ -181,6 +195,8 @@ def run_profile(
     log_path = Path(log_path)
     session.hello()
     configure(session, profile)
+    for name, fields in options.requests:
+        session.request(name, **fields)
     names = [s.name or f"segment {i}" for i, s in enumerate(profile.segments)]
     interrupted = False
     error = ""
@@ -237,10 +253,8 @@ def run_profile(
 
 
 def _send_quietly(session: Session, what: str) -> None:
-    try:
+    with contextlib.suppress(Exception):  # the link is gone too: the device stops on its heartbeat
         session.send(what)
-    except Exception:  # the link is gone too: the device stops on its heartbeat timeout
-        pass
 
 
 class _SafeObserver:
@@ -294,10 +308,9 @@ def _stream(
         live.bad_frames = _bad_frames(session)
         if live.stopped and live.state in ("done", "idle", "fault"):
             return False
-        if live.stopped and not frames:
-            # stopped event seen; wait for the status frame that follows, then end
-            if now - last_data_wall > 0.3:
-                return False
+        if live.stopped and not frames and now - last_data_wall > 0.3:
+            # stopped event seen and the status frame that follows it waited for: end
+            return False
         if not live.stopped and not frames and now - last_data_wall > 0.3 and _stop_evident(live):
             # the stopped event was lost, but the status frames or the profile's end show the stop
             live.stopped = True

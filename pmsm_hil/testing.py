@@ -19,9 +19,13 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pytest
+
+if TYPE_CHECKING:
+    from pmsm_hil.analysis.identification import IdentTable
+    from pmsm_hil.analysis.summary import RunSummary
 
 __all__ = ["HilDevice", "HilRun"]
 
@@ -37,14 +41,14 @@ class HilRun:
     _checks: Any = field(default=None, repr=False)
 
     @property
-    def summary(self):
+    def summary(self) -> RunSummary:
         if self._summary is None:
             from pmsm_hil.analysis.summary import summarize_log
 
             self._summary = summarize_log(self.log_path)
         return self._summary
 
-    def identification(self, t0_s: float | None = None, t1_s: float | None = None):
+    def identification(self, t0_s: float | None = None, t1_s: float | None = None) -> IdentTable:
         """The identification table (default window: up to the first plant step)."""
         from pmsm_hil.analysis.identification import identification_table
         from pmsm_hil.sweep.metrics import identification_window
@@ -109,14 +113,10 @@ class HilDevice:
     def is_rig(self) -> bool:
         return self.kind != "emulator"
 
-    def _transport(self, profile, seed: int):
-        if self.port:
-            from pmsm_hil.transport.serial_port import SerialTransport
+    def _link(self, profile, seed: int):
+        from pmsm_hil.device import DeviceSpec, open_device
 
-            return SerialTransport(self.port, profile.link.baud)
-        from pmsm_hil.transport.can_bus import open_for_run
-
-        return open_for_run(self.can, profile, str(profile.rig.path), seed)
+        return open_device(DeviceSpec(port=self.port, can=self.can, seed=seed), profile)
 
     def run(
         self,
@@ -145,21 +145,21 @@ class HilDevice:
             from pmsm_hil.protocol.session import Session
             from pmsm_hil.runner import RunOptions, run_profile
 
-            transport = self._transport(prof, seed)
+            link = self._link(prof, seed)
             try:
-                on_emulator = bool(self.can) and self.can.startswith("emulator")  # the CAN emulator
+                on_emulator = self.can is not None and self.can.startswith("emulator")
                 result = run_profile(
-                    prof, Session(transport), log, RunOptions(seed=seed if on_emulator else None)
+                    prof, Session(link), log, RunOptions(seed=seed if on_emulator else None)
                 )
             finally:
-                transport.close()
+                link.close()
         return HilRun(profile=prof, result=result, log_path=log)
 
 
 # ----------------------------------------------------------------------------------- pytest hooks
 
 
-def pytest_addoption(parser) -> None:
+def pytest_addoption(parser: pytest.Parser) -> None:
     group = parser.getgroup("pmsm-hil", "pmsm-hil hardware-in-the-loop tests")
     group.addoption(
         "--hil-port",
@@ -184,7 +184,7 @@ def pytest_addoption(parser) -> None:
     )
 
 
-def pytest_configure(config) -> None:
+def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line(
         "markers", "hil_rig: needs a real rig (--hil-port or --hil-can); skipped on the emulator"
     )
@@ -194,7 +194,7 @@ def _has_rig(config) -> bool:
     return bool(config.getoption("--hil-port") or config.getoption("--hil-can"))
 
 
-def pytest_collection_modifyitems(config, items) -> None:
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     if _has_rig(config):
         return
     skip = pytest.mark.skip(reason="needs a real rig: give --hil-port PORT or --hil-can SPEC")
@@ -204,7 +204,9 @@ def pytest_collection_modifyitems(config, items) -> None:
 
 
 @pytest.fixture(scope="session")
-def hil_device(request, tmp_path_factory) -> HilDevice:
+def hil_device(
+    request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
+) -> HilDevice:
     """The device under test (session-wide): the emulator, or the rig given by --hil-port/--hil-can."""
     cfg = request.config
     if cfg.getoption("--hil-port") and cfg.getoption("--hil-can"):

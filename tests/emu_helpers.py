@@ -31,7 +31,7 @@ def raw_messages(path, topics=DEVICE_TOPICS):
         for m in reader.iter_metadata():
             if m.name == "log":
                 offset = int(m.metadata.get("log_time_offset_ns", "0"))
-        for schema, channel, msg in reader.iter_messages(topics=list(topics)):
+        for _schema, channel, msg in reader.iter_messages(topics=list(topics)):
             out.append((channel.topic, msg.log_time - offset, bytes(msg.data)))
     return out
 

@@ -14,7 +14,7 @@ R, LD, LQ, PSI, P = 0.9, 0.005, 0.012, 0.18, 4
 
 def simulate(path, dead_time_s=0.0, noise_a=0.02, ts=50e-6, t_end=1.0, v_dc=540.0, seed=0, sub=20):
     rng = np.random.default_rng(seed)
-    n = int(round(t_end / ts))
+    n = round(t_end / ts)
     i_d = i_q = 0.0
     theta = 0.0
     xi_d = xi_q = 0.0
@@ -55,7 +55,7 @@ def simulate(path, dead_time_s=0.0, noise_a=0.02, ts=50e-6, t_end=1.0, v_dc=540.
             )
             pole = [
                 dx * v_dc - (dead_time_s / ts) * v_dc * math.copysign(1.0, ix)
-                for dx, ix in zip(d, iph)
+                for dx, ix in zip(d, iph, strict=False)
             ]
             u_al = (2 * pole[0] - pole[1] - pole[2]) / 3
             u_be = (pole[1] - pole[2]) / math.sqrt(3)

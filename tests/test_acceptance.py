@@ -8,10 +8,9 @@ import sys
 import xml.etree.ElementTree as ET
 
 import pytest
+from emu_helpers import DEVICE_TOPICS, raw_messages, run_inproc
 
 from pmsm_hil.profiles import ProfileError, load_profile
-
-from emu_helpers import DEVICE_TOPICS, raw_messages, run_inproc
 
 CLI = [sys.executable, "-m", "pmsm_hil.cli.main"]
 

@@ -125,7 +125,7 @@ def test_the_layering_table_names_real_packages():
         for p in PKG.iterdir()
         if (p.is_dir() and (p / "__init__.py").exists()) or p.suffix == ".py"
     }
-    for pkg, bad in FORBIDDEN.items():
+    for pkg, _bad in FORBIDDEN.items():
         assert pkg in top, pkg
 
 

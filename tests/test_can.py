@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from pmsm_hil.analysis.summary import summarize_log
+from pmsm_hil.device import apply_can_rates, inprocess_can_link, open_can
 from pmsm_hil.emulator.fwlib import EmulatedDevice
 from pmsm_hil.emulator.settings import emulator_settings
 from pmsm_hil.log.reader import read_log
@@ -23,7 +24,6 @@ from pmsm_hil.protocol.can_link import CanDecoder, encode_message
 from pmsm_hil.protocol.session import Session
 from pmsm_hil.runner import RunOptions, configure, run_profile
 from pmsm_hil.transport.base import TransportError
-from pmsm_hil.device import apply_can_rates, inprocess_can_link, open_can
 from pmsm_hil.transport.can_bus import parse_spec
 
 STATE = gen.ENUMS["state"]

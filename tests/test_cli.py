@@ -9,10 +9,11 @@ import sys
 import threading
 import time
 import tty
+from pathlib import Path
 
 import pytest
-
 from emu_helpers import emulator_children
+
 from pmsm_hil.log.reader import read_log
 from pmsm_hil.protocol import codec
 from pmsm_hil.protocol import generated as gen
@@ -167,7 +168,10 @@ def test_ctrl_c_stops_the_motor_and_keeps_the_log(data, tmp_path):
     tel = log.topic("/pmsm/telemetry")
     assert abs(tel["speed_rpm"][-1]) < 5.0
     for c in children:  # the host ended its emulator
-        assert not os.path.exists(f"/proc/{c}") or open(f"/proc/{c}/stat").read().split()[2] == "Z"
+        assert (
+            not os.path.exists(f"/proc/{c}")
+            or Path(f"/proc/{c}/stat").read_text().split()[2] == "Z"
+        )
 
 
 def test_emulate_serves_a_pty_that_run_uses_like_a_rig(data, tmp_path):

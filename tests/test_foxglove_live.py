@@ -4,6 +4,7 @@ with JSON schemas that match the log; the layout file plots fields that exist.""
 from __future__ import annotations
 
 import asyncio
+import itertools
 import json
 import os
 import socket
@@ -52,7 +53,7 @@ async def _listen(port: int, seconds: float) -> tuple[dict, dict]:
         while time.monotonic() < end:
             try:
                 raw = await asyncio.wait_for(ws.recv(), timeout=0.5)
-            except asyncio.TimeoutError:
+            except TimeoutError:
                 continue
             except websockets.exceptions.ConnectionClosed:  # the run ended
                 break
@@ -118,7 +119,7 @@ def test_run_serves_the_live_streams_to_a_foxglove_client(root, tmp_path):
             + ", ".join(f"{k} {len(v)}" for k, v in sorted(got.items()))
         )
     finally:
-        stdout, stderr = proc.communicate(timeout=120)
+        _stdout, stderr = proc.communicate(timeout=120)
     assert proc.returncode == 0, stderr
     # every live topic is advertised with a JSON schema holding exactly the log's field names
     by_topic = {c["topic"]: c for c in channels.values()}
@@ -135,12 +136,12 @@ def test_run_serves_the_live_streams_to_a_foxglove_client(root, tmp_path):
     sent = got["/pmsm/telemetry"]
     for _, msg in sent[:20]:
         assert set(msg) == set(TOPICS["/pmsm/telemetry"].names)
-        i = int(round(msg["t_s"] * 2000))  # long.yaml streams telemetry at 2 kHz
+        i = round(msg["t_s"] * 2000)  # long.yaml streams telemetry at 2 kHz
         assert tel["t_s"][i] == pytest.approx(msg["t_s"])
         assert tel["speed_rpm"][i] == pytest.approx(msg["speed_rpm"], rel=1e-12)
     # decimated to <= 200 Hz of device time
     ts = [m["t_s"] for _, m in sent]
-    assert min(b - a for a, b in zip(ts, ts[1:])) >= 1 / 200 - 1e-9
+    assert min(b - a for a, b in itertools.pairwise(ts)) >= 1 / 200 - 1e-9
     # the log itself is complete: the sink decimates only what it sends
     assert len(tel["t_s"]) >= 10 * 2000 - 2
 
@@ -168,7 +169,7 @@ def test_sink_refuses_a_port_in_use_or_out_of_range():
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         s.listen()
-        with pytest.raises(FoxgloveError, match="cannot listen on 127.0.0.1"):
+        with pytest.raises(FoxgloveError, match=r"cannot listen on 127\.0\.0\.1"):
             FoxgloveSink(s.getsockname()[1])
     with pytest.raises(FoxgloveError, match="not a TCP port"):
         FoxgloveSink(70000)

@@ -10,9 +10,9 @@ from __future__ import annotations
 import ctypes
 import random
 
+import pmsm_hil._fw as fw
 import pytest
 
-import pmsm_hil._fw as fw
 from pmsm_hil.protocol import codec
 from pmsm_hil.protocol.generated import MESSAGES
 

@@ -9,10 +9,10 @@ from pathlib import Path
 
 import pytest
 
+from pmsm_hil.gap.csv_import import import_csv
 from pmsm_hil.gap.diagnose import diagnose
 from pmsm_hil.gap.model import MotorModel
 from pmsm_hil.gap.record import load_record
-from pmsm_hil.gap.csv_import import import_csv
 from pmsm_hil.profiles import load_motor
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -157,7 +157,7 @@ def test_csv_gap_in_time_and_bad_values(tmp_path):
     c = _ok_cols()
     c["t_s"][3] = c["t_s"][2]
     _write_csv(tmp_path / "mono.csv", c)
-    with pytest.raises(ImportError_, match="line 5: t_s = .* does not increase"):
+    with pytest.raises(ImportError_, match=r"line 5: t_s = .* does not increase"):
         read_csv(tmp_path / "mono.csv")
 
 

@@ -18,8 +18,8 @@ def test_draws_are_reproducible_and_within_the_rig_limits(tmp_path):
     from pmsm_hil.gapgen.selftest import _write_inputs
     from pmsm_hil.profiles import load_profile
 
-    a = [draw_trial(np.random.default_rng(4)) for _ in range(1)][0]
-    b = [draw_trial(np.random.default_rng(4)) for _ in range(1)][0]
+    a = next(draw_trial(np.random.default_rng(4)) for _ in range(1))
+    b = next(draw_trial(np.random.default_rng(4)) for _ in range(1))
     assert a == b
     rng = np.random.default_rng(9)
     for name in LIBRARY:

@@ -71,7 +71,7 @@ def test_ideal_plant_has_no_coulomb_term(recs, motor):
     # the recorded speed is the encoder observer's, which lags during the ramps; the balance uses a
     # zero-phase speed from the angle, so no spurious Coulomb or torque-constant term is left
     w = balance_windows(recs["null"], motor, *SLOW)
-    b, cov = ols(w, NUIS + OFFS + FRIC)
+    b, _cov = ols(w, NUIS + OFFS + FRIC)
     assert abs(b[-2]) < 0.01  # N m
     assert abs(b[1]) < 0.005  # N m per A
     v = _views(recs["null"], motor)

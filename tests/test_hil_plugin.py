@@ -68,3 +68,21 @@ def test_marker_skips_without_a_rig_and_options_reach_the_fixture(pytester):
     r.assert_outcomes(passed=1)
     r = pytester.runpytest_subprocess("--markers")
     r.stdout.fnmatch_lines(["*hil_rig: needs a real rig*"])
+
+
+def test_the_rig_path_runs_a_profile_over_can(pytester, data):
+    """`--hil-can emulator` takes the rig's path (a link opened by the device factory, the run
+    over the protocol) with the emulator on CAN at the other end."""
+    short = data / "short.yaml"
+    pytester.makepyfile(
+        test_user=f"""
+        def test_on_can(hil_device):
+            assert hil_device.kind == "can" and hil_device.is_rig
+            run = hil_device.run({str(short)!r}, seed=3)
+            assert run.result.state == "done" and run.result.faults == 0
+            assert run.log_path.is_file()
+            run.assert_accepted()
+    """
+    )
+    r = pytester.runpytest_subprocess("--hil-can", "emulator", "-p", "no:cacheprovider")
+    r.assert_outcomes(passed=1)

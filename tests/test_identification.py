@@ -5,12 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from emu_helpers import run_inproc
 
 from pmsm_hil.analysis.identification import identification_table, markdown_table, text_table
 from pmsm_hil.cli.main import main as cli_main
 from pmsm_hil.log.reader import read_log
-
-from emu_helpers import run_inproc
 
 
 @pytest.fixture(scope="module")
@@ -22,20 +21,22 @@ def ident_run(tmp_path_factory, request):
 
 
 def test_identify_run_completes_and_streams_every_estimator(ident_run):
-    profile, result, out = ident_run
+    _profile, result, out = ident_run
     assert result.state == "done" and result.faults == 0
     par = read_log(out).topic("/pmsm/params")
     names = set(np.asarray(par["estimator"]).astype(str))
     assert names == {"nominal", "rls", "adaline", "nlms_adaline"}
     ev = read_log(out).topic("/pmsm/events")
-    r_mohm = [int(a) for t, a in zip(ev["text"], ev["arg"]) if "r identified" in str(t)]
+    r_mohm = [
+        int(a) for t, a in zip(ev["text"], ev["arg"], strict=False) if "r identified" in str(t)
+    ]
     # the standstill injection (trapezoidal window means, residual L di/dt removed): within 2 %
     assert len(r_mohm) == 1 and abs(r_mohm[0] / 900.0 - 1.0) < 0.02, r_mohm
 
 
 def test_nlms_adaline_estimates_within_bounds(ident_run):
     profile, _, out = ident_run
-    drift = [s for s in profile.segments if s.plant is not None][0]
+    drift = next(s for s in profile.segments if s.plant is not None)
     table = identification_table(out, 0.0, drift.t_start_s)
     c = {p: table.cell("nlms_adaline", p) for p in ("l_d_h", "l_q_h", "psi_f_wb", "r_s_ohm")}
     # measured figures (docs/identification.md): L_q and psi_f within 0.5 %, L_d within 1 %;
@@ -64,7 +65,7 @@ def test_predictor_fed_by_nlms_once_converged(ident_run):
 def test_drift_step_reaches_the_plant_truth(ident_run):
     profile, _, out = ident_run
     tr = read_log(out).topic("/sim/truth")
-    drift = [s for s in profile.segments if s.plant is not None][0]
+    drift = next(s for s in profile.segments if s.plant is not None)
     before = tr["t_s"] < drift.t_start_s - 0.05
     after = tr["t_s"] > drift.t_start_s + 0.05
     assert np.allclose(tr["r_s_ohm"][after], 0.9 * 1.3, rtol=1e-3)

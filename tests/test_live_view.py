@@ -4,9 +4,8 @@ from __future__ import annotations
 
 import io
 
-from rich.console import Console
-
 import pytest
+from rich.console import Console
 
 from pmsm_hil.cli.live import FLAGS_LEGEND, LiveView, PlainProgress, make_observer, render
 from pmsm_hil.recorder import LiveState

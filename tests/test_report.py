@@ -9,12 +9,11 @@ import struct
 
 import numpy as np
 import pytest
+from emu_helpers import run_inproc
 
 from pmsm_hil.analysis.report import PANELS, build_report
 from pmsm_hil.cli.main import main
 from pmsm_hil.log.writer import LogWriter
-
-from emu_helpers import run_inproc
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 

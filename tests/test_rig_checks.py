@@ -10,10 +10,9 @@ import pytest
 from pmsm_hil.emulator.fwlib import EmulatedDevice
 from pmsm_hil.emulator.settings import emulator_settings
 from pmsm_hil.profiles import load_profile
-from pmsm_hil.profiles.motor import load_motor
-from pmsm_hil.profiles.rig import load_rig
 from pmsm_hil.profiles.fluxmap import MAX_NODES
-from pmsm_hil.profiles.rig import PLANT_DELAY_RING, PLANT_THERMAL_DIV
+from pmsm_hil.profiles.motor import load_motor
+from pmsm_hil.profiles.rig import PLANT_DELAY_RING, PLANT_THERMAL_DIV, load_rig
 
 # (file text of the effects section, profile control.ts_s, field named, value named)
 BAD = {
@@ -117,8 +116,8 @@ def test_what_the_loader_refuses_the_emulator_refuses(tmp_path, root, case):
 
 def test_plant_limits_match_the_firmware_header(root):
     h = (root / "firmware" / "sim" / "plant.h").read_text()
-    assert re.search(rf"#define PLANT_THERMAL_DIV {PLANT_THERMAL_DIV}\b", h)
-    assert re.search(rf"#define PLANT_DELAY_RING {PLANT_DELAY_RING}\b", h)
+    assert re.search(rf"#define PLANT_THERMAL_DIV\s+{PLANT_THERMAL_DIV}\b", h)
+    assert re.search(rf"#define PLANT_DELAY_RING\s+{PLANT_DELAY_RING}\b", h)
     assert re.search(
-        rf"#define PLANT_MAP_MAX_N {MAX_NODES}\b", h
+        rf"#define PLANT_MAP_MAX_N\s+{MAX_NODES}\b", h
     )  # flux-map grid, checked by the loader

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from emu_helpers import raw_messages
 
 from pmsm_hil.emulator.fwlib import EmulatedDevice
 from pmsm_hil.emulator.settings import emulator_settings
@@ -25,8 +26,6 @@ from pmsm_hil.profiles.rig import EFFECT_BITS
 from pmsm_hil.protocol.session import Session
 from pmsm_hil.runner import RunOptions, run_profile
 from pmsm_hil.transport.inproc import InProcessTransport
-
-from emu_helpers import raw_messages
 
 ROOT = Path(__file__).resolve().parents[1]
 RIGS = ROOT / "profiles" / "rigs"
@@ -156,7 +155,7 @@ def test_truth_and_metadata_report_the_effects(tmp_path):
     rig = write_rig(
         tmp_path, "two", "  sensor_offset: {i_a_a: 0.1}\n  iron_loss: {r_fe_ohm: 250}\n"
     )
-    prof, log, _ = run(rig, tmp_path / "two.mcap")
+    _prof, log, _ = run(rig, tmp_path / "two.mcap")
     mask = (1 << EFFECT_BITS["sensor_offset"]) | (1 << EFFECT_BITS["iron_loss"])
     assert set(log.topic("/sim/truth")["effects"].tolist()) == {mask}
     meta = log.metadata["rig_effects"]
@@ -208,7 +207,7 @@ def test_sensor_gain_mismatch_gives_the_second_harmonic(ideal, tmp_path):
 def test_flux_harmonics_give_the_sixth_harmonic(ideal, tmp_path):
     e5, e7 = 0.05, 0.03
     rig = write_rig(tmp_path, "fh", f"  flux_harmonics: {{emf5_rel: {e5}, emf7_rel: {e7}}}\n")
-    prof, log, truth = run(rig, tmp_path / "fh.mcap")
+    prof, _log, truth = run(rig, tmp_path / "fh.mcap")
     t, ti = tru(truth), tru(ideal[2])
     # torque ripple at 6 f_e (the MPCC regulates the currents hard, so the harmonic shows in the
     # torque and in the voltage rather than in the currents)
@@ -233,7 +232,7 @@ def test_dead_time_gives_the_sixth_harmonic_and_follows_the_current_sign(ideal, 
     rig = write_rig(
         tmp_path, "dt", "  dead_time: {dead_time_s: 3.0e-6, v_drop_v: 1.5, i_dt_a: 0.5}\n"
     )
-    _, log, truth = run(rig, tmp_path / "dt.mcap")
+    _, _log, truth = run(rig, tmp_path / "dt.mcap")
     t = tru(truth)
     th = t["theta_e_rad"]
     c, s = np.cos(th), np.sin(th)
@@ -295,7 +294,7 @@ def test_thermal_drift_moves_r_and_psi_f_by_the_coefficients(ideal, tmp_path):
         "            c_winding_j_k: 5.0, c_magnet_j_k: 20.0, r_wa_k_w: 2.0,\n"
         "            r_wm_k_w: 2.0, r_ma_k_w: 2.0}\n",
     )
-    prof, log, truth = run(rig, tmp_path / "th.mcap")
+    prof, _log, truth = run(rig, tmp_path / "th.mcap")
     m = prof.motor
     r_exp = m.r_s_ohm * (1 + 0.00393 * (truth["temp_winding_c"] - 25.0))
     psi_exp = m.psi_f_wb * (1 - 0.001 * (truth["temp_magnet_c"] - 25.0))
@@ -352,7 +351,7 @@ def test_dc_link_ripple_is_what_the_firmware_measures(ideal, tmp_path):
 def test_iron_loss_power_and_drag(ideal, tmp_path):
     r_fe = 200.0
     rig = write_rig(tmp_path, "fe", f"  iron_loss: {{r_fe_ohm: {r_fe}}}\n")
-    prof, log, truth = run(rig, tmp_path / "fe.mcap")
+    prof, _log, truth = run(rig, tmp_path / "fe.mcap")
     win = (0.25, 0.45)  # no load, 600 r/min
     tt, ti = tru(truth, win), tru(ideal[2], win)
     m = prof.motor
@@ -379,7 +378,7 @@ def test_cogging_torque_has_its_period_and_size(tmp_path):
 
 
 def test_lab_typical_runs_the_short_profile(tmp_path):
-    prof, log, truth = run(RIGS / "lab-typical.yaml", tmp_path / "lab.mcap")
+    _prof, log, truth = run(RIGS / "lab-typical.yaml", tmp_path / "lab.mcap")
     assert set(log.topic("/sim/truth")["effects"].tolist()) == {(1 << len(EFFECT_BITS)) - 1}
     tl = tel(log)
     assert abs(np.mean(tl["speed_rpm"]) - 600.0) < 6.0

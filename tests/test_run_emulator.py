@@ -4,11 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from emu_helpers import DEVICE_TOPICS, raw_messages, run_inproc
 
 from pmsm_hil.analysis.summary import summarize_log
 from pmsm_hil.log.reader import read_log
-
-from emu_helpers import DEVICE_TOPICS, raw_messages, run_inproc
 
 
 @pytest.fixture(scope="module")
@@ -49,7 +48,7 @@ def test_paper_a_speed_tracking_within_bounds(paper_a_run):
 
 
 def test_paper_a_log_has_the_contract(paper_a_run):
-    profile, result, out = paper_a_run
+    profile, _result, out = paper_a_run
     log = read_log(out)
     for topic in (
         "/pmsm/telemetry",

@@ -10,11 +10,10 @@ import sys
 from pathlib import Path
 
 import pytest
+from emu_helpers import DEVICE_TOPICS, raw_messages
 
 from pmsm_hil.profiles import ProfileError
 from pmsm_hil.sweep import load_sweep, plan_runs, read_table, run_sweep
-
-from emu_helpers import DEVICE_TOPICS, raw_messages
 
 CLI = [sys.executable, "-m", "pmsm_hil.cli.main"]
 
@@ -27,7 +26,7 @@ def device_messages(path) -> list:
     kinds = [str(k) for k in read_log(path).topic("/pmsm/events")["kind"]]
     events = raw_messages(path, ("/pmsm/events",))
     assert len(kinds) == len(events)
-    device = [m for m, k in zip(events, kinds) if k != "host"]
+    device = [m for m, k in zip(events, kinds, strict=False) if k != "host"]
     assert len(device) >= 4  # segment starts, profile done
     return raw_messages(path, [t for t in DEVICE_TOPICS if t != "/pmsm/events"]) + device
 
@@ -198,7 +197,7 @@ def dead_time_sweep(tmp_path_factory):
 
 
 def test_a_sweep_run_equals_pmsm_hil_run_bit_for_bit(dead_time_sweep, tmp_path):
-    sweep, res = dead_time_sweep
+    _sweep, res = dead_time_sweep
     assert res.ok == 2 and res.failed == 0
     row = res.rows[1]
     assert row["status"] == "ok" and row["complete"] is True and row["faults"] == 0
@@ -230,7 +229,7 @@ def test_a_sweep_run_equals_pmsm_hil_run_bit_for_bit(dead_time_sweep, tmp_path):
 
 
 def test_results_table_has_a_row_per_run_with_inputs_and_metrics(dead_time_sweep):
-    sweep, res = dead_time_sweep
+    _sweep, res = dead_time_sweep
     rows = read_table(res.out)
     assert [r["index"] for r in rows] == [0, 1]
     assert [r["rig_effects_dead_time_dead_time_s"] for r in rows] == [1.0e-6, 3.0e-6]

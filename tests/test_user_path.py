@@ -10,9 +10,9 @@ import time
 from pathlib import Path
 
 import pytest
+from emu_helpers import run_inproc
 from mcap.reader import make_reader
 
-from emu_helpers import run_inproc
 from pmsm_hil.emulator.server import Pacer
 from pmsm_hil.log.reader import read_log
 from pmsm_hil.profiles import ProfileError, load_profile
@@ -338,7 +338,7 @@ def test_a_lost_stopped_event_still_ends_the_run_cleanly(tmp_path, monkeypatch):
 
 def test_a_yaml_alias_bomb_is_refused_at_once(tmp_path):
     rows = ['a: &a ["x", "x", "x", "x", "x", "x", "x", "x", "x"]']
-    for prev, name in zip("abcdefgh", "bcdefghi"):
+    for prev, name in zip("abcdefgh", "bcdefghi", strict=False):
         rows.append(f"{name}: &{name} [" + ", ".join([f"*{prev}"] * 9) + "]")
     bomb = tmp_path / "bomb.yaml"
     bomb.write_text("\n".join(rows) + "\n")  # 9^9 values once expanded
@@ -376,3 +376,39 @@ def test_can_run_with_the_live_view_on_a_terminal(data, tmp_path):
     assert b"state" in screen  # the live view was drawn
     log = read_log(out)
     assert log.finalised and "profile_done" in list(log.topic("/pmsm/events")["kind"])
+
+
+def test_the_emulator_child_takes_the_hosts_settings_and_imports_no_profile_loader(tmp_path):
+    """The host builds the sim board's settings (it has loaded the files already) and hands them
+    over in a file: the child reads neither motor nor rig and imports no pydantic."""
+    from pmsm_hil.device import DeviceSpec, _child_settings
+
+    profile = load_profile(
+        resolve("paper-a", "profile"), rig_override=resolve("lab-typical", "rig")
+    )
+    settings, plant = _child_settings(
+        DeviceSpec(rig_path=resolve("lab-typical", "rig")), profile, 921600
+    )
+    assert "rig: lab-typical" in plant and isinstance(settings["sat_psi_d_wb"], list)
+    f = tmp_path / "settings.json"
+    import json
+
+    f.write_text(json.dumps({"settings": settings, "plant": plant}))
+    p = subprocess.Popen(
+        [sys.executable, "-X", "importtime", "-m", "pmsm_hil.emulator", "--settings-file", str(f)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert p.stdout.readline().startswith("serial: /dev/")
+        assert p.stdout.readline().strip() == plant
+    finally:
+        p.terminate()
+        _, err = p.communicate(timeout=10)
+    imported = {line.split("|")[-1].strip() for line in err.splitlines() if "|" in line}
+    assert "pmsm_hil.emulator.fwlib" in imported
+    assert not {m for m in imported if m.startswith(("pydantic", "pmsm_hil.profiles"))}
+    f.write_text("{not json")
+    r = cli("emulate", "--settings-file", f)
+    assert r.returncode == 2 and "settings.json" in r.stderr and "Traceback" not in r.stderr

@@ -25,7 +25,7 @@ def _column_diff(name: str, a: np.ndarray, b: np.ndarray) -> str | None:
     if a.dtype != b.dtype:
         return f"{name}: dtype {a.dtype} != {b.dtype}"
     if a.dtype.kind in "OUS":
-        bad = [i for i, (x, y) in enumerate(zip(a.tolist(), b.tolist())) if x != y]
+        bad = [i for i, (x, y) in enumerate(zip(a.tolist(), b.tolist(), strict=False)) if x != y]
     else:
         av = np.ascontiguousarray(a).view(np.uint8).reshape(len(a), -1) if a.size else a
         bv = np.ascontiguousarray(b).view(np.uint8).reshape(len(b), -1) if b.size else b

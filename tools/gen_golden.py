@@ -108,6 +108,13 @@ VECTORS: list[tuple[str, str, int, dict]] = [
             pred_scale_l_q=0.5,
             pred_scale_psi_f=1.5,
             pred_scale_r_s=1.0,
+            mpcc_candidates=1,
+            foc_bw_rad_s=2000.0,
+            est_bw_rad_s=300.0,
+            est_min_speed_rpm=75.0,
+            est_lock_timeout_s=0.05,
+            est_theta0_rad=-1.25,
+            est_div=40,
         ),
     ),
     ("profile_clear", "profile_clear", 4, dict(n_segments=3)),
@@ -144,12 +151,63 @@ VECTORS: list[tuple[str, str, int, dict]] = [
         ),
     ),
     ("sim_plant", "sim_plant", 9, dict(index=3, r_s_scale=1.3, psi_f_scale=0.95)),
+    (
+        "config_sensorless",
+        "config_sensorless",
+        12,
+        dict(
+            pol_i_pulse_a=5.0,
+            pol_asym_expected=-0.3,
+            pol_asym_min=0.09,
+            hyb_pll_on_rpm=150.0,
+            hyb_mras_on_rpm=250.0,
+            hyb_blend_s=0.02,
+            lock_disagree_rad=0.3,
+            lock_disagree_s=0.02,
+            lock_conf_min=0.5,
+            lock_lost_s=0.05,
+            gam_nd=12,
+            gam_nq=33,
+            gam_id0_a=-11.8,
+            gam_iq0_a=-17.2,
+            gam_did_a=1.07,
+            gam_diq_a=1.07,
+        ),
+    ),
+    ("gamma_node", "gamma_node", 13, dict(index=395, g_dd=177.6, g_qq=80.1, g_dq=-12.5, g_qd=9.75)),
     ("start", "start", 7, {}),
     ("stop", "stop", 8, {}),
     ("abort", "abort", 255, {}),
     ("heartbeat max", "heartbeat", 9, dict(counter=0xFFFFFFFF)),
     ("heartbeat zero", "heartbeat", 0, dict(counter=0)),
     ("capture_read", "capture_read", 10, dict(offset=4096)),
+    (
+        "config_calib",
+        "config_calib",
+        13,
+        dict(
+            i_a_offset_a=0.05,
+            i_b_offset_a=-0.03,
+            i_c_offset_a=0.0,
+            i_a_gain_err=0.0,
+            i_b_gain_err=0.01,
+            i_c_gain_err=-0.005,
+        ),
+    ),
+    ("config_commission", "config_commission", 14, dict(steps=127, i_test_a=8.0, spin_rpm=750.0)),
+    (
+        "commission_result",
+        "commission_result",
+        15,
+        dict(
+            tick=123456,
+            step=3,
+            status=0,
+            value=[28.5, 0.5, 1.02, 2.5e-6],
+            spread=[0.1, 0.0, 0.01, 0.0],
+            truth_ref=[8.0, 0.0],
+        ),
+    ),
     ("ack", "ack", 11, dict(cmd_id=0x05, cmd_seq=200, status=2)),
     (
         "identify",
@@ -227,6 +285,20 @@ VECTORS: list[tuple[str, str, int, dict]] = [
         ),
     ),
     ("telem_fast all zero", "telem_fast", 0, TELEM_ZERO),
+    (
+        "telem_est",
+        "telem_est",
+        21,
+        dict(
+            tick=98765,
+            estimator=1,
+            flags=3,
+            confidence=0.8567,
+            theta_err_rad=-0.0123,
+            speed_err_rpm=2.5,
+            err_signal=0.0456,
+        ),
+    ),
     (
         "params",
         "params",
@@ -322,7 +394,7 @@ def firmware_wire(value: float, f: FieldSpec) -> int:
     """The firmware's sat_x(value * (1/scale)) evaluated in float32, as the C code does it."""
     _, _, lo, hi = WIRE_TYPES[f.type]
     x = np.float32(value) * np.float32(1.0 / f.scale)
-    if x != x:
+    if np.isnan(x):
         return 0
     if x >= np.float32(hi):
         return hi
@@ -440,7 +512,7 @@ def c_vector(k: int, v: dict) -> str:
     for f in spec.fields:
         given = v["fields"][f.name] if f.count > 1 else [v["fields"][f.name]]
         want = v["decoded"][f.name] if f.count > 1 else [v["decoded"][f.name]]
-        for i, (g, w) in enumerate(zip(given, want)):
+        for i, (g, w) in enumerate(zip(given, want, strict=False)):
             lhs = f"m.{f.name}" + (f"[{i}]" if f.count > 1 else "")
             msg = f'"golden {k} {spec.name}.{f.name}' + (f"[{i}]" if f.count > 1 else "") + '"'
             if f.scale is not None:

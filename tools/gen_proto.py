@@ -253,11 +253,13 @@ def render_c_source(s: Schema) -> str:
         pack = [
             f"uint16_t proto_{m.name}_pack(const proto_{m.name}_t *m, uint16_t *buf)",
             "{",
-        ] + loop_var
+            *loop_var,
+        ]
         unpack = [
             f"bool proto_{m.name}_unpack(proto_{m.name}_t *m, const uint16_t *buf, uint16_t len)",
             "{",
-        ] + loop_var
+            *loop_var,
+        ]
         if not m.fields:
             pack.append("    (void)m;\n    (void)buf;")
             unpack.append("    (void)m;\n    (void)buf;")

@@ -176,7 +176,7 @@ def load_can(doc: dict, messages) -> CanSchema:
             claim(functions[m.name], len(frames), m.name)
             out[m.name] = CanMessage(m, functions[m.name], False, tuple(tuple(f) for f in frames))
     code = int(raw.get("auto_from", 0x10))
-    for m, frames, by_transfer in plan:
+    for m, frames, _by_transfer in plan:
         if m.name in out:
             continue
         while any(c in used for c in range(code, code + len(frames))):

@@ -26,9 +26,9 @@
 #define CAN_RX_MSG         1 /* a whole message: msg_id, seq, payload, payload_len are valid */
 #define CAN_RX_ERR_UNKNOWN (-1) /* no message uses this function code */
 #define CAN_RX_ERR_LEN (-2) /* a frame with the wrong length, or a transfer of the wrong length */
-#define CAN_RX_ERR_ORDER                                                                           \
-    (-3)                    /* a frame missing, repeated or out of place: the message is dropped */
-#define CAN_RX_ERR_CRC (-4) /* a transfer whose CRC does not match */
+/* a frame missing, repeated or out of place: the message is dropped */
+#define CAN_RX_ERR_ORDER (-3)
+#define CAN_RX_ERR_CRC   (-4) /* a transfer whose CRC does not match */
 
 typedef struct {
     uint16_t id;  /* 11-bit identifier */

@@ -1,15 +1,24 @@
-/* The current-control slot (cc_slot.h): dispatch to today's occupant, the MPCC. */
+/* The current-control slot (cc_slot.h): dispatch to the occupant, the MPCC or FOC. */
 #include "cc_slot.h"
 
 bool cc_kind_known(uint16_t kind)
 {
-    return kind == CC_KIND_MPCC;
+    return kind == CC_KIND_MPCC || kind == CC_KIND_FOC;
+}
+
+bool cc_uses_duties(const cc_t *c)
+{
+    return c->kind == CC_KIND_FOC;
 }
 
 void cc_init(cc_t *c, const cc_cfg_t *cfg)
 {
     c->kind = cc_kind_known(cfg->kind) ? cfg->kind : CC_KIND_MPCC;
-    mpcc_init(&c->u.mpcc, &cfg->mpcc);
+    if (c->kind == CC_KIND_FOC) {
+        foc_init(&c->u.foc, &cfg->foc);
+    } else {
+        mpcc_init(&c->u.mpcc, &cfg->mpcc);
+    }
 }
 
 static void step_mpcc(mpcc_t *m, const cc_in_t *in, cc_out_t *out)
@@ -41,11 +50,51 @@ static void step_mpcc(mpcc_t *m, const cc_in_t *in, cc_out_t *out)
     out->u_q_avg_v = mo.u_q_avg_v;
     out->i_d_pred_a = mo.i_d_k1_a;
     out->i_q_pred_a = mo.i_q_k1_a;
+    /* back to the stationary frame at the angle the MPCC used (new output; no effect on control) */
+    out->u_alpha_v = in->cos_theta * mo.u_d_v - in->sin_theta * mo.u_q_v;
+    out->u_beta_v = in->sin_theta * mo.u_d_v + in->cos_theta * mo.u_q_v;
+}
+
+static void step_foc(foc_t *f, const cc_in_t *in, cc_out_t *out)
+{
+    foc_in_t fi;
+    foc_out_t fo;
+    fi.i_d_a = in->i_d_a;
+    fi.i_q_a = in->i_q_a;
+    fi.i_d_ref_a = in->i_d_ref_a;
+    fi.i_q_ref_a = in->i_q_ref_a;
+    fi.cos_theta = in->cos_theta;
+    fi.sin_theta = in->sin_theta;
+    fi.omega_e_rad_s = in->omega_e_rad_s;
+    fi.v_dc_v = in->v_dc_v;
+    fi.r_s_ohm = in->pred.r_s_ohm;
+    fi.l_d_h = in->pred.l_d_h;
+    fi.l_q_h = in->pred.l_q_h;
+    fi.psi_f_wb = in->pred.psi_f_wb;
+    foc_step(f, &fi, &fo);
+    out->mode = CC_OUT_DUTIES;
+    out->duty_a = fo.duty_a;
+    out->duty_b = fo.duty_b;
+    out->duty_c = fo.duty_c;
+    out->s_a = (uint16_t)(fo.duty_a > 0.5f);
+    out->s_b = (uint16_t)(fo.duty_b > 0.5f);
+    out->s_c = (uint16_t)(fo.duty_c > 0.5f);
+    out->u_d_v = fo.u_d_v;
+    out->u_q_v = fo.u_q_v;
+    out->u_d_avg_v = fo.u_d_avg_v;
+    out->u_q_avg_v = fo.u_q_avg_v;
+    out->u_alpha_v = fo.u_alpha_v;
+    out->u_beta_v = fo.u_beta_v;
+    out->i_d_pred_a = fo.i_d_k1_a;
+    out->i_q_pred_a = fo.i_q_k1_a;
 }
 
 void cc_step(cc_t *c, const cc_in_t *in, cc_out_t *out)
 {
     switch (c->kind) {
+    case CC_KIND_FOC:
+        step_foc(&c->u.foc, in, out);
+        break;
     case CC_KIND_MPCC:
     default:
         step_mpcc(&c->u.mpcc, in, out);
@@ -55,7 +104,11 @@ void cc_step(cc_t *c, const cc_in_t *in, cc_out_t *out)
 
 void cc_reset(cc_t *c)
 {
-    mpcc_reset(&c->u.mpcc);
+    if (c->kind == CC_KIND_FOC) {
+        foc_reset(&c->u.foc);
+    } else {
+        mpcc_reset(&c->u.mpcc);
+    }
 }
 
 uint16_t cc_applied_code(const cc_t *c)

@@ -4,8 +4,9 @@
  * controllers) or three duties (modulators), plus the average dq voltage applied during the
  * period, which estimators and observers consume.
  *
- * Today's occupant is the MPCC (mpcc.h). A new occupant (FOC with SVPWM) adds a CC_KIND_x, a
- * member of the union in cc_t and a case in cc_slot.c; nothing else in the firmware changes. */
+ * Occupants: the MPCC (mpcc.h, switch states) and FOC with SVPWM (foc.h, duties). A new occupant
+ * adds a CC_KIND_x, a member of the union in cc_t and a case in cc_slot.c; nothing else in the
+ * firmware changes. */
 #ifndef CC_SLOT_H
 #define CC_SLOT_H
 
@@ -13,9 +14,11 @@
 #include <stdbool.h>
 
 #include "mpcc.h"
+#include "foc.h"
 #include "proto_gen.h"
 
 #define CC_KIND_MPCC PROTO_CURRENT_CTRL_MPCC /* config_ctrl current_ctrl */
+#define CC_KIND_FOC  PROTO_CURRENT_CTRL_FOC
 
 #define CC_OUT_STATES 0u /* s_a, s_b, s_c: upper switches forced for the whole period */
 #define CC_OUT_DUTIES 1u /* duty_a, duty_b, duty_c: upper-switch on-time fractions, [0, 1] */
@@ -41,23 +44,27 @@ typedef struct {
     float duty_a, duty_b, duty_c; /* CC_OUT_DUTIES: applied from k+1 on */
     float u_d_v, u_q_v;           /* dq voltage at theta_e_rad applied during [k, k+1) */
     float u_d_avg_v, u_q_avg_v;   /* the same as the dq average over [k, k+1) */
+    float u_alpha_v, u_beta_v;    /* the same in the stationary frame (frame-free, for observers) */
     float i_d_pred_a, i_q_pred_a; /* the controller's prediction of i(k+1) (observers) */
 } cc_out_t;
 
 typedef struct {
     uint16_t kind;   /* CC_KIND_* */
     mpcc_cfg_t mpcc; /* CC_KIND_MPCC */
+    foc_cfg_t foc;   /* CC_KIND_FOC */
 } cc_cfg_t;
 
 typedef struct {
     uint16_t kind;
     union {
         mpcc_t mpcc;
+        foc_t foc;
     } u;
 } cc_t;
 
 bool cc_kind_known(uint16_t kind);
 void cc_init(cc_t *c, const cc_cfg_t *cfg); /* an unknown kind falls back to CC_KIND_MPCC */
+bool cc_uses_duties(const cc_t *c);
 void cc_step(cc_t *c, const cc_in_t *in, cc_out_t *out);
 void cc_reset(cc_t *c); /* forget the applied output (PWM was off) */
 /* Switch-state code applied during the running period (bit0 s_a, bit1 s_b, bit2 s_c; what a

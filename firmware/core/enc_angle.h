@@ -17,8 +17,8 @@
 #include "fw_types.h"
 
 #define ENC_ZETA_F 0.70710678f
-#define ENC_BW_DEFAULT_RAD_S                                                                       \
-    1000.0f /* recommended for paper A's drive (10000 counts, 1 kHz speed loop) */
+/* recommended for paper A's drive (10000 counts, 1 kHz speed loop) */
+#define ENC_BW_DEFAULT_RAD_S 1000.0f
 
 typedef struct {
     uint32_t counts; /* counts per mechanical turn (4 x lines); >= 4 */

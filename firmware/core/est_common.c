@@ -119,8 +119,8 @@ void est_core_out(const est_core_t *e, est_out_t *out)
     out->updates = e->updates;
 }
 
-#define EST_ID_MEAN_ALPHA                                                                          \
-    0.0078125f /* 1/128 windows: about one 10 Hz excitation period and a bit */
+/* 1/128 windows: about one 10 Hz excitation period and a bit */
+#define EST_ID_MEAN_ALPHA 0.0078125f
 
 float est_core_x_ld_centered(est_core_t *e, const id_sample_t *s)
 {

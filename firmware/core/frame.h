@@ -20,9 +20,9 @@
 #define FRAME_OK       1    /* a good frame: msg_id, seq, payload, payload_len are valid */
 #define FRAME_ERR_CRC  (-1) /* CRC mismatch */
 #define FRAME_ERR_COBS (-2) /* the frame ended inside a COBS block */
-#define FRAME_ERR_LEN                                                                              \
-    (-3)                     /* over FRAME_MAX_RAW octets (skipped up to the next 0x00), or a known
-                               * message id with a payload length other than PROTO_LEN_x */
+/* FRAME_ERR_LEN: over FRAME_MAX_RAW octets (skipped up to the next 0x00), or a known message id
+ * with a payload length other than PROTO_LEN_x */
+#define FRAME_ERR_LEN   (-3)
 #define FRAME_ERR_SHORT (-4) /* fewer than 4 decoded octets (id, seq, crc) */
 
 /* CRC-16/CCITT-FALSE of n octets (check value: "123456789" -> 0x29B1). */

@@ -124,8 +124,24 @@ static void init_stages(fw_t *f)
     ac.src = c->angle_src;
     ac.pole_pairs = f->motor.pole_pairs;
     ac.ts_s = c->ts_s;
+    ac.bw_rad_s = c->est_bw_rad_s;
+    ac.min_speed_rpm = c->est_min_speed_rpm;
+    ac.max_speed_rpm = f->limits.speed_trip_rpm;
+    ac.theta0_rad = c->est_theta0_rad;
+    ac.r_s_ohm = f->motor.r_s_ohm;
+    ac.l_d_h = f->motor.l_d_h;
+    ac.l_q_h = f->motor.l_q_h;
+    ac.psi_f_wb = f->motor.psi_f_wb;
+    ac.j_kgm2 = f->motor.j_kgm2;
+    fw_snl_config(f, &f->snl_cfg);
+    ac.snl = &f->snl_cfg;
     angle_init(&f->angle, &ac);
     memset(&f->ang, 0, sizeof(f->ang));
+    memset(&f->est, 0, sizeof(f->est));
+    f->unlock_ticks = 0u;
+    /* the first segment's choice holds from the first period on */
+    f->seg_angle_encoder =
+        f->prof.n_declared > 0u && (f->prof.seg[0].flags & PROTO_SEGMENT_FLAG_ANGLE_ENCODER) != 0u;
 
     sc.kp_a_per_rad_s = c->speed_kp_a_per_rad_s;
     sc.ki_a_per_rad = c->speed_ki_a_per_rad;
@@ -145,6 +161,14 @@ static void init_stages(fw_t *f)
     cc.mpcc.dead_time_s = c->dead_time_s;
     cc.mpcc.v_drop_v = c->v_drop_v;
     cc.mpcc.i_dt_a = c->i_dt_a;
+    cc.mpcc.cand_set =
+        c->mpcc_candidates == PROTO_MPCC_CANDIDATES_ADJACENT ? MPCC_CAND_ADJACENT : MPCC_CAND_ALL8;
+    foc_cfg_default(&cc.foc);
+    cc.foc.ts_s = c->ts_s;
+    cc.foc.bw_rad_s = c->foc_bw_rad_s;
+    cc.foc.dead_time_s = c->dead_time_s;
+    cc.foc.v_drop_v = c->v_drop_v;
+    cc.foc.i_dt_a = c->i_dt_a;
     cc_init(&f->cc, &cc);
     memset(&f->cc_out, 0, sizeof(f->cc_out));
 
@@ -191,6 +215,7 @@ uint16_t fw_start_run(fw_t *f)
     f->i_d_base_a = 0.0f;
     f->speed_div_count = 0u;
     f->faults = 0u;
+    f->commissioning = false;
     f->tick = 0u;
     f->hb_isr = f->isr_count;
     f->hb_lost = false;
@@ -273,14 +298,58 @@ static void stage_angle(fw_t *f, float i_al, float i_be)
     ai.enc = &f->enc_out;
     ai.i_alpha_a = i_al;
     ai.i_beta_a = i_be;
+    ai.u_alpha_prev_v = f->cc_out.u_alpha_v;
+    ai.u_beta_prev_v = f->cc_out.u_beta_v;
     ai.u_d_prev_v = f->cc_out.u_d_avg_v;
     ai.u_q_prev_v = f->cc_out.u_q_avg_v;
     ai.i_d_pred_a = f->cc_out.i_d_pred_a;
     ai.i_q_pred_a = f->cc_out.i_q_pred_a;
-    angle_step(&f->angle, &ai, &f->ang);
-    f->sig.theta_e_est_rad = f->ang.theta_e_rad;
-    f->sig.speed_est_rpm = f->ang.speed_rpm;
+    if (!angle_src_is_estimator(f->ctrl.angle_src)) {
+        angle_step(&f->angle, &ai, &f->ang);
+        f->est = f->ang;
+        f->sig.theta_e_est_rad = f->ang.theta_e_rad;
+        f->sig.speed_est_rpm = f->ang.speed_rpm;
+        f->sig.omega_e_rad_s = f->ang.omega_e_rad_s;
+        return;
+    }
+    /* an estimator: it runs every period; its angle closes the loop unless the segment asks for
+     * the encoder. The telemetry's estimate is always the estimator's. */
+    angle_step(&f->angle, &ai, &f->est);
+    if (f->seg_angle_encoder) {
+        angle_encoder_out(&ai, &f->ang);
+    } else {
+        f->ang = f->est;
+    }
+    f->sig.theta_e_est_rad = f->est.theta_e_rad;
+    f->sig.speed_est_rpm = f->est.speed_rpm;
+    if (f->est.pol_result_now != 0u) {
+        fw_raise(f, PROTO_EVENT_POLARITY, (int32_t)f->est.pol_result_now);
+        fw_raise(f, PROTO_EVENT_POLARITY_ASYM, (int32_t)(f->est.pol_asym * 10000.0f));
+    }
     f->sig.omega_e_rad_s = f->ang.omega_e_rad_s;
+}
+
+/* Loss of lock: the estimator closing the loop out of lock for est_lock_timeout_s trips the
+ * lost_lock fault (PWM off at once). While stopping, its loss ends the stop instead: PWM off, the
+ * rotor coasts (the estimator cannot brake it below its speed range). */
+static void check_lock(fw_t *f)
+{
+    if (!angle_src_is_estimator(f->ctrl.angle_src) || f->seg_angle_encoder || f->est.locked) {
+        f->unlock_ticks = 0u;
+        return;
+    }
+    f->unlock_ticks++;
+    if ((float)f->unlock_ticks * f->ctrl.ts_s < f->ctrl.est_lock_timeout_s) {
+        return;
+    }
+    if (f->state == PROTO_STATE_RUNNING) {
+        fw_trip(f, PROTO_FAULT_LOST_LOCK);
+    } else if (f->state == PROTO_STATE_STOPPING) {
+        fw_pwm_off(f,
+                   f->stop_reason == PROTO_STOP_REASON_PROFILE_END ? PROTO_STATE_DONE
+                                                                   : PROTO_STATE_IDLE,
+                   f->stop_reason);
+    }
 }
 
 /* Capture: the sample with the switch state applied while it was taken (encoder angle). */
@@ -297,6 +366,24 @@ static void stage_capture(fw_t *f, const fw_meas_t *m)
     capture_record(&f->cap, f->tick, &cs);
 }
 
+/* Commissioning (comm.h): the sequence's configuration from config_commission, or defaults. */
+static void start_commission(fw_t *f)
+{
+    comm_cfg_t cc;
+    const proto_config_commission_t *k = &f->comm_cfg;
+    cc.steps = k->steps != 0u ? k->steps : (uint16_t)((1u << COMM_N_STEPS) - 1u);
+    cc.i_test_a = k->i_test_a > 0.0f ? k->i_test_a : 0.5f * f->motor.i_max_a;
+    cc.spin_rpm = k->spin_rpm > 0.0f ? k->spin_rpm : 0.5f * f->motor.speed_max_rpm;
+    cc.ts_s = f->ctrl.ts_s;
+    cc.v_dc_min_v = f->limits.v_dc_min_v;
+    cc.v_dc_max_v = f->limits.v_dc_max_v;
+    cc.motor = f->motor;
+    cc.i_dt_nom_a = f->ctrl.i_dt_a;
+    cc.v_drop_nom_v = f->ctrl.v_drop_v;
+    cc.enc_counts = f->ctrl.enc_counts;
+    comm_start(&f->comm, &cc);
+}
+
 /* References: the profile (or the stop ramp) gives speed and load; the segment its kind. */
 static void stage_profile(fw_t *f, float *speed_ref_rpm, float *load_nm)
 {
@@ -305,6 +392,10 @@ static void stage_profile(fw_t *f, float *speed_ref_rpm, float *load_nm)
         profile_step(&f->prof, f->ctrl.ts_s, &po);
         if (po.segment_started) {
             fw_raise(f, PROTO_EVENT_SEGMENT_START, (int32_t)po.index);
+            f->commissioning = po.kind == PROFILE_KIND_COMMISSION;
+            if (f->commissioning) {
+                start_commission(f);
+            }
             if ((po.flags & PROFILE_FLAG_CAPTURE) != 0u && capture_trigger(&f->cap)) {
                 fw_raise(f, PROTO_EVENT_CAPTURE_TRIGGERED, (int32_t)po.index);
             }
@@ -321,6 +412,7 @@ static void stage_profile(fw_t *f, float *speed_ref_rpm, float *load_nm)
             f->seg.inject_hz = po.inject_hz;
             f->seg.tick = po.tick_in_seg;
             f->seg.ticks = po.seg_ticks;
+            f->seg_angle_encoder = (po.flags & PROTO_SEGMENT_FLAG_ANGLE_ENCODER) != 0u;
             return;
         }
     }
@@ -338,32 +430,48 @@ static void stage_current_refs(fw_t *f, float speed_ref_rpm)
 {
     fw_dq_t idq_ref;
     f->speed_div_count++;
-    if (f->seg.identify_r) {
+    const bool est_in_loop = angle_src_is_estimator(f->ctrl.angle_src) && !f->seg_angle_encoder;
+    if (f->seg.identify_r || (est_in_loop && f->est.hold_refs)) {
         speed_pi_reset(&f->spi, 0.0f);
         f->i_s_ref_a = 0.0f;
         f->i_d_base_a = 0.0f;
         f->sig.i_q_ref_a = 0.0f;
     } else if (f->speed_div_count >= f->ctrl.speed_div) {
+        fw_motor_t m = f->motor;
+        cc_params_t p;
+        if (ident_converged_params(&f->ident, &p)) { /* MTPA on the identified machine */
+            m.l_d_h = p.l_d_h;
+            m.l_q_h = p.l_q_h;
+            m.psi_f_wb = p.psi_f_wb;
+        }
         f->speed_div_count = 0u;
         f->i_s_ref_a =
             speed_pi_step(&f->spi, speed_ref_rpm / FW_RPM_PER_RAD_S, f->ang.omega_m_rad_s);
-        mtpa_split(&f->motor, f->ctrl.current_ref, f->i_s_ref_a, &idq_ref);
+        mtpa_split(&m, f->ctrl.current_ref, f->i_s_ref_a, &idq_ref);
         f->i_d_base_a = idq_ref.d;
         f->sig.i_q_ref_a = idq_ref.q;
     }
     f->sig.i_d_ref_a = ident_d_ref(&f->ident, &f->seg, f->i_d_base_a);
+    if (est_in_loop) { /* the sensorless start's pulses, or the estimator's excitation at rest */
+        f->sig.i_d_ref_a += f->est.i_d_inject_a;
+    }
 }
 
 /* Current-control slot, with the q-current dither and the identification's predictor feed. */
 static void stage_current_control(fw_t *f, const fw_meas_t *m, float c, float s)
 {
     cc_in_t ci;
+    cc_params_t p;
+    /* the dither's step: one vector's current step on L_q (the identified one once converged) */
+    const float l_q = ident_converged_params(&f->ident, &p) ? p.l_q_h : f->motor.l_q_h;
     ci.i_d_a = f->sig.i_d_a;
     ci.i_q_a = f->sig.i_q_a;
     ci.i_d_ref_a = f->sig.i_d_ref_a;
-    ci.i_q_ref_a = f->sig.i_q_ref_a +
-                   dither_step(&f->dither, 0.6666667f * m->v_dc_v * f->ctrl.ts_s / f->motor.l_q_h);
-    ci.theta_e_rad = f->sig.theta_e_est_rad;
+    ci.i_q_ref_a = f->sig.i_q_ref_a;
+    if (!cc_uses_duties(&f->cc)) { /* the finite-control-set dither; a modulator needs none */
+        ci.i_q_ref_a += dither_step(&f->dither, 0.6666667f * m->v_dc_v * f->ctrl.ts_s / l_q);
+    }
+    ci.theta_e_rad = f->ang.theta_e_rad;
     ci.cos_theta = c;
     ci.sin_theta = s;
     ci.omega_e_rad_s = f->ang.omega_e_rad_s;
@@ -398,7 +506,7 @@ static void stage_estimators(fw_t *f, const fw_meas_t *m)
     ii.i_q_a = f->sig.i_q_a;
     ii.u_d_avg_v = f->cc_out.u_d_avg_v;
     ii.u_q_avg_v = f->cc_out.u_q_avg_v;
-    ii.theta_e_rad = f->sig.theta_e_est_rad;
+    ii.theta_e_rad = f->ang.theta_e_rad;
     ii.omega_e_rad_s = f->ang.omega_e_rad_s;
     ii.i_a_a = m->i_a_a;
     ii.i_b_a = m->i_b_a;
@@ -423,6 +531,60 @@ static void cmd_safe(fw_cmd_t *cmd)
     cmd->load_nm = 0.0f;
 }
 
+/* The commissioning sequence in place of the control stages (PWM off at its end or failure). */
+static void stage_commission(fw_t *f, const fw_meas_t *m, fw_cmd_t *cmd)
+{
+    comm_in_t ci;
+    comm_out_t co;
+    comm_t *c = &f->comm;
+    ci.i_a_a = m->i_a_a;
+    ci.i_b_a = m->i_b_a;
+    ci.i_c_a = m->i_c_a;
+    ci.v_dc_v = m->v_dc_v;
+    ci.theta_enc_rad = f->enc_out.theta_e_rad;
+    ci.omega_e_rad_s = f->enc_out.omega_e_rad_s;
+    if (f->state == PROTO_STATE_STOPPING) {
+        if (comm_brake(c, &ci, &co)) {
+            fw_pwm_off(f,
+                       f->stop_reason == PROTO_STOP_REASON_PROFILE_END ? PROTO_STATE_DONE
+                                                                       : PROTO_STATE_IDLE,
+                       f->stop_reason);
+            return;
+        }
+    } else {
+        uint16_t st = comm_step(c, &ci, &co);
+        if (c->step_started) {
+            c->step_started = false;
+            fw_raise(f, PROTO_EVENT_COMMISSION_STEP, (int32_t)c->step);
+        }
+        if (st == COMM_FAILED) {
+            fw_raise(f, PROTO_EVENT_COMMISSION_FAILED,
+                     (int32_t)(((uint32_t)c->step << 8) | c->fail_reason));
+            fw_pwm_off(f, PROTO_STATE_IDLE, PROTO_STOP_REASON_COMMISSION_FAILED);
+            return;
+        }
+        if (st == COMM_DONE) {
+            fw_raise(f, PROTO_EVENT_PROFILE_DONE, (int32_t)f->prof.index);
+            fw_pwm_off(f, PROTO_STATE_DONE, PROTO_STOP_REASON_PROFILE_END);
+            return;
+        }
+    }
+    f->sig.i_d_a = co.i_d_a;
+    f->sig.i_q_a = co.i_q_a;
+    f->sig.i_d_ref_a = co.i_d_ref_a;
+    f->sig.i_q_ref_a = co.i_q_ref_a;
+    f->sig.u_d_v = co.u_d_v;
+    f->sig.u_q_v = co.u_q_v;
+    f->sig.speed_ref_rpm = co.speed_ref_rpm;
+    f->sig.load_nm = 0.0f;
+    cmd->mode = FW_CMD_DUTIES;
+    cmd->duty_a = co.duty[0];
+    cmd->duty_b = co.duty[1];
+    cmd->duty_c = co.duty[2];
+    cmd->pwm_on = co.pwm_on;
+    cmd->load_nm = 0.0f;
+}
+
 /* One control period of an active run. */
 static void period(fw_t *f, const fw_meas_t *m, fw_cmd_t *cmd)
 {
@@ -432,18 +594,27 @@ static void period(fw_t *f, const fw_meas_t *m, fw_cmd_t *cmd)
     i_al = m->i_a_a;
     i_be = (m->i_a_a + 2.0f * m->i_b_a) * 0.57735026918963f;
     stage_angle(f, i_al, i_be);
-    c = cosf(f->sig.theta_e_est_rad);
-    s = sinf(f->sig.theta_e_est_rad);
+    c = cosf(f->ang.theta_e_rad);
+    s = sinf(f->ang.theta_e_rad);
     f->sig.i_d_a = c * i_al + s * i_be;
     f->sig.i_q_a = -s * i_al + c * i_be;
     stage_capture(f, m);
 
     check_faults(f, m);
     if (fw_active(f)) {
+        check_lock(f);
+    }
+    if (fw_active(f)) {
         check_heartbeat(f);
         stage_profile(f, &speed_ref_rpm, &load_nm);
     }
     if (!fw_active(f)) { /* a fault, or the profile's end */
+        fw_send_telemetry(f);
+        f->tick++;
+        return;
+    }
+    if (f->commissioning) {
+        stage_commission(f, m, cmd);
         fw_send_telemetry(f);
         f->tick++;
         return;
@@ -468,11 +639,19 @@ static void period(fw_t *f, const fw_meas_t *m, fw_cmd_t *cmd)
 
 void fw_isr(fw_t *f, const fw_meas_t *m, fw_cmd_t *cmd)
 {
+    fw_meas_t mc;
     f->isr_count++;
     f->sig.v_dc_v = m->v_dc_v;
     cmd_safe(cmd);
     if (!fw_active(f)) {
         return;
+    }
+    if (f->have_calib) { /* current-sensor calibration from commissioning (config_calib) */
+        mc = *m;
+        mc.i_a_a = (m->i_a_a - f->calib.i_a_offset_a) / (1.0f + f->calib.i_a_gain_err);
+        mc.i_b_a = (m->i_b_a - f->calib.i_b_offset_a) / (1.0f + f->calib.i_b_gain_err);
+        mc.i_c_a = (m->i_c_a - f->calib.i_c_offset_a) / (1.0f + f->calib.i_c_gain_err);
+        m = &mc;
     }
     period(f, m, cmd);
     fw_flush(f);

@@ -28,6 +28,7 @@
 #include "dither.h"
 #include "ident.h"
 #include "evq.h"
+#include "comm.h"
 
 #define FW_VERSION_MAJOR 0u
 #define FW_VERSION_MINOR 1u
@@ -98,8 +99,11 @@ typedef struct {
     ident_seg_t seg;     /* the running segment as the identification sees it */
     enc_t enc;           /* measure: the encoder (truth), when fitted */
     enc_out_t enc_out;
-    angle_t angle; /* angle slot */
-    angle_out_t ang;
+    angle_t angle;   /* angle slot */
+    angle_out_t est; /* its occupant's output (an estimator's, or the encoder's) */
+    angle_out_t ang; /* what the control uses: est, or the encoder in an angle_encoder segment */
+    bool seg_angle_encoder; /* the running segment closes the loop on the encoder */
+    uint32_t unlock_ticks;  /* periods the estimator in the loop has been out of lock */
     speed_pi_t spi;
     float i_s_ref_a;
     float i_d_base_a; /* d-current reference before the excitation */
@@ -108,11 +112,24 @@ typedef struct {
     cc_t cc; /* current-control slot */
     cc_out_t cc_out;
     ident_t ident; /* estimators */
+    /* the sensorless estimator's configuration (config_sensorless, gamma_node; docs/sensorless.md) */
+    proto_config_sensorless_t snl_msg;
+    bool have_snl;
+    uint16_t gamma_nodes; /* nodes received since the last config_sensorless */
+    rerr_tab_t gamma_tab;
+    snl_cfg_t snl_cfg;
     capture_t cap;
     fw_stop_t stop;
     fw_signals_t sig; /* telemetry */
     evq_t events;     /* raised during the period, sent at its end */
     bool status_due;  /* a status frame follows the period's events */
+
+    /* commissioning (comm.h): the sequence runs in a `commission` segment */
+    proto_config_calib_t calib; /* current-sensor calibration (all 0: none) */
+    bool have_calib;
+    proto_config_commission_t comm_cfg;
+    bool commissioning; /* the running segment is a commission segment */
+    comm_t comm;
 
     fw_board_msg_fn board_msg;
     void *board_ctx;

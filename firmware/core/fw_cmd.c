@@ -54,6 +54,65 @@ static uint16_t cmd_config_motor(fw_t *f, const uint16_t *p, uint16_t n)
     return PROTO_ACK_STATUS_OK;
 }
 
+/* The sensorless estimator's configuration (docs/sensorless.md); the Gamma table's nodes follow
+ * in gamma_node frames. */
+static uint16_t cmd_config_sensorless(fw_t *f, const uint16_t *p, uint16_t n)
+{
+    proto_config_sensorless_t c;
+    if (!proto_config_sensorless_unpack(&c, p, n)) {
+        return PROTO_ACK_STATUS_BAD_VALUE;
+    }
+    if (fw_active(f)) {
+        return PROTO_ACK_STATUS_BUSY;
+    }
+    if (!within(c.pol_i_pulse_a, 0.0f, FW_I_TRIP_MAX_A) ||
+        !within(c.pol_asym_expected, -1.0f, 1.0f) || !within(c.pol_asym_min, 0.0f, 1.0f) ||
+        !within(c.hyb_pll_on_rpm, 0.0f, FW_SPEED_TRIP_MAX_RPM) ||
+        !within(c.hyb_mras_on_rpm, c.hyb_pll_on_rpm, FW_SPEED_TRIP_MAX_RPM) ||
+        !within(c.hyb_blend_s, 0.0f, 1.0f) || !within(c.lock_disagree_rad, 0.0f, 3.2f) ||
+        !within(c.lock_disagree_s, 0.0f, FW_HEARTBEAT_MAX_S) ||
+        !within(c.lock_conf_min, -1.0f, 1.0f) || !within(c.lock_lost_s, 0.0f, FW_HEARTBEAT_MAX_S) ||
+        (uint32_t)c.gam_nd * (uint32_t)c.gam_nq > RERR_TAB_MAX ||
+        !within(c.gam_id0_a, -FW_I_TRIP_MAX_A, FW_I_TRIP_MAX_A) ||
+        !within(c.gam_iq0_a, -FW_I_TRIP_MAX_A, FW_I_TRIP_MAX_A) ||
+        !within(c.gam_did_a, 1e-3f, FW_I_TRIP_MAX_A) ||
+        !within(c.gam_diq_a, 1e-3f, FW_I_TRIP_MAX_A)) {
+        return PROTO_ACK_STATUS_BAD_VALUE;
+    }
+    f->snl_msg = c;
+    f->have_snl = true;
+    f->gamma_nodes = 0u;
+    f->gamma_tab.nd = c.gam_nd;
+    f->gamma_tab.nq = c.gam_nq;
+    f->gamma_tab.id0_a = c.gam_id0_a;
+    f->gamma_tab.iq0_a = c.gam_iq0_a;
+    f->gamma_tab.inv_did = 1.0f / c.gam_did_a;
+    f->gamma_tab.inv_diq = 1.0f / c.gam_diq_a;
+    return PROTO_ACK_STATUS_OK;
+}
+
+/* One node of the Gamma table, in order (the table is used once all have arrived). */
+static uint16_t cmd_gamma_node(fw_t *f, const uint16_t *p, uint16_t n)
+{
+    proto_gamma_node_t g;
+    if (!proto_gamma_node_unpack(&g, p, n) || !f->have_snl ||
+        (uint32_t)g.index >= (uint32_t)f->snl_msg.gam_nd * (uint32_t)f->snl_msg.gam_nq ||
+        g.index != f->gamma_nodes || !within(g.g_dd, 1.0f, 1.0e7f) ||
+        !within(g.g_qq, 1.0f, 1.0e7f) || !within(g.g_dq, -1.0e7f, 1.0e7f) ||
+        !within(g.g_qd, -1.0e7f, 1.0e7f)) {
+        return PROTO_ACK_STATUS_BAD_VALUE;
+    }
+    if (fw_active(f)) {
+        return PROTO_ACK_STATUS_BUSY;
+    }
+    f->gamma_tab.g[g.index][0] = g.g_dd;
+    f->gamma_tab.g[g.index][1] = g.g_qq;
+    f->gamma_tab.g[g.index][2] = g.g_dq;
+    f->gamma_tab.g[g.index][3] = g.g_qd;
+    f->gamma_nodes++;
+    return PROTO_ACK_STATUS_OK;
+}
+
 static uint16_t cmd_config_ctrl(fw_t *f, const uint16_t *p, uint16_t n)
 {
     proto_config_ctrl_t c;
@@ -77,7 +136,13 @@ static uint16_t cmd_config_ctrl(fw_t *f, const uint16_t *p, uint16_t n)
         !(c.pred_scale_l_d > 0.0f) || !(c.pred_scale_l_q > 0.0f) || !(c.pred_scale_psi_f >= 0.0f) ||
         !(c.pred_scale_r_s >= 0.0f) ||
         !(c.pred_scale_l_d <= 100.0f && c.pred_scale_l_q <= 100.0f &&
-          c.pred_scale_psi_f <= 100.0f && c.pred_scale_r_s <= 100.0f)) {
+          c.pred_scale_psi_f <= 100.0f && c.pred_scale_r_s <= 100.0f) ||
+        c.mpcc_candidates > PROTO_MPCC_CANDIDATES_ADJACENT ||
+        !within(c.foc_bw_rad_s, 0.0f, 0.5f / c.ts_s) ||
+        !within(c.est_bw_rad_s, 0.0f, 0.5f / c.ts_s) ||
+        !within(c.est_min_speed_rpm, 0.0f, FW_SPEED_TRIP_MAX_RPM) ||
+        !within(c.est_lock_timeout_s, 0.0f, FW_HEARTBEAT_MAX_S) ||
+        !within(c.est_theta0_rad, -7.0f, 7.0f)) {
         return PROTO_ACK_STATUS_BAD_VALUE;
     }
     f->ctrl = c;
@@ -112,7 +177,7 @@ static uint16_t cmd_profile_segment(fw_t *f, const uint16_t *p, uint16_t n)
     seg.kind = s.kind;
     seg.inject_a = s.inject_a;
     seg.inject_hz = s.inject_hz;
-    if (s.kind > PROFILE_KIND_IDENTIFY_R || !(s.inject_hz >= 0.0f) ||
+    if (s.kind > PROFILE_KIND_COMMISSION || !(s.inject_hz >= 0.0f) ||
         !(fabsf(s.inject_a) <= 1e3f) ||
         (s.kind == PROFILE_KIND_IDENTIFY_R && (s.speed_rpm != 0.0f || !(s.inject_a != 0.0f)))) {
         return PROTO_ACK_STATUS_BAD_VALUE;
@@ -121,6 +186,45 @@ static uint16_t cmd_profile_segment(fw_t *f, const uint16_t *p, uint16_t n)
         return PROTO_ACK_STATUS_BAD_VALUE;
     }
     return profile_set(&f->prof, s.index, &seg) ? PROTO_ACK_STATUS_OK : PROTO_ACK_STATUS_BAD_VALUE;
+}
+
+static uint16_t cmd_config_calib(fw_t *f, const uint16_t *p, uint16_t n)
+{
+    proto_config_calib_t c;
+    if (!proto_config_calib_unpack(&c, p, n)) {
+        return PROTO_ACK_STATUS_BAD_VALUE;
+    }
+    if (fw_active(f)) {
+        return PROTO_ACK_STATUS_BUSY;
+    }
+    /* offsets within 10 A, gain errors within 20 % (a sensor beyond is broken, not calibrated) */
+    if (!within(c.i_a_offset_a, -10.0f, 10.0f) || !within(c.i_b_offset_a, -10.0f, 10.0f) ||
+        !within(c.i_c_offset_a, -10.0f, 10.0f) || !within(c.i_a_gain_err, -0.2f, 0.2f) ||
+        !within(c.i_b_gain_err, -0.2f, 0.2f) || !within(c.i_c_gain_err, -0.2f, 0.2f)) {
+        return PROTO_ACK_STATUS_BAD_VALUE;
+    }
+    f->calib = c;
+    f->have_calib = c.i_a_offset_a != 0.0f || c.i_b_offset_a != 0.0f || c.i_c_offset_a != 0.0f ||
+                    c.i_a_gain_err != 0.0f || c.i_b_gain_err != 0.0f || c.i_c_gain_err != 0.0f;
+    return PROTO_ACK_STATUS_OK;
+}
+
+static uint16_t cmd_config_commission(fw_t *f, const uint16_t *p, uint16_t n)
+{
+    proto_config_commission_t c;
+    if (!proto_config_commission_unpack(&c, p, n)) {
+        return PROTO_ACK_STATUS_BAD_VALUE;
+    }
+    if (fw_active(f)) {
+        return PROTO_ACK_STATUS_BUSY;
+    }
+    if ((c.steps & ~((1u << COMM_N_STEPS) - 1u)) != 0u || !(c.i_test_a > 0.0f) ||
+        !(c.spin_rpm >= 0.0f && c.spin_rpm <= FW_SPEED_TRIP_MAX_RPM) ||
+        (f->have_motor && (c.i_test_a > f->motor.i_max_a || c.spin_rpm > f->motor.speed_max_rpm))) {
+        return PROTO_ACK_STATUS_BAD_VALUE;
+    }
+    f->comm_cfg = c;
+    return PROTO_ACK_STATUS_OK;
 }
 
 static void handle_frame(fw_t *f, uint16_t id, uint16_t seq, const uint16_t *p, uint16_t n)
@@ -162,6 +266,18 @@ static void handle_frame(fw_t *f, uint16_t id, uint16_t seq, const uint16_t *p, 
     }
     case PROTO_ID_PROFILE_SEGMENT:
         st = cmd_profile_segment(f, p, n);
+        break;
+    case PROTO_ID_CONFIG_CALIB:
+        st = cmd_config_calib(f, p, n);
+        break;
+    case PROTO_ID_CONFIG_COMMISSION:
+        st = cmd_config_commission(f, p, n);
+        break;
+    case PROTO_ID_CONFIG_SENSORLESS:
+        st = cmd_config_sensorless(f, p, n);
+        break;
+    case PROTO_ID_GAMMA_NODE:
+        st = cmd_gamma_node(f, p, n);
         break;
     case PROTO_ID_START:
         st = fw_start_run(f);

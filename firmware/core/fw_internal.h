@@ -23,6 +23,13 @@
 #define FW_SPEED_REF_WEIGHT 0.7f /* set-point weight of the speed PI's proportional path */
 #define FW_DITHER_PERIOD    22u  /* q-current dither: not a divisor of the speed-loop period */
 #define FW_DITHER_GAIN      0.6f /* peak-to-peak, as a fraction of one vector's current step */
+/* the sensorless start (docs/sensorless.md): the PLL settles at rest, then +-pulses on d */
+#define FW_POL_SETTLE_S         0.04f
+#define FW_POL_PULSE_S          0.01f
+#define FW_POL_RELEASE_S        0.005f
+#define FW_POL_CONF_MIN         0.8f  /* the PLL's confidence needed before the pulses */
+#define FW_POL_ASYM_DEFAULT     0.05f /* no host configuration: positive i_d saturates first */
+#define FW_POL_ASYM_MIN_DEFAULT 0.02f
 
 /* fw.c */
 void fw_raise(fw_t *f, uint16_t code, int32_t arg); /* an event, sent at the end of the period */
@@ -39,5 +46,8 @@ void fw_send_capture_chunk(fw_t *f, uint16_t offset);
 void fw_send_status(fw_t *f);
 void fw_send_params(fw_t *f, uint16_t slot);
 void fw_send_telemetry(fw_t *f);
+
+/* fw_snl.c: the sensorless estimator's configuration from the host's frames (or defaults) */
+void fw_snl_config(const fw_t *f, snl_cfg_t *sc);
 
 #endif

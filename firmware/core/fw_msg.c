@@ -50,9 +50,33 @@ static void send_event(fw_t *f, const evq_entry_t *ev)
     (void)fw_send(f, PROTO_ID_EVENT, f->link.payload_buf, n);
 }
 
+static void send_commission_result(fw_t *f)
+{
+    proto_commission_result_t r;
+    const comm_result_t *c = &f->comm.res;
+    uint16_t n, k;
+    r.tick =
+        f->tick > 0u ? f->tick - 1u : 0u; /* the period that ended the step (flushed after it) */
+    r.step = c->step;
+    r.status = c->status;
+    for (k = 0u; k < 4u; k++) {
+        r.value[k] = c->value[k];
+        r.spread[k] = c->spread[k];
+    }
+    r.truth_ref[0] = c->ref[0];
+    r.truth_ref[1] = c->ref[1];
+    n = proto_commission_result_pack(&r, f->link.payload_buf);
+    (void)fw_send(f, PROTO_ID_COMMISSION_RESULT, f->link.payload_buf, n);
+    memset(&f->comm.res, 0, sizeof(f->comm.res));
+    f->comm.result_due = false;
+}
+
 void fw_flush(fw_t *f)
 {
     uint16_t i;
+    if (f->comm.result_due) { /* a commissioning step's result precedes the events it caused */
+        send_commission_result(f);
+    }
     for (i = 0u; i < evq_count(&f->events); i++) {
         send_event(f, evq_at(&f->events, i));
     }
@@ -170,6 +194,26 @@ void fw_send_params(fw_t *f, uint16_t slot)
  * case stays within budget on the F28335 (docs/board-f28335.md). */
 #define FW_PHASE_PARAMS 1u
 #define FW_PHASE_STATUS (FW_PHASE_PARAMS + IDENT_N_EST + 1u)
+#define FW_PHASE_EST    (FW_PHASE_STATUS + 2u)
+
+/* The angle estimator's frame (only when an estimator occupies the angle slot): its identity,
+ * lock, confidence, and its errors against the encoder (the truth when one is fitted). */
+static void send_est(fw_t *f)
+{
+    proto_telem_est_t t;
+    uint16_t n;
+    const bool in_loop = !f->seg_angle_encoder;
+    t.tick = f->tick;
+    t.estimator = f->ctrl.angle_src;
+    t.flags = (uint16_t)((f->est.locked ? PROTO_EST_FLAG_LOCKED : 0u) |
+                         (in_loop ? PROTO_EST_FLAG_IN_LOOP : 0u));
+    t.confidence = f->est.confidence;
+    t.theta_err_rad = tf_wrap_pi(f->est.theta_e_rad - f->enc_out.theta_e_rad);
+    t.speed_err_rpm = f->est.speed_rpm - f->enc_out.speed_rpm;
+    t.err_signal = f->est.err_rad;
+    n = proto_telem_est_pack(&t, f->link.payload_buf);
+    (void)fw_send(f, PROTO_ID_TELEM_EST, f->link.payload_buf, n);
+}
 
 void fw_send_telemetry(fw_t *f)
 {
@@ -202,5 +246,9 @@ void fw_send_telemetry(fw_t *f)
     }
     if (c->status_div != 0u && (f->tick % c->status_div) == FW_PHASE_STATUS % c->status_div) {
         fw_send_status(f);
+    }
+    if (c->est_div != 0u && angle_src_is_estimator(c->angle_src) &&
+        (f->tick % c->est_div) == FW_PHASE_EST % c->est_div) {
+        send_est(f);
     }
 }

@@ -121,6 +121,24 @@ void ident_predictor(ident_t *id, cc_params_t *out)
     }
 }
 
+bool ident_converged_params(const ident_t *id, cc_params_t *out)
+{
+    const ident_cfg_t *c = &id->cfg;
+    const est_out_t *o;
+    if (!id->pred_latched || !c->identify || c->predictor == 0u || c->predictor > IDENT_N_EST) {
+        return false;
+    }
+    o = &id->out[c->predictor - 1u];
+    if (!(o->l_d_h > 0.0f && o->l_q_h > 0.0f && o->psi_f_wb > 0.0f)) {
+        return false;
+    }
+    out->r_s_ohm = o->r_s_ohm;
+    out->l_d_h = o->l_d_h;
+    out->l_q_h = o->l_q_h;
+    out->psi_f_wb = o->psi_f_wb;
+    return true;
+}
+
 float ident_d_ref(const ident_t *id, const ident_seg_t *seg, float i_d_base_a)
 {
     if (seg->identify_r) {

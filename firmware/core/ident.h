@@ -28,8 +28,8 @@
 
 #define IDENT_R_SETTLE_FRAC 0.2f /* identify_r: part of each current level skipped (settling) */
 #define IDENT_STEP_A        0.5f /* an i_d reference step above this skips the window */
-#define IDENT_STEP_HOLD                                                                            \
-    5u /* ... and the windows of the next periods (the controller's transient) */
+/* ... and the windows of the next periods (the controller's transient) */
+#define IDENT_STEP_HOLD 5u
 
 /* One estimator behind the operations table. */
 typedef struct {
@@ -102,5 +102,8 @@ void ident_step(ident_t *id, const ident_seg_t *seg, const ident_in_t *in, ident
  * knows while it runs, 0 before it (R unknown), then the estimator's own. */
 void ident_report(const ident_t *id, uint16_t k, est_out_t *out);
 bool ident_nominal_feeds(const ident_t *id); /* the predictor runs on the (scaled) nominal values */
+/* Once the chosen estimator has converged (the predictor's latch): true, and its L_d, L_q, psi_f
+ * in *out for the other parameter-dependent stages (MTPA, the dither); false before. */
+bool ident_converged_params(const ident_t *id, cc_params_t *out);
 
 #endif

@@ -133,7 +133,7 @@ static void leg_voltages(const mpcc_t *m, float v_dc_v, uint16_t prev, const flo
         const float sg = smooth_sign(i_abc[x], inv_i_dt);
         float d0, d1;
         if (m->cfg.dt_model == MPCC_DT_SWITCHING) {
-            const uint16_t was_on = (uint16_t)((prev >> x) & 1u);
+            const uint16_t was_on = (uint16_t)(((uint16_t)(prev >> x)) & 1u);
             /* turned on (0 -> 1) with i > 0: the lower diode carries the dead time, -v_dc Td;
              * turned off (1 -> 0) with i < 0: the upper diode carries it, +v_dc Td; weighted by
              * (1 +- sigma)/2 near the current's zero crossing. */

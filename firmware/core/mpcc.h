@@ -28,14 +28,14 @@
 
 /* Dead-time / device-drop model used in the prediction and in out->u_d_v/u_q_v (cfg.dt_model).
  * Both are off when dead_time_s == 0 and v_drop_v == 0. */
-#define MPCC_DT_SWITCHING                                                                          \
-    0u /* default, exact for FCS: per switching event of a leg, turned on
-                                  with i_x > 0 it loses v_dc dead_time, turned off with i_x < 0 it
-                                  gains it (averaged over the period); plus -v_drop sign(i_x) */
-#define MPCC_DT_AVERAGE                                                                            \
-    1u /* PWM-style average: per phase -V_dt sign(i_x),
-                                  V_dt = v_dc dead_time/ts + v_drop (assumes one on/off pair per
-                                  period: over-compensates FCS switching, see docs/control.md) */
+/* MPCC_DT_SWITCHING (default, exact for FCS): per switching event of a leg, turned on with
+ * i_x > 0 it loses v_dc dead_time, turned off with i_x < 0 it gains it (averaged over the
+ * period); plus -v_drop sign(i_x) */
+#define MPCC_DT_SWITCHING 0u
+/* MPCC_DT_AVERAGE: PWM-style average, per phase -V_dt sign(i_x), V_dt = v_dc dead_time/ts +
+ * v_drop (assumes one on/off pair per period: over-compensates FCS switching, see
+ * docs/control.md) */
+#define MPCC_DT_AVERAGE 1u
 
 /* Delay compensation (cfg.delay_comp). OFF exists for tests and comparisons only. */
 #define MPCC_DELAY_COMP_ON  0u

@@ -12,10 +12,11 @@
 #define PROFILE_MAX_SEGMENTS  64u
 #define PROFILE_SEGMENT_MAX_S 3600.0f /* one segment; with ts_s >= 10 us its ticks fit a uint32_t */
 #define PROFILE_FLAG_CAPTURE  PROTO_SEGMENT_FLAG_CAPTURE
-#define PROFILE_FLAG_HOLD_EST                                                                      \
-    PROTO_SEGMENT_FLAG_HOLD_EST /* the online estimators hold their values in this segment */
+/* the online estimators hold their values in this segment */
+#define PROFILE_FLAG_HOLD_EST   PROTO_SEGMENT_FLAG_HOLD_EST
 #define PROFILE_KIND_RUN        PROTO_SEGMENT_KIND_RUN
 #define PROFILE_KIND_IDENTIFY_R PROTO_SEGMENT_KIND_IDENTIFY_R
+#define PROFILE_KIND_COMMISSION PROTO_SEGMENT_KIND_COMMISSION
 
 typedef struct {
     float duration_s;

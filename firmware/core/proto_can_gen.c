@@ -25,7 +25,7 @@ bool proto_can_layout(uint16_t msg_id, proto_can_layout_t *l)
     case PROTO_ID_CONFIG_CTRL:
         l->func = 0x0Cu;
         l->transfer = 1u;
-        l->n_frames = 12u;
+        l->n_frames = 16u;
         l->h2d = 1u;
         return true;
     case PROTO_ID_PROFILE_CLEAR:
@@ -76,8 +76,26 @@ bool proto_can_layout(uint16_t msg_id, proto_can_layout_t *l)
         l->h2d = 1u;
         l->len[0] = 3u;
         return true;
-    case PROTO_ID_SIM_PLANT:
+    case PROTO_ID_CONFIG_CALIB:
         l->func = 0x12u;
+        l->transfer = 0u;
+        l->n_frames = 4u;
+        l->h2d = 1u;
+        l->len[0] = 5u;
+        l->len[1] = 8u;
+        l->len[2] = 8u;
+        l->len[3] = 4u;
+        return true;
+    case PROTO_ID_CONFIG_COMMISSION:
+        l->func = 0x16u;
+        l->transfer = 0u;
+        l->n_frames = 2u;
+        l->h2d = 1u;
+        l->len[0] = 7u;
+        l->len[1] = 4u;
+        return true;
+    case PROTO_ID_SIM_PLANT:
+        l->func = 0x18u;
         l->transfer = 0u;
         l->n_frames = 2u;
         l->h2d = 1u;
@@ -100,7 +118,7 @@ bool proto_can_layout(uint16_t msg_id, proto_can_layout_t *l)
         l->len[1] = 7u;
         return true;
     case PROTO_ID_TELEM_FAST:
-        l->func = 0x14u;
+        l->func = 0x1Au;
         l->transfer = 0u;
         l->n_frames = 4u;
         l->h2d = 0u;
@@ -110,7 +128,7 @@ bool proto_can_layout(uint16_t msg_id, proto_can_layout_t *l)
         l->len[3] = 6u;
         return true;
     case PROTO_ID_PARAMS:
-        l->func = 0x18u;
+        l->func = 0x1Eu;
         l->transfer = 0u;
         l->n_frames = 3u;
         l->h2d = 0u;
@@ -119,7 +137,7 @@ bool proto_can_layout(uint16_t msg_id, proto_can_layout_t *l)
         l->len[2] = 8u;
         return true;
     case PROTO_ID_STATUS:
-        l->func = 0x1Bu;
+        l->func = 0x21u;
         l->transfer = 0u;
         l->n_frames = 4u;
         l->h2d = 0u;
@@ -142,8 +160,14 @@ bool proto_can_layout(uint16_t msg_id, proto_can_layout_t *l)
         l->n_frames = 17u;
         l->h2d = 0u;
         return true;
+    case PROTO_ID_COMMISSION_RESULT:
+        l->func = 0x7Eu;
+        l->transfer = 1u;
+        l->n_frames = 8u;
+        l->h2d = 0u;
+        return true;
     case PROTO_ID_SIM_TRUTH:
-        l->func = 0x1Fu;
+        l->func = 0x25u;
         l->transfer = 0u;
         l->n_frames = 6u;
         l->h2d = 0u;
@@ -153,6 +177,29 @@ bool proto_can_layout(uint16_t msg_id, proto_can_layout_t *l)
         l->len[3] = 8u;
         l->len[4] = 8u;
         l->len[5] = 8u;
+        return true;
+    case PROTO_ID_TELEM_EST:
+        l->func = 0x2Bu;
+        l->transfer = 0u;
+        l->n_frames = 2u;
+        l->h2d = 0u;
+        l->len[0] = 8u;
+        l->len[1] = 6u;
+        return true;
+    case PROTO_ID_CONFIG_SENSORLESS:
+        l->func = 0x0Cu;
+        l->transfer = 1u;
+        l->n_frames = 10u;
+        l->h2d = 1u;
+        return true;
+    case PROTO_ID_GAMMA_NODE:
+        l->func = 0x2Du;
+        l->transfer = 0u;
+        l->n_frames = 3u;
+        l->h2d = 1u;
+        l->len[0] = 7u;
+        l->len[1] = 8u;
+        l->len[2] = 4u;
         return true;
     default:
         return false;
@@ -169,30 +216,41 @@ int16_t proto_can_func_msg(uint16_t func, uint16_t *frame)
     case 0x01u: *frame = 0u; return (int16_t)PROTO_ID_ABORT;
     case 0x03u: *frame = 0u; return (int16_t)PROTO_ID_HEARTBEAT;
     case 0x11u: *frame = 0u; return (int16_t)PROTO_ID_CAPTURE_READ;
-    case 0x12u: *frame = 0u; return (int16_t)PROTO_ID_SIM_PLANT;
-    case 0x13u: *frame = 1u; return (int16_t)PROTO_ID_SIM_PLANT;
+    case 0x12u: *frame = 0u; return (int16_t)PROTO_ID_CONFIG_CALIB;
+    case 0x13u: *frame = 1u; return (int16_t)PROTO_ID_CONFIG_CALIB;
+    case 0x14u: *frame = 2u; return (int16_t)PROTO_ID_CONFIG_CALIB;
+    case 0x15u: *frame = 3u; return (int16_t)PROTO_ID_CONFIG_CALIB;
+    case 0x16u: *frame = 0u; return (int16_t)PROTO_ID_CONFIG_COMMISSION;
+    case 0x17u: *frame = 1u; return (int16_t)PROTO_ID_CONFIG_COMMISSION;
+    case 0x18u: *frame = 0u; return (int16_t)PROTO_ID_SIM_PLANT;
+    case 0x19u: *frame = 1u; return (int16_t)PROTO_ID_SIM_PLANT;
     case 0x07u: *frame = 0u; return (int16_t)PROTO_ID_ACK;
     case 0x09u: *frame = 0u; return (int16_t)PROTO_ID_IDENTIFY;
     case 0x0Au: *frame = 1u; return (int16_t)PROTO_ID_IDENTIFY;
-    case 0x14u: *frame = 0u; return (int16_t)PROTO_ID_TELEM_FAST;
-    case 0x15u: *frame = 1u; return (int16_t)PROTO_ID_TELEM_FAST;
-    case 0x16u: *frame = 2u; return (int16_t)PROTO_ID_TELEM_FAST;
-    case 0x17u: *frame = 3u; return (int16_t)PROTO_ID_TELEM_FAST;
-    case 0x18u: *frame = 0u; return (int16_t)PROTO_ID_PARAMS;
-    case 0x19u: *frame = 1u; return (int16_t)PROTO_ID_PARAMS;
-    case 0x1Au: *frame = 2u; return (int16_t)PROTO_ID_PARAMS;
-    case 0x1Bu: *frame = 0u; return (int16_t)PROTO_ID_STATUS;
-    case 0x1Cu: *frame = 1u; return (int16_t)PROTO_ID_STATUS;
-    case 0x1Du: *frame = 2u; return (int16_t)PROTO_ID_STATUS;
-    case 0x1Eu: *frame = 3u; return (int16_t)PROTO_ID_STATUS;
+    case 0x1Au: *frame = 0u; return (int16_t)PROTO_ID_TELEM_FAST;
+    case 0x1Bu: *frame = 1u; return (int16_t)PROTO_ID_TELEM_FAST;
+    case 0x1Cu: *frame = 2u; return (int16_t)PROTO_ID_TELEM_FAST;
+    case 0x1Du: *frame = 3u; return (int16_t)PROTO_ID_TELEM_FAST;
+    case 0x1Eu: *frame = 0u; return (int16_t)PROTO_ID_PARAMS;
+    case 0x1Fu: *frame = 1u; return (int16_t)PROTO_ID_PARAMS;
+    case 0x20u: *frame = 2u; return (int16_t)PROTO_ID_PARAMS;
+    case 0x21u: *frame = 0u; return (int16_t)PROTO_ID_STATUS;
+    case 0x22u: *frame = 1u; return (int16_t)PROTO_ID_STATUS;
+    case 0x23u: *frame = 2u; return (int16_t)PROTO_ID_STATUS;
+    case 0x24u: *frame = 3u; return (int16_t)PROTO_ID_STATUS;
     case 0x05u: *frame = 0u; return (int16_t)PROTO_ID_EVENT;
     case 0x06u: *frame = 1u; return (int16_t)PROTO_ID_EVENT;
-    case 0x1Fu: *frame = 0u; return (int16_t)PROTO_ID_SIM_TRUTH;
-    case 0x20u: *frame = 1u; return (int16_t)PROTO_ID_SIM_TRUTH;
-    case 0x21u: *frame = 2u; return (int16_t)PROTO_ID_SIM_TRUTH;
-    case 0x22u: *frame = 3u; return (int16_t)PROTO_ID_SIM_TRUTH;
-    case 0x23u: *frame = 4u; return (int16_t)PROTO_ID_SIM_TRUTH;
-    case 0x24u: *frame = 5u; return (int16_t)PROTO_ID_SIM_TRUTH;
+    case 0x25u: *frame = 0u; return (int16_t)PROTO_ID_SIM_TRUTH;
+    case 0x26u: *frame = 1u; return (int16_t)PROTO_ID_SIM_TRUTH;
+    case 0x27u: *frame = 2u; return (int16_t)PROTO_ID_SIM_TRUTH;
+    case 0x28u: *frame = 3u; return (int16_t)PROTO_ID_SIM_TRUTH;
+    case 0x29u: *frame = 4u; return (int16_t)PROTO_ID_SIM_TRUTH;
+    case 0x2Au: *frame = 5u; return (int16_t)PROTO_ID_SIM_TRUTH;
+    case 0x2Bu: *frame = 0u; return (int16_t)PROTO_ID_TELEM_EST;
+    case 0x2Cu: *frame = 1u; return (int16_t)PROTO_ID_TELEM_EST;
+    case 0x2Du: *frame = 0u; return (int16_t)PROTO_ID_GAMMA_NODE;
+    case 0x2Eu: *frame = 1u; return (int16_t)PROTO_ID_GAMMA_NODE;
+    case 0x2Fu: *frame = 2u; return (int16_t)PROTO_ID_GAMMA_NODE;
     default: *frame = 0u; return -1;
     }
 }

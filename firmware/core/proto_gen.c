@@ -51,6 +51,15 @@ static float get_f32(const uint16_t *b)
     return bits.f;
 }
 
+/* Round half up and saturate to the u8 range; NaN gives 0. */
+static uint16_t sat_u8(float x)
+{
+    if (x != x) { return 0; }
+    if (x >= 255.0f) { return 255u; }
+    if (x <= 0.0f) { return 0u; }
+    return (uint16_t)floorf(x + 0.5f);
+}
+
 /* Round half up and saturate to the u16 range; NaN gives 0. */
 static uint16_t sat_u16(float x)
 {
@@ -149,6 +158,13 @@ uint16_t proto_config_ctrl_pack(const proto_config_ctrl_t *m, uint16_t *buf)
     put_f32(&buf[65], m->pred_scale_l_q);
     put_f32(&buf[69], m->pred_scale_psi_f);
     put_f32(&buf[73], m->pred_scale_r_s);
+    put_u8(&buf[77], m->mpcc_candidates);
+    put_f32(&buf[78], m->foc_bw_rad_s);
+    put_f32(&buf[82], m->est_bw_rad_s);
+    put_f32(&buf[86], m->est_min_speed_rpm);
+    put_f32(&buf[90], m->est_lock_timeout_s);
+    put_f32(&buf[94], m->est_theta0_rad);
+    put_u16(&buf[98], m->est_div);
     return PROTO_LEN_CONFIG_CTRL;
 }
 
@@ -183,6 +199,13 @@ bool proto_config_ctrl_unpack(proto_config_ctrl_t *m, const uint16_t *buf, uint1
     m->pred_scale_l_q = get_f32(&buf[65]);
     m->pred_scale_psi_f = get_f32(&buf[69]);
     m->pred_scale_r_s = get_f32(&buf[73]);
+    m->mpcc_candidates = get_u8(&buf[77]);
+    m->foc_bw_rad_s = get_f32(&buf[78]);
+    m->est_bw_rad_s = get_f32(&buf[82]);
+    m->est_min_speed_rpm = get_f32(&buf[86]);
+    m->est_lock_timeout_s = get_f32(&buf[90]);
+    m->est_theta0_rad = get_f32(&buf[94]);
+    m->est_div = get_u16(&buf[98]);
     return true;
 }
 
@@ -310,6 +333,50 @@ bool proto_capture_read_unpack(proto_capture_read_t *m, const uint16_t *buf, uin
         return false;
     }
     m->offset = get_u16(&buf[0]);
+    return true;
+}
+
+uint16_t proto_config_calib_pack(const proto_config_calib_t *m, uint16_t *buf)
+{
+    put_f32(&buf[0], m->i_a_offset_a);
+    put_f32(&buf[4], m->i_b_offset_a);
+    put_f32(&buf[8], m->i_c_offset_a);
+    put_f32(&buf[12], m->i_a_gain_err);
+    put_f32(&buf[16], m->i_b_gain_err);
+    put_f32(&buf[20], m->i_c_gain_err);
+    return PROTO_LEN_CONFIG_CALIB;
+}
+
+bool proto_config_calib_unpack(proto_config_calib_t *m, const uint16_t *buf, uint16_t len)
+{
+    if (len != PROTO_LEN_CONFIG_CALIB) {
+        return false;
+    }
+    m->i_a_offset_a = get_f32(&buf[0]);
+    m->i_b_offset_a = get_f32(&buf[4]);
+    m->i_c_offset_a = get_f32(&buf[8]);
+    m->i_a_gain_err = get_f32(&buf[12]);
+    m->i_b_gain_err = get_f32(&buf[16]);
+    m->i_c_gain_err = get_f32(&buf[20]);
+    return true;
+}
+
+uint16_t proto_config_commission_pack(const proto_config_commission_t *m, uint16_t *buf)
+{
+    put_u16(&buf[0], m->steps);
+    put_f32(&buf[2], m->i_test_a);
+    put_f32(&buf[6], m->spin_rpm);
+    return PROTO_LEN_CONFIG_COMMISSION;
+}
+
+bool proto_config_commission_unpack(proto_config_commission_t *m, const uint16_t *buf, uint16_t len)
+{
+    if (len != PROTO_LEN_CONFIG_COMMISSION) {
+        return false;
+    }
+    m->steps = get_u16(&buf[0]);
+    m->i_test_a = get_f32(&buf[2]);
+    m->spin_rpm = get_f32(&buf[6]);
     return true;
 }
 
@@ -561,6 +628,45 @@ bool proto_capture_chunk_unpack(proto_capture_chunk_t *m, const uint16_t *buf, u
     return true;
 }
 
+uint16_t proto_commission_result_pack(const proto_commission_result_t *m, uint16_t *buf)
+{
+    uint16_t i;
+    put_u32(&buf[0], m->tick);
+    put_u8(&buf[4], m->step);
+    put_u8(&buf[5], m->status);
+    for (i = 0u; i < 4u; i++) {
+        put_f32(&buf[6u + 4u * i], m->value[i]);
+    }
+    for (i = 0u; i < 4u; i++) {
+        put_f32(&buf[22u + 4u * i], m->spread[i]);
+    }
+    for (i = 0u; i < 2u; i++) {
+        put_f32(&buf[38u + 4u * i], m->truth_ref[i]);
+    }
+    return PROTO_LEN_COMMISSION_RESULT;
+}
+
+bool proto_commission_result_unpack(proto_commission_result_t *m, const uint16_t *buf, uint16_t len)
+{
+    uint16_t i;
+    if (len != PROTO_LEN_COMMISSION_RESULT) {
+        return false;
+    }
+    m->tick = get_u32(&buf[0]);
+    m->step = get_u8(&buf[4]);
+    m->status = get_u8(&buf[5]);
+    for (i = 0u; i < 4u; i++) {
+        m->value[i] = get_f32(&buf[6u + 4u * i]);
+    }
+    for (i = 0u; i < 4u; i++) {
+        m->spread[i] = get_f32(&buf[22u + 4u * i]);
+    }
+    for (i = 0u; i < 2u; i++) {
+        m->truth_ref[i] = get_f32(&buf[38u + 4u * i]);
+    }
+    return true;
+}
+
 uint16_t proto_sim_truth_pack(const proto_sim_truth_t *m, uint16_t *buf)
 {
     put_u32(&buf[0], m->tick);
@@ -596,6 +702,101 @@ bool proto_sim_truth_unpack(proto_sim_truth_t *m, const uint16_t *buf, uint16_t 
     return true;
 }
 
+uint16_t proto_telem_est_pack(const proto_telem_est_t *m, uint16_t *buf)
+{
+    put_u32(&buf[0], m->tick);
+    put_u8(&buf[4], m->estimator);
+    put_u8(&buf[5], m->flags);
+    put_u8(&buf[6], sat_u8(m->confidence * 250.0f));
+    put_i16(&buf[7], sat_i16(m->theta_err_rad * 10000.0f));
+    put_i16(&buf[9], sat_i16(m->speed_err_rpm * 10.0f));
+    put_i16(&buf[11], sat_i16(m->err_signal * 10000.0f));
+    return PROTO_LEN_TELEM_EST;
+}
+
+bool proto_telem_est_unpack(proto_telem_est_t *m, const uint16_t *buf, uint16_t len)
+{
+    if (len != PROTO_LEN_TELEM_EST) {
+        return false;
+    }
+    m->tick = get_u32(&buf[0]);
+    m->estimator = get_u8(&buf[4]);
+    m->flags = get_u8(&buf[5]);
+    m->confidence = (float)get_u8(&buf[6]) * 0.004f;
+    m->theta_err_rad = (float)get_i16(&buf[7]) * 0.0001f;
+    m->speed_err_rpm = (float)get_i16(&buf[9]) * 0.1f;
+    m->err_signal = (float)get_i16(&buf[11]) * 0.0001f;
+    return true;
+}
+
+uint16_t proto_config_sensorless_pack(const proto_config_sensorless_t *m, uint16_t *buf)
+{
+    put_f32(&buf[0], m->pol_i_pulse_a);
+    put_f32(&buf[4], m->pol_asym_expected);
+    put_f32(&buf[8], m->pol_asym_min);
+    put_f32(&buf[12], m->hyb_pll_on_rpm);
+    put_f32(&buf[16], m->hyb_mras_on_rpm);
+    put_f32(&buf[20], m->hyb_blend_s);
+    put_f32(&buf[24], m->lock_disagree_rad);
+    put_f32(&buf[28], m->lock_disagree_s);
+    put_f32(&buf[32], m->lock_conf_min);
+    put_f32(&buf[36], m->lock_lost_s);
+    put_u16(&buf[40], m->gam_nd);
+    put_u16(&buf[42], m->gam_nq);
+    put_f32(&buf[44], m->gam_id0_a);
+    put_f32(&buf[48], m->gam_iq0_a);
+    put_f32(&buf[52], m->gam_did_a);
+    put_f32(&buf[56], m->gam_diq_a);
+    return PROTO_LEN_CONFIG_SENSORLESS;
+}
+
+bool proto_config_sensorless_unpack(proto_config_sensorless_t *m, const uint16_t *buf, uint16_t len)
+{
+    if (len != PROTO_LEN_CONFIG_SENSORLESS) {
+        return false;
+    }
+    m->pol_i_pulse_a = get_f32(&buf[0]);
+    m->pol_asym_expected = get_f32(&buf[4]);
+    m->pol_asym_min = get_f32(&buf[8]);
+    m->hyb_pll_on_rpm = get_f32(&buf[12]);
+    m->hyb_mras_on_rpm = get_f32(&buf[16]);
+    m->hyb_blend_s = get_f32(&buf[20]);
+    m->lock_disagree_rad = get_f32(&buf[24]);
+    m->lock_disagree_s = get_f32(&buf[28]);
+    m->lock_conf_min = get_f32(&buf[32]);
+    m->lock_lost_s = get_f32(&buf[36]);
+    m->gam_nd = get_u16(&buf[40]);
+    m->gam_nq = get_u16(&buf[42]);
+    m->gam_id0_a = get_f32(&buf[44]);
+    m->gam_iq0_a = get_f32(&buf[48]);
+    m->gam_did_a = get_f32(&buf[52]);
+    m->gam_diq_a = get_f32(&buf[56]);
+    return true;
+}
+
+uint16_t proto_gamma_node_pack(const proto_gamma_node_t *m, uint16_t *buf)
+{
+    put_u16(&buf[0], m->index);
+    put_f32(&buf[2], m->g_dd);
+    put_f32(&buf[6], m->g_qq);
+    put_f32(&buf[10], m->g_dq);
+    put_f32(&buf[14], m->g_qd);
+    return PROTO_LEN_GAMMA_NODE;
+}
+
+bool proto_gamma_node_unpack(proto_gamma_node_t *m, const uint16_t *buf, uint16_t len)
+{
+    if (len != PROTO_LEN_GAMMA_NODE) {
+        return false;
+    }
+    m->index = get_u16(&buf[0]);
+    m->g_dd = get_f32(&buf[2]);
+    m->g_qq = get_f32(&buf[6]);
+    m->g_dq = get_f32(&buf[10]);
+    m->g_qd = get_f32(&buf[14]);
+    return true;
+}
+
 int16_t proto_payload_len(uint16_t msg_id)
 {
     switch (msg_id) {
@@ -609,6 +810,8 @@ int16_t proto_payload_len(uint16_t msg_id)
     case PROTO_ID_ABORT: return (int16_t)PROTO_LEN_ABORT;
     case PROTO_ID_HEARTBEAT: return (int16_t)PROTO_LEN_HEARTBEAT;
     case PROTO_ID_CAPTURE_READ: return (int16_t)PROTO_LEN_CAPTURE_READ;
+    case PROTO_ID_CONFIG_CALIB: return (int16_t)PROTO_LEN_CONFIG_CALIB;
+    case PROTO_ID_CONFIG_COMMISSION: return (int16_t)PROTO_LEN_CONFIG_COMMISSION;
     case PROTO_ID_SIM_PLANT: return (int16_t)PROTO_LEN_SIM_PLANT;
     case PROTO_ID_ACK: return (int16_t)PROTO_LEN_ACK;
     case PROTO_ID_IDENTIFY: return (int16_t)PROTO_LEN_IDENTIFY;
@@ -617,7 +820,11 @@ int16_t proto_payload_len(uint16_t msg_id)
     case PROTO_ID_STATUS: return (int16_t)PROTO_LEN_STATUS;
     case PROTO_ID_EVENT: return (int16_t)PROTO_LEN_EVENT;
     case PROTO_ID_CAPTURE_CHUNK: return (int16_t)PROTO_LEN_CAPTURE_CHUNK;
+    case PROTO_ID_COMMISSION_RESULT: return (int16_t)PROTO_LEN_COMMISSION_RESULT;
     case PROTO_ID_SIM_TRUTH: return (int16_t)PROTO_LEN_SIM_TRUTH;
+    case PROTO_ID_TELEM_EST: return (int16_t)PROTO_LEN_TELEM_EST;
+    case PROTO_ID_CONFIG_SENSORLESS: return (int16_t)PROTO_LEN_CONFIG_SENSORLESS;
+    case PROTO_ID_GAMMA_NODE: return (int16_t)PROTO_LEN_GAMMA_NODE;
     default: return -1;
     }
 }

@@ -10,9 +10,9 @@
 #include <stdbool.h>
 
 #define PROTO_VERSION 2u
-#define PROTO_SCHEMA_HASH 0xA20B0D51UL  /* CRC-32 of the canonical yaml */
+#define PROTO_SCHEMA_HASH 0xF1583257UL  /* CRC-32 of the canonical yaml */
 #define PROTO_MAX_PAYLOAD 111u  /* octets */
-#define PROTO_MSG_COUNT 19u
+#define PROTO_MSG_COUNT 25u
 
 /* enum state */
 #define PROTO_STATE_IDLE 0u
@@ -34,9 +34,17 @@
 
 /* enum current_ctrl */
 #define PROTO_CURRENT_CTRL_MPCC 0u
+#define PROTO_CURRENT_CTRL_FOC 1u
 
 /* enum angle_src */
 #define PROTO_ANGLE_SRC_ENCODER 0u
+#define PROTO_ANGLE_SRC_MRAS 1u
+#define PROTO_ANGLE_SRC_RIPPLE_PLL 2u
+#define PROTO_ANGLE_SRC_HYBRID 3u
+
+/* enum mpcc_candidates */
+#define PROTO_MPCC_CANDIDATES_ALL 0u
+#define PROTO_MPCC_CANDIDATES_ADJACENT 1u
 
 /* enum board */
 #define PROTO_BOARD_EMULATOR 0u
@@ -48,10 +56,16 @@
 #define PROTO_STOP_REASON_FAULT 2u
 #define PROTO_STOP_REASON_HEARTBEAT_LOST 3u
 #define PROTO_STOP_REASON_PROFILE_END 4u
+#define PROTO_STOP_REASON_COMMISSION_FAILED 5u
 
 /* enum segment_flag */
 #define PROTO_SEGMENT_FLAG_CAPTURE 1u
 #define PROTO_SEGMENT_FLAG_HOLD_EST 2u
+#define PROTO_SEGMENT_FLAG_ANGLE_ENCODER 4u
+
+/* enum est_flag */
+#define PROTO_EST_FLAG_LOCKED 1u
+#define PROTO_EST_FLAG_IN_LOOP 2u
 
 /* enum params_flag */
 #define PROTO_PARAMS_FLAG_EXCITED 1u
@@ -67,6 +81,7 @@
 /* enum segment_kind */
 #define PROTO_SEGMENT_KIND_RUN 0u
 #define PROTO_SEGMENT_KIND_IDENTIFY_R 1u
+#define PROTO_SEGMENT_KIND_COMMISSION 2u
 
 /* enum event */
 #define PROTO_EVENT_SEGMENT_START 1u
@@ -78,6 +93,30 @@
 #define PROTO_EVENT_STOPPED 7u
 #define PROTO_EVENT_STARTED 8u
 #define PROTO_EVENT_R_IDENTIFIED 9u
+#define PROTO_EVENT_COMMISSION_STEP 10u
+#define PROTO_EVENT_COMMISSION_FAILED 11u
+#define PROTO_EVENT_POLARITY 12u
+#define PROTO_EVENT_POLARITY_ASYM 13u
+
+/* enum commission_step */
+#define PROTO_COMMISSION_STEP_OFFSETS 0u
+#define PROTO_COMMISSION_STEP_V_DC 1u
+#define PROTO_COMMISSION_STEP_ENCODER 2u
+#define PROTO_COMMISSION_STEP_INVERTER 3u
+#define PROTO_COMMISSION_STEP_R_S 4u
+#define PROTO_COMMISSION_STEP_L_DQ 5u
+#define PROTO_COMMISSION_STEP_PSI_F 6u
+
+/* enum commission_fail */
+#define PROTO_COMMISSION_FAIL_IMPLAUSIBLE 1u
+#define PROTO_COMMISSION_FAIL_NOT_REPEATABLE 2u
+#define PROTO_COMMISSION_FAIL_NO_CURRENT 3u
+#define PROTO_COMMISSION_FAIL_WRONG_DIRECTION 4u
+#define PROTO_COMMISSION_FAIL_POLE_PAIRS 5u
+#define PROTO_COMMISSION_FAIL_ROTOR_STUCK 6u
+#define PROTO_COMMISSION_FAIL_OVER_CURRENT 7u
+#define PROTO_COMMISSION_FAIL_OVER_SPEED 8u
+#define PROTO_COMMISSION_FAIL_V_DC 9u
 
 /* enum fault */
 #define PROTO_FAULT_OVER_CURRENT 1u
@@ -85,6 +124,7 @@
 #define PROTO_FAULT_DC_UNDER_VOLTAGE 4u
 #define PROTO_FAULT_DC_OVER_VOLTAGE 8u
 #define PROTO_FAULT_HEARTBEAT 16u
+#define PROTO_FAULT_LOST_LOCK 32u
 
 /* hello: 0x01, host -> device */
 #define PROTO_ID_HELLO 0x01u
@@ -117,7 +157,7 @@ bool proto_config_motor_unpack(proto_config_motor_t *m, const uint16_t *buf, uin
 
 /* config_ctrl: 0x03, host -> device */
 #define PROTO_ID_CONFIG_CTRL 0x03u
-#define PROTO_LEN_CONFIG_CTRL 77u
+#define PROTO_LEN_CONFIG_CTRL 100u
 typedef struct {
     float ts_s;                    /* f32 */
     float rho;                     /* f32; MPCC q-axis weighting factor */
@@ -145,6 +185,13 @@ typedef struct {
     float pred_scale_l_q;          /* f32 */
     float pred_scale_psi_f;        /* f32 */
     float pred_scale_r_s;          /* f32 */
+    uint16_t mpcc_candidates;      /* u8; enum mpcc_candidates: MPCC candidate set */
+    float foc_bw_rad_s;            /* f32; FOC: current-loop bandwidth the PI gains are designed for */
+    float est_bw_rad_s;            /* f32; angle estimator: tracking (adaptation) bandwidth */
+    float est_min_speed_rpm;       /* f32; angle estimator: not locked below this speed */
+    float est_lock_timeout_s;      /* f32; lost_lock fault after this long out of lock in the loop */
+    float est_theta0_rad;          /* f32; angle estimator's initial electrical angle */
+    uint16_t est_div;              /* u16; control periods per telem_est frame (0 = off) */
 } proto_config_ctrl_t;
 uint16_t proto_config_ctrl_pack(const proto_config_ctrl_t *m, uint16_t *buf);
 bool proto_config_ctrl_unpack(proto_config_ctrl_t *m, const uint16_t *buf, uint16_t len);
@@ -219,6 +266,31 @@ typedef struct {
 } proto_capture_read_t;
 uint16_t proto_capture_read_pack(const proto_capture_read_t *m, uint16_t *buf);
 bool proto_capture_read_unpack(proto_capture_read_t *m, const uint16_t *buf, uint16_t len);
+
+/* config_calib: 0x10, host -> device */
+#define PROTO_ID_CONFIG_CALIB 0x10u
+#define PROTO_LEN_CONFIG_CALIB 24u
+typedef struct {
+    float i_a_offset_a;            /* f32; subtracted from the phase-a sample */
+    float i_b_offset_a;            /* f32 */
+    float i_c_offset_a;            /* f32 */
+    float i_a_gain_err;            /* f32; relative gain error: sample / (1 + err) */
+    float i_b_gain_err;            /* f32 */
+    float i_c_gain_err;            /* f32 */
+} proto_config_calib_t;
+uint16_t proto_config_calib_pack(const proto_config_calib_t *m, uint16_t *buf);
+bool proto_config_calib_unpack(proto_config_calib_t *m, const uint16_t *buf, uint16_t len);
+
+/* config_commission: 0x11, host -> device */
+#define PROTO_ID_CONFIG_COMMISSION 0x11u
+#define PROTO_LEN_CONFIG_COMMISSION 10u
+typedef struct {
+    uint16_t steps;                /* u16; bit k: run commission_step k */
+    float i_test_a;                /* f32; largest test current (alignment, staircase, R) */
+    float spin_rpm;                /* f32; top speed of the psi_f spin */
+} proto_config_commission_t;
+uint16_t proto_config_commission_pack(const proto_config_commission_t *m, uint16_t *buf);
+bool proto_config_commission_unpack(proto_config_commission_t *m, const uint16_t *buf, uint16_t len);
 
 /* sim_plant: 0x20, host -> device, emulator only */
 #define PROTO_ID_SIM_PLANT 0x20u
@@ -341,6 +413,20 @@ typedef struct {
 uint16_t proto_capture_chunk_pack(const proto_capture_chunk_t *m, uint16_t *buf);
 bool proto_capture_chunk_unpack(proto_capture_chunk_t *m, const uint16_t *buf, uint16_t len);
 
+/* commission_result: 0x96, device -> host */
+#define PROTO_ID_COMMISSION_RESULT 0x96u
+#define PROTO_LEN_COMMISSION_RESULT 46u
+typedef struct {
+    uint32_t tick;                 /* u32 */
+    uint16_t step;                 /* u8; enum commission_step */
+    uint16_t status;               /* u8; 0 ok, else enum commission_fail */
+    float value[4];                /* f32[4]; the step's results (docs/commissioning.md) */
+    float spread[4];               /* f32[4]; their spread over repetitions */
+    float truth_ref[2];            /* f32[2]; step-specific operating point (e.g. test current) */
+} proto_commission_result_t;
+uint16_t proto_commission_result_pack(const proto_commission_result_t *m, uint16_t *buf);
+bool proto_commission_result_unpack(proto_commission_result_t *m, const uint16_t *buf, uint16_t len);
+
 /* sim_truth: 0xA0, device -> host, emulator only */
 #define PROTO_ID_SIM_TRUTH 0xA0u
 #define PROTO_LEN_SIM_TRUTH 44u
@@ -359,6 +445,58 @@ typedef struct {
 } proto_sim_truth_t;
 uint16_t proto_sim_truth_pack(const proto_sim_truth_t *m, uint16_t *buf);
 bool proto_sim_truth_unpack(proto_sim_truth_t *m, const uint16_t *buf, uint16_t len);
+
+/* telem_est: 0x95, device -> host */
+#define PROTO_ID_TELEM_EST 0x95u
+#define PROTO_LEN_TELEM_EST 13u
+typedef struct {
+    uint32_t tick;                 /* u32 */
+    uint16_t estimator;            /* u8; enum angle_src: the angle slot's occupant */
+    uint16_t flags;                /* u8; enum est_flag bits */
+    float confidence;              /* u8 x 0.004 on the wire, 0 .. 1.02; 0..1: 1 = residual fully explained */
+    float theta_err_rad;           /* i16 x 0.0001 on the wire, -3.2768 .. 3.2767; estimate minus encoder, wrapped to (-pi, pi] */
+    float speed_err_rpm;           /* i16 x 0.1 on the wire, -3276.8 .. 3276.7; speed estimate minus encoder speed */
+    float err_signal;              /* i16 x 0.0001 on the wire, -3.2768 .. 3.2767; the estimator's normalised error signal (rad) */
+} proto_telem_est_t;
+uint16_t proto_telem_est_pack(const proto_telem_est_t *m, uint16_t *buf);
+bool proto_telem_est_unpack(proto_telem_est_t *m, const uint16_t *buf, uint16_t len);
+
+/* config_sensorless: 0x0B, host -> device */
+#define PROTO_ID_CONFIG_SENSORLESS 0x0Bu
+#define PROTO_LEN_CONFIG_SENSORLESS 60u
+typedef struct {
+    float pol_i_pulse_a;           /* f32; polarity test: d-axis pulse amplitude */
+    float pol_asym_expected;       /* f32; the motor's own signature (g+ - g-)/(g+ + g-) at +-pulse */
+    float pol_asym_min;            /* f32; smallest |measured asymmetry| that resolves the polarity */
+    float hyb_pll_on_rpm;          /* f32; hybrid: the ripple PLL carries the angle below this speed */
+    float hyb_mras_on_rpm;         /* f32; hybrid: the MRAS carries it above this speed */
+    float hyb_blend_s;             /* f32; hybrid: duration of a handover */
+    float lock_disagree_rad;       /* f32; loss of lock: PLL and MRAS further apart than this ... */
+    float lock_disagree_s;         /* f32; ... for this long */
+    float lock_conf_min;           /* f32; loss of lock: the PLL's confidence (cos 2d) below this ... */
+    float lock_lost_s;             /* f32; ... for this long */
+    uint16_t gam_nd;               /* u16; Gamma table: nodes along i_d (0: none, nominal 1/L_d, 1/L_q) */
+    uint16_t gam_nq;               /* u16; nodes along i_q */
+    float gam_id0_a;               /* f32; first node */
+    float gam_iq0_a;               /* f32 */
+    float gam_did_a;               /* f32; node spacing */
+    float gam_diq_a;               /* f32 */
+} proto_config_sensorless_t;
+uint16_t proto_config_sensorless_pack(const proto_config_sensorless_t *m, uint16_t *buf);
+bool proto_config_sensorless_unpack(proto_config_sensorless_t *m, const uint16_t *buf, uint16_t len);
+
+/* gamma_node: 0x0C, host -> device */
+#define PROTO_ID_GAMMA_NODE 0x0Cu
+#define PROTO_LEN_GAMMA_NODE 18u
+typedef struct {
+    uint16_t index;                /* u16; node k * gam_nd + j */
+    float g_dd;                    /* f32; inverse incremental inductance matrix, 1/H */
+    float g_qq;                    /* f32 */
+    float g_dq;                    /* f32 */
+    float g_qd;                    /* f32 */
+} proto_gamma_node_t;
+uint16_t proto_gamma_node_pack(const proto_gamma_node_t *m, uint16_t *buf);
+bool proto_gamma_node_unpack(proto_gamma_node_t *m, const uint16_t *buf, uint16_t len);
 
 /* Payload octets of a message id, or -1 for an unknown id. */
 int16_t proto_payload_len(uint16_t msg_id);

@@ -34,7 +34,11 @@ struct emu {
     uint32_t state_isr, state_hb_isr;
     /* rig effects (docs/rigs.md): the mask reported in sim_truth, and the saturation flux map */
     uint32_t effects_mask;
-    int sat_nd, sat_nq; /* 0: no map */
+    /* wiring faults of the rig (commissioning tests): phases b and c swapped between inverter
+     * and motor, or the motor not connected */
+    int wiring_swap_bc, wiring_open;
+    double theta_e0_rad; /* the rotor's electrical angle at the start of a run (sensorless tests) */
+    int sat_nd, sat_nq;  /* 0: no map */
     double sat_id0_a, sat_did_a, sat_iq0_a, sat_diq_a;
     double sat_psi_d_wb[PLANT_MAP_MAX_N * PLANT_MAP_MAX_N];
     double sat_psi_q_wb[PLANT_MAP_MAX_N * PLANT_MAP_MAX_N];
@@ -73,8 +77,7 @@ static void plant_steps(emu_t *e)
     const int seg = (int)fw_segment(&e->fw, &begun);
     if (seg != e->plant_seg && begun) {
         e->plant_seg = seg;
-        if (seg >= 0 && seg < (int)PROFILE_MAX_SEGMENTS &&
-            ((e->plant_step_mask >> seg) & 1u) != 0u) {
+        if (seg < (int)PROFILE_MAX_SEGMENTS && ((e->plant_step_mask >> seg) & 1u) != 0u) {
             plant_set_param_scale(&e->plant, &e->pcfg, (double)e->plant_r_scale[seg],
                                   (double)e->plant_psi_scale[seg]);
         }
@@ -281,6 +284,9 @@ uint32_t emu_run(emu_t *e, uint32_t max_ticks, uint8_t *out, uint32_t cap, uint3
         per_tick = e->baud / 10.0 * e->pcfg.ts_s;
         margin = (uint32_t)per_tick + 2u;
         plant_init(&e->plant, &e->pcfg);
+        if (e->theta_e0_rad != 0.0) {
+            plant_set_mech(&e->plant, e->theta_e0_rad / (double)e->pcfg.pole_pairs, 0.0, false);
+        }
         memset(&e->prev_cmd, 0, sizeof(e->prev_cmd));
         e->octet_budget = 0.0;
         e->truth_count = 0u;
@@ -289,6 +295,11 @@ uint32_t emu_run(emu_t *e, uint32_t max_ticks, uint8_t *out, uint32_t cap, uint3
     while (ticks < max_ticks && fw_active(&e->fw) && n + margin <= cap && can_sim_room(&e->can)) {
         e->was_active = 1;
         plant_sample(&e->plant, &meas);
+        if (e->wiring_swap_bc) { /* the sensor on leg b measures motor phase c */
+            float t = meas.i_b_a;
+            meas.i_b_a = meas.i_c_a;
+            meas.i_c_a = t;
+        }
         if (e->truth_div != 0u && e->truth_count == 0u) {
             send_truth(e);
         }
@@ -302,7 +313,21 @@ uint32_t emu_run(emu_t *e, uint32_t max_ticks, uint8_t *out, uint32_t cap, uint3
             record_period(e, &meas);
         }
         plant_steps(e);
-        plant_step(&e->plant, &e->prev_cmd); /* switch states or duties (plant_step_duty) */
+        if (e->wiring_swap_bc || e->wiring_open) {
+            fw_cmd_t w = e->prev_cmd;
+            if (e->wiring_swap_bc) { /* leg b drives motor phase c */
+                w.s_b = e->prev_cmd.s_c;
+                w.s_c = e->prev_cmd.s_b;
+                w.duty_b = e->prev_cmd.duty_c;
+                w.duty_c = e->prev_cmd.duty_b;
+            }
+            if (e->wiring_open) {
+                w.pwm_on = false;
+            }
+            plant_step(&e->plant, &w);
+        } else {
+            plant_step(&e->plant, &e->prev_cmd); /* switch states or duties (plant_step_duty) */
+        }
         e->prev_cmd = cmd;
         e->truth_count++;
         if (e->truth_count >= e->truth_div) {
@@ -359,7 +384,7 @@ int emu_active(const emu_t *e)
 /* CAN (docs/can.md): a frame from the host; the frames the controller sent (see can_sim_take). */
 void emu_can_rx(emu_t *e, uint32_t id, const uint8_t *data, uint32_t dlc)
 {
-    uint16_t d[8], k;
+    uint16_t d[8] = { 0 }, k;
     for (k = 0u; k < 8u && k < dlc; k++) {
         d[k] = data[k];
     }

@@ -29,6 +29,9 @@
     X(seed, pcfg.seed, uint32_t)                                                                   \
     X(temp_ambient_c, pcfg.temp_ambient_c, double)                                                 \
     X(effects_mask, effects_mask, uint32_t)                                                        \
+    X(wiring_swap_bc, wiring_swap_bc, int)                                                         \
+    X(wiring_open, wiring_open, int)                                                               \
+    X(theta_e0_rad, theta_e0_rad, double)                                                          \
     X(sat_nd, sat_nd, int)                                                                         \
     X(sat_nq, sat_nq, int)                                                                         \
     X(sat_id0_a, sat_id0_a, double)                                                                \

@@ -100,8 +100,8 @@ typedef struct {
 } plant_cfg_t;
 
 #define PLANT_THERMAL_DIV 16 /* the thermal network steps every 16 periods */
-#define PLANT_DELAY_RING                                                                           \
-    32 /* sample_delay_s < (PLANT_DELAY_RING - 2) ts_s; pwm_delay_periods < PLANT_DELAY_RING */
+/* sample_delay_s < (PLANT_DELAY_RING - 2) ts_s; pwm_delay_periods < PLANT_DELAY_RING */
+#define PLANT_DELAY_RING 32
 
 /* Flux linkages and incremental inductances at one operating point: what plant_flux() returns. */
 typedef struct {

@@ -93,9 +93,17 @@ static void test_angle_slot(void)
     angle_in_t in;
     angle_out_t o;
     enc_out_t e;
-    CHECK(angle_src_known(ANGLE_SRC_ENCODER) && !angle_src_known(3u),
-          "angle: the encoder is the only source known");
-    cfg.src = 3u;
+    CHECK(angle_src_known(ANGLE_SRC_ENCODER) && angle_src_known(ANGLE_SRC_RIPPLE_PLL) &&
+              angle_src_known(ANGLE_SRC_HYBRID) && !angle_src_known(9u),
+          "angle: encoder, MRAS, ripple PLL and hybrid are the sources known");
+    memset(&cfg, 0, sizeof cfg);
+    cfg.src = ANGLE_SRC_RIPPLE_PLL; /* without its configuration */
+    cfg.pole_pairs = 4u;
+    cfg.ts_s = 50e-6f;
+    angle_init(&a, &cfg);
+    CHECK(a.cfg.src == ANGLE_SRC_ENCODER,
+          "angle: the ripple PLL without its configuration falls back to the encoder");
+    cfg.src = 9u;
     cfg.pole_pairs = 4u;
     cfg.ts_s = 50e-6f;
     angle_init(&a, &cfg);

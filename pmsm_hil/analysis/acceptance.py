@@ -5,8 +5,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
+from typing import TYPE_CHECKING
 
-__all__ = ["Check", "evaluate", "checks_failed"]
+if TYPE_CHECKING:
+    from pmsm_hil.analysis.identification import IdentTable
+    from pmsm_hil.analysis.summary import RunSummary
+    from pmsm_hil.profiles.acceptance import Acceptance
+
+__all__ = ["Check", "checks_failed", "evaluate"]
 
 
 @dataclass
@@ -77,7 +83,9 @@ def _fault_check(scope: str, n: int, rule: str) -> Check:
     return Check(scope, "faults", str(n), "none" if rule == "forbidden" else ">= 1 (expected)", ok)
 
 
-def evaluate(acceptance, summary, ident=None) -> list[Check]:
+def evaluate(
+    acceptance: Acceptance | None, summary: RunSummary, ident: IdentTable | None = None
+) -> list[Check]:
     """The checks of ``acceptance`` (a profile's Acceptance) on a run's RunSummary and, for
     identification bounds, its IdentTable (None: those checks fail as not measured)."""
     out: list[Check] = []

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pmsm_hil.log.reader import read_log
+from pmsm_hil.log.reader import Log, read_log
 
 PARAMS = ("l_d_h", "l_q_h", "psi_f_wb", "r_s_ohm")
 ESTIMATORS = ("rls", "adaline", "nlms_adaline")
@@ -114,9 +114,16 @@ def convergence_time(
     return max(0.0, float(t[k]) - t_first)
 
 
-def identification_table(path, t0_s: float | None = None, t1_s: float | None = None) -> IdentTable:
-    """The table for the log at `path`, over device time [t0_s, t1_s] (default: the whole log)."""
-    log = read_log(path)
+# what the table reads of a log (read_log(path, topics=...))
+IDENT_TOPICS = {"/pmsm/params": None, "/sim/truth": ("t_s", *PARAMS)}
+
+
+def identification_table(
+    path: Path | str, t0_s: float | None = None, t1_s: float | None = None, log: Log | None = None
+) -> IdentTable:
+    """The table for the log at `path` (or ``log``, the file already read with at least
+    IDENT_TOPICS), over device time [t0_s, t1_s] (default: the whole log)."""
+    log = log if log is not None else read_log(path, topics=IDENT_TOPICS)
     par = log.topic("/pmsm/params")
     t_all = np.asarray(par["t_s"], dtype=float)
     names = np.asarray(par["estimator"]).astype(str)
@@ -138,7 +145,7 @@ def identification_table(path, t0_s: float | None = None, t1_s: float | None = N
             final = float(np.mean(v[last]))
             tr = float(np.mean(truth[p][last]))
             conv = (
-                convergence_time(t[nz[0] :], v[nz[0] :], truth[p][nz[0] :], t_first)
+                convergence_time(t[nz[0] :], v[nz[0] :], truth[p][nz[0] :], float(t[nz[0]]))
                 if len(nz)
                 else None
             )
@@ -178,6 +185,7 @@ def markdown_table(table: IdentTable, with_paper: bool = True) -> str:
         row = [f"{name} ({unit})", _fmt(p, c0.truth) if c0 else "-"]
         for e in ests:
             c = table.cell(e, p)
+            assert c is not None  # every listed estimator has every parameter
             row += [
                 _fmt(p, c.final),
                 f"{100 * c.error_rel:+.2f} %",
@@ -206,6 +214,7 @@ def text_table(table: IdentTable, with_paper: bool = True) -> str:
         out.append(hdr)
         for p in ("l_d_h", "l_q_h", "r_s_ohm", "psi_f_wb"):
             c = table.cell(e, p)
+            assert c is not None  # the estimator has l_d_h, so it has all four
             name, unit, _ = UNITS[p]
             conv = "never" if c.conv_s is None else f"{c.conv_s:.3f}"
             line = (
@@ -219,21 +228,23 @@ def text_table(table: IdentTable, with_paper: bool = True) -> str:
     return "\n".join(out)
 
 
-def convergence_plot(path, out_png, t0_s: float | None = None, t1_s: float | None = None) -> Path:
+def convergence_plot(
+    path: Path | str, out_png: Path | str, t0_s: float | None = None, t1_s: float | None = None
+) -> Path:
     """Per parameter: each estimator against the truth (PNG)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    log = read_log(path)
+    log = read_log(path, topics=IDENT_TOPICS)
     par = log.topic("/pmsm/params")
     t_all = np.asarray(par["t_s"], dtype=float)
     names = np.asarray(par["estimator"]).astype(str)
     fig, axes = plt.subplots(4, 1, figsize=(9, 10), sharex=True)
-    for ax, p in zip(axes, ("l_d_h", "l_q_h", "psi_f_wb", "r_s_ohm")):
+    for ax, p in zip(axes, ("l_d_h", "l_q_h", "psi_f_wb", "r_s_ohm"), strict=False):
         name, unit, k = UNITS[p]
-        for est in ESTIMATORS + ("nominal",):
+        for est in (*ESTIMATORS, "nominal"):
             sel = names == est
             if t0_s is not None:
                 sel &= t_all >= t0_s

@@ -96,7 +96,7 @@ def _tables(path: Path, notes: list[str]):
     return summary, ident
 
 
-def build_report(log_path, out_dir=None) -> Report:
+def build_report(log_path: Path | str, out_dir: Path | str | None = None) -> Report:
     """Write the report of the log at `log_path` into `out_dir` (default: LOG-report/ beside it)."""
     path = Path(log_path)
     if not path.is_file():
@@ -121,7 +121,7 @@ def build_report(log_path, out_dir=None) -> Report:
     notes: list[str] = []
     summary, ident = _tables(path, notes)
     report = Report(out_dir=out, html=out / "report.html")
-    panels = []
+    panels: list[tuple[str, str, bytes | None, str]] = []
     for key, title, fn, caption in PANELS:
         res = fn(ctx)
         if isinstance(res, str):
@@ -135,9 +135,9 @@ def build_report(log_path, out_dir=None) -> Report:
 
     html = page(ctx, panels, summary, ident, notes)
     try:
-        for key, _, png, _ in panels:
-            if png is not None:
-                report.pngs[key].write_bytes(png)
+        for key, _, png_bytes, _ in panels:
+            if png_bytes is not None:
+                report.pngs[key].write_bytes(png_bytes)
         report.html.write_text(html, encoding="utf-8")
     except OSError as e:
         raise ReportError(f"-o {out}: cannot write the report ({e.strerror or e})") from None

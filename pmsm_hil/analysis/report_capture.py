@@ -4,10 +4,15 @@ states of the first ZOOM_PERIODS periods."""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from pmsm_hil.analysis.report_context import RunContext
 from pmsm_hil.analysis.report_style import figure, legend
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 CAP = "/pmsm/capture"
 DUTY_PERIODS = 20  # 1 ms at 20 kHz
@@ -21,7 +26,7 @@ def _duty(s: np.ndarray, n: int) -> np.ndarray:
     return np.convolve(s.astype(float), np.ones(n) / n, mode="same")
 
 
-def capture(ctx: RunContext):
+def capture(ctx: RunContext) -> Figure | str:
     if not ctx.has(CAP):
         return "no /pmsm/capture samples in the log (no segment asked for a capture, or the upload failed)"
     cap = ctx.topic(CAP)

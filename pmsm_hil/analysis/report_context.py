@@ -65,7 +65,7 @@ def run_context(log: Log, path: Path) -> RunContext:
     stops = []
     if ctx.has("/pmsm/events"):
         ev = log.topic("/pmsm/events")
-        for t, kind, arg, text in zip(ev["t_s"], ev["kind"], ev["arg"], ev["text"]):
+        for t, kind, arg, text in zip(ev["t_s"], ev["kind"], ev["arg"], ev["text"], strict=False):
             if str(kind) == "segment_start":
                 i = int(arg)
                 ctx.segments.append(

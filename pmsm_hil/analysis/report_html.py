@@ -7,8 +7,13 @@ from __future__ import annotations
 import base64
 import math
 from html import escape
+from typing import TYPE_CHECKING
 
 from pmsm_hil.analysis.identification import ESTIMATORS, TOL, UNITS, IdentTable
+
+if TYPE_CHECKING:
+    from pmsm_hil.analysis.report_context import RunContext
+    from pmsm_hil.analysis.summary import RunSummary
 
 CSS = """
 body { font-family: system-ui, sans-serif; margin: 1.5em auto; max-width: 78em; color: #222; }
@@ -52,7 +57,7 @@ def _num(x: float | None, fmt: str) -> str:
     return format(x, fmt)
 
 
-def summary_html(summary) -> str:
+def summary_html(summary: RunSummary | None) -> str:
     if summary is None or not summary.segments:
         return '<p class="skipped">No segment could be summarised (no segment_start events or telemetry).</p>'
     has_truth = any(s.true_mean_error_rpm is not None for s in summary.segments)
@@ -99,9 +104,11 @@ def ident_html(table: IdentTable | None) -> str:
     for p in ("l_d_h", "l_q_h", "r_s_ohm", "psi_f_wb"):
         name, unit, k = UNITS[p]
         c0 = table.cell(ests[0], p)
+        assert c0 is not None  # every listed estimator has every parameter
         row = [escape(f"{name} ({unit})"), f"{c0.truth * k:.4g}"]
         for e in ests:
             c = table.cell(e, p)
+            assert c is not None
             ok = abs(c.error_rel) <= TOL
             row += [
                 f"{c.final * k:.4g}",
@@ -117,7 +124,13 @@ def ident_html(table: IdentTable | None) -> str:
     )
 
 
-def page(ctx, panels, summary, ident, extra_notes: list[str]) -> str:
+def page(
+    ctx: RunContext,
+    panels: list[tuple[str, str, bytes | None, str]],
+    summary: RunSummary | None,
+    ident: IdentTable | None,
+    extra_notes: list[str],
+) -> str:
     """panels: list of (key, title, png bytes or None, caption or skip reason)."""
     meta = ctx.log.metadata
     run, dev = meta.get("run", {}), meta.get("device", {})
@@ -152,7 +165,7 @@ def page(ctx, panels, summary, ident, extra_notes: list[str]) -> str:
     parts.append("<h2>Per-segment summary</h2>" + summary_html(summary))
     parts.append("<h2>Identification</h2>" + ident_html(ident))
     for k, title, png, caption in drawn:
-        b64 = base64.b64encode(png).decode("ascii")
+        b64 = base64.b64encode(png).decode("ascii")  # type: ignore[arg-type]  # drawn: not None
         parts.append(
             f'<h2 id="panel-{k}">{escape(title)}</h2>'
             f'<img alt="{escape(title)}" src="data:image/png;base64,{b64}">'

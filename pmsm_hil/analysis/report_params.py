@@ -3,11 +3,16 @@ markers (the band is the convergence tolerance of pmsm_hil.analysis.identificati
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from pmsm_hil.analysis.identification import TOL
 from pmsm_hil.analysis.report_context import RunContext
 from pmsm_hil.analysis.report_style import figure, legend, segment_markers, time_axis
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 ORDER = ("l_d_h", "l_q_h", "psi_f_wb", "r_s_ohm")
 STYLE = {
@@ -26,7 +31,7 @@ LABEL = {"l_d_h": "L_d", "l_q_h": "L_q", "psi_f_wb": "ψ_f", "r_s_ohm": "R_s"}
 ZOOM = 0.25  # y range: the truth ± 25 %, so that the start-up transients do not flatten the rest
 
 
-def parameters(ctx: RunContext):
+def parameters(ctx: RunContext) -> Figure | str:
     if not ctx.has("/pmsm/params"):
         return "no /pmsm/params messages in the log"
     par = ctx.topic("/pmsm/params")
@@ -42,7 +47,7 @@ def parameters(ctx: RunContext):
     present = [e for e in STYLE if np.any(names == e)]
     fig, axes = figure(ctx, f"Parameters vs truth (band: truth ±{100 * TOL:.0f} %)", 4)
     clipped = False
-    for ax, p in zip(axes, ORDER):
+    for ax, p in zip(axes, ORDER, strict=False):
         k, unit = SCALE[p]
         tt, tv = np.asarray(tr["t_s"], float), np.asarray(tr[p], float) * k
         ax.fill_between(

@@ -3,10 +3,15 @@ Each returns a matplotlib Figure, or a string saying why the panel has nothing t
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from pmsm_hil.analysis.report_context import RunContext
 from pmsm_hil.analysis.report_style import figure, legend, segment_markers, time_axis
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 TEL = "/pmsm/telemetry"
 
@@ -15,7 +20,7 @@ def _no_telemetry(ctx: RunContext) -> str | None:
     return None if ctx.has(TEL) else "no /pmsm/telemetry messages in the log"
 
 
-def speed(ctx: RunContext):
+def speed(ctx: RunContext) -> Figure | str:
     why = _no_telemetry(ctx)
     if why:
         return why
@@ -38,14 +43,14 @@ def speed(ctx: RunContext):
     return fig
 
 
-def currents(ctx: RunContext):
+def currents(ctx: RunContext) -> Figure | str:
     why = _no_telemetry(ctx)
     if why:
         return why
     tel = ctx.topic(TEL)
     t = tel["t_s"]
     fig, axes = figure(ctx, "dq currents", 2)
-    for ax, axis in zip(axes, ("d", "q")):
+    for ax, axis in zip(axes, ("d", "q"), strict=False):
         ax.plot(
             t,
             tel[f"i_{axis}_a"],
@@ -66,7 +71,7 @@ def _mean(t: np.ndarray, x: np.ndarray, window_s: float) -> np.ndarray:
     so single samples of u_d, u_q jump between vectors; their mean is the applied voltage)."""
     if len(t) < 3:
         return x
-    n = max(1, int(round(window_s / float(np.median(np.diff(t))))))
+    n = max(1, round(window_s / float(np.median(np.diff(t)))))
     if n <= 1 or len(x) < n:
         return x
     return np.convolve(x, np.ones(n) / n, mode="same")
@@ -75,7 +80,7 @@ def _mean(t: np.ndarray, x: np.ndarray, window_s: float) -> np.ndarray:
 VOLTAGE_MEAN_S = 0.02
 
 
-def voltages(ctx: RunContext):
+def voltages(ctx: RunContext) -> Figure | str:
     why = _no_telemetry(ctx)
     if why:
         return why
@@ -88,7 +93,7 @@ def voltages(ctx: RunContext):
         if np.any(np.isfinite(v) & (v > 0)):
             lim = (st["t_s"], v)
     fig, axes = figure(ctx, "dq voltages (as commanded)", 2)
-    for ax, axis, c in zip(axes, ("d", "q"), ("C0", "C1")):
+    for ax, axis, c in zip(axes, ("d", "q"), ("C0", "C1"), strict=False):
         u = np.asarray(tel[f"u_{axis}_v"], float)
         ax.plot(t, u, lw=0.4, color=c, alpha=0.25, label=f"u_{axis}, each sample")
         ax.plot(
@@ -112,7 +117,7 @@ def _wrap(x: np.ndarray) -> np.ndarray:
     return (x + np.pi) % (2.0 * np.pi) - np.pi
 
 
-def estimation_error(ctx: RunContext):
+def estimation_error(ctx: RunContext) -> Figure | str:
     why = _no_telemetry(ctx)
     if why:
         return why
@@ -127,13 +132,30 @@ def estimation_error(ctx: RunContext):
             "estimator ran): the estimation error is zero by construction"
         )
     t = tel["t_s"]
-    fig, axes = figure(ctx, "Angle and speed estimation error (estimate − encoder)", 2)
+    name, unlocked = "", []
+    if ctx.has("/pmsm/estimator"):
+        est = ctx.topic("/pmsm/estimator")
+        names = sorted(set(est["estimator"]))
+        name = f" - {', '.join(names)}" if names else ""
+        te = np.asarray(est["t_s"], float)
+        bad = ~np.asarray(est["locked"], bool) & np.asarray(est["in_loop"], bool)
+        unlocked = te[bad]
+    fig, axes = figure(ctx, f"Angle and speed estimation error (estimate − encoder){name}", 2)
     axes[0].plot(t, np.degrees(d_theta), lw=0.6, color="C4", label="θe,est − θe")
     axes[0].set_ylabel("angle error (° electrical)")
     axes[1].plot(t, d_speed, lw=0.6, color="C2", label="n_est − n")
     axes[1].set_ylabel("speed error (r/min)")
     for i, ax in enumerate(axes):
         ax.axhline(0.0, color="k", lw=0.6)
+        if len(unlocked):
+            ax.plot(
+                unlocked,
+                np.zeros(len(unlocked)),
+                "|",
+                color="C3",
+                ms=8,
+                label="closing the loop out of lock" if i == 0 else None,
+            )
         segment_markers(ax, ctx, label=i == 0)
         legend(ax)
     time_axis(axes[-1])

@@ -3,14 +3,17 @@ segment markers, and legends placed outside the axes so that they hide no data."
 
 from __future__ import annotations
 
+from typing import Any
+
 import matplotlib
 
 matplotlib.use("Agg")
 
-import matplotlib.pyplot as plt  # noqa: E402  (after the backend is chosen)
-from matplotlib.figure import Figure  # noqa: E402
+import matplotlib.pyplot as plt
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
 
-from pmsm_hil.analysis.report_context import RunContext  # noqa: E402
+from pmsm_hil.analysis.report_context import RunContext
 
 WIDTH_IN = 11.0
 ROW_IN = 2.6
@@ -28,13 +31,13 @@ def figure(ctx: RunContext, what: str, rows: int, sharex: bool = True) -> tuple[
         layout="constrained",
     )
     fig.suptitle(f"{what} — {ctx.tag}", fontsize=11)
-    axes = list(axes[:, 0])
-    for ax in axes:
+    column = list(axes[:, 0])
+    for ax in column:
         ax.grid(alpha=0.3)
-    return fig, axes
+    return fig, column
 
 
-def legend(ax, **kw) -> None:
+def legend(ax: Axes, **kw: Any) -> None:
     """Legend to the right of the axes: it never covers a curve."""
     if ax.get_legend_handles_labels()[0]:
         ax.legend(
@@ -47,7 +50,7 @@ def legend(ax, **kw) -> None:
         )
 
 
-def segment_markers(ax, ctx: RunContext, label: bool = False) -> None:
+def segment_markers(ax: Axes, ctx: RunContext, label: bool = False) -> None:
     """A dotted line at each segment start; with `label`, the segment index above the axes."""
     for s in ctx.segments:
         ax.axvline(s.t_start_s, color="0.55", lw=0.7, ls=":", zorder=0)
@@ -64,7 +67,7 @@ def segment_markers(ax, ctx: RunContext, label: bool = False) -> None:
             )
 
 
-def time_axis(ax) -> None:
+def time_axis(ax: Axes) -> None:
     ax.set_xlabel("device time t (s)")
 
 

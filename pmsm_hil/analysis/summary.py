@@ -16,10 +16,16 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from pmsm_hil.log.reader import read_log
+from pmsm_hil.log.reader import Log, read_log
+
+if TYPE_CHECKING:
+    from rich.console import Console
+
+    from pmsm_hil.log.reader import Log
 
 RECOVERY_LIMIT_S = 0.3
 AVG_WINDOW_S = 0.02
@@ -58,6 +64,7 @@ class RunSummary:
     partial: list[int] = field(default_factory=list)  # segments the log shows cut short
     ended: str = ""  # "profile end", "stopped: REASON", or "" (the log just ends)
     problems: list[str] = field(default_factory=list)  # truncated file, no summary section, ...
+    estimator: dict | None = None  # the angle estimator closing the loop (estimator_stats)
 
     @property
     def complete(self) -> bool:
@@ -88,6 +95,7 @@ class RunSummary:
             "partial": self.partial,
             "problems": self.problems,
             "segments": [asdict(s) for s in self.segments],
+            "estimator": self.estimator,
         }
 
 
@@ -106,7 +114,7 @@ def recovery_time(t: np.ndarray, err: np.ndarray, band: float, t0: float) -> flo
     if len(t) < 2:
         return float("inf")
     dt = float(np.median(np.diff(t)))
-    avg = _moving_average(err, max(1, int(round(AVG_WINDOW_S / dt))))
+    avg = _moving_average(err, max(1, round(AVG_WINDOW_S / dt)))
     outside = np.nonzero(np.abs(avg) > band)[0]
     if len(outside) == 0:
         return 0.0
@@ -226,7 +234,7 @@ def summarize(
     return summary
 
 
-def log_problems(log) -> list[str]:
+def log_problems(log: Log) -> list[str]:
     """What is wrong with the file itself: truncation, a missing summary section, no data."""
     out = []
     total = sum(log.counts.values())
@@ -252,11 +260,31 @@ def log_problems(log) -> list[str]:
     return out
 
 
-def summarize_log(path: Path) -> RunSummary:
-    """The summary of a log file; raises LogFormatError (not MCAP) or ValueError (empty file)."""
+# what the summary reads of a log (read_log(path, topics=...)): nothing else is decoded
+SUMMARY_TOPICS = {
+    "/pmsm/telemetry": (
+        "t_s",
+        "speed_ref_rpm",
+        "speed_rpm",
+        "load_nm",
+        "i_d_a",
+        "i_d_ref_a",
+        "i_q_a",
+        "i_q_ref_a",
+    ),
+    "/pmsm/events": None,
+    "/sim/truth": ("t_s", "speed_rpm"),
+    "/pmsm/status": ("t_s", "tx_dropped"),
+    "/host/link": ("t_s", "seq_gaps", "crc_errors", "cobs_errors", "len_errors"),
+}
+
+
+def summarize_log(path: Path, log: Log | None = None) -> RunSummary:
+    """The summary of a log file (or of ``log``, the file already read with at least
+    SUMMARY_TOPICS); raises LogFormatError (not MCAP) or ValueError (empty file)."""
     if Path(path).stat().st_size == 0:
         raise ValueError(f"{path}: the file is empty (0 octets): no run was recorded")
-    log = read_log(path)
+    log = log if log is not None else read_log(path, topics=SUMMARY_TOPICS)
     names = None
     meta = log.metadata.get("run", {})
     if meta.get("segment_names"):
@@ -266,7 +294,45 @@ def summarize_log(path: Path) -> RunSummary:
         log.topic("/pmsm/telemetry"), log.topic("/pmsm/events"), names, str(path), truth
     )
     summary.problems = log_problems(log)
+    if "/pmsm/estimator" in log.topics:
+        summary.estimator = estimator_stats(log.topic("/pmsm/estimator"))
     return summary
+
+
+def estimator_stats(est: dict) -> dict | None:
+    """The angle estimator's figures over its frames while it closed the loop: its name, the
+    angle error against the encoder (mean, RMS, largest), and where it was out of lock."""
+    in_loop = np.asarray(est["in_loop"], bool)
+    if not len(in_loop):
+        return None
+    t = np.asarray(est["t_s"], float)
+    err = np.asarray(est["theta_err_rad"], float)[in_loop]
+    unlocked = t[in_loop & ~np.asarray(est["locked"], bool)]
+    return {
+        "estimator": ", ".join(sorted(set(est["estimator"]))),
+        "in_loop_s": float(np.sum(in_loop) * np.median(np.diff(t))) if len(t) > 1 else 0.0,
+        "theta_err_mean_rad": float(err.mean()) if err.size else None,
+        "theta_err_rms_rad": float(np.sqrt(np.mean(err**2))) if err.size else None,
+        "theta_err_max_rad": float(np.max(np.abs(err))) if err.size else None,
+        "unlocked_frames": int(unlocked.size),
+        "first_unlocked_s": float(unlocked[0]) if unlocked.size else None,
+    }
+
+
+def estimator_text(e: dict) -> str:
+    if e["theta_err_mean_rad"] is None:
+        return f"estimator {e['estimator']}: ran beside the encoder only"
+    lock = (
+        "locked throughout"
+        if not e["unlocked_frames"]
+        else f"[red]out of lock in {e['unlocked_frames']} frames from t = "
+        f"{e['first_unlocked_s']:.3f} s[/]"
+    )
+    return (
+        f"estimator {e['estimator']} closed the loop for {e['in_loop_s']:.2f} s: theta_err "
+        f"mean {e['theta_err_mean_rad']:+.4f} rad, RMS {e['theta_err_rms_rad']:.4f}, largest "
+        f"{e['theta_err_max_rad']:.4f}; {lock}"
+    )
 
 
 # columns of the printed summary: (header, short header, priority: the lowest goes first when narrow)
@@ -310,7 +376,9 @@ def _summary_rows(summary: RunSummary) -> list[dict[str, str]]:
     return rows
 
 
-def print_summary(summary: RunSummary, console=None, interrupted: bool = False) -> None:
+def print_summary(
+    summary: RunSummary, console: Console | None = None, interrupted: bool = False
+) -> None:
     """The per-segment table, fitted to the terminal: on a narrow one the least important columns
     are left out (and named) rather than cut short."""
     from rich import box
@@ -360,6 +428,8 @@ def print_summary(summary: RunSummary, console=None, interrupted: bool = False) 
         console.print(f"[red]fault[/] {f}")
     for p in summary.problems:
         console.print(f"[yellow]log[/] {p}")
+    if summary.estimator:
+        console.print(estimator_text(summary.estimator), highlight=False)
     console.print(
         f"{len(summary.segments)} segments, {summary.duration_s:.2f} s: "
         f"{verdict_text(summary, interrupted)}",
@@ -376,7 +446,7 @@ def verdict_text(summary: RunSummary, interrupted: bool = False) -> str:
             i = idx[0]
             return f"segment {i} {names[i]!r}" if i < len(names) else f"segment {i}"
         runs, start = [], idx[0]
-        for a, b in zip(idx, idx[1:] + [None]):
+        for a, b in zip(idx, [*idx[1:], -1], strict=False):
             if b != a + 1:
                 runs.append(f"{start}" if start == a else f"{start}-{a}")
                 start = b

@@ -1,10 +1,20 @@
 """The identification benchmark (`pmsm-hil bench identify`): paper A's identification profile on the
 emulator in this process, the Table-2 figures beside the paper's, the mismatch benchmark and the
-per-effect table. Results are written to a folder and echoed as text."""
+per-effect table. Results are written to a folder and echoed as text.
+
+The benchmark's runs go through the sweep's Dask machinery (pmsm_hil.sweep.tasks; docs/sweep.md):
+one run in this process, several (the mismatch cases, the rigs of the per-effect table) as tasks on
+a local cluster or the scheduler given, each writing its log into the output folder; a journal
+there (bench.jsonl, keyed by the run's profile and rig texts, seed and log) lets an interrupted
+benchmark skip the runs whose logs are already written. The figures are computed here from the
+logs, whichever process ran them."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from pmsm_hil.device import DeviceSpec, open_device
 
@@ -25,7 +35,8 @@ def identify(
     seed: int = 1,
     rig: str | None = None,
     until: float | None = None,
-    echo=print,
+    echo: Callable[[str], None] = print,
+    motor: str | None = None,
 ) -> None:
     """The Table-2 run: identification table (markdown and text), convergence plot, drift step."""
     from pmsm_hil.analysis.identification import (
@@ -36,7 +47,7 @@ def identify(
     )
     from pmsm_hil.profiles import load_profile
 
-    profile = load_profile(path, rig_override=rig)
+    profile = load_profile(path, rig_override=rig, motor_override=motor)
     out.mkdir(parents=True, exist_ok=True)
     log = out / "identify.mcap"
     _, result = _run_profile(profile, log, seed)
@@ -71,6 +82,7 @@ def identify(
     png = convergence_plot(log, out / "identify.png")
     if drift:
         d = drift[0]
+        assert d.plant is not None  # drift holds only the segments with a plant step
         dt = identification_table(log, d.t_start_s, d.t_end_s)
         echo(
             f"\ndrift step at t = {d.t_start_s:g} s (R x {d.plant.r_s_scale:g}, psi_f x "
@@ -88,6 +100,52 @@ def identify(
             + "\n"
         )
     echo(f"\nlog {log}\nplot {png}\ntable {md}")
+
+
+@dataclass
+class Cluster:
+    """Where the benchmark's runs go: workers of a local cluster, or a scheduler's address."""
+
+    workers: int | None = None
+    scheduler: str | None = None
+    progress: bool = False
+
+
+def bench_run(task: dict) -> dict:
+    """One benchmark run (a Dask task): the profile at task["profile"] (rig task["rig"] or its own)
+    with task["seed"] on the in-process emulator, logged to task["log"]."""
+    _, res = _run(task["profile"], Path(task["log"]), task["seed"], rig=task["rig"])
+    return {"faults": int(res.faults or 0), "error": str(res.error or "")}
+
+
+def _job(profile_path, log: Path, seed: int, rig=None) -> dict:
+    text = lambda p: Path(p).read_text(encoding="utf-8") if p else ""  # noqa: E731
+    return {
+        "profile": str(Path(profile_path).resolve()),
+        "rig": str(Path(rig).resolve()) if rig else None,
+        "seed": int(seed),
+        "log": str(Path(log).resolve()),
+        "texts": [text(profile_path), text(rig)],  # in the key only: a changed file runs again
+    }
+
+
+def run_jobs(jobs: list[dict], out: Path, cluster: Cluster | None = None) -> list[dict]:
+    """The runs of ``jobs`` (see _job): one in this process, several on Dask; results in order."""
+    cluster = cluster or Cluster()
+    if len(jobs) == 1 and cluster.scheduler is None:
+        return [bench_run(jobs[0])]
+    from pmsm_hil.sweep.tasks import run_tasks
+
+    return run_tasks(
+        bench_run,
+        jobs,
+        out,
+        name="bench",
+        scheduler=cluster.scheduler,
+        workers=cluster.workers,
+        progress=cluster.progress,
+        done_if=lambda task, result: Path(task["log"]).is_file(),
+    )
 
 
 def _run_profile(profile, log: Path, seed: int):
@@ -111,7 +169,11 @@ def _run(profile_path, log: Path, seed: int, rig=None):
 
 
 def _variant(
-    path, out: Path, name: str, control: dict | None = None, segments: list[str] | None = None
+    path: Path | str,
+    out: Path,
+    name: str,
+    control: dict[str, Any] | None = None,
+    segments: list[str] | None = None,
 ) -> Path:
     """A copy of the profile at `path` (motor and rig paths made absolute) with control fields
     replaced or added and, optionally, other segments; written to out/NAME.yaml."""
@@ -137,13 +199,20 @@ MISMATCH_SCALE = 1.5  # "50 % off": L_d, L_q, psi_f of the predictor x 1.5
 MISMATCH_WINDOW = (3.0, 4.0)  # device time evaluated: 1000 r/min, 5 N m, steady
 
 
-def mismatch(path, out: Path, seed: int = 1, echo=print) -> None:
+def mismatch(
+    path: Path | str,
+    out: Path,
+    seed: int = 1,
+    echo: Callable[[str], None] = print,
+    cluster: Cluster | None = None,
+) -> None:
     """i_d/i_q tracking-error RMS at 1000 r/min under load: true parameters, predictor frozen 50 %
     off, NLMS-Adaline feeding the predictor (from the same 50 % off start)."""
     import numpy as np
 
     from pmsm_hil.log.reader import read_log
 
+    out.mkdir(parents=True, exist_ok=True)
     segs = [
         '{name: "R injection", kind: identify_r, duration_s: 0.5, speed_rpm: 0, inject_a: 12.0}',
         '{name: "spin up, load", duration_s: 1.0, speed_rpm: 1000, ramp_rpm_s: 2000, load_nm: 5.0, inject_a: 2.0, inject_hz: 10}',
@@ -156,7 +225,7 @@ def mismatch(path, out: Path, seed: int = 1, echo=print) -> None:
         "psi_f_wb": MISMATCH_SCALE,
         "r_s_ohm": 1.0,
     }
-    cases = [
+    cases: list[tuple[str, dict[str, Any]]] = [
         ("true parameters", {"predictor": "nominal"}),
         (
             f"frozen x{MISMATCH_SCALE:g} (L_d, L_q, psi_f)",
@@ -165,13 +234,17 @@ def mismatch(path, out: Path, seed: int = 1, echo=print) -> None:
         ("NLMS-Adaline feeds it", {"predictor": "nlms_adaline", "predictor_scale": off}),
     ]
     rows = []
-    for i, (label, ctrl) in enumerate(cases):
-        p = _variant(path, out, f"mismatch-{i}", ctrl, segs)
-        log = out / f"mismatch-{i}.mcap"
-        _, res = _run(p, log, seed)
-        if res.faults or res.error:
+    jobs = [
+        _job(_variant(path, out, f"mismatch-{i}", ctrl, segs), out / f"mismatch-{i}.mcap", seed)
+        for i, (_, ctrl) in enumerate(cases)
+    ]
+    results = run_jobs(jobs, out, cluster)
+    for (label, _), job, res in zip(cases, jobs, results, strict=False):
+        log = Path(job["log"])
+        if res.get("faults") or res.get("error"):
             raise BenchError(
-                f"mismatch run {label!r} failed ({res.error or res.faults}); log {log}"
+                f"mismatch run {label!r} failed ({res.get('error') or res.get('faults')}); "
+                f"log {log}"
             )
         tel = read_log(log).topic("/pmsm/telemetry")
         t = np.asarray(tel["t_s"], dtype=float)
@@ -216,7 +289,13 @@ def _fault_names(bits: int) -> str:
     return "fault " + (", ".join(names) if names else f"0x{bits:x}")
 
 
-def per_effect(path, out: Path, seed: int = 1, echo=print) -> None:
+def per_effect(
+    path: Path | str,
+    out: Path,
+    seed: int = 1,
+    echo: Callable[[str], None] = print,
+    cluster: Cluster | None = None,
+) -> None:
     """The identification run (without its drift step) on the ideal rig, each effect alone and the
     default rig: errors of RLS and NLMS-Adaline before the drift step, as a markdown table."""
     import yaml
@@ -225,17 +304,19 @@ def per_effect(path, out: Path, seed: int = 1, echo=print) -> None:
     from pmsm_hil.profiles.shipped import shipped_root
 
     rigs_dir = shipped_root() / "rigs"
+    out.mkdir(parents=True, exist_ok=True)
     src = yaml.safe_load(Path(path).read_text())
     segs = [
         yaml.safe_dump(s, default_flow_style=True).strip()
         for s in src["segments"]
         if not s.get("plant")
     ]
-    rigs = (
-        ["ideal"]
-        + sorted(f.stem for f in rigs_dir.glob("effect-*.yaml"))
-        + ["default", "lab-typical"]
-    )
+    rigs = [
+        "ideal",
+        *sorted(f.stem for f in rigs_dir.glob("effect-*.yaml")),
+        "default",
+        "lab-typical",
+    ]
     head = (
         "| rig | "
         + " | ".join(f"{e} {n}" for e in ("rls", "nlms") for n in ("L_d", "L_q", "psi_f", "R"))
@@ -247,20 +328,25 @@ def per_effect(path, out: Path, seed: int = 1, echo=print) -> None:
     )
     echo(lines[0])
     echo(lines[1])
+    from pmsm_hil.profiles import load_profile, load_rig
+
+    jobs = []
     for r in rigs:
-        log = out / f"per-effect-{r}.mcap"
         # the firmware compensates the inverter it is told about: the motor file's dead time when the
         # rig has one (the rig's true one may differ: effect-dead-time, lab-typical), else none
-        from pmsm_hil.profiles import load_rig
-
         has_dt = "dead_time" in load_rig(rigs_dir / f"{r}.yaml").enabled_effects
         pr = _variant(
             path, out, f"per-effect-{'dt' if has_dt else 'nodt'}", {"dead_time_comp": has_dt}, segs
         )
-        prof, res = _run(pr, log, seed, rig=str(rigs_dir / f"{r}.yaml"))
-        if res.faults or res.error:
-            row = f"| {r} | run failed: {res.error or _fault_names(res.faults)} |"
+        jobs.append(_job(pr, out / f"per-effect-{r}.mcap", seed, rig=rigs_dir / f"{r}.yaml"))
+    results = run_jobs(jobs, out, cluster)
+    for r, job, res in zip(rigs, jobs, results, strict=False):
+        log = Path(job["log"])
+        if res.get("faults") or res.get("error"):
+            why = res.get("error") or _fault_names(res["faults"])
+            row = f"| {r} | run failed: {why} |"
         else:
+            prof = load_profile(job["profile"], rig_override=job["rig"])
             t1 = prof.segments[-1].t_start_s  # before the stop
             tab = identification_table(log, 0.0, t1)
             cells = []

@@ -5,11 +5,16 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from pmsm_hil.cli.errors import fail
 
+if TYPE_CHECKING:
+    from pmsm_hil.analysis.identification import IdentTable
+    from pmsm_hil.log.reader import Log
 
-def add_parser(sub) -> None:
+
+def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "analyze",
         help="summarise a run log (per segment: speed error, ripple, faults)",
@@ -22,18 +27,18 @@ def add_parser(sub) -> None:
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
 
 
-def identification(path):
+def identification(path: Path | str, log: Log | None = None) -> IdentTable | None:
     """The identification table of a log, or None when no estimator ran."""
     from pmsm_hil.analysis.identification import identification_table
 
     try:
-        t = identification_table(path)
+        t = identification_table(path, log=log)
     except (KeyError, ValueError):
         return None
     return t if t.cells else None
 
 
-def print_identification(table) -> None:
+def print_identification(table: IdentTable) -> None:
     from pmsm_hil.analysis.identification import text_table
 
     print()
@@ -41,6 +46,7 @@ def print_identification(table) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
+    from pmsm_hil.analysis.reading import read_for_analysis
     from pmsm_hil.analysis.summary import print_summary, summarize_log
     from pmsm_hil.log.reader import LogFormatError
 
@@ -48,10 +54,11 @@ def main(args: argparse.Namespace) -> int:
     if not path.is_file():
         return fail("error", f"{path}: no such file", 2)
     try:
-        summary = summarize_log(path)
+        log = read_for_analysis(path)
+        summary = summarize_log(path, log)
     except (LogFormatError, ValueError, OSError) as e:
         return fail("error", f"{path}: not a readable pmsm-hil log ({e})", 2)
-    ident = identification(path)
+    ident = identification(path, log)
     if args.json:
         d = summary.as_dict()
         if ident is not None:

@@ -8,9 +8,11 @@ from pathlib import Path
 from pmsm_hil.cli.errors import fail
 
 
-def add_parser(sub) -> None:
+def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
-        "bench", help="reproducible benchmarks on the emulator (identify: paper A Table 2)"
+        "bench",
+        help="reproducible benchmarks on the emulator (identify: paper A Table 2; sensorless: "
+        "angle estimators closing the loop)",
     )
     bsub = p.add_subparsers(dest="bench", required=True, metavar="BENCH")
     b = bsub.add_parser(
@@ -27,6 +29,11 @@ def add_parser(sub) -> None:
     )
     b.add_argument("--seed", type=int, default=1)
     b.add_argument("--rig", default=None, help="rig file for the emulator (default: the profile's)")
+    b.add_argument(
+        "--motor",
+        default=None,
+        help="motor file instead of the profile's, e.g. a commissioned one (pmsm-hil commission)",
+    )
     b.add_argument(
         "--until",
         type=float,
@@ -48,30 +55,146 @@ def add_parser(sub) -> None:
         "as a markdown table (about a minute)",
     )
     b.add_argument(
+        "--rigs",
+        default=None,
+        help="comma-separated rigs: one identification table per rig, median and worst over "
+        "--seeds (e.g. default,lab-typical)",
+    )
+    b.add_argument(
+        "--seeds", default=None, help="seeds for --rigs, e.g. 1-10 or 1,2,3 (default 1-10)"
+    )
+    b.add_argument(
+        "--commissioned",
+        action="store_true",
+        help="with --rigs or --per-effect: commission each rig and seed first and identify with "
+        "that motor file",
+    )
+    b.add_argument(
         "--only",
         choices=("mismatch", "per-effect"),
         default=None,
         help="run only that part (skips the Table-2 run)",
     )
+    b.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        metavar="N",
+        help="--mismatch / --per-effect runs: worker processes of the local Dask cluster "
+        "(default: one per core; docs/sweep.md)",
+    )
+    b.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDR",
+        help="--mismatch / --per-effect runs on this Dask scheduler, e.g. tcp://HOST:8786 "
+        "(the output folder must be on a filesystem the workers share)",
+    )
+
+    c = bsub.add_parser(
+        "commission",
+        help="commissioning on the emulator: errors per step over rigs and seeds vs the targets",
+    )
+    c.add_argument("--rigs", default="default,lab-typical", help="comma-separated rigs")
+    c.add_argument("--seeds", default="1-10", help="e.g. 1-10 or 1,2,3")
+    c.add_argument("--out", "-o", default="runs/bench-commission", help="directory for logs, table")
+    s = bsub.add_parser(
+        "sensorless",
+        help="sensorless estimators closing the loop: angle and speed errors per scenario and rig "
+        "(median and worst over seeds) beside the papers' figures, with plots",
+    )
+    s.add_argument(
+        "--out", "-o", default="runs/bench-sensorless", help="directory for logs, table, plots"
+    )
+    s.add_argument("--seeds", default="11,12,13", help="comma-separated seeds (default 11,12,13)")
+    s.add_argument(
+        "--rigs",
+        default="default,lab-typical",
+        help="comma-separated rigs (shipped names or files; default default,lab-typical)",
+    )
+    s.add_argument(
+        "--only", default=None, help="only the scenarios whose profile or name contains this"
+    )
 
 
 def main(args: argparse.Namespace) -> int:
-    from pmsm_hil.bench.identify import BenchError, default_profile, identify, mismatch, per_effect
+    if args.bench == "sensorless":
+        return _sensorless(args)
+    if args.bench == "commission":
+        from pmsm_hil.bench.commission import bench_commission, parse_seeds
+
+        try:
+            bench_commission(
+                [r.strip() for r in args.rigs.split(",") if r.strip()],
+                parse_seeds(args.seeds),
+                Path(args.out),
+            )
+        except ValueError as e:
+            return fail("error", f"--seeds {args.seeds}: {e}", 2)
+        return 0
+    from pmsm_hil.bench.identify import (
+        BenchError,
+        Cluster,
+        default_profile,
+        identify,
+        mismatch,
+        per_effect,
+    )
     from pmsm_hil.profiles import ProfileError
     from pmsm_hil.profiles.shipped import resolve
 
     try:
         path = resolve(args.profile, "profile") if args.profile else default_profile()
         rig = resolve(args.rig, "rig") if args.rig else None
+        motor = resolve(args.motor, "motor") if args.motor else None
         out = Path(args.out)
-        if args.only != "per-effect" and args.only != "mismatch":
-            identify(path, out, args.seed, rig, args.until)
+        if args.per_effect and args.commissioned:
+            from pmsm_hil.bench.commission import parse_seeds
+            from pmsm_hil.bench.identify_rigs import per_effect_commissioned
+
+            per_effect_commissioned(path, parse_seeds(args.seeds or "1-2"), out)
+            return 0
+        if args.rigs:
+            from pmsm_hil.bench.commission import parse_seeds
+            from pmsm_hil.bench.identify_rigs import identify_rigs
+
+            identify_rigs(
+                path,
+                [r.strip() for r in args.rigs.split(",") if r.strip()],
+                parse_seeds(args.seeds or "1-10"),
+                out,
+                commissioned=args.commissioned,
+                motor=motor,
+            )
+            return 0
+        cluster = Cluster(workers=args.workers, scheduler=args.scheduler, progress=True)
+        if args.only not in {"per-effect", "mismatch"}:
+            identify(path, out, args.seed, rig, args.until, motor=motor)
         if args.mismatch or args.only == "mismatch":
             out.mkdir(parents=True, exist_ok=True)
-            mismatch(path, out, args.seed)
+            mismatch(path, out, args.seed, cluster=cluster)
         if args.per_effect or args.only == "per-effect":
             out.mkdir(parents=True, exist_ok=True)
-            per_effect(path, out, args.seed)
+            per_effect(path, out, args.seed, cluster=cluster)
+    except ProfileError as e:
+        return fail("error", str(e), 2)
+    except BenchError as e:
+        return fail("error", str(e), 3)
+    return 0
+
+
+def _sensorless(args: argparse.Namespace) -> int:
+    from pmsm_hil.bench.identify import BenchError
+    from pmsm_hil.bench.sensorless_report import sensorless
+    from pmsm_hil.profiles import ProfileError
+
+    try:
+        seeds = tuple(int(x) for x in args.seeds.split(",") if x.strip())
+    except ValueError:
+        return fail("error", f"--seeds: not a list of integers: {args.seeds!r}", 2)
+    rigs = tuple(x.strip() for x in args.rigs.split(",") if x.strip())
+    try:
+        sensorless(Path(args.out), seeds, rigs, args.only)
     except ProfileError as e:
         return fail("error", str(e), 2)
     except BenchError as e:

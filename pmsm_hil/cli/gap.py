@@ -3,7 +3,8 @@
 pmsm-hil gap LOG.mcap --motor M.yaml [--json] [--report DIR] [--holdout LOG2.mcap]
 pmsm-hil gap augment LOG.mcap [--motor M.yaml] -o fitted-rig.yaml
 pmsm-hil gap record PROFILE.yaml --rig RIG.yaml -o real.mcap [--seed N]   (emulator, continuous)
-pmsm-hil gap selftest --trials N --seed S [--workers W] [--json]
+pmsm-hil gap selftest --trials N --seed S [--workers W] [--scheduler ADDR] [-o DIR] [--json]
+    (trials on Dask, docs/sweep.md; -o DIR keeps a journal there, so an interrupted run resumes)
 pmsm-hil gap verify LOG.mcap --rig fitted-rig.yaml [--json]        (re-runs the log's profile)
 """
 
@@ -20,7 +21,7 @@ from pmsm_hil.cli.errors import fail
 ACTIONS = ("augment", "record", "selftest", "verify")
 
 
-def add_parser(sub) -> None:
+def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "gap",
         help="diagnose the sim-to-real gap of a log (also: augment, record, selftest)",
@@ -37,11 +38,27 @@ def add_parser(sub) -> None:
     p.add_argument(
         "--holdout", metavar="LOG", help="a second record of the same rig: held-out closure"
     )
-    p.add_argument("-o", "--out", help="output file (augment: rig yaml; record: log)")
+    p.add_argument(
+        "-o",
+        "--out",
+        help="output file (augment: rig yaml; record: log); selftest: a folder for the "
+        "trials' journal (resumable)",
+    )
     p.add_argument("--rig", help="record, verify: the rig file")
     p.add_argument("--trials", type=int, default=20, help="selftest: number of trials")
     p.add_argument("--seed", type=int, default=1, help="selftest / record: seed")
-    p.add_argument("--workers", type=int, default=None, help="selftest: processes (default: CPUs)")
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        help="selftest: worker processes of the local Dask cluster (default: CPUs)",
+    )
+    p.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDR",
+        help="selftest: a Dask scheduler, e.g. tcp://HOST:8786 (default: a local cluster)",
+    )
 
 
 def _motor(args, log_path):
@@ -73,6 +90,11 @@ def _diagnose(args, path):
     if isinstance(rec, SteadyRecord):
         return diagnose_steady(rec, m), m, rec
     hold = load_record(args.holdout) if args.holdout else None
+    if isinstance(hold, SteadyRecord):
+        raise ValueError(
+            f"{args.holdout}: holds steady-state data; a held-out record for control-rate data "
+            "must be control-rate too"
+        )
     return diagnose(rec, m, holdout=hold, seed=args.seed), m, rec
 
 
@@ -85,7 +107,14 @@ def main(args: argparse.Namespace) -> int:
         if args.target == "selftest":
             from pmsm_hil.gapgen.selftest import print_selftest, run_selftest
 
-            res = run_selftest(args.trials, args.seed, workers=args.workers, progress=not args.json)
+            res = run_selftest(
+                args.trials,
+                args.seed,
+                workers=args.workers,
+                progress=not args.json,
+                out=args.out,
+                scheduler=args.scheduler,
+            )
             if args.json:
                 print(
                     json.dumps(

@@ -7,7 +7,7 @@ import argparse
 from pmsm_hil.cli.errors import fail
 
 
-def add_parser(sub) -> None:
+def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "import", help="import control-rate or steady-state dq data from a CSV (docs/gap.md)"
     )

@@ -5,8 +5,9 @@ from __future__ import annotations
 
 import sys
 import time
+from typing import Any, TextIO
 
-from rich.console import Console, Group
+from rich.console import Console, Group, RenderableType
 from rich.live import Live
 from rich.measure import Measurement
 from rich.panel import Panel
@@ -61,7 +62,7 @@ def _parameters(live: LiveState, errors: bool = True, fold: bool = False) -> Tab
     tr = live.truth or {}
     for name, p in live.params.items():
 
-        def cell(key, k, fmt):
+        def cell(key, k, fmt, p=p, name=name):
             v = p[key] * k
             ref = tr.get(key)
             if errors and name != "nominal" and ref:
@@ -107,6 +108,19 @@ def _width(console, options, renderable) -> int:
     return Measurement.get(console, options.update(width=10_000), renderable).maximum
 
 
+def estimator_text(e: dict, markup: bool = True) -> str:
+    """One line on the angle estimator: name, lock, confidence, angle error against the encoder."""
+    lock = "locked" if e.get("locked") else "NOT LOCKED"
+    if markup:
+        lock = f"[{'green' if e.get('locked') else 'red'}]{lock}[/]"
+    loop = "closes the loop" if e.get("in_loop") else "beside the encoder"
+    return (
+        f"estimator {e.get('estimator', '?')} {lock} ({loop}), confidence "
+        f"{e.get('confidence', 0.0):.2f}, theta_err {e.get('theta_err_rad', 0.0):+.4f} rad, "
+        f"speed err {e.get('speed_err_rpm', 0.0):+.1f} r/min"
+    )
+
+
 class _Screen:
     """The live panel, laid out for the console it is drawn on: the three tables side by side
     when they fit, else stacked; as many recent events as the height leaves room for."""
@@ -123,7 +137,7 @@ class _Screen:
             f"faults [{'red' if live.faults else 'green'}]{fault_text(live.faults)}[/]"
         )
         head = Text.from_markup(f"[bold]{self.title}[/]  {state}")
-        rows = (
+        rows: list[RenderableType] = (
             [head]
             if head.cell_len <= inner
             else [Text.from_markup(f"[bold]{self.title}[/]"), Text.from_markup(state)]
@@ -160,6 +174,8 @@ class _Screen:
                 if _width(console, options, par) > inner:
                     par = _parameters(live, errors=False, fold=True)
             rows.append(par)
+        if live.estimator:
+            rows.append(Text.from_markup(estimator_text(live.estimator)))
         if any(n != "nominal" or p.get("feeds_predictor") for n, p in live.params.items()):
             legend = next(
                 (x for x in (FLAGS_LEGEND, FLAGS_LEGEND_SHORT) if len(x) <= inner),
@@ -189,7 +205,7 @@ class _Screen:
         yield Panel(Group(*rows, *events), title="pmsm-hil run", border_style="blue", width=width)
 
 
-def render(live: LiveState, title: str, bit_rate: float, names: list[str]):
+def render(live: LiveState, title: str, bit_rate: float, names: list[str]) -> _Screen:
     """The live panel for `live` (a rich renderable that fits the console's width and height)."""
     return _Screen(live, title, bit_rate, names)
 
@@ -200,13 +216,13 @@ class LiveView:
     def __init__(self, title: str, bit_rate: float, names: list[str]):
         self.title, self.bit_rate, self.names = title, bit_rate, names
         self._live = Live(refresh_per_second=10, transient=False)
-        self._state = None
+        self._state: LiveState | None = None
 
-    def __enter__(self):
+    def __enter__(self) -> LiveView:
         self._live.__enter__()
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: Any) -> None:
         if self._state is not None:
             self._live.update(render(self._state, self.title, self.bit_rate, self.names))
         self._live.__exit__(*exc)
@@ -222,14 +238,14 @@ class LiveView:
 class PlainProgress:
     """Observer for --no-live: a line per second of wall time."""
 
-    def __init__(self, stream=sys.stdout, period_s: float = 1.0):
+    def __init__(self, stream: TextIO = sys.stdout, period_s: float = 1.0):
         self.stream, self.period_s = stream, period_s
         self._last = 0.0
 
-    def __enter__(self):
+    def __enter__(self) -> PlainProgress:
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> None:
         pass
 
     def update(self, live: LiveState) -> None:
@@ -242,7 +258,8 @@ class PlainProgress:
             f"t={live.t_s:7.2f}/{live.total_s:.2f} s  seg {live.segment:2d}  {live.state:8s} "
             f"speed {t.get('speed_ref_rpm', 0):7.1f}/{t.get('speed_rpm', 0):7.1f} r/min  "
             f"i_d {t.get('i_d_a', 0):6.2f} A  i_q {t.get('i_q_a', 0):6.2f} A  "
-            f"frames {live.frames}  bad {live.bad_frames}  {live.realtime_factor:.1f}x",
+            f"frames {live.frames}  bad {live.bad_frames}  {live.realtime_factor:.1f}x"
+            + (f"\n    {estimator_text(live.estimator, markup=False)}" if live.estimator else ""),
             file=self.stream,
             flush=True,
         )
@@ -251,7 +268,9 @@ class PlainProgress:
         print(text, file=self.stream, flush=True)
 
 
-def make_observer(no_live: bool, title: str, bit_rate: float, names: list[str], stream=None):
+def make_observer(
+    no_live: bool, title: str, bit_rate: float, names: list[str], stream: TextIO | None = None
+) -> PlainProgress | LiveView:
     """The live view on a terminal; plain lines with --no-live or when the output is piped."""
     stream = sys.stdout if stream is None else stream
     if no_live or not Console(file=stream).is_terminal:

@@ -8,7 +8,7 @@ from pathlib import Path
 from pmsm_hil.cli.errors import fail
 
 
-def add_parser(sub) -> None:
+def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser("log", help="log file tools (recover a killed run's log)")
     lsub = p.add_subparsers(dest="log_command", required=True, metavar="TOOL")
     r = lsub.add_parser(

@@ -9,6 +9,7 @@ from pmsm_hil import __version__
 from pmsm_hil.cli import (
     analyze,
     bench,
+    commission,
     emulate,
     gap,
     import_csv,
@@ -22,6 +23,7 @@ from pmsm_hil.cli import (
 
 COMMANDS = {
     "run": run,
+    "commission": commission,
     "emulate": emulate,
     "analyze": analyze,
     "report": report,
@@ -46,7 +48,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--version", action="version", version=f"pmsm-hil {__version__}")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for name, mod in COMMANDS.items():
+    for _name, mod in COMMANDS.items():
         mod.add_parser(sub)
     return p
 

@@ -1,14 +1,14 @@
-"""`pmsm-hil profiles`: the shipped profiles, motor, rig and flux-map files."""
+"""`pmsm-hil profiles`: the shipped profiles, motor, rig, flux-map and sweep files."""
 
 from __future__ import annotations
 
 import argparse
 
 
-def add_parser(sub) -> None:
+def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "profiles",
-        help="list the shipped profiles, motors, rigs and flux maps",
+        help="list the shipped profiles, motors, rigs, flux maps and sweeps",
         description="Lists the files shipped with pmsm-hil. Any command that takes a "
         "profile, --motor or --rig accepts these bare names; a file path "
         "always wins over a shipped name.",

@@ -7,7 +7,7 @@ import argparse
 from pmsm_hil.cli.errors import fail
 
 
-def add_parser(sub) -> None:
+def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "report",
         help="plot a run log: PNGs and one HTML page with the summary tables",

@@ -6,11 +6,16 @@ import argparse
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from pmsm_hil.cli.errors import fail, report
 
+if TYPE_CHECKING:
+    from pmsm_hil.device import DeviceSpec
+    from pmsm_hil.profiles import Profile
 
-def add_parser(sub) -> None:
+
+def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "run",
         help="run a speed/load profile (on the emulator unless --port/--can)",
@@ -94,7 +99,7 @@ def default_log_path(profile_path: str) -> Path:
     return Path("runs") / f"{stem}-{time.strftime('%Y%m%d-%H%M%S')}.mcap"
 
 
-def device_spec(args):
+def device_spec(args: argparse.Namespace) -> DeviceSpec:
     from pmsm_hil.device import DeviceSpec
 
     return DeviceSpec(
@@ -121,7 +126,7 @@ def budget_text(budget: dict, baud: int) -> str:
     return "\n".join(lines)
 
 
-def check_link_budget(args, profile) -> int | None:
+def check_link_budget(args: argparse.Namespace, profile: Profile) -> int | None:
     """Serial links: refuse telemetry that the link cannot carry, or decimate it (--decimate)."""
     from pmsm_hil.profiles import link_budget
 
@@ -182,11 +187,11 @@ def _load(args):
 def main(args: argparse.Namespace) -> int:
     from pmsm_hil.analysis.summary import print_summary, summarize_log
     from pmsm_hil.cli.live import make_observer
+    from pmsm_hil.device import open_device
+    from pmsm_hil.errors import TransportError, TransportSpecError
     from pmsm_hil.profiles import ProfileError
     from pmsm_hil.protocol.session import DeviceError, Session
     from pmsm_hil.runner import HostError, PlantMismatch, RunOptions, run_profile
-    from pmsm_hil.device import open_device
-    from pmsm_hil.errors import TransportError, TransportSpecError
 
     try:
         profile = _load(args)
@@ -256,11 +261,13 @@ def main(args: argparse.Namespace) -> int:
 def _finish(result, print_summary, summarize_log) -> int:
     try:
         print(f"log: {result.log_path}")
-        summary = summarize_log(result.log_path)
-        print_summary(summary, interrupted=result.interrupted or bool(result.error))
+        from pmsm_hil.analysis.reading import read_for_analysis
         from pmsm_hil.cli.analyze import identification, print_identification
 
-        ident = identification(result.log_path)
+        log = read_for_analysis(result.log_path)
+        summary = summarize_log(result.log_path, log)
+        print_summary(summary, interrupted=result.interrupted or bool(result.error))
+        ident = identification(result.log_path, log)
         if ident is not None:
             print_identification(ident)
     except (

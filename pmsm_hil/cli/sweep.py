@@ -10,7 +10,7 @@ from pathlib import Path
 from pmsm_hil.cli.errors import fail
 
 
-def add_parser(sub) -> None:
+def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "sweep",
         help="run a profile over grids / random draws of parameters on Dask; "
@@ -22,7 +22,10 @@ def add_parser(sub) -> None:
         "done there. `pmsm-hil sweep report DIR` writes the plots.",
     )
     p.add_argument(
-        "sweep", metavar="SWEEP", help="sweep YAML (or `report` followed by the sweep's DIR)"
+        "sweep",
+        metavar="SWEEP",
+        help="sweep YAML, or the name of a shipped one (`pmsm-hil profiles`), e.g. tolerance "
+        "(or `report` followed by the sweep's DIR)",
     )
     p.add_argument(
         "dir",
@@ -57,6 +60,7 @@ def main(args: argparse.Namespace) -> int:
             "error", f"unexpected argument {args.dir!r} (the output folder is --out DIR)", 2
         )
     from pmsm_hil.profiles import ProfileError
+    from pmsm_hil.profiles.shipped import resolve
     from pmsm_hil.sweep import load_sweep, plan_runs, run_sweep
 
     if args.limit is not None and args.limit < 1:
@@ -64,7 +68,7 @@ def main(args: argparse.Namespace) -> int:
     if args.workers is not None and args.workers < 1:
         return fail("error", f"--workers = {args.workers} must be >= 1", 2)
     try:
-        sweep = load_sweep(args.sweep)
+        sweep = load_sweep(resolve(args.sweep, "sweep"))
         runs = plan_runs(sweep)
     except ProfileError as e:
         return fail("error", str(e), 2)

@@ -12,7 +12,7 @@ from pmsm_hil.cli.errors import fail
 EXIT_FAILED = 1
 
 
-def add_parser(sub) -> None:
+def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "test",
         help="run profiles and check their acceptance criteria (regression suite)",
@@ -26,6 +26,11 @@ def add_parser(sub) -> None:
     )
     p.add_argument(
         "--rig", default=None, help="rig file (or shipped name) instead of each profile's"
+    )
+    p.add_argument(
+        "--motor",
+        default=None,
+        help="motor file (or shipped name) instead of each profile's, e.g. a commissioned one",
     )
     p.add_argument("--seed", type=int, default=1, help="emulator noise seed (default 1)")
     p.add_argument("--junit", default=None, metavar="OUT.xml", help="also write JUnit XML here")
@@ -55,7 +60,8 @@ def main(args: argparse.Namespace) -> int:
     try:
         profiles = [resolve(p, "profile") for p in args.profiles]
         rig = resolve(args.rig, "rig") if args.rig else None
-        cases = plan_suite(profiles, seed=args.seed, rig=rig)
+        motor = resolve(args.motor, "motor") if args.motor else None
+        cases = plan_suite(profiles, seed=args.seed, rig=rig, motor=motor)
     except ProfileError as e:
         return fail("error", str(e), 2)
     tmp = None

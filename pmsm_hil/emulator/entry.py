@@ -2,12 +2,15 @@
 child) and `pmsm-hil emulate` (the same options, for a user who serves it by hand).
 
 It does not boot through the CLI: it reads the motor and rig files, builds the sim board's
-settings and serves a pty (or a CAN endpoint) until SIGTERM/SIGINT.
+settings and serves a pty (or a CAN endpoint) until SIGTERM/SIGINT. The host passes the settings
+it has already built (``--settings-file``, JSON), so its child reads no file and imports neither the
+profile loader nor pydantic: its start is on the critical path of every `pmsm-hil run`.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 
@@ -71,6 +74,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "rest (the host sets this for the emulator it starts)",
     )
     p.add_argument(
+        "--settings-file",
+        default=None,
+        metavar="FILE",
+        help='the sim board\'s settings as built by the host, JSON: {"settings": {...}, "plant": '
+        '"motor: NAME  rig: NAME"} (instead of --motor/--rig/--profile)',
+    )
+    p.add_argument(
         "--corrupt-ppm",
         type=float,
         default=0.0,
@@ -102,21 +112,33 @@ def _motor_and_rig(args: argparse.Namespace):
 
 def serve(args: argparse.Namespace) -> int:
     """Serve the emulated drive until stopped; 2 on bad options or files."""
-    from pmsm_hil.emulator.settings import emulator_settings
-    from pmsm_hil.profiles import ProfileError
+    if args.settings_file is not None:
+        try:
+            with open(args.settings_file, encoding="utf-8") as f:
+                given = json.load(f)
+            settings = dict(given["settings"])
+            plant = str(given.get("plant", ""))
+        except (OSError, ValueError, KeyError, TypeError, AttributeError) as e:
+            return _error(f"--settings-file {args.settings_file}: not the host's settings ({e})")
+    else:
+        from pmsm_hil.emulator.settings import emulator_settings
+        from pmsm_hil.profiles import ProfileError
 
-    try:
-        motor, rig = _motor_and_rig(args)
-    except ProfileError as e:
-        return _error(str(e))
+        try:
+            motor, rig = _motor_and_rig(args)
+        except ProfileError as e:
+            return _error(str(e))
+        settings = emulator_settings(motor, rig, seed=args.seed, baud=args.baud)
+        plant = f"motor: {motor.name}  rig: {rig.name or 'default'}"
     if args.baud <= 0:
         return _error(f"--baud {args.baud}: must be a positive bit rate")
     if args.pace is not None and not 0.001 <= args.pace <= 1000:
         return _error(f"--pace {args.pace}: must be between 0.001 and 1000 (times real time)")
-    settings = emulator_settings(motor, rig, seed=args.seed, baud=args.baud)
     parent = os.getppid() if args.exit_with_parent else None
-    plant = f"motor: {motor.name}  rig: {rig.name or 'default'}"
-    announce = lambda s: print(f"{s}\n{plant}", flush=True)
+
+    def announce(s):
+        return print(f"{s}\n{plant}", flush=True)
+
     if args.can:  # docs/can.md
         if not 10_000 <= args.can_bitrate <= 1_000_000 or not 0 <= args.node <= 15:
             return _error("--can-bitrate must be 10000..1000000 and --node 0..15")

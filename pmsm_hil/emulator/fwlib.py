@@ -8,10 +8,13 @@ from functools import lru_cache
 
 @lru_cache(maxsize=1)
 def lib() -> ctypes.CDLL:
-    """The extension's shared library, with argument types declared."""
-    from pmsm_hil import _fw
+    """The extension's shared library, with argument types declared. PMSM_HIL_FW_LIB names another
+    build of the same sources instead (the sanitizer build of `make -C firmware sanitize`)."""
+    import importlib
+    import os
 
-    so = ctypes.CDLL(_fw.__file__)
+    path = os.environ.get("PMSM_HIL_FW_LIB") or importlib.import_module("pmsm_hil._fw").__file__
+    so = ctypes.CDLL(path)
     so.emu_size.restype = ctypes.c_size_t
     so.emu_init.argtypes = [ctypes.c_void_p]
     so.emu_set.argtypes = [ctypes.c_void_p, ctypes.c_char_p, ctypes.c_double]
@@ -83,7 +86,7 @@ def truth_keys() -> tuple[str, ...]:
     return _names(lib().emu_truth_name)
 
 
-def __getattr__(name: str):
+def __getattr__(name: str) -> tuple[str, ...]:
     # SETTING_KEYS and TRUTH_KEYS come from the C table, read when first asked for
     if name == "SETTING_KEYS":
         return setting_keys()
@@ -126,7 +129,7 @@ class EmulatedDevice:
         keys = truth_keys()
         out = (ctypes.c_double * len(keys))()
         self._lib.emu_plant_truth(self._p, out, len(keys))
-        return dict(zip(keys, list(out)))
+        return dict(zip(keys, list(out), strict=False))
 
     def plant_flux(self, i_d_a: float, i_q_a: float, theta_e_rad: float = 0.0) -> dict[str, float]:
         """The plant's magnetics at one point (flux linkages, incremental inductances, torque)."""
@@ -142,7 +145,7 @@ class EmulatedDevice:
             "t_extra_nm",
             "torque_nm",
         )
-        return dict(zip(keys, list(out)))
+        return dict(zip(keys, list(out), strict=False))
 
     def get(self, key: str) -> float:
         v = ctypes.c_double()
@@ -159,7 +162,7 @@ class EmulatedDevice:
         ticks = self._lib.emu_run(
             self._p, max(0, int(max_ticks)), self._out, self._out_cap, ctypes.byref(self._n)
         )
-        return ticks, self._out.raw[: self._n.value]
+        return ticks, ctypes.string_at(self._out, self._n.value)  # only the octets written
 
     def can_rx(self, ident: int, data: bytes) -> None:
         """A CAN frame from the host (docs/can.md)."""

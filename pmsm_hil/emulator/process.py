@@ -32,6 +32,7 @@ def wait_for_announcement(proc: subprocess.Popen, prefix: str, timeout_s: float)
     """The text after `prefix` on the emulator's first line that starts with it."""
     deadline = time.monotonic() + timeout_s
     seen = b""
+    assert proc.stdout is not None and proc.stderr is not None  # started with both piped
     while time.monotonic() < deadline:
         if proc.poll() is not None:
             err = proc.stderr.read().decode(errors="replace").strip()

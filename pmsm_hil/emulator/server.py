@@ -8,6 +8,7 @@ With a pace X (`--pace`), device time never runs faster than X times wall time e
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import os
 import select
@@ -15,7 +16,9 @@ import signal
 import sys
 import time
 import tty
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TextIO
 
 from pmsm_hil.emulator.fwlib import EmulatedDevice
 
@@ -87,7 +90,7 @@ class StateReporter:
     the device time and the device time since the last heartbeat, so that whoever started the
     emulator sees when (in device time) a lost host got its motor stopped."""
 
-    def __init__(self, device: EmulatedDevice, out=None):
+    def __init__(self, device: EmulatedDevice, out: TextIO | None = None):
         from pmsm_hil.protocol import generated as gen
 
         self.dev = device
@@ -143,7 +146,9 @@ class LinkCorrupter:
         if k == 0:
             return data
         buf = bytearray(data)
-        for i, bit in zip(self.rng.integers(0, len(data), k), self.rng.integers(0, 8, k)):
+        for i, bit in zip(
+            self.rng.integers(0, len(data), k), self.rng.integers(0, 8, k), strict=False
+        ):
             buf[int(i)] ^= 1 << int(bit)
         return bytes(buf)
 
@@ -170,7 +175,7 @@ class PtyServer:
         self.dropped_octets = 0  # the host not reading: what a full UART FIFO loses
         self._last_drain = time.monotonic()
 
-    def stop(self, *_args) -> None:
+    def stop(self, *_args: object) -> None:
         self._stop = True
 
     def serve(
@@ -196,7 +201,7 @@ class PtyServer:
             can_run = len(self._pending) < MAX_PENDING or self.pacer.pace is not None or stalled
             busy = self.dev.active and ticks_allowed > 0 and can_run
             wait = 0.0 if busy else 0.002
-            rlist, wlist, _ = select.select(
+            rlist, _wlist, _ = select.select(
                 [self.master], [self.master] if self._pending else [], [], wait
             )
             if rlist:
@@ -227,15 +232,13 @@ class PtyServer:
 
     def close(self) -> None:
         for fd in (self.master, self.slave):
-            try:
+            with contextlib.suppress(OSError):
                 os.close(fd)
-            except OSError:
-                pass
 
 
 def serve_pty(
     settings: dict[str, float],
-    announce=print,
+    announce: Callable[[str], object] = print,
     corrupt_ppm: float = 0.0,
     pace: float | None = None,
     report_state: bool = False,

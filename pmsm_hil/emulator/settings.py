@@ -2,6 +2,11 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from pmsm_hil.profiles import Motor, Rig
+
 
 def _eff(rig, name: str):
     effects = getattr(rig, "effects", None) or {}
@@ -12,10 +17,17 @@ def _eff(rig, name: str):
 
 
 def emulator_settings(
-    motor, rig, seed: int = 1, baud: int = 921600, truth_hz: float = 100.0, ts_s: float = 50e-6
+    motor: Motor,
+    rig: Rig,
+    seed: int = 1,
+    baud: int = 921600,
+    truth_hz: float = 100.0,
+    ts_s: float = 50e-6,
 ) -> dict[str, float]:
     """The plant is the motor file's motor with the rig's effects; the firmware learns its own
-    (nominal) view of the motor over the link."""
+    (nominal) view of the motor over the link. A commissioned motor file (docs/commissioning.md)
+    holds what the firmware measured; the plant stays the machine of its nominal values."""
+    motor = _nominal(motor)
     s: dict[str, float] = {
         "r_s_ohm": motor.r_s_ohm,
         "l_d_h": motor.l_d_h,
@@ -52,12 +64,36 @@ def emulator_settings(
     return s
 
 
-def effect_settings(motor, rig) -> dict:
+class _Nominal:
+    """A motor's attributes with the nominal machine values of a commissioned file."""
+
+    def __init__(self, motor, nominal: dict):
+        self._motor, self._nominal = motor, nominal
+
+    def __getattr__(self, name):
+        if name in self._nominal:
+            return self._nominal[name]
+        return getattr(self._motor, name)
+
+
+def _nominal(motor):
+    comm = getattr(motor, "commissioning", None)
+    nominal = comm.get("nominal") if isinstance(comm, dict) else None
+    return _Nominal(motor, nominal) if isinstance(nominal, dict) else motor
+
+
+def effect_settings(motor: Motor, rig: Rig) -> dict:
     """The sim board's keys for the effects of issue 5 (docs/rigs.md). Every key is set, to its
     'off' value when the effect is disabled, so that a disabled effect leaves the ideal plant."""
     s: dict = {"effects_mask": int(getattr(rig, "effects_mask", 0) or 0)}
+    wiring = getattr(rig, "wiring", None)
+    s["wiring_swap_bc"] = 1 if wiring is not None and wiring.phases == "acb" else 0
+    s["wiring_open"] = 1 if wiring is not None and not wiring.motor_connected else 0
     sat = _eff(rig, "saturation")
     fm = rig.flux_map() if sat is not None else None
+    if fm is None and getattr(motor, "flux_map", None):
+        # the motor's own measured magnetics: the rig departs from them, not from a linear model
+        fm = motor.load_flux_map()
     if fm is not None:
         s.update(fm.settings())
     else:

@@ -14,11 +14,13 @@ stops the motor as on a rig, and the next client may connect. Pacing as in serve
 
 from __future__ import annotations
 
+import contextlib
 import select
 import signal
 import socket
 import sys
 import time
+from collections.abc import Callable
 
 from pmsm_hil.emulator.fwlib import EmulatedDevice
 from pmsm_hil.emulator.server import Pacer, ParentWatch, StateReporter
@@ -27,14 +29,12 @@ MAX_PENDING = 1 << 16  # octets of text waiting for the client before the device
 CHANNEL = "emu0"
 
 
-def format_frames(frames, ts_s: float) -> bytes:
+def format_frames(frames: list[tuple[int, bytes, int]], ts_s: float) -> bytes:
     out = []
     for ident, data, isr in frames:
         t = isr * ts_s
         sec = int(t)
-        out.append(
-            f"< frame {ident:03X} {sec}.{int(round((t - sec) * 1e6)):06d} {data.hex().upper()} >"
-        )
+        out.append(f"< frame {ident:03X} {sec}.{round((t - sec) * 1e6):06d} {data.hex().upper()} >")
     return "".join(out).encode("ascii")
 
 
@@ -71,16 +71,14 @@ class SocketcandServer:
     def spec(self) -> str:
         return f"socketcand:{self.channel}@{self.host}:{self.port}"
 
-    def stop(self, *_args) -> None:
+    def stop(self, *_args: object) -> None:
         self._stop = True
 
     # ------------------------------------------------------------------ client handling
     def _drop_client(self) -> None:
         if self.client is not None:
-            try:
+            with contextlib.suppress(OSError):
                 self.client.close()
-            except OSError:
-                pass
         self.client = None
         self.pacer.host_gone()
         self._inbuf = ""
@@ -96,10 +94,8 @@ class SocketcandServer:
             # one controlling session at a time: a second client may not take over a running
             # motor (its heartbeats would keep it running unsupervised); refused, and said so
             self.refused += 1
-            try:
+            with contextlib.suppress(OSError):
                 c.sendall(b"< error busy: another host controls this drive >")
-            except OSError:
-                pass
             c.close()
             print(
                 f"refused a second CAN client: a controlling session is connected "
@@ -118,6 +114,8 @@ class SocketcandServer:
 
     def _alive(self) -> bool:
         """Whether the current client's connection is still open (a peek, nothing consumed)."""
+        if self.client is None:
+            return False
         try:
             return self.client.recv(1, socket.MSG_PEEK) != b""
         except BlockingIOError:
@@ -148,12 +146,16 @@ class SocketcandServer:
             self._reply("< echo >")
 
     def _reply(self, text: str) -> None:
+        if self.client is None:
+            return
         try:
             self.client.sendall(text.encode("ascii"))
         except OSError:
             self._drop_client()
 
     def _read_client(self) -> None:
+        if self.client is None:
+            return
         try:
             data = self.client.recv(65536)
         except BlockingIOError:
@@ -176,7 +178,9 @@ class SocketcandServer:
             self._handle(cmd)
 
     # ------------------------------------------------------------------ main loop
-    def serve(self, reporter=None, watch=None) -> None:
+    def serve(
+        self, reporter: StateReporter | None = None, watch: ParentWatch | None = None
+    ) -> None:
         while not self._stop:
             if reporter is not None:
                 reporter.poll()
@@ -191,7 +195,7 @@ class SocketcandServer:
             busy = active and ticks > 0 and can_run
             rl = [self.lsock] + ([self.client] if self.client is not None else [])
             wl = [self.client] if self.client is not None and self._pending else []
-            r, w, _ = select.select(rl, wl, [], 0.0 if busy else 0.002)
+            r, _w, _ = select.select(rl, wl, [], 0.0 if busy else 0.002)
             if self.lsock in r:
                 self._accept()
             if self.client is not None and self.client in r:
@@ -214,15 +218,13 @@ class SocketcandServer:
 
     def close(self) -> None:
         self._drop_client()
-        try:
+        with contextlib.suppress(OSError):
             self.lsock.close()
-        except OSError:
-            pass
 
 
 def serve_socketcand(
     settings: dict[str, float],
-    announce=print,
+    announce: Callable[[str], object] = print,
     port: int = 0,
     pace: float | None = None,
     report_state: bool = False,

@@ -76,7 +76,7 @@ def read_csv(path: str | os.PathLike) -> tuple[str, dict[str, np.ndarray]]:
     """(kind, columns) with kind "control" or "steady"; raises ImportError_."""
     path = os.fspath(path)
     try:
-        f = open(path, newline="", encoding="utf-8")
+        f = open(path, newline="", encoding="utf-8")  # noqa: SIM115  (closed by `with f:` below)
     except OSError as e:
         raise ImportError_(f"{path}: cannot read ({e.strerror})") from None
     with f:
@@ -87,7 +87,7 @@ def read_csv(path: str | os.PathLike) -> tuple[str, dict[str, np.ndarray]]:
         ]
     if not rows:
         raise ImportError_(f"{path}: empty file (a header row and data rows are needed)")
-    hline, header = rows[0]
+    _hline, header = rows[0]
     header = [h.strip() for h in header]
     kind = _kind(path, header)
     data = rows[1:]

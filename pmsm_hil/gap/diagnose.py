@@ -57,9 +57,7 @@ def diagnose(
         raise ValueError(
             f"{rec.source}: only {len(k)} usable control-rate transitions (need >= 200)"
         )
-    blen = max(
-        min(int(round(BLOCK_S / rec.ts_s)), len(k) // 10), 20
-    )  # >= 10 blocks on a short capture
+    blen = max(min(round(BLOCK_S / rec.ts_s), len(k) // 10), 20)  # >= 10 blocks on a short capture
     blk = k // blen
     test = (blk % 2) == 1
     train = ~test
@@ -82,7 +80,7 @@ def diagnose(
     out = {
         "source": rec.source,
         "samples": int(rec.n),
-        "transitions": int(len(k)),
+        "transitions": len(k),
         "ts_s": rec.ts_s,
         "voltage_kind": rec.voltage_kind,
     }
@@ -107,7 +105,7 @@ def diagnose(
             if c in chosen:
                 continue
             f = fit_effects(
-                probe, chosen + [c], tr_sub, warm=warm, max_nfev=12 * (len(EFFECTS[c].params) + 1)
+                probe, [*chosen, c], tr_sub, warm=warm, max_nfev=12 * (len(EFFECTS[c].params) + 1)
             )
             if not np.isfinite(f.cost):
                 continue
@@ -227,7 +225,7 @@ def diagnose(
                     mag + 1.96 * float(np.max(se)) * 1.5,
                 ],
                 "parameters": e.report(x, motor),
-                "parameters_se": {p: float(s) for p, s in zip(e.params, se)},
+                "parameters_se": {p: float(s) for p, s in zip(e.params, se, strict=False)},
                 "closure": step["gain_v2"] / excess,
                 "evidence": f"held-out MSE down {step['gain_v2']:.3g} V^2 "
                 f"(± {step['gain_se_v2']:.2g}, threshold {step['threshold_v2']:.2g})",
@@ -272,7 +270,11 @@ def diagnose(
     out["where"] = residual_maps(probe, r_base, r_aug)
     gap_v2 = mse_b - floor_mean
     par = out["parametric_gap"]
-    off = [n for n, v in zip(("R", "Ld", "Lq", "psi_f"), par["scale"]) if abs(v - 1) > 0.05]
+    off = [
+        n
+        for n, v in zip(("R", "Ld", "Lq", "psi_f"), par["scale"], strict=False)
+        if abs(v - 1) > 0.05
+    ]
     # constant inductances off the motor file explain the gap as well as the selected effects: a
     # parametric gap (the knee of `saturation` is kept above 2 A so that it cannot become a constant)
     parametric = (

@@ -14,8 +14,8 @@ in ``pmsm_hil.gap.views``.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 

@@ -8,9 +8,9 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from pmsm_hil.gap.effects import EFFECTS, PARAMETERS
+from pmsm_hil.gap.probe import Probe
 
 LIB = dict(EFFECTS, parameters=PARAMETERS)
-from pmsm_hil.gap.probe import Probe
 
 
 @dataclass

@@ -33,7 +33,7 @@ class MotorModel:
     v_dc_v: float = 0.0
 
     @classmethod
-    def from_motor(cls, m) -> "MotorModel":
+    def from_motor(cls, m) -> MotorModel:
         return cls(
             float(m.r_s_ohm),
             float(m.l_d_h),

@@ -13,6 +13,8 @@ switch states `s_abc` (held over the period), duties `d_abc`, or `u_alpha_v u_be
 
 from __future__ import annotations
 
+import contextlib
+import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -142,7 +144,7 @@ def split_runs(t_s: np.ndarray, ts_s: float, tol: float = 0.25) -> list[tuple[in
     dt = np.diff(t_s)
     brk = np.nonzero(np.abs(dt - ts_s) > tol * ts_s)[0] + 1
     edges = np.concatenate([[0], brk, [len(t_s)]])
-    return [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:]) if b > a]
+    return [(int(a), int(b)) for a, b in itertools.pairwise(edges) if b > a]
 
 
 def _opt(cols: dict, name: str) -> np.ndarray | None:
@@ -267,10 +269,8 @@ def sensor_spec_from_metadata(meta: dict[str, dict[str, str]]) -> dict[str, floa
     }
     for k, rk in pairs.items():
         if k not in out and rk in rig:
-            try:
+            with contextlib.suppress(ValueError):
                 out[k] = float(rig[rk])
-            except ValueError:
-                pass
     return out
 
 

@@ -90,7 +90,7 @@ def write_report(res: dict, out_dir) -> list[str]:
     where = res["where"]
     keys = ["speed", "current", "current_angle", "electrical_angle", "current_sign_sector", "time"]
     fig, axs = plt.subplots(2, 3, figsize=(12, 6))
-    for ax, key in zip(axs.ravel(), keys):
+    for ax, key in zip(axs.ravel(), keys, strict=False):
         for name, style in (("base", "o-"), ("augmented", "s--")):
             rows = where[name][key]
             x = [(r["lo"] + r["hi"]) / 2 for r in rows]

@@ -46,7 +46,7 @@ def fitted_rig(result: dict, m: MotorModel, out_path, sensor_spec: dict | None =
         if n == "delay":
             p = {
                 "sample_delay_s": max(p["sample_delay_s"], 0.0),
-                "pwm_delay_periods": int(round(p["pwm_delay_periods"])),
+                "pwm_delay_periods": round(p["pwm_delay_periods"]),
             }
         elif n == "encoder":
             p = {

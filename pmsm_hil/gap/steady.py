@@ -29,7 +29,7 @@ def diagnose_steady(rec: SteadyRecord, m: MotorModel) -> dict:
     par = float(np.mean(res**2))
     out = {
         "source": rec.source,
-        "samples": int(len(w)),
+        "samples": len(w),
         "kind": "steady-state dq",
         "base_gap": {"mse_v2": base, "rms_v": float(np.sqrt(base))},
         "parametric_gap": {

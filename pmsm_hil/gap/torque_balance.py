@@ -56,7 +56,7 @@ def balance_windows(
     recorded_speed: use the record's own speed column instead (biased where it lags; kept to show
     the bias)."""
     ts = rec.ts_s
-    w = max(int(round(w_s / ts)), 4)
+    w = max(round(w_s / ts), 4)
     h = sg_n // 2
     i_dq = rot(abc_to_ab(rec.i_abc), -rec.theta_e_rad)
     id_, iq = i_dq[:, 0], i_dq[:, 1]
@@ -73,7 +73,7 @@ def balance_windows(
     c6, s6 = np.cos(6 * rec.theta_e_rad), np.sin(6 * rec.theta_e_rad)
     harm = [id_ * c6, id_ * s6, iq * c6, iq * s6]
     ys, cols_out, run_id = [], [], []
-    names = ["one", "iq", "fric_c", "fric_v", "off_a", "off_b"] + HARM
+    names = ["one", "iq", "fric_c", "fric_v", "off_a", "off_b", *HARM]
     for n_per in orders:
         names += [f"sin{n_per}", f"cos{n_per}"]
     for a, b in rec.runs:

@@ -27,7 +27,7 @@ def _dc_link(rec) -> dict:
     sd = float(np.std(v))
     # 95 % interval of the rms deviation: bootstrap over 20 ms blocks of the squared deviation
     sq = (v - np.mean(v)) ** 2
-    nb = max(len(v) // max(int(round(0.02 / rec.ts_s)), 1), 2)
+    nb = max(len(v) // max(round(0.02 / rec.ts_s), 1), 2)
     blocks = np.array([p.mean() for p in np.array_split(sq, nb)])
     rng = np.random.default_rng(0)
     boot = np.sqrt(blocks[rng.integers(0, nb, size=(400, nb))].mean(1))
@@ -46,4 +46,4 @@ def _dc_link(rec) -> dict:
 
 
 def view_effects(rec, m: MotorModel) -> list[dict]:
-    return [_dc_link(rec)] + torque_balance_effects(rec, m)
+    return [_dc_link(rec), *torque_balance_effects(rec, m)]

@@ -63,7 +63,7 @@ def record_profile(
     settings["truth_div"] = 0 if not full_log else settings.get("truth_div", 200)
     dev = EmulatedDevice(settings)
     lib = _bind(dev)
-    n_max = int(round(profile.total_duration_s / profile.control.ts_s)) + 16
+    n_max = round(profile.total_duration_s / profile.control.ts_s) + 16
     buf = np.zeros((n_max, len(REC_COLS)), dtype=np.float64)
     lib.emu_record(dev._p, buf.ctypes.data, n_max)
     transport = InProcessTransport(settings, chunk_ticks=4000, device=dev)
@@ -92,9 +92,8 @@ def record_profile(
             if full_log:
                 for topic in run_log.topics:
                     c = run_log.topic(topic)
-                    if topic.startswith("/pmsm/") or topic.startswith("/sim/"):
-                        if len(c["t_s"]):
-                            w.write_many(topic, c)
+                    if topic.startswith(("/pmsm/", "/sim/")) and len(c["t_s"]):
+                        w.write_many(topic, c)
             w.write_many(CONTROL_TOPIC, cols)
     finally:
         os.unlink(tmp)

@@ -4,7 +4,9 @@ The labels of all trials are drawn first and sealed: their SHA-256 is printed be
 runs. Each trial records a 2 s random profile on the in-process emulator with the hidden effects
 (plus a held-out record on another random profile, and the same run without the effects for the
 detectability oracle), gives the diagnoser only the control-rate log, and keeps its answer; the
-scores are computed when every trial is done. Trials run in a process pool."""
+scores are computed when every trial is done. Trials run on the sweep's Dask machinery
+(pmsm_hil.sweep.tasks: a local cluster or a scheduler, a trial whose worker dies re-run once, and
+with an output folder a journal keyed by each trial's inputs, so an interrupted self-test resumes)."""
 
 from __future__ import annotations
 
@@ -12,7 +14,6 @@ import hashlib
 import json
 import os
 import tempfile
-from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 import yaml
@@ -77,7 +78,7 @@ def run_trial(trial: dict) -> dict:
     error, as text: a failed trial is reported, not dropped)."""
     try:
         return _run_trial(trial)
-    except Exception as e:  # noqa: BLE001 - reported in the scores
+    except Exception as e:
         return {"error": f"{type(e).__name__}: {e}"}
 
 
@@ -167,28 +168,30 @@ def _detectable(trial, out) -> bool:
     t_min = DETECT_TORQUE_REL * _motor().torque_max_nm
     if all(n in ("friction", "cogging") for n in names):
         return bool(max(_hidden_torque_nm(n, trial["effects"][n]) for n in names) >= t_min)
-    if names == ["sensor_offset"]:
-        if _hidden_torque_nm(names[0], trial["effects"][names[0]]) >= t_min:
-            return True
+    if (
+        names == ["sensor_offset"]
+        and _hidden_torque_nm(names[0], trial["effects"][names[0]]) >= t_min
+    ):
+        return True
     return bool(out["d_mse"] > DETECT_REL * out["floor"])
 
 
 def score(trials: list[dict], outs: list[dict]) -> dict:
     errors = [o["error"] for o in outs if "error" in o]
-    kept = [(t, o) for t, o in zip(trials, outs) if "error" not in o]
+    kept = [(t, o) for t, o in zip(trials, outs, strict=False) if "error" not in o]
     trials, outs = [t for t, _ in kept], [o for _, o in kept]
-    single = [(t, o) for t, o in zip(trials, outs) if t["kind"] == "one"]
+    single = [(t, o) for t, o in zip(trials, outs, strict=False) if t["kind"] == "one"]
     det = [(t, o) for t, o in single if _detectable(t, o)]
     top1 = [o["selected"][:1] == list(t["effects"]) for t, o in det]
     top1_all = [o["selected"][:1] == list(t["effects"]) for t, o in single]
-    two = [(t, o) for t, o in zip(trials, outs) if t["kind"] == "two"]
+    two = [(t, o) for t, o in zip(trials, outs, strict=False) if t["kind"] == "two"]
     both = [set(t["effects"]) <= set(o["selected"]) for t, o in two]
-    null = [o for t, o in zip(trials, outs) if t["kind"] == "none"]
-    outside = [o for t, o in zip(trials, outs) if t["kind"] == "outside"]
+    null = [o for t, o in zip(trials, outs, strict=False) if t["kind"] == "none"]
+    outside = [o for t, o in zip(trials, outs, strict=False) if t["kind"] == "outside"]
     two_det = [(t, o) for t, o in two if _detectable(t, o)]
     confusion: dict[str, dict[str, int]] = {}
     for t, o in single:
-        truth = list(t["effects"])[0]
+        truth = next(iter(t["effects"]))
         got = o["selected"][0] if o["selected"] else "none"
         confusion.setdefault(truth, {}).setdefault(got, 0)
         confusion[truth][got] += 1
@@ -198,7 +201,7 @@ def score(trials: list[dict], outs: list[dict]) -> dict:
     clo = [o["closure"] for t, o in fitted]
     clo_rec = [o["closure_record"] for t, o in fitted if o.get("closure_record") is not None]
     mag_err, cover, details = [], [], []
-    for t, o in zip(trials, outs):
+    for t, o in zip(trials, outs, strict=False):
         details.append(
             {
                 "kind": t["kind"],
@@ -216,7 +219,7 @@ def score(trials: list[dict], outs: list[dict]) -> dict:
             }
         )
     for t, o in det:
-        name = list(t["effects"])[0]
+        name = next(iter(t["effects"]))
         tv = true_primary(name, t["effects"][name])
         e = next((e for e in o["effects"] if e["name"] == name and e["selected"]), None)
         if tv is None or e is None or e["magnitude"] is None:
@@ -260,7 +263,12 @@ def score(trials: list[dict], outs: list[dict]) -> dict:
 
 
 def run_selftest(
-    n_trials: int, seed: int, workers: int | None = None, progress: bool = True
+    n_trials: int,
+    seed: int,
+    workers: int | None = None,
+    progress: bool = True,
+    out: str | os.PathLike | None = None,
+    scheduler: str | None = None,
 ) -> dict:
     rng = np.random.default_rng(seed)
     trials = [draw_trial(rng) for _ in range(n_trials)]
@@ -271,9 +279,19 @@ def run_selftest(
     digest = hashlib.sha256(sealed).hexdigest()
     if progress:
         print(f"labels sealed: sha256 {digest}", flush=True)
-    workers = workers or os.cpu_count() or 1
-    with ProcessPoolExecutor(max_workers=workers) as ex:
-        outs = list(ex.map(run_trial, trials))
+    from pathlib import Path
+
+    from pmsm_hil.sweep.tasks import run_tasks
+
+    outs = run_tasks(
+        run_trial,
+        trials,
+        Path(out) if out is not None else None,
+        name="selftest",
+        scheduler=scheduler,
+        workers=workers,
+        progress=progress,
+    )
     res = score(trials, outs)
     res.update(
         {

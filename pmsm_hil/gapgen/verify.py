@@ -22,7 +22,7 @@ SMOOTH_S = 5e-3
 
 def _smooth(t, x, t_grid):
     dt = np.median(np.diff(t)) if len(t) > 1 else 1.0
-    n = max(int(round(SMOOTH_S / dt)), 1)
+    n = max(round(SMOOTH_S / dt), 1)
     k = np.ones(n) / n
     xs = np.convolve(x, k, mode="same")
     return np.interp(t_grid, t, xs)

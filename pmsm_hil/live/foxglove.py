@@ -17,6 +17,7 @@ MCAP-style log time: the sink's start (wall clock, ns) + t_s.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import sys
@@ -26,10 +27,18 @@ from pmsm_hil.log.schemas import TOPICS
 
 DEFAULT_PORT = 8765
 HOST = "127.0.0.1"
-LIVE_TOPICS = ("/pmsm/telemetry", "/pmsm/params", "/pmsm/status", "/pmsm/events", "/sim/truth")
+LIVE_TOPICS = (
+    "/pmsm/telemetry",
+    "/pmsm/estimator",
+    "/pmsm/params",
+    "/pmsm/status",
+    "/pmsm/events",
+    "/sim/truth",
+)
 # messages per second per key (topic, or topic + estimator), in device time and in wall time
 RATE_HZ = {
     "/pmsm/telemetry": 200.0,
+    "/pmsm/estimator": 100.0,
     "/pmsm/params": 50.0,
     "/sim/truth": 100.0,
     "/pmsm/status": 20.0,
@@ -63,7 +72,7 @@ def json_schema(topic: str) -> dict:
 class _Gate:
     """Decimation of one key: device-time spacing and a wall-time token bucket."""
 
-    __slots__ = ("period_s", "rate", "next_t", "tokens", "wall")
+    __slots__ = ("next_t", "period_s", "rate", "tokens", "wall")
 
     def __init__(self, rate_hz: float):
         self.rate = rate_hz
@@ -158,8 +167,7 @@ class FoxgloveSink:
             for k, v in fields.items():
                 msg[k] = _plain(v)
             ch.log(
-                json.dumps(msg, allow_nan=False).encode(),
-                log_time=self._t0_ns + int(round(t_s * 1e9)),
+                json.dumps(msg, allow_nan=False).encode(), log_time=self._t0_ns + round(t_s * 1e9)
             )
             self.published += 1
         except Exception as e:  # the live view must never end a run
@@ -168,8 +176,6 @@ class FoxgloveSink:
 
     def close(self) -> None:
         for ch in self._channels.values():
-            try:
+            with contextlib.suppress(Exception):
                 ch.close()
-            except Exception:
-                pass
         self._server.stop()

@@ -12,26 +12,27 @@ from __future__ import annotations
 
 import hashlib
 import struct
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import Any, Iterable, Sequence
+from typing import Any
 
 import numpy as np
 
 __all__ = [
-    "FieldDef",
-    "TopicDef",
-    "Codec",
-    "TOPICS",
     "DEVICE_TOPICS",
+    "ESTIMATORS",
+    "EVENT_KINDS",
     "HOST_TOPICS",
     "LOG_FORMAT_VERSION",
-    "SCHEMA_ENCODING",
     "MESSAGE_ENCODING",
-    "schema_hash",
-    "codec_for",
-    "EVENT_KINDS",
-    "ESTIMATORS",
     "PRIMITIVES",
+    "SCHEMA_ENCODING",
+    "TOPICS",
+    "Codec",
+    "FieldDef",
+    "TopicDef",
+    "codec_for",
+    "schema_hash",
 ]
 
 LOG_FORMAT_VERSION = 1
@@ -48,6 +49,8 @@ EVENT_KINDS = (
     "capture_triggered",
     "stopped",
     "started",
+    "commission_step",
+    "commission_failed",
     "link",
     "host",
 )
@@ -139,6 +142,32 @@ TOPICS: dict[str, TopicDef] = {
             "fast telemetry frame",
         ),
         TopicDef(
+            "/pmsm/estimator",
+            "pmsm_hil/msg/Estimator",
+            (
+                T,
+                _f(
+                    "estimator",
+                    "",
+                    "the angle slot's occupant: mras, ripple_pll or hybrid",
+                    "string",
+                ),
+                _f("locked", "", "the estimator tracks the rotor", "bool"),
+                _f(
+                    "in_loop",
+                    "",
+                    "its angle closes the loop (not an angle_encoder segment)",
+                    "bool",
+                ),
+                _f("confidence", "", "0..1, 1 = its residual fully explained"),
+                _f("theta_err_rad", "rad", "estimated minus encoder electrical angle, wrapped"),
+                _f("speed_err_rpm", "r/min", "estimated minus encoder speed"),
+                _f("err_signal", "rad", "the estimator's normalised error signal"),
+            ),
+            "telemetry.est_hz (only when control.angle_src is an estimator)",
+            "the angle estimator's state against the encoder",
+        ),
+        TopicDef(
             "/pmsm/params",
             "pmsm_hil/msg/Params",
             (
@@ -191,7 +220,7 @@ TOPICS: dict[str, TopicDef] = {
                     "faults",
                     "",
                     "fault bits: 1 over_current, 2 over_speed, 4 dc_under_voltage, "
-                    "8 dc_over_voltage, 16 heartbeat",
+                    "8 dc_over_voltage, 16 heartbeat, 32 lost_lock",
                     "uint16",
                 ),
                 _f("v_dc_v", "V", "measured DC-link voltage"),
@@ -232,6 +261,27 @@ TOPICS: dict[str, TopicDef] = {
             ),
             "on change",
             "segment changes, faults, warnings, link and host events",
+        ),
+        TopicDef(
+            "/pmsm/commission",
+            "pmsm_hil/msg/CommissionResult",
+            (
+                T,
+                _f("step", "", "offsets, v_dc, encoder, inverter, r_s, l_dq or psi_f", "string"),
+                _f("status", "", "ok or the reason it failed (enum commission_fail)", "string"),
+                _f("value_0", "", "the step's first result (docs/commissioning.md)"),
+                _f("value_1", "", "second result"),
+                _f("value_2", "", "third result"),
+                _f("value_3", "", "fourth result"),
+                _f("spread_0", "", "spread of value_0 over the step's repetitions"),
+                _f("spread_1", "", "spread of value_1"),
+                _f("spread_2", "", "spread of value_2"),
+                _f("spread_3", "", "spread of value_3"),
+                _f("ref_0", "", "step-specific operating point or extra result"),
+                _f("ref_1", "", "step-specific operating point or extra result"),
+            ),
+            "once per commissioning step",
+            "the firmware's commissioning results (`pmsm-hil commission`)",
         ),
         TopicDef(
             "/sim/truth",
@@ -332,6 +382,10 @@ class Codec:
                 run.append(f)
         if run:
             self.plan.append(("run", len(run), [_run_struct(run, m) for m in range(8)]))
+        self.body_format: str | None
+        self.size: int | None
+        self.data_struct: struct.Struct | None
+        self.dtype: np.dtype | None
         if self.fixed:
             body, size = _run_struct(self.fields, 0)
             self.body_format = body.format[1:]  # without "<"
@@ -360,6 +414,7 @@ class Codec:
     def encode(self, values: Sequence[Any]) -> bytes:
         """CDR data (header included) for ``values`` in field order (t_s first)."""
         if self.fixed:
+            assert self.data_struct is not None  # set for every fixed-size schema
             return self.data_struct.pack(CDR_LE_HEADER, *values)
         parts = [CDR_LE_HEADER]
         off = 0
@@ -390,10 +445,11 @@ class Codec:
                 f"{self.topic.topic}: not little-endian CDR (header {bytes(data[:4])!r})"
             )
         if self.fixed:
+            assert self.data_struct is not None
             return self.data_struct.unpack_from(data, 0)[1:]
         out: list[Any] = []
         off = 0  # CDR offset (data offset - 4)
-        for kind, n, structs in self.plan:
+        for kind, _n, structs in self.plan:
             if kind == "run":
                 st, size = structs[off & 7]
                 out.extend(st.unpack_from(data, 4 + off))

@@ -26,8 +26,9 @@ import signal
 import struct
 import threading
 import weakref
+from collections.abc import Iterable, Mapping, Sequence
 from operator import itemgetter
-from typing import Any, Iterable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 from mcap.writer import CompressionType, Writer
@@ -45,7 +46,7 @@ from pmsm_hil.log.schemas import (
     schema_hash,
 )
 
-__all__ = ["LogWriter", "MCAP_MAGIC", "available_compressions"]
+__all__ = ["MCAP_MAGIC", "LogWriter", "available_compressions"]
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 PROFILE = "ros2"
@@ -62,7 +63,7 @@ def available_compressions() -> list[str]:
         out.append("zstd")
     if importlib.util.find_spec("lz4") is not None:
         out.append("lz4")
-    return out + [""]
+    return [*out, ""]
 
 
 def _compression_type(name: str) -> CompressionType:
@@ -96,18 +97,18 @@ def _signals_held():
 
 class _Channel:
     __slots__ = (
-        "id",
-        "topic",
         "codec",
-        "seq",
         "count",
-        "getter",
-        "n",
-        "pack",
-        "fixed",
-        "names",
-        "name_set",
         "dtype",
+        "fixed",
+        "getter",
+        "id",
+        "n",
+        "name_set",
+        "names",
+        "pack",
+        "seq",
+        "topic",
     )
 
     def __init__(self, cid: int, topic: TopicDef):
@@ -145,12 +146,12 @@ class LogWriter:
         wall_start_s: float | None = None,
     ):
         self.path = os.fspath(path)
-        self._off_ns = int(round(wall_start_s * 1e9)) if wall_start_s else 0
+        self._off_ns = round(wall_start_s * 1e9) if wall_start_s else 0
         if compression is None:
             compression = available_compressions()[0]
         ctype = _compression_type(compression)
         self._chunk_size = int(chunk_size)
-        self._span_ns = int(round(chunk_span_s * 1e9))
+        self._span_ns = round(chunk_span_s * 1e9)
         self._fsync = fsync
         self._topics: dict[str, TopicDef] = dict(TOPICS)
         for t in topics:
@@ -158,7 +159,7 @@ class LogWriter:
         self._lock = threading.RLock()
         self._closed = False
         self._closing = False
-        self._f = open(self.path, "wb")
+        self._f = open(self.path, "wb")  # noqa: SIM115  (held by the writer until close())
         self._w = Writer(self._f, chunk_size=_NEVER, compression=ctype, enable_data_crcs=True)
         self._schemas: dict[str, int] = {}
         self._channels: dict[str, _Channel] = {}
@@ -208,8 +209,8 @@ class LogWriter:
         with self._lock:
             self._check_open()
             self._w.add_attachment(
-                create_time=int(round(create_time_s * 1e9)),
-                log_time=int(round(log_time_s * 1e9)),
+                create_time=round(create_time_s * 1e9),
+                log_time=round(log_time_s * 1e9),
                 name=name,
                 media_type=media_type,
                 data=bytes(data),
@@ -308,12 +309,14 @@ class LogWriter:
                 f"{ch.topic}: unknown field(s) {', '.join(map(repr, unknown))}; "
                 f"fields are {', '.join(ch.codec.names)}"
             )
-        return [t_s] + [fields.get(n, d) for n, d in zip(ch.names, ch.codec.defaults[1:])]
+        return [t_s] + [
+            fields.get(n, d) for n, d in zip(ch.names, ch.codec.defaults[1:], strict=False)
+        ]
 
     @staticmethod
     def _value_error(ch: _Channel, vals: Sequence[Any], e: Exception) -> ValueError:
         bad = []
-        for f, v in zip(ch.codec.fields, vals):
+        for f, v in zip(ch.codec.fields, vals, strict=False):
             try:
                 if f.type == "string":
                     ok = isinstance(v, str)
@@ -377,7 +380,7 @@ class LogWriter:
         recs = np.zeros(count, dtype=ch.dtype)
         recs.view(np.uint8).reshape(count, -1)[:, :4] = np.frombuffer(b"\x00\x01\x00\x00", np.uint8)
         recs["t_s"] = t
-        for nm, f in zip(ch.names, ch.codec.fields[1:]):
+        for nm, f in zip(ch.names, ch.codec.fields[1:], strict=False):
             c = cols.get(nm)
             if c is None:
                 recs[nm] = f.default
@@ -451,7 +454,7 @@ class LogWriter:
         """Messages written so far (including the open chunk)."""
         return self._msg_count + self._n
 
-    def __enter__(self) -> "LogWriter":
+    def __enter__(self) -> LogWriter:
         return self
 
     def __exit__(self, *exc: Any) -> None:

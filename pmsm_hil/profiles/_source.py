@@ -21,7 +21,7 @@ import annotated_types
 import yaml
 from pydantic import BaseModel, ValidationError
 
-__all__ = ["Problem", "ProfileError", "Source", "read_source", "unit_of", "fmt_value", "loc_str"]
+__all__ = ["Problem", "ProfileError", "Source", "fmt_value", "loc_str", "read_source", "unit_of"]
 
 
 # ----------------------------------------------------------------------------------- problems
@@ -230,7 +230,7 @@ def _walk(node: yaml.Node, path: tuple, src: Source) -> None:
                     Problem(
                         src.path,
                         key_line,
-                        loc_str(path + (key,)),
+                        loc_str((*path, key)),
                         None,
                         f"is given twice (first on line {seen[key]})",
                         has_value=False,
@@ -239,14 +239,14 @@ def _walk(node: yaml.Node, path: tuple, src: Source) -> None:
                 continue
             seen[key] = key_line
             if isinstance(val_node, yaml.ScalarNode):
-                src.lines[path + (key,)] = val_node.start_mark.line + 1
+                src.lines[(*path, key)] = val_node.start_mark.line + 1
             else:
-                src.lines[path + (key,)] = key_line
-            _walk(val_node, path + (key,), src)
+                src.lines[(*path, key)] = key_line
+            _walk(val_node, (*path, key), src)
     elif isinstance(node, yaml.SequenceNode):
         for i, item in enumerate(node.value):
-            src.lines[path + (i,)] = item.start_mark.line + 1
-            _walk(item, path + (i,), src)
+            src.lines[(*path, i)] = item.start_mark.line + 1
+            _walk(item, (*path, i), src)
 
 
 def read_source(
@@ -382,7 +382,8 @@ def _resolve(model: type[BaseModel], loc: tuple) -> tuple[type[BaseModel] | None
 
 
 def range_text(info: Any, name: str) -> str:
-    lo = hi = None
+    lo: Any = None
+    hi: Any = None
     lo_open = hi_open = False
     for m in getattr(info, "metadata", ()):
         if isinstance(m, annotated_types.Gt):

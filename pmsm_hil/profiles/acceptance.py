@@ -28,13 +28,13 @@ from ._base import StrictModel
 from ._source import Problem, Source
 
 __all__ = [
-    "Acceptance",
-    "RunAcceptance",
-    "SegmentAcceptance",
-    "IdentBound",
-    "acceptance_problems",
     "ESTIMATORS",
     "PARAMS",
+    "Acceptance",
+    "IdentBound",
+    "RunAcceptance",
+    "SegmentAcceptance",
+    "acceptance_problems",
 ]
 
 ESTIMATORS = ("rls", "adaline", "nlms_adaline")
@@ -99,7 +99,8 @@ def acceptance_problems(src: Source) -> list[Problem]:
     segs = d.get("segments") if isinstance(d.get("segments"), list) else []
     names = [s.get("name") for s in segs if isinstance(s, dict)]
     out: list[Problem] = []
-    items = acc.get("segments") if isinstance(acc.get("segments"), list) else []
+    raw_items = acc.get("segments")
+    items: list = raw_items if isinstance(raw_items, list) else []
     for i, item in enumerate(items):
         if not isinstance(item, dict):
             continue

@@ -154,7 +154,7 @@ def from_points(data: np.ndarray, path: str = "", sha256: str = "") -> FluxMap:
     known = np.zeros((nq, nd), dtype=bool)
     j = np.rint((data[:, 0] - i_d[0]) / (i_d[1] - i_d[0])).astype(int)
     k = np.rint((data[:, 1] - i_q[0]) / (i_q[1] - i_q[0])).astype(int)
-    if known[k, j].any() or len(set(zip(k.tolist(), j.tolist()))) != len(data):
+    if known[k, j].any() or len(set(zip(k.tolist(), j.tolist(), strict=False))) != len(data):
         raise FluxMapError("a grid node is given twice")
     pd[k, j] = data[:, 2]
     pq[k, j] = data[:, 3]

@@ -4,13 +4,17 @@ from __future__ import annotations
 
 import math
 import os
+from typing import TYPE_CHECKING, Any
 
 from pydantic import Field, ValidationError
 
-from ._base import FileModel, default_file, meta_value, num
+from ._base import FileModel, StrictModel, default_file, meta_value, num
 from ._source import Problem, ProfileError, Source, fmt_num, read_source, validation_problems
 
-__all__ = ["Motor", "load_motor", "mtpa_currents", "mtpa_torque_nm"]
+if TYPE_CHECKING:
+    from .fluxmap import FluxMap
+
+__all__ = ["CurrentSensors", "Motor", "load_motor", "mtpa_currents", "mtpa_torque_nm"]
 
 
 def mtpa_currents(i_s_a: float, psi_f_wb: float, l_d_h: float, l_q_h: float) -> tuple[float, float]:
@@ -33,6 +37,20 @@ def mtpa_torque_nm(
     """Electromagnetic torque for current magnitude ``i_s_a`` on the MTPA trajectory."""
     i_d, i_q = mtpa_currents(i_s_a, psi_f_wb, l_d_h, l_q_h)
     return 1.5 * pole_pairs * (psi_f_wb * i_q + (l_d_h - l_q_h) * i_d * i_q)
+
+
+class CurrentSensors(StrictModel):
+    """Current-sensor calibration measured by commissioning (docs/commissioning.md): the firmware
+    subtracts the offset and divides by (1 + gain error) before it uses a sample."""
+
+    i_a_offset_a: float = Field(0.0, ge=-10, le=10, description="phase-a sensor offset, A")
+    i_b_offset_a: float = Field(0.0, ge=-10, le=10, description="phase-b sensor offset, A")
+    i_c_offset_a: float = Field(0.0, ge=-10, le=10, description="phase-c sensor offset, A")
+    i_a_gain_err: float = Field(
+        0.0, ge=-0.2, le=0.2, description="phase-a gain relative to the mean of the three, -1"
+    )
+    i_b_gain_err: float = Field(0.0, ge=-0.2, le=0.2, description="phase-b gain error")
+    i_c_gain_err: float = Field(0.0, ge=-0.2, le=0.2, description="phase-c gain error")
 
 
 class Motor(FileModel):
@@ -73,6 +91,49 @@ class Motor(FileModel):
         description="nominal current band of the dead-time distortion around the "
         "current zero crossing (0: ideal sign), A",
     )
+    enc_offset_e_rad: float = Field(
+        0.0,
+        ge=-7,
+        le=7,
+        description="electrical angle of the rotor's d axis at encoder count 0, rad "
+        "(commissioning measures it; 0: the encoder is aligned)",
+    )
+    current_sensors: CurrentSensors | None = Field(
+        None, description="current-sensor calibration from commissioning (none: raw samples)"
+    )
+    commissioning: dict[str, Any] | None = Field(
+        None,
+        description="what commissioning measured: date, device, and each quantity with its "
+        "spread (written by `pmsm-hil commission`, docs/commissioning.md)",
+    )
+    flux_map: str | None = Field(
+        None,
+        description="the motor's measured flux map (CSV, relative to the motor file; "
+        "docs/rigs.md): the emulator's magnetics when the rig has no saturation effect, and "
+        "the sensorless estimator's inverse incremental inductances and polarity signature",
+    )
+    hybrid_pll_on_rpm: float = Field(
+        150.0,
+        gt=0,
+        le=1e5,
+        description="hybrid angle source: below this speed the ripple PLL carries the angle, r/min",
+    )
+    hybrid_mras_on_rpm: float = Field(
+        250.0,
+        gt=0,
+        le=1e5,
+        description="hybrid angle source: above this speed the MRAS carries it, r/min "
+        "(> hybrid_pll_on_rpm: the band between is the hysteresis)",
+    )
+    hybrid_blend_s: float = Field(
+        0.02, gt=0, le=1, description="hybrid angle source: time of a handover, s"
+    )
+    polarity_pulse_a: float | None = Field(
+        None,
+        gt=0,
+        le=10000,
+        description="d-axis current of the start-up polarity pulses, A (null: half of i_max_a)",
+    )
     source: str = Field("", description="where the numbers come from")
 
     # ------------------------------------------------------------------ derived quantities
@@ -82,6 +143,23 @@ class Motor(FileModel):
     def torque_mtpa_nm(self, i_s_a: float) -> float:
         return mtpa_torque_nm(i_s_a, self.pole_pairs, self.psi_f_wb, self.l_d_h, self.l_q_h)
 
+    def flux_map_path(self) -> str | None:
+        """The motor's flux map path (relative to the motor file's directory), or None."""
+        if not self.flux_map:
+            return None
+        if os.path.isabs(self.flux_map):
+            return self.flux_map
+        return os.path.normpath(os.path.join(os.path.dirname(self.path or "."), self.flux_map))
+
+    def load_flux_map(self) -> FluxMap | None:
+        """The motor's FluxMap (pmsm_hil.profiles.fluxmap), or None."""
+        path = self.flux_map_path()
+        if path is None:
+            return None
+        from .fluxmap import load_flux_map
+
+        return load_flux_map(path)
+
     @property
     def speed_max_rad_s(self) -> float:
         """Mechanical speed limit in rad/s."""
@@ -89,7 +167,12 @@ class Motor(FileModel):
 
     def metadata(self) -> dict[str, str]:
         """Flat string record for the MCAP metadata."""
-        out = {k: meta_value(v) for k, v in self.model_dump().items()}
+        out = {
+            k: meta_value(v)
+            for k, v in self.model_dump().items()
+            if k not in ("commissioning", "current_sensors", "enc_offset_e_rad")
+            or v not in (None, 0.0)
+        }
         out["file"] = self.path.replace("\\", "/").rsplit("/", 1)[-1]
         out["sha256"] = self.sha256
         return out
@@ -117,6 +200,15 @@ def motor_checks(src: Source) -> list[Problem]:
     p, psi, l_d, l_q, t_max = (
         num(d, k) for k in ("pole_pairs", "psi_f_wb", "l_d_h", "l_q_h", "torque_max_nm")
     )
+    pll_on, mras_on = num(d, "hybrid_pll_on_rpm"), num(d, "hybrid_mras_on_rpm")
+    if pll_on is not None and mras_on is not None and mras_on <= pll_on:
+        out.append(
+            src.problem(
+                ("hybrid_mras_on_rpm",),
+                f"must be above hybrid_pll_on_rpm {fmt_num(pll_on)} r/min (the hysteresis band)",
+                mras_on,
+            )
+        )
     if all(x is not None and x > 0 for x in (p, psi, l_d, l_q, i_max, t_max)) and isinstance(
         p, int
     ):
@@ -143,9 +235,20 @@ def _load_motor_source(src: Source) -> tuple[Motor | None, list[Problem]]:
     except ValidationError as e:
         problems += validation_problems(e, src, Motor)
     problems += motor_checks(src)
-    if problems:
+    if problems or motor is None:
         return None, problems
     motor._path, motor._yaml_text = src.path, src.text
+    if motor.flux_map:
+        from .fluxmap import FluxMapError
+
+        try:
+            motor.load_flux_map()
+        except (OSError, FluxMapError) as e:
+            return None, [
+                src.problem(
+                    ("flux_map",), f"names a flux map that cannot be used: {e}", motor.flux_map
+                )
+            ]
     return motor, []
 
 
@@ -154,6 +257,6 @@ def load_motor(path: str | os.PathLike | None = None) -> Motor:
     raises ProfileError."""
     path = default_file("motors/paper-a-ipmsm.yaml") if path is None else os.fspath(path)
     motor, problems = _load_motor_source(read_source(path, what="motor file"))
-    if problems:
+    if motor is None:
         raise ProfileError(problems)
     return motor

@@ -26,19 +26,19 @@ from .motor import Motor, _load_motor_source
 from .rig import Rig, _load_rig_source, plant_problems
 
 __all__ = [
-    "Profile",
-    "Control",
-    "Telemetry",
-    "Link",
-    "Segment",
-    "load_profile",
-    "link_budget",
-    "TS_MIN_S",
-    "TS_MAX_S",
-    "MAX_TOTAL_DURATION_S",
-    "MAX_SEGMENTS",
     "FRAME_OVERHEAD_OCTETS",
+    "MAX_SEGMENTS",
+    "MAX_TOTAL_DURATION_S",
     "PAYLOAD_OCTETS",
+    "TS_MAX_S",
+    "TS_MIN_S",
+    "Control",
+    "Link",
+    "Profile",
+    "Segment",
+    "Telemetry",
+    "link_budget",
+    "load_profile",
 ]
 
 from .sections import (  # noqa: F401  (re-exported)
@@ -111,7 +111,7 @@ class Profile:
 
     def divider(self, rate_hz: float) -> int:
         """Control periods per frame/loop period for ``rate_hz`` (0 for a rate of 0 = off)."""
-        return 0 if rate_hz <= 0 else int(round(self.control_hz / rate_hz))
+        return 0 if rate_hz <= 0 else round(self.control_hz / rate_hz)
 
     @property
     def speed_div(self) -> int:
@@ -223,6 +223,7 @@ def link_budget(
         "params": (tel.params_hz, n_estimators),
         "status": (tel.status_hz, 1),
         "sim_truth": (tel.truth_hz if emulator else 0.0, 1),
+        "telem_est": (tel.est_hz if profile.control.angle_src != "encoder" else 0.0, 1),
     }
     capacity = profile.link.baud / OCTETS_PER_SYMBOL
     streams: dict[str, dict] = {}
@@ -310,7 +311,7 @@ def _profile_checks(src: Source, motor: Motor | None) -> tuple[list[Problem], li
     ts = num(control, "ts_s", defaults_c["ts_s"].default)
     if ts is not None and TS_MIN_S <= ts <= TS_MAX_S:
         ctrl_hz = 1.0 / ts
-        for key in ("fast_hz", "params_hz", "status_hz", "truth_hz"):
+        for key in ("fast_hz", "params_hz", "status_hz", "truth_hz", "est_hz"):
             hz = num(telemetry, key, defaults_t[key].default)
             if hz is not None and hz >= 0:
                 p = _rate_problem(src, ("telemetry", key), hz, ctrl_hz)

@@ -10,32 +10,36 @@ from __future__ import annotations
 
 import math
 import os
-from typing import Iterator
+from collections.abc import Iterator
+from typing import TYPE_CHECKING, Literal
 
 from pydantic import Field, ValidationError
 
 from ._base import FileModel, StrictModel, default_file, meta_value
 from ._source import Problem, ProfileError, Source, read_source, validation_problems
 
+if TYPE_CHECKING:
+    from .fluxmap import FluxMap
+
 __all__ = [
-    "Rig",
-    "Effect",
-    "Effects",
-    "DeadTime",
+    "EFFECT_BITS",
     "AdcNoise",
     "AdcQuantisation",
-    "Encoder",
-    "Friction",
-    "Saturation",
-    "Thermal",
-    "FluxHarmonics",
     "Cogging",
-    "SensorOffset",
-    "SensorGain",
-    "Delay",
     "DcLink",
+    "DeadTime",
+    "Delay",
+    "Effect",
+    "Effects",
+    "Encoder",
+    "FluxHarmonics",
+    "Friction",
     "IronLoss",
-    "EFFECT_BITS",
+    "Rig",
+    "Saturation",
+    "SensorGain",
+    "SensorOffset",
+    "Thermal",
     "load_rig",
     "plant_problems",
 ]
@@ -299,6 +303,17 @@ class Effects(StrictModel):
         return getattr(self, name) if name in type(self).model_fields else default
 
 
+class Wiring(StrictModel):
+    """How the motor is connected to the inverter: a wiring fault that commissioning must catch
+    (docs/commissioning.md). Not a plant effect: the default is the correct wiring."""
+
+    phases: Literal["abc", "acb"] = Field(
+        "abc",
+        description="abc: as labelled; acb: phases b and c swapped between inverter and motor",
+    )
+    motor_connected: bool = Field(True, description="false: the motor cable is not connected")
+
+
 class Rig(FileModel):
     """The emulator's plant departures (issue 5 extends the effects)."""
 
@@ -308,6 +323,7 @@ class Rig(FileModel):
         None, gt=0, le=2000, description="DC-link voltage of this rig, V (null: the motor's v_dc_v)"
     )
     effects: Effects = Field(default_factory=Effects, description="named effects")
+    wiring: Wiring = Field(default_factory=Wiring, description="wiring faults (tests)")
 
     def enabled(self, name: str) -> bool:
         return bool(self.effects[name].enabled)
@@ -334,7 +350,7 @@ class Rig(FileModel):
             return sat.map
         return os.path.normpath(os.path.join(os.path.dirname(self.path or "."), sat.map))
 
-    def flux_map(self):
+    def flux_map(self) -> FluxMap | None:
         """The saturation effect's FluxMap (pmsm_hil.profiles.fluxmap), or None when off."""
         path = self.map_path()
         if path is None:
@@ -400,8 +416,10 @@ def _load_rig_source(src: Source) -> tuple[Rig | None, list[Problem]]:
             ]
         from .fluxmap import FluxMapError, load_flux_map
 
+        map_path = rig.map_path()
+        assert map_path is not None  # saturation is on and names a map
         try:
-            load_flux_map(rig.map_path())
+            load_flux_map(map_path)
         except (OSError, FluxMapError) as e:
             return None, [src.problem(loc, f"names a flux map that cannot be used: {e}", sat.map)]
     return rig, []
@@ -484,6 +502,6 @@ def load_rig(path: str | os.PathLike | None = None) -> Rig:
     raises ProfileError."""
     path = default_file("rigs/default.yaml") if path is None else os.fspath(path)
     rig, problems = _load_rig_source(read_source(path, what="rig file"))
-    if problems:
+    if rig is None:
         raise ProfileError(problems)
     return rig

@@ -22,10 +22,40 @@ MAX_SEGMENTS = (
 # suite checks these against it); each frame adds id, seq, CRC-16 (2), the COBS code octet and
 # the 0x00 delimiter.
 FRAME_OVERHEAD_OCTETS = 6
-PAYLOAD_OCTETS = {"telem_fast": 28, "params": 22, "status": 25, "sim_truth": 44}
+PAYLOAD_OCTETS = {"telem_fast": 28, "params": 22, "status": 25, "sim_truth": 44, "telem_est": 13}
 OCTETS_PER_SYMBOL = 10  # UART 8N1: start + 8 data + stop bits
 
 # ----------------------------------------------------------------------------------- models
+
+
+class PredictorScale(StrictModel):
+    l_d_h: float = Field(1.0, gt=0, le=100, description="factor on the motor file's l_d_h")
+    l_q_h: float = Field(1.0, gt=0, le=100, description="factor on l_q_h")
+    psi_f_wb: float = Field(1.0, ge=0, le=100, description="factor on psi_f_wb")
+    r_s_ohm: float = Field(1.0, ge=0, le=100, description="factor on r_s_ohm")
+
+
+class EstimatorSettings(StrictModel):
+    bw_rad_s: float | None = Field(
+        None, gt=0, le=1e4, description="tracking (adaptation) bandwidth, rad/s (null: 300)"
+    )
+    min_speed_rpm: float | None = Field(
+        None,
+        ge=0,
+        le=1e5,
+        description="below this speed the estimator is not locked (null: 5 % of the motor's "
+        "rated speed for mras)",
+    )
+    lock_timeout_s: float = Field(
+        0.05,
+        ge=0,
+        le=10,
+        description="the lost_lock fault trips after the estimator closing the loop has been "
+        "out of lock this long, s",
+    )
+    theta0_rad: float = Field(
+        0.0, ge=-7, le=7, description="the estimator's initial electrical angle, rad"
+    )
 
 
 class Control(StrictModel):
@@ -34,7 +64,28 @@ class Control(StrictModel):
     current_ref: Literal["mtpa", "id_zero"] = Field(
         "mtpa", description="d-axis current reference rule"
     )
-    current_ctrl: Literal["mpcc"] = Field("mpcc", description="current controller")
+    current_ctrl: Literal["mpcc", "foc"] = Field(
+        "mpcc",
+        description="current controller: mpcc (finite-control-set, paper A) or foc (dq PI "
+        "loops with SVPWM, paper B; docs/sensorless.md)",
+    )
+    mpcc_candidates: Literal["all", "adjacent"] = Field(
+        "all",
+        description="MPCC candidate set: all 8 switching states, or paper A Table 1's three "
+        "single-leg flips of the applied state (two adjacent active vectors and a zero vector)",
+    )
+    foc_bw_rad_s: float | None = Field(
+        None, gt=0, le=1e5, description="FOC current-loop bandwidth, rad/s (null: 2 pi / (20 ts_s))"
+    )
+    angle_src: Literal["encoder", "mras", "ripple_pll", "hybrid"] = Field(
+        "encoder",
+        description="what gives the control its angle and speed: the encoder, or a sensorless "
+        "estimator (docs/sensorless.md); the encoder stays in the log as truth",
+    )
+    estimator: EstimatorSettings = Field(
+        default_factory=EstimatorSettings,
+        description="settings of the angle estimator (control.angle_src other than encoder)",
+    )
     speed_kp_a_per_rad_s: float | None = Field(
         None,
         gt=0,
@@ -71,8 +122,8 @@ class Control(StrictModel):
         description="what feeds the MPCC predictor: the motor file (times predictor_scale) "
         "or an estimator once it has converged",
     )
-    predictor_scale: "PredictorScale" = Field(
-        default_factory=lambda: PredictorScale(),
+    predictor_scale: PredictorScale = Field(
+        default_factory=PredictorScale,
         description="mismatch factors on the motor file's values in the predictor",
     )
     id_window_s: float = Field(
@@ -81,13 +132,6 @@ class Control(StrictModel):
         le=0.1,
         description="estimator update period: window over which u, i, w are averaged, s",
     )
-
-
-class PredictorScale(StrictModel):
-    l_d_h: float = Field(1.0, gt=0, le=100, description="factor on the motor file's l_d_h")
-    l_q_h: float = Field(1.0, gt=0, le=100, description="factor on l_q_h")
-    psi_f_wb: float = Field(1.0, ge=0, le=100, description="factor on psi_f_wb")
-    r_s_ohm: float = Field(1.0, ge=0, le=100, description="factor on r_s_ohm")
 
 
 class PlantStep(StrictModel):
@@ -108,6 +152,13 @@ class Telemetry(StrictModel):
     truth_hz: float = Field(
         100.0, ge=0, le=50_000, description="sim_truth frame rate (emulator), Hz (0: off)"
     )
+    est_hz: float = Field(
+        250.0,
+        ge=0,
+        le=50_000,
+        description="telem_est frame rate, Hz (0: off; sent only when control.angle_src is an "
+        "estimator)",
+    )
 
 
 Control.model_rebuild()
@@ -122,6 +173,7 @@ class CanLinkSettings(StrictModel):
     params_hz: float | None = Field(None, ge=0, le=50_000, description="params rate on CAN, Hz")
     status_hz: float | None = Field(None, gt=0, le=50_000, description="status rate on CAN, Hz")
     truth_hz: float | None = Field(None, ge=0, le=50_000, description="sim_truth rate on CAN, Hz")
+    est_hz: float | None = Field(None, ge=0, le=50_000, description="telem_est rate on CAN, Hz")
 
 
 class Link(StrictModel):
@@ -145,10 +197,11 @@ class Segment(StrictModel):
         description="the online estimators update in this segment (false holds "
         "them, e.g. while spinning up)",
     )
-    kind: Literal["run", "identify_r"] = Field(
+    kind: Literal["run", "identify_r", "commission"] = Field(
         "run",
         description="run: speed/load as given; identify_r: R by d-axis current injection at "
-        "standstill (speed_rpm must be 0)",
+        "standstill (speed_rpm must be 0); commission: the firmware's commissioning sequence "
+        "(docs/commissioning.md; `pmsm-hil commission`), the duration its time limit",
     )
     inject_a: float = Field(
         0.0,
@@ -162,6 +215,11 @@ class Segment(StrictModel):
     )
     plant: PlantStep | None = Field(
         None, description="emulator only: step the plant's true R and psi_f at the segment start"
+    )
+    angle_encoder: bool = Field(
+        False,
+        description="close the loop on the encoder in this segment while the sensorless "
+        "estimator runs beside it (e.g. a start-up below the estimator's speed range)",
     )
 
     _index: int = PrivateAttr(default=0)
@@ -200,8 +258,8 @@ class Segment(StrictModel):
 
     @property
     def flags(self) -> int:
-        """profile_segment.flags on the wire: bit0 = capture."""
-        return 1 if self.capture else 0
+        """profile_segment.flags on the wire: bit0 = capture, bit2 = angle_encoder."""
+        return (1 if self.capture else 0) | (4 if self.angle_encoder else 0)
 
     @property
     def label(self) -> str:

@@ -1,10 +1,12 @@
 """The shipped profiles, motor, rig and flux-map files, and how a bare name finds them.
 
 The files live in the repository's `profiles/` folder, which is installed as the package data of
-`pmsm_hil.shipped` (setup.py), so an installed pmsm-hil finds them from any directory:
+`pmsm_hil.shipped` (setup.py), so an installed pmsm-hil finds them from any directory; the
+repository's `sweeps/` folder likewise, as `pmsm_hil.shipped.sweeps`:
 
     resolve("paper-a", "profile")        -> .../shipped/paper-a.yaml
     resolve("lab-typical", "rig")        -> .../shipped/rigs/lab-typical.yaml
+    resolve("tolerance", "sweep")        -> .../shipped/sweeps/tolerance.yaml
     resolve("my/own.yaml", "profile")    -> my/own.yaml   (a path that exists always wins)
 """
 
@@ -22,16 +24,34 @@ KINDS = {
     "motor": ("motors", ".yaml"),
     "rig": ("rigs", ".yaml"),
     "map": ("maps", ".csv"),
+    "sweep": ("", ".yaml"),  # in the sweeps root (sweeps_root), not the profiles'
 }
+
+
+def _package_dir(package: str) -> Path | None:
+    try:
+        spec = importlib.util.find_spec(package)
+    except ImportError:
+        return None
+    for loc in (spec.submodule_search_locations or []) if spec else []:
+        if os.path.isdir(loc):
+            return Path(loc)
+    return None
 
 
 def shipped_root() -> Path:
     """The folder of the shipped files (installed package data, or the source tree's profiles/)."""
-    spec = importlib.util.find_spec("pmsm_hil.shipped")
-    for loc in (spec.submodule_search_locations or []) if spec else []:
-        if os.path.isdir(loc):
-            return Path(loc)
-    return Path(__file__).resolve().parents[2] / "profiles"
+    return _package_dir("pmsm_hil.shipped") or Path(__file__).resolve().parents[2] / "profiles"
+
+
+def sweeps_root() -> Path:
+    """The folder of the shipped sweep files (installed package data, or the source tree's
+    sweeps/)."""
+    return _package_dir("pmsm_hil.shipped.sweeps") or Path(__file__).resolve().parents[2] / "sweeps"
+
+
+def _root(kind: str) -> Path:
+    return sweeps_root() if kind == "sweep" else shipped_root()
 
 
 def shipped_file(rel: str) -> str:
@@ -42,7 +62,7 @@ def shipped_file(rel: str) -> str:
 def shipped(kind: str) -> list[Path]:
     """The shipped files of one kind, sorted by name."""
     sub, suffix = KINDS[kind]
-    folder = shipped_root() / sub
+    folder = _root(kind) / sub
     return sorted(p for p in folder.glob(f"*{suffix}") if p.is_file())
 
 
@@ -58,7 +78,7 @@ def resolve(name: str | os.PathLike, kind: str) -> str:
     sub, suffix = KINDS[kind]
     if os.sep not in text and "/" not in text:
         stem = text[: -len(suffix)] if text.endswith(suffix) else text
-        candidate = shipped_root() / sub / f"{stem}{suffix}"
+        candidate = _root(kind) / sub / f"{stem}{suffix}"
         if candidate.is_file():
             return str(candidate)
         names = ", ".join(p.stem for p in shipped(kind))

@@ -11,9 +11,10 @@ over any python-can bus, so the session, runner, live view and recorder work unc
 
 from __future__ import annotations
 
+import contextlib
 import time
 from binascii import crc_hqx
-from typing import Iterable
+from collections.abc import Iterable
 
 from pmsm_hil.errors import TransportError
 from pmsm_hil.protocol import can_generated as cg
@@ -277,10 +278,8 @@ class CanLink:
         return self.decoder.feed(frames) if frames else []
 
     def close(self) -> None:
-        try:
+        with contextlib.suppress(Exception):
             self.bus.shutdown()
-        except Exception:
-            pass
         if self._on_close is not None:
             self._on_close()
             self._on_close = None

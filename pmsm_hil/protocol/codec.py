@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import math
 from binascii import crc_hqx
-from typing import Any, Callable, Iterable, NamedTuple
+from collections.abc import Callable, Iterable
+from typing import Any, NamedTuple
 
 from cobs.cobs import DecodeError as _CobsDecodeError
 from cobs.cobs import decode as _cobs_decode
@@ -49,12 +50,14 @@ def spec_of(name_or_id: str | int) -> MessageSpec:
 
 
 def _quantiser(scale: float, wire_type: str) -> Callable[[Any], int]:
-    _, _, lo, hi = WIRE_TYPES[wire_type]
+    _, _, lo_opt, hi_opt = WIRE_TYPES[wire_type]
+    assert lo_opt is not None and hi_opt is not None  # integer wire types have limits
+    lo, hi = lo_opt, hi_opt
     inv = 1.0 / scale  # multiply by the reciprocal, as the firmware does
 
     def quantise(value: Any) -> int:
         x = float(value) * inv
-        if x != x:
+        if math.isnan(x):
             return 0
         if x >= hi:
             return hi
@@ -254,7 +257,7 @@ class FrameDecoder:
             tail, self._skipping = b"", True
         self._tail = tail
 
-        out = []
+        out: list[tuple[int, int, bytes]] = []
         append, lengths = out.append, _LENGTHS
         next_seq, gaps = self._next_seq, 0
         for chunk in chunks:
@@ -287,7 +290,7 @@ class FrameDecoder:
 
     def feed(self, data: bytes) -> list[Frame]:
         """Octets in, decoded frames out (known ids with the right payload length only)."""
-        frames = []
+        frames: list[Frame] = []
         append = frames.append
         decoders = _DECODERS
         for msg_id, seq, payload in self.feed_raw(data):

@@ -6,7 +6,7 @@ import struct
 from typing import NamedTuple
 
 PROTOCOL_VERSION = 2
-SCHEMA_HASH = 0xA20B0D51
+SCHEMA_HASH = 0xF1583257
 MAX_PAYLOAD = 111  # octets
 
 # wire type: (struct code, octets, min, max); min/max are None for f32
@@ -63,9 +63,17 @@ ENUMS = {
     },
     'current_ctrl': {
         'mpcc': 0,
+        'foc': 1,
     },
     'angle_src': {
         'encoder': 0,
+        'mras': 1,
+        'ripple_pll': 2,
+        'hybrid': 3,
+    },
+    'mpcc_candidates': {
+        'all': 0,
+        'adjacent': 1,
     },
     'board': {
         'emulator': 0,
@@ -77,10 +85,16 @@ ENUMS = {
         'fault': 2,
         'heartbeat_lost': 3,
         'profile_end': 4,
+        'commission_failed': 5,
     },
     'segment_flag': {
         'capture': 1,
         'hold_est': 2,
+        'angle_encoder': 4,
+    },
+    'est_flag': {
+        'locked': 1,
+        'in_loop': 2,
     },
     'params_flag': {
         'excited': 1,
@@ -96,6 +110,7 @@ ENUMS = {
     'segment_kind': {
         'run': 0,
         'identify_r': 1,
+        'commission': 2,
     },
     'event': {
         'segment_start': 1,
@@ -107,6 +122,30 @@ ENUMS = {
         'stopped': 7,
         'started': 8,
         'r_identified': 9,
+        'commission_step': 10,
+        'commission_failed': 11,
+        'polarity': 12,
+        'polarity_asym': 13,
+    },
+    'commission_step': {
+        'offsets': 0,
+        'v_dc': 1,
+        'encoder': 2,
+        'inverter': 3,
+        'r_s': 4,
+        'l_dq': 5,
+        'psi_f': 6,
+    },
+    'commission_fail': {
+        'implausible': 1,
+        'not_repeatable': 2,
+        'no_current': 3,
+        'wrong_direction': 4,
+        'pole_pairs': 5,
+        'rotor_stuck': 6,
+        'over_current': 7,
+        'over_speed': 8,
+        'v_dc': 9,
     },
     'fault': {
         'over_current': 1,
@@ -114,6 +153,7 @@ ENUMS = {
         'dc_under_voltage': 4,
         'dc_over_voltage': 8,
         'heartbeat': 16,
+        'lost_lock': 32,
     },
 }
 
@@ -135,7 +175,7 @@ MESSAGES = (
         FieldSpec('v_dc_min_v', 'f32', 1, None, 38),
         FieldSpec('v_dc_max_v', 'f32', 1, None, 42),
     ), struct.Struct('<Hfffffffffff')),
-    MessageSpec(0x03, 'config_ctrl', 'h2d', False, 77, (
+    MessageSpec(0x03, 'config_ctrl', 'h2d', False, 100, (
         FieldSpec('ts_s', 'f32', 1, None, 0),
         FieldSpec('rho', 'f32', 1, None, 4),
         FieldSpec('speed_kp_a_per_rad_s', 'f32', 1, None, 8),
@@ -162,7 +202,14 @@ MESSAGES = (
         FieldSpec('pred_scale_l_q', 'f32', 1, None, 65),
         FieldSpec('pred_scale_psi_f', 'f32', 1, None, 69),
         FieldSpec('pred_scale_r_s', 'f32', 1, None, 73),
-    ), struct.Struct('<ffffHBBBfHHHIfffffHBBHffff')),
+        FieldSpec('mpcc_candidates', 'u8', 1, None, 77),
+        FieldSpec('foc_bw_rad_s', 'f32', 1, None, 78),
+        FieldSpec('est_bw_rad_s', 'f32', 1, None, 82),
+        FieldSpec('est_min_speed_rpm', 'f32', 1, None, 86),
+        FieldSpec('est_lock_timeout_s', 'f32', 1, None, 90),
+        FieldSpec('est_theta0_rad', 'f32', 1, None, 94),
+        FieldSpec('est_div', 'u16', 1, None, 98),
+    ), struct.Struct('<ffffHBBBfHHHIfffffHBBHffffBfffffH')),
     MessageSpec(0x04, 'profile_clear', 'h2d', False, 2, (
         FieldSpec('n_segments', 'u16', 1, None, 0),
     ), struct.Struct('<H')),
@@ -189,6 +236,19 @@ MESSAGES = (
     MessageSpec(0x0A, 'capture_read', 'h2d', False, 2, (
         FieldSpec('offset', 'u16', 1, None, 0),
     ), struct.Struct('<H')),
+    MessageSpec(0x10, 'config_calib', 'h2d', False, 24, (
+        FieldSpec('i_a_offset_a', 'f32', 1, None, 0),
+        FieldSpec('i_b_offset_a', 'f32', 1, None, 4),
+        FieldSpec('i_c_offset_a', 'f32', 1, None, 8),
+        FieldSpec('i_a_gain_err', 'f32', 1, None, 12),
+        FieldSpec('i_b_gain_err', 'f32', 1, None, 16),
+        FieldSpec('i_c_gain_err', 'f32', 1, None, 20),
+    ), struct.Struct('<ffffff')),
+    MessageSpec(0x11, 'config_commission', 'h2d', False, 10, (
+        FieldSpec('steps', 'u16', 1, None, 0),
+        FieldSpec('i_test_a', 'f32', 1, None, 2),
+        FieldSpec('spin_rpm', 'f32', 1, None, 6),
+    ), struct.Struct('<Hff')),
     MessageSpec(0x20, 'sim_plant', 'h2d', True, 10, (
         FieldSpec('index', 'u16', 1, None, 0),
         FieldSpec('r_s_scale', 'f32', 1, None, 2),
@@ -262,6 +322,14 @@ MESSAGES = (
         FieldSpec('theta_e_rad', 'u16', 8, 9.587379924285257e-05, 79),
         FieldSpec('omega_e_rad_s', 'i16', 8, 0.1, 95),
     ), struct.Struct('<HBI8h8h8h8B8h8H8h')),
+    MessageSpec(0x96, 'commission_result', 'd2h', False, 46, (
+        FieldSpec('tick', 'u32', 1, None, 0),
+        FieldSpec('step', 'u8', 1, None, 4),
+        FieldSpec('status', 'u8', 1, None, 5),
+        FieldSpec('value', 'f32', 4, None, 6),
+        FieldSpec('spread', 'f32', 4, None, 22),
+        FieldSpec('truth_ref', 'f32', 2, None, 38),
+    ), struct.Struct('<IBB4f4f2f')),
     MessageSpec(0xA0, 'sim_truth', 'd2h', True, 44, (
         FieldSpec('tick', 'u32', 1, None, 0),
         FieldSpec('l_d_h', 'f32', 1, None, 4),
@@ -275,6 +343,40 @@ MESSAGES = (
         FieldSpec('temp_magnet_c', 'f32', 1, None, 36),
         FieldSpec('effects', 'u32', 1, None, 40),
     ), struct.Struct('<IfffffffffI')),
+    MessageSpec(0x95, 'telem_est', 'd2h', False, 13, (
+        FieldSpec('tick', 'u32', 1, None, 0),
+        FieldSpec('estimator', 'u8', 1, None, 4),
+        FieldSpec('flags', 'u8', 1, None, 5),
+        FieldSpec('confidence', 'u8', 1, 0.004, 6),
+        FieldSpec('theta_err_rad', 'i16', 1, 0.0001, 7),
+        FieldSpec('speed_err_rpm', 'i16', 1, 0.1, 9),
+        FieldSpec('err_signal', 'i16', 1, 0.0001, 11),
+    ), struct.Struct('<IBBBhhh')),
+    MessageSpec(0x0B, 'config_sensorless', 'h2d', False, 60, (
+        FieldSpec('pol_i_pulse_a', 'f32', 1, None, 0),
+        FieldSpec('pol_asym_expected', 'f32', 1, None, 4),
+        FieldSpec('pol_asym_min', 'f32', 1, None, 8),
+        FieldSpec('hyb_pll_on_rpm', 'f32', 1, None, 12),
+        FieldSpec('hyb_mras_on_rpm', 'f32', 1, None, 16),
+        FieldSpec('hyb_blend_s', 'f32', 1, None, 20),
+        FieldSpec('lock_disagree_rad', 'f32', 1, None, 24),
+        FieldSpec('lock_disagree_s', 'f32', 1, None, 28),
+        FieldSpec('lock_conf_min', 'f32', 1, None, 32),
+        FieldSpec('lock_lost_s', 'f32', 1, None, 36),
+        FieldSpec('gam_nd', 'u16', 1, None, 40),
+        FieldSpec('gam_nq', 'u16', 1, None, 42),
+        FieldSpec('gam_id0_a', 'f32', 1, None, 44),
+        FieldSpec('gam_iq0_a', 'f32', 1, None, 48),
+        FieldSpec('gam_did_a', 'f32', 1, None, 52),
+        FieldSpec('gam_diq_a', 'f32', 1, None, 56),
+    ), struct.Struct('<ffffffffffHHffff')),
+    MessageSpec(0x0C, 'gamma_node', 'h2d', False, 18, (
+        FieldSpec('index', 'u16', 1, None, 0),
+        FieldSpec('g_dd', 'f32', 1, None, 2),
+        FieldSpec('g_qq', 'f32', 1, None, 6),
+        FieldSpec('g_dq', 'f32', 1, None, 10),
+        FieldSpec('g_qd', 'f32', 1, None, 14),
+    ), struct.Struct('<Hffff')),
 )
 
 BY_ID = {m.id: m for m in MESSAGES}
@@ -290,6 +392,8 @@ ID_STOP = 0x07
 ID_ABORT = 0x08
 ID_HEARTBEAT = 0x09
 ID_CAPTURE_READ = 0x0A
+ID_CONFIG_CALIB = 0x10
+ID_CONFIG_COMMISSION = 0x11
 ID_SIM_PLANT = 0x20
 ID_ACK = 0x80
 ID_IDENTIFY = 0x81
@@ -298,4 +402,8 @@ ID_PARAMS = 0x91
 ID_STATUS = 0x92
 ID_EVENT = 0x93
 ID_CAPTURE_CHUNK = 0x94
+ID_COMMISSION_RESULT = 0x96
 ID_SIM_TRUTH = 0xA0
+ID_TELEM_EST = 0x95
+ID_CONFIG_SENSORLESS = 0x0B
+ID_GAMMA_NODE = 0x0C

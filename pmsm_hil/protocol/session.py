@@ -6,10 +6,15 @@ from __future__ import annotations
 import time
 from collections import deque
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 from pmsm_hil.errors import DeviceError, TransportError
 from pmsm_hil.protocol import generated as gen
 from pmsm_hil.protocol.link import as_link
+
+if TYPE_CHECKING:
+    from pmsm_hil.protocol.can_link import CanLink
+    from pmsm_hil.protocol.link import ByteTransport, SerialLink
 
 ACK_TEXT = {v: k for k, v in gen.ENUMS["ack_status"].items()}
 BOARD_NAMES = {v: k for k, v in gen.ENUMS["board"].items()}
@@ -26,7 +31,7 @@ class Identity:
 
 
 class Session:
-    def __init__(self, transport):
+    def __init__(self, transport: ByteTransport | SerialLink | CanLink):
         """`transport`: a link (serial or CAN), or a byte transport that gets the serial framing."""
         self.link = as_link(transport)
         self.t = self.link  # .name for messages
@@ -38,7 +43,7 @@ class Session:
         self.capture_rejected = 0  # capture chunks refused as corrupt
 
     # ------------------------------------------------------------------ sending
-    def send(self, name: str, **fields) -> int:
+    def send(self, name: str, **fields: Any) -> int:
         seq = self._seq
         self._seq = (self._seq + 1) & 0xFF
         self.link.send(name, seq, **fields)
@@ -68,13 +73,13 @@ class Session:
         self.inbox.extend(held)
         return found
 
-    def request(self, name: str, timeout_s: float = 0.5, retries: int = 3, **fields) -> None:
+    def request(self, name: str, timeout_s: float = 0.5, retries: int = 3, **fields: Any) -> None:
         """Send a command and wait for its ack; retried on silence, DeviceError on refusal."""
         msg_id = gen.BY_NAME[name].id
         for _attempt in range(retries):
             seq = self.send(name, **fields)
             fr = self._wait_for(
-                lambda f: (
+                lambda f, seq=seq: (
                     f.name == "ack" and f.fields["cmd_id"] == msg_id and f.fields["cmd_seq"] == seq
                 ),
                 timeout_s,
@@ -161,4 +166,4 @@ class Session:
         return chunks
 
 
-__all__ = ["Session", "DeviceError", "Identity", "TransportError"]
+__all__ = ["DeviceError", "Identity", "Session", "TransportError"]

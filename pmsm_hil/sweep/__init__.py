@@ -13,17 +13,17 @@ from .results import Journal, read_table, write_table
 from .spec import METRICS, Sweep, load_sweep
 
 __all__ = [
+    "METRICS",
+    "Journal",
+    "Run",
+    "Sweep",
+    "SweepOutcome",
+    "execute_run",
     "load_sweep",
     "plan_runs",
-    "run_sweep",
-    "execute_run",
-    "run_in_process",
-    "Sweep",
-    "Run",
-    "SweepOutcome",
-    "Journal",
     "read_table",
-    "write_table",
+    "run_in_process",
+    "run_sweep",
     "write_inputs",
-    "METRICS",
+    "write_table",
 ]

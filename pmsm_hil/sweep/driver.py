@@ -10,9 +10,10 @@ from __future__ import annotations
 import json
 import os
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 from .execute import execute_run
 from .plan import FILES, Run, plan_runs
@@ -20,12 +21,12 @@ from .results import Journal, write_table
 from .spec import Sweep
 
 __all__ = [
-    "SweepOutcome",
-    "run_sweep",
-    "run_runs",
-    "write_inputs",
     "ALLOWED_FAILURES",
     "SCHEDULER_CONFIG",
+    "SweepOutcome",
+    "run_runs",
+    "run_sweep",
+    "write_inputs",
 ]
 
 ALLOWED_FAILURES = 1  # a task is re-run once after its worker died, then reported failed
@@ -192,7 +193,7 @@ def run_runs(
                     run = by_key[fut.key[len("pmsm-run-") :]]
                     try:
                         row = fut.result()
-                    except Exception as e:  # noqa: BLE001 - the worker died twice, or was lost
+                    except Exception as e:
                         row = {
                             "key": run.key,
                             "status": "failed",
@@ -229,7 +230,10 @@ def run_runs(
 class _Bar:
     """rich progress: runs done (and skipped), failed, runs per minute, time left."""
 
-    def __init__(self, total: int, skipped: int, enabled: bool):
+    def __init__(
+        self, total: int, skipped: int, enabled: bool, label: str = "sweep", unit: str = "runs"
+    ):
+        self.unit = unit
         self.enabled = enabled
         self.total, self.done, self.failed = total, skipped, 0
         self.new = 0
@@ -243,7 +247,7 @@ class _Bar:
             )
 
             self.progress = Progress(
-                TextColumn("sweep"),
+                TextColumn(label),
                 BarColumn(),
                 MofNCompleteColumn(),
                 TextColumn("{task.fields[failed]} failed"),
@@ -271,5 +275,8 @@ class _Bar:
         if self.enabled:
             rate = 60.0 * self.new / elapsed_s if elapsed_s > 0 else 0.0
             self.progress.update(
-                self.task, completed=self.done, failed=self.failed, rate=f"{rate:.1f} runs/min"
+                self.task,
+                completed=self.done,
+                failed=self.failed,
+                rate=f"{rate:.1f} {self.unit}/min",
             )

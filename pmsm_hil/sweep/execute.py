@@ -12,12 +12,16 @@ import shutil
 import tempfile
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from pmsm_hil.profiles import Profile
+    from pmsm_hil.runner import RunResult
 
 __all__ = ["execute_run", "run_in_process"]
 
 
-def run_in_process(profile, log_path: str | os.PathLike, seed: int):
+def run_in_process(profile: Profile, log_path: str | os.PathLike, seed: int) -> RunResult:
     """Run ``profile`` on the in-process emulator with ``seed``, logging to ``log_path``: the same
     device data as `pmsm-hil run PROFILE --seed SEED` on the emulator."""
     from pmsm_hil.emulator.settings import emulator_settings
@@ -67,7 +71,7 @@ def execute_run(task: dict[str, Any]) -> dict[str, Any]:
             row["log_path"] = str(dest)
         row["status"] = "ok" if not result.error else "failed"
         return row
-    except Exception as e:  # noqa: BLE001 - a run's own failure is a result of the sweep
+    except Exception as e:
         row["error"] = f"{type(e).__name__}: {e}"
         return row
     finally:

@@ -13,14 +13,19 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-__all__ = ["run_metrics", "identification_window"]
+if TYPE_CHECKING:
+    from pmsm_hil.analysis.identification import IdentTable
+    from pmsm_hil.analysis.summary import RunSummary
+    from pmsm_hil.profiles import Profile
+
+__all__ = ["identification_window", "run_metrics"]
 
 NAN = float("nan")
 
 
-def identification_window(profile) -> tuple[float, float]:
+def identification_window(profile: Profile) -> tuple[float, float]:
     """From 0 to the start of the first segment that steps the plant (the drift test), else the end."""
     steps = [s for s in profile.segments if getattr(s, "plant", None) is not None]
     return 0.0, (steps[0].t_start_s if steps else profile.total_duration_s)
@@ -35,7 +40,7 @@ def _max_abs(xs: list[float]) -> float:
     return max(xs) if xs else NAN
 
 
-def summary_metrics(summary, metrics: list[str]) -> dict[str, Any]:
+def summary_metrics(summary: RunSummary, metrics: list[str]) -> dict[str, Any]:
     out: dict[str, Any] = {}
     plateaus = [s for s in summary.segments if s.setpoint_rpm != 0]
     if "speed_error" in metrics:
@@ -52,7 +57,7 @@ def summary_metrics(summary, metrics: list[str]) -> dict[str, Any]:
         steps = [s for s in summary.segments if s.recovery_s is not None]
         for s in steps:
             out[f"seg{s.index}_recovery_s"] = s.recovery_s
-        out["recovery_max_s"] = _max_abs([s.recovery_s for s in steps])
+        out["recovery_max_s"] = _max_abs([s.recovery_s for s in steps if s.recovery_s is not None])
     if "faults" in metrics:
         out["faults"] = len(summary.faults)
     if "completeness" in metrics:
@@ -60,7 +65,7 @@ def summary_metrics(summary, metrics: list[str]) -> dict[str, Any]:
     return out
 
 
-def ident_metrics(table) -> dict[str, Any]:
+def ident_metrics(table: IdentTable) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for c in table.cells:
         out[f"id_{c.estimator}_{c.param}_error_rel"] = float(c.error_rel)
@@ -68,15 +73,17 @@ def ident_metrics(table) -> dict[str, Any]:
     return out
 
 
-def run_metrics(log_path: str | Path, profile, metrics: list[str]) -> dict[str, Any]:
+def run_metrics(log_path: str | Path, profile: Profile, metrics: list[str]) -> dict[str, Any]:
     """The chosen metrics of the run logged at ``log_path`` (of ``profile``) and, when the profile
     has acceptance criteria, ``acceptance_failed`` (the number of checks failed) and
     ``acceptance_checks`` (every check, as JSON)."""
     import json
 
+    from pmsm_hil.analysis.reading import read_for_analysis
     from pmsm_hil.analysis.summary import summarize_log
 
-    summary = summarize_log(Path(log_path))
+    log = read_for_analysis(log_path)
+    summary = summarize_log(Path(log_path), log)
     out = summary_metrics(summary, metrics)
     acc = getattr(profile, "acceptance", None)
     wants_ident = acc is not None and acc.run is not None and acc.run.identification
@@ -85,7 +92,7 @@ def run_metrics(log_path: str | Path, profile, metrics: list[str]) -> dict[str, 
         from pmsm_hil.analysis.identification import identification_table
 
         t0, t1 = identification_window(profile)
-        table = identification_table(Path(log_path), t0, t1)
+        table = identification_table(Path(log_path), t0, t1, log=log)
         if "identification" in metrics:
             out.update(ident_metrics(table))
     if acc is not None:

@@ -26,7 +26,7 @@ from pmsm_hil.profiles._source import Problem, read_source, resolve_ref
 
 from .spec import Axis, Sweep
 
-__all__ = ["Run", "plan_runs", "profile_run", "axis_values", "materialise"]
+__all__ = ["Run", "axis_values", "materialise", "plan_runs", "profile_run"]
 
 FILES = ("profile.yaml", "motor.yaml", "rig.yaml")
 _PART = re.compile(r"([a-z_][a-z0-9_]*)(?:\[(\d+)\])?")
@@ -82,7 +82,7 @@ def _base_value(obj: Any, parts: list[str | int]) -> Any:
 
 def _set(data: dict, parts: list[str | int], value: Any) -> None:
     obj: Any = data
-    for p, nxt in zip(parts, parts[1:]):
+    for p, nxt in itertools.pairwise(parts):
         if isinstance(p, int):
             obj = obj[p]
         else:
@@ -140,7 +140,7 @@ def _check_axes(sweep: Sweep, base: _Base) -> None:
         if ax.field == "seed":
             continue
         parts = _parts(ax.field)
-        root, rest = parts[0], parts[1:]
+        root, rest = str(parts[0]), parts[1:]
         try:
             value = _base_value(base.objects[root], rest)
         except KeyError as e:
@@ -194,7 +194,7 @@ def materialise(
             seed = int(v)
             continue
         parts = _parts(ax.field)
-        root, rest = parts[0], parts[1:]
+        root, rest = str(parts[0]), parts[1:]
         _set(data[root], rest, _concrete(v, _base_value(base.objects[root], rest), ax.relative))
     texts = {
         f"{k}.yaml": yaml.safe_dump(data[k], sort_keys=False, width=1_000_000)
@@ -221,7 +221,7 @@ def plan_runs(sweep: Sweep) -> list[Run]:
         drawn = {a.field: axis_values(a, rng)[0] for a in rand}
         for combo in combos:
             by_field = dict(drawn)
-            by_field.update({a.field: v for a, v in zip(grid, combo)})
+            by_field.update({a.field: v for a, v in zip(grid, combo, strict=False)})
             texts, seed = materialise(base, sweep.axes, by_field, sweep.spec.seed)
             values = {a.name: by_field[a.field] for a in sweep.axes}
             runs.append(

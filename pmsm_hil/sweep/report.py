@@ -13,7 +13,7 @@ from typing import Any
 
 from .results import FIRST_COLUMNS, LAST_COLUMNS, read_table
 
-__all__ = ["ReportError", "write_report", "metric_columns", "passed"]
+__all__ = ["ReportError", "metric_columns", "passed", "write_report"]
 
 
 class ReportError(Exception):
@@ -109,7 +109,7 @@ def write_report(out: Path) -> list[Path]:
                 squeeze=False,
                 layout="constrained",
             )
-            for ax, a in zip(axs[0], num_axes):
+            for ax, a in zip(axs[0], num_axes, strict=False):
                 good = [r for r in ok if passed(r)]
                 bad = [r for r in ok if not passed(r)]
                 ax.plot([r[a] for r in good], [float(r[c]) for r in good], "o", ms=4, label="pass")

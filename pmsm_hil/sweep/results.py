@@ -10,18 +10,19 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any
 
-__all__ = ["Journal", "write_table", "read_table", "FIRST_COLUMNS", "LAST_COLUMNS"]
+__all__ = ["FIRST_COLUMNS", "LAST_COLUMNS", "Journal", "read_table", "write_table"]
 
 FIRST_COLUMNS = ("index", "key", "status", "seed")
 LAST_COLUMNS = ("state", "stop_reason", "log_path", "error", "acceptance_checks", "wall_s")
 
 
 class Journal:
-    def __init__(self, out: Path):
-        self.path = Path(out) / "results.jsonl"
+    def __init__(self, out: Path, filename: str = "results.jsonl"):
+        self.path = Path(out) / filename
         self.rows: dict[str, dict[str, Any]] = {}
         if self.path.exists():
             with open(self.path, encoding="utf-8") as f:

@@ -34,7 +34,7 @@ from pmsm_hil.profiles._source import (
     validation_problems,
 )
 
-__all__ = ["Axis", "SweepFile", "Sweep", "load_sweep", "METRICS", "FIELD_RE"]
+__all__ = ["FIELD_RE", "METRICS", "Axis", "Sweep", "SweepFile", "load_sweep"]
 
 METRICS = ("speed_error", "ripple", "recovery", "faults", "completeness", "identification")
 # profile.FIELD.PATH / motor.FIELD / rig.FIELD.PATH (list items as [i]) or seed
@@ -191,7 +191,7 @@ def load_sweep(path: str | os.PathLike) -> Sweep:
         problems += validation_problems(e, src, SweepFile)
     if spec is None:
         raise ProfileError(problems)
-    resolved = {}
+    resolved: dict[str, str | None] = {}
     for key, kind in (("profile", "profile"), ("motor", "motor"), ("rig", "rig")):
         value = getattr(spec, key)
         resolved[key] = None
@@ -243,4 +243,6 @@ def load_sweep(path: str | os.PathLike) -> Sweep:
         problems.append(src.problem(("draws",), "is given but no axis is random", spec.draws))
     if problems:
         raise ProfileError(problems)
-    return Sweep(spec, path, src, resolved["profile"], resolved["motor"], resolved["rig"])
+    profile_path = resolved["profile"]
+    assert profile_path is not None  # the profile is required and was resolved, or a problem
+    return Sweep(spec, path, src, profile_path, resolved["motor"], resolved["rig"])

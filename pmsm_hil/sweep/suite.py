@@ -20,7 +20,7 @@ import yaml
 from .execute import execute_run
 from .plan import Run, profile_run, run_key
 
-__all__ = ["SuiteCase", "plan_suite", "run_suite", "junit_xml", "DEFAULT_ACCEPTANCE"]
+__all__ = ["DEFAULT_ACCEPTANCE", "SuiteCase", "junit_xml", "plan_suite", "run_suite"]
 
 DEFAULT_ACCEPTANCE = {"run": {"complete": True, "faults": "forbidden"}}
 METRICS = ["speed_error", "ripple", "recovery", "faults", "completeness"]
@@ -43,11 +43,13 @@ class SuiteCase:
         return self.status == "ok" and bool(self.checks) and all(c["passed"] for c in self.checks)
 
 
-def plan_suite(profiles: list[str], seed: int = 1, rig: str | None = None) -> list[SuiteCase]:
+def plan_suite(
+    profiles: list[str], seed: int = 1, rig: str | None = None, motor: str | None = None
+) -> list[SuiteCase]:
     """One case per profile (validated here: raises ProfileError)."""
     cases = []
     for i, p in enumerate(profiles):
-        run = profile_run(p, index=i, seed=seed, rig_path=rig)
+        run = profile_run(p, index=i, seed=seed, rig_path=rig, motor_path=motor)
         data = yaml.safe_load(run.texts["profile.yaml"])
         case = SuiteCase(profile=p, name=str(data.get("name", p)), run=run)
         if not data.get("acceptance"):
@@ -95,6 +97,7 @@ def run_suite(
         rows = res.rows
     by_key = {r["key"]: r for r in rows}
     for c in cases:
+        assert c.run is not None  # cases are made with their run (make_cases)
         row = by_key.get(c.run.key, {"status": "failed", "error": "no result"})
         c.status, c.error = row.get("status", "failed"), row.get("error", "")
         c.log_path, c.wall_s = row.get("log_path", ""), float(row.get("wall_s", 0.0) or 0.0)

@@ -10,10 +10,20 @@ SPEC = INTERFACE:CHANNEL[,bitrate=N][,node=N][,key=value...]   (extra keys go to
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 from pmsm_hil.emulator import process as emu_process
 from pmsm_hil.errors import TransportError, TransportSpecError
+
+if TYPE_CHECKING:
+    import can
+
+    from pmsm_hil.emulator.fwlib import EmulatedDevice
+
+# a fault hook: the frames [(identifier, data)] on their way, to the frames to deliver
+FrameFault = Callable[[list[tuple[int, bytes]]], list[tuple[int, bytes]]]
 
 INTERFACES = (
     "socketcand",
@@ -132,7 +142,7 @@ def parse_spec(spec: str | None) -> CanSpec:
     return out
 
 
-def open_bus(spec: CanSpec):
+def open_bus(spec: CanSpec) -> can.BusABC:
     """A python-can bus for spec, with clear errors for a missing interface or device."""
     try:
         import can
@@ -206,7 +216,13 @@ class InProcessCanBus:
 
     channel_info = "in-process emulator"
 
-    def __init__(self, device, chunk_ticks: int = 400, fault_d2h=None, fault_h2d=None):
+    def __init__(
+        self,
+        device: EmulatedDevice,
+        chunk_ticks: int = 400,
+        fault_d2h: FrameFault | None = None,
+        fault_h2d: FrameFault | None = None,
+    ):
         self.dev = device
         self.chunk_ticks = chunk_ticks
         self.fault_d2h = fault_d2h
@@ -217,7 +233,7 @@ class InProcessCanBus:
         )
         self._ts = device.get("ts_s")
 
-    def send(self, msg, timeout=None) -> None:
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
         frames = [(msg.arbitration_id, bytes(msg.data))]
         if self.fault_h2d is not None:
             frames = self.fault_h2d(frames)
@@ -241,7 +257,7 @@ class InProcessCanBus:
             pairs = self.fault_d2h(pairs)
         return pairs
 
-    def recv(self, timeout=None):
+    def recv(self, timeout: float | None = None) -> can.Message | None:
         import can
 
         if not self._rx:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 
 import serial
@@ -54,7 +55,5 @@ class SerialTransport:
             raise TransportError(f"link on {self.port} dropped while reading: {e}") from e
 
     def close(self) -> None:
-        try:
+        with contextlib.suppress(Exception):
             self._ser.close()
-        except Exception:
-            pass

@@ -1,0 +1,161 @@
+"""`pmsm-hil bench identify --rigs default,lab-typical [--commissioned]`: the identification run
+on several rigs and seeds, one table per rig with the median and the worst error over the seeds
+(docs/identification.md). With --commissioned each seed first commissions its rig
+(`pmsm-hil commission`) and identifies with the commissioned motor file, as a drive would."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+PARAMS = (("l_d_h", "L_d"), ("l_q_h", "L_q"), ("psi_f_wb", "psi_f"), ("r_s_ohm", "R"))
+ESTIMATORS = ("rls", "nlms_adaline")
+
+
+def _one(
+    path: Path | str,
+    rig_path: str,
+    seed: int,
+    out: Path,
+    commissioned: bool,
+    motor: Path | str | None = None,
+) -> dict:
+    from pmsm_hil.analysis.identification import identification_table
+    from pmsm_hil.bench.identify import _run_profile
+    from pmsm_hil.profiles import load_profile
+
+    stem = Path(rig_path).stem
+    if commissioned:
+        from pmsm_hil.bench.commission import commission_once
+        from pmsm_hil.commission.motor_file import commissioned_motor_yaml
+
+        log_c = out / f"commission-{stem}-{seed}.mcap"
+        prof_c, res, _errs = commission_once(rig_path, seed, log_c, motor)
+        if not res.ok:
+            return {"failed": f"commissioning: {res.failure or res.run.stop_reason}"}
+        motor = out / f"motor-{stem}-{seed}.yaml"
+        motor.write_text(
+            commissioned_motor_yaml(
+                prof_c.motor, res.quantities, prof_c.control.ts_s, "emulator", str(log_c)
+            )
+        )
+    profile = load_profile(path, rig_override=rig_path, motor_override=motor)
+    log = out / f"identify-{stem}-{seed}.mcap"
+    _, result = _run_profile(profile, log, seed)
+    if result.faults or result.error:
+        return {"failed": f"run: {result.error or result.faults}"}
+    drift = [s for s in profile.segments if s.plant is not None]
+    t1 = drift[0].t_start_s if drift else profile.total_duration_s
+    tab = identification_table(log, 0.0, t1)
+    cells = {}
+    for e in ESTIMATORS:
+        for q, _ in PARAMS:
+            c = tab.cell(e, q)
+            if c is not None:
+                cells[(e, q)] = (c.error_rel, c.conv_s)
+    return {"cells": cells}
+
+
+def _fmt(vals: list[float]) -> str:
+    a = np.abs(np.array(vals)) * 100.0
+    return f"{np.median(a):.2f} % / {a.max():.2f} %"
+
+
+def identify_rigs(
+    path: Path | str,
+    rigs: list[str],
+    seeds: list[int],
+    out: Path,
+    commissioned: bool = False,
+    motor: Path | str | None = None,
+    echo: Callable[[str], None] = print,
+) -> str:
+    from pmsm_hil.profiles.shipped import resolve
+
+    out.mkdir(parents=True, exist_ok=True)
+    what = "after commissioning" if commissioned else "with the motor file's values"
+    parts = [
+        f"# Online identification on several rigs, {what}",
+        f"seeds {', '.join(map(str, seeds))}; |error| against /sim/truth before the drift step, "
+        f"median / worst over the seeds; convergence time median / worst",
+        "",
+    ]
+    for rig in rigs:
+        rp = resolve(rig, "rig")
+        results = [(s, _one(path, rp, s, out, commissioned, motor)) for s in seeds]
+        ok = [r["cells"] for _s, r in results if "cells" in r]
+        lines = [
+            f"### rig {Path(rp).stem}: {len(ok)} of {len(seeds)} seeds ran",
+            "",
+            "| estimator | " + " | ".join(n for _q, n in PARAMS) + " | t_conv L_d/L_q/psi_f s |",
+            "|---|" + "---|" * (len(PARAMS) + 1),
+        ]
+        for e in ESTIMATORS:
+            row = [e]
+            for q, _n in PARAMS:
+                vals = [c[(e, q)][0] for c in ok if (e, q) in c]
+                row.append(_fmt(vals) if vals else "-")
+            conv = []
+            for q in ("l_d_h", "l_q_h", "psi_f_wb"):
+                ts = [c[(e, q)][1] for c in ok if (e, q) in c]
+                never = sum(1 for t in ts if t is None)
+                tv = [t for t in ts if t is not None]
+                conv.append(
+                    (f"{np.median(tv):.2f}/{max(tv):.2f}" if tv else "never")
+                    + (f" ({never} never)" if never and tv else "")
+                )
+            lines.append("| " + " | ".join(row) + " | " + "; ".join(conv) + " |")
+        for s, r in results:
+            if "failed" in r:
+                lines.append(f"\nseed {s}: {r['failed']}")
+        t = "\n".join(lines)
+        echo(t + "\n")
+        parts += [t, ""]
+    text = "\n".join(parts)
+    name = "identify-rigs-commissioned.md" if commissioned else "identify-rigs.md"
+    (out / name).write_text(text)
+    echo(f"table {out / name}")
+    return text
+
+
+def per_effect_commissioned(
+    path: Path | str, seeds: list[int], out: Path, echo: Callable[[str], None] = print
+) -> str:
+    """What each rig effect still costs after commissioning: NLMS-Adaline's |error| (median /
+    worst over the seeds) on the ideal rig, each effect alone, default and lab-typical, each seed
+    commissioned first."""
+    from pmsm_hil.profiles.shipped import shipped_root
+
+    rigs_dir = shipped_root() / "rigs"
+    rigs = [
+        "ideal",
+        *sorted(f.stem for f in rigs_dir.glob("effect-*.yaml")),
+        "default",
+        "lab-typical",
+    ]
+    out.mkdir(parents=True, exist_ok=True)
+    head = "| rig | " + " | ".join(n for _q, n in PARAMS) + " |"
+    lines = [
+        "# NLMS-Adaline after commissioning, per rig effect",
+        f"seeds {', '.join(map(str, seeds))}: |error| median / worst before the drift step",
+        "",
+        head,
+        "|---|" + "---|" * len(PARAMS),
+    ]
+    echo("\n".join(lines))
+    for r in rigs:
+        res = [_one(path, str(rigs_dir / f"{r}.yaml"), s, out, True) for s in seeds]
+        ok = [x["cells"] for x in res if "cells" in x]
+        cells = []
+        for q, _n in PARAMS:
+            vals = [c[("nlms_adaline", q)][0] for c in ok if ("nlms_adaline", q) in c]
+            cells.append(_fmt(vals) if vals else "-")
+        failed = [x["failed"] for x in res if "failed" in x]
+        row = f"| {r} | " + " | ".join(cells) + " |" + (f" {failed[0]}" if failed else "")
+        lines.append(row)
+        echo(row)
+    text = "\n".join(lines)
+    (out / "per-effect-commissioned.md").write_text(text + "\n")
+    return text

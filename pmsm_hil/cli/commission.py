@@ -1,0 +1,177 @@
+"""`pmsm-hil commission -o OUT.yaml`: the firmware's commissioning sequence on a rig or the
+emulator, each step reported as it ends; the result is a commissioned motor file for
+`pmsm-hil run PROFILE --motor OUT.yaml` (docs/commissioning.md)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING, Literal, TextIO
+
+from pmsm_hil.cli.errors import fail, report
+
+if TYPE_CHECKING:
+    from pmsm_hil.recorder import LiveState
+
+
+def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    p = sub.add_parser(
+        "commission",
+        help="commission a drive: sensor offsets, encoder offset, inverter, R, L, psi_f "
+        "-> a motor file",
+        description="Runs the firmware's commissioning sequence (on the emulator unless "
+        "--port/--can), reports each step live, logs to MCAP and writes the commissioned "
+        "motor file (nominal file + measured values + calibrations, each with its spread).",
+    )
+    p.add_argument("-o", "--out", required=True, help="commissioned motor file to write (YAML)")
+    p.add_argument(
+        "--motor", default=None, help="nominal motor file or shipped name (default: paper-a-ipmsm)"
+    )
+    p.add_argument("--rig", default=None, help="rig file (or shipped name) for the emulator")
+    p.add_argument("--port", default=None, help="serial port of a rig, e.g. /dev/ttyUSB0")
+    p.add_argument(
+        "--can",
+        nargs="?",
+        const="emulator",
+        default=None,
+        metavar="SPEC",
+        help="use CAN (a python-can SPEC, or bare for the emulator on CAN; docs/can.md)",
+    )
+    p.add_argument("--baud", type=int, default=None, help="serial bit rate")
+    p.add_argument("--seed", type=int, default=1, help="emulator noise seed (default 1)")
+    p.add_argument("--log", default=None, help="MCAP log (default runs/commission-DATE.mcap)")
+    p.add_argument(
+        "--steps",
+        default=None,
+        help="comma-separated subset of offsets,v_dc,encoder,inverter,r_s,l_dq,psi_f "
+        "(default: all)",
+    )
+    p.add_argument("--i-test", type=float, default=None, help="test current, A (default i_max/2)")
+    p.add_argument(
+        "--spin-rpm", type=float, default=None, help="psi_f spin speed (default speed_max/2)"
+    )
+    p.add_argument(
+        "--flux-map",
+        action="store_true",
+        help="also measure a flux map on a grid under load (not available yet: refused)",
+    )
+    p.add_argument("--in-process", action="store_true", help=argparse.SUPPRESS)
+
+
+class StepPrinter:
+    """Prints each step as it begins and its result as it arrives (the runner's observer)."""
+
+    def __init__(self, stream: TextIO | None = None):
+        self.stream = stream or sys.stdout
+        self.n_events = 0
+        self.n_rows = 0
+
+    def __enter__(self) -> StepPrinter:
+        return self
+
+    def __exit__(self, *exc: object) -> Literal[False]:
+        return False
+
+    def message(self, text: str) -> None:
+        print(text, file=self.stream, flush=True)
+
+    def update(self, live: LiveState) -> None:
+        from pmsm_hil.commission.steps import STEP_TITLES, step_quantities
+
+        lines: list[
+            tuple[float, int, str]
+        ] = []  # (t_s, order, text): a step's results before the next step's start
+        for t_s, kind, _arg, text in live.events[self.n_events :]:
+            if kind in ("commission_step", "commission_failed", "fault", "stopped"):
+                step = text.split(": ", 1)[-1]
+                label = STEP_TITLES.get(step, text) if kind == "commission_step" else text
+                lines.append((t_s, 1, f"{t_s:7.2f} s  {label}"))
+        self.n_events = len(live.events)
+        for t_s, row in live.commission[self.n_rows :]:
+            if row["status"] == "ok":
+                for name, m in step_quantities(row).items():
+                    lines.append((t_s, 0, f"            {name:<26} {m.text()}"))
+        self.n_rows = len(live.commission)
+        for _t, _o, text in sorted(lines, key=lambda x: (x[0], x[1])):
+            print(text, file=self.stream, flush=True)
+
+
+def main(args: argparse.Namespace) -> int:
+    from pmsm_hil.commission.motor_file import commissioned_motor_yaml
+    from pmsm_hil.commission.sequence import commission_profile, run_commission
+    from pmsm_hil.device import DeviceSpec, open_device
+    from pmsm_hil.errors import TransportError, TransportSpecError
+    from pmsm_hil.profiles import ProfileError
+    from pmsm_hil.profiles.shipped import resolve
+    from pmsm_hil.protocol.session import DeviceError, Session
+    from pmsm_hil.runner import HostError, PlantMismatch, RunOptions
+
+    if args.flux_map:
+        return fail("error", "--flux-map: the flux-map measurement is not implemented yet", 2)
+    out = Path(args.out)
+    if out.suffix not in (".yaml", ".yml"):
+        return fail("error", f"-o {out}: the result is a motor file, name it *.yaml", 2)
+    try:
+        rig = resolve(args.rig, "rig") if args.rig else None
+        motor = resolve(args.motor, "motor") if args.motor else None
+        profile = commission_profile(motor, rig)
+    except ProfileError as e:
+        return fail("error", str(e), 2)
+    steps = [s.strip() for s in args.steps.split(",")] if args.steps else None
+    log = Path(args.log or f"runs/commission-{time.strftime('%Y%m%d-%H%M%S')}.mcap")
+    log.parent.mkdir(parents=True, exist_ok=True)
+    spec = DeviceSpec(
+        port=args.port,
+        can=args.can,
+        baud=args.baud,
+        rig_path=rig,
+        seed=args.seed,
+        in_process=args.in_process,
+    )
+    try:
+        link = open_device(spec, profile)
+    except TransportError as e:
+        return fail("error", str(e), 2 if isinstance(e, TransportSpecError) else 3)
+    device = link.name if spec.is_rig else f"emulator, rig {profile.rig.name}, seed {args.seed}"
+    print(f"commissioning {profile.motor.name} on {device}", flush=True)
+    try:
+        with StepPrinter() as printer:
+            res = run_commission(
+                profile,
+                Session(link),
+                log,
+                RunOptions(seed=None if spec.is_rig else args.seed, rig_name=rig or ""),
+                printer,
+                steps=steps,
+                i_test_a=args.i_test,
+                spin_rpm=args.spin_rpm,
+            )
+    except ValueError as e:
+        return fail("error", str(e), 2)
+    except PlantMismatch as e:
+        return fail("error", f"{e} (log: {log})", 2)
+    except (DeviceError, TransportError) as e:
+        return fail("error", str(e), 3)
+    except HostError as e:
+        return fail("error", f"{e} (log: {log})", 3)
+    finally:
+        link.close()
+    printer.update(res.run.live)  # what arrived after the last live update
+    print(f"log: {log}")
+    if res.run.interrupted:
+        report("stopped", f"commissioning interrupted; the motor was stopped (log: {log})")
+        return 130
+    if res.failure:
+        return fail("failed", f"{res.failure}; the motor was switched off (log: {log})", 4)
+    if not res.ok:
+        why = res.run.error or res.run.stop_reason or "the sequence did not complete"
+        return fail("failed", f"commissioning did not complete: {why} (log: {log})", 4)
+    text = commissioned_motor_yaml(
+        profile.motor, res.quantities, profile.control.ts_s, device, str(log)
+    )
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(text)
+    print(f"motor file: {out}  (use: pmsm-hil run PROFILE --motor {out})")
+    return 0

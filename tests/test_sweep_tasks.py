@@ -1,0 +1,118 @@
+"""Trials on the sweep's Dask machinery (pmsm_hil.sweep.tasks): results in order, a journal keyed
+by the trials' inputs that a second call resumes from, a dying worker's trial retried once and then
+reported; `gap selftest` on it gives the figures of its trials run one by one in this process."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+from pmsm_hil.sweep.tasks import BLAS_THREADS, run_tasks, task_key
+
+
+def _square(task):
+    """Leaves a file per call (to count the calls), returns the square."""
+    Path(task["calls"], f"{task['x']}-{os.getpid()}-{len(os.listdir(task['calls']))}").touch()
+    return {"x": task["x"], "square": task["x"] ** 2, "third": task["x"] / 3}
+
+
+def _dies(task):
+    """Kills its worker: trial 0 on its first attempt only (a marker file), trial 1 always."""
+    marker = Path(task["dir"]) / "died-once"
+    if task["i"] == 1 or (task["i"] == 0 and not marker.exists()):
+        marker.touch()
+        os._exit(9)
+    return {"i": task["i"]}
+
+
+def test_results_come_in_order_and_a_second_call_resumes(tmp_path):
+    calls = tmp_path / "calls"
+    calls.mkdir()
+    tasks = [{"x": x, "calls": str(calls)} for x in (3, 1, 2)]
+    out = tmp_path / "out"
+    first = run_tasks(_square, tasks, out, name="sq", workers=1, progress=False)
+    assert [r["square"] for r in first] == [9, 1, 4]
+    assert [r["third"] for r in first] == [x / 3 for x in (3, 1, 2)]  # exact through JSON
+    assert len(os.listdir(calls)) == 3
+    lines = [json.loads(s) for s in (out / "sq.jsonl").read_text().splitlines()]
+    assert {r["key"] for r in lines} == {task_key(t) for t in tasks}
+    more = [*tasks, {"x": 5, "calls": str(calls)}]
+    second = run_tasks(_square, more, out, name="sq", workers=1, progress=False)
+    assert second[:3] == first and second[3]["square"] == 25
+    assert len(os.listdir(calls)) == 4  # only the new trial ran
+
+
+def test_a_trial_whose_worker_dies_is_retried_once_then_reported(tmp_path):
+    tasks = [{"i": i, "dir": str(tmp_path)} for i in range(3)]
+    res = run_tasks(_dies, tasks, tmp_path / "out", name="d", workers=1, progress=False)
+    assert res[0] == {"i": 0} and res[2] == {"i": 2}
+    assert "worker died" in res[1]["error"]
+    rows = [json.loads(s) for s in (tmp_path / "out" / "d.jsonl").read_text().splitlines()]
+    assert sorted(r["status"] for r in rows) == ["failed", "ok", "ok"]
+
+
+REFERENCE = """
+import json, sys
+import numpy as np
+from pmsm_hil.gapgen.draw import draw_trial
+from pmsm_hil.gapgen.selftest import run_trial, score
+seed, n = int(sys.argv[1]), int(sys.argv[2])
+rng = np.random.default_rng(seed)
+trials = [draw_trial(rng) for _ in range(n)]
+outs = [run_trial(t) for t in trials]
+print(json.dumps({"score": score(trials, outs), "outs": outs}))
+"""
+
+
+def test_gap_selftest_on_dask_equals_its_trials_run_in_process(tmp_path):
+    """The same trials run one after the other in a plain process (BLAS on one thread, as in a
+    Dask worker: the diagnoser's least-squares sums are otherwise split by the core count) give
+    the same answers and scores, to the last bit."""
+    from pmsm_hil.gapgen.selftest import run_selftest
+
+    seed, n = 11, 2
+    res = run_selftest(n, seed, workers=2, progress=False, out=tmp_path / "st")
+    env = {**os.environ, **{v: "1" for v in BLAS_THREADS}}
+    r = subprocess.run(
+        [sys.executable, "-c", REFERENCE, str(seed), str(n)],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=900,
+    )
+    assert r.returncode == 0, r.stderr
+    ref = json.loads(r.stdout)
+    assert not [o for o in ref["outs"] if "error" in o]
+    want = ref["score"]
+    assert json.dumps({k: res[k] for k in want}, sort_keys=True) == json.dumps(want, sort_keys=True)
+    assert res["answers"] == [o["selected"] for o in ref["outs"]]
+    again = run_selftest(n, seed, workers=1, progress=False, out=tmp_path / "st")
+    assert again == res  # from the journal, no trial run again
+
+
+def test_bench_runs_on_dask_give_the_figures_of_runs_in_process(tmp_path, monkeypatch):
+    from pmsm_hil.bench import identify as bench
+
+    path = bench.default_profile()
+    bench.mismatch(
+        path, tmp_path / "dask", 1, echo=lambda *a: None, cluster=bench.Cluster(workers=2)
+    )
+    journal = tmp_path / "dask" / "bench.jsonl"
+    assert len(journal.read_text().splitlines()) == 3
+    logs = sorted((tmp_path / "dask").glob("mismatch-*.mcap"))
+    stamps = [p.stat().st_mtime_ns for p in logs]
+    # again: every run is in the journal with its log, nothing runs
+    bench.mismatch(
+        path, tmp_path / "dask", 1, echo=lambda *a: None, cluster=bench.Cluster(workers=1)
+    )
+    assert [p.stat().st_mtime_ns for p in logs] == stamps
+    monkeypatch.setattr(
+        bench, "run_jobs", lambda jobs, out, cluster=None: [bench.bench_run(j) for j in jobs]
+    )
+    bench.mismatch(path, tmp_path / "here", 1, echo=lambda *a: None)
+    assert (tmp_path / "dask" / "mismatch.md").read_text() == (
+        tmp_path / "here" / "mismatch.md"
+    ).read_text()
