@@ -116,7 +116,11 @@ def main(args: argparse.Namespace) -> int:
                 scheduler=args.scheduler,
             )
             if args.json:
-                print(json.dumps(res, indent=1))
+                print(
+                    json.dumps(
+                        res, indent=1, default=lambda o: o.item() if hasattr(o, "item") else str(o)
+                    )
+                )
             else:
                 print_selftest(res)
             return 0

@@ -254,7 +254,18 @@ def diagnose(
                 else "not tried",
             }
         )
-    effects.extend(view_effects(rec, motor))
+    # the views: dc_link, and the torque balance's friction, cogging and sensor offsets; a view that
+    # sees an effect the one-step residual could not select takes that effect's entry
+    pos = {e["name"]: j for j, e in enumerate(effects)}
+    for v in view_effects(rec, motor):
+        j = pos.get(v["name"])
+        if j is None:
+            effects.append(v)
+        elif v["selected"] and not effects[j]["selected"]:
+            v["evidence"] += f"; one-step residual: {effects[j]['evidence']}"
+            effects[j] = v
+    effects.sort(key=lambda e: not e["selected"])  # stable: the residual's selection first
+    view_sel = [e["name"] for e in effects if e["selected"] and e["name"] not in chosen]
     out["effects"] = effects
     out["where"] = residual_maps(probe, r_base, r_aug)
     gap_v2 = mse_b - floor_mean
@@ -272,15 +283,16 @@ def diagnose(
         and par["closure"] > clo["closure"] - 0.05
         and any(n in off for n in ("Ld", "Lq"))
     )
+    big_gap = gap_v2 > 0.05 * max(floor_mean, 1e-9) and gap_v2 > 1e-3
     if not chosen:
         out["verdict"] = (
-            "unexplained residual"
-            if gap_v2 > 0.05 * max(floor_mean, 1e-9) and gap_v2 > 1e-3
-            else "no structural gap found"
+            ", ".join(view_sel) + ("; unexplained residual" if big_gap else "")
+            if view_sel
+            else ("unexplained residual" if big_gap else "no structural gap found")
         )
     else:
         left = 1.0 - clo["closure"]
-        out["verdict"] = ", ".join(chosen) + (
+        out["verdict"] = ", ".join(chosen + view_sel) + (
             f"; unexplained residual {left:.0%} of the gap" if left > 0.3 else ""
         )
     if parametric:

@@ -16,7 +16,7 @@ from pmsm_hil.gap.model import (
     rot_cs,
     volts,
 )
-from pmsm_hil.gap.record import ControlRecord
+from pmsm_hil.gap.record import ControlRecord, speed_from_angle
 
 
 def _shift(x: np.ndarray, n: int, run_start: np.ndarray) -> np.ndarray:
@@ -48,6 +48,10 @@ class Probe:
         self._u0 = rec.u_alpha_beta()
         self._c, self._s = np.cos(rec.theta_e_rad), np.sin(rec.theta_e_rad)
         self._iab = abc_to_ab(rec.i_abc)
+        # the speed that turns the rotor frame over a period: zero-phase from the angle, not the
+        # record's speed column (an observer's speed lags on ramps: a voltage error psi_f d(omega)
+        # correlated with the current, which would read as a resistance error)
+        self.omega = speed_from_angle(rec.theta_e_rad, rec.omega_e_rad_s, rec.runs, rec.ts_s)
 
     # ------------------------------------------------------------------ evaluation
     def work(self, effects) -> Work:
@@ -55,7 +59,7 @@ class Probe:
         w = Work(
             i_abc=rec.i_abc,
             theta=rec.theta_e_rad,
-            omega=rec.omega_e_rad_s,
+            omega=self.omega,
             cmd=None if rec.voltage_kind == "alphabeta" else rec.v_cmd,
             kind=rec.voltage_kind,
             v_dc=rec.v_dc_v,

@@ -170,6 +170,27 @@ def _omega_from_theta(theta: np.ndarray, runs, ts_s: float, half_window: int = 1
     return w
 
 
+def speed_from_angle(
+    theta: np.ndarray, omega: np.ndarray, runs, ts_s: float, sg_n: int = 41
+) -> np.ndarray:
+    """The recorded electrical speed made consistent with the recorded angle, zero-phase: omega plus
+    the derivative (quadratic Savitzky-Golay over sg_n samples) of the angle's departure from
+    omega's integral (held over each period). A recorded speed is often an observer's or a filter's
+    output that lags the angle during ramps (docs/gap.md, "The torque balance"); a speed that
+    agrees with the angle (steps included) is kept as it is, and the angle's quantisation is
+    smoothed away."""
+    from scipy.signal import savgol_filter
+
+    w = np.array(omega, float)
+    for a, b in runs:
+        if b - a < sg_n:
+            continue
+        phi = np.concatenate([[0.0], np.cumsum(w[a : b - 1]) * ts_s])
+        dev = np.unwrap(theta[a:b]) - theta[a] - phi
+        w[a:b] += savgol_filter(dev, sg_n, 2, deriv=1, delta=ts_s)
+    return w
+
+
 def record_from_columns(
     cols: dict[str, np.ndarray],
     ts_s: float | None = None,

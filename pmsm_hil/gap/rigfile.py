@@ -70,7 +70,7 @@ def fitted_rig(result: dict, m: MotorModel, out_path, sensor_spec: dict | None =
             p = {
                 "amplitude_nm": float(p["amplitude_nm"]),
                 "periods_per_rev": int(p["periods_per_rev"]),
-                "phase_rad": 0.0,
+                "phase_rad": float(p.get("phase_rad", 0.0)),
             }
         elif n == "friction":
             p = {
