@@ -142,7 +142,9 @@ def read_csv(path: str | os.PathLike) -> tuple[str, dict[str, np.ndarray]]:
     return kind, cols
 
 
-def import_csv(path, motor_path, out_path) -> dict[str, object]:
+def import_csv(
+    path: str | os.PathLike, motor_path: str | os.PathLike, out_path: str | os.PathLike
+) -> dict[str, object]:
     """Read the CSV, check it against the motor file and write the log; returns a summary."""
     from pmsm_hil.log.writer import LogWriter
     from pmsm_hil.profiles import load_motor

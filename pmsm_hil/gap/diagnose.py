@@ -3,6 +3,9 @@ effects on held-out blocks, closure with block-bootstrap intervals (docs/gap.md)
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import TypedDict
+
 import numpy as np
 
 from pmsm_hil.gap.effects import EFFECTS, PARAMETERS, primary_value
@@ -40,7 +43,17 @@ SEPARATE = {
 }
 
 
-def _advice(a, b):
+class _Step(TypedDict):
+    """One step of the forward selection."""
+
+    effect: str
+    gain_v2: float
+    gain_se_v2: float
+    threshold_v2: float
+    accepted: bool
+
+
+def _advice(a: str, b: str) -> str:
     return SEPARATE.get(frozenset({a, b}), "more current levels and speeds in both directions")
 
 
@@ -49,7 +62,7 @@ def diagnose(
     motor: MotorModel,
     holdout: ControlRecord | None = None,
     seed: int = 0,
-    candidates=None,
+    candidates: Sequence[str] | None = None,
 ) -> dict:
     probe = Probe(rec, motor)
     k = probe.idx
@@ -77,7 +90,7 @@ def diagnose(
     if fl is None:
         fl = None
         floor_src = "estimated from the data (lag-1 autocovariance of the residual)"
-    out = {
+    out: dict[str, object] = {
         "source": rec.source,
         "samples": int(rec.n),
         "transitions": len(k),
@@ -94,7 +107,7 @@ def diagnose(
     chosen: list[str] = []
     warm: dict = {}
     cur_test = r_base[te_sel]
-    steps = []
+    steps: list[_Step] = []
     singles: dict[str, dict] = {}
     ambiguous = []
     fl_guess = floor_arr(r_base)
@@ -171,14 +184,16 @@ def diagnose(
     pf = fit_effects(probe, ["parameters"], tr_sub, blocks=blk[tr_sub], max_nfev=40)
     r_par = probe.residual(pf.effects(), te_sel)
     pc = bootstrap_closure(r_base[te_sel], r_par, floor[te_sel], blk[te_sel], n_boot=200, seed=seed)
+    par_scale = [float(v) for v in pf.x["parameters"]]
     out["parametric_gap"] = {
         **{kk: v for kk, v in PARAMETERS.report(pf.x["parameters"], motor).items()},
-        "scale": [float(v) for v in pf.x["parameters"]],
+        "scale": par_scale,
         "scale_se": [float(v) for v in pf.se["parameters"]],
         "closure": pc["closure"],
     }
     # held-out operating region: fit below the median speed, test above it
     if chosen:
+        assert final is not None  # fitted whenever an effect was chosen
         sp = np.abs(rec.omega_e_rad_s[k])
         lo_r = np.nonzero(train & (sp <= np.median(sp)))[0]
         hi_r = np.nonzero(test & (sp > np.median(sp)))[0]
@@ -194,6 +209,7 @@ def diagnose(
             )
             out["closure_region"] = cr
     if holdout is not None and chosen:
+        assert final is not None  # fitted whenever an effect was chosen
         hp = Probe(holdout, motor)
         hb = hp.idx // blen
         rb, ra = hp.residual(), hp.residual(final.effects())
@@ -204,6 +220,7 @@ def diagnose(
     excess = max(mse_b - floor_mean, 1e-12)
     effects = []
     for c in chosen:
+        assert final is not None  # fitted whenever an effect was chosen
         e = EFFECTS[c]
         x = final.x[c]
         null = np.array([1.0 if p in ("i_b_gain",) else 0.0 for p in e.params])
@@ -265,39 +282,37 @@ def diagnose(
             v["evidence"] += f"; one-step residual: {effects[j]['evidence']}"
             effects[j] = v
     effects.sort(key=lambda e: not e["selected"])  # stable: the residual's selection first
-    view_sel = [e["name"] for e in effects if e["selected"] and e["name"] not in chosen]
+    view_sel = [str(e["name"]) for e in effects if e["selected"] and e["name"] not in chosen]
     out["effects"] = effects
     out["where"] = residual_maps(probe, r_base, r_aug)
     gap_v2 = mse_b - floor_mean
-    par = out["parametric_gap"]
     off = [
-        n
-        for n, v in zip(("R", "Ld", "Lq", "psi_f"), par["scale"], strict=False)
-        if abs(v - 1) > 0.05
+        n for n, v in zip(("R", "Ld", "Lq", "psi_f"), par_scale, strict=False) if abs(v - 1) > 0.05
     ]
     # constant inductances off the motor file explain the gap as well as the selected effects: a
     # parametric gap (the knee of `saturation` is kept above 2 A so that it cannot become a constant)
     parametric = (
         gap_v2 > 0.05 * max(floor_mean, 1e-9)
-        and 0.5 < par["closure"] <= 1.5
-        and par["closure"] > clo["closure"] - 0.05
+        and 0.5 < pc["closure"] <= 1.5
+        and pc["closure"] > clo["closure"] - 0.05
         and any(n in off for n in ("Ld", "Lq"))
     )
     big_gap = gap_v2 > 0.05 * max(floor_mean, 1e-9) and gap_v2 > 1e-3
     if not chosen:
-        out["verdict"] = (
+        verdict = (
             ", ".join(view_sel) + ("; unexplained residual" if big_gap else "")
             if view_sel
             else ("unexplained residual" if big_gap else "no structural gap found")
         )
     else:
         left = 1.0 - clo["closure"]
-        out["verdict"] = ", ".join(chosen + view_sel) + (
+        verdict = ", ".join(chosen + view_sel) + (
             f"; unexplained residual {left:.0%} of the gap" if left > 0.3 else ""
         )
     if parametric:
-        out["verdict"] += (
+        verdict += (
             f"; parametric gap: constant {', '.join(off)} off the motor file close more "
-            f"({par['closure']:.2f}) than the effects"
+            f"({pc['closure']:.2f}) than the effects"
         )
+    out["verdict"] = verdict
     return out

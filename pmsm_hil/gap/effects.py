@@ -19,6 +19,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from pmsm_hil.gap.model import MotorModel
+
 ALPHA_R_PER_K = 0.00393  # copper
 ALPHA_PSI_PER_K = -0.001  # NdFeB
 
@@ -56,7 +58,7 @@ class Effect:
     lower: tuple[float, ...]
     upper: tuple[float, ...]
     apply: Callable[[Work, np.ndarray, object], None]
-    report: Callable[[np.ndarray, object], dict]  # rig-file parameters from x
+    report: Callable[[np.ndarray, MotorModel], dict[str, float]]  # rig-file parameters from x
     primary: str  # the rig parameter quoted as "magnitude"
     needs: str = ""  # "switch": only with switch-state/duty data
     starts: tuple[tuple[float, ...], ...] = ()  # further start points for the fit
@@ -70,7 +72,17 @@ def _dead_time(w: Work, x, m) -> None:
     w.extra["dead_time"] = np.asarray(x, float)
 
 
-def dead_time_dist(x, kind, cmd, prev, i_abc, v_dc, pwm_on, was_off, ts_s) -> np.ndarray:
+def dead_time_dist(
+    x: np.ndarray,
+    kind: str,
+    cmd: np.ndarray,
+    prev: np.ndarray,
+    i_abc: np.ndarray,
+    v_dc: np.ndarray,
+    pwm_on: np.ndarray,
+    was_off: np.ndarray,
+    ts_s: float,
+) -> np.ndarray:
     """Pole-voltage distortion (M, 3) of the inverter over a period (dead time and device drop)."""
     td, v_drop, i_dt = x
     sg = _sigma(i_abc, i_dt)
@@ -281,7 +293,7 @@ ALL_NAMES = tuple(EFFECTS) + VIEW_EFFECTS
 STAGE_ORDER = {"meas": 0, "volt": 1, "plant": 2}
 
 
-def primary_value(eff: Effect, x: np.ndarray, m, ts_s: float = 0.0) -> float:
+def primary_value(eff: Effect, x: np.ndarray, m: MotorModel, ts_s: float = 0.0) -> float:
     """The number quoted as the effect's magnitude (``eff.primary``)."""
     rep = eff.report(x, m)
     if eff.primary == "total_delay_s":  # current-sample delay plus the late PWM update

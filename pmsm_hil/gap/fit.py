@@ -2,15 +2,27 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import TypedDict
 
 import numpy as np
 from scipy.optimize import least_squares
 
-from pmsm_hil.gap.effects import EFFECTS, PARAMETERS
+from pmsm_hil.gap.effects import EFFECTS, PARAMETERS, Effect
 from pmsm_hil.gap.probe import Probe
 
 LIB = dict(EFFECTS, parameters=PARAMETERS)
+
+
+class Closure(TypedDict):
+    """What ``bootstrap_closure`` returns."""
+
+    closure: float
+    closure_interval: list[float]
+    mse_gain: float
+    mse_gain_se: float
+    mse_gain_interval: list[float]
 
 
 @dataclass
@@ -20,7 +32,7 @@ class Fit:
     se: dict[str, np.ndarray]
     cost: float
 
-    def effects(self):
+    def effects(self) -> list[tuple[Effect, np.ndarray]]:
         return [(LIB[n], self.x[n]) for n in self.names]
 
 
@@ -35,7 +47,7 @@ def _split(names, v):
 
 def fit_effects(
     probe: Probe,
-    names,
+    names: Iterable[str],
     sel: np.ndarray,
     warm: dict | None = None,
     blocks: np.ndarray | None = None,
@@ -120,7 +132,14 @@ def block_mse(r: np.ndarray, blocks: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return ss, cnt
 
 
-def bootstrap_closure(r_base, r_aug, floor_per_sample, blocks, n_boot=400, seed=0):
+def bootstrap_closure(
+    r_base: np.ndarray,
+    r_aug: np.ndarray,
+    floor_per_sample: np.ndarray,
+    blocks: np.ndarray,
+    n_boot: int = 400,
+    seed: int = 0,
+) -> Closure:
     """Closure (MSE_base - MSE_aug) / (MSE_base - floor) on these samples and a 95 % block-
     bootstrap interval; also the MSE reduction and its interval."""
     sb, cnt = block_mse(r_base, blocks)

@@ -3,9 +3,15 @@ speed (docs/gap.md, "Where")."""
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from pmsm_hil.gap.model import abc_to_ab, rot
+
+if TYPE_CHECKING:
+    from pmsm_hil.gap.probe import Probe
 
 
 def _binned(x, r, edges):
@@ -25,7 +31,13 @@ def _binned(x, r, edges):
     return out
 
 
-def order_spectrum(theta, r, speed, orders=range(1, 13), n_speed=4):
+def order_spectrum(
+    theta: np.ndarray,
+    r: np.ndarray,
+    speed: np.ndarray,
+    orders: Iterable[int] = range(1, 13),
+    n_speed: int = 4,
+) -> list[dict[str, object]]:
     """Amplitude of the residual's n-th electrical-angle harmonic (V), per speed quartile."""
     edges = np.quantile(speed, np.linspace(0, 1, n_speed + 1))
     rows = []
@@ -51,7 +63,7 @@ def order_spectrum(theta, r, speed, orders=range(1, 13), n_speed=4):
     return rows
 
 
-def residual_maps(probe, r_base, r_aug) -> dict:
+def residual_maps(probe: Probe, r_base: np.ndarray, r_aug: np.ndarray) -> dict:
     rec, k = probe.rec, probe.idx
     th = rec.theta_e_rad[k]
     om = rec.omega_e_rad_s[k]

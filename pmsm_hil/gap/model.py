@@ -13,8 +13,12 @@ mean voltage over the period that the model misses.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from pmsm_hil.profiles import Motor
 
 SQ3 = np.sqrt(3.0)
 
@@ -33,7 +37,7 @@ class MotorModel:
     v_dc_v: float = 0.0
 
     @classmethod
-    def from_motor(cls, m) -> MotorModel:
+    def from_motor(cls, m: Motor) -> MotorModel:
         return cls(
             float(m.r_s_ohm),
             float(m.l_d_h),
@@ -130,10 +134,10 @@ def _deriv(m: MotorModel, i, u, omega, pt: PlantTerms, r_s, psi_f):
 
 def predict_rk4(
     m: MotorModel,
-    i0,
-    theta0,
-    omega,
-    u_ab,
+    i0: np.ndarray,
+    theta0: np.ndarray,
+    omega: np.ndarray,
+    u_ab: np.ndarray,
     ts_s: float,
     pt: PlantTerms | None = None,
     n_sub: int = 1,
@@ -161,7 +165,14 @@ def predict_rk4(
     return i
 
 
-def predict_euler(m: MotorModel, i0, theta0, omega, u_ab, ts_s: float) -> np.ndarray:
+def predict_euler(
+    m: MotorModel,
+    i0: np.ndarray,
+    theta0: np.ndarray,
+    omega: np.ndarray,
+    u_ab: np.ndarray,
+    ts_s: float,
+) -> np.ndarray:
     """The firmware's predictor: forward Euler of the dq model, voltage at the period-start angle."""
     u = rot(u_ab, -theta0)
     d = (u[..., 0] - m.r_s_ohm * i0[..., 0] + omega * m.l_q_h * i0[..., 1]) / m.l_d_h

@@ -8,12 +8,17 @@ lag-1 autocovariance is minus half its variance, so floor = -2 acov1 of the (aug
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from pmsm_hil.gap.model import rot
 
+if TYPE_CHECKING:
+    from pmsm_hil.gap.probe import Probe
 
-def floor_from_spec(probe, spec: dict) -> np.ndarray | None:
+
+def floor_from_spec(probe: Probe, spec: dict[str, float]) -> np.ndarray | None:
     """Floor per transition (V^2, mean of the d and q components), or None without a spec."""
     if "i_noise_a" not in spec and "adc_lsb_a" not in spec:
         return None

@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import replace
 
 import numpy as np
 
-from pmsm_hil.gap.effects import EFFECTS, STAGE_ORDER, Work, dead_time_dist
+from pmsm_hil.gap.effects import EFFECTS, STAGE_ORDER, Effect, Work, dead_time_dist
 from pmsm_hil.gap.model import (
     MotorModel,
     PlantTerms,
@@ -54,7 +55,7 @@ class Probe:
         self.omega = speed_from_angle(rec.theta_e_rad, rec.omega_e_rad_s, rec.runs, rec.ts_s)
 
     # ------------------------------------------------------------------ evaluation
-    def work(self, effects) -> Work:
+    def work(self, effects: Iterable[tuple[Effect, np.ndarray]]) -> Work:
         rec = self.rec
         w = Work(
             i_abc=rec.i_abc,
@@ -102,7 +103,10 @@ class Probe:
         return u
 
     def residual(
-        self, effects=(), sel: np.ndarray | None = None, euler: bool = False
+        self,
+        effects: Iterable[tuple[Effect, np.ndarray]] = (),
+        sel: np.ndarray | None = None,
+        euler: bool = False,
     ) -> np.ndarray:
         """Residual (M, 2) in volts-equivalent for idx[sel] (all when None)."""
         k = self.idx if sel is None else self.idx[sel]

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import contextlib
 import itertools
+import os
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -171,7 +172,7 @@ def _omega_from_theta(theta: np.ndarray, runs, ts_s: float, half_window: int = 1
 
 
 def speed_from_angle(
-    theta: np.ndarray, omega: np.ndarray, runs, ts_s: float, sg_n: int = 41
+    theta: np.ndarray, omega: np.ndarray, runs: list[tuple[int, int]], ts_s: float, sg_n: int = 41
 ) -> np.ndarray:
     """The recorded electrical speed made consistent with the recorded angle, zero-phase: omega plus
     the derivative (quadratic Savitzky-Golay over sg_n samples) of the angle's departure from
@@ -274,7 +275,7 @@ def sensor_spec_from_metadata(meta: dict[str, dict[str, str]]) -> dict[str, floa
     return out
 
 
-def load_record(path) -> ControlRecord | SteadyRecord:
+def load_record(path: str | os.PathLike) -> ControlRecord | SteadyRecord:
     """The diagnosis's data from an MCAP log (see the module doc); raises RecordError."""
     from pmsm_hil.log.reader import read_log
 
@@ -326,3 +327,11 @@ def load_record(path) -> ControlRecord | SteadyRecord:
         f"{path}: no control-rate data ({CONTROL_TOPIC} or /pmsm/capture) and no "
         f"steady-state data ({STEADY_TOPIC})"
     )
+
+
+def load_control_record(path: str | os.PathLike) -> ControlRecord:
+    """``load_record`` for a log that must hold control-rate data; raises RecordError otherwise."""
+    rec = load_record(path)
+    if not isinstance(rec, ControlRecord):
+        raise RecordError(f"{path}: steady-state data only, control-rate data needed")
+    return rec

@@ -9,7 +9,7 @@ import os
 import numpy as np
 
 
-def jsonable(x):
+def jsonable(x: object) -> object:
     if isinstance(x, dict):
         return {str(k): jsonable(v) for k, v in x.items()}
     if isinstance(x, (list, tuple)):
@@ -75,7 +75,7 @@ def verdict_lines(res: dict) -> list[str]:
     return out
 
 
-def write_report(res: dict, out_dir) -> list[str]:
+def write_report(res: dict, out_dir: str | os.PathLike) -> list[str]:
     """gap.json, residual-map plots and index.html in out_dir; returns the files written."""
     import matplotlib
 

@@ -29,7 +29,12 @@ def _flux_map_csv(path: str, m: MotorModel, k: dict) -> None:
                 f.write(f"{float(id_)!r},{float(iq)!r},{float(pd):.10g},{float(pq):.10g}\n")
 
 
-def fitted_rig(result: dict, m: MotorModel, out_path, sensor_spec: dict | None = None) -> dict:
+def fitted_rig(
+    result: dict,
+    m: MotorModel,
+    out_path: str | os.PathLike,
+    sensor_spec: dict[str, float] | None = None,
+) -> dict:
     """Write the rig file for the selected effects; returns the mapping written."""
     eff: dict[str, dict] = {}
     spec = sensor_spec or {}

@@ -27,7 +27,9 @@ def diagnose_steady(rec: SteadyRecord, m: MotorModel) -> dict:
     se = np.sqrt(np.maximum(np.diag(cov), 0))
     base = float(np.mean(np.concatenate([rd, rq]) ** 2))
     par = float(np.mean(res**2))
-    out = {
+    closure = (base - par) / base if base > 0 else 0.0
+    effects: list[dict[str, object]] = []
+    out: dict[str, object] = {
         "source": rec.source,
         "samples": len(w),
         "kind": "steady-state dq",
@@ -39,10 +41,10 @@ def diagnose_steady(rec: SteadyRecord, m: MotorModel) -> dict:
             "psi_f_wb": float(x[3]),
             "se": [float(s) for s in se],
             "mse_after_v2": par,
-            "closure": (base - par) / base if base > 0 else 0.0,
+            "closure": closure,
         },
         "selected": [],
-        "effects": [],
+        "effects": effects,
     }
     temp = rec.temp_winding_c
     if temp is not None and np.ptp(temp) > 5:
@@ -56,7 +58,7 @@ def diagnose_steady(rec: SteadyRecord, m: MotorModel) -> dict:
                 "alpha_r_per_k": float(slope / max(icpt + slope * 25, 1e-9)),
             }
     for n in ALL_NAMES:
-        out["effects"].append(
+        effects.append(
             {
                 "name": n,
                 "selected": False,
@@ -68,7 +70,7 @@ def diagnose_steady(rec: SteadyRecord, m: MotorModel) -> dict:
         )
     out["verdict"] = (
         "parametric gap (steady-state data; effects need control-rate data)"
-        if out["parametric_gap"]["closure"] > 0.5
+        if closure > 0.5
         else "no structural gap found (steady-state data)"
     )
     return out

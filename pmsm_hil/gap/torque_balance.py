@@ -16,6 +16,7 @@ regressors, each filtered and averaged as the torques are.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -23,6 +24,7 @@ from scipy.linalg import solveh_banded
 from scipy.signal import savgol_filter
 
 from pmsm_hil.gap.model import MotorModel, abc_to_ab, rot
+from pmsm_hil.gap.record import ControlRecord
 
 MECH_Z = 5.0  # Wald statistic (as a z) for a mechanical effect or an offset
 COG_Z = 7.0  # geometric mean of the z on the two window lengths, for the best of 28 orders
@@ -49,7 +51,12 @@ def _smooth_rows(x: np.ndarray, sg_n: int) -> np.ndarray:
 
 
 def balance_windows(
-    rec, m: MotorModel, sg_n: int, w_s: float, orders=(), recorded_speed: bool = False
+    rec: ControlRecord,
+    m: MotorModel,
+    sg_n: int,
+    w_s: float,
+    orders: Sequence[int] = (),
+    recorded_speed: bool = False,
 ) -> Windows | None:
     """Windows of the torque balance and the regressors (see the module doc); ``orders``: cogging
     periods per mechanical revolution whose sin/cos regressors are wanted (``sin{N}``, ``cos{N}``).
@@ -83,6 +90,8 @@ def balance_windows(
         wm = savgol_filter(th_m, sg_n, 2, deriv=1, delta=ts)
         if recorded_speed:
             wm = rec.omega_e_rad_s[a:b] / p
+        if rec.load_nm is None:
+            raise ValueError(f"{rec.source}: the torque balance needs the load torque (load_nm)")
         load = rec.load_nm[a:b]
         y0 = te[a:b] - load - m.b_visc_nms * wm - m.t_coulomb_nm * np.sign(wm)
         sig = [
@@ -115,7 +124,7 @@ def balance_windows(
     return Windows(y, {n: x[:, j] for j, n in enumerate(names)}, np.concatenate(run_id))
 
 
-def ols(wins: Windows, names) -> tuple[np.ndarray, np.ndarray]:
+def ols(wins: Windows, names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
     """Feasible GLS of the balance on the named regressors: coefficients and their covariance.
 
     A window's error is J (n(t_s+W) - n(t_s))/W for the speed estimate's error n (white, from the
@@ -172,7 +181,7 @@ def _entry(name, quantity, why):
     }
 
 
-def torque_balance_effects(rec, m: MotorModel) -> list[dict]:
+def torque_balance_effects(rec: ControlRecord, m: MotorModel) -> list[dict]:
     """friction, cogging and sensor_offset entries from the torque balance."""
     why = "needs the load torque and the motor's inertia (load_nm, j_kgm2)"
     none = [
@@ -215,6 +224,7 @@ def torque_balance_effects(rec, m: MotorModel) -> list[dict]:
             # the balance error is minus the cogging torque A sin(N theta_m + phase)
             phase = float(np.arctan2(-bb[-1], -bb[-2]))
             best = (z, n_per, amp, se, phase, bb, cc)
+    assert best is not None  # orders holds 28 cogging orders, so the loop always sets best
     z, n_per, amp, se, phase, bb, cc = best
     cog_cols = [f"sin{n_per}", f"cos{n_per}"]  # the likeliest cogging, a nuisance of the others
     cog = {

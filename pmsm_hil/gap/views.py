@@ -7,12 +7,13 @@ from __future__ import annotations
 import numpy as np
 
 from pmsm_hil.gap.model import MotorModel
+from pmsm_hil.gap.record import ControlRecord
 from pmsm_hil.gap.torque_balance import torque_balance_effects
 
 DC_RIPPLE_REL = 0.002  # DC-link voltage varying by more than 0.2 % rms: a soft link
 
 
-def _dc_link(rec) -> dict:
+def _dc_link(rec: ControlRecord) -> dict:
     v = rec.v_dc_v
     if rec.voltage_kind == "alphabeta" or np.all(np.isnan(v)):
         return {
@@ -45,5 +46,5 @@ def _dc_link(rec) -> dict:
     }
 
 
-def view_effects(rec, m: MotorModel) -> list[dict]:
+def view_effects(rec: ControlRecord, m: MotorModel) -> list[dict]:
     return [_dc_link(rec), *torque_balance_effects(rec, m)]

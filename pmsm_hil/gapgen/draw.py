@@ -17,15 +17,15 @@ BASE_SENSORS = {
 SENSOR_SPEC = {"i_noise_a": 0.02, "adc_lsb_a": LSB_A, "encoder_lines": 2500.0}
 
 
-def _lu(rng, lo, hi):
+def _lu(rng: np.random.Generator, lo: float, hi: float) -> float:
     return float(np.exp(rng.uniform(np.log(lo), np.log(hi))))
 
 
-def _sign(rng):
+def _sign(rng: np.random.Generator) -> float:
     return float(rng.choice([-1.0, 1.0]))
 
 
-def draw_effect(rng, name: str) -> dict:
+def draw_effect(rng: np.random.Generator, name: str) -> dict:
     """Rig parameters of one effect (docs/rigs.md)."""
     if name == "dead_time":  # IGBT modules: 0.5-4 us blanking, 0.7-2 V drops
         return {
@@ -120,7 +120,7 @@ def true_primary(name: str, p: dict) -> float | None:
     return None
 
 
-def draw_profile(rng) -> list[dict]:
+def draw_profile(rng: np.random.Generator) -> list[dict]:
     """2 s: six segments; speeds log-uniform over 100-1500 r/min with random directions, always one
     below 200 and one above 1000 r/min; random loads; i_d excitation in half of them."""
     mags = [_lu(rng, 100, 200), _lu(rng, 1000, 1450)] + [_lu(rng, 100, 1450) for _ in range(4)]
@@ -141,7 +141,7 @@ def draw_profile(rng) -> list[dict]:
     return segs
 
 
-def draw_trial(rng) -> dict:
+def draw_trial(rng: np.random.Generator) -> dict:
     """kind: none, one, two, or outside (a plant departure not in the library: inductances off)."""
     kind = str(rng.choice(["none", "one", "one", "one", "two", "outside"]))
     names = []

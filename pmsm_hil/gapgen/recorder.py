@@ -45,9 +45,9 @@ def _bind(dev: EmulatedDevice):
 
 
 def record_profile(
-    profile_path,
-    out_path,
-    rig_path=None,
+    profile_path: str | os.PathLike,
+    out_path: str | os.PathLike,
+    rig_path: str | os.PathLike | None = None,
     seed: int = 1,
     full_log: bool = True,
     sensors: dict[str, float] | None = None,

@@ -86,7 +86,7 @@ def _run_trial(trial: dict) -> dict:
     from pmsm_hil.gap.diagnose import diagnose
     from pmsm_hil.gap.model import MotorModel
     from pmsm_hil.gap.probe import Probe
-    from pmsm_hil.gap.record import load_record
+    from pmsm_hil.gap.record import load_control_record
     from pmsm_hil.gapgen.recorder import record_profile
     from pmsm_hil.profiles import load_motor
 
@@ -103,10 +103,10 @@ def _run_trial(trial: dict) -> dict:
             record_profile(prof, path, rig_path=rig, seed=seed, full_log=False, sensors=SENSOR_SPEC)
             logs[tag] = path
         m = MotorModel.from_motor(load_motor(default_file(MOTOR)))
-        rec = load_record(logs["real"])
-        res = diagnose(rec, m, holdout=load_record(logs["holdout"]))
+        rec = load_control_record(logs["real"])
+        res = diagnose(rec, m, holdout=load_control_record(logs["holdout"]))
         # detectability oracle (generator side): how much the hidden effects change the residual
-        clean = load_record(logs["clean"])
+        clean = load_control_record(logs["clean"])
         pr, pc = Probe(rec, m), Probe(clean, m)
         d_mse = float(np.mean(pr.residual() ** 2) - np.mean(pc.residual() ** 2))
         v_rel = float(np.std(rec.v_dc_v) / np.mean(rec.v_dc_v))

@@ -28,7 +28,7 @@ def _smooth(t, x, t_grid):
     return np.interp(t_grid, t, xs)
 
 
-def verify(log_path, rig_path, seed: int = 1) -> dict:
+def verify(log_path: str | os.PathLike, rig_path: str | os.PathLike, seed: int = 1) -> dict:
     log = read_log(log_path)
     att = {a.name: a.data for a in log.attachments}
     if "profile.yaml" not in att or "motor.yaml" not in att:
@@ -38,7 +38,8 @@ def verify(log_path, rig_path, seed: int = 1) -> dict:
     real = log.topic("/pmsm/telemetry")
     if not len(real["t_s"]):
         raise ValueError(f"{log_path}: no /pmsm/telemetry to compare against")
-    out = {"signals": {}}
+    signals: dict[str, dict[str, float]] = {}
+    out: dict[str, object] = {"signals": signals}
     with tempfile.TemporaryDirectory() as d:
         motor = os.path.join(d, "motor.yaml")
         with open(motor, "wb") as f:
@@ -62,11 +63,11 @@ def verify(log_path, rig_path, seed: int = 1) -> dict:
         ref = _smooth(t, real[s], t)
         e = {tag: _smooth(r["t_s"], r[s], t) - ref for tag, r in runs.items()}
         mb, ma = float(np.mean(e["nominal"] ** 2)), float(np.mean(e["fitted"] ** 2))
-        out["signals"][s] = {
+        signals[s] = {
             "rms_nominal": float(np.sqrt(mb)),
             "rms_fitted": float(np.sqrt(ma)),
             "closure": (mb - ma) / mb if mb > 0 else 0.0,
         }
-    cl = [v["closure"] for k, v in out["signals"].items() if k != "speed_rpm"]
+    cl = [v["closure"] for k, v in signals.items() if k != "speed_rpm"]
     out["closure_median"] = float(np.median(cl))
     return out
