@@ -7,7 +7,7 @@ import contextlib
 import signal
 import threading
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import FrameType
@@ -40,7 +40,7 @@ class RunOptions:
     seed: int | None = None  # recorded in the metadata (the emulator's seed)
     rig_name: str = ""
     on_update_s: float = 0.1  # wall time between observer updates
-    sinks: list[Sink] = field(default_factory=list)  # extra consumers of each device message
+    sinks: Sequence[Sink] = field(default_factory=list)  # extra consumers of each device message
     # further configuration messages sent after the profile, e.g. ("config_commission", {...})
     requests: list[tuple[str, dict[str, Any]]] = field(default_factory=list)
 
