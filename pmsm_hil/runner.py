@@ -7,16 +7,20 @@ import contextlib
 import signal
 import threading
 import time
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from types import FrameType
+from typing import Any, Protocol
 
 from pmsm_hil import __version__
 from pmsm_hil.control_design import calibration_config, device_config
 from pmsm_hil.errors import DeviceError, TransportError
 from pmsm_hil.log.writer import LogWriteError, LogWriter
+from pmsm_hil.profiles import Motor, Profile
 from pmsm_hil.protocol import generated as gen
-from pmsm_hil.protocol.session import Session
-from pmsm_hil.recorder import LiveState, Recorder
+from pmsm_hil.protocol.session import Identity, Session
+from pmsm_hil.recorder import LiveState, Recorder, Sink
 from pmsm_hil.sensorless_design import estimator_frames
 
 # The log of a run is flushed to the OS at least this often (wall time): a host killed outright
@@ -36,9 +40,9 @@ class RunOptions:
     seed: int | None = None  # recorded in the metadata (the emulator's seed)
     rig_name: str = ""
     on_update_s: float = 0.1  # wall time between observer updates
-    sinks: list = field(default_factory=list)  # extra consumers of each logged device message
+    sinks: Sequence[Sink] = field(default_factory=list)  # extra consumers of each device message
     # further configuration messages sent after the profile, e.g. ("config_commission", {...})
-    requests: list = field(default_factory=list)
+    requests: list[tuple[str, dict[str, Any]]] = field(default_factory=list)
 
 
 @dataclass
@@ -53,6 +57,14 @@ class RunResult:
     live: LiveState = field(default_factory=LiveState)
 
 
+class Observer(Protocol):
+    """What the runner tells while a run goes on (e.g. the CLI's step printer)."""
+
+    def message(self, text: str) -> None: ...
+
+    def update(self, live: LiveState) -> None: ...
+
+
 class RunInterrupted(Exception):
     pass
 
@@ -61,7 +73,7 @@ class PlantMismatch(DeviceError):
     """The emulator serves another motor than the profile's (it was started with other files)."""
 
 
-def plant_mismatch(motor, truth: dict) -> str | None:
+def plant_mismatch(motor: Motor, truth: dict[str, Any]) -> str | None:
     """What differs between the emulator's plant (its first truth frame) and the profile's motor
     file, beyond what rig effects explain (temperature, saturation); None when they match."""
     out = []
@@ -94,12 +106,12 @@ class _Interrupts:
         s for s in (getattr(signal, n, None) for n in ("SIGINT", "SIGTERM", "SIGHUP")) if s
     )
 
-    def __init__(self):
+    def __init__(self) -> None:
         self.count = 0
         self.signal_name = ""
-        self._old: dict = {}
+        self._old: dict[signal.Signals, Any] = {}
 
-    def _handler(self, signum, _frame) -> None:
+    def _handler(self, signum: int, _frame: FrameType | None) -> None:
         self.count += 1
         self.signal_name = signal.Signals(signum).name
 
@@ -109,13 +121,20 @@ class _Interrupts:
                 self._old[s] = signal.signal(s, self._handler)
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         for s, old in self._old.items():
             signal.signal(s, old)
 
 
-def _metadata(profile, session: Session, options: RunOptions) -> dict[str, dict[str, str]]:
-    ident = session.identity
+def _identity(session: Session) -> Identity:
+    """The device's identity (from `session.hello()`, which every run starts with)."""
+    if session.identity is None:
+        raise DeviceError(f"the device on {session.t.name} has not been identified: hello first")
+    return session.identity
+
+
+def _metadata(profile: Profile, session: Session, options: RunOptions) -> dict[str, dict[str, str]]:
+    ident = _identity(session)
     return {
         "run": {
             "profile": profile.name,
@@ -141,14 +160,14 @@ def _metadata(profile, session: Session, options: RunOptions) -> dict[str, dict[
     }
 
 
-def _attachments(profile) -> list[tuple[str, str, bytes]]:
-    out = []
+def _attachments(profile: Profile) -> list[tuple[str, str, bytes]]:
+    out: list[tuple[str, str, bytes]] = []
     for label, text in profile.yaml_texts.items():
         out.append((label, "application/yaml", text.encode()))
     return out
 
 
-def configure(session: Session, profile) -> None:
+def configure(session: Session, profile: Profile) -> None:
     """Send motor, control and profile to the device, each acknowledged."""
     motor_cfg, ctrl_cfg = device_config(profile)
     session.request("config_motor", **motor_cfg)
@@ -181,7 +200,7 @@ def configure(session: Session, profile) -> None:
             inject_hz=s.inject_hz,
         )
     steps = [(i, s.plant) for i, s in enumerate(profile.segments) if s.plant is not None]
-    if steps and session.identity.board == "emulator":
+    if steps and _identity(session).board == "emulator":
         for i, st in steps:  # emulator only: the sim board steps the true R and psi_f
             session.request(
                 "sim_plant", index=i, r_s_scale=st.r_s_scale, psi_f_scale=st.psi_f_scale
@@ -189,7 +208,11 @@ def configure(session: Session, profile) -> None:
 
 
 def run_profile(
-    profile, session: Session, log_path: Path, options: RunOptions | None = None, observer=None
+    profile: Profile,
+    session: Session,
+    log_path: Path | str,
+    options: RunOptions | None = None,
+    observer: Observer | None = None,
 ) -> RunResult:
     """Run `profile` on the device behind `session`, logging to `log_path` (MCAP).
 
@@ -213,23 +236,23 @@ def run_profile(
     )
     rec = Recorder(writer, profile.control.ts_s, names, options.sinks)
     rec.live.total_s = profile.total_duration_s
-    observer = _SafeObserver(observer)
+    safe = _SafeObserver(observer)
     try:
         with _Interrupts() as sig:
             try:
                 session.request("start")
                 rec.event(0.0, "host", 0, 0, f"started {profile.name} on {session.t.name}")
-                interrupted = _stream(session, rec, options, observer, sig, profile.motor)
+                interrupted = _stream(session, rec, options, safe, sig, profile.motor)
                 if interrupted:
-                    _stop_device(session, rec, observer, sig)
+                    _stop_device(session, rec, safe, sig)
             except KeyboardInterrupt:  # raised outside the handlers (not the main thread)
                 interrupted = True
-                _stop_device(session, rec, observer, sig)
+                _stop_device(session, rec, safe, sig)
             except PlantMismatch:
                 _send_quietly(session, "abort")
                 raise
             except LogWriteError as e:  # a full disk: stop the motor under control, then report
-                error = _stop_after_log_failure(session, rec, observer, sig, e)
+                error = _stop_after_log_failure(session, rec, safe, sig, e)
             except (TransportError, DeviceError) as e:
                 error = str(e)
                 rec.event(rec.live.t_s, "host", 0, 0, f"link error: {error}")
@@ -242,7 +265,7 @@ def run_profile(
                 ) from e
             n_cap = 0
             if options.capture and not error and not sig.count > 1:
-                n_cap = _upload_capture(session, rec, observer)
+                n_cap = _upload_capture(session, rec, safe)
             _write_link_stats(rec.w, session, rec)
     finally:
         writer.close()  # raises LogWriteError when the end of the log cannot be written
@@ -259,21 +282,30 @@ def run_profile(
     )
 
 
-class _NoLog:
-    """Stands in for a writer that failed: the live state goes on, nothing is written."""
+class _NoLog(LogWriter):
+    """Stands in for a writer that failed: the live state goes on, nothing is written (it opens
+    no file; only the message methods are meant to be called)."""
 
-    def write(self, *_a, **_k) -> None:
+    def __init__(self) -> None:
         pass
 
-    write_many = write
-    flush_if_due = write
+    def write(self, topic: str, t_s: float, fields: Mapping[str, Any]) -> None:
+        pass
+
+    def write_many(self, topic: str, rows: Any) -> int:
+        return 0
+
+    def flush_if_due(self) -> None:
+        pass
 
 
-def _stop_after_log_failure(session, rec, observer, sig, err: LogWriteError) -> str:
+def _stop_after_log_failure(
+    session: Session, rec: Recorder, observer: Observer, sig: _Interrupts, err: LogWriteError
+) -> str:
     """The log cannot be written: a controlled stop (abort after 5 s without it), as for Ctrl-C;
     returns the error for the exit message, with how the motor stopped and what the log holds."""
     rec.w = _NoLog()
-    _stop_device(session, rec, observer, sig, reason=err.strerror)
+    _stop_device(session, rec, observer, sig, reason=err.strerror or "")
     live = rec.live
     how = (
         f"the motor was stopped (device {live.state}, {live.stop_reason or 'stop'})"
@@ -291,16 +323,16 @@ def _send_quietly(session: Session, what: str) -> None:
 class _SafeObserver:
     """The live view must never end a run: a closed pipe or a terminal error silences it."""
 
-    def __init__(self, observer):
+    def __init__(self, observer: Observer | None):
         self.inner = observer
 
-    def update(self, live) -> None:
+    def update(self, live: LiveState) -> None:
         self._call("update", live)
 
     def message(self, text: str) -> None:
         self._call("message", text)
 
-    def _call(self, name: str, arg) -> None:
+    def _call(self, name: str, arg: LiveState | str) -> None:
         if self.inner is None:
             return
         try:
@@ -310,7 +342,12 @@ class _SafeObserver:
 
 
 def _stream(
-    session: Session, rec: Recorder, options: RunOptions, observer, sig, motor=None
+    session: Session,
+    rec: Recorder,
+    options: RunOptions,
+    observer: Observer | None,
+    sig: _Interrupts,
+    motor: Motor | None = None,
 ) -> bool:
     """Stream until the device stops (False) or a signal asks the host to stop (True)."""
     live = rec.live
@@ -329,7 +366,7 @@ def _stream(
         if frames:
             last_data_wall = now
             rec.frames(frames)
-            if not plant_checked and live.truth:
+            if not plant_checked and motor is not None and live.truth:
                 plant_checked = True
                 why = plant_mismatch(motor, live.truth)
                 if why:
@@ -377,7 +414,7 @@ def _stream(
             observer.update(live)
 
 
-def _stop_evident(live) -> bool:
+def _stop_evident(live: LiveState) -> bool:
     """The device's own frames say it was stopping or done (status), or its profile has ended."""
     seen = live.status.get("state") if live.status else None
     return seen in ("stopping", "done", "fault") or (live.total_s > 0 and live.t_s >= live.total_s)
@@ -388,7 +425,9 @@ def _bad_frames(session: Session) -> int:
     return d.crc_errors + d.cobs_errors + d.len_errors + d.unknown_id
 
 
-def _stop_device(session: Session, rec: Recorder, observer, sig, reason: str = "") -> None:
+def _stop_device(
+    session: Session, rec: Recorder, observer: Observer, sig: _Interrupts, reason: str = ""
+) -> None:
     """A signal (or `reason`: a host failure): ask for a controlled stop, keep logging until the
     device reports it; a second signal, or 5 s without the stop, sends abort."""
     live = rec.live
@@ -425,7 +464,7 @@ def _stop_device(session: Session, rec: Recorder, observer, sig, reason: str = "
         rec.event(live.t_s, "host", 0, 0, f"link error while stopping: {e}")
 
 
-def _upload_capture(session: Session, rec: Recorder, observer) -> int:
+def _upload_capture(session: Session, rec: Recorder, observer: Observer | None) -> int:
     count = int(rec.live.status.get("capture_count", 0) or 0)
     # the status frame may predate the end of the capture: drain what is left, then ask
     rec.frames(session.poll(0.05))
@@ -434,7 +473,7 @@ def _upload_capture(session: Session, rec: Recorder, observer) -> int:
         return 0
     if observer is not None:
         observer.message(f"uploading capture ({count} samples)")
-    capacity = session.identity.capture_len
+    capacity = _identity(session).capture_len
     if count > capacity:  # a device-provided count is checked against what it said at hello
         rec.event(
             rec.live.t_s, "warning", 0, 0, f"capture count {count} is implausible: not uploaded"
@@ -459,7 +498,7 @@ def _upload_capture(session: Session, rec: Recorder, observer) -> int:
     return rec.capture(chunks)
 
 
-def _write_link_stats(writer, session: Session, rec: Recorder) -> None:
+def _write_link_stats(writer: LogWriter, session: Session, rec: Recorder) -> None:
     d = session.decoder
     live = rec.live
     writer.write(

@@ -4,8 +4,12 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from pmsm_hil.cli.errors import fail
+
+if TYPE_CHECKING:  # the reader (numpy, mcap) is imported when a command runs
+    from pmsm_hil.log.reader import Log
 
 
 def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -52,7 +56,7 @@ def main(args: argparse.Namespace) -> int:
     return 0
 
 
-def recovered_lines(log, dst: Path) -> list[str]:
+def recovered_lines(log: Log, dst: Path) -> list[str]:
     """Per topic: messages and device-time span; that dst holds exactly them; the loss bound."""
     from pmsm_hil.log.reader import read_log
 

@@ -8,25 +8,16 @@ from __future__ import annotations
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
 from pmsm_hil.commission.steps import Measured, failure_text, step_quantities
 from pmsm_hil.profiles import Profile, load_profile
 from pmsm_hil.profiles._base import default_file
 from pmsm_hil.protocol import generated as gen
 from pmsm_hil.protocol.session import Session
-from pmsm_hil.recorder import LiveState
-from pmsm_hil.runner import RunOptions, RunResult, run_profile
+from pmsm_hil.runner import Observer, RunOptions, RunResult, run_profile
 
 STEPS = tuple(gen.ENUMS["commission_step"])  # firmware order
-
-
-class Observer(Protocol):
-    """What the runner tells while a run goes on (e.g. the CLI's step printer)."""
-
-    def message(self, text: str) -> None: ...
-
-    def update(self, live: LiveState) -> None: ...
 
 
 @dataclass

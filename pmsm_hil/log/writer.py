@@ -29,7 +29,7 @@ import struct
 import threading
 import time
 import weakref
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from operator import itemgetter
 from typing import Any
 
@@ -98,7 +98,7 @@ _HELD_SIGNALS = {
 
 
 @contextlib.contextmanager
-def _signals_held():
+def _signals_held() -> Iterator[None]:
     """Hold SIGINT/SIGTERM/SIGHUP back while a chunk or the summary is written (POSIX)."""
     if not hasattr(signal, "pthread_sigmask"):
         yield
@@ -143,9 +143,13 @@ class _Channel:
             itemgetter(*self.names) if self.n > 1 else (lambda d, _k=self.names[0]: (d[_k],))
         )
         self.fixed = self.codec.fixed
-        # fixed layout: the whole CDR data (encapsulation header as a uint32, then the fields)
-        self.pack = struct.Struct("<I" + self.codec.body_format).pack if self.fixed else None
-        self.dtype = self.codec.dtype if self.fixed else None
+        # fixed layout: the whole CDR data (encapsulation header as a uint32, then the fields);
+        # the codec has a body format and a dtype exactly when it is fixed
+        body = self.codec.body_format
+        self.pack: Callable[..., bytes] | None = (
+            struct.Struct("<I" + body).pack if self.fixed and body is not None else None
+        )
+        self.dtype: np.dtype | None = self.codec.dtype if self.fixed else None
 
 
 class LogWriter:
@@ -213,7 +217,13 @@ class LogWriter:
             self.add_attachment(*att)
         self._f.flush()
         ref = weakref.ref(self)
-        self._atexit = lambda: (w := ref()) is not None and w.close()
+
+        def close_at_exit() -> None:
+            w = ref()
+            if w is not None:
+                w.close()
+
+        self._atexit = close_at_exit
         atexit.register(self._atexit)
 
     # ------------------------------------------------------------------ records outside chunks
@@ -306,18 +316,19 @@ class LogWriter:
             raise ValueError(
                 f"{topic}: t_s = {t_s!r} is not a device time (finite, >= 0 s)"
             ) from None
-        data = None
-        if ch.fixed:
+        data: bytes | None = None
+        pack = ch.pack  # set exactly when the layout is fixed
+        if pack is not None:
             nf = len(fields)
             if nf == ch.n or (nf == ch.n + 1 and "t_s" in fields):
                 try:
-                    data = ch.pack(0x100, t_s, *ch.getter(fields))
+                    data = pack(0x100, t_s, *ch.getter(fields))
                 except (KeyError, struct.error, TypeError):
                     data = None
             if data is None:
                 vals = self._values(ch, t_s, fields)
                 try:
-                    data = ch.pack(0x100, *vals)
+                    data = pack(0x100, *vals)
                 except struct.error as e:
                     raise self._value_error(ch, vals, e) from None
         else:
@@ -387,6 +398,7 @@ class LogWriter:
         if ch is None:
             with self._lock:
                 ch = self._channels.get(topic) or self._open_channel(topic)
+        cols: dict[str, Any]
         if isinstance(rows, np.ndarray) and rows.dtype.names:
             cols = {n: rows[n] for n in rows.dtype.names}
         elif isinstance(rows, Mapping):
@@ -408,7 +420,8 @@ class LogWriter:
         count = len(t)
         if count == 0:
             return 0
-        if not ch.fixed:
+        dtype = ch.dtype  # set exactly when the layout is fixed
+        if dtype is None:
             present = [
                 (nm, list(np.asarray(cols[nm], dtype=object).reshape(-1)))
                 for nm in ch.names
@@ -427,28 +440,28 @@ class LogWriter:
         if np.any(t < 0) or not np.all(np.isfinite(t)):
             raise ValueError(f"{topic}: t_s must be finite and >= 0")
         lt = (np.rint(t * 1e9).astype(np.uint64) + np.uint64(self._off_ns)).tolist()
-        recs = np.zeros(count, dtype=ch.dtype)
+        recs = np.zeros(count, dtype=dtype)
         recs.view(np.uint8).reshape(count, -1)[:, :4] = np.frombuffer(b"\x00\x01\x00\x00", np.uint8)
         recs["t_s"] = t
         for nm, f in zip(ch.names, ch.codec.fields[1:], strict=False):
-            c = cols.get(nm)
-            if c is None:
+            col = cols.get(nm)
+            if col is None:
                 recs[nm] = f.default
             else:
-                c = np.asarray(c)
-                if c.shape != (count,) and c.ndim != 0:
+                arr = np.asarray(col)
+                if arr.shape != (count,) and arr.ndim != 0:
                     raise ValueError(
-                        f"{topic}.{nm}: {c.shape[0] if c.ndim else 1} values for {count} rows"
+                        f"{topic}.{nm}: {arr.shape[0] if arr.ndim else 1} values for {count} rows"
                     )
                 if f.type == "bool":
-                    c = c.astype(bool)
+                    arr = arr.astype(bool)
                 elif f.type not in ("float32", "float64"):
-                    info = np.iinfo(recs.dtype.fields[nm][0])
-                    if c.size and (np.any(c < info.min) or np.any(c > info.max)):
+                    info = np.iinfo(recs[nm].dtype)
+                    if arr.size and (np.any(arr < info.min) or np.any(arr > info.max)):
                         raise ValueError(f"{topic}.{nm}: values outside the {f.type} range")
-                recs[nm] = c
+                recs[nm] = arr
         raw = recs.tobytes()
-        size = ch.dtype.itemsize
+        size = dtype.itemsize
         with self._lock:
             self._check_open()
             for i in range(count):

@@ -15,12 +15,16 @@ from __future__ import annotations
 import contextlib
 import time
 from binascii import crc_hqx
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
+from typing import TYPE_CHECKING, Any, Protocol
 
 from pmsm_hil.errors import TransportError
 from pmsm_hil.protocol import can_generated as cg
 from pmsm_hil.protocol import codec
 from pmsm_hil.protocol.generated import BY_ID
+
+if TYPE_CHECKING:
+    import can
 
 CRC_INIT = 0xFFFF
 NODE_MASK = (1 << cg.NODE_BITS) - 1
@@ -37,7 +41,9 @@ def can_id(func: int, node: int) -> int:
     return (func << cg.NODE_BITS) | node
 
 
-def encode_message(name_or_id, seq: int, node: int = cg.NODE, **fields) -> list[tuple[int, bytes]]:
+def encode_message(
+    name_or_id: str | int, seq: int, node: int = cg.NODE, **fields: Any
+) -> list[tuple[int, bytes]]:
     """A message as [(identifier, data)], in the order they go on the bus."""
     spec = codec.spec_of(name_or_id)
     return encode_payload_frames(spec.id, seq, codec.encode_payload(spec.id, **fields), node)
@@ -58,14 +64,14 @@ def encode_payload_frames(
             out.append((ident, bytes((k,)) + payload[at : at + cg.TRANSFER_DATA]))
         return out
     data = bytes((seq & 0xFF,)) + payload
-    crc = b""
+    crc_octets = b""
     if lay.crc_frame != cg.NO_CRC:  # the end-to-end check (docs/can.md)
-        crc = crc_hqx(bytes((msg_id, seq & 0xFF)) + payload, CRC_INIT).to_bytes(2, "big")
+        crc_octets = crc_hqx(bytes((msg_id, seq & 0xFF)) + payload, CRC_INIT).to_bytes(2, "big")
     out, at = [], 0
     for k, n in enumerate(lay.frame_octets):
         if k == lay.crc_frame:
             n -= cg.CRC_OCTETS
-            out.append((can_id(lay.func + k, node), data[at : at + n] + crc))
+            out.append((can_id(lay.func + k, node), data[at : at + n] + crc_octets))
         else:
             out.append((can_id(lay.func + k, node), data[at : at + n]))
         at += n
@@ -148,7 +154,7 @@ class CanDecoder:
         self.frames_ok += 1
         out.append(codec.Frame(msg_id, seq, entry[0], entry[2](payload)))
 
-    def feed(self, frames: Iterable[tuple[int, bytes]]) -> list[codec.Frame]:
+    def feed(self, frames: Iterable[tuple[int, bytes | bytearray]]) -> list[codec.Frame]:
         out: list[codec.Frame] = []
         direct, slots = self._direct, self._slots
         for ident, data in frames:
@@ -209,7 +215,7 @@ class CanDecoder:
         slot[2].append(part)
         slot[0] = k + 1
 
-    def _feed_transfer(self, out: list, data: bytes) -> None:
+    def _feed_transfer(self, out: list[codec.Frame], data: bytes | bytearray) -> None:
         now = time.monotonic()
         x = self._xfer
         if x is not None and now - x[6] > TRANSFER_TIMEOUT_S:
@@ -249,16 +255,27 @@ class CanDecoder:
         self._done(out, x[0], x[1], payload)
 
 
+class CanBus(Protocol):
+    """What the link uses of a bus: python-can's ``BusABC`` or a bus like it (the in-process
+    emulator's, which also has ``recv_batch``)."""
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None: ...
+
+    def recv(self, timeout: float | None = None) -> can.Message | None: ...
+
+    def shutdown(self) -> None: ...
+
+
 class CanLink:
     """Protocol messages over a python-can bus (any interface), as a link for the session."""
 
     def __init__(
         self,
-        bus,
+        bus: CanBus,
         node: int = cg.NODE,
         bit_rate: float = cg.BITRATE,
         name: str | None = None,
-        on_close=None,
+        on_close: Callable[[], None] | None = None,
     ):
         self.bus = bus
         self.node = node
@@ -268,7 +285,7 @@ class CanLink:
         self.sent_frames = 0
         self._on_close = on_close
 
-    def send(self, name: str, seq: int, **fields) -> None:
+    def send(self, name: str, seq: int, **fields: Any) -> None:
         import can
 
         for ident, data in encode_message(name, seq, self.node, **fields):
@@ -278,10 +295,10 @@ class CanLink:
                 raise TransportError(f"{self.name}: sending {name} failed: {e}") from e
             self.sent_frames += 1
 
-    def poll(self, timeout_s: float) -> list:
+    def poll(self, timeout_s: float) -> list[codec.Frame]:
         import can
 
-        frames = []
+        frames: list[tuple[int, bytes | bytearray]] = []
         batch = getattr(self.bus, "recv_batch", None)
         if batch is not None:  # the in-process bus: one chunk of device time per poll
             frames = batch()

@@ -7,6 +7,8 @@ on their way, as a noisy line would (benchmarks/link_faults.py)."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from pmsm_hil.emulator.fwlib import EmulatedDevice
 
 
@@ -16,8 +18,8 @@ class InProcessTransport:
         settings: dict[str, float],
         chunk_ticks: int = 400,
         device: EmulatedDevice | None = None,
-        noise_d2h=None,
-        noise_h2d=None,
+        noise_d2h: Callable[[bytes], bytes] | None = None,
+        noise_h2d: Callable[[bytes], bytes] | None = None,
     ):
         self.dev = device or EmulatedDevice(settings)
         self.noise_d2h, self.noise_h2d = noise_d2h, noise_h2d
