@@ -23,7 +23,7 @@ void comm_start(comm_t *c, const comm_cfg_t *cfg)
     c->l_q_h = cfg->motor.l_q_h;
     c->inv_i_dt_a = cfg->i_dt_nom_a > 0.0f ? cfg->i_dt_nom_a : 0.5f;
     c->step = 0u;
-    while (c->step < COMM_N_STEPS && ((c->cfg.steps >> c->step) & 1u) == 0u) {
+    while (c->step < COMM_N_STEPS && (((uint16_t)(c->cfg.steps >> c->step)) & 1u) == 0u) {
         c->step = (uint16_t)(c->step + 1u);
     }
     c->step_started = true;
@@ -69,7 +69,7 @@ void comm_finish_step(comm_t *c)
     c->res.status = 0u;
     c->result_due = true;
     c->step = (uint16_t)(c->step + 1u);
-    while (c->step < COMM_N_STEPS && ((c->cfg.steps >> c->step) & 1u) == 0u) {
+    while (c->step < COMM_N_STEPS && (((uint16_t)(c->cfg.steps >> c->step)) & 1u) == 0u) {
         c->step = (uint16_t)(c->step + 1u);
     }
     c->phase = 0u;

@@ -96,12 +96,12 @@ void mras_step(mras_t *m, const mras_in_t *in, mras_out_t *out)
     const float theta_prev = m->theta_rad - w * ts; /* theta_hat(k-1) */
     const float w_min = c->min_speed_rad_s;
     const float a_f = MRAS_FILT_RAD_S * ts;
-    float e_d = 0.0f, e_q = 0.0f, eps = 0.0f, ratio = 0.0f, psi_ex = c->psi_f_wb, a_ff = 0.0f;
+    float e_d = 0.0f, e_q = 0.0f, eps = 0.0f, ratio = 0.0f, a_ff = 0.0f;
     float emf_d, emf_q, emf;
     bool adapt = false, locked;
 
     if (m->n > 0u) {
-        float i_d, i_q;
+        float i_d, i_q, psi_ex;
         const float sg = m->reverse ? -1.0f : 1.0f; /* the rotor's dq from the frame's */
         mras_model_error(c, m->i_al_prev, m->i_be_prev, in->i_alpha_a, in->i_beta_a, in->u_alpha_v,
                          in->u_beta_v, theta_prev, w, &e_d, &e_q);
