@@ -190,11 +190,7 @@ def configure(session: Session, profile: Profile) -> None:
             speed_rpm=s.speed_rpm,
             ramp_rpm_s=s.ramp_rpm_s,
             load_nm=s.load_nm,
-            flags=(
-                (gen.ENUMS["segment_flag"]["capture"] if s.capture else 0)
-                | (0 if s.estimate else gen.ENUMS["segment_flag"]["hold_est"])
-                | (gen.ENUMS["segment_flag"]["angle_encoder"] if s.angle_encoder else 0)
-            ),
+            flags=s.flags,
             kind=gen.ENUMS["segment_kind"][s.kind],
             inject_a=s.inject_a,
             inject_hz=s.inject_hz,

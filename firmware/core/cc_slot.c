@@ -111,6 +111,48 @@ void cc_reset(cc_t *c)
     }
 }
 
+uint16_t cc_segment_kind(uint16_t seg_flags, uint16_t fallback)
+{
+    if ((seg_flags & PROTO_SEGMENT_FLAG_CC_FOC) != 0u) {
+        return CC_KIND_FOC;
+    }
+    if ((seg_flags & PROTO_SEGMENT_FLAG_CC_MPCC) != 0u) {
+        return CC_KIND_MPCC;
+    }
+    return fallback;
+}
+
+void cc_hand_over(cc_t *c, const cc_cfg_t *cfg, uint16_t kind, const cc_in_t *in,
+                  float u_d_mean_v, float u_q_mean_v)
+{
+    float u_al, u_be;
+    if (kind == c->kind || !cc_kind_known(kind)) {
+        return;
+    }
+    /* what the present occupant applies during the running period (before the union changes) */
+    if (c->kind == CC_KIND_FOC) {
+        u_al = c->u.foc.u_al_next;
+        u_be = c->u.foc.u_be_next;
+    } else {
+        mpcc_vector(c->u.mpcc.sw_prev, &u_al, &u_be);
+        u_al *= in->v_dc_v;
+        u_be *= in->v_dc_v;
+    }
+    c->kind = kind;
+    if (kind == CC_KIND_FOC) {
+        foc_init(&c->u.foc, &cfg->foc);
+        /* the PI's output is kp e + x + ff with ff the decoupling at the present currents:
+         * with e about zero, x = mean voltage - ff continues the MPCC's mean voltage */
+        const float w = in->omega_e_rad_s;
+        const float ff_d = -w * in->pred.l_q_h * in->i_q_a;
+        const float ff_q = w * (in->pred.l_d_h * in->i_d_a + in->pred.psi_f_wb);
+        foc_take_over(&c->u.foc, u_al, u_be, u_d_mean_v - ff_d, u_q_mean_v - ff_q);
+    } else {
+        mpcc_init(&c->u.mpcc, &cfg->mpcc);
+        mpcc_take_over(&c->u.mpcc, u_al, u_be);
+    }
+}
+
 uint16_t cc_applied_code(const cc_t *c)
 {
     return c->kind == CC_KIND_MPCC ? c->u.mpcc.sw_prev : 0u;

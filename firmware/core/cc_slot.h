@@ -67,6 +67,18 @@ void cc_init(cc_t *c, const cc_cfg_t *cfg); /* an unknown kind falls back to CC_
 bool cc_uses_duties(const cc_t *c);
 void cc_step(cc_t *c, const cc_in_t *in, cc_out_t *out);
 void cc_reset(cc_t *c); /* forget the applied output (PWM was off) */
+/* The occupant a segment asks for: its cc_foc / cc_mpcc flag (profile_segment.flags), else
+ * `fallback` (the profile's choice, or the running segment's). */
+uint16_t cc_segment_kind(uint16_t seg_flags, uint16_t fallback);
+/* Hand the slot to another occupant while the PWM runs (a segment that names its current
+ * controller): the new one takes the voltage the old one applies during the running period as
+ * already applied, and a PI occupant starts its integrators where its first command continues
+ * the old occupant's mean dq voltage (u_d_mean_v, u_q_mean_v: a low-pass of cc_out's u_*_avg_v
+ * over about a millisecond), so neither the voltage nor the current steps. `in` is this period's
+ * input (currents, speed, v_dc, predictor parameters). Same kind or an unknown kind: nothing
+ * changes. */
+void cc_hand_over(cc_t *c, const cc_cfg_t *cfg, uint16_t kind, const cc_in_t *in,
+                  float u_d_mean_v, float u_q_mean_v);
 /* Switch-state code applied during the running period (bit0 s_a, bit1 s_b, bit2 s_c; what a
  * capture logs with i(k)); 0 for a duty-cycle occupant. */
 uint16_t cc_applied_code(const cc_t *c);

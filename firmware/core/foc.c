@@ -44,6 +44,19 @@ void foc_reset(foc_t *c)
     c->u_be_next = 0.0f;
 }
 
+void foc_take_over(foc_t *c, float u_alpha_v, float u_beta_v, float x_d_v, float x_q_v)
+{
+    foc_reset(c);
+    if (u_alpha_v == u_alpha_v && u_beta_v == u_beta_v) {
+        c->u_al_next = u_alpha_v;
+        c->u_be_next = u_beta_v;
+    }
+    if (x_d_v == x_d_v && x_q_v == x_q_v) {
+        c->x_d_v = x_d_v;
+        c->x_q_v = x_q_v;
+    }
+}
+
 void foc_gains(const foc_cfg_t *cfg, float r_ohm, float l_h, float *kp, float *ki)
 {
     *kp = cfg->bw_rad_s * l_h;

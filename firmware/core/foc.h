@@ -58,6 +58,10 @@ typedef struct {
 void foc_cfg_default(foc_cfg_t *cfg);
 void foc_init(foc_t *c, const foc_cfg_t *cfg);
 void foc_reset(foc_t *c);
+/* Take over from another current controller while the PWM runs: (u_alpha_v, u_beta_v) is the
+ * voltage it applies during the running period; the integrators start at (x_d_v, x_q_v), chosen
+ * by the caller so that the first command continues the previous occupant's mean voltage. */
+void foc_take_over(foc_t *c, float u_alpha_v, float u_beta_v, float x_d_v, float x_q_v);
 void foc_step(foc_t *c, const foc_in_t *in, foc_out_t *out);
 /* Gains of the design (exposed for tests): kp in V/A, ki in V/(A s). */
 void foc_gains(const foc_cfg_t *cfg, float r_ohm, float l_h, float *kp, float *ki);

@@ -286,6 +286,7 @@ static void stage_profile(fw_t *f, float *speed_ref_rpm, float *load_nm)
             f->seg.tick = po.tick_in_seg;
             f->seg.ticks = po.seg_ticks;
             f->seg_angle_encoder = (po.flags & PROTO_SEGMENT_FLAG_ANGLE_ENCODER) != 0u;
+            f->cc_want = cc_segment_kind(po.flags, f->cc_want);
             return;
         }
     }
@@ -350,7 +351,15 @@ static void stage_current_control(fw_t *f, const fw_meas_t *m, float c, float s)
     ci.omega_e_rad_s = f->ang.omega_e_rad_s;
     ci.v_dc_v = m->v_dc_v;
     ident_predictor(&f->ident, &ci.pred);
+    if (f->cc_want != f->cc.kind) { /* a segment names another current controller */
+        cc_hand_over(&f->cc, &f->cc_cfg, f->cc_want, &ci, f->u_d_mean_v, f->u_q_mean_v);
+    }
     cc_step(&f->cc, &ci, &f->cc_out);
+    {
+        const float a = f->ctrl.ts_s * (1.0f / FW_CC_MEAN_TAU_S);
+        f->u_d_mean_v += a * (f->cc_out.u_d_avg_v - f->u_d_mean_v);
+        f->u_q_mean_v += a * (f->cc_out.u_q_avg_v - f->u_q_mean_v);
+    }
     f->sig.u_d_v = f->cc_out.u_d_v;
     f->sig.u_q_v = f->cc_out.u_q_v;
 }

@@ -57,7 +57,7 @@ static void init_stages(fw_t *f)
     dc.gain = FW_DITHER_GAIN;
     dither_init(&f->dither, &dc);
 
-    cc.kind = c->current_ctrl;
+    cc.kind = cc_segment_kind(f->prof.n_declared > 0u ? f->prof.seg[0].flags : 0u, c->current_ctrl);
     mpcc_cfg_default(&cc.mpcc);
     cc.mpcc.ts_s = c->ts_s;
     cc.mpcc.rho = c->rho;
@@ -73,6 +73,10 @@ static void init_stages(fw_t *f)
     cc.foc.v_drop_v = c->v_drop_v;
     cc.foc.i_dt_a = c->i_dt_a;
     cc_init(&f->cc, &cc);
+    f->cc_cfg = cc;
+    f->cc_want = f->cc.kind;
+    f->u_d_mean_v = 0.0f;
+    f->u_q_mean_v = 0.0f;
     memset(&f->cc_out, 0, sizeof(f->cc_out));
 
     ic.nominal.r_s_ohm = f->motor.r_s_ohm;

@@ -81,6 +81,19 @@ void mpcc_reset(mpcc_t *m)
     m->sw_prev2 = 0u;
     m->int_d_a = 0.0f;
     m->int_q_a = 0.0f;
+    m->ext_applied = false;
+    m->ext_u_alpha_v = 0.0f;
+    m->ext_u_beta_v = 0.0f;
+}
+
+void mpcc_take_over(mpcc_t *m, float u_alpha_v, float u_beta_v)
+{
+    mpcc_reset(m);
+    if (u_alpha_v == u_alpha_v && u_beta_v == u_beta_v) {
+        m->ext_applied = true;
+        m->ext_u_alpha_v = u_alpha_v;
+        m->ext_u_beta_v = u_beta_v;
+    }
 }
 
 static float clampf(float x, float lim)
@@ -304,6 +317,11 @@ void mpcc_step_cs(mpcc_t *m, const mpcc_in_t *in, float cos_th, float sin_th, mp
         }
         u_al = ua;
         u_be = ub;
+        if (m->ext_applied) { /* the first period after a handover: the previous occupant's */
+            m->ext_applied = false;
+            u_al = m->ext_u_alpha_v;
+            u_be = m->ext_u_beta_v;
+        }
     }
     tf_park(u_al, u_be, c0, s0, &out->u_d_v, &out->u_q_v);
     tf_park(u_al, u_be, c1, s1, &u_d1, &u_q1);

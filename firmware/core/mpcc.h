@@ -72,6 +72,10 @@ typedef struct {
     /* cached reciprocals of the predictor inductances (recomputed when they change) */
     float l_d_cached_h, l_q_cached_h, inv_l_d, inv_l_q;
     float inv_i_dt; /* 1 / cfg.i_dt_a, 0 for the ideal sign */
+    /* a handover from a modulator (mpcc_take_over): the stationary voltage applied during the
+     * running period, used once in place of sw_prev's vector */
+    bool ext_applied;
+    float ext_u_alpha_v, ext_u_beta_v;
 } mpcc_t;
 
 typedef struct {
@@ -107,6 +111,11 @@ void mpcc_step(mpcc_t *m, const mpcc_in_t *in, mpcc_out_t *out);
  * saves the pair). */
 void mpcc_step_cs(mpcc_t *m, const mpcc_in_t *in, float cos_th, float sin_th, mpcc_out_t *out);
 void mpcc_reset(mpcc_t *m); /* forget the applied state (call when the PWM was off) */
+/* Take over from another current controller while the PWM runs: the voltage it applies during
+ * the running period (stationary frame, V) replaces the applied state's vector in the next
+ * step's delay compensation; the state counted as applied for the switching and dead-time
+ * models is the zero vector. */
+void mpcc_take_over(mpcc_t *m, float u_alpha_v, float u_beta_v);
 
 /* Normalised alpha/beta voltage of a switch-state code (multiply by v_dc). */
 void mpcc_vector(uint16_t code, float *u_alpha_per_vdc, float *u_beta_per_vdc);

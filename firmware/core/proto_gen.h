@@ -10,7 +10,7 @@
 #include <stdbool.h>
 
 #define PROTO_VERSION 2u
-#define PROTO_SCHEMA_HASH 0x15F2AA59UL  /* CRC-32 of the canonical yaml */
+#define PROTO_SCHEMA_HASH 0x82313C6AUL  /* CRC-32 of the canonical yaml */
 #define PROTO_MAX_PAYLOAD 111u  /* octets */
 #define PROTO_MSG_COUNT 25u
 
@@ -62,6 +62,8 @@
 #define PROTO_SEGMENT_FLAG_CAPTURE 1u
 #define PROTO_SEGMENT_FLAG_HOLD_EST 2u
 #define PROTO_SEGMENT_FLAG_ANGLE_ENCODER 4u
+#define PROTO_SEGMENT_FLAG_CC_FOC 8u
+#define PROTO_SEGMENT_FLAG_CC_MPCC 16u
 
 /* enum est_flag */
 #define PROTO_EST_FLAG_LOCKED 1u

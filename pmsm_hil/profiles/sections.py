@@ -8,6 +8,7 @@ from typing import Literal
 
 from pydantic import Field, PrivateAttr
 
+from ..protocol import generated as gen
 from ._base import StrictModel
 from .acceptance import Acceptance
 
@@ -222,6 +223,13 @@ class Segment(StrictModel):
         "estimator runs beside it (e.g. a start-up below the estimator's speed range)",
     )
 
+    current_ctrl: Literal["mpcc", "foc"] | None = Field(
+        None,
+        description="current controller from this segment on (null: the previous segment's, "
+        "or control.current_ctrl for the first); handed over bumplessly at the segment start "
+        "(docs/control.md)",
+    )
+
     _index: int = PrivateAttr(default=0)
     _t_start_s: float = PrivateAttr(default=0.0)
     _speed_start_rpm: float = PrivateAttr(default=0.0)
@@ -258,8 +266,15 @@ class Segment(StrictModel):
 
     @property
     def flags(self) -> int:
-        """profile_segment.flags on the wire: bit0 = capture, bit2 = angle_encoder."""
-        return (1 if self.capture else 0) | (4 if self.angle_encoder else 0)
+        """profile_segment.flags on the wire (enum segment_flag of the protocol)."""
+        bits = gen.ENUMS["segment_flag"]
+        return (
+            (bits["capture"] if self.capture else 0)
+            | (0 if self.estimate else bits["hold_est"])
+            | (bits["angle_encoder"] if self.angle_encoder else 0)
+            | (bits["cc_foc"] if self.current_ctrl == "foc" else 0)
+            | (bits["cc_mpcc"] if self.current_ctrl == "mpcc" else 0)
+        )
 
     @property
     def label(self) -> str:

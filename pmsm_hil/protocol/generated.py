@@ -6,7 +6,7 @@ import struct
 from typing import NamedTuple
 
 PROTOCOL_VERSION = 2
-SCHEMA_HASH = 0x15F2AA59
+SCHEMA_HASH = 0x82313C6A
 MAX_PAYLOAD = 111  # octets
 
 # wire type: (struct code, octets, min, max); min/max are None for f32
@@ -91,6 +91,8 @@ ENUMS = {
         'capture': 1,
         'hold_est': 2,
         'angle_encoder': 4,
+        'cc_foc': 8,
+        'cc_mpcc': 16,
     },
     'est_flag': {
         'locked': 1,
