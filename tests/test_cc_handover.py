@@ -115,7 +115,11 @@ def test_segment_controller_is_on_the_wire_and_carries_over(tmp_path):
     )
     prof = load_profile(str(p))
     bits = gen.ENUMS["segment_flag"]
-    assert [s.flags for s in prof.segments] == [0, bits["cc_foc"], bits["cc_mpcc"] | bits["capture"]]
+    assert [s.flags for s in prof.segments] == [
+        0,
+        bits["cc_foc"],
+        bits["cc_mpcc"] | bits["capture"],
+    ]
 
 
 def test_bad_segment_controller_names_the_field(tmp_path):

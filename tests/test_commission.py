@@ -192,12 +192,6 @@ def test_cli_writes_a_motor_file_that_runs(tmp_path, capsys):
     assert tr["psi_f_wb"][0] == pytest.approx(0.18 * (1 - 0.001 * 20), rel=1e-3)
 
 
-def test_flux_map_is_refused_plainly(tmp_path, capsys):
-    code = cli_main(["commission", "--flux-map", "-o", str(tmp_path / "m.yaml")])
-    assert code == 2
-    assert "not implemented" in capsys.readouterr().err
-
-
 @pytest.mark.parametrize("stop_s", [2.0, 8.6])  # during the alignment, during the spin
 def test_a_host_stop_brakes_and_switches_off(tmp_path, stop_s):
     profile = commission_profile(rig_path=resolve("lab-typical", "rig"))

@@ -122,8 +122,8 @@ uint16_t cc_segment_kind(uint16_t seg_flags, uint16_t fallback)
     return fallback;
 }
 
-void cc_hand_over(cc_t *c, const cc_cfg_t *cfg, uint16_t kind, const cc_in_t *in,
-                  float u_d_mean_v, float u_q_mean_v)
+void cc_hand_over(cc_t *c, const cc_cfg_t *cfg, uint16_t kind, const cc_in_t *in, float u_d_mean_v,
+                  float u_q_mean_v)
 {
     float u_al, u_be;
     if (kind == c->kind || !cc_kind_known(kind)) {

@@ -77,8 +77,8 @@ uint16_t cc_segment_kind(uint16_t seg_flags, uint16_t fallback);
  * over about a millisecond), so neither the voltage nor the current steps. `in` is this period's
  * input (currents, speed, v_dc, predictor parameters). Same kind or an unknown kind: nothing
  * changes. */
-void cc_hand_over(cc_t *c, const cc_cfg_t *cfg, uint16_t kind, const cc_in_t *in,
-                  float u_d_mean_v, float u_q_mean_v);
+void cc_hand_over(cc_t *c, const cc_cfg_t *cfg, uint16_t kind, const cc_in_t *in, float u_d_mean_v,
+                  float u_q_mean_v);
 /* Switch-state code applied during the running period (bit0 s_a, bit1 s_b, bit2 s_c; what a
  * capture logs with i(k)); 0 for a duty-cycle occupant. */
 uint16_t cc_applied_code(const cc_t *c);

@@ -109,8 +109,8 @@ typedef struct {
     float i_d_base_a; /* d-current reference before the excitation */
     uint16_t speed_div_count;
     dither_t dither;
-    cc_t cc;         /* current-control slot */
-    cc_cfg_t cc_cfg; /* its configuration (a segment may hand the slot over: cc_slot.h) */
+    cc_t cc;          /* current-control slot */
+    cc_cfg_t cc_cfg;  /* its configuration (a segment may hand the slot over: cc_slot.h) */
     uint16_t cc_want; /* CC_KIND_* the running segment asks for */
     float u_d_mean_v, u_q_mean_v; /* cc_out's dq voltage low-passed over FW_CC_MEAN_TAU_S */
     cc_out_t cc_out;

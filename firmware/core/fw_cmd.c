@@ -177,7 +177,8 @@ static uint16_t cmd_profile_segment(fw_t *f, const uint16_t *p, uint16_t n)
     seg.kind = s.kind;
     seg.inject_a = s.inject_a;
     seg.inject_hz = s.inject_hz;
-    if ((s.flags & PROTO_SEGMENT_FLAG_CC_FOC) != 0u && (s.flags & PROTO_SEGMENT_FLAG_CC_MPCC) != 0u) {
+    if ((s.flags & PROTO_SEGMENT_FLAG_CC_FOC) != 0u &&
+        (s.flags & PROTO_SEGMENT_FLAG_CC_MPCC) != 0u) {
         return PROTO_ACK_STATUS_BAD_VALUE; /* one current controller per segment */
     }
     if (s.kind > PROFILE_KIND_COMMISSION || !(s.inject_hz >= 0.0f) ||

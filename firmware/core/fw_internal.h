@@ -22,8 +22,9 @@
 #define FW_RPM_PER_RAD_S    9.549296585513720f
 #define FW_SPEED_REF_WEIGHT 0.7f /* set-point weight of the speed PI's proportional path */
 #define FW_DITHER_PERIOD    22u  /* q-current dither: not a divisor of the speed-loop period */
-#define FW_CC_MEAN_TAU_S    1.0e-3f /* low-pass of the applied dq voltage a current-controller handover starts from */
-#define FW_DITHER_GAIN      0.6f /* peak-to-peak, as a fraction of one vector's current step */
+#define FW_CC_MEAN_TAU_S                                                                           \
+    1.0e-3f /* low-pass of the applied dq voltage a current-controller handover starts from */
+#define FW_DITHER_GAIN 0.6f /* peak-to-peak, as a fraction of one vector's current step */
 /* the sensorless start (docs/sensorless.md): the PLL settles at rest, then +-pulses on d */
 #define FW_POL_SETTLE_S         0.04f
 #define FW_POL_PULSE_S          0.01f

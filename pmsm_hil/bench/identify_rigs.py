@@ -38,7 +38,12 @@ def _one(
         motor = out / f"motor-{stem}-{seed}.yaml"
         motor.write_text(
             commissioned_motor_yaml(
-                prof_c.motor, res.quantities, prof_c.control.ts_s, "emulator", str(log_c)
+                prof_c.motor,
+                res.quantities,
+                prof_c.control.ts_s,
+                "emulator",
+                str(log_c),
+                out_dir=str(out),
             )
         )
     profile = load_profile(path, rig_override=rig_path, motor_override=motor)

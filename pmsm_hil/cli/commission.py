@@ -55,7 +55,15 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     p.add_argument(
         "--flux-map",
         action="store_true",
-        help="also measure a flux map on a grid under load (not available yet: refused)",
+        help="then measure a flux map (psi_d, psi_q vs i_d, i_q) under load, written beside the "
+        "motor file and named in it",
+    )
+    p.add_argument(
+        "--map-rpm",
+        default=None,
+        metavar="N1,N2",
+        help="the flux map's two speeds, r/min, e.g. --map-rpm=-750,750 (default: -/+ half the "
+        "motor's speed limit)",
     )
     p.add_argument("--in-process", action="store_true", help=argparse.SUPPRESS)
 
@@ -108,9 +116,17 @@ def main(args: argparse.Namespace) -> int:
     from pmsm_hil.protocol.session import DeviceError, Session
     from pmsm_hil.runner import HostError, PlantMismatch, RunOptions
 
-    if args.flux_map:
-        return fail("error", "--flux-map: the flux-map measurement is not implemented yet", 2)
     out = Path(args.out)
+    map_rpm = None
+    if args.map_rpm is not None:
+        if not args.flux_map:
+            return fail("error", "--map-rpm: only with --flux-map", 2)
+        try:
+            map_rpm = [float(x) for x in args.map_rpm.split(",")]
+        except ValueError:
+            return fail(
+                "error", f"--map-rpm {args.map_rpm!r}: give two speeds, e.g. --map-rpm=-750,750", 2
+            )
     if out.suffix not in (".yaml", ".yml"):
         return fail("error", f"-o {out}: the result is a motor file, name it *.yaml", 2)
     try:
@@ -119,6 +135,13 @@ def main(args: argparse.Namespace) -> int:
         profile = commission_profile(motor, rig)
     except ProfileError as e:
         return fail("error", str(e), 2)
+    if args.flux_map:  # refuse a bad map request before the motor turns
+        from pmsm_hil.commission.flux_map import plan_for
+
+        try:
+            plan_for(profile.motor, map_rpm)
+        except ValueError as e:
+            return fail("error", f"--map-rpm: {e}", 2)
     steps = [s.strip() for s in args.steps.split(",")] if args.steps else None
     log = Path(args.log or f"runs/commission-{time.strftime('%Y%m%d-%H%M%S')}.mcap")
     log.parent.mkdir(parents=True, exist_ok=True)
@@ -169,9 +192,20 @@ def main(args: argparse.Namespace) -> int:
         why = res.run.error or res.run.stop_reason or "the sequence did not complete"
         return fail("failed", f"commissioning did not complete: {why} (log: {log})", 4)
     text = commissioned_motor_yaml(
-        profile.motor, res.quantities, profile.control.ts_s, device, str(log)
+        profile.motor,
+        res.quantities,
+        profile.control.ts_s,
+        device,
+        str(log),
+        out_dir=str(out.parent),
     )
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(text)
+    if args.flux_map:
+        from pmsm_hil.cli.commission_map import measure_map
+
+        code = measure_map(out, profile, spec, log, device, map_rpm)
+        if code:
+            return code
     print(f"motor file: {out}  (use: pmsm-hil run PROFILE --motor {out})")
     return 0

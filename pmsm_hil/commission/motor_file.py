@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import math
+import os
 from typing import Any
 
 import yaml
@@ -66,9 +67,14 @@ def commissioned_motor_yaml(
     device: str,
     log_path: str,
     now: _dt.datetime | None = None,
+    out_dir: str | None = None,
 ) -> str:
-    """The text of the commissioned motor file."""
+    """The text of the commissioned motor file, to be written in `out_dir` (default: the working
+    directory): a flux map named relative to the nominal file is named relative to that."""
     raw = yaml.safe_load(motor.yaml_text) or {}
+    map_path = motor.flux_map_path()
+    if map_path and not os.path.isabs(str(raw.get("flux_map", ""))):
+        raw["flux_map"] = os.path.relpath(map_path, out_dir or os.getcwd()).replace("\\", "/")
     prev = raw.get("commissioning") if isinstance(raw.get("commissioning"), dict) else None
     nominal = dict(prev["nominal"]) if prev and isinstance(prev.get("nominal"), dict) else {}
     for k in NOMINAL_KEYS:
@@ -111,3 +117,16 @@ def commissioned_motor_yaml(
         f"# measured quantity with its spread and the nominal values (docs/commissioning.md).\n"
     )
     return head + yaml.safe_dump(out, sort_keys=False, width=100)
+
+
+def with_flux_map(text: str, csv_name: str, record: dict[str, Any]) -> str:
+    """The commissioned motor file's text with its measured flux map named (`flux_map`, relative
+    to the motor file) and the measurement recorded under `commissioning.flux_map`."""
+    head = "".join(line + "\n" for line in text.splitlines() if line.startswith("#"))
+    data = yaml.safe_load(text) or {}
+    comm = data.setdefault("commissioning", {})
+    # the emulator's plant keeps the nominal machine's magnetics (None: linear)
+    comm.setdefault("nominal", {}).setdefault("flux_map", data.get("flux_map"))
+    data["flux_map"] = csv_name
+    comm["flux_map"] = record
+    return head + yaml.safe_dump(data, sort_keys=False, width=100)

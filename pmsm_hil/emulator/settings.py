@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
@@ -82,6 +83,21 @@ def _nominal(motor):
     return _Nominal(motor, nominal) if isinstance(nominal, dict) else motor
 
 
+def _motor_map(motor: Motor):
+    """The motor's own magnetics, which the rig departs from (not a linear model): the nominal
+    machine's map of a commissioned file (`commissioning.nominal.flux_map`, None: linear), else
+    the file's `flux_map`."""
+    if isinstance(motor, _Nominal) and "flux_map" in motor._nominal:
+        rel = motor._nominal["flux_map"]
+        if not rel:
+            return None
+        from pmsm_hil.profiles.fluxmap import load_flux_map
+
+        base = os.path.dirname(motor.path or ".")
+        return load_flux_map(rel if os.path.isabs(rel) else os.path.join(base, rel))
+    return motor.load_flux_map() if getattr(motor, "flux_map", None) else None
+
+
 def effect_settings(motor: Motor, rig: Rig) -> dict:
     """The sim board's keys for the effects of issue 5 (docs/rigs.md). Every key is set, to its
     'off' value when the effect is disabled, so that a disabled effect leaves the ideal plant."""
@@ -90,10 +106,7 @@ def effect_settings(motor: Motor, rig: Rig) -> dict:
     s["wiring_swap_bc"] = 1 if wiring is not None and wiring.phases == "acb" else 0
     s["wiring_open"] = 1 if wiring is not None and not wiring.motor_connected else 0
     sat = _eff(rig, "saturation")
-    fm = rig.flux_map() if sat is not None else None
-    if fm is None and getattr(motor, "flux_map", None):
-        # the motor's own measured magnetics: the rig departs from them, not from a linear model
-        fm = motor.load_flux_map()
+    fm = rig.flux_map() if sat is not None else _motor_map(motor)
     if fm is not None:
         s.update(fm.settings())
     else:
