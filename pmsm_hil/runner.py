@@ -175,8 +175,11 @@ def configure(session: Session, profile: Profile) -> None:
     calib = calibration_config(profile.motor)
     if calib is not None:  # a commissioned motor file: the current sensors' calibration
         session.request("config_calib", **calib)
-    if profile.control.angle_src in ("ripple_pll", "hybrid"):
-        # the ripple PLL's magnetics, polarity signature, hybrid band (docs/sensorless.md)
+    if profile.control.angle_src in ("ripple_pll", "hybrid") or (
+        profile.control.angle_src == "mras" and profile.motor.if_start_current_a
+    ):
+        # the ripple PLL's magnetics, polarity signature, hybrid band; the MRAS's I/f start
+        # (docs/sensorless.md)
         snl_cfg, nodes = estimator_frames(profile.motor)
         session.request("config_sensorless", **snl_cfg)
         for node in nodes:
@@ -488,7 +491,13 @@ def _upload_capture(session: Session, rec: Recorder, observer: Observer | None) 
             0,
             0,
             f"capture: {len(missing)} chunks did not arrive (offsets {missing[:8]}"
-            f"{' ...' if len(missing) > 8 else ''}); the {count} samples are kept but for those",
+            f"{' ...' if len(missing) > 8 else ''})"
+            + (
+                "; the upload was given up after chunks in a row were lost"
+                if session.capture_abandoned
+                else ""
+            )
+            + f"; the {count} samples are kept but for those",
         )
     rec.frames(session.poll(0.0))
     return rec.capture(chunks)

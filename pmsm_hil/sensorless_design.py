@@ -51,6 +51,9 @@ def estimator_frames(motor: Motor) -> tuple[dict, list[dict]]:
         gam_iq0_a=0.0,
         gam_did_a=1.0,
         gam_diq_a=1.0,
+        if_i_a=float(motor.if_start_current_a or 0.0),
+        if_accel_rpm_s=float(motor.if_start_accel_rpm_s),
+        if_handover_rpm=float(motor.if_handover_rpm),
     )
     if fm is None:
         return cfg, []

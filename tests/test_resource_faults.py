@@ -198,9 +198,7 @@ def test_a_noisy_serial_link_lets_nothing_corrupt_through_and_ends_safely(
         assert result.state in ("done", "idle", "fault") and result.stop_reason
 
 
-# one case: each takes about 3 minutes of CI; dropped octets from the start are covered above, and
-# benchmarks/link_faults.py measures the other mid-run rates
-@pytest.mark.parametrize("flip_ppm, drop_ppm, seed", [(50000, 0, 31)])
+@pytest.mark.parametrize("flip_ppm, drop_ppm, seed", [(50000, 0, 31), (20000, 20000, 32)])
 def test_heavy_noise_in_the_middle_of_a_run_stops_the_motor_safely(
     data, tmp_path, flip_ppm, drop_ppm, seed
 ):

@@ -49,6 +49,16 @@ void angle_init(angle_t *a, const angle_cfg_t *cfg)
         mc.pole_pairs = cfg->pole_pairs;
         mras_init(a->cfg.src == ANGLE_SRC_HYBRID ? &a->u.sl.mras : &a->u.mras, &mc);
     }
+    {
+        ifs_cfg_t ic = cfg->ifs;
+        ic.ts_s = cfg->ts_s;
+        ic.theta0_rad = cfg->theta0_rad;
+        if (a->cfg.src != ANGLE_SRC_MRAS) {
+            ic.i_a = 0.0f; /* only the MRAS starts open loop */
+        }
+        ifs_init(&a->ifs, &ic);
+        a->if_failed_told = false;
+    }
 }
 
 /* The encoder: its raw-count angle and its observer's speed. */
@@ -79,6 +89,12 @@ static void step_mras(angle_t *a, const angle_in_t *in, angle_out_t *out)
     mi.u_alpha_v = in->u_alpha_prev_v;
     mi.u_beta_v = in->u_beta_prev_v;
     mras_step(&a->u.mras, &mi, &mo);
+    out->hold_refs = false;
+    out->i_d_inject_a = 0.0f;
+    out->i_q_hold_a = 0.0f;
+    out->open_loop = false;
+    out->pol_result_now = 0u;
+    out->if_event_now = 0u;
     out->theta_e_rad = mo.theta_e_rad;
     out->omega_e_rad_s = mo.omega_e_rad_s;
     out->omega_m_rad_s = mo.omega_e_rad_s / p;
@@ -87,6 +103,36 @@ static void step_mras(angle_t *a, const angle_in_t *in, angle_out_t *out)
     out->locked = mo.locked;
     out->confidence = mo.confidence;
     out->err_rad = mo.eps_rad;
+    if (a->ifs.phase != IFS_DISABLED && a->ifs.phase != IFS_DONE) {
+        ifs_in_t ii;
+        ifs_out_t io;
+        ii.omega_ref_rad_s = in->omega_ref_e_rad_s;
+        ii.theta_est_rad = mo.theta_e_rad;
+        ii.omega_est_rad_s = mo.omega_e_rad_s;
+        ii.est_locked = mo.locked;
+        ifs_step(&a->ifs, &ii, &io);
+        out->theta_e_rad = io.theta_rad < 0.0f ? io.theta_rad + FW_TWO_PI_F : io.theta_rad;
+        out->omega_e_rad_s = io.omega_rad_s;
+        out->omega_m_rad_s = io.omega_rad_s / p;
+        out->speed_rpm = out->omega_m_rad_s * ANGLE_RPM_PER_RAD_S;
+        out->hold_refs = io.hold_refs;
+        out->i_q_hold_a = io.i_q_hold_a;
+        out->i_d_inject_a = io.i_d_inject_a;
+        out->open_loop = io.open_loop;
+        if (io.open_loop) {
+            out->locked = true; /* nothing to lose yet; a start that fails is a loss of lock */
+        }
+        if (io.handed_over_now) {
+            out->if_event_now = PROTO_EVENT_IF_HANDOVER;
+        }
+        if (io.failed) {
+            out->locked = false;
+            if (!a->if_failed_told) {
+                a->if_failed_told = true;
+                out->if_event_now = PROTO_EVENT_IF_FAILED;
+            }
+        }
+    }
 }
 
 /* The ripple PLL (with the polarity test at start), alone or blended with the MRAS. */

@@ -18,6 +18,7 @@
 
 #include "enc_angle.h"
 #include "mras.h"
+#include "if_start.h"
 #include "sensorless.h"
 #include "proto_gen.h"
 
@@ -38,6 +39,7 @@ typedef struct {
     float r_s_ohm, l_d_h, l_q_h, psi_f_wb; /* the motor file's values */
     float j_kgm2;
     const snl_cfg_t *snl; /* ripple PLL, hybrid: the sensorless configuration (sensorless.h) */
+    ifs_cfg_t ifs;        /* MRAS: its current-frequency start (if_start.h; i_a 0: none) */
 } angle_cfg_t;
 
 typedef struct {
@@ -46,6 +48,7 @@ typedef struct {
     float u_alpha_prev_v, u_beta_prev_v; /* average voltage applied during [k-1, k), stationary */
     float u_d_prev_v, u_q_prev_v;        /* the same in dq (previous frame, mid-period) */
     float i_d_pred_a, i_q_pred_a; /* the current controller's prediction of i(k), previous frame */
+    float omega_ref_e_rad_s;      /* the speed reference (previous period), electrical */
 } angle_in_t;
 
 typedef struct {
@@ -62,6 +65,9 @@ typedef struct {
      * estimator's excitation at rest) */
     bool hold_refs;
     float i_d_inject_a;
+    float i_q_hold_a;        /* the q reference (and the speed loop's output) while held */
+    bool open_loop;          /* the MRAS's current-frequency start carries the angle */
+    uint16_t if_event_now;   /* PROTO_EVENT_IF_HANDOVER / _IF_FAILED this period, else 0 */
     uint16_t pol_result_now; /* POL_* when the polarity test ended this period, else 0 */
     float pol_asym;
 } angle_out_t;
@@ -69,6 +75,8 @@ typedef struct {
 typedef struct {
     angle_cfg_t cfg;
     angle_out_t last;
+    ifs_t ifs; /* MRAS: the current-frequency start */
+    bool if_failed_told;
     union {
         mras_t mras;
         struct {

@@ -177,6 +177,8 @@ static void stage_angle(fw_t *f, float i_al, float i_be)
     ai.u_q_prev_v = f->cc_out.u_q_avg_v;
     ai.i_d_pred_a = f->cc_out.i_d_pred_a;
     ai.i_q_pred_a = f->cc_out.i_q_pred_a;
+    ai.omega_ref_e_rad_s =
+        f->sig.speed_ref_rpm * (float)f->motor.pole_pairs * (1.0f / FW_RPM_PER_RAD_S);
     if (!angle_src_is_estimator(f->ctrl.angle_src)) {
         angle_step(&f->angle, &ai, &f->ang);
         f->est = f->ang;
@@ -195,6 +197,10 @@ static void stage_angle(fw_t *f, float i_al, float i_be)
     }
     f->sig.theta_e_est_rad = f->est.theta_e_rad;
     f->sig.speed_est_rpm = f->est.speed_rpm;
+    if (f->est.if_event_now != 0u) {
+        const float v = f->est.speed_rpm;
+        fw_raise(f, f->est.if_event_now, (v == v && fabsf(v) < 1e6f) ? (int32_t)(v * 10.0f) : 0);
+    }
     if (f->est.pol_result_now != 0u) {
         fw_raise(f, PROTO_EVENT_POLARITY, (int32_t)f->est.pol_result_now);
         fw_raise(f, PROTO_EVENT_POLARITY_ASYM, (int32_t)(f->est.pol_asym * 10000.0f));
@@ -203,8 +209,8 @@ static void stage_angle(fw_t *f, float i_al, float i_be)
 }
 
 /* Loss of lock: the estimator closing the loop out of lock for est_lock_timeout_s trips the
- * lost_lock fault (PWM off at once). While stopping, its loss ends the stop instead: PWM off, the
- * rotor coasts (the estimator cannot brake it below its speed range). */
+ * lost_lock fault (PWM off at once). While stopping, its loss ends the stop at once instead: PWM
+ * off, the rotor coasts (the estimator cannot brake it below its speed range). */
 static void check_lock(fw_t *f)
 {
     if (!angle_src_is_estimator(f->ctrl.angle_src) || f->seg_angle_encoder || f->est.locked) {
@@ -212,16 +218,18 @@ static void check_lock(fw_t *f)
         return;
     }
     f->unlock_ticks++;
+    if (f->state == PROTO_STATE_STOPPING) { /* no reason to wait: coast at once */
+        fw_pwm_off(f,
+                   f->stop_reason == PROTO_STOP_REASON_PROFILE_END ? PROTO_STATE_DONE
+                                                                   : PROTO_STATE_IDLE,
+                   f->stop_reason);
+        return;
+    }
     if ((float)f->unlock_ticks * f->ctrl.ts_s < f->ctrl.est_lock_timeout_s) {
         return;
     }
     if (f->state == PROTO_STATE_RUNNING) {
         fw_trip(f, PROTO_FAULT_LOST_LOCK);
-    } else if (f->state == PROTO_STATE_STOPPING) {
-        fw_pwm_off(f,
-                   f->stop_reason == PROTO_STOP_REASON_PROFILE_END ? PROTO_STATE_DONE
-                                                                   : PROTO_STATE_IDLE,
-                   f->stop_reason);
     }
 }
 
@@ -306,10 +314,12 @@ static void stage_current_refs(fw_t *f, float speed_ref_rpm)
     f->speed_div_count++;
     const bool est_in_loop = angle_src_is_estimator(f->ctrl.angle_src) && !f->seg_angle_encoder;
     if (f->seg.identify_r || (est_in_loop && f->est.hold_refs)) {
-        speed_pi_reset(&f->spi, 0.0f);
-        f->i_s_ref_a = 0.0f;
+        /* held: i_q* = 0, or what an I/f start hands the speed loop (if_start.h) */
+        const float i_q_hold = f->seg.identify_r ? 0.0f : f->est.i_q_hold_a;
+        speed_pi_reset(&f->spi, i_q_hold);
+        f->i_s_ref_a = i_q_hold;
         f->i_d_base_a = 0.0f;
-        f->sig.i_q_ref_a = 0.0f;
+        f->sig.i_q_ref_a = i_q_hold;
     } else if (f->speed_div_count >= f->ctrl.speed_div) {
         fw_motor_t m = f->motor;
         cc_params_t p;

@@ -15,13 +15,18 @@
 #define FW_LOAD_MAX_NM        10000.0f
 #define FW_GAIN_MAX           1.0e7f /* speed PI gains, observer bandwidth */
 
-#define FW_STOP_RAMP_RPM_S  3000.0f /* quick-stop deceleration */
-#define FW_STOP_SPEED_RPM   3.0f    /* below this, with the reference at zero, PWM goes off */
-#define FW_STOP_HOLD_S      0.05f   /* zero reference held this long before PWM off */
-#define FW_STOP_TIMEOUT_S   3.0f    /* PWM off after this long in any case */
-#define FW_RPM_PER_RAD_S    9.549296585513720f
-#define FW_SPEED_REF_WEIGHT 0.7f /* set-point weight of the speed PI's proportional path */
-#define FW_DITHER_PERIOD    22u  /* q-current dither: not a divisor of the speed-loop period */
+#define FW_STOP_RAMP_RPM_S   3000.0f /* quick-stop deceleration */
+#define FW_STOP_SPEED_RPM    3.0f    /* below this, with the reference at zero, PWM goes off */
+#define FW_STOP_HOLD_S       0.05f   /* zero reference held this long before PWM off */
+#define FW_STOP_TIMEOUT_S    3.0f    /* PWM off after this long in any case */
+#define FW_RPM_PER_RAD_S     9.549296585513720f
+#define FW_SPEED_REF_WEIGHT  0.7f  /* set-point weight of the speed PI's proportional path */
+#define FW_DITHER_PERIOD     22u   /* q-current dither: not a divisor of the speed-loop period */
+#define FW_IFS_ALIGN_S       0.2f  /* I/f start: the alignment current's ramp (held half as long) */
+#define FW_IFS_SETTLE_S      0.05f /* ... the MRAS locked and near the I/f angle this long */
+#define FW_IFS_DECAY_S       0.1f  /* ... the d current of the handover decays over this */
+#define FW_IFS_TIMEOUT_S     0.5f  /* ... no handover this long at handover speed: lost lock */
+#define FW_IFS_MAX_DELTA_RAD 1.2f  /* ... the load angle it accepts (the pull-out is pi/2) */
 #define FW_CC_MEAN_TAU_S                                                                           \
     1.0e-3f /* low-pass of the applied dq voltage a current-controller handover starts from */
 #define FW_DITHER_GAIN 0.6f /* peak-to-peak, as a fraction of one vector's current step */

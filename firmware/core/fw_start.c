@@ -38,6 +38,22 @@ static void init_stages(fw_t *f)
     ac.j_kgm2 = f->motor.j_kgm2;
     fw_snl_config(f, &f->snl_cfg);
     ac.snl = &f->snl_cfg;
+    memset(&ac.ifs, 0, sizeof(ac.ifs));
+    /* the MRAS's current-frequency start, when the first segment runs on the estimate (a start
+     * on the encoder needs none) */
+    if (f->have_snl && f->snl_msg.if_i_a > 0.0f &&
+        !(f->prof.n_declared > 0u &&
+          (f->prof.seg[0].flags & PROTO_SEGMENT_FLAG_ANGLE_ENCODER) != 0u)) {
+        const float k = (float)f->motor.pole_pairs / FW_RPM_PER_RAD_S; /* r/min -> el. rad/s */
+        ac.ifs.i_a = f->snl_msg.if_i_a;
+        ac.ifs.accel_rad_s2 = f->snl_msg.if_accel_rpm_s * k;
+        ac.ifs.handover_rad_s = f->snl_msg.if_handover_rpm * k;
+        ac.ifs.align_s = FW_IFS_ALIGN_S;
+        ac.ifs.settle_s = FW_IFS_SETTLE_S;
+        ac.ifs.decay_s = FW_IFS_DECAY_S;
+        ac.ifs.timeout_s = FW_IFS_TIMEOUT_S;
+        ac.ifs.max_delta_rad = FW_IFS_MAX_DELTA_RAD;
+    }
     angle_init(&f->angle, &ac);
     memset(&f->ang, 0, sizeof(f->ang));
     memset(&f->est, 0, sizeof(f->est));

@@ -214,7 +214,7 @@ bool proto_can_layout(uint16_t msg_id, proto_can_layout_t *l)
     case PROTO_ID_CONFIG_SENSORLESS:
         l->func = 0x0Cu;
         l->transfer = 1u;
-        l->n_frames = 10u;
+        l->n_frames = 12u;
         l->h2d = 1u;
         l->crc_frame = 0xFFu;
         return true;

@@ -747,6 +747,9 @@ uint16_t proto_config_sensorless_pack(const proto_config_sensorless_t *m, uint16
     put_f32(&buf[48], m->gam_iq0_a);
     put_f32(&buf[52], m->gam_did_a);
     put_f32(&buf[56], m->gam_diq_a);
+    put_f32(&buf[60], m->if_i_a);
+    put_f32(&buf[64], m->if_accel_rpm_s);
+    put_f32(&buf[68], m->if_handover_rpm);
     return PROTO_LEN_CONFIG_SENSORLESS;
 }
 
@@ -771,6 +774,9 @@ bool proto_config_sensorless_unpack(proto_config_sensorless_t *m, const uint16_t
     m->gam_iq0_a = get_f32(&buf[48]);
     m->gam_did_a = get_f32(&buf[52]);
     m->gam_diq_a = get_f32(&buf[56]);
+    m->if_i_a = get_f32(&buf[60]);
+    m->if_accel_rpm_s = get_f32(&buf[64]);
+    m->if_handover_rpm = get_f32(&buf[68]);
     return true;
 }
 

@@ -10,7 +10,7 @@
 #include <stdbool.h>
 
 #define PROTO_VERSION 2u
-#define PROTO_SCHEMA_HASH 0x82313C6AUL  /* CRC-32 of the canonical yaml */
+#define PROTO_SCHEMA_HASH 0x2ED21E7AUL  /* CRC-32 of the canonical yaml */
 #define PROTO_MAX_PAYLOAD 111u  /* octets */
 #define PROTO_MSG_COUNT 25u
 
@@ -99,6 +99,8 @@
 #define PROTO_EVENT_COMMISSION_FAILED 11u
 #define PROTO_EVENT_POLARITY 12u
 #define PROTO_EVENT_POLARITY_ASYM 13u
+#define PROTO_EVENT_IF_HANDOVER 14u
+#define PROTO_EVENT_IF_FAILED 15u
 
 /* enum commission_step */
 #define PROTO_COMMISSION_STEP_OFFSETS 0u
@@ -465,7 +467,7 @@ bool proto_telem_est_unpack(proto_telem_est_t *m, const uint16_t *buf, uint16_t 
 
 /* config_sensorless: 0x0B, host -> device */
 #define PROTO_ID_CONFIG_SENSORLESS 0x0Bu
-#define PROTO_LEN_CONFIG_SENSORLESS 60u
+#define PROTO_LEN_CONFIG_SENSORLESS 72u
 typedef struct {
     float pol_i_pulse_a;           /* f32; polarity test: d-axis pulse amplitude */
     float pol_asym_expected;       /* f32; the motor's own signature (g+ - g-)/(g+ + g-) at +-pulse */
@@ -483,6 +485,9 @@ typedef struct {
     float gam_iq0_a;               /* f32 */
     float gam_did_a;               /* f32; node spacing */
     float gam_diq_a;               /* f32 */
+    float if_i_a;                  /* f32; MRAS: current-frequency start current (0: none; docs/sensorless.md) */
+    float if_accel_rpm_s;          /* f32; MRAS: the I/f angle's acceleration, r/min per s */
+    float if_handover_rpm;         /* f32; MRAS: the speed from which it may take over from I/f */
 } proto_config_sensorless_t;
 uint16_t proto_config_sensorless_pack(const proto_config_sensorless_t *m, uint16_t *buf);
 bool proto_config_sensorless_unpack(proto_config_sensorless_t *m, const uint16_t *buf, uint16_t len);

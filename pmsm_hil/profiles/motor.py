@@ -134,6 +134,22 @@ class Motor(FileModel):
         le=10000,
         description="d-axis current of the start-up polarity pulses, A (null: half of i_max_a)",
     )
+    if_start_current_a: float | None = Field(
+        None,
+        gt=0,
+        le=10000,
+        description="MRAS angle source: current of the current-frequency (I/f) start from "
+        "standstill, A (null: no I/f start; docs/sensorless.md)",
+    )
+    if_start_accel_rpm_s: float = Field(
+        200.0, gt=0, le=1e6, description="I/f start: acceleration of the open-loop angle, r/min/s"
+    )
+    if_handover_rpm: float = Field(
+        150.0,
+        gt=0,
+        le=1e5,
+        description="I/f start: the speed from which the MRAS may take the angle over, r/min",
+    )
     source: str = Field("", description="where the numbers come from")
 
     # ------------------------------------------------------------------ derived quantities

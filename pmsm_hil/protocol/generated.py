@@ -6,7 +6,7 @@ import struct
 from typing import NamedTuple
 
 PROTOCOL_VERSION = 2
-SCHEMA_HASH = 0x82313C6A
+SCHEMA_HASH = 0x2ED21E7A
 MAX_PAYLOAD = 111  # octets
 
 # wire type: (struct code, octets, min, max); min/max are None for f32
@@ -128,6 +128,8 @@ ENUMS = {
         'commission_failed': 11,
         'polarity': 12,
         'polarity_asym': 13,
+        'if_handover': 14,
+        'if_failed': 15,
     },
     'commission_step': {
         'offsets': 0,
@@ -354,7 +356,7 @@ MESSAGES = (
         FieldSpec('speed_err_rpm', 'i16', 1, 0.1, 9),
         FieldSpec('err_signal', 'i16', 1, 0.0001, 11),
     ), struct.Struct('<IBBBhhh')),
-    MessageSpec(0x0B, 'config_sensorless', 'h2d', False, 60, (
+    MessageSpec(0x0B, 'config_sensorless', 'h2d', False, 72, (
         FieldSpec('pol_i_pulse_a', 'f32', 1, None, 0),
         FieldSpec('pol_asym_expected', 'f32', 1, None, 4),
         FieldSpec('pol_asym_min', 'f32', 1, None, 8),
@@ -371,7 +373,10 @@ MESSAGES = (
         FieldSpec('gam_iq0_a', 'f32', 1, None, 48),
         FieldSpec('gam_did_a', 'f32', 1, None, 52),
         FieldSpec('gam_diq_a', 'f32', 1, None, 56),
-    ), struct.Struct('<ffffffffffHHffff')),
+        FieldSpec('if_i_a', 'f32', 1, None, 60),
+        FieldSpec('if_accel_rpm_s', 'f32', 1, None, 64),
+        FieldSpec('if_handover_rpm', 'f32', 1, None, 68),
+    ), struct.Struct('<ffffffffffHHfffffff')),
     MessageSpec(0x0C, 'gamma_node', 'h2d', False, 18, (
         FieldSpec('index', 'u16', 1, None, 0),
         FieldSpec('g_dd', 'f32', 1, None, 2),

@@ -41,6 +41,7 @@ class Session:
         self.identity: Identity | None = None
         self.capture_missing: list[int] = []  # capture chunks that did not arrive (read_capture)
         self.capture_rejected = 0  # capture chunks refused as corrupt
+        self.capture_abandoned = False  # read_capture gave up on a link that carried nothing
 
     # ------------------------------------------------------------------ sending
     def send(self, name: str, **fields: Any) -> int:
@@ -128,26 +129,45 @@ class Session:
         )
         return self.identity
 
-    def read_capture(self, count: int, timeout_s: float = 0.5, retries: int = 3) -> list[dict]:
+    def read_capture(
+        self, count: int, timeout_s: float = 0.5, retries: int = 3, give_up_after: int = 4
+    ) -> list[dict]:
         """Upload the capture buffer chunk by chunk, retrying lost chunks.
 
         A chunk that does not arrive after `retries` tries is skipped (its offset is listed in
-        `capture_missing`) and the upload goes on: what arrived is kept. A chunk whose `n_valid`
-        exceeds its capacity or what is left of the buffer is refused as corrupt (counted in
-        `capture_rejected`) and asked for again."""
+        `capture_missing`) and the upload goes on: what arrived is kept. After `give_up_after`
+        chunks in a row have not arrived the link is not carrying the upload: the rest is listed
+        as missing too and the upload ends (`capture_abandoned`), rather than waiting out every
+        chunk. A chunk whose `n_valid` exceeds its capacity or what is left of the buffer is
+        refused as corrupt (counted in `capture_rejected`) and asked for again.
+
+        The wait for a chunk adapts to the link: `timeout_s` until two chunks have arrived, then
+        four times the slowest of the last eight round trips (at least 50 ms, at most
+        `timeout_s`), so a lossy link costs retries, not half-second waits."""
         chunks = []
         self.capture_missing = []
         self.capture_rejected = 0
+        self.capture_abandoned = False
         per_chunk = next(f.count for f in gen.BY_NAME["capture_chunk"].fields if f.name == "i_a_a")
         offset = 0
+        missed_in_a_row = 0
+        rtts: deque[float] = deque(maxlen=8)
         while offset < count:
+            if missed_in_a_row >= give_up_after:
+                self.capture_missing.extend(range(offset, count, per_chunk))
+                self.capture_abandoned = True
+                break
             fr = None
             for _attempt in range(retries):
+                wait_s = min(timeout_s, max(0.05, 4.0 * max(rtts))) if len(rtts) >= 2 else timeout_s
+                t0 = time.monotonic()
                 self.send("capture_read", offset=offset)
                 fr = self._wait_for(
                     lambda f, o=offset: f.name == "capture_chunk" and f.fields["offset"] == o,
-                    timeout_s,
+                    wait_s,
                 )
+                if fr is not None:
+                    rtts.append(time.monotonic() - t0)
                 if fr is not None and fr.fields["n_valid"] > min(per_chunk, count - offset):
                     self.capture_rejected += 1
                     fr = None
@@ -156,8 +176,10 @@ class Session:
                     break
             if fr is None:
                 self.capture_missing.append(offset)
+                missed_in_a_row += 1
                 offset += per_chunk
                 continue
+            missed_in_a_row = 0
             n = fr.fields["n_valid"]
             if n == 0:
                 break

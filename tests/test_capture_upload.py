@@ -1,0 +1,77 @@
+"""The capture upload on a link that loses chunks (pmsm_hil/protocol/session.py read_capture):
+what arrives is kept, lost chunks are listed, a link that carries nothing is given up on after a
+few chunks instead of being waited out, and the wait adapts to the link's round trip."""
+
+from __future__ import annotations
+
+import time
+from types import SimpleNamespace
+
+from pmsm_hil.protocol import generated as gen
+from pmsm_hil.protocol.session import Session
+
+PER_CHUNK = next(f.count for f in gen.BY_NAME["capture_chunk"].fields if f.name == "i_a_a")
+
+
+class ChunkLink:
+    """Answers capture_read with a chunk after `delay_s`, unless `lose(offset, attempt)`."""
+
+    def __init__(self, count: int, lose, delay_s: float = 0.001):
+        self.count, self.lose, self.delay_s = count, lose, delay_s
+        self.decoder = SimpleNamespace()
+        self.pending: list[tuple[float, int]] = []
+        self.asked: dict[int, int] = {}
+
+    def send(self, name: str, seq: int, **fields) -> None:
+        assert name == "capture_read"
+        off = fields["offset"]
+        n = self.asked[off] = self.asked.get(off, 0) + 1
+        if not self.lose(off, n):
+            self.pending.append((time.monotonic() + self.delay_s, off))
+
+    def poll(self, timeout_s: float) -> list:
+        end = time.monotonic() + timeout_s
+        while True:
+            now = time.monotonic()
+            due = [p for p in self.pending if p[0] <= now]
+            if due or now >= end:
+                break
+            time.sleep(0.0005)
+        self.pending = [p for p in self.pending if p not in due]
+        return [
+            SimpleNamespace(
+                name="capture_chunk",
+                fields={"offset": off, "n_valid": min(PER_CHUNK, self.count - off)},
+            )
+            for _t, off in due
+        ]
+
+
+def test_lost_chunks_are_retried_listed_and_the_rest_kept():
+    count = 8 * PER_CHUNK
+    link = ChunkLink(count, lambda off, n: off == 2 * PER_CHUNK or (off == PER_CHUNK and n == 1))
+    s = Session(link)
+    chunks = s.read_capture(count)
+    assert [c["offset"] for c in chunks] == [k * PER_CHUNK for k in range(8) if k != 2]
+    assert s.capture_missing == [2 * PER_CHUNK] and not s.capture_abandoned
+    assert link.asked[PER_CHUNK] == 2 and link.asked[2 * PER_CHUNK] == 3
+
+
+def test_a_link_that_carries_nothing_is_given_up_on():
+    count = 16 * PER_CHUNK
+    s = Session(ChunkLink(count, lambda off, n: True))
+    t0 = time.monotonic()
+    chunks = s.read_capture(count, timeout_s=0.05, give_up_after=4)
+    assert chunks == [] and s.capture_abandoned
+    assert s.capture_missing == [k * PER_CHUNK for k in range(16)]
+    assert time.monotonic() - t0 < 4 * 3 * 0.05 + 0.5  # four chunks waited out, not sixteen
+
+
+def test_the_wait_adapts_to_a_fast_link():
+    """Round trips of 1 ms: after two chunks a lost one costs 50 ms, not the 2 s timeout."""
+    count = 6 * PER_CHUNK
+    s = Session(ChunkLink(count, lambda off, n: off == 4 * PER_CHUNK and n == 1))
+    t0 = time.monotonic()
+    chunks = s.read_capture(count, timeout_s=2.0)
+    assert len(chunks) == 6 and s.capture_missing == []
+    assert time.monotonic() - t0 < 1.0
