@@ -56,6 +56,8 @@ TRUTH_FIELDS = (
     "temp_winding_c",
     "temp_magnet_c",
     "effects",
+    "l_d_secant_h",
+    "l_q_secant_h",
 )
 STATUS_FIELDS = (
     "segment",

@@ -104,8 +104,10 @@ def test_the_include_check_catches_a_stray_include(tmp_path):
 
 
 def test_fuzz_targets_run_clean_for_a_few_seconds(root, tmp_path):
-    """firmware/fuzz/ (libFuzzer + ASan + UBSan): the frame parser and the CAN reassembly, from the
-    committed seed corpus, a few seconds each; no crash, no sanitizer report, no invariant broken.
+    """firmware/fuzz/ (libFuzzer + ASan + UBSan): the frame parser, the CAN reassembly and the
+    whole firmware on the sim board, from the committed seed corpus, a few seconds each; no crash,
+    no sanitizer report, no invariant broken; some of the whole-firmware inputs run the motor when
+    the host falls silent (its seeds are real sessions).
     libFuzzer comes with clang only: without clang this is skipped (the long run: `make -C
     firmware fuzz FUZZ_SECONDS=...`, docs/faults.md)."""
     if shutil.which("clang") is None:
@@ -118,5 +120,7 @@ def test_fuzz_targets_run_clean_for_a_few_seconds(root, tmp_path):
     )
     assert r.returncode == 0, r.stdout[-5000:] + r.stderr[-3000:]
     runs = [int(n) for n in re.findall(r"stat::number_of_executed_units: (\d+)", r.stdout)]
-    assert len(runs) == 2 and min(runs) > 100, r.stdout
+    assert len(runs) == 3 and min(runs) > 100, r.stdout
     assert "fuzz_can: accepted" in r.stdout and "not-sent accepted" in r.stdout
+    silent = re.search(r"fuzz_fw: inputs \d+, running when the host fell silent (\d+)", r.stdout)
+    assert silent and int(silent.group(1)) > 0, r.stdout

@@ -1,11 +1,13 @@
 """Compare the device topics of two MCAP logs bit for bit.
 
-    python -m tools.compare_device_logs reference.mcap candidate.mcap
+    python -m tools.compare_device_logs [--common-fields] reference.mcap candidate.mcap
 
 The device topics are what the firmware and the emulated plant produced (telemetry, parameters,
 events, capture, plant truth); host-side topics (/pmsm/status, /host/*) carry wall-clock data and
 are not compared. Numeric columns are compared as raw bytes (NaN payloads and signed zeros count),
 strings by value; events the host wrote itself (kind "host") are left out. Exit 0 when identical, 1 with a list of the first differences otherwise.
+With --common-fields, a field that one log has and the other has not (a field added to a message)
+is named but not counted: the fields both have are compared.
 """
 
 from __future__ import annotations
@@ -44,10 +46,13 @@ def _device_rows(topic: str, cols: dict[str, np.ndarray]) -> dict[str, np.ndarra
     return {k: np.asarray(v)[keep] for k, v in cols.items()}
 
 
-def compare(ref_path: str, new_path: str) -> list[str]:
-    """Differences between the device topics of two logs (empty when bit-identical)."""
+def compare(ref_path: str, new_path: str, common_fields: bool = False) -> list[str]:
+    """Differences between the device topics of two logs (empty when bit-identical); with
+    common_fields, only the fields both logs have are compared (the others are named in
+    `compare.notes`)."""
     ref, new = read_log(ref_path), read_log(new_path)
     diffs: list[str] = []
+    compare.notes = []  # type: ignore[attr-defined]
     for topic in DEVICE_TOPICS:
         in_ref, in_new = topic in ref.topics, topic in new.topics
         if in_ref != in_new:
@@ -57,9 +62,12 @@ def compare(ref_path: str, new_path: str) -> list[str]:
             continue
         ta, tb = _device_rows(topic, ref.topic(topic)), _device_rows(topic, new.topic(topic))
         if sorted(ta) != sorted(tb):
-            diffs.append(f"{topic}: fields {sorted(ta)} != {sorted(tb)}")
-            continue
-        for key in ta:
+            if not common_fields:
+                diffs.append(f"{topic}: fields {sorted(ta)} != {sorted(tb)}")
+                continue
+            only = sorted(set(ta) ^ set(tb))
+            compare.notes.append(f"{topic}: not compared, in one log only: {only}")  # type: ignore[attr-defined]
+        for key in (k for k in ta if k in tb):
             d = _column_diff(f"{topic}.{key}", np.asarray(ta[key]), np.asarray(tb[key]))
             if d:
                 diffs.append(d)
@@ -68,13 +76,18 @@ def compare(ref_path: str, new_path: str) -> list[str]:
 
 def main(argv: list[str] | None = None) -> int:
     args = sys.argv[1:] if argv is None else argv
+    common = "--common-fields" in args
+    args = [a for a in args if a != "--common-fields"]
     if len(args) != 2:
         print(
-            "usage: python -m tools.compare_device_logs REFERENCE.mcap CANDIDATE.mcap",
+            "usage: python -m tools.compare_device_logs [--common-fields] REFERENCE.mcap "
+            "CANDIDATE.mcap",
             file=sys.stderr,
         )
         return 2
-    diffs = compare(args[0], args[1])
+    diffs = compare(args[0], args[1], common)
+    for n in compare.notes:  # type: ignore[attr-defined]
+        print(n)
     try:
         for d in diffs:
             print(d)

@@ -385,6 +385,8 @@ VECTORS: list[tuple[str, str, int, dict]] = [
             temp_winding_c=85.5,
             temp_magnet_c=60.25,
             effects=0x5,
+            l_d_secant_h=0.0052,
+            l_q_secant_h=0.0105,
         ),
     ),
 ]

@@ -190,20 +190,14 @@ bool proto_can_layout(uint16_t msg_id, proto_can_layout_t *l)
         l->crc_frame = 0xFFu;
         return true;
     case PROTO_ID_SIM_TRUTH:
-        l->func = 0x26u;
-        l->transfer = 0u;
-        l->n_frames = 6u;
+        l->func = 0x7Eu;
+        l->transfer = 1u;
+        l->n_frames = 9u;
         l->h2d = 0u;
-        l->crc_frame = 0x00u;
-        l->len[0] = 7u;
-        l->len[1] = 8u;
-        l->len[2] = 8u;
-        l->len[3] = 8u;
-        l->len[4] = 8u;
-        l->len[5] = 8u;
+        l->crc_frame = 0xFFu;
         return true;
     case PROTO_ID_TELEM_EST:
-        l->func = 0x2Cu;
+        l->func = 0x26u;
         l->transfer = 0u;
         l->n_frames = 2u;
         l->h2d = 0u;
@@ -219,7 +213,7 @@ bool proto_can_layout(uint16_t msg_id, proto_can_layout_t *l)
         l->crc_frame = 0xFFu;
         return true;
     case PROTO_ID_GAMMA_NODE:
-        l->func = 0x2Eu;
+        l->func = 0x28u;
         l->transfer = 0u;
         l->n_frames = 3u;
         l->h2d = 1u;
@@ -269,17 +263,11 @@ int16_t proto_can_func_msg(uint16_t func, uint16_t *frame)
     case 0x25u: *frame = 3u; return (int16_t)PROTO_ID_STATUS;
     case 0x05u: *frame = 0u; return (int16_t)PROTO_ID_EVENT;
     case 0x06u: *frame = 1u; return (int16_t)PROTO_ID_EVENT;
-    case 0x26u: *frame = 0u; return (int16_t)PROTO_ID_SIM_TRUTH;
-    case 0x27u: *frame = 1u; return (int16_t)PROTO_ID_SIM_TRUTH;
-    case 0x28u: *frame = 2u; return (int16_t)PROTO_ID_SIM_TRUTH;
-    case 0x29u: *frame = 3u; return (int16_t)PROTO_ID_SIM_TRUTH;
-    case 0x2Au: *frame = 4u; return (int16_t)PROTO_ID_SIM_TRUTH;
-    case 0x2Bu: *frame = 5u; return (int16_t)PROTO_ID_SIM_TRUTH;
-    case 0x2Cu: *frame = 0u; return (int16_t)PROTO_ID_TELEM_EST;
-    case 0x2Du: *frame = 1u; return (int16_t)PROTO_ID_TELEM_EST;
-    case 0x2Eu: *frame = 0u; return (int16_t)PROTO_ID_GAMMA_NODE;
-    case 0x2Fu: *frame = 1u; return (int16_t)PROTO_ID_GAMMA_NODE;
-    case 0x30u: *frame = 2u; return (int16_t)PROTO_ID_GAMMA_NODE;
+    case 0x26u: *frame = 0u; return (int16_t)PROTO_ID_TELEM_EST;
+    case 0x27u: *frame = 1u; return (int16_t)PROTO_ID_TELEM_EST;
+    case 0x28u: *frame = 0u; return (int16_t)PROTO_ID_GAMMA_NODE;
+    case 0x29u: *frame = 1u; return (int16_t)PROTO_ID_GAMMA_NODE;
+    case 0x2Au: *frame = 2u; return (int16_t)PROTO_ID_GAMMA_NODE;
     default: *frame = 0u; return -1;
     }
 }

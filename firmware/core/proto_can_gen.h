@@ -15,7 +15,7 @@
 #define PROTO_CAN_FUNC_TRANSFER_D2H 0x7Eu
 #define PROTO_CAN_TRANSFER_DATA 7u   /* payload octets per data frame */
 #define PROTO_CAN_TRANSFER_HEADER 6u /* [0, msg_id, seq, len, crc_hi, crc_lo] */
-#define PROTO_CAN_MAX_FRAMES 6u  /* frames of the longest direct message */
+#define PROTO_CAN_MAX_FRAMES 4u  /* frames of the longest direct message */
 #define PROTO_CAN_CRC_OCTETS 2u  /* end-to-end CRC of a direct message of 2+ frames */
 #define PROTO_CAN_NO_CRC 0xFFu  /* crc_frame of a single frame (or a transfer) */
 

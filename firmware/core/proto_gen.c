@@ -680,6 +680,8 @@ uint16_t proto_sim_truth_pack(const proto_sim_truth_t *m, uint16_t *buf)
     put_f32(&buf[32], m->temp_winding_c);
     put_f32(&buf[36], m->temp_magnet_c);
     put_u32(&buf[40], m->effects);
+    put_f32(&buf[44], m->l_d_secant_h);
+    put_f32(&buf[48], m->l_q_secant_h);
     return PROTO_LEN_SIM_TRUTH;
 }
 
@@ -699,6 +701,8 @@ bool proto_sim_truth_unpack(proto_sim_truth_t *m, const uint16_t *buf, uint16_t 
     m->temp_winding_c = get_f32(&buf[32]);
     m->temp_magnet_c = get_f32(&buf[36]);
     m->effects = get_u32(&buf[40]);
+    m->l_d_secant_h = get_f32(&buf[44]);
+    m->l_q_secant_h = get_f32(&buf[48]);
     return true;
 }
 

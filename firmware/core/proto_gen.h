@@ -10,7 +10,7 @@
 #include <stdbool.h>
 
 #define PROTO_VERSION 2u
-#define PROTO_SCHEMA_HASH 0x2ED21E7AUL  /* CRC-32 of the canonical yaml */
+#define PROTO_SCHEMA_HASH 0x4BE3B97CUL  /* CRC-32 of the canonical yaml */
 #define PROTO_MAX_PAYLOAD 111u  /* octets */
 #define PROTO_MSG_COUNT 25u
 
@@ -433,7 +433,7 @@ bool proto_commission_result_unpack(proto_commission_result_t *m, const uint16_t
 
 /* sim_truth: 0xA0, device -> host, emulator only */
 #define PROTO_ID_SIM_TRUTH 0xA0u
-#define PROTO_LEN_SIM_TRUTH 44u
+#define PROTO_LEN_SIM_TRUTH 52u
 typedef struct {
     uint32_t tick;                 /* u32 */
     float l_d_h;                   /* f32 */
@@ -446,6 +446,8 @@ typedef struct {
     float temp_winding_c;          /* f32 */
     float temp_magnet_c;           /* f32 */
     uint32_t effects;              /* u32; bit mask of active rig effects */
+    float l_d_secant_h;            /* f32; apparent (secant) L_d at the operating point (l_d_h: incremental) */
+    float l_q_secant_h;            /* f32; apparent (secant) L_q: psi_q / i_q */
 } proto_sim_truth_t;
 uint16_t proto_sim_truth_pack(const proto_sim_truth_t *m, uint16_t *buf);
 bool proto_sim_truth_unpack(proto_sim_truth_t *m, const uint16_t *buf, uint16_t len);

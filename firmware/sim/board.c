@@ -208,6 +208,8 @@ static void send_truth(emu_t *e)
     m.temp_winding_c = (float)t.temp_winding_c;
     m.temp_magnet_c = (float)t.temp_magnet_c;
     m.effects = e->effects_mask;
+    m.l_d_secant_h = (float)t.l_d_secant_h;
+    m.l_q_secant_h = (float)t.l_q_secant_h;
     n = proto_sim_truth_pack(&m, e->payload);
     (void)fw_send(&e->fw, PROTO_ID_SIM_TRUTH, e->payload, n);
 }
@@ -366,6 +368,12 @@ uint32_t emu_isr_count(const emu_t *e)
 uint32_t emu_heartbeat_isr(const emu_t *e)
 {
     return fw_heartbeat_isr(&e->fw);
+}
+
+void emu_heartbeat_cfg(const emu_t *e, double *timeout_s, double *ts_s)
+{
+    *timeout_s = (double)e->fw.ctrl.heartbeat_timeout_s;
+    *ts_s = (double)e->fw.ctrl.ts_s;
 }
 int emu_state(const emu_t *e)
 {

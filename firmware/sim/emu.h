@@ -20,6 +20,8 @@ void emu_rx(emu_t *e, const uint8_t *data, uint32_t n); /* octets from the host 
 uint32_t emu_run(emu_t *e, uint32_t max_ticks, uint8_t *out, uint32_t cap, uint32_t *n_out);
 uint32_t emu_isr_count(const emu_t *e);
 uint32_t emu_heartbeat_isr(const emu_t *e);
+/* The heartbeat timeout and control period the firmware accepted (its config_ctrl; fuzz targets) */
+void emu_heartbeat_cfg(const emu_t *e, double *timeout_s, double *ts_s);
 /* isr count at the last change of the firmware's state (seen after the control period that made
  * it), and in *hb_isr the isr count of the last heartbeat at that moment */
 uint32_t emu_state_change(const emu_t *e, uint32_t *hb_isr);

@@ -251,6 +251,9 @@ void plant_set_currents(plant_t *p, double i_d_a, double i_q_a)
     }
 }
 
+/* below this current the secant inductance is its limit, the incremental one */
+#define PL_SECANT_MIN_A 0.05
+
 void plant_truth(const plant_t *p, plant_truth_t *t)
 {
     plant_mag_t m;
@@ -275,6 +278,14 @@ void plant_truth(const plant_t *p, plant_truth_t *t)
     t->l_dq_h = m.l_dq;
     t->psi_d_wb = m.psi_d_wb;
     t->psi_q_wb = m.psi_q_wb;
+    t->l_q_secant_h = fabs(p->i_q_a) >= PL_SECANT_MIN_A ? m.psi_q_wb / p->i_q_a : m.l_qq;
+    t->l_d_secant_h = m.l_dd;
+    if (fabs(p->i_d_a) >= PL_SECANT_MIN_A) {
+        plant_mag_t m0, m1;
+        mag_eval(p, p->mag_general ? 1 : 0, p->i_d_a, p->i_q_a, p->cos_e, p->sin_e, &m1);
+        mag_eval(p, p->mag_general ? 1 : 0, 0.0, p->i_q_a, p->cos_e, p->sin_e, &m0);
+        t->l_d_secant_h = (m1.psi_d_wb - m0.psi_d_wb) / p->i_d_a;
+    }
     pl_losses(p, &t->p_cu_w, &t->p_fe_w);
     t->i_dc_a = p->i_dc_a;
     t->v_dist_v[0] = p->v_dist_v[0];

@@ -175,9 +175,13 @@ typedef struct {
     /* rig effects */
     double psi_d_wb, psi_q_wb; /* flux linkages in force */
     double l_dq_h;             /* incremental cross inductance d(psi_d)/d(i_q) */
-    double p_cu_w, p_fe_w;     /* copper and iron losses */
-    double i_dc_a;             /* DC-link current into the inverter (last period, DC link on) */
-    double v_dist_v[3]; /* inverter distortion (dead time, drops) of legs a, b, c, last period */
+    /* apparent (secant) inductances at the operating point, what steady-state equations identify
+     * (docs/identification.md): psi_q / i_q, and (psi_d - psi_d(0, i_q)) / i_d; the incremental
+     * ones below 0.05 A, their limits */
+    double l_d_secant_h, l_q_secant_h;
+    double p_cu_w, p_fe_w; /* copper and iron losses */
+    double i_dc_a;         /* DC-link current into the inverter (last period, DC link on) */
+    double v_dist_v[3];    /* inverter distortion (dead time, drops) of legs a, b, c, last period */
 } plant_truth_t;
 
 /* Paper A's IPMSM (p 4, R 0.9, Ld 5 mH, Lq 12 mH, psi_f 0.18 Wb, J 0.0036) on 540 V, Ts 50 us,

@@ -90,10 +90,38 @@ class IdentTable:
         }
 
 
-def _truth(log, t: np.ndarray) -> tuple[dict[str, np.ndarray], str]:
+SECANT = {"l_d_h": "l_d_secant_h", "l_q_h": "l_q_secant_h"}
+SECANT_SMOOTH_S = 0.05  # the secant follows the current ripple: averaged over this before use
+
+
+def _smoothed(t: np.ndarray, x: np.ndarray, width_s: float) -> np.ndarray:
+    """Centred moving average over width_s (samples evenly spaced in time)."""
+    if len(t) < 3:
+        return x
+    n = max(1, round(width_s / max(float(np.median(np.diff(t))), 1e-9)))
+    if n <= 1:
+        return x
+    k = np.ones(n) / n
+    pad = np.pad(x, (n // 2, n - 1 - n // 2), mode="edge")
+    return np.convolve(pad, k, mode="valid")
+
+
+def _truth(log, t: np.ndarray, inductance: str = "secant") -> tuple[dict[str, np.ndarray], str]:
+    """The reference per parameter at the times t. Inductances: the apparent (secant) ones the
+    steady-state equations identify (docs/identification.md), when the log has them and
+    `inductance` is "secant"; else the incremental ones."""
     tr = log.topic("/sim/truth") if "/sim/truth" in log.topics else None
     if tr is not None and len(tr["t_s"]):
-        return {p: np.interp(t, tr["t_s"], tr[p]) for p in PARAMS}, "/sim/truth"
+        t_tr = np.asarray(tr["t_s"], float)
+        out = {p: np.interp(t, t_tr, tr[p]) for p in PARAMS}
+        have = all(k in tr and np.any(np.asarray(tr[k]) != 0.0) for k in SECANT.values())
+        if inductance == "secant" and have:
+            for p, k in SECANT.items():
+                out[p] = np.interp(
+                    t, t_tr, _smoothed(t_tr, np.asarray(tr[k], float), SECANT_SMOOTH_S)
+                )
+            return out, "/sim/truth (L: apparent, secant)"
+        return out, "/sim/truth (L: incremental)"
     motor = log.metadata.get("motor", {})
     out = {}
     for p in PARAMS:
@@ -115,14 +143,19 @@ def convergence_time(
 
 
 # what the table reads of a log (read_log(path, topics=...))
-IDENT_TOPICS = {"/pmsm/params": None, "/sim/truth": ("t_s", *PARAMS)}
+IDENT_TOPICS = {"/pmsm/params": None, "/sim/truth": ("t_s", *PARAMS, *SECANT.values())}
 
 
 def identification_table(
-    path: Path | str, t0_s: float | None = None, t1_s: float | None = None, log: Log | None = None
+    path: Path | str,
+    t0_s: float | None = None,
+    t1_s: float | None = None,
+    log: Log | None = None,
+    inductance: str = "secant",
 ) -> IdentTable:
     """The table for the log at `path` (or ``log``, the file already read with at least
-    IDENT_TOPICS), over device time [t0_s, t1_s] (default: the whole log)."""
+    IDENT_TOPICS), over device time [t0_s, t1_s] (default: the whole log); inductances scored
+    against the secant truth (default, when the log has it) or the incremental one."""
     log = log if log is not None else read_log(path, topics=IDENT_TOPICS)
     par = log.topic("/pmsm/params")
     t_all = np.asarray(par["t_s"], dtype=float)
@@ -135,7 +168,7 @@ def identification_table(
         if not np.any(sel):
             continue
         t = t_all[sel]
-        truth, table.truth_source = _truth(log, t)
+        truth, table.truth_source = _truth(log, t, inductance)
         conv_flag = bool(np.asarray(par["converged"])[sel][-1])
         for p in PARAMS:
             v = np.asarray(par[p], dtype=float)[sel]

@@ -83,8 +83,9 @@ def identify_rigs(
     what = "after commissioning" if commissioned else "with the motor file's values"
     parts = [
         f"# Online identification on several rigs, {what}",
-        f"seeds {', '.join(map(str, seeds))}; |error| against /sim/truth before the drift step, "
-        f"median / worst over the seeds; convergence time median / worst",
+        f"seeds {', '.join(map(str, seeds))}; |error| against /sim/truth before the drift step "
+        f"(L_d, L_q: the apparent, secant inductances at the operating point; "
+        f"docs/identification.md), median / worst over the seeds; convergence time median / worst",
         "",
     ]
     for rig in rigs:

@@ -288,8 +288,8 @@ TOPICS: dict[str, TopicDef] = {
             "pmsm_hil/msg/SimTruth",
             (
                 T,
-                _f("l_d_h", "H", "true d-axis inductance of the plant"),
-                _f("l_q_h", "H", "true q-axis inductance"),
+                _f("l_d_h", "H", "true d-axis inductance of the plant (incremental, dpsi_d/di_d)"),
+                _f("l_q_h", "H", "true q-axis inductance (incremental, dpsi_q/di_q)"),
                 _f("psi_f_wb", "Wb", "true flux linkage"),
                 _f("r_s_ohm", "ohm", "true stator resistance"),
                 _f("theta_e_rad", "rad", "true electrical angle"),
@@ -303,6 +303,13 @@ TOPICS: dict[str, TopicDef] = {
                     "bit mask of the rig effects that are on (pmsm_hil.profiles.EFFECT_BITS)",
                     "uint32",
                 ),
+                _f(
+                    "l_d_secant_h",
+                    "H",
+                    "apparent (secant) d-axis inductance at the operating point, "
+                    "(psi_d - psi_d(0, i_q)) / i_d: what steady-state equations identify",
+                ),
+                _f("l_q_secant_h", "H", "apparent (secant) q-axis inductance, psi_q / i_q"),
             ),
             "telemetry.truth_hz (emulator only)",
             "the emulated plant's true state",

@@ -6,7 +6,7 @@ import struct
 from typing import NamedTuple
 
 PROTOCOL_VERSION = 2
-SCHEMA_HASH = 0x2ED21E7A
+SCHEMA_HASH = 0x4BE3B97C
 MAX_PAYLOAD = 111  # octets
 
 # wire type: (struct code, octets, min, max); min/max are None for f32
@@ -334,7 +334,7 @@ MESSAGES = (
         FieldSpec('spread', 'f32', 4, None, 22),
         FieldSpec('truth_ref', 'f32', 2, None, 38),
     ), struct.Struct('<IBB4f4f2f')),
-    MessageSpec(0xA0, 'sim_truth', 'd2h', True, 44, (
+    MessageSpec(0xA0, 'sim_truth', 'd2h', True, 52, (
         FieldSpec('tick', 'u32', 1, None, 0),
         FieldSpec('l_d_h', 'f32', 1, None, 4),
         FieldSpec('l_q_h', 'f32', 1, None, 8),
@@ -346,7 +346,9 @@ MESSAGES = (
         FieldSpec('temp_winding_c', 'f32', 1, None, 32),
         FieldSpec('temp_magnet_c', 'f32', 1, None, 36),
         FieldSpec('effects', 'u32', 1, None, 40),
-    ), struct.Struct('<IfffffffffI')),
+        FieldSpec('l_d_secant_h', 'f32', 1, None, 44),
+        FieldSpec('l_q_secant_h', 'f32', 1, None, 48),
+    ), struct.Struct('<IfffffffffIff')),
     MessageSpec(0x95, 'telem_est', 'd2h', False, 13, (
         FieldSpec('tick', 'u32', 1, None, 0),
         FieldSpec('estimator', 'u8', 1, None, 4),
