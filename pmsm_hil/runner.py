@@ -43,6 +43,11 @@ class RunOptions:
     sinks: Sequence[Sink] = field(default_factory=list)  # extra consumers of each device message
     # further configuration messages sent after the profile, e.g. ("config_commission", {...})
     requests: list[tuple[str, dict[str, Any]]] = field(default_factory=list)
+    # when received messages reach the OS (what a killed host still leaves in its log,
+    # docs/faults.md): "batch" after every batch read from the link, before the next read (a
+    # killed host loses nothing it received); "wall" at least every LOG_FLUSH_WALL_S of wall time
+    # (fewer, larger chunks: what an unpaced emulator run uses)
+    log_sync: str = "wall"
 
 
 @dataclass
@@ -232,6 +237,7 @@ def run_profile(
         _attachments(profile),
         wall_start_s=time.time(),
         flush_wall_s=LOG_FLUSH_WALL_S,
+        sync=options.log_sync,
     )
     rec = Recorder(writer, profile.control.ts_s, names, options.sinks)
     rec.live.total_s = profile.total_duration_s
@@ -365,6 +371,8 @@ def _stream(
         if frames:
             last_data_wall = now
             rec.frames(frames)
+            if options.log_sync == "batch":  # on disk before the link is read again
+                rec.w.flush()
             if not plant_checked and motor is not None and live.truth:
                 plant_checked = True
                 why = plant_mismatch(motor, live.truth)

@@ -18,8 +18,9 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     r = lsub.add_parser(
         "recover",
         help="rewrite a log whose writer was killed into a finalised one",
-        description="Reads every message that reached the disk (a run's writer flushes a "
-        "chunk at least every 0.25 s of wall time and every second of device time) and writes a "
+        description="Reads every message that reached the disk (a run on a rig or a paced "
+        "emulator writes each batch it received before reading the link again; an unpaced "
+        "emulator run a chunk at least every 0.25 s of wall time) and writes a "
         "finalised copy, with its index and summary, that any MCAP "
         "reader opens (Foxglove, the `mcap` library). Reports per topic what was recovered "
         "(messages, device-time span) and what the kill may have cost.",
@@ -79,7 +80,12 @@ def recovered_lines(log: Log, dst: Path) -> list[str]:
     meta = log.metadata.get("log", {})
     if not log.finalised:
         wall, span = meta.get("flush_wall_s"), meta.get("chunk_span_s", "1.0")
-        if wall:
+        if meta.get("sync") == "batch":
+            out.append(
+                "lost: nothing the host had received: each batch read from the link was on disk "
+                f"before the next read (the log ends at t = {t_end:.4f} s)"
+            )
+        elif wall:
             out.append(
                 f"lost: at most what the host received in the last {float(wall):g} s of wall time "
                 f"before it was killed (never more than {float(span):g} s of device time) after "

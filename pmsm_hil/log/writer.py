@@ -168,6 +168,7 @@ class LogWriter:
         topics: Iterable[TopicDef] = (),
         wall_start_s: float | None = None,
         flush_wall_s: float | None = None,
+        sync: str = "wall",
     ):
         self.path = os.fspath(path)
         self._off_ns = round(wall_start_s * 1e9) if wall_start_s else 0
@@ -210,6 +211,7 @@ class LogWriter:
         if self._flush_wall_s:  # the loss bound of a killed writer, for `pmsm-hil log recover`
             log_meta["chunk_span_s"] = repr(float(chunk_span_s))
             log_meta["flush_wall_s"] = repr(self._flush_wall_s)
+            log_meta["sync"] = sync  # "batch": the caller flushes after each batch it received
         meta.setdefault("log", log_meta)
         for name, rec in meta.items():
             self.add_metadata(name, rec)
