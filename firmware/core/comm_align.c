@@ -134,7 +134,7 @@ void comm_align_step(comm_t *c, const comm_in_t *in, comm_out_t *out)
     const fw_motor_t *m = &c->cfg.motor;
     const float i_al = c->cfg.i_test_a;
     const float wn =
-        sqrtf(1.5f * (float)(m->pole_pairs * m->pole_pairs) * m->psi_f_wb * i_al / m->j_kgm2);
+        sqrtf(1.5f * (float)m->pole_pairs * (float)m->pole_pairs * m->psi_f_wb * i_al / m->j_kgm2);
     const float kd = wn > 0.0f ? 2.0f * AL_ZETA / wn : 0.0f;
     float id, iq, target, th_v, ref = i_al;
     const uint16_t j = c->n_blk; /* point index, 0 .. 2 AL_POINTS */
