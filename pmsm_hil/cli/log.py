@@ -18,9 +18,9 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     r = lsub.add_parser(
         "recover",
         help="rewrite a log whose writer was killed into a finalised one",
-        description="Reads every message that reached the disk (a run's writer flushes a "
-        "chunk at least every 0.25 s of wall time and every second of device time) and writes a "
-        "finalised copy, with its index and summary, that any MCAP "
+        description="Reads every message that reached the disk (a run's writer hands each "
+        "batch of received messages to the OS at its end, and its own at least every 0.25 s of "
+        "wall time) and writes a finalised copy, with its index and summary, that any MCAP "
         "reader opens (Foxglove, the `mcap` library). Reports per topic what was recovered "
         "(messages, device-time span) and what the kill may have cost.",
     )
@@ -79,7 +79,13 @@ def recovered_lines(log: Log, dst: Path) -> list[str]:
     meta = log.metadata.get("log", {})
     if not log.finalised:
         wall, span = meta.get("flush_wall_s"), meta.get("chunk_span_s", "1.0")
-        if wall:
+        if wall and meta.get("flush_per_batch") == "true":
+            out.append(
+                "lost: none of the device's messages the host had received (each receive batch "
+                "went to the OS at its end); of the host's own messages (events) at most those of "
+                f"its last {float(wall):g} s of wall time before it was killed"
+            )
+        elif wall:
             out.append(
                 f"lost: at most what the host received in the last {float(wall):g} s of wall time "
                 f"before it was killed (never more than {float(span):g} s of device time) after "

@@ -15,8 +15,11 @@
   spans ``chunk_span_s`` of device time, and, with ``flush_wall_s``, once it has been open that long
   in wall time (checked at each message and by ``flush_if_due()``): a killed process loses at most
   the open chunk, i.e. the messages of the last ``flush_wall_s`` of wall time (and never more than
-  ``chunk_span_s`` of device time); the reader recovers such unfinalised files. ``close()`` is idempotent and may be called from ``finally``
-  or a signal handler; SIGINT/SIGTERM are held back while a chunk is being written.
+  ``chunk_span_s`` of device time); the reader recovers such unfinalised files. A caller that
+  calls ``flush()`` at the end of each receive batch (the run's Recorder) says so with
+  ``flush_per_batch`` (recorded in the ``log`` metadata): then a killed process loses nothing it
+  had received. ``close()`` is idempotent and may be called from ``finally`` or a signal handler;
+  SIGINT/SIGTERM are held back while a chunk is being written.
 """
 
 from __future__ import annotations
@@ -168,6 +171,7 @@ class LogWriter:
         topics: Iterable[TopicDef] = (),
         wall_start_s: float | None = None,
         flush_wall_s: float | None = None,
+        flush_per_batch: bool = False,
     ):
         self.path = os.fspath(path)
         self._off_ns = round(wall_start_s * 1e9) if wall_start_s else 0
@@ -210,6 +214,8 @@ class LogWriter:
         if self._flush_wall_s:  # the loss bound of a killed writer, for `pmsm-hil log recover`
             log_meta["chunk_span_s"] = repr(float(chunk_span_s))
             log_meta["flush_wall_s"] = repr(self._flush_wall_s)
+        if flush_per_batch:  # the caller flushes at the end of each receive batch (the runner)
+            log_meta["flush_per_batch"] = "true"
         meta.setdefault("log", log_meta)
         for name, rec in meta.items():
             self.add_metadata(name, rec)
