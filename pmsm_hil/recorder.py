@@ -137,8 +137,8 @@ class Recorder:
         self.live.events.append((t_s, kind, arg, text))
 
     def frames(self, frames: Iterable[Frame]) -> None:
-        """One receive batch: each frame to its handler, then the batch to the OS (the writer
-        closes its open chunk), so that a host killed after this call has logged all of it."""
+        """One receive batch: each frame to its handler, then the batch to the OS (the writer's
+        journal, pmsm_hil.log.journal), so that a host killed after this call has logged all of it."""
         live = self.live
         n0 = live.frames
         for fr in frames:
@@ -150,7 +150,7 @@ class Recorder:
             if handler is not None:
                 handler(fr.fields)
         if live.frames != n0:
-            self.w.flush()
+            self.w.flush_batch()
 
     # one handler per device message -------------------------------------------------------
     def _on_telem_fast(self, f: dict) -> None:
@@ -274,5 +274,5 @@ class Recorder:
                     },
                 )
                 n += 1
-        self.w.flush()
+        self.w.flush_batch()
         return n

@@ -23,8 +23,9 @@ from pmsm_hil.protocol.session import Identity, Session
 from pmsm_hil.recorder import LiveState, Recorder, Sink
 from pmsm_hil.sensorless_design import estimator_frames
 
-# The recorder hands every receive batch to the OS at its end (Recorder.frames); what the host
-# writes on its own (events) goes out at least this often (wall time; docs/log-format.md).
+# The recorder hands every receive batch to the OS at its end (the log's journal,
+# Recorder.frames); what the host writes on its own (events) goes out at least this often (wall
+# time; docs/log-format.md).
 LOG_FLUSH_WALL_S = 0.25
 
 
@@ -232,7 +233,7 @@ def run_profile(
         _attachments(profile),
         wall_start_s=time.time(),
         flush_wall_s=LOG_FLUSH_WALL_S,
-        flush_per_batch=True,
+        journal=True,
     )
     rec = Recorder(writer, profile.control.ts_s, names, options.sinks)
     rec.live.total_s = profile.total_duration_s
@@ -298,7 +299,7 @@ class _NoLog(LogWriter):
     def flush_if_due(self) -> None:
         pass
 
-    def flush(self) -> None:
+    def flush_batch(self) -> None:
         pass
 
 
