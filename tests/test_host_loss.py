@@ -134,14 +134,14 @@ def test_a_killed_hosts_log_holds_every_message_it_had_received(data, tmp_path):
     n = sum(log.counts.values())
     seen = {}
     for path in (out, journal_path(out)):  # the generic stream reader, the files as they are
-        with open(path, "rb") as f:
-            with contextlib.suppress(Exception):  # it reports the missing footer at the end
-                for rec in StreamReader(f).records:
-                    if isinstance(rec, Channel):
-                        topics = seen.setdefault(path, {})
-                        topics[rec.id] = rec.topic
-                    elif isinstance(rec, Message):
-                        seen.setdefault((path, "n"), []).append(seen[path][rec.channel_id])
+        # (the stream reader reports the missing footer at the end)
+        with open(path, "rb") as f, contextlib.suppress(Exception):
+            for rec in StreamReader(f).records:
+                if isinstance(rec, Channel):
+                    topics = seen.setdefault(path, {})
+                    topics[rec.id] = rec.topic
+                elif isinstance(rec, Message):
+                    seen.setdefault((path, "n"), []).append(seen[path][rec.channel_id])
     assert len(seen[(out, "n")]) == n
     journal = read_journal(out, n)  # what the log's chunks do not hold
     assert journal and len(journal) <= len(seen[(journal_path(out), "n")])

@@ -108,13 +108,12 @@ def read_journal(log_path: str | os.PathLike, log_messages: int) -> list[Journal
     topics: dict[int, str] = {}
     out: list[JournalMessage] = []
     base = log_messages
-    with open(path, "rb") as f:
-        with contextlib.suppress(Exception):  # the end of an unfinished stream
-            for rec in StreamReader(f).records:
-                if isinstance(rec, Metadata) and rec.name == "journal":
-                    base = int(rec.metadata.get("base_messages", log_messages))
-                elif isinstance(rec, Channel):
-                    topics[rec.id] = rec.topic
-                elif isinstance(rec, Message) and rec.channel_id in topics:
-                    out.append(JournalMessage(topics[rec.channel_id], rec.log_time, rec.data))
+    with open(path, "rb") as f, contextlib.suppress(Exception):  # an unfinished stream's end
+        for rec in StreamReader(f).records:
+            if isinstance(rec, Metadata) and rec.name == "journal":
+                base = int(rec.metadata.get("base_messages", log_messages))
+            elif isinstance(rec, Channel):
+                topics[rec.id] = rec.topic
+            elif isinstance(rec, Message) and rec.channel_id in topics:
+                out.append(JournalMessage(topics[rec.channel_id], rec.log_time, rec.data))
     return out[max(0, log_messages - base) :]

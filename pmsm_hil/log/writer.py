@@ -38,9 +38,8 @@ from operator import itemgetter
 from typing import Any
 
 import numpy as np
-from mcap.writer import CompressionType, Writer
-
 from mcap.records import Channel, Schema
+from mcap.writer import CompressionType, Writer
 
 from pmsm_hil import __version__
 from pmsm_hil.log.journal import Journal
