@@ -7,7 +7,7 @@ what the link can carry (its bit rate): `wire` counts the stream's frames as the
 (serial: 10 bits per octet incl. id, seq, CRC, COBS and delimiter; CAN: every frame bit incl. stuff
 bits of the actual content, as the sim board counts them), `payload` only the messages' payload
 octets. Two plans per link: the nominal one (the profile's rates for that link) and the fast stream
-at full rate (the highest telem_fast rate that fits, sim_truth lowered to 20 Hz). Every run must
+at full rate (serial: 2.5 kHz; CAN: the planner's highest telem_fast rate, `can_fast_hz_max`; sim_truth lowered to 20 Hz). Every run must
 lose nothing: no sequence gap on the host and no frame dropped in the firmware (status.tx_dropped).
 
 Host headroom: the recorded link data of the nominal run replayed through the host's decoder, the
@@ -34,7 +34,7 @@ from pmsm_hil.log.writer import LogWriter  # noqa: E402
 from pmsm_hil.profiles import load_profile  # noqa: E402
 from pmsm_hil.protocol import codec  # noqa: E402
 from pmsm_hil.protocol import generated as gen  # noqa: E402
-from pmsm_hil.protocol.can_link import CanDecoder  # noqa: E402
+from pmsm_hil.protocol.can_link import CanDecoder, can_fast_hz_max  # noqa: E402
 from pmsm_hil.protocol.session import Session  # noqa: E402
 from pmsm_hil.recorder import Recorder  # noqa: E402
 from pmsm_hil.runner import RunOptions, run_profile  # noqa: E402
@@ -70,7 +70,11 @@ def run(link_kind: str, full_rate: bool, tmp: Path):
         apply_can_rates(profile)
     if full_rate:
         tel = profile.telemetry
-        fast = 2500.0 if link_kind == "serial" else 2000.0
+        if link_kind == "serial":
+            fast = 2500.0
+        else:  # the CAN planner's highest rate next to the other streams (sim_truth at 20 Hz)
+            others = {"params": tel.params_hz, "status": tel.status_hz, "sim_truth": 20.0}
+            fast = can_fast_hz_max(others, profile.control.ts_s)
         profile.telemetry = tel.model_copy(update={"fast_hz": fast, "truth_hz": 20.0})
     settings = emulator_settings(
         profile.motor,

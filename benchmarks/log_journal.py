@@ -33,8 +33,8 @@ CHILD = textwrap.dedent(
             k["journal"] = False
             init(self, *a, **k)
         W.LogWriter.__init__ = no_journal
-        if variant == "chunks only":
-            W.LogWriter.flush_batch = lambda self: None
+        if variant == "chunk per batch":
+            W.LogWriter.flush_batch = W.LogWriter.flush
     from pmsm_hil.cli.main import main
     from pmsm_hil.log.reader import read_log
     out = sys.argv[-1]

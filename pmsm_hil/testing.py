@@ -149,7 +149,13 @@ class HilDevice:
             try:
                 on_emulator = self.can is not None and self.can.startswith("emulator")
                 result = run_profile(
-                    prof, Session(link), log, RunOptions(seed=seed if on_emulator else None)
+                    prof,
+                    Session(link),
+                    log,
+                    RunOptions(
+                        seed=seed if on_emulator else None,
+                        log_sync="wall" if on_emulator else "batch",
+                    ),
                 )
             finally:
                 link.close()

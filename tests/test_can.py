@@ -204,7 +204,11 @@ def test_the_dbc_decodes_recorded_frames(data, root, tmp_path):
     by_name: dict[str, list] = {}
     for _t, ident, payload in rec:
         msg = db.get_message_by_frame_id(ident)
-        by_name.setdefault(msg.name, []).append(db.decode_message(ident, payload))
+        # a transfer's last frame carries only what is left of the payload (its DLC below 8)
+        short = msg.name.startswith("transfer_") and len(payload) < msg.length
+        by_name.setdefault(msg.name, []).append(
+            db.decode_message(ident, payload, allow_truncated=short)
+        )
     # the DBC's telem_fast signals agree with the host's decoder, frame by frame
     frames = CanDecoder().feed([(i, d) for _t, i, d in rec])
     fast = [f.fields for f in frames if f.name == "telem_fast"]

@@ -513,9 +513,9 @@ def test_link_budget_numbers():
     assert s["telem_fast"]["frame_octets"] == 34 and s["telem_fast"]["octets_s"] == 68000
     assert s["params"]["frame_octets"] == 28 and s["params"]["octets_s"] == 2800
     assert s["status"]["frame_octets"] == 31 and s["status"]["octets_s"] == 310
-    assert s["sim_truth"]["frame_octets"] == 50 and s["sim_truth"]["octets_s"] == 5000
-    assert b["total_octets_s"] == 76110
-    assert b["load"] == pytest.approx(76110 / 92160)
+    assert s["sim_truth"]["frame_octets"] == 58 and s["sim_truth"]["octets_s"] == 5800
+    assert b["total_octets_s"] == 76910
+    assert b["load"] == pytest.approx(76910 / 92160)
     assert b["warning"] is None
     # a rig sends no sim_truth; three estimators triple the params frames
     b2 = link_budget(p, emulator=False, n_estimators=3)
@@ -526,7 +526,7 @@ def test_link_budget_numbers():
 def test_link_budget_overload_warns(ws):
     p = load_profile(write("x.yaml", GOOD.replace("fast_hz: 2000", "fast_hz: 2500")))
     b = link_budget(p)
-    assert b["load"] > 1 and b["total_octets_s"] == 2500 * 34 + 2800 + 310 + 5000
+    assert b["load"] > 1 and b["total_octets_s"] == 2500 * 34 + 2800 + 310 + 5800
     assert (
         "link overloaded" in b["warning"]
         and "telemetry.fast_hz to 2222.22 Hz or less" in b["warning"]

@@ -165,7 +165,11 @@ def main(args: argparse.Namespace) -> int:
                 profile,
                 Session(link),
                 log,
-                RunOptions(seed=None if spec.is_rig else args.seed, rig_name=rig or ""),
+                RunOptions(
+                    seed=None if spec.is_rig else args.seed,
+                    rig_name=rig or "",
+                    log_sync="batch" if spec.is_rig else "wall",
+                ),
                 printer,
                 steps=steps,
                 i_test_a=args.i_test,

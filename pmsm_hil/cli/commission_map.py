@@ -81,7 +81,11 @@ def measure_map(
             profile,
             Session(link),
             log_map,
-            RunOptions(seed=None if spec.is_rig else spec.seed, capture=False),
+            RunOptions(
+                seed=None if spec.is_rig else spec.seed,
+                capture=False,
+                log_sync="batch" if spec.is_rig else "wall",
+            ),
             printer,
         )
     except (DeviceError, TransportError, HostError) as e:

@@ -97,6 +97,11 @@ def recovered_lines(log: Log, dst: Path) -> list[str]:
                 "went to the journal at its end); of the host's own messages (events) at most "
                 f"those of its last {float(wall):g} s of wall time before it was killed"
             )
+        elif meta.get("sync") == "batch":
+            out.append(
+                "lost: nothing the host had received: each batch read from the link was on disk "
+                f"before the next read (the log ends at t = {t_end:.4f} s)"
+            )
         elif wall:
             out.append(
                 f"lost: at most what the host received in the last {float(wall):g} s of wall time "

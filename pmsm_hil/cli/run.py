@@ -242,6 +242,9 @@ def main(args: argparse.Namespace) -> int:
         rig_name=args.rig or str(profile.rig.path or ""),
         stop_after_s=args.stop_after,
         sinks=sinks,
+        # every received message on disk (the log's journal) before the next read: a killed
+        # host loses nothing it received (docs/faults.md)
+        log_sync="batch",
     )
     try:
         with observer:

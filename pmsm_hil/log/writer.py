@@ -512,9 +512,8 @@ class LogWriter:
 
     def flush_batch(self) -> None:
         """The end of a receive batch: with ``journal``, the messages added since the last call
-        go to the OS (appended to the journal); without, the open chunk is closed (``flush``)."""
+        go to the OS (appended to the journal); without, nothing (the chunks go as they fill)."""
         if self._journal is None:
-            self.flush()
             return
         with self._lock:
             if self._closed or self._failed is not None:

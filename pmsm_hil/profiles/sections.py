@@ -23,7 +23,10 @@ MAX_SEGMENTS = (
 # suite checks these against it); each frame adds id, seq, CRC-16 (2), the COBS code octet and
 # the 0x00 delimiter.
 FRAME_OVERHEAD_OCTETS = 6
-PAYLOAD_OCTETS = {"telem_fast": 28, "params": 22, "status": 25, "sim_truth": 44, "telem_est": 13}
+# the streamed messages' payloads, from the protocol's one source (the generated module)
+PAYLOAD_OCTETS = {
+    n: gen.BY_NAME[n].length for n in ("telem_fast", "params", "status", "sim_truth", "telem_est")
+}
 OCTETS_PER_SYMBOL = 10  # UART 8N1: start + 8 data + stop bits
 
 # ----------------------------------------------------------------------------------- models
