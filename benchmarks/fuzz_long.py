@@ -3,7 +3,8 @@ needs clang) and runs each for a number of executions from its seed corpus, with
 prints the executions, crashes and sanitizer reports per target and in total. A finding leaves
 its input as firmware/build/fuzz/NAME-crash-* and makes the exit code 1.
 
-    python3 benchmarks/fuzz_long.py --runs fuzz_frame=5000000 fuzz_can=5000000 fuzz_fw=100000
+    python3 benchmarks/fuzz_long.py --runs fuzz_frame=5000000 fuzz_can=5000000 fuzz_fw=100000 \
+        [--max-seconds 900]    # each target stops at its executions or at this time, whichever first
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ DEFAULT = {"fuzz_frame": 5_000_000, "fuzz_can": 5_000_000, "fuzz_fw": 100_000}
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--runs", nargs="*", default=[f"{k}={v}" for k, v in DEFAULT.items()])
+    ap.add_argument("--max-seconds", type=int, default=0, help="time limit per target (0: none)")
     args = ap.parse_args()
     runs = {k: int(v) for k, v in (x.split("=", 1) for x in args.runs)}
     # build (and check the corpus once) through the Makefile

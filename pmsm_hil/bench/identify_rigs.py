@@ -60,7 +60,13 @@ def _one(
             c = tab.cell(e, q)
             if c is not None:
                 cells[(e, q)] = (c.error_rel, c.conv_s)
-    return {"cells": cells}
+    drift_s: dict[str, float | None] = {}
+    if drift:  # after the plant's step: time until NLMS-Adaline stays within 2 % of the new truth
+        d = identification_table(log, drift[0].t_start_s, drift[0].t_end_s)
+        for q in ("r_s_ohm", "psi_f_wb"):
+            c = d.cell("nlms_adaline", q)
+            drift_s[q] = c.conv_s if c is not None else None
+    return {"cells": cells, "drift_s": drift_s}
 
 
 def _fmt(vals: list[float]) -> str:
@@ -113,6 +119,21 @@ def identify_rigs(
                     + (f" ({never} never)" if never and tv else "")
                 )
             lines.append("| " + " | ".join(row) + " | " + "; ".join(conv) + " |")
+        drifts = [r["drift_s"] for _s, r in results if r.get("drift_s")]
+        if drifts:
+            dl = []
+            for q, n in (("r_s_ohm", "R"), ("psi_f_wb", "psi_f")):
+                ts = [d[q] for d in drifts]
+                tv = [t for t in ts if t is not None]
+                never = len(ts) - len(tv)
+                text = f"{n} {np.median(tv):.2f} / {max(tv):.2f} s" if tv else f"{n} never"
+                if tv and never:
+                    text += f" ({never} of {len(ts)} never)"
+                dl.append(text)
+            lines.append(
+                "\nNLMS-Adaline after the drift step (time until it stays within 2 % of the new "
+                "truth, median / worst): " + "; ".join(dl)
+            )
         for s, r in results:
             if "failed" in r:
                 lines.append(f"\nseed {s}: {r['failed']}")
