@@ -58,10 +58,11 @@ def main() -> int:
         bad += reports + (p.returncode != 0)
         print(
             f"{name}: {execs} executions in {time.monotonic() - t0:.0f} s, exit {p.returncode}, "
-            f"sanitizer/fuzzer reports {reports}"
+            f"sanitizer/fuzzer reports {reports}",
+            flush=True,
         )
         for ln in extra:
-            print("   ", ln)
+            print("   ", ln, flush=True)
     print(f"total: {total} executions, {bad} findings")
     return 1 if bad else 0
 

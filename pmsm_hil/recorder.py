@@ -137,7 +137,10 @@ class Recorder:
         self.live.events.append((t_s, kind, arg, text))
 
     def frames(self, frames: Iterable[Frame]) -> None:
+        """One receive batch: each frame to its handler, then the batch to the OS (the writer's
+        journal, pmsm_hil.log.journal), so that a host killed after this call has logged all of it."""
         live = self.live
+        n0 = live.frames
         for fr in frames:
             live.frames += 1
             if self._last_seq is not None and fr.seq != ((self._last_seq + 1) & 0xFF):
@@ -146,6 +149,8 @@ class Recorder:
             handler = getattr(self, "_on_" + fr.name, None)
             if handler is not None:
                 handler(fr.fields)
+        if live.frames != n0:
+            self.w.flush_batch()
 
     # one handler per device message -------------------------------------------------------
     def _on_telem_fast(self, f: dict) -> None:
@@ -269,4 +274,5 @@ class Recorder:
                     },
                 )
                 n += 1
+        self.w.flush_batch()
         return n

@@ -4,6 +4,7 @@ device time from the emulator's own state."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 import signal
@@ -12,6 +13,7 @@ import sys
 import threading
 import time
 
+import numpy as np
 import pytest
 from emu_helpers import emulator_children
 
@@ -20,6 +22,7 @@ from pmsm_hil.emulator.server import PtyServer
 from pmsm_hil.emulator.settings import emulator_settings
 from pmsm_hil.profiles import load_profile
 from pmsm_hil.protocol import generated as gen
+from pmsm_hil.runner import LOG_FLUSH_WALL_S
 
 STATE = gen.ENUMS["state"]
 
@@ -78,9 +81,16 @@ def test_lost_host_on_serial_stops_the_motor_within_the_heartbeat_time(data, tmp
         server.close()
 
 
-def test_a_killed_hosts_log_is_recovered_for_any_mcap_reader(data, tmp_path):
+def test_a_killed_hosts_log_holds_every_message_it_had_received(data, tmp_path):
+    """SIGKILL right after a progress line: every device message the host had received by then
+    (the line's frame count) is on disk, in the log's chunks and its journal (LOG.journal), for
+    the generic `mcap` reader: its stream reader on the two files as they are, and its indexed
+    reader on the one file `log recover` makes of them."""
     from mcap.reader import make_reader
+    from mcap.records import Channel, Message
+    from mcap.stream_reader import StreamReader
 
+    from pmsm_hil.log.journal import journal_path, read_journal
     from pmsm_hil.log.reader import read_log
 
     out = tmp_path / "killed.mcap"
@@ -103,16 +113,17 @@ def test_a_killed_hosts_log_is_recovered_for_any_mcap_reader(data, tmp_path):
         start_new_session=True,
     )
     deadline = time.monotonic() + 60
-    t_line = 0.0
+    t_line, frames_line = 0.0, 0
     while time.monotonic() < deadline:
         line = host.stdout.readline()
-        m = re.match(r"t=\s*([0-9.]+)/", line)
+        m = re.match(r"t=\s*([0-9.]+)/.* frames (\d+) ", line)
         if m and float(m.group(1)) >= 2.5:
-            t_line = float(m.group(1))  # the host had received (and logged) up to here
+            # printed after the batch that brought these frames was handed to the recorder
+            t_line, frames_line = float(m.group(1)), int(m.group(2))
             break
     children = emulator_children(host.pid)
     assert children and t_line
-    os.killpg(host.pid, signal.SIGKILL)
+    os.killpg(host.pid, signal.SIGKILL)  # at once: the host is mid-stream, paced at real time
     host.wait(timeout=10)
     deadline = time.monotonic() + 20  # its emulator stops the motor, then ends
     while time.monotonic() < deadline and any(os.path.exists(f"/proc/{c}") for c in children):
@@ -121,7 +132,27 @@ def test_a_killed_hosts_log_is_recovered_for_any_mcap_reader(data, tmp_path):
     log = read_log(out)
     assert not log.finalised
     n = sum(log.counts.values())
-    assert log.counts["/pmsm/telemetry"] > 2000  # the chunks flushed each second of device time
+    seen = {}
+    for path in (out, journal_path(out)):  # the generic stream reader, the files as they are
+        # (the stream reader reports the missing footer at the end)
+        with open(path, "rb") as f, contextlib.suppress(Exception):
+            for rec in StreamReader(f).records:
+                if isinstance(rec, Channel):
+                    topics = seen.setdefault(path, {})
+                    topics[rec.id] = rec.topic
+                elif isinstance(rec, Message):
+                    seen.setdefault((path, "n"), []).append(seen[path][rec.channel_id])
+    assert len(seen[(out, "n")]) == n
+    journal = read_journal(out, n)  # what the log's chunks do not hold
+    assert journal and len(journal) <= len(seen[(journal_path(out), "n")])
+    n_all = n + len(journal)
+    device = ("/pmsm/", "/sim/")
+    n_device = sum(t.startswith(device) for t in seen[(out, "n")]) + sum(
+        m.topic.startswith(device) for m in journal
+    )
+    # each received frame of the stream is one device message (no acks while streaming), and
+    # the host's own start event is one more
+    assert n_device >= frames_line + 1, (n_device, frames_line)
     r = subprocess.run(
         [sys.executable, "-m", "pmsm_hil.cli.main", "log", "recover", str(out)],
         capture_output=True,
@@ -132,20 +163,23 @@ def test_a_killed_hosts_log_is_recovered_for_any_mcap_reader(data, tmp_path):
     assert f"{n} messages" in r.stdout
     n_tel = log.counts["/pmsm/telemetry"]
     assert f"/pmsm/telemetry: {n_tel} messages" in r.stdout
-    assert f"all {n} messages rewritten" in r.stdout
-    assert "lost: nothing the host had received" in r.stdout  # a paced run syncs every batch
+    assert f"{len(journal)} more messages, received after the last chunk" in r.stdout
+    assert f"all {n_all} messages rewritten" in r.stdout
+    assert "lost: none of the device's messages the host had received" in r.stdout
+    assert f"last {LOG_FLUSH_WALL_S:g} s of wall time" in r.stdout  # the host's own events
     fixed = out.with_suffix(".recovered.mcap")
     offset_ns = int(log.metadata["log"]["log_time_offset_ns"])
     with open(fixed, "rb") as f:  # the generic reader's default path, through the index
         reader = make_reader(f)
         assert reader.get_summary() is not None
         msgs = [(c.topic, m.log_time) for _, c, m in reader.iter_messages()]
-    assert len(msgs) == n
-    t_last = max(lt for topic, lt in msgs if topic == "/pmsm/telemetry")
-    # paced at real time, each batch on disk before the next read: the log holds the telemetry
-    # frame whose time the last progress line printed (rounded to 10 ms there), and all before it
-    # (with the 0.25 s wall-time flush alone a quarter of a second of it was lost)
-    assert (t_last - offset_ns) / 1e9 >= t_line - 0.005, (t_last, t_line)
+    assert len(msgs) == n_all
+    assert sum(topic.startswith(device) for topic, _ in msgs) >= frames_line + 1
+    tel = sorted(lt - offset_ns for topic, lt in msgs if topic == "/pmsm/telemetry")
+    # up to the line's device time (printed to 0.01 s; the last message may be a status frame)
+    assert tel[-1] / 1e9 >= t_line - 0.01
+    steps = np.diff(tel)
+    assert steps.max() <= 1.5 * np.median(steps)  # and none missing on the way
     assert (
         read_log(fixed).metadata["log"]["log_time_offset_ns"]
         == log.metadata["log"]["log_time_offset_ns"]

@@ -11,9 +11,11 @@
  *
  * Invariants (abort on failure), besides ASan and UBSan: every octet the device sends parses into
  * valid frames (no CRC, COBS, length or short-frame error in the host's parser); the state is one
- * of the protocol's; once silent, a running motor leaves `running` within the heartbeat timeout
- * the firmware accepted plus one control period after the last heartbeat, and the PWM is off
- * (the firmware inactive) within the stop's own time limit after that. */
+ * of the protocol's; after every stretch of control periods (the input's silences included), a
+ * motor still `running` had its last heartbeat no longer ago than the heartbeat timeout the
+ * firmware accepted plus one control period; once the host is silent for good, a running motor
+ * leaves `running` within that time, and the PWM is off (the firmware inactive) within the stop's
+ * own time limit after that. */
 #include <math.h>
 #include <stddef.h>
 #include <stdio.h>
@@ -38,14 +40,23 @@ static void check(int ok)
 static emu_t *e;
 static uint8_t out[OUT_CAP];
 static frame_parser_t host;
-static unsigned long n_inputs, n_running_at_silence, n_frames_out;
+static unsigned long n_inputs, n_running_at_silence, n_frames_out, n_running_checked;
 
 static void report(void)
 {
     fprintf(stderr,
             "fuzz_fw: inputs %lu, running when the host fell silent %lu (stopped in time: all), "
-            "device frames parsed %lu\n",
-            n_inputs, n_running_at_silence, n_frames_out);
+            "heartbeat age checked while running %lu times, device frames parsed %lu\n",
+            n_inputs, n_running_at_silence, n_running_checked, n_frames_out);
+}
+
+/* Heartbeat timeout + one control period, in control periods (the firmware's accepted values). */
+static uint32_t hb_limit(void)
+{
+    double timeout_s, ts_s;
+    emu_heartbeat_cfg(e, &timeout_s, &ts_s);
+    check(ts_s > 0.0 && timeout_s > 0.0 && timeout_s <= 10.0);
+    return (uint32_t)ceil(timeout_s / ts_s) + 1u;
 }
 
 /* Run up to n periods; every octet sent goes through the host's parser. */
@@ -61,6 +72,10 @@ static uint32_t run(uint32_t n)
         }
         check(host.frames_bad == 0u);
         check(emu_state(e) >= PROTO_STATE_IDLE && emu_state(e) <= PROTO_STATE_DONE);
+        if (emu_active(e) && emu_state(e) == PROTO_STATE_RUNNING) {
+            n_running_checked++;
+            check(emu_isr_count(e) - emu_heartbeat_isr(e) <= hb_limit());
+        }
         done += ran;
     } while (done < n && ran > 0u);
     return done;
@@ -125,8 +140,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         uint32_t hb, limit, hb_isr;
         n_running_at_silence++;
         emu_heartbeat_cfg(e, &timeout_s, &ts_s);
-        check(ts_s > 0.0 && timeout_s > 0.0 && timeout_s <= 10.0);
-        limit = (uint32_t)ceil(timeout_s / ts_s) + 1u; /* timeout + one control period */
+        limit = hb_limit(); /* timeout + one control period */
         hb = emu_heartbeat_isr(e);
         while (emu_state(e) == PROTO_STATE_RUNNING && emu_isr_count(e) - hb <= limit + 1u) {
             if (run(1u) == 0u) {

@@ -18,9 +18,8 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     r = lsub.add_parser(
         "recover",
         help="rewrite a log whose writer was killed into a finalised one",
-        description="Reads every message that reached the disk (a run on a rig or a paced "
-        "emulator writes each batch it received before reading the link again; an unpaced "
-        "emulator run a chunk at least every 0.25 s of wall time) and writes a "
+        description="Reads every message that reached the disk (a run's log and its journal "
+        "LOG.journal, to which each batch of received messages goes at its end) and writes a "
         "finalised copy, with its index and summary, that any MCAP "
         "reader opens (Foxglove, the `mcap` library). Reports per topic what was recovered "
         "(messages, device-time span) and what the kill may have cost.",
@@ -59,6 +58,7 @@ def main(args: argparse.Namespace) -> int:
 
 def recovered_lines(log: Log, dst: Path) -> list[str]:
     """Per topic: messages and device-time span; that dst holds exactly them; the loss bound."""
+    from pmsm_hil.log.journal import journal_path, read_journal
     from pmsm_hil.log.reader import read_log
 
     out = []
@@ -71,8 +71,19 @@ def recovered_lines(log: Log, dst: Path) -> list[str]:
         else:
             out.append(f"{topic}: 0 messages")
     out += [str(p) for p in log.problems]
+    journal = read_journal(log.path, sum(log.counts.values()))
+    want = dict(log.counts)
+    for m in journal:
+        want[m.topic] = want.get(m.topic, 0) + 1
+    if journal:
+        t_j = max((m.log_time for m in journal), default=0)
+        off = int(log.metadata.get("log", {}).get("log_time_offset_ns", "0") or 0)
+        out.append(
+            f"{journal_path(log.path)}: {len(journal)} more messages, received after the last "
+            f"chunk, up to t = {(t_j - off) / 1e9:.4f} s"
+        )
     written = read_log(dst).counts
-    missing = {k: v - written.get(k, 0) for k, v in log.counts.items() if written.get(k, 0) != v}
+    missing = {k: v - written.get(k, 0) for k, v in want.items() if written.get(k, 0) != v}
     if missing:
         out.append(f"not rewritten: {missing}")
     else:
@@ -80,7 +91,13 @@ def recovered_lines(log: Log, dst: Path) -> list[str]:
     meta = log.metadata.get("log", {})
     if not log.finalised:
         wall, span = meta.get("flush_wall_s"), meta.get("chunk_span_s", "1.0")
-        if meta.get("sync") == "batch":
+        if wall and meta.get("journal") == "true":
+            out.append(
+                "lost: none of the device's messages the host had received (each receive batch "
+                "went to the journal at its end); of the host's own messages (events) at most "
+                f"those of its last {float(wall):g} s of wall time before it was killed"
+            )
+        elif meta.get("sync") == "batch":
             out.append(
                 "lost: nothing the host had received: each batch read from the link was on disk "
                 f"before the next read (the log ends at t = {t_end:.4f} s)"

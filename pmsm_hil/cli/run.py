@@ -242,9 +242,9 @@ def main(args: argparse.Namespace) -> int:
         rig_name=args.rig or str(profile.rig.path or ""),
         stop_after_s=args.stop_after,
         sinks=sinks,
-        # a rig or a paced emulator: every received message on disk before the next read (a
-        # killed host loses nothing); the unpaced emulator: chunks every 0.25 s of wall time
-        log_sync="batch" if dev.is_rig or args.pace is not None else "wall",
+        # every received message on disk (the log's journal) before the next read: a killed
+        # host loses nothing it received (docs/faults.md)
+        log_sync="batch",
     )
     try:
         with observer:

@@ -259,8 +259,10 @@ def merge_topics(*wants: Wanted) -> dict[str, tuple | None]:
 
 def rewrite_log(src: str | os.PathLike, dst: str | os.PathLike) -> Log:
     """Read ``src`` (finalised or not) and write its messages, metadata and attachments to a new,
-    finalised ``dst`` (e.g. to open a log of a killed run in Foxglove). Topics whose schema is not
-    flat are left out (listed in the returned log's ``problems``)."""
+    finalised ``dst`` (e.g. to open a log of a killed run in Foxglove), then the messages of its
+    journal that it does not hold (pmsm_hil.log.journal). Topics whose schema is not flat are left
+    out (listed in the returned log's ``problems``)."""
+    from pmsm_hil.log.journal import read_journal
     from pmsm_hil.log.writer import LogWriter
 
     log = read_log(src)
@@ -272,6 +274,7 @@ def rewrite_log(src: str | os.PathLike, dst: str | os.PathLike) -> Log:
     meta = {k: v for k, v in log.metadata.items() if k != "log"}
     atts = [(a.name, a.media_type, a.data) for a in log.attachments]
     offset_ns = int(log.metadata.get("log", {}).get("log_time_offset_ns", "0") or 0)
+    extra_names = {t.topic for t in extra}
     with LogWriter(dst, meta, atts, topics=extra, wall_start_s=offset_ns / 1e9 or None) as w:
         for topic in log.topics:
             if log._codec(log._by_topic[topic]) is None:
@@ -280,4 +283,7 @@ def rewrite_log(src: str | os.PathLike, dst: str | os.PathLike) -> Log:
             cols = log.topic(topic)
             if len(cols["t_s"]):
                 w.write_many(topic, cols)
+        for m in read_journal(src, sum(log.counts.values())):  # received after the last chunk
+            if m.topic in TOPICS or m.topic in extra_names:
+                w.write_encoded(m.topic, m.log_time, m.data)
     return log

@@ -15,8 +15,12 @@
   spans ``chunk_span_s`` of device time, and, with ``flush_wall_s``, once it has been open that long
   in wall time (checked at each message and by ``flush_if_due()``): a killed process loses at most
   the open chunk, i.e. the messages of the last ``flush_wall_s`` of wall time (and never more than
-  ``chunk_span_s`` of device time); the reader recovers such unfinalised files. ``close()`` is idempotent and may be called from ``finally``
-  or a signal handler; SIGINT/SIGTERM are held back while a chunk is being written.
+  ``chunk_span_s`` of device time); the reader recovers such unfinalised files. With ``journal``
+  the open chunk's messages are also appended to ``LOG.journal`` and written to the OS by
+  ``flush_batch()`` (the run's Recorder calls it at the end of each receive batch): a killed
+  process then loses nothing it had received (pmsm_hil.log.journal; ``pmsm-hil log recover``
+  merges the journal). ``close()`` is idempotent and may be called from ``finally`` or a signal handler;
+  SIGINT/SIGTERM are held back while a chunk is being written.
 """
 
 from __future__ import annotations
@@ -34,9 +38,11 @@ from operator import itemgetter
 from typing import Any
 
 import numpy as np
+from mcap.records import Channel, Schema
 from mcap.writer import CompressionType, Writer
 
 from pmsm_hil import __version__
+from pmsm_hil.log.journal import Journal
 from pmsm_hil.log.schemas import (
     LOG_FORMAT_VERSION,
     MESSAGE_ENCODING,
@@ -168,7 +174,7 @@ class LogWriter:
         topics: Iterable[TopicDef] = (),
         wall_start_s: float | None = None,
         flush_wall_s: float | None = None,
-        sync: str = "wall",
+        journal: bool = False,
     ):
         self.path = os.fspath(path)
         self._off_ns = round(wall_start_s * 1e9) if wall_start_s else 0
@@ -190,6 +196,7 @@ class LogWriter:
         self._last_lt = 0  # log time of the last message added
         self._disk_lt: int | None = None  # ... of the last message in a chunk on disk
         self._f = open(self.path, "wb")  # noqa: SIM115  (held by the writer until close())
+        self._journal = Journal(self.path, PROFILE, LIBRARY) if journal else None
         self._w = Writer(self._f, chunk_size=_NEVER, compression=ctype, enable_data_crcs=True)
         self._schemas: dict[str, int] = {}
         self._channels: dict[str, _Channel] = {}
@@ -211,7 +218,8 @@ class LogWriter:
         if self._flush_wall_s:  # the loss bound of a killed writer, for `pmsm-hil log recover`
             log_meta["chunk_span_s"] = repr(float(chunk_span_s))
             log_meta["flush_wall_s"] = repr(self._flush_wall_s)
-            log_meta["sync"] = sync  # "batch": the caller flushes after each batch it received
+        if journal:  # the open chunk's messages also go to LOG.journal (pmsm_hil.log.journal)
+            log_meta["journal"] = "true"
         meta.setdefault("log", log_meta)
         for name, rec in meta.items():
             self.add_metadata(name, rec)
@@ -268,10 +276,24 @@ class LogWriter:
             sid = self._schemas[td.schema_name] = self._w.register_schema(
                 td.schema_name, SCHEMA_ENCODING, text
             )
+            if self._journal is not None:
+                self._journal.define(
+                    Schema(id=sid, data=text, encoding=SCHEMA_ENCODING, name=td.schema_name)
+                )
             self._size += (
                 9 + 2 + 4 + len(td.schema_name.encode()) + 4 + len(SCHEMA_ENCODING) + 4 + len(text)
             )
         cid = self._w.register_channel(topic, MESSAGE_ENCODING, sid, {})
+        if self._journal is not None:
+            self._journal.define(
+                Channel(
+                    id=cid,
+                    topic=topic,
+                    message_encoding=MESSAGE_ENCODING,
+                    metadata={},
+                    schema_id=sid,
+                )
+            )
         self._size += 9 + 4 + 4 + len(topic.encode()) + 4 + len(MESSAGE_ENCODING) + 4
         ch = _Channel(cid, td)
         self._channels[topic] = ch
@@ -356,6 +378,8 @@ class LogWriter:
             if self._flush_wall_s:
                 self._wall0 = time.monotonic()
         self._w.add_message(ch.id, lt, data, lt, ch.seq)
+        if self._journal is not None:
+            self._journal.add(ch.id, ch.seq, lt, data)
         self._last_lt = lt
         ch.seq = (ch.seq + 1) & 0xFFFFFFFF
         ch.count += 1
@@ -391,6 +415,15 @@ class LogWriter:
             if not ok:
                 bad.append(f"{f.name} = {v!r} (not a {f.type})")
         return ValueError(f"{ch.topic}: cannot encode {'; '.join(bad) or list(vals)}: {e}")
+
+    def write_encoded(self, topic: str, log_time: int, data: bytes) -> None:
+        """One message as it is in an MCAP file: its log time (ns, this writer's offset
+        included) and its CDR data (e.g. from a journal, ``rewrite_log``)."""
+        ch = self._channels.get(topic)
+        with self._lock:
+            ch = ch or self._open_channel(topic)
+            self._check_open()
+            self._add(ch, int(log_time), bytes(data))
 
     def write_many(self, topic: str, rows: Any) -> int:
         """Many messages at once; returns the count. ``rows``: a mapping of columns (``t_s`` and
@@ -477,6 +510,19 @@ class LogWriter:
             if not self._closed:
                 self._flush_chunk()
 
+    def flush_batch(self) -> None:
+        """The end of a receive batch: with ``journal``, the messages added since the last call
+        go to the OS (appended to the journal); without, nothing (the chunks go as they fill)."""
+        if self._journal is None:
+            return
+        with self._lock:
+            if self._closed or self._failed is not None:
+                return
+            try:
+                self._journal.write()
+            except OSError as e:
+                raise self._fail(e) from e
+
     def flush_if_due(self) -> None:
         """Close the open chunk if it has been open ``flush_wall_s`` of wall time (call it when
         no message comes, so that a quiet link does not keep data unwritten)."""
@@ -491,6 +537,8 @@ class LogWriter:
                 self._w.flush()  # the chunk, its message indexes; flushed to the OS
                 if self._fsync:
                     os.fsync(self._f.fileno())
+                if self._journal is not None:  # the chunk is out: the journal starts again
+                    self._journal.restart(self._msg_count + self._n)
             except OSError as e:
                 raise self._fail(e) from e
             self._msg_count += self._n
@@ -505,6 +553,7 @@ class LogWriter:
         if self._closed or self._closing:
             return
         self._closing = True
+        done = False
         try:
             with self._lock, _signals_held():
                 if not self._f.closed and self._failed is None:
@@ -516,8 +565,11 @@ class LogWriter:
                             os.fsync(self._f.fileno())
                     except OSError as e:
                         raise self._fail(e) from e
+                    done = True
         finally:
             self._closed = True
+            if self._journal is not None:  # a finalised log needs no journal
+                self._journal.close(remove=done)
             try:
                 self._f.close()
             except OSError:  # the buffer could not go out: the write error was already raised
