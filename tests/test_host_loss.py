@@ -226,3 +226,53 @@ def test_emulate_reports_when_a_killed_host_got_its_motor_stopped(data, tmp_path
     finally:
         emu.terminate()
         emu.wait(timeout=10)
+
+
+def test_a_killed_emulator_ends_the_run_with_a_clear_error_and_a_finalised_log(data, tmp_path):
+    """The device side dies (the emulator child killed with -9, as a board that loses power or a
+    cable pulled from a USB-serial adapter): the host does not hang, says the link dropped, exits
+    3, and finalises the log with everything received up to then (the generic indexed reader)."""
+    from mcap.reader import make_reader
+
+    out = tmp_path / "device-lost.mcap"
+    host = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "pmsm_hil.cli.main",
+            "run",
+            str(data / "long.yaml"),
+            "--pace",
+            "1",
+            "--out",
+            str(out),
+            "--no-live",
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        deadline = time.monotonic() + 60
+        t_line = 0.0
+        while time.monotonic() < deadline:
+            m = re.match(r"t=\s*([0-9.]+)/", host.stdout.readline())
+            if m and float(m.group(1)) >= 1.5:
+                t_line = float(m.group(1))
+                break
+        children = emulator_children(host.pid)
+        assert t_line and len(children) == 1
+        os.kill(children[0], signal.SIGKILL)
+        _, err = host.communicate(timeout=30)
+    finally:
+        if host.poll() is None:
+            host.kill()
+    assert host.returncode == 3, err
+    assert "dropped" in err and str(out) in err, err
+    with open(out, "rb") as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        assert summary is not None  # finalised: summary and index written
+        ts = [m.log_time for _s, _c, m in reader.iter_messages(topics=["/pmsm/telemetry"])]
+    offset_s = (ts[-1] - ts[0]) * 1e-9
+    assert offset_s >= t_line - 0.1  # telemetry up to (at least) the last progress line
