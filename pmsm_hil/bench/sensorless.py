@@ -245,7 +245,7 @@ def transient_figures(run: RunData, w: Transient) -> dict:
     seg = _window(run, t0, t_end)
     ref = run.speed_ref[seg]
     band = np.maximum(SPEED_BAND_SHARE * np.abs(ref), SPEED_BAND_MIN_RPM)  # follows a ramp
-    recovery = recovery_time(run.t[seg], run.speed[seg] - ref, band, t0)  # type: ignore[arg-type]
+    recovery = recovery_time(run.t[seg], run.speed[seg] - ref, band, t0)
     return {"angle_max_rad": float(np.max(np.abs(run.theta_err[m]))), "recovery_s": recovery}
 
 
