@@ -18,6 +18,7 @@ from pmsm_hil.control_design import calibration_config, device_config
 from pmsm_hil.errors import DeviceError, TransportError
 from pmsm_hil.log.writer import LogWriteError, LogWriter
 from pmsm_hil.profiles import Motor, Profile
+from pmsm_hil.profiles.motor import nominal_machine
 from pmsm_hil.protocol import generated as gen
 from pmsm_hil.protocol.session import Identity, Session
 from pmsm_hil.recorder import LiveState, Recorder, Sink
@@ -156,7 +157,7 @@ def _metadata(profile: Profile, session: Session, options: RunOptions) -> dict[s
             ),
         },
         # the rig's effects in force and their sizes (docs/rigs.md); the rig yaml is attached too
-        "rig_effects": profile.rig.effective_metadata(),
+        "rig_effects": profile.rig.effective_metadata(nominal_machine(profile.motor)),
         "device": {
             "board": ident.board,
             "fw_version": ident.fw_version,

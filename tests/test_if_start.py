@@ -43,12 +43,13 @@ def events(log, kind: str) -> list[tuple[float, int]]:
 
 @pytest.mark.parametrize(
     "rig,seed,theta0,err_rms_max",
-    [(None, 31, 2.9, 0.02), (None, 32, -1.3, 0.02), (LAB, 33, -3.0, 0.05)],
+    [(None, 31, 2.9, 0.02), (None, 32, -1.3, 0.02), (LAB, 33, -3.0, 0.08)],
 )
 def test_starts_from_standstill_at_any_angle_and_hands_over_smoothly(
     tmp_path, rig, seed, theta0, err_rms_max
 ):
-    """lab-typical's bound includes its encoder's own misalignment (about 0.02 rad)."""
+    """lab-typical's bound includes its encoder's own misalignment (about 0.02 rad) and the MRAS's
+    lag behind the saturating q axis under the 6 N m step (constant L_q; docs/sensorless.md)."""
     profile = load_profile(PROFILE, rig_override=rig)
     res, log = run(profile, tmp_path / "r.mcap", seed, theta0)
     assert (res.state, res.faults) == ("done", 0)

@@ -250,32 +250,27 @@ def transient_figures(run: RunData, w: Transient) -> dict:
 
 
 def rig_for(profile_path: str, rig_name: str, out: Path) -> tuple[str, str]:
-    """(rig path, note): the shipped rig, with its saturation effect switched off when its flux map
-    belongs to another motor (a map is named after its motor, profiles/maps/MOTOR.csv)."""
-    import yaml
-
+    """(rig path, note): the shipped rig; the note says when its flux map is another motor's, whose
+    saturation the plant carries over to this motor by scaling (pmsm_hil.profiles.fluxmap.for_motor,
+    docs/rigs.md)."""
     from pmsm_hil.profiles import load_profile
+    from pmsm_hil.profiles.fluxmap import for_motor
     from pmsm_hil.profiles.shipped import resolve
 
     path = resolve(rig_name, "rig")
     profile = load_profile(profile_path, rig_override=path)
-    mp = profile.rig.map_path()
-    if mp is None or Path(mp).stem == profile.motor.name:
+    fm = profile.rig.flux_map() if profile.rig.effects.saturation.enabled else None
+    if fm is None:
         return path, ""
-    data = yaml.safe_load(Path(path).read_text())
-    data["effects"]["saturation"] = {"enabled": False}
-    for _k, v in data["effects"].items():  # other relative paths stay valid from the copy
-        if isinstance(v, dict) and isinstance(v.get("map"), str):
-            v["map"] = str((Path(path).parent / v["map"]).resolve())
-    data["name"] = f"{data.get('name', rig_name)}-no-map"
-    out.mkdir(parents=True, exist_ok=True)
-    derived = out / f"{Path(path).stem}-no-map.yaml"
-    derived.write_text(yaml.safe_dump(data, sort_keys=False))
+    m = profile.motor
+    _, scaled = for_motor(fm, m.psi_f_wb, m.l_d_h, m.l_q_h)
+    if not scaled:
+        return path, ""
     note = (
-        f"rig {rig_name}: its flux map {Path(mp).name} is another motor's "
-        f"({profile.motor.name} has none), so the saturation effect is off ({derived.name})"
+        f"rig {rig_name}: its flux map {Path(fm.path).name} is another motor's; its saturation is "
+        f"scaled to {m.name} (currents / {scaled['s_d']:.3g} on d, / {scaled['s_q']:.3g} on q)"
     )
-    return str(derived), note
+    return path, note
 
 
 def run_one(profile_path: str, rig_path: str, seed: int, log: Path) -> tuple[object, RunData]:

@@ -28,7 +28,9 @@ def emulator_settings(
     """The plant is the motor file's motor with the rig's effects; the firmware learns its own
     (nominal) view of the motor over the link. A commissioned motor file (docs/commissioning.md)
     holds what the firmware measured; the plant stays the machine of its nominal values."""
-    motor = _nominal(motor)
+    from pmsm_hil.profiles.motor import nominal_machine
+
+    motor = nominal_machine(motor)
     s: dict[str, float] = {
         "r_s_ohm": motor.r_s_ohm,
         "l_d_h": motor.l_d_h,
@@ -65,29 +67,13 @@ def emulator_settings(
     return s
 
 
-class _Nominal:
-    """A motor's attributes with the nominal machine values of a commissioned file."""
-
-    def __init__(self, motor, nominal: dict):
-        self._motor, self._nominal = motor, nominal
-
-    def __getattr__(self, name):
-        if name in self._nominal:
-            return self._nominal[name]
-        return getattr(self._motor, name)
-
-
-def _nominal(motor):
-    comm = getattr(motor, "commissioning", None)
-    nominal = comm.get("nominal") if isinstance(comm, dict) else None
-    return _Nominal(motor, nominal) if isinstance(nominal, dict) else motor
-
-
 def _motor_map(motor: Motor):
     """The motor's own magnetics, which the rig departs from (not a linear model): the nominal
     machine's map of a commissioned file (`commissioning.nominal.flux_map`, None: linear), else
     the file's `flux_map`."""
-    if isinstance(motor, _Nominal) and "flux_map" in motor._nominal:
+    from pmsm_hil.profiles.motor import NominalMachine
+
+    if isinstance(motor, NominalMachine) and "flux_map" in motor._nominal:
         rel = motor._nominal["flux_map"]
         if not rel:
             return None
@@ -107,6 +93,10 @@ def effect_settings(motor: Motor, rig: Rig) -> dict:
     s["wiring_open"] = 1 if wiring is not None and not wiring.motor_connected else 0
     sat = _eff(rig, "saturation")
     fm = rig.flux_map() if sat is not None else _motor_map(motor)
+    if sat is not None and fm is not None:  # another motor's map: its saturation, scaled
+        from pmsm_hil.profiles.fluxmap import for_motor
+
+        fm, _ = for_motor(fm, motor.psi_f_wb, motor.l_d_h, motor.l_q_h)
     if fm is not None:
         s.update(fm.settings())
     else:

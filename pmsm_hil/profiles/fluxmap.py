@@ -60,6 +60,48 @@ class FluxMap:
         k = int(np.argmin(np.abs(self.i_q_a - i_q)))
         return float(self.psi_d_wb[k, j]), float(self.psi_q_wb[k, j])
 
+    def small_current(self) -> tuple[float, float, float]:
+        """(psi_f_wb, l_d_h, l_q_h) at small current: psi_d at the origin and the slopes of psi_d
+        along i_d and of psi_q along i_q there (least squares over the grid nodes within two steps
+        of the origin, on the node lines nearest to it)."""
+        k0 = int(np.argmin(np.abs(self.i_q_a)))
+        j0 = int(np.argmin(np.abs(self.i_d_a)))
+        near_d = np.abs(self.i_d_a - self.i_d_a[j0]) <= 2.01 * abs(self.i_d_a[1] - self.i_d_a[0])
+        near_q = np.abs(self.i_q_a - self.i_q_a[k0]) <= 2.01 * abs(self.i_q_a[1] - self.i_q_a[0])
+        l_d, psi_f = np.polyfit(self.i_d_a[near_d], self.psi_d_wb[k0, near_d], 1)
+        l_q = np.polyfit(self.i_q_a[near_q], self.psi_q_wb[near_q, j0], 1)[0]
+        return float(psi_f), float(l_d), float(l_q)
+
+    def scaled_to(self, psi_f_wb: float, l_d_h: float, l_q_h: float) -> tuple[FluxMap, dict]:
+        """This map's saturation carried over to a motor with other small-current values, by
+        scaling its co-energy: W'(i_d, i_q) = c W'_map(s_d i_d, s_q i_q), so psi_d = c s_d
+        psi_d,map(s_d i_d, s_q i_q) and psi_q = c s_q psi_q,map(...), which keeps the map
+        reciprocal (torque and voltage equations energy-consistent) and gives the motor's psi_f,
+        L_d and L_q at small current: s_d = (L_d / L_d,map)(psi_f,map / psi_f), c = psi_f /
+        (s_d psi_f,map), s_q = sqrt(L_q / (c L_q,map)). The nodes move to i_map / s (each axis
+        saturates at its own scaled current); nothing is interpolated. Returns the map and the
+        factors (docs/rigs.md, saturation)."""
+        psi_m, l_d_m, l_q_m = self.small_current()
+        if min(psi_f_wb, l_d_h, l_q_h, psi_m, l_d_m, l_q_m) <= 0.0:
+            raise FluxMapError(
+                f"cannot scale the map (psi_f {psi_m:.4g} Wb, L_d {l_d_m:.4g} H, L_q {l_q_m:.4g} H)"
+                f" to psi_f {psi_f_wb:.4g} Wb, L_d {l_d_h:.4g} H, L_q {l_q_h:.4g} H: all must be > 0"
+            )
+        s_d = (l_d_h / l_d_m) * (psi_m / psi_f_wb)
+        c = psi_f_wb / (s_d * psi_m)
+        s_q = float(np.sqrt(l_q_h / (c * l_q_m)))
+        fm = FluxMap(
+            self.i_d_a / s_d,
+            self.i_q_a / s_q,
+            c * s_d * self.psi_d_wb,
+            c * s_q * self.psi_q_wb,
+            self.measured.copy(),
+            self.path,
+            self.sha256,
+        )
+        info = {"s_d": s_d, "s_q": s_q, "c": c, "psi_f_wb": psi_m, "l_d_h": l_d_m, "l_q_h": l_q_m}
+        return fm, info
+
     def metadata(self) -> dict[str, str]:
         nd, nq = self.shape
         return {
@@ -70,6 +112,28 @@ class FluxMap:
             "map_nodes_measured": str(int(self.measured.sum())),
             "map_psi_d_0_0_wb": repr(float(self.node(0.0, 0.0)[0])),
         }
+
+
+# A rig's map is taken as the motor's own when its small-current values are within these of the
+# motor file's (the least-squares slopes near the origin read a few % off a map's nominal values);
+# otherwise its saturation is carried over to the motor by FluxMap.scaled_to.
+OWN_PSI_F_REL = 0.05
+OWN_L_REL = 0.15
+
+
+def for_motor(fm: FluxMap, psi_f_wb: float, l_d_h: float, l_q_h: float) -> tuple[FluxMap, dict]:
+    """The rig's map as the plant of this motor uses it: as it is when it is the motor's own
+    (within OWN_PSI_F_REL, OWN_L_REL), else scaled to the motor's small-current values. The dict
+    says which (empty: as it is)."""
+    psi_m, l_d_m, l_q_m = fm.small_current()
+    own = (
+        abs(psi_m / psi_f_wb - 1.0) <= OWN_PSI_F_REL
+        and abs(l_d_m / l_d_h - 1.0) <= OWN_L_REL
+        and abs(l_q_m / l_q_h - 1.0) <= OWN_L_REL
+    )
+    if own:
+        return fm, {}
+    return fm.scaled_to(psi_f_wb, l_d_h, l_q_h)
 
 
 def _axis(values: np.ndarray, name: str) -> np.ndarray:

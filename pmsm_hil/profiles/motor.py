@@ -276,3 +276,22 @@ def load_motor(path: str | os.PathLike | None = None) -> Motor:
     if motor is None:
         raise ProfileError(problems)
     return motor
+
+
+class NominalMachine:
+    """A motor's attributes with the nominal machine values of a commissioned file (the plant the
+    emulator runs is that machine, not what commissioning measured)."""
+
+    def __init__(self, motor, nominal: dict):
+        self._motor, self._nominal = motor, nominal
+
+    def __getattr__(self, name):
+        if name in self._nominal:
+            return self._nominal[name]
+        return getattr(self._motor, name)
+
+
+def nominal_machine(motor: Any) -> Any:
+    comm = getattr(motor, "commissioning", None)
+    nominal = comm.get("nominal") if isinstance(comm, dict) else None
+    return NominalMachine(motor, nominal) if isinstance(nominal, dict) else motor

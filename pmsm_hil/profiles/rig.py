@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Iterator
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 from pydantic import Field, ValidationError
 
@@ -374,9 +374,10 @@ class Rig(FileModel):
                 out[f"{name}.{k}"] = meta_value(v)
         return out
 
-    def effective_metadata(self) -> dict[str, str]:
+    def effective_metadata(self, motor: Any = None) -> dict[str, str]:
         """The effects in force and their sizes, only those enabled ("effect.param": value), with
-        what the flux map resolves to (file, sha256, grid, psi_f): the MCAP record "rig_effects"."""
+        what the flux map resolves to (file, sha256, grid, psi_f, and its scaling when it is
+        another motor's: `motor` is the plant's nominal machine): the MCAP record "rig_effects"."""
         out = {
             "rig": self.name,
             "effects": ",".join(self.enabled_effects),
@@ -391,6 +392,11 @@ class Rig(FileModel):
         fm = self.flux_map() if self.effects.saturation.enabled else None
         if fm is not None:
             out.update({f"saturation.{k}": v for k, v in fm.metadata().items()})
+            if motor is not None:
+                from .fluxmap import for_motor
+
+                _, scaled = for_motor(fm, motor.psi_f_wb, motor.l_d_h, motor.l_q_h)
+                out.update({f"saturation.scaled_{k}": repr(v) for k, v in scaled.items()})
         return out
 
 
