@@ -53,6 +53,7 @@ class Probe:
         # record's speed column (an observer's speed lags on ramps: a voltage error psi_f d(omega)
         # correlated with the current, which would read as a resistance error)
         self.omega = speed_from_angle(rec.theta_e_rad, rec.omega_e_rad_s, rec.runs, rec.ts_s)
+        self._u_cache: list = []  # u_at's last results
 
     # ------------------------------------------------------------------ evaluation
     def work(self, effects: Iterable[tuple[Effect, np.ndarray]]) -> Work:
@@ -73,7 +74,34 @@ class Probe:
         return w
 
     def u_at(self, w: Work, rows: np.ndarray) -> np.ndarray:
-        """The applied alpha-beta voltage over the periods starting at rows (M, 2)."""
+        """The applied alpha-beta voltage over the periods starting at rows (M, 2). The last few
+        results are kept: a fit's finite-difference columns that move only the model's parameters
+        (saturation, thermal, ...) ask again for the same voltage. The key holds the arrays the
+        voltage is computed from (their identity: an effect that changes one makes a new array),
+        the dead-time parameters, the PWM delay and the rows."""
+        dead = w.extra.get("dead_time")
+        key = (
+            id(w.cmd),
+            id(w.i_abc),
+            id(w.v_dc),
+            id(w.pwm_on),
+            w.kind,
+            float(w.pwm_delay),
+            None if dead is None else np.asarray(dead, float).tobytes(),
+            len(rows),
+            hash(rows.tobytes()),
+        )
+        for k, arrays, u in self._u_cache:
+            if k == key and all(
+                a is b for a, b in zip(arrays, (w.cmd, w.i_abc, w.v_dc, w.pwm_on), strict=True)
+            ):
+                return u
+        u = self._u_at(w, rows)
+        u.flags.writeable = False
+        self._u_cache = [(key, (w.cmd, w.i_abc, w.v_dc, w.pwm_on), u), *self._u_cache[:3]]
+        return u
+
+    def _u_at(self, w: Work, rows: np.ndarray) -> np.ndarray:
         n_int = int(np.floor(w.pwm_delay))
         frac = w.pwm_delay - n_int
         u = self._u_int(w, rows, n_int)
