@@ -193,8 +193,12 @@ def test_verify_reruns_the_logs_profile(tmp_path, capsys):
     record_profile(PROFILE, real, rig_path=rig, seed=4)
     same = verify(real, rig, seed=4)  # the true rig and seed reproduce the log exactly
     assert all(s["rms_fitted"] == 0.0 and s["closure"] == 1.0 for s in same["signals"].values())
+    assert all(s["rms_fitted"] == 0.0 and s["closure"] == 1.0 for s in same["plateau"].values())
     nominal = verify(real, ROOT / "profiles/rigs/ideal.yaml", seed=4)
     assert all(s["closure"] == 0.0 for s in nominal["signals"].values())
+    assert all(s["closure"] == 0.0 for s in nominal["plateau"].values())
+    # the dead time shows in the settled voltages: the ideal plant misses them, the true rig not
+    assert nominal["plateau"]["u_q_v"]["rms_nominal"] > 0.2
     assert nominal["signals"]["u_q_v"]["rms_nominal"] > 0.5
     assert main(["gap", "verify", str(real), "--rig", str(rig), "--seed", "4"]) == 0
     assert "closure" in capsys.readouterr().out

@@ -31,7 +31,9 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     p.add_argument("target", help="LOG.mcap, or one of: " + ", ".join(ACTIONS))
     p.add_argument("rest", nargs="*", help="the log (augment) or profile (record)")
     p.add_argument(
-        "--motor", help="motor file of the nominal model (default: the log's motor.yaml)"
+        "--motor",
+        help="motor file of the nominal model, a path or a shipped name (default: the log's "
+        "motor.yaml)",
     )
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("--report", metavar="DIR", help="write plots, gap.json and index.html here")
@@ -66,8 +68,10 @@ def _motor(args, log_path):
     from pmsm_hil.log.reader import read_log
     from pmsm_hil.profiles import load_motor
 
-    if args.motor:
-        return MotorModel.from_motor(load_motor(args.motor))
+    if args.motor:  # a path, or a shipped motor by its name
+        from pmsm_hil.profiles.shipped import resolve
+
+        return MotorModel.from_motor(load_motor(resolve(args.motor, "motor")))
     log = read_log(log_path)
     att = [a for a in log.attachments if a.name == "motor.yaml"]
     if not att:
@@ -129,7 +133,14 @@ def main(args: argparse.Namespace) -> int:
 
             if not args.rest or not args.out:
                 return fail("error", "gap record PROFILE.yaml [--rig RIG.yaml] -o OUT.mcap", 2)
-            cols = record_profile(args.rest[0], args.out, rig_path=args.rig, seed=args.seed)
+            from pmsm_hil.profiles.shipped import resolve
+
+            cols = record_profile(
+                resolve(args.rest[0], "profile"),
+                args.out,
+                rig_path=resolve(args.rig, "rig") if args.rig else None,
+                seed=args.seed,
+            )
             print(f"{args.out}: {len(cols['t_s'])} control periods recorded")
             return 0
         if args.target == "verify":
@@ -148,6 +159,15 @@ def main(args: argparse.Namespace) -> int:
                     f"gap verify: free-run closure (median over i_d, i_q, u_d, u_q) {v['closure_median']:.2f}"
                 )
                 for k, s in v["signals"].items():
+                    print(
+                        f"  {k:10s} rms error nominal {s['rms_nominal']:.3g}, fitted {s['rms_fitted']:.3g}, "
+                        f"closure {s['closure']:.2f}"
+                    )
+                print(
+                    "gap verify: closure of the segments' settled means (median over i_d, i_q, u_d, "
+                    f"u_q) {v['plateau_closure_median']:.2f}"
+                )
+                for k, s in v["plateau"].items():
                     print(
                         f"  {k:10s} rms error nominal {s['rms_nominal']:.3g}, fitted {s['rms_fitted']:.3g}, "
                         f"closure {s['closure']:.2f}"

@@ -12,7 +12,11 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         "import", help="import control-rate or steady-state dq data from a CSV (docs/gap.md)"
     )
     p.add_argument("csv", help="CSV file: a header row, SI units, the project's column names")
-    p.add_argument("--motor", required=True, help="motor file the data belongs to")
+    p.add_argument(
+        "--motor",
+        required=True,
+        help="motor file the data belongs to (a path, or a shipped motor by its name)",
+    )
     p.add_argument("-o", "--out", required=True, help="MCAP log to write")
 
 
@@ -21,7 +25,9 @@ def main(args: argparse.Namespace) -> int:
     from pmsm_hil.profiles import ProfileError
 
     try:
-        s = import_csv(args.csv, args.motor, args.out)
+        from pmsm_hil.profiles.shipped import resolve
+
+        s = import_csv(args.csv, resolve(args.motor, "motor"), args.out)
     except (ImportError_, ProfileError) as e:
         return fail("error", str(e), 2)
     ts = f", sample time {s['ts_s']:.6g} s" if s["ts_s"] else ""
