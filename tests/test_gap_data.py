@@ -201,3 +201,26 @@ def test_gap_runs_on_the_triggered_capture_alone(lab_log, tmp_path, capsys):
 
     res = json.loads(capsys.readouterr().out)
     assert res["transitions"] == 1022 and res["effects"]
+
+
+def test_import_and_gap_take_a_shipped_motor_by_name(lab_log, tmp_path, capsys):
+    """`--motor paper-a-ipmsm` as for `run`: a bare name is the shipped motor file; a name that is
+    neither a file nor a shipped motor is a clear error naming it."""
+    cr = read_log(lab_log).topic("/pmsm/control_rate")
+    sl = slice(1000, 1400)
+    cols = {
+        k: cr[k][sl]
+        for k in ("t_s", "i_a_a", "i_b_a", "s_a", "s_b", "s_c", "v_dc_v", "theta_e_rad")
+    }
+    _write_csv(tmp_path / "scope.csv", cols)
+    out = tmp_path / "scope.mcap"
+    assert (
+        main(["import", str(tmp_path / "scope.csv"), "--motor", "paper-a-ipmsm", "-o", str(out)])
+        == 0
+    )
+    assert load_record(out).n == 400
+    capsys.readouterr()
+    assert main(["gap", str(out), "--motor", "paper-a-ipmsm", "--json"]) == 0
+    assert '"effects"' in capsys.readouterr().out
+    assert main(["gap", str(out), "--motor", "no-such-motor"]) == 2
+    assert "no-such-motor" in capsys.readouterr().err
