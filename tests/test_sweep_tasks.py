@@ -116,3 +116,24 @@ def test_bench_runs_on_dask_give_the_figures_of_runs_in_process(tmp_path, monkey
     assert (tmp_path / "dask" / "mismatch.md").read_text() == (
         tmp_path / "here" / "mismatch.md"
     ).read_text()
+
+
+def test_a_run_carries_its_motors_flux_map_wherever_it_executes(tmp_path):
+    """A motor file that names its own flux map relative to itself (paper-a-ipmsm-measured):
+    the run's texts hold the map's absolute path, so that the run, written out elsewhere (a
+    worker's temporary folder), still finds it (`pmsm-hil test paper-a-sensorless` failed so)."""
+    import os
+
+    import yaml
+
+    from pmsm_hil.profiles import load_profile
+    from pmsm_hil.profiles.shipped import shipped_file
+    from pmsm_hil.sweep.plan import profile_run
+
+    run = profile_run(shipped_file("paper-a-sensorless.yaml"))
+    fm = yaml.safe_load(run.texts["motor.yaml"])["flux_map"]
+    assert os.path.isabs(fm) and os.path.isfile(fm)
+    for name, text in run.texts.items():
+        (tmp_path / name).write_text(text, encoding="utf-8")
+    prof = load_profile(str(tmp_path / "profile.yaml"))
+    assert prof.motor.load_flux_map() is not None

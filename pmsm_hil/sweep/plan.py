@@ -130,6 +130,15 @@ class _Base:
         sat = (self.data["rig"].get("effects") or {}).get("saturation")
         if isinstance(sat, dict) and isinstance(sat.get("map"), str):
             sat["map"] = os.path.abspath(resolve_ref(self.profile.rig.path, sat["map"]))
+        # the motor's own flux map (and a commissioned file's nominal machine's), as the rig's:
+        # relative to the motor file, which the run does not have beside it
+        motor = self.data["motor"]
+        nominal = (motor.get("commissioning") or {}).get("nominal")
+        for holder in (motor, nominal if isinstance(nominal, dict) else {}):
+            if isinstance(holder.get("flux_map"), str) and holder["flux_map"]:
+                holder["flux_map"] = os.path.abspath(
+                    resolve_ref(self.profile.motor.path, holder["flux_map"])
+                )
         self.data["profile"]["motor"] = "motor.yaml"
         self.data["profile"]["rig"] = "rig.yaml"
 
