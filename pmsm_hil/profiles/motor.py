@@ -282,10 +282,10 @@ class NominalMachine:
     """A motor's attributes with the nominal machine values of a commissioned file (the plant the
     emulator runs is that machine, not what commissioning measured)."""
 
-    def __init__(self, motor, nominal: dict):
+    def __init__(self, motor: Motor, nominal: dict[str, Any]) -> None:
         self._motor, self._nominal = motor, nominal
 
-    def __getattr__(self, name):
+    def __getattr__(self, name: str) -> Any:
         if name in self._nominal:
             return self._nominal[name]
         return getattr(self._motor, name)
