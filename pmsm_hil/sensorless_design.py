@@ -22,11 +22,21 @@ LOCK_LOST_S = 0.05
 # own signature (and never below ASYM_MIN_FLOOR: ADC noise gives about 0.001).
 ASYM_MIN_FRACTION = 0.3
 ASYM_MIN_FLOOR = 0.02
+# The ripple PLL's excitation by default: a tenth of the current limit (1.5 A on paper A's motor,
+# about 40 % of the d-current step of one active vector in one period; docs/sensorless.md).
+EXCITE_SHARE = 0.1
 RIPPLE_A = 4.0  # the MPCC's current ripple beyond the references that the table must cover
 
 
 def polarity_pulse_a(motor: Motor) -> float:
     return motor.polarity_pulse_a or 0.5 * motor.i_max_a
+
+
+def ripple_pll_excite_a(motor: Motor) -> float:
+    """The ripple PLL's d-axis excitation, alternating every control period (docs/sensorless.md)."""
+    if motor.ripple_pll_excite_a is not None:
+        return float(motor.ripple_pll_excite_a)
+    return EXCITE_SHARE * motor.i_max_a
 
 
 def estimator_frames(motor: Motor) -> tuple[dict, list[dict]]:
@@ -54,6 +64,7 @@ def estimator_frames(motor: Motor) -> tuple[dict, list[dict]]:
         if_i_a=float(motor.if_start_current_a or 0.0),
         if_accel_rpm_s=float(motor.if_start_accel_rpm_s),
         if_handover_rpm=float(motor.if_handover_rpm),
+        pll_excite_a=ripple_pll_excite_a(motor),
     )
     if fm is None:
         return cfg, []

@@ -59,6 +59,11 @@ def with_acceptance(tmp_path, data, text: str, name: str = "p.yaml"):
             "is not one of",
         ),
         (
+            "acceptance:\n  run:\n    angle_error_rms_max_rad: 0\n",
+            "acceptance.run.angle_error_rms_max_rad",
+            "is outside the allowed range (0, 3.2] rad",
+        ),
+        (
             "acceptance:\n  run:\n    recovery_max: 0.3\n",
             "acceptance.run.recovery_max",
             "did you mean 'recovery_max_s'",
@@ -163,3 +168,27 @@ def test_test_reports_a_bad_profile_without_traceback(tmp_path, data):
     r = subprocess.run([*CLI, "test", str(p)], capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and "acceptance.run.faults = 'sometimes'" in r.stderr
     assert "Traceback" not in r.stderr
+
+
+def test_angle_error_bounds_judge_the_estimator_closing_the_loop():
+    """The run's angle-estimate bounds take the run summary's estimator figures; without an
+    estimator closing the loop they fail as not measured, never pass by default."""
+    from types import SimpleNamespace
+
+    from pmsm_hil.analysis.acceptance import evaluate
+    from pmsm_hil.profiles.acceptance import Acceptance
+
+    acc = Acceptance.model_validate(
+        {"run": {"angle_error_rms_max_rad": 0.02, "angle_error_max_rad": 0.1}}
+    )
+
+    def summary(est):
+        return SimpleNamespace(complete=True, ended=None, faults=[], segments=[], estimator=est)
+
+    est = {"theta_err_rms_rad": 0.0061, "theta_err_max_rad": 0.13}
+    checks = {c.criterion: c for c in evaluate(acc, summary(est))}
+    assert checks["angle error RMS"].passed and checks["angle error RMS"].measured == "0.0061 rad"
+    assert not checks["largest angle error"].passed
+    assert checks["largest angle error"].bound == "<= 0.1 rad"
+    none = {c.criterion: c for c in evaluate(acc, summary(None))}
+    assert not none["angle error RMS"].passed and "not measured" in none["angle error RMS"].measured

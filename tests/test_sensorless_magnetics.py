@@ -20,6 +20,7 @@ from pmsm_hil.profiles.magnetics import (
 from pmsm_hil.profiles.motor import load_motor
 from pmsm_hil.profiles.rig import load_rig
 from pmsm_hil.profiles.shipped import shipped_file as shipped_path
+from pmsm_hil.sensorless_design import estimator_frames
 
 PAPER_A_MAP = "maps/paper-a-ipmsm.csv"
 
@@ -82,6 +83,20 @@ def test_motor_hybrid_band_must_be_ordered(tmp_path):
         load_motor(p)
     msg = str(ei.value)
     assert "hybrid_mras_on_rpm" in msg and "200" in msg and "m.yaml:" in msg
+
+
+def test_motor_ripple_pll_excitation_is_bounded_and_defaults_to_a_tenth_of_i_max(tmp_path):
+    text = Path(shipped_path("motors/paper-a-ipmsm.yaml")).read_text()
+    p = tmp_path / "m.yaml"
+    p.write_text(text + "ripple_pll_excite_a: 9\n")  # i_max_a 15: at most 7.5
+    with pytest.raises(ProfileError) as ei:
+        load_motor(p)
+    msg = str(ei.value)
+    assert "ripple_pll_excite_a" in msg and "9" in msg and "i_max_a" in msg and "m.yaml:" in msg
+    p.write_text(text)
+    assert estimator_frames(load_motor(p))[0]["pll_excite_a"] == pytest.approx(1.5)
+    p.write_text(text + "ripple_pll_excite_a: 0\n")
+    assert estimator_frames(load_motor(p))[0]["pll_excite_a"] == 0.0
 
 
 def test_motor_flux_map_that_cannot_be_read_is_refused(tmp_path):

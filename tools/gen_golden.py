@@ -175,6 +175,7 @@ VECTORS: list[tuple[str, str, int, dict]] = [
             if_i_a=3.0,
             if_accel_rpm_s=300.0,
             if_handover_rpm=150.0,
+            pll_excite_a=1.5,
         ),
     ),
     ("gamma_node", "gamma_node", 13, dict(index=395, g_dd=177.6, g_qq=80.1, g_dq=-12.5, g_qd=9.75)),

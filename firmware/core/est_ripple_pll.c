@@ -59,6 +59,7 @@ void rpll_reset(rpll_t *e, float theta_e_rad, float omega_e_rad_s)
     e->u_prev_q = 0.0f;
     e->r2_f = 0.0f;
     e->exc_tick = 0u;
+    e->hf_sign = 1.0f;
     e->have_prev = false;
 }
 
@@ -165,6 +166,10 @@ void rpll_step(rpll_t *e, const rpll_in_t *in, rpll_out_t *out)
     e->th = tf_wrap_2pi(e->th + ts * (w + e->l1 * d));
     e->w = w + ts * (a_ff + e->acc + e->l2 * d);
     e->acc += ts * e->l3 * d;
+    if (c->excite_a > 0.0f) {
+        out->i_d_hf_a = e->hf_sign * c->excite_a;
+        e->hf_sign = -e->hf_sign;
+    }
     /* too little ripple to see the saliency: a d-axis square wave (no torque at i_q = 0) */
     if (e->norm_f < e->norm_excite) {
         e->exc_tick = (uint16_t)((e->exc_tick + 1u) % (2u * RPLL_EXCITE_HALF_PERIODS));

@@ -17,7 +17,14 @@
  *   theta^ += Ts (w^ + l1 d^),  w^ += Ts (p T_e(i)/J + a^ + l2 d^),  a^ += Ts l3 d^
  *   d^ = sin(2d)/2,  l1 = 3 bw,  l2 = 3 bw^2,  l3 = bw^3
  * a^ is the unknown acceleration (load, friction). The confidence cos 2d is a running mean of
- * 1 + cn/norm. The detector cannot tell theta from theta + pi (polarity.h resolves it). */
+ * 1 + cn/norm. The detector cannot tell theta from theta + pi (polarity.h resolves it).
+ *
+ * Excitation: with excite_a > 0 the estimator asks for a d-axis current of +-excite_a alternating
+ * every control period (at half the control rate: no torque at i_q = 0, no frequency that the
+ * speed loop or the plant's mechanics pass), so that the current controller applies an active
+ * vector in most periods whatever the load; the detector's noise falls with the number of
+ * informative periods (docs/sensorless.md, "Excitation"). Without it (or with too little ripple
+ * even so) a 1 A square wave at 1 kHz is the fallback. */
 #ifndef EST_RIPPLE_PLL_H
 #define EST_RIPPLE_PLL_H
 
@@ -43,6 +50,7 @@ typedef struct {
     float norm_tau_s;                              /* normaliser time constant (0: default) */
     float conf_tau_s;                              /* confidence time constant (0: default) */
     bool torque_ff;                                /* feed the model torque forward */
+    float excite_a; /* d-axis excitation alternating every period, A (0: only the fallback) */
 } rpll_cfg_t;
 
 typedef struct {
@@ -61,7 +69,8 @@ typedef struct {
     float u_d_v;        /* voltage across the d inductance U_d */
     float i_d_mid_a;    /* mid-period d current */
     float torque_nm;    /* model torque at the mid-period current */
-    float i_d_excite_a; /* d-axis current the estimator asks for (0: enough ripple already) */
+    float i_d_excite_a; /* fallback square wave the estimator asks for (0: enough ripple) */
+    float i_d_hf_a;     /* the excitation alternating every period (+-excite_a) */
 } rpll_out_t;
 
 typedef struct {
@@ -73,6 +82,7 @@ typedef struct {
     float m_ed, m_eq, m_ud, m_uq;          /* running means of e and U */
     float u_prev_d, u_prev_q, r2_f, tau_s; /* current-sample delay: last U, regressor power, tau */
     uint16_t exc_tick;
+    float hf_sign; /* sign of the next excitation period */
     float i_al_prev, i_be_prev;
     bool have_prev;
 } rpll_t;

@@ -78,11 +78,13 @@ static uint16_t cmd_config_sensorless(fw_t *f, const uint16_t *p, uint16_t n)
         !within(c.gam_did_a, 1e-3f, FW_I_TRIP_MAX_A) ||
         !within(c.gam_diq_a, 1e-3f, FW_I_TRIP_MAX_A) || !within(c.if_i_a, 0.0f, FW_I_TRIP_MAX_A) ||
         !within(c.if_accel_rpm_s, 0.0f, 1e6f) ||
-        !within(c.if_handover_rpm, 0.0f, FW_SPEED_TRIP_MAX_RPM)) {
+        !within(c.if_handover_rpm, 0.0f, FW_SPEED_TRIP_MAX_RPM) ||
+        !within(c.pll_excite_a, 0.0f, FW_I_TRIP_MAX_A)) {
         return PROTO_ACK_STATUS_BAD_VALUE;
     }
     if (f->have_motor &&
-        (c.if_i_a > f->motor.i_max_a || c.if_handover_rpm > f->motor.speed_max_rpm)) {
+        (c.if_i_a > f->motor.i_max_a || c.if_handover_rpm > f->motor.speed_max_rpm ||
+         c.pll_excite_a > 0.5f * f->motor.i_max_a)) {
         return PROTO_ACK_STATUS_BAD_VALUE;
     }
     f->snl_msg = c;

@@ -21,6 +21,7 @@ void fw_snl_config(const fw_t *f, snl_cfg_t *sc)
     sc->pll.j_kgm2 = f->motor.j_kgm2;
     sc->pll.bw_rad_s = c->est_bw_rad_s;
     sc->pll.torque_ff = true;
+    sc->pll.excite_a = have ? m->pll_excite_a : 0.0f;
     rerr_gamma_linear(&sc->pll.gamma, f->motor.l_d_h, f->motor.l_q_h);
     if (have && m->gam_nd >= 2u && m->gam_nq >= 2u &&
         (uint32_t)f->gamma_nodes == (uint32_t)m->gam_nd * (uint32_t)m->gam_nq) {

@@ -754,6 +754,7 @@ uint16_t proto_config_sensorless_pack(const proto_config_sensorless_t *m, uint16
     put_f32(&buf[60], m->if_i_a);
     put_f32(&buf[64], m->if_accel_rpm_s);
     put_f32(&buf[68], m->if_handover_rpm);
+    put_f32(&buf[72], m->pll_excite_a);
     return PROTO_LEN_CONFIG_SENSORLESS;
 }
 
@@ -781,6 +782,7 @@ bool proto_config_sensorless_unpack(proto_config_sensorless_t *m, const uint16_t
     m->if_i_a = get_f32(&buf[60]);
     m->if_accel_rpm_s = get_f32(&buf[64]);
     m->if_handover_rpm = get_f32(&buf[68]);
+    m->pll_excite_a = get_f32(&buf[72]);
     return true;
 }
 

@@ -10,7 +10,7 @@
 #include <stdbool.h>
 
 #define PROTO_VERSION 2u
-#define PROTO_SCHEMA_HASH 0x4BE3B97CUL  /* CRC-32 of the canonical yaml */
+#define PROTO_SCHEMA_HASH 0xB0506F40UL  /* CRC-32 of the canonical yaml */
 #define PROTO_MAX_PAYLOAD 111u  /* octets */
 #define PROTO_MSG_COUNT 25u
 
@@ -469,7 +469,7 @@ bool proto_telem_est_unpack(proto_telem_est_t *m, const uint16_t *buf, uint16_t 
 
 /* config_sensorless: 0x0B, host -> device */
 #define PROTO_ID_CONFIG_SENSORLESS 0x0Bu
-#define PROTO_LEN_CONFIG_SENSORLESS 72u
+#define PROTO_LEN_CONFIG_SENSORLESS 76u
 typedef struct {
     float pol_i_pulse_a;           /* f32; polarity test: d-axis pulse amplitude */
     float pol_asym_expected;       /* f32; the motor's own signature (g+ - g-)/(g+ + g-) at +-pulse */
@@ -490,6 +490,7 @@ typedef struct {
     float if_i_a;                  /* f32; MRAS: current-frequency start current (0: none; docs/sensorless.md) */
     float if_accel_rpm_s;          /* f32; MRAS: the I/f angle's acceleration, r/min per s */
     float if_handover_rpm;         /* f32; MRAS: the speed from which it may take over from I/f */
+    float pll_excite_a;            /* f32; ripple PLL: d-axis excitation alternating every period (0: none) */
 } proto_config_sensorless_t;
 uint16_t proto_config_sensorless_pack(const proto_config_sensorless_t *m, uint16_t *buf);
 bool proto_config_sensorless_unpack(proto_config_sensorless_t *m, const uint16_t *buf, uint16_t len);

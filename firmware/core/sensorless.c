@@ -48,7 +48,9 @@ void snl_step(snl_t *s, const snl_in_t *in, snl_out_t *out)
         po.theta_e_rad = s->pll.th;
     }
     out->startup = qo.active;
-    out->i_d_inject_a = (qo.active ? qo.i_d_ref_a : 0.0f) + po.i_d_excite_a;
+    /* the polarity test's pulses alone while it runs; then the excitation (hybrid: the PLL's
+     * share of it, below) */
+    out->i_d_inject_a = (qo.active ? qo.i_d_ref_a : po.i_d_hf_a) + po.i_d_excite_a;
     out->pol_result = qo.result;
     out->pol_asym = qo.asym;
     out->pol_done_now = !qo.active && s->pol.result != POL_RUNNING && s->pol.tick != UINT32_MAX;
@@ -79,6 +81,7 @@ void snl_step(snl_t *s, const snl_in_t *in, snl_out_t *out)
         out->theta_e_rad = ho.theta_e_rad;
         out->omega_e_rad_s = ho.omega_e_rad_s;
         out->w_mras = ho.w_mras;
+        out->i_d_inject_a -= ho.w_mras * po.i_d_hf_a;
         if (ho.lock == HYB_LOCK_DISAGREE) {
             lose(s, SNL_LOCK_DISAGREE, out);
         } else if (ho.lock == HYB_LOCK_LOW_CONF) {

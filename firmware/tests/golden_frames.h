@@ -427,7 +427,8 @@ static const uint16_t golden_8_payload[] = {
     0x9Au, 0x99u, 0x99u, 0x3Eu, 0x0Au, 0xD7u, 0xA3u, 0x3Cu, 0x00u, 0x00u, 0x00u, 0x3Fu,
     0xCDu, 0xCCu, 0x4Cu, 0x3Du, 0x0Cu, 0x00u, 0x21u, 0x00u, 0xCDu, 0xCCu, 0x3Cu, 0xC1u,
     0x9Au, 0x99u, 0x89u, 0xC1u, 0xC3u, 0xF5u, 0x88u, 0x3Fu, 0xC3u, 0xF5u, 0x88u, 0x3Fu,
-    0x00u, 0x00u, 0x40u, 0x40u, 0x00u, 0x00u, 0x96u, 0x43u, 0x00u, 0x00u, 0x16u, 0x43u
+    0x00u, 0x00u, 0x40u, 0x40u, 0x00u, 0x00u, 0x96u, 0x43u, 0x00u, 0x00u, 0x16u, 0x43u,
+    0x00u, 0x00u, 0xC0u, 0x3Fu
 };
 static const uint16_t golden_8_frame[] = {
     0x03u, 0x0Bu, 0x0Cu, 0x01u, 0x0Bu, 0xA0u, 0x40u, 0x9Au, 0x99u, 0x99u, 0xBEu, 0xECu,
@@ -436,7 +437,7 @@ static const uint16_t golden_8_frame[] = {
     0x01u, 0x07u, 0x3Fu, 0xCDu, 0xCCu, 0x4Cu, 0x3Du, 0x0Cu, 0x02u, 0x21u, 0x11u, 0xCDu,
     0xCCu, 0x3Cu, 0xC1u, 0x9Au, 0x99u, 0x89u, 0xC1u, 0xC3u, 0xF5u, 0x88u, 0x3Fu, 0xC3u,
     0xF5u, 0x88u, 0x3Fu, 0x01u, 0x03u, 0x40u, 0x40u, 0x01u, 0x03u, 0x96u, 0x43u, 0x01u,
-    0x05u, 0x16u, 0x43u, 0xD4u, 0x7Du, 0x00u
+    0x03u, 0x16u, 0x43u, 0x01u, 0x05u, 0xC0u, 0x3Fu, 0x29u, 0x43u, 0x00u
 };
 
 static uint16_t golden_8_pack(uint16_t *buf)
@@ -462,6 +463,7 @@ static uint16_t golden_8_pack(uint16_t *buf)
     m.if_i_a = 3.0f;
     m.if_accel_rpm_s = 300.0f;
     m.if_handover_rpm = 150.0f;
+    m.pll_excite_a = 1.5f;
     return proto_config_sensorless_pack(&m, buf);
 }
 
@@ -492,6 +494,7 @@ static void golden_8_check(const uint16_t *payload, uint16_t len)
     CHECK_NEAR(m.if_i_a, 3.0, 0.0, "golden 8 config_sensorless.if_i_a");
     CHECK_NEAR(m.if_accel_rpm_s, 300.0, 0.0, "golden 8 config_sensorless.if_accel_rpm_s");
     CHECK_NEAR(m.if_handover_rpm, 150.0, 0.0, "golden 8 config_sensorless.if_handover_rpm");
+    CHECK_NEAR(m.pll_excite_a, 1.5, 0.0, "golden 8 config_sensorless.pll_excite_a");
 }
 
 /* 9: gamma_node */
@@ -1579,7 +1582,7 @@ static const golden_frame_t golden_frames[] = {
     {"profile_segment step", 0x05u, 5u, golden_5_payload, 29u, golden_5_frame, 35u, golden_5_pack, golden_5_check},
     {"profile_segment negative", 0x05u, 6u, golden_6_payload, 29u, golden_6_frame, 35u, golden_6_pack, golden_6_check},
     {"sim_plant", 0x20u, 9u, golden_7_payload, 10u, golden_7_frame, 16u, golden_7_pack, golden_7_check},
-    {"config_sensorless", 0x0Bu, 12u, golden_8_payload, 72u, golden_8_frame, 78u, golden_8_pack, golden_8_check},
+    {"config_sensorless", 0x0Bu, 12u, golden_8_payload, 76u, golden_8_frame, 82u, golden_8_pack, golden_8_check},
     {"gamma_node", 0x0Cu, 13u, golden_9_payload, 18u, golden_9_frame, 24u, golden_9_pack, golden_9_check},
     {"start", 0x06u, 7u, golden_10_payload, 0u, golden_10_frame, 6u, golden_10_pack, golden_10_check},
     {"stop", 0x07u, 8u, golden_11_payload, 0u, golden_11_frame, 6u, golden_11_pack, golden_11_check},

@@ -142,8 +142,37 @@ static void test_reversal(void)
     CHECK_NEAR(s.eo.omega_e_rad_s, 4.0 * w_m, 5.0, "pll: speed estimate after the reversal");
 }
 
+/* The excitation: +-excite_a alternating every period, first +; none when excite_a is 0. */
+static void test_excitation_alternates(void)
+{
+    rpll_cfg_t c;
+    rpll_t e;
+    rpll_in_t in;
+    rpll_out_t o;
+    int k, ok = 1;
+    memset(&c, 0, sizeof c);
+    memset(&in, 0, sizeof in);
+    c.ts_s = 50e-6f;
+    c.pole_pairs = 4u;
+    c.l_d_h = 5e-3f;
+    c.l_q_h = 12e-3f;
+    rerr_gamma_linear(&c.gamma, c.l_d_h, c.l_q_h);
+    c.excite_a = 1.5f;
+    rpll_init(&e, &c);
+    for (k = 0; k < 6; k++) {
+        rpll_step(&e, &in, &o);
+        ok = ok && o.i_d_hf_a == ((k & 1) == 0 ? 1.5f : -1.5f);
+    }
+    CHECK(ok, "pll: the excitation alternates +-excite_a every period");
+    c.excite_a = 0.0f;
+    rpll_init(&e, &c);
+    rpll_step(&e, &in, &o);
+    CHECK(o.i_d_hf_a == 0.0f, "pll: no excitation with excite_a 0");
+}
+
 int main(void)
 {
+    test_excitation_alternates();
     test_detector_hand_case();
     test_detector_cross_saturation();
     run_converge(0.0, 0.6, 0.0f, "standstill, no current");

@@ -116,6 +116,7 @@ def evaluate(
         if run.faults is not None:
             out.append(_fault_check("run", len(summary.faults), run.faults))
         out += _segment_checks(run, summary.segments, summary, scope_all=True)
+        out += _angle_checks(run, summary)
         for ib in run.identification:
             cell = ident.cell(ib.estimator, ib.param) if ident is not None else None
             what = f"{ib.estimator} {ib.param}"
@@ -164,6 +165,31 @@ def evaluate(
             )
             continue
         out += _segment_checks(sa, [seg], summary, scope_all=False)
+    return out
+
+
+def _angle_checks(run, summary: RunSummary) -> list[Check]:
+    """The angle estimator's error against the encoder while it closed the loop (the run
+    summary's estimator figures); not measured (a failed check) when no estimator closed it."""
+    out: list[Check] = []
+    e = summary.estimator or {}
+    for key, stat, name in (
+        ("angle_error_rms_max_rad", "theta_err_rms_rad", "angle error RMS"),
+        ("angle_error_max_rad", "theta_err_max_rad", "largest angle error"),
+    ):
+        lim = getattr(run, key)
+        if lim is None:
+            continue
+        v = e.get(stat)
+        out.append(
+            Check(
+                "run",
+                name,
+                "not measured (no estimator closed the loop)" if v is None else f"{v:.4f} rad",
+                f"<= {lim:g} rad",
+                v is not None and v <= lim,
+            )
+        )
     return out
 
 

@@ -76,6 +76,20 @@ class RunAcceptance(Bounds):
     identification: list[IdentBound] = Field(
         default_factory=list, description="bounds on the identification table"
     )
+    angle_error_rms_max_rad: float | None = Field(
+        None,
+        gt=0,
+        le=3.2,
+        description="the angle estimator closing the loop: largest RMS of its angle error "
+        "against the encoder (theta_err_rad) over the time it closed the loop, rad",
+    )
+    angle_error_max_rad: float | None = Field(
+        None,
+        gt=0,
+        le=3.2,
+        description="the angle estimator closing the loop: largest |theta_err_rad| over that "
+        "time, rad",
+    )
 
 
 class SegmentAcceptance(Bounds):

@@ -134,6 +134,14 @@ class Motor(FileModel):
         le=10000,
         description="d-axis current of the start-up polarity pulses, A (null: half of i_max_a)",
     )
+    ripple_pll_excite_a: float | None = Field(
+        None,
+        ge=0,
+        le=10000,
+        description="ripple PLL: amplitude of the d-axis current that alternates sign every "
+        "control period while it closes the loop, A (null: a tenth of i_max_a; 0: none, only a "
+        "1 A square wave at 1 kHz when the ripple is too small; docs/sensorless.md)",
+    )
     if_start_current_a: float | None = Field(
         None,
         gt=0,
@@ -223,6 +231,15 @@ def motor_checks(src: Source) -> list[Problem]:
                 ("hybrid_mras_on_rpm",),
                 f"must be above hybrid_pll_on_rpm {fmt_num(pll_on)} r/min (the hysteresis band)",
                 mras_on,
+            )
+        )
+    excite = num(d, "ripple_pll_excite_a")
+    if excite is not None and i_max is not None and excite > 0.5 * i_max:
+        out.append(
+            src.problem(
+                ("ripple_pll_excite_a",),
+                f"must be at most half of i_max_a {fmt_num(i_max)} A",
+                excite,
             )
         )
     if all(x is not None and x > 0 for x in (p, psi, l_d, l_q, i_max, t_max)) and isinstance(

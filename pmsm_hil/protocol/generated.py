@@ -6,7 +6,7 @@ import struct
 from typing import NamedTuple
 
 PROTOCOL_VERSION = 2
-SCHEMA_HASH = 0x4BE3B97C
+SCHEMA_HASH = 0xB0506F40
 MAX_PAYLOAD = 111  # octets
 
 # wire type: (struct code, octets, min, max); min/max are None for f32
@@ -358,7 +358,7 @@ MESSAGES = (
         FieldSpec('speed_err_rpm', 'i16', 1, 0.1, 9),
         FieldSpec('err_signal', 'i16', 1, 0.0001, 11),
     ), struct.Struct('<IBBBhhh')),
-    MessageSpec(0x0B, 'config_sensorless', 'h2d', False, 72, (
+    MessageSpec(0x0B, 'config_sensorless', 'h2d', False, 76, (
         FieldSpec('pol_i_pulse_a', 'f32', 1, None, 0),
         FieldSpec('pol_asym_expected', 'f32', 1, None, 4),
         FieldSpec('pol_asym_min', 'f32', 1, None, 8),
@@ -378,7 +378,8 @@ MESSAGES = (
         FieldSpec('if_i_a', 'f32', 1, None, 60),
         FieldSpec('if_accel_rpm_s', 'f32', 1, None, 64),
         FieldSpec('if_handover_rpm', 'f32', 1, None, 68),
-    ), struct.Struct('<ffffffffffHHfffffff')),
+        FieldSpec('pll_excite_a', 'f32', 1, None, 72),
+    ), struct.Struct('<ffffffffffHHffffffff')),
     MessageSpec(0x0C, 'gamma_node', 'h2d', False, 18, (
         FieldSpec('index', 'u16', 1, None, 0),
         FieldSpec('g_dd', 'f32', 1, None, 2),

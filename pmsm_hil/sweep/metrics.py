@@ -4,7 +4,9 @@ Column names carry their units. Per segment (index i, from the run summary, docs
 ``seg{i}_speed_error_rpm`` (mean error on the plateau), ``seg{i}_ripple_d_a``/``_q_a``,
 ``seg{i}_recovery_s`` (load steps only). Whole run: ``speed_error_max_rpm`` (the largest |mean
 error| over the plateaus at a non-zero setpoint), ``ripple_q_max_a``, ``ripple_d_max_a``,
-``recovery_max_s``, ``faults``, ``complete``. Identification (per estimator and parameter, from the
+``recovery_max_s``, ``faults``, ``complete``; the angle estimator closing the loop, against the
+encoder (NaN when none did): ``angle_err_mean_rad``, ``angle_err_rms_rad``, ``angle_err_max_rad``.
+Identification (per estimator and parameter, from the
 start to the first plant step, or the whole run): ``id_{estimator}_{param}_error_rel`` and
 ``id_{estimator}_{param}_conv_s`` (NaN: never converged).
 """
@@ -62,6 +64,11 @@ def summary_metrics(summary: RunSummary, metrics: list[str]) -> dict[str, Any]:
         out["faults"] = len(summary.faults)
     if "completeness" in metrics:
         out["complete"] = bool(summary.complete)
+    if "angle" in metrics:
+        e = summary.estimator or {}
+        out["angle_err_mean_rad"] = _num(e.get("theta_err_mean_rad"))
+        out["angle_err_rms_rad"] = _num(e.get("theta_err_rms_rad"))
+        out["angle_err_max_rad"] = _num(e.get("theta_err_max_rad"))
     return out
 
 

@@ -36,7 +36,7 @@ from pmsm_hil.profiles._source import (
 
 __all__ = ["FIELD_RE", "METRICS", "Axis", "Sweep", "SweepFile", "load_sweep"]
 
-METRICS = ("speed_error", "ripple", "recovery", "faults", "completeness", "identification")
+METRICS = ("speed_error", "ripple", "recovery", "faults", "completeness", "identification", "angle")
 # profile.FIELD.PATH / motor.FIELD / rig.FIELD.PATH (list items as [i]) or seed
 FIELD_RE = re.compile(r"^(seed|(profile|motor|rig)(\.[a-z_][a-z0-9_]*(\[\d+\])?)+)$")
 MAX_RUNS = 100_000

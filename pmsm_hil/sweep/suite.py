@@ -23,7 +23,7 @@ from .plan import Run, profile_run, run_key
 __all__ = ["DEFAULT_ACCEPTANCE", "SuiteCase", "junit_xml", "plan_suite", "run_suite"]
 
 DEFAULT_ACCEPTANCE = {"run": {"complete": True, "faults": "forbidden"}}
-METRICS = ["speed_error", "ripple", "recovery", "faults", "completeness"]
+METRICS = ["speed_error", "ripple", "recovery", "faults", "completeness", "angle"]
 
 
 @dataclass
