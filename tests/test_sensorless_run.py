@@ -106,6 +106,9 @@ def test_hybrid_runs_through_both_handovers_without_a_fault(tmp_path):
     # below the band the PLL alone carries the angle (the MRAS's own accuracy above it is the
     # MRAS's business, docs/sensorless.md)
     _, err = _angle_err(log)
+    # the speed the loop closes on (the PLL's at every speed) never runs away from the rotor's
+    run = t["t_s"] > 0.1
+    assert np.max(np.abs(t["speed_est_rpm"][run] - t["speed_rpm"][run])) < 30.0
     low = (t["t_s"] > 0.1) & (np.abs(t["speed_rpm"]) < 100.0)
     assert low.sum() > 1000 and np.max(np.abs(err[low])) < 0.15
 

@@ -31,6 +31,8 @@ void rpll_init(rpll_t *e, const rpll_cfg_t *cfg)
     e->l1 = 3.0f * bw;
     e->l2 = 3.0f * bw * bw;
     e->l3 = bw * bw * bw;
+    e->tau_w_s = RPLL_SPEED_TAU_BW / bw;
+    e->k_wf = e->cfg.ts_s / (e->tau_w_s + e->cfg.ts_s);
     e->k_norm = e->cfg.ts_s / (e->cfg.norm_tau_s + e->cfg.ts_s);
     e->k_conf = e->cfg.ts_s / (e->cfg.conf_tau_s + e->cfg.ts_s);
     e->k_hp = e->cfg.ts_s / (RPLL_HP_TAU_S + e->cfg.ts_s);
@@ -48,6 +50,7 @@ void rpll_reset(rpll_t *e, float theta_e_rad, float omega_e_rad_s)
 {
     e->th = tf_wrap_2pi(theta_e_rad);
     e->w = omega_e_rad_s;
+    e->w_f = omega_e_rad_s;
     e->acc = 0.0f;
     e->norm_f = 0.0f;
     e->conf_f = 0.0f;
@@ -73,6 +76,7 @@ void rpll_pull(rpll_t *e, float theta_e_rad, float omega_e_rad_s, float frac)
 {
     e->th = tf_wrap_2pi(e->th + frac * tf_wrap_pi(theta_e_rad - e->th));
     e->w += frac * (omega_e_rad_s - e->w);
+    e->w_f += frac * (omega_e_rad_s - e->w_f);
 }
 
 void rpll_step(rpll_t *e, const rpll_in_t *in, rpll_out_t *out)
@@ -165,6 +169,9 @@ void rpll_step(rpll_t *e, const rpll_in_t *in, rpll_out_t *out)
     e->have_prev = true;
     e->th = tf_wrap_2pi(e->th + ts * (w + e->l1 * d));
     e->w = w + ts * (a_ff + e->acc + e->l2 * d);
+    /* the speed output: low-passed, with the observer's own acceleration times tau added, so
+     * that a ramp (known torque) or a settled load leaves no lag */
+    e->w_f += e->k_wf * (e->w + e->tau_w_s * (a_ff + e->acc) - e->w_f);
     e->acc += ts * e->l3 * d;
     if (c->excite_a > 0.0f) {
         out->i_d_hf_a = e->hf_sign * c->excite_a;
@@ -176,7 +183,7 @@ void rpll_step(rpll_t *e, const rpll_in_t *in, rpll_out_t *out)
         out->i_d_excite_a = e->exc_tick < RPLL_EXCITE_HALF_PERIODS ? RPLL_EXCITE_A : -RPLL_EXCITE_A;
     }
     out->theta_e_rad = e->th;
-    out->omega_e_rad_s = e->w;
+    out->omega_e_rad_s = e->w_f;
     out->err_rad = d;
     out->conf = e->conf_f;
 }

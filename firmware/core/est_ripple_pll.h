@@ -16,7 +16,11 @@
  * Tracking observer with torque feed-forward (triple pole at -bw):
  *   theta^ += Ts (w^ + l1 d^),  w^ += Ts (p T_e(i)/J + a^ + l2 d^),  a^ += Ts l3 d^
  *   d^ = sin(2d)/2,  l1 = 3 bw,  l2 = 3 bw^2,  l3 = bw^3
- * a^ is the unknown acceleration (load, friction). The confidence cos 2d is a running mean of
+ * a^ is the unknown acceleration (load, friction). The speed it reports (and the speed loop
+ * closes on) is w^ low-passed with tau = RPLL_SPEED_TAU_BW / bw, with tau (p T_e/J + a^) added:
+ * the detector's noise that w^ carries near bw is cut, and a ramp or a settled load (the
+ * acceleration the observer knows) leaves no lag (docs/sensorless.md, "Speed output").
+ * The confidence cos 2d is a running mean of
  * 1 + cn/norm. The detector cannot tell theta from theta + pi (polarity.h resolves it).
  *
  * Excitation: with excite_a > 0 the estimator asks for a d-axis current of +-excite_a alternating
@@ -37,6 +41,7 @@
 #define RPLL_NORM_TAU_DEFAULT_S  2.0e-3f
 #define RPLL_CONF_TAU_DEFAULT_S  10.0e-3f
 #define RPLL_TAU_GAIN            2.0e-3f /* NLMS gain of the sample-delay estimate */
+#define RPLL_SPEED_TAU_BW        2.4f    /* speed output's time constant x bw */
 #define RPLL_HP_TAU_S            1.0e-3f /* running means removed from e and U */
 #define RPLL_EXCITE_A            1.0f    /* d-axis square wave when the ripple is too small */
 #define RPLL_EXCITE_HALF_PERIODS 10u     /* 1 kHz at 20 kHz */
@@ -76,7 +81,8 @@ typedef struct {
 typedef struct {
     rpll_cfg_t cfg;
     float l1, l2, l3;
-    float th, w, acc; /* angle at k, speed, disturbance acceleration */
+    float th, w, acc;         /* angle at k, speed, disturbance acceleration */
+    float w_f, tau_w_s, k_wf; /* speed output: filtered, lag-compensated; its time constant */
     float norm_f, conf_f, norm_floor;
     float k_norm, k_conf, k_hp, norm_excite;
     float m_ed, m_eq, m_ud, m_uq;          /* running means of e and U */

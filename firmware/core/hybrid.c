@@ -34,7 +34,7 @@ void hyb_init(hyb_t *h, const hyb_cfg_t *cfg)
 void hyb_step(hyb_t *h, const hyb_in_t *in, hyb_out_t *out)
 {
     const float diff = tf_wrap_pi(in->theta_mras_rad - in->theta_pll_rad);
-    const float omega = in->omega_pll_rad_s + h->w * (in->omega_mras_rad_s - in->omega_pll_rad_s);
+    const float omega = in->omega_pll_rad_s;
     const float rpm = fabsf(omega) * h->rpm_per_rad_s;
     const bool both = rpm > h->cfg.pll_on_rpm && in->mras_locked;
     memset(out, 0, sizeof(*out));
@@ -65,6 +65,6 @@ void hyb_step(hyb_t *h, const hyb_in_t *in, hyb_out_t *out)
     out->diff_rad = diff;
     out->w_mras = h->w;
     out->theta_e_rad = tf_wrap_2pi(in->theta_pll_rad + h->w * diff);
-    out->omega_e_rad_s = in->omega_pll_rad_s + h->w * (in->omega_mras_rad_s - in->omega_pll_rad_s);
+    out->omega_e_rad_s = in->omega_pll_rad_s;
     out->lock = h->lock;
 }

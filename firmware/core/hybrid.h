@@ -1,11 +1,12 @@
 /* Hybrid angle source (docs/sensorless.md, "Hybrid"): the ripple PLL at low speed, the MRAS
- * above. The MRAS's weight w in the output ramps between 0 and 1 at a bounded rate:
- *     theta = theta_pll + w wrap(theta_mras - theta_pll),   omega = omega_pll + w (omega_mras - omega_pll)
+ * above. The MRAS's weight w in the angle ramps between 0 and 1 at a bounded rate:
+ *     theta = theta_pll + w wrap(theta_mras - theta_pll),   omega = omega_pll
  * so a handover never steps the angle: the output moves by at most the estimators' difference
  * times ts/blend_s per period, and the difference itself is small when both are locked (a
- * larger one is a disagreement, below). Hysteresis: w heads for 1 once |speed| exceeds
- * mras_on_rpm and for 0 once it falls below pll_on_rpm (< mras_on_rpm); in between it keeps its
- * direction. The speed that decides is the output's own.
+ * larger one is a disagreement, below). The speed is the PLL's at every speed: the MRAS's (its
+ * adaptation's output) jumps by hundreds of r/min when the current steps on a saturating motor
+ * (docs/sensorless.md). Hysteresis: w heads for 1 once |speed| exceeds mras_on_rpm and for 0
+ * once it falls below pll_on_rpm (< mras_on_rpm); in between it keeps its direction.
  *
  * Supervision (loss of lock): above pll_on_rpm both estimators are valid, and a difference of
  * more than disagree_rad for longer than disagree_s is a loss of lock; the PLL's confidence

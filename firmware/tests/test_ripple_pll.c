@@ -142,6 +142,18 @@ static void test_reversal(void)
     CHECK_NEAR(s.eo.omega_e_rad_s, 4.0 * w_m, 5.0, "pll: speed estimate after the reversal");
 }
 
+/* Paper A's nominal machine, no flux map, no input (u_valid false: the detector sees nothing). */
+static void bare_cfg(rpll_cfg_t *c, rpll_in_t *in)
+{
+    memset(c, 0, sizeof *c);
+    memset(in, 0, sizeof *in);
+    c->ts_s = 50e-6f;
+    c->pole_pairs = 4u;
+    c->l_d_h = 5e-3f;
+    c->l_q_h = 12e-3f;
+    rerr_gamma_linear(&c->gamma, c->l_d_h, c->l_q_h);
+}
+
 /* The excitation: +-excite_a alternating every period, first +; none when excite_a is 0. */
 static void test_excitation_alternates(void)
 {
@@ -150,13 +162,7 @@ static void test_excitation_alternates(void)
     rpll_in_t in;
     rpll_out_t o;
     int k, ok = 1;
-    memset(&c, 0, sizeof c);
-    memset(&in, 0, sizeof in);
-    c.ts_s = 50e-6f;
-    c.pole_pairs = 4u;
-    c.l_d_h = 5e-3f;
-    c.l_q_h = 12e-3f;
-    rerr_gamma_linear(&c.gamma, c.l_d_h, c.l_q_h);
+    bare_cfg(&c, &in);
     c.excite_a = 1.5f;
     rpll_init(&e, &c);
     for (k = 0; k < 6; k++) {
@@ -170,9 +176,33 @@ static void test_excitation_alternates(void)
     CHECK(o.i_d_hf_a == 0.0f, "pll: no excitation with excite_a 0");
 }
 
+/* The speed output: low-passed with tau = RPLL_SPEED_TAU_BW / bw, the observer's acceleration
+ * times tau added, so a steady acceleration leaves no lag (a plain low-pass would lag tau a). */
+static void test_speed_output_has_no_lag_on_a_ramp(void)
+{
+    rpll_cfg_t c;
+    rpll_t e;
+    rpll_in_t in;
+    rpll_out_t o;
+    int k;
+    const float a = 2000.0f; /* rad/s^2, electrical */
+    bare_cfg(&c, &in);
+    c.bw_rad_s = 360.0f;
+    rpll_init(&e, &c);
+    rpll_reset(&e, 0.0f, 100.0f);
+    e.acc = a; /* the observer's acceleration; no detector input (u_valid false): a pure ramp */
+    for (k = 0; k < 4000; k++) {
+        rpll_step(&e, &in, &o);
+    }
+    CHECK_NEAR(e.tau_w_s, RPLL_SPEED_TAU_BW / 360.0f, 1e-7, "pll: speed output's time constant");
+    CHECK_NEAR(o.omega_e_rad_s, e.w, 0.01 * a * e.tau_w_s,
+               "pll: the speed output follows a ramp without the low-pass's lag");
+}
+
 int main(void)
 {
     test_excitation_alternates();
+    test_speed_output_has_no_lag_on_a_ramp();
     test_detector_hand_case();
     test_detector_cross_saturation();
     run_converge(0.0, 0.6, 0.0f, "standstill, no current");
