@@ -192,3 +192,55 @@ def test_angle_error_bounds_judge_the_estimator_closing_the_loop():
     assert checks["largest angle error"].bound == "<= 0.1 rad"
     none = {c.criterion: c for c in evaluate(acc, summary(None))}
     assert not none["angle error RMS"].passed and "not measured" in none["angle error RMS"].measured
+
+
+def test_run_ends_with_the_profiles_acceptance_and_names_what_it_missed(tmp_path, data):
+    """`pmsm-hil run` of a profile with criteria prints how many passed and, for a failed one, the
+    measured value beside the bound (the same checks as `pmsm-hil test`)."""
+    p = with_acceptance(
+        tmp_path,
+        data,
+        'acceptance:\n  run: {faults: forbidden}\n  segments:\n    - {segment: "load on", '
+        "recovery_max_s: 0.001}\n",
+    )
+    r = subprocess.run(
+        [*CLI, "run", str(p), "--no-live", "--out", str(tmp_path / "r.mcap")],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert r.returncode == 0, r.stdout + r.stderr  # criteria judge; they do not fail a run
+    line = next(x for x in r.stdout.splitlines() if x.startswith("acceptance"))
+    assert "2 of 3 checks passed" in line
+    assert "segment 1 'load on' recovery" in line and "(<= 0.001 s)" in line
+
+
+def test_a_missed_plateau_bound_is_named_in_the_verdict():
+    from pmsm_hil.analysis.summary import RunSummary, SegmentStats, verdict_text
+
+    def seg(i, name, mean, band, rec):
+        return SegmentStats(
+            index=i,
+            name=name,
+            t_start_s=0.0,
+            t_end_s=1.0,
+            setpoint_rpm=15.0,
+            load_nm=0.0,
+            load_step_nm=0.0,
+            band_rpm=band,
+            mean_error_rpm=mean,
+            mean_ok=abs(mean) <= band,
+            true_mean_error_rpm=None,
+            recovery_s=rec,
+            recovery_ok=None if rec is None else rec <= 0.3,
+            ripple_d_a=0.1,
+            ripple_q_a=0.1,
+            faults=0,
+        )
+
+    s = RunSummary(path="x", ended="profile end", expected=["a", "b", "c"])
+    s.segments = [seg(0, "a", 0.1, 1.0, None), seg(1, "b", 2.5, 1.0, 0.05), seg(2, "c", 0, 1, 1.5)]
+    v = verdict_text(s)
+    assert "bounds missed" in v and "segment 0" not in v
+    assert "segment 1 'b' mean speed error +2.50 r/min beyond ±1" in v
+    assert "segment 2 'c' recovery 1.50 s > 0.3 s" in v

@@ -8,11 +8,15 @@ from dataclasses import asdict, dataclass
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
+    from os import PathLike
+
     from pmsm_hil.analysis.identification import IdentTable
     from pmsm_hil.analysis.summary import RunSummary
+    from pmsm_hil.log.reader import Log
+    from pmsm_hil.profiles import Profile
     from pmsm_hil.profiles.acceptance import Acceptance
 
-__all__ = ["Check", "checks_failed", "evaluate"]
+__all__ = ["Check", "acceptance_line", "checks_failed", "evaluate", "profile_checks"]
 
 
 @dataclass
@@ -191,6 +195,43 @@ def _angle_checks(run, summary: RunSummary) -> list[Check]:
             )
         )
     return out
+
+
+def profile_checks(
+    profile: Profile, log_path: str | PathLike, summary: RunSummary, log: Log | None = None
+) -> list[Check] | None:
+    """The checks of a profile's acceptance criteria on its run (the identification table over the
+    profile's identification window, as `pmsm-hil test` takes it); None without criteria."""
+    from pathlib import Path
+
+    acc = getattr(profile, "acceptance", None)
+    if acc is None:
+        return None
+    table = None
+    if (
+        acc.run is not None
+        and acc.run.identification
+        and getattr(profile.control, "identify", False)
+    ):
+        from pmsm_hil.analysis.identification import identification_table
+        from pmsm_hil.sweep.metrics import identification_window
+
+        t0, t1 = identification_window(profile)
+        table = identification_table(Path(log_path), t0, t1, log=log)
+    return evaluate(acc, summary, table)
+
+
+def acceptance_line(checks: list[Check], most: int = 3) -> str:
+    """One line for the end of a run: how many of the profile's criteria passed, the failed ones
+    with the measured value beside the bound."""
+    bad = [c for c in checks if not c.passed]
+    head = f"acceptance (the profile's criteria): {len(checks) - len(bad)} of {len(checks)} checks passed"
+    if not bad:
+        return head
+    shown = [f"{c.scope} {c.criterion} {c.measured} ({c.bound})" for c in bad[:most]]
+    if len(bad) > most:
+        shown.append(f"and {len(bad) - most} more (`pmsm-hil test` for the table)")
+    return f"{head}; failed: {'; '.join(shown)}"
 
 
 def checks_failed(checks: list[Check]) -> int:

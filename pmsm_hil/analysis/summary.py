@@ -449,6 +449,25 @@ def print_summary(
     )
 
 
+def missed_text(summary: RunSummary, most: int = 4) -> str:
+    """Which plateau bounds the run missed, by segment: the mean speed error beyond its band, a
+    recovery beyond RECOVERY_LIMIT_S, faults ("" when none)."""
+    out = []
+    for s in summary.segments:
+        what = []
+        if not s.mean_ok:
+            what.append(f"mean speed error {s.mean_error_rpm:+.2f} r/min beyond ±{s.band_rpm:g}")
+        if s.recovery_ok is False and s.recovery_s is not None:
+            what.append(f"recovery {s.recovery_s:.2f} s > {RECOVERY_LIMIT_S:g} s")
+        if what:
+            out.append(f"segment {s.index} {s.name!r} {', '.join(what)}")
+    if summary.faults:
+        out.append(f"{len(summary.faults)} fault(s)")
+    if len(out) > most:
+        out = [*out[:most], f"and {len(out) - most} more"]
+    return "; ".join(out)
+
+
 def verdict_text(summary: RunSummary, interrupted: bool = False) -> str:
     """One line: whether every plateau the run was to play was seen and within its bounds."""
     names = summary.expected
@@ -465,7 +484,11 @@ def verdict_text(summary: RunSummary, interrupted: bool = False) -> str:
         return f"segments {', '.join(runs)} ({len(idx)} of {len(names)})"
 
     if summary.complete:
-        return "[green]all plateaus within bounds[/]" if summary.ok else "[red]bounds missed[/]"
+        if summary.ok:
+            return "[green]all plateaus within bounds[/]"
+        return "[red]bounds missed[/]" + (
+            f": {missed_text(summary)}" if missed_text(summary) else ""
+        )
     parts = []
     if interrupted:
         parts.append("run interrupted")

@@ -266,10 +266,10 @@ def main(args: argparse.Namespace) -> int:
         link.close()
         for s in sinks:
             s.close()
-    return _finish(result, print_summary, summarize_log)
+    return _finish(result, print_summary, summarize_log, profile)
 
 
-def _finish(result, print_summary, summarize_log) -> int:
+def _finish(result, print_summary, summarize_log, profile=None) -> int:
     try:
         print(f"log: {result.log_path}")
         from pmsm_hil.analysis.reading import read_for_analysis
@@ -281,6 +281,12 @@ def _finish(result, print_summary, summarize_log) -> int:
         ident = identification(result.log_path, log)
         if ident is not None:
             print_identification(ident)
+        if profile is not None and summary.complete:
+            from pmsm_hil.analysis.acceptance import acceptance_line, profile_checks
+
+            checks = profile_checks(profile, result.log_path, summary, log)
+            if checks:
+                print(acceptance_line(checks))
     except (
         BrokenPipeError
     ):  # `| head`: the reader left; the exit code still tells how the run ended

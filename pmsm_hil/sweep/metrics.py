@@ -92,20 +92,15 @@ def run_metrics(log_path: str | Path, profile: Profile, metrics: list[str]) -> d
     log = read_for_analysis(log_path)
     summary = summarize_log(Path(log_path), log)
     out = summary_metrics(summary, metrics)
-    acc = getattr(profile, "acceptance", None)
-    wants_ident = acc is not None and acc.run is not None and acc.run.identification
-    table = None
-    if ("identification" in metrics or wants_ident) and getattr(profile.control, "identify", False):
+    if "identification" in metrics and getattr(profile.control, "identify", False):
         from pmsm_hil.analysis.identification import identification_table
 
         t0, t1 = identification_window(profile)
-        table = identification_table(Path(log_path), t0, t1, log=log)
-        if "identification" in metrics:
-            out.update(ident_metrics(table))
-    if acc is not None:
-        from pmsm_hil.analysis.acceptance import checks_failed, evaluate
+        out.update(ident_metrics(identification_table(Path(log_path), t0, t1, log=log)))
+    from pmsm_hil.analysis.acceptance import checks_failed, profile_checks
 
-        checks = evaluate(acc, summary, table)
+    checks = profile_checks(profile, log_path, summary, log)
+    if checks is not None:
         out["acceptance_failed"] = checks_failed(checks)
         out["acceptance_checks"] = json.dumps([c.as_dict() for c in checks])
     return out
