@@ -259,6 +259,25 @@ def test_dead_time_gives_the_sixth_harmonic_and_follows_the_current_sign(ideal, 
     assert np.all(tru(ideal[2])["v_dist_a_v"] == 0.0)
 
 
+def test_a_flux_map_runs_the_plant_at_more_substeps():
+    """One RK4 step per period is exact on the linear machine but misses a flux map's voltage
+    equation by tenths of a volt under FCS (firmware/tests/test_plant_effects.c,
+    test_map_substeps): the emulator integrates map rigs at MAP_SUBSTEPS, others at one."""
+    from pmsm_hil.emulator.settings import MAP_SUBSTEPS
+
+    assert MAP_SUBSTEPS >= 4
+    for rig, want in (
+        ("lab-typical", MAP_SUBSTEPS),
+        ("effect-saturation", MAP_SUBSTEPS),
+        ("default", 1),
+        ("effect-dead-time", 1),
+    ):
+        prof = load_profile(str(STEADY), rig_override=str(RIGS / f"{rig}.yaml"))
+        s = emulator_settings(prof.motor, prof.rig)
+        assert s["substeps"] == want, rig
+        EmulatedDevice(s)  # the sim board takes it
+
+
 def test_saturation_lowers_the_incremental_lq_as_in_the_map(tmp_path):
     rig = load_rig(RIGS / "effect-saturation.yaml")
     fm = load_flux_map(rig.map_path())
