@@ -254,6 +254,51 @@ void plant_set_currents(plant_t *p, double i_d_a, double i_q_a)
 /* below this current the secant inductance is its limit, the incremental one */
 #define PL_SECANT_MIN_A 0.05
 
+/* The apparent L_d on a flux map, as steady-state equations identify it (docs/identification.md,
+ * "The truth the estimators are scored against"): they fit psi_d = psi_f,app + L_d,app i_d to
+ * window means, so the truth is the least-squares line through 1 ms means of (i_d, psi_d) over
+ * about the last 0.1 s (an excitation's levels, the ripple averaged as a window averages it).
+ * psi_d is the map's (plus the thermal shift): flux harmonics are no inductance. */
+#define PL_APP_BLOCK_S  1e-3
+#define PL_APP_MEMORY   100.0 /* blocks */
+#define PL_APP_MIN_SD_A 0.25  /* spread of the block means below which the line is undefined */
+
+void pl_apparent_ld_step(plant_t *p)
+{
+    double psi_d, psi_q, l[4];
+    const int n_blk = (int)(PL_APP_BLOCK_S * p->inv_ts + 0.5);
+    map_eval(p->cfg.map, p->i_d_a, p->i_q_a, &psi_d, &psi_q, l);
+    p->app_blk_i += p->i_d_a;
+    p->app_blk_psi += psi_d + p->psi_shift_wb;
+    if (++p->app_n >= (n_blk > 1 ? n_blk : 1)) {
+        const double k = 1.0 - 1.0 / PL_APP_MEMORY;
+        const double i = p->app_blk_i / (double)p->app_n, psi = p->app_blk_psi / (double)p->app_n;
+        p->app_s0 = k * p->app_s0 + 1.0;
+        p->app_si = k * p->app_si + i;
+        p->app_sp = k * p->app_sp + psi;
+        p->app_sii = k * p->app_sii + i * i;
+        p->app_sip = k * p->app_sip + i * psi;
+        p->app_n = 0;
+        p->app_blk_i = 0.0;
+        p->app_blk_psi = 0.0;
+    }
+}
+
+/* the slope of that line, or 0 when the block means do not spread enough to define it */
+static double apparent_ld(const plant_t *p)
+{
+    double mi, var;
+    if (!(p->app_s0 > 0.0)) {
+        return 0.0;
+    }
+    mi = p->app_si / p->app_s0;
+    var = p->app_sii / p->app_s0 - mi * mi;
+    if (!(var >= PL_APP_MIN_SD_A * PL_APP_MIN_SD_A)) {
+        return 0.0;
+    }
+    return (p->app_sip / p->app_s0 - mi * p->app_sp / p->app_s0) / var;
+}
+
 void plant_truth(const plant_t *p, plant_truth_t *t)
 {
     plant_mag_t m;
@@ -285,6 +330,9 @@ void plant_truth(const plant_t *p, plant_truth_t *t)
         mag_eval(p, p->mag_general ? 1 : 0, p->i_d_a, p->i_q_a, p->cos_e, p->sin_e, &m1);
         mag_eval(p, p->mag_general ? 1 : 0, 0.0, p->i_q_a, p->cos_e, p->sin_e, &m0);
         t->l_d_secant_h = (m1.psi_d_wb - m0.psi_d_wb) / p->i_d_a;
+    }
+    if (p->cfg.map != NULL && apparent_ld(p) > 0.0) {
+        t->l_d_secant_h = apparent_ld(p);
     }
     pl_losses(p, &t->p_cu_w, &t->p_fe_w);
     t->i_dc_a = p->i_dc_a;

@@ -162,6 +162,11 @@ typedef struct {
     double v_src_v;                          /* DC link: no-load DC voltage (cfg v_dc_v) */
     double i_dc_a;      /* DC link: inverter input current of the last period */
     double v_dist_v[3]; /* inverter distortion voltage of each leg in the last period (truth) */
+    /* apparent L_d with a flux map (plant_truth): 1 ms means of i_d and psi_d, and exponentially
+     * weighted sums of the least-squares line psi_d = psi_f,app + L_d,app i_d through them */
+    int app_n;
+    double app_blk_i, app_blk_psi;
+    double app_s0, app_si, app_sp, app_sii, app_sip;
 } plant_t;
 
 typedef struct {

@@ -50,6 +50,9 @@ void pl_finish_period(plant_t *p, const ctx_t *k, const xs_t *x, double th_tot, 
     if (p->delay_n >= 0) {
         hist_push(p);
     }
+    if (p->cfg.map != NULL) {
+        pl_apparent_ld_step(p);
+    }
 }
 
 void pl_ctx_start(const plant_t *p, ctx_t *k, xs_t *x, double t_load)

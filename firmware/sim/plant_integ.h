@@ -207,6 +207,7 @@ void pl_hist_fill(plant_t *p);
 void pl_losses(const plant_t *p, double *p_cu, double *p_fe);
 void pl_thermal_params(plant_t *p);
 void pl_thermal_step(plant_t *p);
+void pl_apparent_ld_step(plant_t *p); /* plant.c: one period of the apparent-L_d fit */
 void pl_dc_link_step(plant_t *p, const double d[3], bool pwm_on, const double i0[3]);
 
 /* plant_inverter.c */

@@ -280,6 +280,60 @@ static void test_map_substeps(void)
     CHECK(fabs(r4 - r64) < 0.02, "4 substeps (map rigs): within 20 mV of 64 on average");
 }
 
+/* The truth's apparent L_d on a map: the least-squares line through 1 ms means of (i_d, psi_d),
+ * i.e. between two excitation levels their chord (what a steady-state fit of psi_d = psi_f,app +
+ * L_d,app i_d to window means gives), not the mean of the secants from i_d = 0; without an
+ * excitation the secant from i_d = 0. Currents held exactly (R = 0, rotor at rest, u = 0). */
+static void test_apparent_ld(void)
+{
+    static double pd[33 * 33], pq[33 * 33];
+    static plant_map_t xm;
+    static plant_t p;
+    plant_cfg_t cfg;
+    plant_truth_t t;
+    double chord, sec_mean, pd_hi, pd_lo, pd_0, l[4], q;
+    int j, k, n;
+    for (k = 0; k < 33; k++) {
+        for (j = 0; j < 33; j++) {
+            pd[k * 33 + j] = xm_psi_d(-16.0 + j, -16.0 + k);
+            pq[k * 33 + j] = xm_psi_q(-16.0 + j, -16.0 + k);
+        }
+    }
+    CHECK(plant_map_build(&xm, 33, 33, -16.0, 1.0, -16.0, 1.0, pd, pq) == NULL, "xm map builds");
+    plant_cfg_default(&cfg);
+    cfg.map = &xm;
+    cfg.r_s_ohm = 0.0;
+    plant_init(&p, &cfg);
+    plant_set_mech(&p, 0.0, 0.0, true);
+    for (n = 0; n < 24000; n++) { /* 1.2 s, +1 A / -3 A at 15 Hz, i_q 5 A */
+        if (n % 667 == 0) {
+            plant_set_currents(&p, (n / 667) % 2 ? -3.0 : 1.0, 5.0);
+        }
+        plant_step_udq(&p, 0.0, 0.0, 0.0);
+    }
+    plant_truth(&p, &t);
+    plant_map_eval(&xm, 1.0, 5.0, &pd_hi, &q, l);
+    plant_map_eval(&xm, -3.0, 5.0, &pd_lo, &q, l);
+    plant_map_eval(&xm, 0.0, 5.0, &pd_0, &q, l);
+    chord = (pd_hi - pd_lo) / 4.0;
+    sec_mean = 0.5 * ((pd_hi - pd_0) / 1.0 + (pd_0 - pd_lo) / 3.0);
+    printf("  apparent L_d between +1 and -3 A: truth %.4f mH, chord %.4f mH, mean of the "
+           "secants %.4f mH\n",
+           1e3 * t.l_d_secant_h, 1e3 * chord, 1e3 * sec_mean);
+    CHECK(fabs(t.l_d_secant_h - chord) < 1e-4 * chord, "apparent L_d: the chord of the levels");
+    CHECK(fabs(sec_mean - chord) > 0.01 * chord, "(the secants' mean is another number here)");
+    /* no excitation: the secant from i_d = 0 */
+    plant_init(&p, &cfg);
+    plant_set_mech(&p, 0.0, 0.0, true);
+    plant_set_currents(&p, -3.0, 5.0);
+    for (n = 0; n < 4000; n++) {
+        plant_step_udq(&p, 0.0, 0.0, 0.0);
+    }
+    plant_truth(&p, &t);
+    CHECK(fabs(t.l_d_secant_h - (pd_0 - pd_lo) / 3.0) < 1e-9,
+          "no i_d excitation: the secant from i_d = 0");
+}
+
 static void test_thermal_and_off(void)
 {
     plant_cfg_t cfg, off;
@@ -326,6 +380,7 @@ int main(void)
     test_delay();
     test_saturation();
     test_map_substeps();
+    test_apparent_ld();
     test_thermal_and_off();
     return CHECK_DONE();
 }

@@ -306,8 +306,10 @@ TOPICS: dict[str, TopicDef] = {
                 _f(
                     "l_d_secant_h",
                     "H",
-                    "apparent (secant) d-axis inductance at the operating point, "
-                    "(psi_d - psi_d(0, i_q)) / i_d: what steady-state equations identify",
+                    "apparent d-axis inductance at the operating point, what steady-state "
+                    "equations identify: on a flux map the slope of the least-squares line "
+                    "through 1 ms means of (i_d, psi_d) over about 0.1 s when i_d is excited, "
+                    "else (psi_d - psi_d(0, i_q)) / i_d",
                 ),
                 _f("l_q_secant_h", "H", "apparent (secant) q-axis inductance, psi_q / i_q"),
             ),
