@@ -52,16 +52,23 @@ void pol_step(pol_t *p, const pol_in_t *in, pol_out_t *out)
     }
     out->active = true;
     if (t == t_pos && !(in->conf >= p->cfg.conf_min)) {
-        p->result = POL_NO_LOCK;
-        out->result = p->result;
-        out->active = false;
-        return;
+        if (p->n_extra >= POL_SETTLE_EXTEND * p->n_settle) {
+            p->result = POL_NO_LOCK;
+            out->result = p->result;
+            out->active = false;
+            return;
+        }
+        p->n_extra++; /* not yet confident: settle on (the tick stays at the pulses' start) */
     }
-    if (t < t_pos) {
+    if (t < t_pos || (t == t_pos && !(in->conf >= p->cfg.conf_min))) {
         /* settling: a d-axis square wave (1 kHz at 20 kHz, a third of the pulse) so that the
          * MPCC's vectors carry the saliency while the PLL locks; no torque on the d axis */
-        out->i_d_ref_a = ((t / 10u) & 1u) != 0u ? -POL_SETTLE_EXCITE * p->cfg.i_pulse_a
-                                                : POL_SETTLE_EXCITE * p->cfg.i_pulse_a;
+        const uint32_t ts_ = t + p->n_extra;
+        out->i_d_ref_a = ((ts_ / 10u) & 1u) != 0u ? -POL_SETTLE_EXCITE * p->cfg.i_pulse_a
+                                                  : POL_SETTLE_EXCITE * p->cfg.i_pulse_a;
+        if (t == t_pos) {
+            return;
+        }
     }
     if (t >= t_pos && t < t_rel) {
         const int side = t < t_neg ? 0 : 1;

@@ -22,6 +22,10 @@
 #define POL_NO_LOCK    4u /* the PLL did not lock before the pulses */
 
 #define POL_SETTLE_EXCITE 0.33f /* d-axis square wave while settling, fraction of the pulse */
+/* A PLL not yet confident at the end of the settling gets up to this many settling times more
+ * before the test gives up (POL_NO_LOCK): a start near the detector's saddle (a quarter turn off)
+ * may wander for tens of ms before it locks, and the confidence is a 10 ms running mean. */
+#define POL_SETTLE_EXTEND 2u
 
 typedef struct {
     float ts_s;
@@ -52,6 +56,7 @@ typedef struct {
     pol_cfg_t cfg;
     uint32_t tick;
     uint32_t n_settle, n_pulse, n_release;
+    uint32_t n_extra; /* settling periods added while the PLL was not yet confident */
     float sum_num[2], sum_den[2];
     uint16_t result, pending;
     float asym;
