@@ -50,8 +50,7 @@ class HilRun:
 
     def identification(self, t0_s: float | None = None, t1_s: float | None = None) -> IdentTable:
         """The identification table (default window: up to the first plant step)."""
-        from pmsm_hil.analysis.identification import identification_table
-        from pmsm_hil.sweep.metrics import identification_window
+        from pmsm_hil.analysis.identification import identification_table, identification_window
 
         w0, w1 = identification_window(self.profile)
         return identification_table(

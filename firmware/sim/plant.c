@@ -331,8 +331,11 @@ void plant_truth(const plant_t *p, plant_truth_t *t)
         mag_eval(p, p->mag_general ? 1 : 0, 0.0, p->i_q_a, p->cos_e, p->sin_e, &m0);
         t->l_d_secant_h = (m1.psi_d_wb - m0.psi_d_wb) / p->i_d_a;
     }
-    if (p->cfg.map != NULL && apparent_ld(p) > 0.0) {
-        t->l_d_secant_h = apparent_ld(p);
+    if (p->cfg.map != NULL) {
+        const double l_app = apparent_ld(p);
+        if (l_app > 0.0) {
+            t->l_d_secant_h = l_app;
+        }
     }
     pl_losses(p, &t->p_cu_w, &t->p_fe_w);
     t->i_dc_a = p->i_dc_a;

@@ -198,23 +198,27 @@ def _angle_checks(run, summary: RunSummary) -> list[Check]:
 
 
 def profile_checks(
-    profile: Profile, log_path: str | PathLike, summary: RunSummary, log: Log | None = None
+    profile: Profile,
+    log_path: str | PathLike,
+    summary: RunSummary,
+    log: Log | None = None,
+    table: IdentTable | None = None,
 ) -> list[Check] | None:
     """The checks of a profile's acceptance criteria on its run (the identification table over the
-    profile's identification window, as `pmsm-hil test` takes it); None without criteria."""
+    profile's identification window, as `pmsm-hil test` takes it; ``table``: that table when the
+    caller has made it already); None without criteria."""
     from pathlib import Path
 
     acc = getattr(profile, "acceptance", None)
     if acc is None:
         return None
-    table = None
     if (
-        acc.run is not None
+        table is None
+        and acc.run is not None
         and acc.run.identification
         and getattr(profile.control, "identify", False)
     ):
-        from pmsm_hil.analysis.identification import identification_table
-        from pmsm_hil.sweep.metrics import identification_window
+        from pmsm_hil.analysis.identification import identification_table, identification_window
 
         t0, t1 = identification_window(profile)
         table = identification_table(Path(log_path), t0, t1, log=log)

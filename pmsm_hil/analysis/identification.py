@@ -13,10 +13,14 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from pmsm_hil.log.reader import Log, read_log
+
+if TYPE_CHECKING:
+    from pmsm_hil.profiles import Profile
 
 PARAMS = ("l_d_h", "l_q_h", "psi_f_wb", "r_s_ohm")
 ESTIMATORS = ("rls", "adaline", "nlms_adaline")
@@ -140,6 +144,12 @@ def convergence_time(
     bad = np.nonzero(~ok)[0]
     k = 0 if len(bad) == 0 else bad[-1] + 1
     return max(0.0, float(t[k]) - t_first)
+
+
+def identification_window(profile: Profile) -> tuple[float, float]:
+    """From 0 to the start of the first segment that steps the plant (the drift test), else the end."""
+    steps = [s for s in profile.segments if getattr(s, "plant", None) is not None]
+    return 0.0, (steps[0].t_start_s if steps else profile.total_duration_s)
 
 
 # what the table reads of a log (read_log(path, topics=...))

@@ -22,15 +22,11 @@ if TYPE_CHECKING:
     from pmsm_hil.analysis.summary import RunSummary
     from pmsm_hil.profiles import Profile
 
+from pmsm_hil.analysis.identification import identification_window
+
 __all__ = ["identification_window", "run_metrics"]
 
 NAN = float("nan")
-
-
-def identification_window(profile: Profile) -> tuple[float, float]:
-    """From 0 to the start of the first segment that steps the plant (the drift test), else the end."""
-    steps = [s for s in profile.segments if getattr(s, "plant", None) is not None]
-    return 0.0, (steps[0].t_start_s if steps else profile.total_duration_s)
 
 
 def _num(x: Any) -> float:
@@ -92,14 +88,16 @@ def run_metrics(log_path: str | Path, profile: Profile, metrics: list[str]) -> d
     log = read_for_analysis(log_path)
     summary = summarize_log(Path(log_path), log)
     out = summary_metrics(summary, metrics)
+    table = None
     if "identification" in metrics and getattr(profile.control, "identify", False):
         from pmsm_hil.analysis.identification import identification_table
 
         t0, t1 = identification_window(profile)
-        out.update(ident_metrics(identification_table(Path(log_path), t0, t1, log=log)))
+        table = identification_table(Path(log_path), t0, t1, log=log)
+        out.update(ident_metrics(table))
     from pmsm_hil.analysis.acceptance import checks_failed, profile_checks
 
-    checks = profile_checks(profile, log_path, summary, log)
+    checks = profile_checks(profile, log_path, summary, log, table=table)
     if checks is not None:
         out["acceptance_failed"] = checks_failed(checks)
         out["acceptance_checks"] = json.dumps([c.as_dict() for c in checks])
