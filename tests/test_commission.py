@@ -229,3 +229,29 @@ def test_identification_after_commissioning_holds_on_the_default_rig(tmp_path, s
         assert abs(err) <= 0.01, (q, err)
         if q != "r_s_ohm":
             assert conv is not None and conv <= 0.5, (q, conv)
+    for q in ("r_s_ohm", "psi_f_wb"):  # the drift step (R +30 %, psi_f -5 %) tracked within 0.5 s
+        assert r["drift_s"][q] is not None and r["drift_s"][q] <= 0.5, (q, r["drift_s"][q])
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_identification_after_commissioning_on_lab_typical(tmp_path, seed):
+    """NLMS-Adaline with the commissioned motor file on lab-typical (saturation and
+    cross-saturation, the inverter's distortion, iron loss, sensor errors...), against the apparent
+    inductances (docs/identification.md). Issue 12's bounds where they are met: L_q 1 %, psi_f
+    1 %, R 2 %, L_q and psi_f converged within 0.5 s, psi_f's drift tracked within 0.5 s. Short of
+    the issue and guarded here at what is reached: L_d 2 % (1 % asked) and R's drift 1 s (0.5 s
+    asked: the drift's psi_f step moves i_q by 5 %, and with it the slope's offset)."""
+    from pmsm_hil.bench.identify_rigs import _one
+
+    r = _one(
+        resolve("paper-a-identify", "profile"), resolve("lab-typical", "rig"), seed, tmp_path, True
+    )
+    cells = r["cells"]
+    bounds = {"l_d_h": 0.02, "l_q_h": 0.01, "psi_f_wb": 0.01, "r_s_ohm": 0.02}
+    for q, bound in bounds.items():
+        err, conv = cells[("nlms_adaline", q)]
+        assert abs(err) <= bound, (q, err)
+        if q in ("l_q_h", "psi_f_wb"):
+            assert conv is not None and conv <= 0.5, (q, conv)
+    assert r["drift_s"]["psi_f_wb"] is not None and r["drift_s"]["psi_f_wb"] <= 0.5
+    assert r["drift_s"]["r_s_ohm"] is not None and r["drift_s"]["r_s_ohm"] <= 1.0

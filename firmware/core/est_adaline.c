@@ -23,6 +23,7 @@ void est_adaline_step(est_adaline_t *e, const id_sample_t *s, est_out_t *out)
         const float x_r = s->i_d_a, x_lq = -s->w_i_q_a_rad_s;
         const float x_ld = s->w_i_d_a_rad_s, x_psi = s->omega_e_rad_s;
         float e_d, e_q;
+        est_core_track_inc(c, s);
         est_core_targets(c, s, &y_d, &y_q);
         e_d = y_d - (c->w[EST_R] * x_r + c->w[EST_LQ] * x_lq);
         if (x.lq) {

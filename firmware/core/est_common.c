@@ -4,6 +4,33 @@
 
 #define EST_SLOW_ALPHA 0.03125f /* slow average over about 32 windows */
 
+/* Incremental inductances of the L di/dt terms: RLS on the window residuals along di/dt, which
+ * the FCS ripple excites in every window (hundreds of A/s) and which is uncorrelated with the
+ * slow regressors; on a saturating machine they differ between the excitation's levels, hence the
+ * terms in x di/dt (x: the window's i_d about its running mean). Both equations share the
+ * regressor and so one covariance. Forgetting factor (memory about 200 windows), initial
+ * covariance (A/s)^-2 (the gain is full at 100 A/s of ripple), bounds x the motor file's
+ * inductances. */
+#define EST_INC_LAMBDA 0.995f
+#define EST_INC_P0     1.0e-4f
+#define EST_INC_LO     0.2f
+#define EST_INC_HI     3.0f
+#define EST_INC_X_HI   0.5f /* cross terms, x the nominal L_q; slopes in x, the same per ampere */
+
+/* The online R's calibration at an operating point: EST_R_CAL_N windows with R held (about
+ * 8 time constants of the R step mu_r 0.04: the slope settles with the other estimates), r_off
+ * the slope's mean over its last EST_R_CAL_AVG windows less R (and the slope set to that mean).
+ * A new calibration when the speed stays away by more than EST_R_OP_W or i_q by more than
+ * EST_R_OP_IQ (relative, at least EST_R_OP_IQ_MIN_A) for EST_R_OP_AWAY_N windows: a new
+ * operating point, not the transient of a parameter step (a drift of R and psi_f moves i_q for a
+ * while, and a calibration then would take the change of R for the operating point's). */
+#define EST_R_CAL_N       200u
+#define EST_R_CAL_AVG     80u
+#define EST_R_OP_W        0.1f
+#define EST_R_OP_IQ       0.2f
+#define EST_R_OP_IQ_MIN_A 1.0f
+#define EST_R_OP_AWAY_N   64u /* ... for this many windows in a row (not a transient) */
+
 void est_cfg_default(est_cfg_t *c, float r_s_ohm, float l_d_h, float l_q_h, float psi_f_wb,
                      uint16_t pole_pairs)
 {
@@ -30,6 +57,21 @@ void est_cfg_default(est_cfg_t *c, float r_s_ohm, float l_d_h, float l_q_h, floa
     c->conv_min_updates = 50u;
 }
 
+static void inc_reset(est_core_t *e)
+{
+    uint16_t i, j;
+    const float p0 = EST_INC_P0;
+    for (i = 0u; i < EST_INC_N; i++) {
+        e->l_d[i] = 0.0f;
+        e->l_q[i] = 0.0f;
+        for (j = 0u; j < EST_INC_N; j++) {
+            e->p_inc[i][j] = i == j ? p0 : 0.0f;
+        }
+    }
+    e->l_d[0] = e->cfg.nominal[EST_LD];
+    e->l_q[1] = e->cfg.nominal[EST_LQ];
+}
+
 void est_core_init(est_core_t *e, const est_cfg_t *cfg)
 {
     uint16_t i;
@@ -40,6 +82,17 @@ void est_core_init(est_core_t *e, const est_cfg_t *cfg)
     }
     e->w[EST_R] = cfg->nominal[EST_R];
     e->r_ref = cfg->nominal[EST_R];
+    inc_reset(e);
+    e->r_off = 0.0f;
+    e->r_hold = cfg->nominal[EST_R];
+    e->r_off_sum = 0.0f;
+    e->op_w_rad_s = 0.0f;
+    e->op_i_q_a = 0.0f;
+    e->w_f_rad_s = 0.0f;
+    e->i_q_f_a = 0.0f;
+    e->r_cal_n = 0u;
+    e->op_away_n = 0u;
+    e->r_state = EST_R_IDLE;
     e->slow[EST_R] = e->w[EST_R];
     e->updates = 0u;
     e->i_d_mean = 0.0f;
@@ -56,6 +109,8 @@ void est_core_set_r(est_core_t *e, float r_s_ohm)
         e->w[EST_R] = r_s_ohm;
         e->slow[EST_R] = r_s_ohm;
         e->r_ref = r_s_ohm;
+        e->r_off = 0.0f;
+        e->r_state = EST_R_IDLE;
     }
 }
 
@@ -67,12 +122,159 @@ void est_core_excitation(const est_core_t *e, const id_sample_t *s, est_excite_t
     x->ld = x->any && fabsf(s->i_d_a) >= c->i_d_min_a;
     x->lq = x->any && fabsf(s->i_q_a) >= c->i_q_min_a;
     x->r = x->ld && e->ever_converged && c->mu_r > 0.0f;
+    x->omega_e_rad_s = s->omega_e_rad_s;
+    x->i_q_a = s->i_q_a;
+}
+
+float est_core_r(const est_core_t *e)
+{
+    const float r = e->w[EST_R] - e->r_off;
+    const float lo = 0.5f * e->r_ref, hi = 2.0f * e->r_ref;
+    if (!(r >= lo)) { /* also catches NaN */
+        return lo;
+    }
+    return r > hi ? hi : r;
+}
+
+/* The regressor of the L di/dt terms */
+static void inc_phi(const est_core_t *e, const id_sample_t *s, float phi[EST_INC_N])
+{
+    const float x = e->i_d_mean_set ? s->i_d_a - e->i_d_mean : 0.0f;
+    phi[0] = s->di_d_a_s;
+    phi[1] = s->di_q_a_s;
+    phi[2] = x * s->di_d_a_s;
+    phi[3] = x * s->di_q_a_s;
+}
+
+static float dot4(const float a[EST_INC_N], const float b[EST_INC_N])
+{
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3];
 }
 
 void est_core_targets(const est_core_t *e, const id_sample_t *s, float *y_d, float *y_q)
 {
-    *y_d = s->u_d_v - e->w[EST_LD] * s->di_d_a_s;
-    *y_q = s->u_q_v - e->w[EST_LQ] * s->di_q_a_s - e->w[EST_R] * s->i_q_a;
+    float phi[EST_INC_N];
+    inc_phi(e, s, phi);
+    *y_d = s->u_d_v - dot4(e->l_d, phi) + e->r_off * e->i_d_mean;
+    *y_q = s->u_q_v - dot4(e->l_q, phi) - est_core_r(e) * s->i_q_a;
+}
+
+static float clampf(float v, float lo, float hi)
+{
+    if (!(v >= lo)) { /* also catches NaN */
+        return lo;
+    }
+    return v > hi ? hi : v;
+}
+
+void est_core_track_inc(est_core_t *e, const id_sample_t *s)
+{
+    float y_d, y_q, e_d, e_q, phi[EST_INC_N], pp[EST_INC_N], den;
+    uint16_t i, j;
+    bool wound = false;
+    const float l_d = e->cfg.nominal[EST_LD], l_q = e->cfg.nominal[EST_LQ];
+    const float p_max = EST_INC_P0;
+    if (!e->ever_converged) { /* until then the errors are the parameters' own (tens of volts) */
+        return;
+    }
+    est_core_targets(e, s, &y_d, &y_q);
+    e_d = y_d - (e->w[EST_R] * s->i_d_a - e->w[EST_LQ] * s->w_i_q_a_rad_s);
+    e_q = y_q - (e->w[EST_LD] * s->w_i_d_a_rad_s + e->w[EST_PSI] * s->omega_e_rad_s);
+    inc_phi(e, s, phi);
+    for (i = 0u; i < EST_INC_N; i++) {
+        pp[i] = dot4(e->p_inc[i], phi);
+    }
+    den = EST_INC_LAMBDA + dot4(phi, pp);
+    if (!(den > 0.0f)) {
+        return;
+    }
+    for (i = 0u; i < EST_INC_N; i++) {
+        const float k = pp[i] / den;
+        e->l_d[i] += k * e_d;
+        e->l_q[i] += k * e_q;
+    }
+    for (i = 0u; i < EST_INC_N; i++) {
+        for (j = i; j < EST_INC_N; j++) {
+            const float v = (e->p_inc[i][j] - pp[i] * pp[j] / den) / EST_INC_LAMBDA;
+            e->p_inc[i][j] = v;
+            e->p_inc[j][i] = v;
+        }
+        if (!(e->p_inc[i][i] <= p_max)) { /* wind-up without ripple, or NaN */
+            wound = true;
+        }
+    }
+    if (wound) { /* a fresh covariance, the estimates kept */
+        const float p0 = EST_INC_P0;
+        for (i = 0u; i < EST_INC_N; i++) {
+            for (j = 0u; j < EST_INC_N; j++) {
+                e->p_inc[i][j] = i == j ? p0 : 0.0f;
+            }
+        }
+    }
+    e->l_d[0] = clampf(e->l_d[0], EST_INC_LO * l_d, EST_INC_HI * l_d);
+    e->l_q[1] = clampf(e->l_q[1], EST_INC_LO * l_q, EST_INC_HI * l_q);
+    e->l_d[1] = clampf(e->l_d[1], -EST_INC_X_HI * l_q, EST_INC_X_HI * l_q);
+    e->l_q[0] = clampf(e->l_q[0], -EST_INC_X_HI * l_q, EST_INC_X_HI * l_q);
+    for (i = 2u; i < EST_INC_N; i++) {
+        e->l_d[i] = clampf(e->l_d[i], -EST_INC_X_HI * l_q, EST_INC_X_HI * l_q);
+        e->l_q[i] = clampf(e->l_q[i], -EST_INC_X_HI * l_q, EST_INC_X_HI * l_q);
+    }
+}
+
+/* The operating point over about 32 windows (the i_d excitation moves i_q through MTPA's
+ * reluctance torque by up to +-1 A within a period) has left the calibration's. */
+static bool op_moved(const est_core_t *e)
+{
+    const float dw = fabsf(e->w_f_rad_s - e->op_w_rad_s);
+    const float iq_tol = fmaxf(EST_R_OP_IQ * fabsf(e->op_i_q_a), EST_R_OP_IQ_MIN_A);
+    return dw > EST_R_OP_W * fabsf(e->op_w_rad_s) || fabsf(e->i_q_f_a - e->op_i_q_a) > iq_tol;
+}
+
+/* The online R's state (est_common.h): calibrate r_off at a new operating point with R held,
+ * then let R follow the slope. */
+static void r_offset(est_core_t *e, const est_excite_t *x)
+{
+    if (!x->any) {
+        return;
+    }
+    if (e->r_state == EST_R_IDLE) { /* start the filters at this window */
+        e->w_f_rad_s = x->omega_e_rad_s;
+        e->i_q_f_a = x->i_q_a;
+    }
+    e->w_f_rad_s += EST_SLOW_ALPHA * (x->omega_e_rad_s - e->w_f_rad_s);
+    e->i_q_f_a += EST_SLOW_ALPHA * (x->i_q_a - e->i_q_f_a);
+    if (!x->r) {
+        return;
+    }
+    if (e->r_state == EST_R_TRACK && op_moved(e)) {
+        if (e->op_away_n < EST_R_OP_AWAY_N) {
+            e->op_away_n++;
+        }
+    } else {
+        e->op_away_n = 0u;
+    }
+    if (e->r_state == EST_R_IDLE || e->op_away_n >= EST_R_OP_AWAY_N) {
+        e->op_away_n = 0u;
+        e->r_hold = est_core_r(e);
+        e->op_w_rad_s = e->w_f_rad_s;
+        e->op_i_q_a = e->i_q_f_a;
+        e->r_cal_n = 0u;
+        e->r_off_sum = 0.0f;
+        e->r_state = EST_R_CAL;
+        e->r_cal_new = true;
+    }
+    if (e->r_state == EST_R_CAL) {
+        e->r_off = e->w[EST_R] - e->r_hold;
+        e->r_cal_n++;
+        if (e->r_cal_n > EST_R_CAL_N - EST_R_CAL_AVG) {
+            e->r_off_sum += e->r_off;
+        }
+        if (e->r_cal_n >= EST_R_CAL_N) {
+            e->r_off = e->r_off_sum / (float)EST_R_CAL_AVG;
+            e->w[EST_R] = e->r_hold + e->r_off; /* the slope at its mean: R = r_hold */
+            e->r_state = EST_R_TRACK;
+        }
+    }
 }
 
 void est_core_finish(est_core_t *e, const est_excite_t *x)
@@ -80,17 +282,18 @@ void est_core_finish(est_core_t *e, const est_excite_t *x)
     uint16_t i;
     bool settled = true;
     for (i = 0u; i < EST_N; i++) {
-        /* the online R stays within [1/2, 2] x the standstill injection's (a winding from 25 to
-         * 280 degC changes R by 2x): it comes from the d equation at speed, where an error of the
-         * firmware's dead-time model correlates with the i_d excitation */
-        const float lo = i == EST_R ? 0.5f * e->r_ref : e->cfg.bound_lo * e->cfg.nominal[i];
-        const float hi = i == EST_R ? 2.0f * e->r_ref : e->cfg.bound_hi * e->cfg.nominal[i];
+        /* the d equation's slope (w[EST_R]) stays within [0, 3] x the standstill injection's R;
+         * the R reported, within [1/2, 2] x (est_core_r: a winding from 25 to 280 degC changes R
+         * by 2x) */
+        const float lo = i == EST_R ? 0.0f : e->cfg.bound_lo * e->cfg.nominal[i];
+        const float hi = i == EST_R ? 3.0f * e->r_ref : e->cfg.bound_hi * e->cfg.nominal[i];
         if (!(e->w[i] >= lo)) { /* also catches NaN */
             e->w[i] = lo;
         } else if (e->w[i] > hi) {
             e->w[i] = hi;
         }
     }
+    r_offset(e, x);
     e->excited = x->ld && x->lq && x->psi;
     if (!x->any) {
         return;
@@ -110,7 +313,7 @@ void est_core_finish(est_core_t *e, const est_excite_t *x)
 
 void est_core_out(const est_core_t *e, est_out_t *out)
 {
-    out->r_s_ohm = e->w[EST_R];
+    out->r_s_ohm = est_core_r(e);
     out->l_d_h = e->w[EST_LD];
     out->l_q_h = e->w[EST_LQ];
     out->psi_f_wb = e->w[EST_PSI];

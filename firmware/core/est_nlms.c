@@ -1,5 +1,7 @@
 #include "est_nlms.h"
 
+#include <math.h>
+
 #define EST_NLMS_DELTA   1.0f  /* regularisation, (V/H)^2: negligible against w^2 >= 1600 */
 #define EST_NLMS_DELTA_R 0.01f /* A^2 */
 
@@ -13,10 +15,62 @@
 #define EST_NLMS_VSS_MIN      0.05f /* x cfg.mu_q */
 #define EST_NLMS_VSS_NOISE_V2 0.04f /* e_q^2 at the noise floor, V^2 */
 
+/* The online R's step after its offset is calibrated (est_common.h): at one operating point the
+ * d equation's slope tells R only through its changes, and on a saturating rig one window's slope
+ * is noisy (lab-typical: 0.3 V per window over +-1.9 A of excitation, 0.18 ohm, 15 % of R). The
+ * slope is therefore held until its innovation g, averaged over 1 / (1 - VSS_R_BETA) windows,
+ * leaves VSS_R_SIGMA times that average's own noise (the running mean square of g while holding,
+ * over about 64 windows; at least VSS_R_FLOOR x R): a change. It then adapts for VSS_R_N windows
+ * with the step 1 / (n + VSS_R_N0) at the n-th window (the mean of the windows' slopes since the
+ * change was seen), and holds again. While the offset is calibrated the step is mu_r. (Following
+ * the change for 40 windows at 2 mu_r before averaging, to forget the step's transient, did worse
+ * on the tuning seeds: the drift moves i_q by 5 % and with it the slope's offset.) */
+#define EST_NLMS_VSS_R_BETA  0.95f
+#define EST_NLMS_VSS_R_SIGMA 4.0f
+#define EST_NLMS_VSS_R_FLOOR 0.01f /* x R */
+#define EST_NLMS_VSS_R_G2A   0.015625f
+#define EST_NLMS_VSS_R_N     160u
+#define EST_NLMS_VSS_R_N0    2.0f
+
 void est_nlms_init(est_nlms_t *e, const est_cfg_t *cfg)
 {
     est_core_init(&e->core, cfg);
     e->mu_q = EST_NLMS_VSS_MAX * cfg->mu_q;
+    e->g_r = 0.0f;
+    e->g_r2 = 0.0f;
+    e->r_adapt_n = 0u;
+}
+
+static float vss_r_step(est_nlms_t *e, float g)
+{
+    /* the noise of the averaged innovation: sqrt((1 - beta) / (1 + beta)) x that of one window */
+    const float k_avg = (1.0f - EST_NLMS_VSS_R_BETA) / (1.0f + EST_NLMS_VSS_R_BETA);
+    const float floor = EST_NLMS_VSS_R_FLOOR * e->core.r_ref;
+    float g0;
+    e->g_r = EST_NLMS_VSS_R_BETA * e->g_r + (1.0f - EST_NLMS_VSS_R_BETA) * g;
+    if (e->core.r_state != EST_R_TRACK) {
+        e->g_r2 += EST_NLMS_VSS_R_G2A * (g * g - e->g_r2);
+        e->r_adapt_n = 0u;
+        return e->core.cfg.mu_r;
+    }
+    if (e->r_adapt_n > 0u) { /* adapting to a change: the mean slope since it was seen */
+        const float mu = 1.0f / ((float)e->r_adapt_n + EST_NLMS_VSS_R_N0);
+        if (++e->r_adapt_n > EST_NLMS_VSS_R_N) {
+            e->r_adapt_n = 0u;
+            e->g_r = 0.0f;
+        }
+        return mu;
+    }
+    g0 = EST_NLMS_VSS_R_SIGMA * sqrtf(k_avg * e->g_r2);
+    if (!(g0 >= floor)) { /* also NaN */
+        g0 = floor;
+    }
+    if (fabsf(e->g_r) > g0) {
+        e->r_adapt_n = 1u;
+        return 1.0f / EST_NLMS_VSS_R_N0;
+    }
+    e->g_r2 += EST_NLMS_VSS_R_G2A * (g * g - e->g_r2);
+    return 0.0f;
 }
 
 static float vss_step(est_nlms_t *e, float err_v)
@@ -51,6 +105,7 @@ void est_nlms_step(est_nlms_t *e, const id_sample_t *s, est_out_t *out)
         const float x_r = s->i_d_a, x_lq = -s->w_i_q_a_rad_s;
         const float x_ld = x.ld ? s->w_i_d_a_rad_s : 0.0f, x_psi = s->omega_e_rad_s;
         float e_d, e_q, n2;
+        est_core_track_inc(c, s);
         est_core_targets(c, s, &y_d, &y_q);
         e_d = y_d - (c->w[EST_R] * x_r + c->w[EST_LQ] * x_lq);
         if (x.lq) {
@@ -58,7 +113,8 @@ void est_nlms_step(est_nlms_t *e, const id_sample_t *s, est_out_t *out)
         }
         if (x.r) { /* R along the centred i_d (the excitation), as L_d in the q equation */
             const float xr = x_r - c->i_d_mean;
-            c->w[EST_R] += c->cfg.mu_r * e_d * xr / (EST_NLMS_DELTA_R + xr * xr);
+            const float g = e_d * xr / (EST_NLMS_DELTA_R + xr * xr);
+            c->w[EST_R] += vss_r_step(e, g) * g;
         }
         e_q = y_q - (c->w[EST_LD] * s->w_i_d_a_rad_s + c->w[EST_PSI] * x_psi);
         { /* update along the decorrelated inputs (est_common.h): x1 = w (i_d - mean), x2 = w */

@@ -4,7 +4,12 @@
  *   L_q += mu_d e_d x_lq / (delta + x_lq^2)
  *   e_q = y_q - (L_d x_ld + psi_f w),          x_ld = w i_d
  *   [L_d psi_f] += mu_q e_q [x_ld w] / (delta + x_ld^2 + w^2)
- *   R += mu_r e_d i_d / (delta_r + i_d^2)      (online refinement, after convergence)
+ *   R += mu_R g, g = e_d x / (delta_r + x^2)  (online refinement after convergence, along the
+ *                                              excitation x = i_d - mean; est_common.h for the
+ *                                              slope and its offset at an operating point)
+ * mu_R is 0 (R held) until the innovation g, averaged over about 20 windows, leaves four times
+ * that average's own noise: a change of R, after which the slope is the mean of the windows' own
+ * slopes over the next 160 windows (est_nlms.c).
  * Weights start at zero (paper); R starts nominal until est_nlms_set_r. */
 #ifndef EST_NLMS_H
 #define EST_NLMS_H
@@ -14,6 +19,9 @@
 typedef struct {
     est_core_t core;
     float mu_q; /* variable step of the q regression (Kwong-Johnston: grows with the error power) */
+    float g_r;  /* the R innovation averaged over about 20 windows (ohm) */
+    float g_r2; /* its mean square per window while R holds (ohm^2), about 64 windows */
+    uint16_t r_adapt_n; /* windows since a change of R was detected (0: holding) */
 } est_nlms_t;
 
 void est_nlms_init(est_nlms_t *e, const est_cfg_t *cfg);

@@ -2,7 +2,8 @@
 
 #include <math.h>
 
-#define EST_RLS_P_R 1.0e-2f /* per-unit variance of R after the injection */
+#define EST_RLS_P_R     1.0e-2f /* per-unit variance of R after the injection */
+#define EST_RLS_P_R_CAL 1.0f    /* ... of the d equation's slope at a new operating point */
 
 static void p_reset(float p[4], float p0)
 {
@@ -92,7 +93,14 @@ void est_rls_step(est_rls_t *e, const id_sample_t *s, est_out_t *out)
         nom[EST_PSI] > 0.0f) {
         float th[2], phi[2], err;
         bool use[2];
+        est_core_track_inc(c, s);
         est_core_targets(c, s, &y_d, &y_q);
+        if (c->r_cal_new) { /* the slope has to move to its value at this operating point */
+            e->p_d[0] = EST_RLS_P_R_CAL;
+            e->p_d[1] = 0.0f;
+            e->p_d[2] = 0.0f;
+            c->r_cal_new = false;
+        }
         /* d axis: [R, L_q] */
         th[0] = c->w[EST_R] / nom[EST_R];
         th[1] = c->w[EST_LQ] / nom[EST_LQ];
@@ -115,6 +123,7 @@ void est_rls_step(est_rls_t *e, const id_sample_t *s, est_out_t *out)
         rls2(e->p_q, th, phi, use, err, c->cfg.lambda, c->cfg.p0);
         c->w[EST_LD] = th[0] * nom[EST_LD];
         c->w[EST_PSI] = th[1] * nom[EST_PSI];
+        (void)est_core_x_ld_centered(c, s); /* the i_d mean of the online R's offset */
     }
     est_core_finish(c, &x);
     est_core_out(c, out);

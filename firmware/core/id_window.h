@@ -8,6 +8,9 @@
  * (voltages: the period averages over [k, k+1); currents: trapezoidal means of the samples, exact
  * for the piecewise-linear ripple of FCS). The (end - start)/T terms are the residual di/dt; the
  * estimators move them to the target side with their current inductance estimates.
+ * The window's mean speed is its angle step over T (the mean of w over the window exactly; the
+ * speed estimate lags whenever the speed loop accelerates, and psi_f w turns 1 % of lag into
+ * 0.7 V on u_q at 1000 r/min); mean(w i_d), mean(w i_q) are shifted by the same correction.
  * Call idw_step once per control period with the sample i(k) and the voltage of [k, k+1). */
 #ifndef ID_WINDOW_H
 #define ID_WINDOW_H
@@ -26,14 +29,22 @@ typedef struct {
 } id_sample_t;
 
 typedef struct {
-    uint16_t n_periods; /* periods per window (>= 2) */
+    uint16_t n_periods; /* periods per window (>= 2); with sector_sync the least */
     float ts_s;         /* control period */
+    /* sector_sync: a window ends at the period boundary nearest to a whole number of 60 degree
+     * electrical sectors (at least n_periods, at most IDW_SYNC_MAX x n_periods): the sixth
+     * harmonic in dq of the flux harmonics (5th, 7th), of the inverter's distortion and of
+     * cogging at a multiple of 6 per electrical turn averages out of each window. */
+    bool sector_sync;
 } idw_cfg_t;
+
+#define IDW_SYNC_MAX 8u
 
 typedef struct {
     float i_d_a, i_q_a;  /* sampled at k */
     float u_d_v, u_q_v;  /* period-average voltage over [k, k+1) (mpcc_out u_d_avg_v/u_q_avg_v) */
     float omega_e_rad_s; /* at k */
+    float theta_e_rad;   /* at k: the window's mean speed is its angle step over T */
 } idw_in_t;
 
 typedef struct {
@@ -42,6 +53,9 @@ typedef struct {
     bool started;
     float s_ud, s_uq, s_id, s_iq, s_w, s_wid, s_wiq;
     float id0, iq0, w0, wid0, wiq0;
+    float ang_rad;    /* electrical angle swept by the running window (unwrapped) */
+    float th_prev;    /* angle of the last sample */
+    float target_rad; /* sector_sync: the angle to end at (0: not chosen yet) */
 } idw_t;
 
 void idw_init(idw_t *w, const idw_cfg_t *cfg);

@@ -70,6 +70,7 @@ void ident_init(ident_t *id, const ident_cfg_t *cfg)
     }
     wc.n_periods = cfg->id_window;
     wc.ts_s = cfg->ts_s;
+    wc.sector_sync = true;
     idw_init(&id->idw, &wc);
     rc.sep_min = 0.02f;
     rc.n_window = cfg->id_window >= 2u ? cfg->id_window : 20u;
@@ -214,6 +215,7 @@ void ident_step(ident_t *id, const ident_seg_t *seg, const ident_in_t *in, ident
         wi.u_d_v = in->u_d_avg_v + dl * in->u_q_avg_v;
         wi.u_q_v = in->u_q_avg_v - dl * in->u_d_avg_v;
         wi.omega_e_rad_s = in->omega_e_rad_s;
+        wi.theta_e_rad = in->theta_e_rad;
         if (idw_step(&id->idw, &wi, &smp)) {
             /* (6) is a steady-state equation: a window with a step of the i_d reference (the
              * excitation's edges) carries the current controller's transient and is skipped */

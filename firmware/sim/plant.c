@@ -258,7 +258,12 @@ void plant_set_currents(plant_t *p, double i_d_a, double i_q_a)
  * "The truth the estimators are scored against"): they fit psi_d = psi_f,app + L_d,app i_d to
  * window means, so the truth is the least-squares line through 1 ms means of (i_d, psi_d) over
  * about the last 0.1 s (an excitation's levels, the ripple averaged as a window averages it).
- * psi_d is the map's (plus the thermal shift): flux harmonics are no inductance. */
+ * psi_d is the map's (plus the thermal shift): flux harmonics are no inductance.
+ * L_q likewise: the steady-state d equation gives L_q,app = psi_q / i_q at the operating point,
+ * and psi_q follows the i_d excitation (cross-saturation), so the truth is the ratio of the means
+ * of psi_q and i_q over the same memory (the excitation's levels averaged as the fit averages
+ * them). Both fluxes are those of the magnetising current: with iron loss, the current the
+ * firmware measures is i_m + i_fe (mag_at). */
 #define PL_APP_BLOCK_S  1e-3
 #define PL_APP_MEMORY   100.0 /* blocks */
 #define PL_APP_MIN_SD_A 0.25  /* spread of the block means below which the line is undefined */
@@ -268,11 +273,26 @@ void pl_apparent_ld_step(plant_t *p)
     double psi_d, psi_q, l[4];
     const int n_blk = (int)(PL_APP_BLOCK_S * p->inv_ts + 0.5);
     map_eval(p->cfg.map, p->i_d_a, p->i_q_a, &psi_d, &psi_q, l);
+    if (p->inv_r_fe > 0.0) { /* the flux of the magnetising current (mag_at), without harmonics */
+        const double we = (double)p->cfg.pole_pairs * p->omega_m_rad_s;
+        const double ifd = -we * psi_q * p->inv_r_fe;
+        const double ifq = we * (psi_d + p->psi_shift_wb) * p->inv_r_fe;
+        psi_d -= l[0] * ifd + l[1] * ifq;
+        psi_q -= l[2] * ifd + l[3] * ifq;
+    }
     p->app_blk_i += p->i_d_a;
     p->app_blk_psi += psi_d + p->psi_shift_wb;
+    p->app_blk_iq += p->i_q_a;
+    p->app_blk_psiq += psi_q;
     if (++p->app_n >= (n_blk > 1 ? n_blk : 1)) {
         const double k = 1.0 - 1.0 / PL_APP_MEMORY;
         const double i = p->app_blk_i / (double)p->app_n, psi = p->app_blk_psi / (double)p->app_n;
+        const double iq = p->app_blk_iq / (double)p->app_n;
+        const double psiq = p->app_blk_psiq / (double)p->app_n;
+        p->app_sq = k * p->app_sq + iq;
+        p->app_spq = k * p->app_spq + psiq;
+        p->app_blk_iq = 0.0;
+        p->app_blk_psiq = 0.0;
         p->app_s0 = k * p->app_s0 + 1.0;
         p->app_si = k * p->app_si + i;
         p->app_sp = k * p->app_sp + psi;
@@ -282,6 +302,15 @@ void pl_apparent_ld_step(plant_t *p)
         p->app_blk_i = 0.0;
         p->app_blk_psi = 0.0;
     }
+}
+
+/* L_q,app of the block means, or 0 while their i_q is too small to define it */
+static double apparent_lq(const plant_t *p)
+{
+    if (!(p->app_s0 > 0.0) || !(fabs(p->app_sq) >= p->app_s0 * PL_SECANT_MIN_A)) {
+        return 0.0;
+    }
+    return p->app_spq / p->app_sq;
 }
 
 /* the slope of that line, or 0 when the block means do not spread enough to define it */
@@ -332,9 +361,12 @@ void plant_truth(const plant_t *p, plant_truth_t *t)
         t->l_d_secant_h = (m1.psi_d_wb - m0.psi_d_wb) / p->i_d_a;
     }
     if (p->cfg.map != NULL) {
-        const double l_app = apparent_ld(p);
+        const double l_app = apparent_ld(p), l_q_app = apparent_lq(p);
         if (l_app > 0.0) {
             t->l_d_secant_h = l_app;
+        }
+        if (l_q_app > 0.0) {
+            t->l_q_secant_h = l_q_app;
         }
     }
     pl_losses(p, &t->p_cu_w, &t->p_fe_w);

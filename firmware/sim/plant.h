@@ -163,10 +163,11 @@ typedef struct {
     double i_dc_a;      /* DC link: inverter input current of the last period */
     double v_dist_v[3]; /* inverter distortion voltage of each leg in the last period (truth) */
     /* apparent L_d with a flux map (plant_truth): 1 ms means of i_d and psi_d, and exponentially
-     * weighted sums of the least-squares line psi_d = psi_f,app + L_d,app i_d through them */
+     * weighted sums of the least-squares line psi_d = psi_f,app + L_d,app i_d through them; the
+     * sums of i_q and psi_q for the apparent L_q (their ratio) */
     int app_n;
-    double app_blk_i, app_blk_psi;
-    double app_s0, app_si, app_sp, app_sii, app_sip;
+    double app_blk_i, app_blk_psi, app_blk_iq, app_blk_psiq;
+    double app_s0, app_si, app_sp, app_sii, app_sip, app_sq, app_spq;
 } plant_t;
 
 typedef struct {
