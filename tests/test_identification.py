@@ -110,3 +110,15 @@ def test_analyze_prints_identification_table(ident_run, capsys):
     _, _, out = ident_run
     assert cli_main(["analyze", str(out)]) == 0
     assert "identification (" in capsys.readouterr().out
+
+
+def test_default_window_ends_where_the_estimators_stopped(ident_run):
+    """Without a window the table ends at the last params message at which an estimate moved:
+    the profile's last estimating segment (the drift), not the stop after it, where the plant's
+    truth moves on (on a saturating rig the inductances at rest are not those identified)."""
+    profile, _, out = ident_run
+    table = identification_table(out)
+    par = read_log(out).topic("/pmsm/params")
+    stop = [s for s in profile.segments if s.estimate is False and s.t_start_s > 1.0][-1]
+    assert table.t1_s < float(np.max(par["t_s"])) - 0.3  # the stop segment lasts 0.8 s
+    assert abs(table.t1_s - stop.t_start_s) < 0.02, (table.t1_s, stop.t_start_s)

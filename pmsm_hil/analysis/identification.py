@@ -164,14 +164,16 @@ def identification_table(
     inductance: str = "secant",
 ) -> IdentTable:
     """The table for the log at `path` (or ``log``, the file already read with at least
-    IDENT_TOPICS), over device time [t0_s, t1_s] (default: the whole log); inductances scored
-    against the secant truth (default, when the log has it) or the incremental one."""
+    IDENT_TOPICS), over device time [t0_s, t1_s] (default: from the first params message to the
+    last one at which an estimate still changed, so that the final values are compared with the
+    plant where the estimators last ran, not after a stop); inductances scored against the secant
+    truth (default, when the log has it) or the incremental one."""
     log = log if log is not None else read_log(path, topics=IDENT_TOPICS)
     par = log.topic("/pmsm/params")
     t_all = np.asarray(par["t_s"], dtype=float)
     names = np.asarray(par["estimator"]).astype(str)
     t0 = float(t_all.min()) if t0_s is None and len(t_all) else (t0_s or 0.0)
-    t1 = float(t_all.max()) if t1_s is None and len(t_all) else (t1_s or 0.0)
+    t1 = _last_change(par, t_all, names) if t1_s is None and len(t_all) else (t1_s or 0.0)
     table = IdentTable(str(path), "", t0, t1)
     for est in ESTIMATORS:
         sel = (names == est) & (t_all >= t0) & (t_all <= t1)
@@ -206,6 +208,23 @@ def identification_table(
                 )
             )
     return table
+
+
+def _last_change(par, t_all: np.ndarray, names: np.ndarray) -> float:
+    """The last params time at which an estimator's L_d, L_q or psi_f changed (the estimators
+    stop with identification off or the motor stopped; the plant then moves on without them);
+    the last message when none ever changed."""
+    last = None
+    for est in ESTIMATORS:
+        sel = names == est
+        if np.count_nonzero(sel) < 2:
+            continue
+        v = np.column_stack([np.asarray(par[p], dtype=float)[sel] for p in PARAMS[:3]])
+        moved = np.nonzero(np.any(np.diff(v, axis=0) != 0.0, axis=1))[0]
+        if len(moved):
+            t = float(t_all[sel][moved[-1] + 1])
+            last = t if last is None else max(last, t)
+    return last if last is not None else float(t_all.max())
 
 
 def _fmt(p: str, v: float) -> str:
