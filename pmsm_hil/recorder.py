@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import time
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 from pmsm_hil.protocol import generated as gen
 
@@ -71,6 +71,41 @@ STATUS_FIELDS = (
 )
 
 
+# device messages written to the log straight from their payload octets when no sink needs their
+# fields (Recorder.frames): the busiest ones, whose topic's fields are the message's own
+DIRECT = {
+    "telem_fast": ("/pmsm/telemetry", TELEMETRY_FIELDS),
+    "sim_truth": ("/sim/truth", TRUTH_FIELDS),
+}
+
+
+def direct_encoder(
+    msg: str, ts_s: float, names: tuple[str, ...], pack: Callable[..., bytes]
+) -> Callable[[bytes], tuple[float, bytes]] | None:
+    """Payload octets of device message ``msg`` -> (t_s, the CDR data of its log message), with the
+    very operations of the decoder (pmsm_hil.protocol.codec) and the writer: the same values and
+    octets. ``names``: the log fields in schema order (``t_s`` first), ``pack`` their CDR pack
+    (LogWriter.fixed_layout). None when a log field is not one of the message's."""
+    spec = gen.BY_NAME[msg]
+    expr: dict[str, str] = {}
+    i = 0
+    for f in spec.fields:
+        if f.count == 1:  # as codec._payload_decoder writes it
+            expr[f.name] = f"v[{i}]" + ("" if f.scale is None else f" * {f.scale!r}")
+        i += f.count
+    if "tick" not in expr or any(n not in expr for n in names[1:]):
+        return None
+    src = (
+        f"def encode_{msg}(p):\n"
+        f"    v = unpack(p)\n"
+        f"    t = {expr['tick']} * ts_s\n"
+        f"    return t, pack(0x100, t, {', '.join(expr[n] for n in names[1:])})\n"
+    )
+    namespace: dict[str, Any] = {"unpack": spec.struct.unpack, "pack": pack, "ts_s": ts_s}
+    exec(compile(src, f"<recorder {msg}>", "exec"), namespace)
+    return namespace[f"encode_{msg}"]
+
+
 def fault_text(bits: int) -> str:
     names = [name for name, b in FAULT_BITS.items() if bits & b]
     return "+".join(names) if names else "none"
@@ -123,6 +158,25 @@ class Recorder:
         self.names = segment_names
         self.live = LiveState()
         self._last_seq: int | None = None
+        # message id -> (topic, encoder from the payload), made at the message's first frame
+        # (its channel opens then, as it would for write); not with sinks, which want the fields
+        self._direct: dict[int, tuple[str, Callable[[bytes], tuple[float, bytes]]]] = {}
+        self._direct_due = set() if self.sinks else {gen.BY_NAME[m].id for m in DIRECT}
+
+    def _make_direct(
+        self, msg_id: int
+    ) -> tuple[str, Callable[[bytes], tuple[float, bytes]]] | None:
+        self._direct_due.discard(msg_id)
+        msg = gen.BY_ID[msg_id].name
+        topic, fields = DIRECT[msg]
+        layout = self.w.fixed_layout(topic)
+        if layout is None or set(layout[0][1:]) != set(fields):
+            return None
+        enc = direct_encoder(msg, self.ts_s, *layout)
+        if enc is None:
+            return None
+        entry = self._direct[msg_id] = (topic, enc)
+        return entry
 
     def _write(self, topic: str, t_s: float, row: dict) -> None:
         self.w.write(topic, t_s, row)
@@ -140,16 +194,40 @@ class Recorder:
         """One receive batch: each frame to its handler, then the batch to the OS (the writer's
         journal, pmsm_hil.log.journal), so that a host killed after this call has logged all of it."""
         live = self.live
-        n0 = live.frames
-        for fr in frames:
-            live.frames += 1
-            if self._last_seq is not None and fr.seq != ((self._last_seq + 1) & 0xFF):
-                live.seq_gaps += 1
-            self._last_seq = fr.seq
-            handler = getattr(self, "_on_" + fr.name, None)
-            if handler is not None:
-                handler(fr.fields)
-        if live.frames != n0:
+        direct = self._direct
+        write_data = self.w.write_data
+        last: dict[int, tuple[float, Frame]] = {}  # the last frame written directly, per message
+        n = gaps = 0
+        last_seq = self._last_seq
+        try:
+            for fr in frames:
+                n += 1
+                seq = fr.seq
+                if last_seq is not None and seq != ((last_seq + 1) & 0xFF):
+                    gaps += 1
+                last_seq = seq
+                entry = direct.get(fr.msg_id)
+                if entry is None and fr.msg_id in self._direct_due:
+                    entry = self._make_direct(fr.msg_id)
+                if entry is not None and fr.payload:
+                    t, data = entry[1](fr.payload)
+                    write_data(entry[0], t, data)
+                    last[fr.msg_id] = (t, fr)
+                    continue
+                handler = getattr(self, "_on_" + fr.name, None)
+                if handler is not None:
+                    handler(fr.fields)
+        finally:
+            live.frames += n
+            live.seq_gaps += gaps
+            self._last_seq = last_seq
+            for t, fr in last.values():  # the live state as the handlers would leave it
+                if fr.name == "telem_fast":
+                    live.t_s = t
+                    live.telemetry = {k: fr.fields[k] for k in TELEMETRY_FIELDS}
+                else:
+                    live.truth = {k: fr.fields[k] for k in TRUTH_FIELDS}
+        if n:
             self.w.flush_batch()
 
     # one handler per device message -------------------------------------------------------

@@ -18,16 +18,13 @@ from __future__ import annotations
 
 import contextlib
 import os
-import struct
 from dataclasses import dataclass
 
-from mcap.data_stream import RecordBuilder
 from mcap.records import Channel, Header, Metadata, Schema
 
-__all__ = ["Journal", "JournalMessage", "journal_path", "read_journal"]
+from pmsm_hil.log.mcap_file import MAGIC, MESSAGE_HEAD, encode_record
 
-_MAGIC = b"\x89MCAP0\r\n"
-_MSG = struct.Struct("<BQHIQQ")  # opcode, record length, channel, sequence, log and publish time
+__all__ = ["Journal", "JournalMessage", "journal_path", "read_journal"]
 
 
 def journal_path(log_path: str | os.PathLike) -> str:
@@ -48,12 +45,16 @@ class Journal:
     def define(self, rec: Schema | Channel) -> None:
         """A schema or channel the journal's messages use (kept across restarts)."""
         self._defs.append(rec)
-        self._pending.append(self._encode(rec))
+        self._pending.append(encode_record(rec))
 
     def add(self, channel_id: int, sequence: int, log_time: int, data: bytes) -> None:
         self._pending.append(
-            _MSG.pack(5, 22 + len(data), channel_id, sequence, log_time, log_time) + data
+            MESSAGE_HEAD.pack(5, 22 + len(data), channel_id, sequence, log_time, log_time) + data
         )
+
+    def add_record(self, record: bytes) -> None:
+        """A message record as the log's chunk holds it (the same octets)."""
+        self._pending.append(record)
 
     def write(self) -> None:
         """The records added since the last write, to the OS in one write."""
@@ -73,7 +74,7 @@ class Journal:
             Metadata("journal", {"base_messages": str(base_messages)}),
             *self._defs,
         ]
-        self._pending.append(_MAGIC + b"".join(self._encode(r) for r in recs))
+        self._pending.append(MAGIC + b"".join(encode_record(r) for r in recs))
         self.write()
 
     def close(self, remove: bool) -> None:
@@ -81,12 +82,6 @@ class Journal:
             os.close(self._fd)
             if remove:
                 os.unlink(self.path)
-
-    @staticmethod
-    def _encode(rec: Header | Metadata | Schema | Channel) -> bytes:
-        b = RecordBuilder()
-        rec.write(b)
-        return bytes(b.end())
 
 
 @dataclass

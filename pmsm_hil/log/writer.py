@@ -8,9 +8,11 @@
 - log_time = publish_time = round(t_s * 1e9) + the run's wall-clock start (``wall_start_s``, Unix
   time; 0 when not given): Foxglove shows real dates, ``t_s`` in every message stays device time.
   Without ``wall_start_s`` the same messages give the same file.
-- The MCAP records (chunks, indexes, summary) are written by the ``mcap`` library's ``Writer``;
-  the CDR payloads by the project's codecs (pmsm_hil.log.schemas: one ``struct.pack`` per
-  message, byte-identical to ``mcap_ros2``'s encoder). benchmarks/log_writer.py measures the rate.
+- The MCAP records (chunks, indexes, summary) are laid out as the ``mcap`` library's ``Writer``
+  lays them out, encoded by its record classes, a message record by one ``struct.pack``
+  (pmsm_hil.log.mcap_file); the CDR payloads by the project's codecs (pmsm_hil.log.schemas: one
+  ``struct.pack`` per message, byte-identical to ``mcap_ros2``'s encoder).
+  benchmarks/log_writer.py measures the rate.
 - A chunk is closed and written (then flushed to the OS) when it holds ``chunk_size`` octets or
   spans ``chunk_span_s`` of device time, and, with ``flush_wall_s``, once it has been open that long
   in wall time (checked at each message and by ``flush_if_due()``): a killed process loses at most
@@ -38,11 +40,10 @@ from operator import itemgetter
 from typing import Any
 
 import numpy as np
-from mcap.records import Channel, Schema
-from mcap.writer import CompressionType, Writer
 
 from pmsm_hil import __version__
 from pmsm_hil.log.journal import Journal
+from pmsm_hil.log.mcap_file import MAGIC, McapFile
 from pmsm_hil.log.schemas import (
     LOG_FORMAT_VERSION,
     MESSAGE_ENCODING,
@@ -73,11 +74,9 @@ class LogWriteError(OSError):
         )
 
 
-MCAP_MAGIC = b"\x89MCAP0\r\n"
+MCAP_MAGIC = MAGIC
 PROFILE = "ros2"
 LIBRARY = f"pmsm-hil {__version__}"
-_MSG_RECORD = 31  # octets of a message record around its data (opcode .. publish_time)
-_NEVER = 1 << 62  # the library's own size bound: chunks are closed here
 
 
 def available_compressions() -> list[str]:
@@ -91,11 +90,9 @@ def available_compressions() -> list[str]:
     return [*out, ""]
 
 
-def _compression_type(name: str) -> CompressionType:
-    types = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "": CompressionType.NONE}
-    if name not in types or name not in available_compressions():
+def _check_compression(name: str) -> None:
+    if name not in available_compressions():
         raise ValueError(f"compression {name!r}: choose one of {available_compressions()}")
-    return types[name]
 
 
 _HELD_SIGNALS = {
@@ -180,7 +177,7 @@ class LogWriter:
         self._off_ns = round(wall_start_s * 1e9) if wall_start_s else 0
         if compression is None:
             compression = available_compressions()[0]
-        ctype = _compression_type(compression)
+        _check_compression(compression)
         self._chunk_size = int(chunk_size)
         self._span_ns = round(chunk_span_s * 1e9)
         self._flush_wall_s = float(flush_wall_s) if flush_wall_s else 0.0
@@ -197,16 +194,12 @@ class LogWriter:
         self._disk_lt: int | None = None  # ... of the last message in a chunk on disk
         self._f = open(self.path, "wb")  # noqa: SIM115  (held by the writer until close())
         self._journal = Journal(self.path, PROFILE, LIBRARY) if journal else None
-        self._w = Writer(self._f, chunk_size=_NEVER, compression=ctype, enable_data_crcs=True)
+        # the records; its open chunk's octets (``size``) and messages (``n``)
+        self._w = McapFile(self._f, compression, PROFILE, LIBRARY)
         self._schemas: dict[str, int] = {}
         self._channels: dict[str, _Channel] = {}
-        self._msg_count = 0
-        # the open chunk: octets of its records (as the library counts them), messages, first time
-        self._size = 0
-        self._n = 0
-        self._t0 = 0
-
-        self._w.start(PROFILE, LIBRARY)
+        self._msg_count = 0  # messages in the chunks written
+        self._t0 = 0  # log time of the open chunk's first message
         meta = {str(k): {str(a): str(b) for a, b in v.items()} for k, v in (metadata or {}).items()}
         log_meta = {
             "format_version": str(LOG_FORMAT_VERSION),
@@ -272,30 +265,16 @@ class LogWriter:
         self._check_open()
         sid = self._schemas.get(td.schema_name)
         if sid is None:
-            text = td.msgdef.encode("utf-8")
-            sid = self._schemas[td.schema_name] = self._w.register_schema(
-                td.schema_name, SCHEMA_ENCODING, text
+            schema = self._w.register_schema(
+                td.schema_name, SCHEMA_ENCODING, td.msgdef.encode("utf-8")
             )
+            sid = self._schemas[td.schema_name] = schema.id
             if self._journal is not None:
-                self._journal.define(
-                    Schema(id=sid, data=text, encoding=SCHEMA_ENCODING, name=td.schema_name)
-                )
-            self._size += (
-                9 + 2 + 4 + len(td.schema_name.encode()) + 4 + len(SCHEMA_ENCODING) + 4 + len(text)
-            )
-        cid = self._w.register_channel(topic, MESSAGE_ENCODING, sid, {})
+                self._journal.define(schema)
+        channel = self._w.register_channel(topic, MESSAGE_ENCODING, sid)
         if self._journal is not None:
-            self._journal.define(
-                Channel(
-                    id=cid,
-                    topic=topic,
-                    message_encoding=MESSAGE_ENCODING,
-                    metadata={},
-                    schema_id=sid,
-                )
-            )
-        self._size += 9 + 4 + 4 + len(topic.encode()) + 4 + len(MESSAGE_ENCODING) + 4
-        ch = _Channel(cid, td)
+            self._journal.define(channel)
+        ch = _Channel(channel.id, td)
         self._channels[topic] = ch
         return ch
 
@@ -368,24 +347,23 @@ class LogWriter:
     def _add(self, ch: _Channel, lt: int, data: bytes) -> None:
         """One message into the open chunk; the chunk is closed before it when it spans
         chunk_span_s, after it when it holds chunk_size octets. Called with the lock held."""
-        if self._n and (
+        w = self._w
+        if w.n and (
             lt - self._t0 >= self._span_ns
             or (self._flush_wall_s and time.monotonic() - self._wall0 >= self._flush_wall_s)
         ):
             self._flush_chunk()
-        if not self._n:
+        if not w.n:
             self._t0 = lt
             if self._flush_wall_s:
                 self._wall0 = time.monotonic()
-        self._w.add_message(ch.id, lt, data, lt, ch.seq)
+        rec = w.add_message(ch.id, ch.seq, lt, data)
         if self._journal is not None:
-            self._journal.add(ch.id, ch.seq, lt, data)
+            self._journal.add_record(rec)
         self._last_lt = lt
         ch.seq = (ch.seq + 1) & 0xFFFFFFFF
         ch.count += 1
-        self._n += 1
-        self._size += _MSG_RECORD + len(data)
-        if self._size >= self._chunk_size:
+        if w.size >= self._chunk_size:
             self._flush_chunk()
 
     @staticmethod
@@ -415,6 +393,37 @@ class LogWriter:
             if not ok:
                 bad.append(f"{f.name} = {v!r} (not a {f.type})")
         return ValueError(f"{ch.topic}: cannot encode {'; '.join(bad) or list(vals)}: {e}")
+
+    def fixed_layout(self, topic: str) -> tuple[tuple[str, ...], Callable[..., bytes]] | None:
+        """A topic of fixed layout: its field names (``t_s`` first) and the ``struct`` pack of
+        its whole CDR data, whose first argument is the encapsulation header ``0x100`` and the
+        rest the fields in that order (for ``write_data``); None for a layout with strings."""
+        ch = self._channels.get(topic)
+        if ch is None:
+            with self._lock:
+                ch = self._channels.get(topic) or self._open_channel(topic)
+        if ch.pack is None:
+            return None
+        return tuple(ch.codec.names), ch.pack
+
+    def write_data(self, topic: str, t_s: float, data: bytes) -> None:
+        """One message at device time ``t_s`` whose CDR data is already encoded (e.g. by the
+        pack of ``fixed_layout``): the same record as ``write`` with the same values."""
+        ch = self._channels.get(topic)
+        if ch is None:
+            with self._lock:
+                ch = self._channels.get(topic) or self._open_channel(topic)
+        try:
+            lt = round(t_s * 1e9)
+            if lt < 0:
+                raise ValueError
+        except (ValueError, OverflowError, TypeError):
+            raise ValueError(
+                f"{topic}: t_s = {t_s!r} is not a device time (finite, >= 0 s)"
+            ) from None
+        with self._lock:
+            self._check_open()
+            self._add(ch, lt + self._off_ns, data)
 
     def write_encoded(self, topic: str, log_time: int, data: bytes) -> None:
         """One message as it is in an MCAP file: its log time (ns, this writer's offset
@@ -526,25 +535,28 @@ class LogWriter:
     def flush_if_due(self) -> None:
         """Close the open chunk if it has been open ``flush_wall_s`` of wall time (call it when
         no message comes, so that a quiet link does not keep data unwritten)."""
-        if self._flush_wall_s and self._n and time.monotonic() - self._wall0 >= self._flush_wall_s:
+        if (
+            self._flush_wall_s
+            and self._w.n
+            and time.monotonic() - self._wall0 >= self._flush_wall_s
+        ):
             self.flush()
 
     def _flush_chunk(self) -> None:
-        if not self._n or self._f.closed:
+        n = self._w.n
+        if not n or self._f.closed:
             return
         with _signals_held():
             try:
-                self._w.flush()  # the chunk, its message indexes; flushed to the OS
+                self._w.flush_chunk()  # the chunk, its message indexes; flushed to the OS
                 if self._fsync:
                     os.fsync(self._f.fileno())
                 if self._journal is not None:  # the chunk is out: the journal starts again
-                    self._journal.restart(self._msg_count + self._n)
+                    self._journal.restart(self._msg_count + n)
             except OSError as e:
                 raise self._fail(e) from e
-            self._msg_count += self._n
+            self._msg_count += n
             self._disk_lt = self._last_lt
-            self._size = 0
-            self._n = 0
 
     # ------------------------------------------------------------------ closing
     def close(self) -> None:
@@ -560,7 +572,6 @@ class LogWriter:
                     self._flush_chunk()
                     try:
                         self._w.finish()
-                        self._f.flush()
                         if self._fsync:
                             os.fsync(self._f.fileno())
                     except OSError as e:
@@ -584,7 +595,7 @@ class LogWriter:
     @property
     def message_count(self) -> int:
         """Messages written so far (including the open chunk)."""
-        return self._msg_count + self._n
+        return self._msg_count + self._w.n
 
     def __enter__(self) -> LogWriter:
         return self

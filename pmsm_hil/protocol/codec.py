@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import math
 from binascii import crc_hqx
-from collections.abc import Callable, Iterable
-from typing import Any, NamedTuple
+from collections.abc import Callable, Iterable, Iterator
+from typing import Any
 
 from cobs.cobs import DecodeError as _CobsDecodeError
 from cobs.cobs import decode as _cobs_decode
@@ -30,11 +30,50 @@ class ProtocolError(ValueError):
     """A message or field that the protocol does not know, or a value that does not fit."""
 
 
-class Frame(NamedTuple):
-    msg_id: int
-    seq: int
-    name: str
-    fields: dict[str, Any]
+class Frame:
+    """A checked frame: id, sequence number, message name and its fields in SI units.
+
+    The decoder keeps the payload octets and decodes the fields when they are first asked for:
+    the recorder writes the busiest messages to the log from the octets (pmsm_hil.recorder)."""
+
+    __slots__ = ("_fields", "msg_id", "name", "payload", "seq")
+
+    def __init__(
+        self,
+        msg_id: int,
+        seq: int,
+        name: str,
+        fields: dict[str, Any] | None = None,
+        payload: bytes = b"",
+    ):
+        self.msg_id, self.seq, self.name = msg_id, seq, name
+        self._fields, self.payload = fields, payload
+
+    @property
+    def fields(self) -> dict[str, Any]:
+        f = self._fields
+        if f is None:
+            f = self._fields = _DECODERS[self.msg_id][2](self.payload)
+        return f
+
+    def _tuple(self) -> tuple[int, int, str, dict[str, Any]]:
+        return (self.msg_id, self.seq, self.name, self.fields)
+
+    def __iter__(self) -> Iterator[Any]:
+        return iter(self._tuple())
+
+    def __eq__(self, other: object) -> bool:
+        if isinstance(other, Frame):
+            return self._tuple() == other._tuple()
+        return NotImplemented
+
+    __hash__ = None  # type: ignore[assignment]  # its fields are a dict
+
+    def __repr__(self) -> str:
+        return (
+            f"Frame(msg_id={self.msg_id}, seq={self.seq}, name={self.name!r}, "
+            f"fields={self.fields!r})"
+        )
 
 
 def spec_of(name_or_id: str | int) -> MessageSpec:
@@ -299,5 +338,5 @@ class FrameDecoder:
                 self.unknown_id += 1
                 self.frames_ok -= 1
             else:
-                append(Frame(msg_id, seq, entry[0], entry[2](payload)))
+                append(Frame(msg_id, seq, entry[0], None, payload))
         return frames
