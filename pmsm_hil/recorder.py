@@ -195,7 +195,7 @@ class Recorder:
         journal, pmsm_hil.log.journal), so that a host killed after this call has logged all of it."""
         live = self.live
         direct = self._direct
-        write_data = self.w.write_data
+        items: list[tuple[str, float, bytes]] = []  # direct messages not yet written
         last: dict[int, tuple[float, Frame]] = {}  # the last frame written directly, per message
         n = gaps = 0
         last_seq = self._last_seq
@@ -208,15 +208,23 @@ class Recorder:
                 last_seq = seq
                 entry = direct.get(fr.msg_id)
                 if entry is None and fr.msg_id in self._direct_due:
+                    if items:  # its channel opens after the messages before it
+                        self.w.write_data_many(items)
+                        items = []
                     entry = self._make_direct(fr.msg_id)
                 if entry is not None and fr.payload:
                     t, data = entry[1](fr.payload)
-                    write_data(entry[0], t, data)
+                    items.append((entry[0], t, data))
                     last[fr.msg_id] = (t, fr)
                     continue
                 handler = getattr(self, "_on_" + fr.name, None)
                 if handler is not None:
+                    if items:  # in order
+                        self.w.write_data_many(items)
+                        items = []
                     handler(fr.fields)
+            if items:
+                self.w.write_data_many(items)
         finally:
             live.frames += n
             live.seq_gaps += gaps

@@ -302,6 +302,9 @@ class _NoLog(LogWriter):
     def write_data(self, topic: str, t_s: float, data: bytes) -> None:
         pass
 
+    def write_data_many(self, items: Any) -> None:
+        pass
+
     def fixed_layout(self, topic: str) -> None:
         return None
 

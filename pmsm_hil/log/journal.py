@@ -38,35 +38,36 @@ class Journal:
         self.path = journal_path(log_path)
         self._profile, self._library = profile, library
         self._defs: list[Schema | Channel] = []
-        self._pending: list[bytes] = []
+        # records not yet written (the writer's batch path appends message records here)
+        self.pending: list[bytes] = []
         self._fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
         self.restart(0)
 
     def define(self, rec: Schema | Channel) -> None:
         """A schema or channel the journal's messages use (kept across restarts)."""
         self._defs.append(rec)
-        self._pending.append(encode_record(rec))
+        self.pending.append(encode_record(rec))
 
     def add(self, channel_id: int, sequence: int, log_time: int, data: bytes) -> None:
-        self._pending.append(
+        self.pending.append(
             MESSAGE_HEAD.pack(5, 22 + len(data), channel_id, sequence, log_time, log_time) + data
         )
 
     def add_record(self, record: bytes) -> None:
         """A message record as the log's chunk holds it (the same octets)."""
-        self._pending.append(record)
+        self.pending.append(record)
 
     def write(self) -> None:
         """The records added since the last write, to the OS in one write."""
-        if self._pending:
-            data = b"".join(self._pending)
-            self._pending.clear()
+        if self.pending:
+            data = b"".join(self.pending)
+            self.pending.clear()
             while data:
                 data = data[os.write(self._fd, data) :]
 
     def restart(self, base_messages: int) -> None:
         """The log holds ``base_messages`` on disk: start again from the prologue."""
-        self._pending.clear()
+        self.pending.clear()
         os.ftruncate(self._fd, 0)
         os.lseek(self._fd, 0, os.SEEK_SET)
         recs = [
@@ -74,7 +75,7 @@ class Journal:
             Metadata("journal", {"base_messages": str(base_messages)}),
             *self._defs,
         ]
-        self._pending.append(MAGIC + b"".join(encode_record(r) for r in recs))
+        self.pending.append(MAGIC + b"".join(encode_record(r) for r in recs))
         self.write()
 
     def close(self, remove: bool) -> None:

@@ -43,7 +43,7 @@ import numpy as np
 
 from pmsm_hil import __version__
 from pmsm_hil.log.journal import Journal
-from pmsm_hil.log.mcap_file import MAGIC, McapFile
+from pmsm_hil.log.mcap_file import MAGIC, MESSAGE_HEAD, McapFile
 from pmsm_hil.log.schemas import (
     LOG_FORMAT_VERSION,
     MESSAGE_ENCODING,
@@ -424,6 +424,54 @@ class LogWriter:
         with self._lock:
             self._check_open()
             self._add(ch, lt + self._off_ns, data)
+
+    def write_data_many(self, items: Iterable[tuple[str, float, bytes]]) -> None:
+        """Messages of encoded data, in order: (topic, t_s, data) each; the records of the same
+        ``write_data`` calls, made in one loop (the run's recorder writes a receive batch so)."""
+        pack_head = MESSAGE_HEAD.pack
+        monotonic = time.monotonic
+        with self._lock:
+            self._check_open()
+            w = self._w
+            pending = self._journal.pending if self._journal is not None else None
+            channels = self._channels
+            span, off, limit = self._span_ns, self._off_ns, self._chunk_size
+            wall_s = self._flush_wall_s
+            for topic, t_s, data in items:
+                ch = channels.get(topic) or self._open_channel(topic)
+                try:
+                    lt = round(t_s * 1e9)
+                    if lt < 0:
+                        raise ValueError
+                except (ValueError, OverflowError, TypeError):
+                    raise ValueError(
+                        f"{topic}: t_s = {t_s!r} is not a device time (finite, >= 0 s)"
+                    ) from None
+                lt += off
+                if w.n and (
+                    lt - self._t0 >= span or (wall_s and monotonic() - self._wall0 >= wall_s)
+                ):
+                    self._flush_chunk()
+                if not w.n:
+                    self._t0 = lt
+                    if wall_s:
+                        self._wall0 = monotonic()
+                # as McapFile.add_message
+                cid, seq = ch.id, ch.seq
+                rec = pack_head(5, 22 + len(data), cid, seq, lt, lt) + data
+                index = w.index.get(cid) or w.new_index(cid)
+                index.times.append(lt)
+                index.offsets.append(w.size)
+                w.records.append(rec)
+                w.size += len(rec)
+                w.n += 1
+                if pending is not None:
+                    pending.append(rec)
+                self._last_lt = lt
+                ch.seq = (seq + 1) & 0xFFFFFFFF
+                ch.count += 1
+                if w.size >= limit:
+                    self._flush_chunk()
 
     def write_encoded(self, topic: str, log_time: int, data: bytes) -> None:
         """One message as it is in an MCAP file: its log time (ns, this writer's offset
