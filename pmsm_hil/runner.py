@@ -485,8 +485,11 @@ def _stop_device(
 
 def _upload_capture(session: Session, rec: Recorder, observer: Observer | None) -> int:
     count = int(rec.live.status.get("capture_count", 0) or 0)
-    # the status frame may predate the end of the capture: drain what is left, then ask
-    rec.frames(session.poll(0.05))
+    # the status frame may predate the end of the capture: drain what is left, then ask; one
+    # that reports the device at rest was sent after its last control period (the firmware
+    # sends it at the change of state), so its count is final: nothing to wait for
+    at_rest = rec.live.stopped and rec.live.status.get("state") in ("done", "fault", "idle")
+    rec.frames(session.poll(0.0 if at_rest else 0.05))
     count = int(rec.live.status.get("capture_count", count) or 0)
     if count <= 0:
         return 0

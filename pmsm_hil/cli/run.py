@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
+import importlib
 import sys
+import threading
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -184,15 +187,46 @@ def _load(args):
     return load_profile(path, rig_override=rig, motor_override=motor)
 
 
+# what the run needs after the device is open: imported while the emulator child starts
+_LATER = (
+    "pmsm_hil.runner",
+    "pmsm_hil.cli.live",
+    "pmsm_hil.analysis.summary",
+    "pmsm_hil.analysis.reading",
+    "pmsm_hil.analysis.acceptance",
+    "pmsm_hil.cli.analyze",
+    "rich.table",  # the summary's
+    "rich.box",
+    "rich.measure",
+)
+# what opening the device imports (before the thread above starts, so that the two import
+# disjoint modules)
+_DEVICE = (
+    "pmsm_hil.transport.emulator",
+    "pmsm_hil.transport.serial_port",
+    "pmsm_hil.emulator.settings",
+)
+
+
+def _import_meanwhile(names: tuple[str, ...]) -> threading.Thread:
+    """Imports ``names`` in a thread while the main thread waits on the emulator child's start
+    (it waits in select, the child runs on another core): the run's start does not wait for
+    both. A module that fails to import here is imported again, and reported, where it is used."""
+
+    def load() -> None:
+        for name in names:
+            with contextlib.suppress(Exception):
+                importlib.import_module(name)
+
+    t = threading.Thread(target=load, name="pmsm-hil imports", daemon=True)
+    t.start()
+    return t
+
+
 def main(args: argparse.Namespace) -> int:
-    from pmsm_hil.analysis.summary import print_summary, summarize_log
-    from pmsm_hil.cli.live import make_observer
     from pmsm_hil.device import open_device
     from pmsm_hil.errors import TransportError, TransportSpecError
-    from pmsm_hil.log.writer import LogWriteError
     from pmsm_hil.profiles import ProfileError
-    from pmsm_hil.protocol.session import DeviceError, Session
-    from pmsm_hil.runner import HostError, PlantMismatch, RunOptions, run_profile
 
     try:
         profile = _load(args)
@@ -226,6 +260,9 @@ def main(args: argparse.Namespace) -> int:
         except FoxgloveError as e:
             return fail("error", str(e), 2)
         print(f"foxglove: {sinks[0].url} (layout: docs/foxglove-layout.json)", flush=True)
+    for name in _DEVICE:
+        importlib.import_module(name)
+    later = _import_meanwhile(_LATER)
     try:
         dev = device_spec(args)
         link = open_device(dev, profile)
@@ -235,6 +272,13 @@ def main(args: argparse.Namespace) -> int:
         if not existed:
             out.unlink(missing_ok=True)
         return fail("error", str(e), 2 if isinstance(e, TransportSpecError) else 3)
+    later.join()
+    from pmsm_hil.analysis.summary import print_summary, summarize_log
+    from pmsm_hil.cli.live import make_observer
+    from pmsm_hil.log.writer import LogWriteError
+    from pmsm_hil.protocol.session import DeviceError, Session
+    from pmsm_hil.runner import HostError, PlantMismatch, RunOptions, run_profile
+
     names = [s.name or f"segment {i}" for i, s in enumerate(profile.segments)]
     observer = make_observer(args.no_live, f"{profile.name} on {link.name}", link.bit_rate, names)
     options = RunOptions(
