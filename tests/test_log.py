@@ -596,3 +596,19 @@ def test_flush_wall_s_puts_a_quiet_writers_data_on_disk(tmp_path):
     assert (meta["flush_wall_s"], meta["chunk_span_s"]) == ("0.05", "1.0")
     w.close()
     assert read_log(path).counts["/pmsm/events"] == 3
+
+
+def test_gather_is_the_messages_one_after_the_other():
+    """columns.gather, whichever way it takes (rows of one width, rows cut to their sizes, an
+    index per octet), gives each message's octets in order."""
+    from pmsm_hil.log.columns import gather
+
+    rnd = np.random.default_rng(3)
+    for _ in range(300):
+        buf = rnd.integers(0, 255, int(rnd.integers(50, 3000)), dtype=np.uint8)
+        sizes = rnd.integers(1, 40, int(rnd.integers(1, 30))).astype(np.int64)
+        if rnd.random() < 0.3:
+            sizes[:] = sizes[0]
+        starts = np.array([rnd.integers(0, len(buf) - s + 1) for s in sizes], np.int64)
+        want = np.concatenate([buf[a : a + s] for a, s in zip(starts, sizes, strict=True)])
+        np.testing.assert_array_equal(gather(buf, starts, sizes), want)

@@ -7,14 +7,13 @@ from __future__ import annotations
 import io
 import struct
 import zlib
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import TypeVar
 
 import numpy as np
 from mcap import records as mr
 from mcap.data_stream import ReadDataStream
-from mcap.stream_reader import get_chunk_data_stream
 
 from pmsm_hil.log.columns import DecodeError, decode_columns, gather, rows_at
 from pmsm_hil.log.writer import MCAP_MAGIC
@@ -27,6 +26,54 @@ _U64 = struct.Struct("<Q").unpack_from
 _MSG = struct.Struct("<HIQQ").unpack_from
 _FOOTER = 1 + 8 + 20  # opcode, length, summary_start, summary_offset_start, crc
 _BATCH_OCTETS = 8 << 20  # message data gathered across chunks before it is decoded at once
+
+
+_CHUNK_HEAD = struct.Struct("<QQQI")  # message start and end time, uncompressed size and CRC
+
+
+def _decompressor(compression: str) -> Callable[[memoryview, int], bytes] | None:
+    if compression == "zstd":
+        import zstandard
+
+        dctx = zstandard.ZstdDecompressor()
+        return lambda data, size: dctx.decompress(data, max_output_size=size)
+    if compression == "lz4":
+        import lz4.frame
+
+        return lambda data, size: lz4.frame.decompress(data)
+    if compression == "":
+        return lambda data, size: bytes(data)
+    return None
+
+
+def chunk_records(
+    content: bytes, decompressors: dict[str, Callable[[memoryview, int], bytes] | None]
+) -> bytes | str:
+    """A chunk record's content (without opcode and length) -> its records, decompressed and
+    CRC-checked; or, for a chunk that cannot be read, why (a problem of the log).
+    ``decompressors``: by compression, made at the first chunk that needs one, kept for the
+    next (a zstd context is not made per chunk)."""
+    try:
+        _t0, _t1, size, crc = _CHUNK_HEAD.unpack_from(content, 0)
+        (n,) = _U32(content, 28)
+        compression = bytes(content[32 : 32 + n]).decode()
+        (length,) = _U64(content, 32 + n)
+        data = memoryview(content)[40 + n : 40 + n + length]
+        if len(data) != length:
+            raise ValueError(f"{length - len(data)} octets of its data missing")
+        if compression not in decompressors:
+            decompressors[compression] = _decompressor(compression)
+        decompress = decompressors[compression]
+        if decompress is None:
+            return f"chunk with unknown compression {compression!r} skipped"
+        records = decompress(data, size)
+        if crc and zlib.crc32(records) != crc:
+            raise ValueError(f"CRC mismatch: {zlib.crc32(records):08x}, expected {crc:08x}")
+    except Exception as e:  # a damaged chunk (CRC, compression): keep the rest of the file
+        return f"chunk could not be read ({e}); skipped"
+    if len(records) != size:
+        return "chunk size mismatch; skipped"
+    return records
 
 
 def _read(cls: type[_R], content: bytes) -> _R:
@@ -99,6 +146,7 @@ class _Parser:
         )
         # every channel known up front (the summary of a finalised file): chunks may be skipped
         self.all_known = False
+        self._decompressors: dict[str, Callable[[memoryview, int], bytes] | None] = {}
 
     def _at(self, p: int, n: int) -> bytes:
         self.f.seek(p)
@@ -220,24 +268,6 @@ class _Parser:
             Attachment(r.name, r.media_type, bytes(r.data), r.log_time, r.create_time)
         )
 
-    def _open_chunk(self, c: bytes) -> bytes | None:
-        try:
-            chunk = _read(mr.Chunk, c)
-            if chunk.compression not in ("", "zstd", "lz4"):
-                self.log.problems.append(
-                    f"chunk with unknown compression {chunk.compression!r} skipped"
-                )
-                return None
-            stream, n = get_chunk_data_stream(chunk, validate_crc=True)
-            records = stream.read(n)
-        except Exception as e:  # a damaged chunk (CRC, compression): keep the rest of the file
-            self.log.problems.append(f"chunk could not be read ({e}); skipped")
-            return None
-        if len(records) != chunk.uncompressed_size:
-            self.log.problems.append("chunk size mismatch; skipped")
-            return None
-        return records
-
     def _chunk_done(self, start: int, length: int, indexes: dict[int, np.ndarray]) -> None:
         chans = self.log._chans
         if (
@@ -250,8 +280,9 @@ class _Parser:
                 chans[cid].count += len(idx)
             self.log.chunks_skipped += 1
             return
-        records = self._open_chunk(self._at(start, length))
-        if records is None:
+        records = chunk_records(self._at(start, length), self._decompressors)
+        if isinstance(records, str):
+            self.log.problems.append(records)
             return
         self.log.chunks_read += 1
         if indexes and self._chunk_indexed(records, indexes):
