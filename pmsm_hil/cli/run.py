@@ -195,7 +195,8 @@ _LATER = (
     "pmsm_hil.analysis.reading",
     "pmsm_hil.analysis.acceptance",
     "pmsm_hil.cli.analyze",
-    "rich.table",  # the summary's
+    "rich.console",  # the summary's
+    "rich.table",
     "rich.box",
     "rich.measure",
 )
