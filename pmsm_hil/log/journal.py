@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 from mcap.records import Channel, Header, Metadata, Schema
 
-from pmsm_hil.log.mcap_file import MAGIC, MESSAGE_HEAD, encode_record
+from pmsm_hil.log.mcap_file import MAGIC, encode_record
 
 __all__ = ["Journal", "JournalMessage", "journal_path", "read_journal"]
 
@@ -47,11 +47,6 @@ class Journal:
         """A schema or channel the journal's messages use (kept across restarts)."""
         self._defs.append(rec)
         self.pending.append(encode_record(rec))
-
-    def add(self, channel_id: int, sequence: int, log_time: int, data: bytes) -> None:
-        self.pending.append(
-            MESSAGE_HEAD.pack(5, 22 + len(data), channel_id, sequence, log_time, log_time) + data
-        )
 
     def add_record(self, record: bytes) -> None:
         """A message record as the log's chunk holds it (the same octets)."""

@@ -109,12 +109,11 @@ class McapFile:
         self._attachment_indexes: list[AttachmentIndex] = []
         self._metadata_indexes: list[MetadataIndex] = []
         # the open chunk: its records (schemas and channels first met, messages), their octets,
-        # its messages, per channel its index entries (LogWriter.write_data_many adds to these
-        # as add_message does)
-        self.records: list[bytes] = []
+        # its messages, per channel its index entries
+        self._records: list[bytes] = []
         self.size = 0
         self.n = 0
-        self.index: dict[int, _Index] = {}
+        self._index: dict[int, _Index] = {}
         self._write(MAGIC + encode_record(Header(profile, library)))
 
     def _write(self, data: bytes) -> None:
@@ -155,7 +154,7 @@ class McapFile:
 
     # ------------------------------------------------------------------ the open chunk
     def _add_definition(self, rec: bytes) -> None:
-        self.records.append(rec)
+        self._records.append(rec)
         self.size += len(rec)
 
     def register_schema(self, name: str, encoding: str, data: bytes) -> Schema:
@@ -179,18 +178,15 @@ class McapFile:
     def add_message(self, cid: int, sequence: int, log_time: int, data: bytes) -> bytes:
         """A message into the open chunk; returns its record (log_time = publish_time)."""
         rec = MESSAGE_HEAD.pack(5, 22 + len(data), cid, sequence, log_time, log_time) + data
-        index = self.index.get(cid) or self.new_index(cid)
+        index = self._index.get(cid)
+        if index is None:
+            index = self._index[cid] = _Index()
         index.times.append(log_time)
         index.offsets.append(self.size)
-        self.records.append(rec)
+        self._records.append(rec)
         self.size += len(rec)
         self.n += 1
         return rec
-
-    def new_index(self, cid: int) -> _Index:
-        """The open chunk's index of channel ``cid`` (at its first message in the chunk)."""
-        index = self.index[cid] = _Index()
-        return index
 
     def flush_chunk(self) -> None:
         """The open chunk and its message indexes to the stream (nothing without messages);
@@ -198,9 +194,9 @@ class McapFile:
         if not self.n:
             self._f.flush()
             return
-        data = b"".join(self.records)
-        start = min(min(ix.times) for ix in self.index.values())
-        end = max(max(ix.times) for ix in self.index.values())
+        data = b"".join(self._records)
+        start = min(min(ix.times) for ix in self._index.values())
+        end = max(max(ix.times) for ix in self._index.values())
         compressed = self._compress(data)
         chunk = encode_record(
             Chunk(
@@ -217,7 +213,7 @@ class McapFile:
         offsets: dict[int, int] = {}
         indexes: list[bytes] = []
         at = index_at
-        for cid, ix in self.index.items():
+        for cid, ix in self._index.items():
             offsets[cid] = at
             rec = ix.record(cid)
             indexes.append(rec)
@@ -244,8 +240,8 @@ class McapFile:
             self._start_time = min(self._start_time, start)
         self._end_time = max(self._end_time, end)
         self._message_count += self.n
-        self.records = []
-        self.index = {}
+        self._records = []
+        self._index = {}
         self.size = 0
         self.n = 0
 

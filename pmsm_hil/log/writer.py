@@ -43,7 +43,7 @@ import numpy as np
 
 from pmsm_hil import __version__
 from pmsm_hil.log.journal import Journal
-from pmsm_hil.log.mcap_file import MAGIC, MESSAGE_HEAD, McapFile
+from pmsm_hil.log.mcap_file import MAGIC, McapFile
 from pmsm_hil.log.schemas import (
     LOG_FORMAT_VERSION,
     MESSAGE_ENCODING,
@@ -409,30 +409,17 @@ class LogWriter:
     def write_data(self, topic: str, t_s: float, data: bytes) -> None:
         """One message at device time ``t_s`` whose CDR data is already encoded (e.g. by the
         pack of ``fixed_layout``): the same record as ``write`` with the same values."""
-        ch = self._channels.get(topic)
-        if ch is None:
-            with self._lock:
-                ch = self._channels.get(topic) or self._open_channel(topic)
-        try:
-            lt = round(t_s * 1e9)
-            if lt < 0:
-                raise ValueError
-        except (ValueError, OverflowError, TypeError):
-            raise ValueError(
-                f"{topic}: t_s = {t_s!r} is not a device time (finite, >= 0 s)"
-            ) from None
-        with self._lock:
-            self._check_open()
-            self._add(ch, lt + self._off_ns, data)
+        self.write_data_many(((topic, t_s, data),))
 
     def write_data_many(self, items: Iterable[tuple[str, float, bytes]]) -> None:
         """Messages of encoded data, in order: (topic, t_s, data) each; the records of the same
-        ``write_data`` calls, made in one loop (the run's recorder writes a receive batch so)."""
-        pack_head = MESSAGE_HEAD.pack
+        ``write_data`` calls, made in one loop (the run's recorder writes a receive batch so):
+        ``_add`` without a call per message but the record's."""
         monotonic = time.monotonic
         with self._lock:
             self._check_open()
             w = self._w
+            add_message = w.add_message
             pending = self._journal.pending if self._journal is not None else None
             channels = self._channels
             span, off, limit = self._span_ns, self._off_ns, self._chunk_size
@@ -456,19 +443,11 @@ class LogWriter:
                     self._t0 = lt
                     if wall_s:
                         self._wall0 = monotonic()
-                # as McapFile.add_message
-                cid, seq = ch.id, ch.seq
-                rec = pack_head(5, 22 + len(data), cid, seq, lt, lt) + data
-                index = w.index.get(cid) or w.new_index(cid)
-                index.times.append(lt)
-                index.offsets.append(w.size)
-                w.records.append(rec)
-                w.size += len(rec)
-                w.n += 1
+                rec = add_message(ch.id, ch.seq, lt, data)
                 if pending is not None:
                     pending.append(rec)
                 self._last_lt = lt
-                ch.seq = (seq + 1) & 0xFFFFFFFF
+                ch.seq = (ch.seq + 1) & 0xFFFFFFFF
                 ch.count += 1
                 if w.size >= limit:
                     self._flush_chunk()
