@@ -1,6 +1,8 @@
-"""Log writer throughput (the `mcap` library's Writer with the project's CDR codecs): messages per
-second through LogWriter.write() and LogWriter.write_many(), best and median of several runs, as a
-multiple of the fastest link's message rate (docs/log-format.md, "Writing").
+"""Log writer throughput (the project's chunks, pmsm_hil.log.mcap_file, with its CDR codecs):
+messages per second through LogWriter.write(), LogWriter.write_many() and
+LogWriter.write_data_many() (the run's recorder: data packed by the fixed_layout pack, a batch at a
+time), best and median of several runs, as a multiple of the fastest link's message rate
+(docs/log-format.md, "Writing").
 
     python3 benchmarks/log_writer.py [--repeat 5] [--n 40000]
 
@@ -32,7 +34,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def link_rates() -> dict[str, float]:
     """Messages/s of each link: the profile's rates and the bound of the link."""
-    from pmsm_hil.transport.can_bus import apply_can_rates
+    from pmsm_hil.device import apply_can_rates
 
     out = {}
     for kind in ("serial", "can"):
@@ -79,6 +81,16 @@ def main() -> None:
         with LogWriter(path) as w:
             w.write_many("/pmsm/telemetry", cols)
 
+    def encoded(path):
+        with LogWriter(path) as w:
+            _, pack = w.fixed_layout("/pmsm/telemetry")
+            for at in range(0, len(rows), 100):  # receive batches of 100 frames
+                items = []
+                for i in range(at, min(at + 100, len(rows))):
+                    t = i * 5e-4
+                    items.append(("/pmsm/telemetry", t, pack(0x100, t, *rows[i].values())))
+                w.write_data_many(items)
+
     def ros2_writer(path):
         # for comparison: mcap_ros2's writer, which encodes from dicts itself
         from mcap_ros2.writer import Writer as Ros2Writer
@@ -97,6 +109,7 @@ def main() -> None:
     results = {
         "LogWriter.write": bench(one_by_one, args.n, args.repeat),
         "LogWriter.write_many": bench(in_bulk, args.n, args.repeat),
+        "LogWriter.write_data_many (packs included)": bench(encoded, args.n, args.repeat),
         "mcap_ros2 Writer (not used)": bench(ros2_writer, args.n, args.repeat),
     }
     links = link_rates()

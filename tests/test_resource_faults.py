@@ -98,7 +98,7 @@ def test_a_write_error_is_a_log_write_error_and_the_file_stays_readable(tmp_path
     for k in range(10):  # chunks of 0.1 s: 4 on disk, the 5th (0.40, 0.45) open
         w.write("/pmsm/events", 0.05 * k, {"kind": "host", "text": f"{k}"})
 
-    class Full:  # the stream under the mcap writer: the disk is full from here on
+    class Full:  # the stream under the MCAP records: the disk is full from here on
         def __init__(self, f):
             self.f = f
 
@@ -108,7 +108,7 @@ def test_a_write_error_is_a_log_write_error_and_the_file_stays_readable(tmp_path
         def __getattr__(self, name):
             return getattr(self.f, name)
 
-    w._w._Writer__stream = Full(w._f)
+    w._w._f = Full(w._f)
     with pytest.raises(LogWriteError) as e:
         if when == "start":
             w.write("/pmsm/events", 1.0, {"kind": "host", "text": "x"})
