@@ -612,3 +612,29 @@ def test_gather_is_the_messages_one_after_the_other():
         starts = np.array([rnd.integers(0, len(buf) - s + 1) for s in sizes], np.int64)
         want = np.concatenate([buf[a : a + s] for a, s in zip(starts, sizes, strict=True)])
         np.testing.assert_array_equal(gather(buf, starts, sizes), want)
+
+
+def test_signals_held_never_leaves_the_mask_blocked(monkeypatch):
+    """A signal already pending when the writer blocks SIGINT is handled as the block returns,
+    before the old mask is recorded; the mask must still be restored (a test child inherited a
+    blocked SIGINT once and looped forever)."""
+    import signal
+
+    from pmsm_hil.log import writer
+
+    if not hasattr(signal, "pthread_sigmask"):
+        pytest.skip("no pthread_sigmask")
+    real = signal.pthread_sigmask
+    before = real(signal.SIG_BLOCK, set())
+
+    def interrupted(how, mask):
+        out = real(how, mask)
+        if how == signal.SIG_BLOCK:
+            raise KeyboardInterrupt  # as the pending SIGINT's handler would, right after the call
+        return out
+
+    monkeypatch.setattr(signal, "pthread_sigmask", interrupted)
+    with pytest.raises(KeyboardInterrupt), writer._signals_held():
+        pass
+    monkeypatch.setattr(signal, "pthread_sigmask", real)
+    assert real(signal.SIG_BLOCK, set()) == before

@@ -106,15 +106,21 @@ def _signals_held() -> Iterator[None]:
     if not hasattr(signal, "pthread_sigmask"):
         yield
         return
+    state, old = "before", set()
     try:
-        old = signal.pthread_sigmask(signal.SIG_BLOCK, _HELD_SIGNALS)
-    except (OSError, ValueError):
-        yield
-        return
-    try:
+        try:
+            old = signal.pthread_sigmask(signal.SIG_BLOCK, _HELD_SIGNALS)
+            state = "held"
+        except (OSError, ValueError):
+            state = "free"
         yield
     finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+        if state == "held":
+            signal.pthread_sigmask(signal.SIG_SETMASK, old)
+        elif state == "before":
+            # a signal that was already pending raised between the block and its record: the
+            # mask must not stay blocked (a child process would inherit it and never see SIGINT)
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, _HELD_SIGNALS)
 
 
 class _Channel:
