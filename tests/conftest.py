@@ -1,4 +1,5 @@
 import os
+import signal
 from pathlib import Path
 
 import pytest
@@ -23,3 +24,23 @@ def _chdir_tmp(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     os.environ.setdefault("COLUMNS", "160")
     yield
+
+
+def _held_signals() -> set:
+    return (
+        set(signal.pthread_sigmask(signal.SIG_BLOCK, set()))
+        if hasattr(signal, "pthread_sigmask")
+        else set()
+    )
+
+
+@pytest.fixture(autouse=True)
+def _no_signal_left_blocked():
+    """No test may leave a signal blocked in this process: the child processes later tests start
+    inherit the mask (a child once never saw its SIGINT and looped until its timeout)."""
+    before = _held_signals()
+    yield
+    leaked = _held_signals() - before
+    if leaked:
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, leaked)  # the next tests start clean
+        pytest.fail(f"signals left blocked by this test: {sorted(s.name for s in leaked)}")

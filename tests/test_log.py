@@ -461,6 +461,9 @@ def test_ctrl_c_finalises_the_log(tmp_path):
     res = _child(
         CHILD_HEAD
         + """
+    # Ctrl-C as in a terminal: a process started in the background by a non-interactive shell
+    # inherits SIGINT ignored, and Python then installs no KeyboardInterrupt handler
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     w = LogWriter("c.mcap")
     try:
         for i, (t, r) in enumerate(rows()):
