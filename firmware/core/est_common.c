@@ -126,14 +126,17 @@ void est_core_excitation(const est_core_t *e, const id_sample_t *s, est_excite_t
     x->i_q_a = s->i_q_a;
 }
 
-float est_core_r(const est_core_t *e)
+static float clampf(float v, float lo, float hi)
 {
-    const float r = e->w[EST_R] - e->r_off;
-    const float lo = 0.5f * e->r_ref, hi = 2.0f * e->r_ref;
-    if (!(r >= lo)) { /* also catches NaN */
+    if (!(v >= lo)) { /* also catches NaN */
         return lo;
     }
-    return r > hi ? hi : r;
+    return v > hi ? hi : v;
+}
+
+float est_core_r(const est_core_t *e)
+{
+    return clampf(e->w[EST_R] - e->r_off, 0.5f * e->r_ref, 2.0f * e->r_ref);
 }
 
 /* The regressor of the L di/dt terms */
@@ -157,14 +160,6 @@ void est_core_targets(const est_core_t *e, const id_sample_t *s, float *y_d, flo
     inc_phi(e, s, phi);
     *y_d = s->u_d_v - dot4(e->l_d, phi) + e->r_off * e->i_d_mean;
     *y_q = s->u_q_v - dot4(e->l_q, phi) - est_core_r(e) * s->i_q_a;
-}
-
-static float clampf(float v, float lo, float hi)
-{
-    if (!(v >= lo)) { /* also catches NaN */
-        return lo;
-    }
-    return v > hi ? hi : v;
 }
 
 void est_core_track_inc(est_core_t *e, const id_sample_t *s)

@@ -76,7 +76,7 @@ typedef struct {
     float w_f_rad_s, i_q_f_a;   /* the operating point now: w and i_q over about 32 windows */
     uint16_t r_cal_n;           /* windows into the calibration */
     uint16_t op_away_n;         /* consecutive windows away from the calibration's point */
-    uint8_t r_state;            /* EST_R_IDLE, EST_R_CAL, EST_R_TRACK */
+    uint16_t r_state;           /* EST_R_IDLE, EST_R_CAL, EST_R_TRACK */
     bool r_cal_new;             /* a calibration has just begun (RLS opens R's covariance) */
     uint32_t updates;
     bool excited, converged, ever_converged;

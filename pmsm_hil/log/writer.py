@@ -28,14 +28,12 @@
 from __future__ import annotations
 
 import atexit
-import contextlib
 import os
-import signal
 import struct
 import threading
 import time
 import weakref
-from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from operator import itemgetter
 from typing import Any
 
@@ -55,6 +53,7 @@ from pmsm_hil.log.schemas import (
     codec_for,
     schema_hash,
 )
+from pmsm_hil.log.write_support import available_compressions, check_compression, signals_held
 
 __all__ = ["MCAP_MAGIC", "LogWriteError", "LogWriter", "available_compressions"]
 
@@ -77,50 +76,6 @@ class LogWriteError(OSError):
 MCAP_MAGIC = MAGIC
 PROFILE = "ros2"
 LIBRARY = f"pmsm-hil {__version__}"
-
-
-def available_compressions() -> list[str]:
-    out = []
-    import importlib.util
-
-    if importlib.util.find_spec("zstandard") is not None:
-        out.append("zstd")
-    if importlib.util.find_spec("lz4") is not None:
-        out.append("lz4")
-    return [*out, ""]
-
-
-def _check_compression(name: str) -> None:
-    if name not in available_compressions():
-        raise ValueError(f"compression {name!r}: choose one of {available_compressions()}")
-
-
-_HELD_SIGNALS = {
-    s for s in (getattr(signal, n, None) for n in ("SIGINT", "SIGTERM", "SIGHUP")) if s
-}
-
-
-@contextlib.contextmanager
-def _signals_held() -> Iterator[None]:
-    """Hold SIGINT/SIGTERM/SIGHUP back while a chunk or the summary is written (POSIX)."""
-    if not hasattr(signal, "pthread_sigmask"):
-        yield
-        return
-    state, old = "before", set()
-    try:
-        try:
-            old = signal.pthread_sigmask(signal.SIG_BLOCK, _HELD_SIGNALS)
-            state = "held"
-        except (OSError, ValueError):
-            state = "free"
-        yield
-    finally:
-        if state == "held":
-            signal.pthread_sigmask(signal.SIG_SETMASK, old)
-        elif state == "before":
-            # a signal that was already pending raised between the block and its record: the
-            # mask must not stay blocked (a child process would inherit it and never see SIGINT)
-            signal.pthread_sigmask(signal.SIG_UNBLOCK, _HELD_SIGNALS)
 
 
 class _Channel:
@@ -183,7 +138,7 @@ class LogWriter:
         self._off_ns = round(wall_start_s * 1e9) if wall_start_s else 0
         if compression is None:
             compression = available_compressions()[0]
-        _check_compression(compression)
+        check_compression(compression)
         self._chunk_size = int(chunk_size)
         self._span_ns = round(chunk_span_s * 1e9)
         self._flush_wall_s = float(flush_wall_s) if flush_wall_s else 0.0
@@ -579,7 +534,7 @@ class LogWriter:
         n = self._w.n
         if not n or self._f.closed:
             return
-        with _signals_held():
+        with signals_held():
             try:
                 self._w.flush_chunk()  # the chunk, its message indexes; flushed to the OS
                 if self._fsync:
@@ -600,7 +555,7 @@ class LogWriter:
         self._closing = True
         done = False
         try:
-            with self._lock, _signals_held():
+            with self._lock, signals_held():
                 if not self._f.closed and self._failed is None:
                     self._flush_chunk()
                     try:
