@@ -86,7 +86,13 @@ PL_INLINE void advance_on_mm(plant_t *p, int mode, int mm, double u1, double u2,
     k.u2 = u2;
     for (n = 0; n < p->cfg.substeps; n++) {
         mech_mode(p, &k, &x, mm);
-        if (mode == MODE_UDQ) {
+        if (mm && p->cfg.map != NULL) { /* a flux map: integrated in the flux linkage */
+            if (mode == MODE_UDQ) {
+                rk4_lam(p, &k, &x, h, MODE_UDQ, &aud, &auq, &th_tot);
+            } else {
+                rk4_lam(p, &k, &x, h, MODE_KNOWN, &aud, &auq, &th_tot);
+            }
+        } else if (mode == MODE_UDQ) {
             rk4(p, &k, &x, h, MODE_UDQ, mm, &aud, &auq, &th_tot);
         } else {
             rk4(p, &k, &x, h, MODE_KNOWN, mm, &aud, &auq, &th_tot);

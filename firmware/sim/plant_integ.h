@@ -196,6 +196,185 @@ PL_INLINE void rk4(const plant_t *p, ctx_t *k, xs_t *x, double h, int mode, int 
     x->th = 0.0;
 }
 
+/* ------------------------------------------------------------------ flux-linkage form (flux maps)
+ *
+ * With a flux map the voltage equations L_inc(i) di/dt = u - R i + w_e (J psi - dpsi/dtheta) have
+ * a right-hand side whose Jacobian L_inc^-1 jumps in slope at every cell boundary (C1 patches), so
+ * RK4 in the currents loses its order where the current crosses cells. Integrated in the flux
+ * linkage lam = psi_map(i) + psi_shift + harmonics(theta) (the same equations: d lam/dt = L_inc di/dt
+ * + w_e d(harmonics)/dtheta), d lam/dt = u - R i + w_e J psi is smooth in lam except through R i,
+ * and one RK4 step per period meets the map's voltage equation better than four steps in the
+ * currents did (docs/plant.md). Each stage recovers i from lam by one Newton step from a linear
+ * predictor (the map evaluation the stage needs anyway: psi and Gamma at the predicted current);
+ * the step's end by Newton steps until the correction is below PL_LAM_TOL_A. */
+
+typedef struct {
+    double ld, lq, w, th;
+} xl_t;
+
+/* one stage: *id, *iq in: the predicted current, out: the Newton-corrected one; *g: Gamma there */
+PL_INLINE void deriv_lam(const plant_t *p, ctx_t *k, xl_t *x, double *id, double *iq, double g[4],
+                         dx_t *dx, int mode, const base_t *b, int first)
+{
+    const double pp = (double)p->cfg.pole_pairs;
+    double c, s, ud, uq, we, te, idm, iqm, psd, psq;
+    plant_mag_t m;
+
+    if (first) {
+        c = b->c;
+        s = b->s;
+    } else {
+        const double e = pp * (x->th - b->th);
+        c = b->c - e * (b->s + 0.5 * e * b->c);
+        s = b->s + e * (b->c - 0.5 * e * b->s);
+    }
+    if (mode == MODE_UDQ) {
+        ud = k->u1;
+        uq = k->u2;
+    } else {
+        ud = c * k->u1 + s * k->u2;
+        uq = -s * k->u1 + c * k->u2;
+    }
+    we = pp * x->w;
+    mag_gen(p, *id, *iq, c, s, &m);
+    if (first) { /* the stage at the known current: lam = psi(i) */
+        x->ld = m.psi_d_wb;
+        x->lq = m.psi_q_wb;
+    } else { /* Newton: i += Gamma (lam - psi(i)) */
+        const double ed = x->ld - m.psi_d_wb, eq = x->lq - m.psi_q_wb;
+        *id += m.g_dd * ed + m.g_dq * eq;
+        *iq += m.g_qd * ed + m.g_qq * eq;
+    }
+    g[0] = m.g_dd;
+    g[1] = m.g_dq;
+    g[2] = m.g_qd;
+    g[3] = m.g_qq;
+    psd = x->ld;
+    psq = x->lq;
+    idm = *id;
+    iqm = *iq;
+    if (p->inv_r_fe >
+        0.0) { /* iron loss as mag_at(), the incremental inductances at the predictor */
+        const double ifd = -we * (psq - m.dpsi_d_dth_wb) * p->inv_r_fe;
+        const double ifq = we * (psd + m.dpsi_q_dth_wb) * p->inv_r_fe;
+        idm = *id - ifd;
+        iqm = *iq - ifq;
+        psd -= m.l_dd * ifd + m.l_dq * ifq;
+        psq -= m.l_qd * ifd + m.l_qq * ifq;
+    }
+    dx->did = ud - p->r_s_ohm * *id + we * psq; /* d lam_d / dt */
+    dx->diq = uq - p->r_s_ohm * *iq - we * psd; /* d lam_q / dt */
+    te = 1.5 * pp * (psd * iqm - psq * idm) +
+         1.5 * pp * (*id * m.dpsi_d_dth_wb + *iq * m.dpsi_q_dth_wb) + k->t_cog;
+    dx->dw = k->frozen ? 0.0 : (te - k->t_load - p->cfg.b_visc_nms * x->w - k->fric) * p->inv_j;
+    dx->dth = x->w;
+    dx->ud = ud;
+    dx->uq = uq;
+}
+
+/* i += Gamma dlam */
+PL_INLINE void lam_predict(double *id, double *iq, const double g[4], double dld, double dlq)
+{
+    *id += g[0] * dld + g[1] * dlq;
+    *iq += g[2] * dld + g[3] * dlq;
+}
+
+/* The step's end: Newton until |correction| < PL_LAM_TOL_A (the error left is then ~ the map's
+ * curvature times its square, < 1e-7 A), at most PL_LAM_NEWTON_MAX evaluations (one, mostly). */
+#define PL_LAM_TOL_A      1e-3
+#define PL_LAM_NEWTON_MAX 3
+
+/* RK4 over h in the flux linkage (x->th == 0 on entry; MODE_KNOWN or MODE_UDQ), as rk4()
+ * otherwise; x->id, x->iq: the currents at the start, replaced by those at the end. */
+PL_INLINE void rk4_lam(const plant_t *p, ctx_t *k, xs_t *x, double h, int mode, double *aud,
+                       double *auq, double *th_tot)
+{
+    dx_t k1, k2, k3, k4;
+    xl_t y, l0;
+    base_t b1, b2, b4;
+    const double pp = (double)p->cfg.pole_pairs;
+    const double h2 = 0.5 * h, h6 = h * (1.0 / 6.0);
+    double cd, sd, c2, s2, dth, e, e2, e3, id, iq, g[4], lde, lqe;
+    int n;
+
+    rot_small(pp * h2 * x->w, &cd, &sd);
+    c2 = cd * cd - sd * sd;
+    s2 = 2.0 * cd * sd;
+    b1.c = k->c0;
+    b1.s = k->s0;
+    b1.th = 0.0;
+    b2.c = k->c0 * cd - k->s0 * sd;
+    b2.s = k->s0 * cd + k->c0 * sd;
+    b2.th = h2 * x->w;
+    b4.c = k->c0 * c2 - k->s0 * s2;
+    b4.s = k->s0 * c2 + k->c0 * s2;
+    b4.th = h * x->w;
+    k->t_cog = cog_torque(p, b2.c, b2.s);
+
+    l0.ld = 0.0; /* set by the first stage */
+    l0.lq = 0.0;
+    l0.w = x->w;
+    l0.th = 0.0;
+    id = x->id;
+    iq = x->iq;
+    deriv_lam(p, k, &l0, &id, &iq, g, &k1, mode, &b1, 1);
+    y.ld = l0.ld + h2 * k1.did;
+    y.lq = l0.lq + h2 * k1.diq;
+    y.w = l0.w + h2 * k1.dw;
+    y.th = h2 * k1.dth;
+    lam_predict(&id, &iq, g, h2 * k1.did, h2 * k1.diq);
+    deriv_lam(p, k, &y, &id, &iq, g, &k2, mode, &b2, 0);
+    {
+        const double pld = y.ld, plq = y.lq;
+        y.ld = l0.ld + h2 * k2.did;
+        y.lq = l0.lq + h2 * k2.diq;
+        y.w = l0.w + h2 * k2.dw;
+        y.th = h2 * k2.dth;
+        lam_predict(&id, &iq, g, y.ld - pld, y.lq - plq);
+    }
+    deriv_lam(p, k, &y, &id, &iq, g, &k3, mode, &b2, 0);
+    {
+        const double pld = y.ld, plq = y.lq;
+        y.ld = l0.ld + h * k3.did;
+        y.lq = l0.lq + h * k3.diq;
+        y.w = l0.w + h * k3.dw;
+        y.th = h * k3.dth;
+        lam_predict(&id, &iq, g, y.ld - pld, y.lq - plq);
+    }
+    deriv_lam(p, k, &y, &id, &iq, g, &k4, mode, &b4, 0);
+    lde = l0.ld + h6 * (k1.did + 2.0 * (k2.did + k3.did) + k4.did);
+    lqe = l0.lq + h6 * (k1.diq + 2.0 * (k2.diq + k3.diq) + k4.diq);
+    x->w += h6 * (k1.dw + 2.0 * (k2.dw + k3.dw) + k4.dw);
+    dth = h6 * (k1.dth + 2.0 * (k2.dth + k3.dth) + k4.dth);
+    *aud += h6 * (k1.ud + 2.0 * (k2.ud + k3.ud) + k4.ud);
+    *auq += h6 * (k1.uq + 2.0 * (k2.uq + k3.uq) + k4.uq);
+    e = pp * (dth - b4.th);
+    e2 = 1.0 - 0.5 * e * e;
+    e3 = e * (1.0 - e * e * (1.0 / 6.0));
+    k->c0 = b4.c * e2 - b4.s * e3;
+    k->s0 = b4.s * e2 + b4.c * e3;
+    *th_tot += dth;
+    x->th = 0.0;
+    /* the currents at the end: Newton on psi(i) = lam at the end angle */
+    lam_predict(&id, &iq, g, lde - y.ld, lqe - y.lq);
+    for (n = 0; n < PL_LAM_NEWTON_MAX; n++) {
+        plant_mag_t m;
+        double ed, eq, nd, nq;
+        mag_gen(p, id, iq, k->c0, k->s0, &m);
+        ed = lde - m.psi_d_wb;
+        eq = lqe - m.psi_q_wb;
+        nd = m.g_dd * ed + m.g_dq * eq;
+        nq = m.g_qd * ed + m.g_qq * eq;
+        id += nd;
+        iq += nq;
+        if (fabs(nd) + fabs(nq) < PL_LAM_TOL_A) {
+            break;
+        }
+    }
+    x->id = id;
+    x->iq = iq;
+}
+
 /* plant_integ.c */
 void pl_ctx_start(const plant_t *p, ctx_t *k, xs_t *x, double t_load);
 void pl_finish_period(plant_t *p, const ctx_t *k, const xs_t *x, double th_tot, double aud,

@@ -67,7 +67,9 @@ def emulator_settings(
     return s
 
 
-MAP_SUBSTEPS = 4  # RK4 sub-steps per period when the plant has a flux map
+# RK4 sub-steps per period when the plant has a flux map: one, as the plant integrates a map in the
+# flux linkage (docs/plant.md "Integration"; four were needed while it integrated the currents)
+MAP_SUBSTEPS = 1
 
 
 def _motor_map(motor: Motor):
@@ -102,10 +104,9 @@ def effect_settings(motor: Motor, rig: Rig) -> dict:
         fm, _ = for_motor(fm, motor.psi_f_wb, motor.l_d_h, motor.l_q_h)
     if fm is not None:
         s.update(fm.settings())
-        # RK4 at one sub-step is exact to 1e-5 A on the linear machine but not across a map's
-        # cells: an FCS period moves the current by several amperes, and the error has a sign
-        # per current level (the plant then misses its own voltage equation by 0.2-0.6 V on q,
-        # docs/plant.md "Integration"); 4 sub-steps bring it to the noise of the check
+        # RK4 in the currents missed a map's voltage equation by 0.2-0.6 V on q at one sub-step
+        # (an FCS period moves the current across several of the map's cells); in the flux
+        # linkage one step meets it to the noise of the check (docs/plant.md "Integration")
         s["substeps"] = MAP_SUBSTEPS
     else:
         s.update({"sat_nd": 0, "sat_nq": 0})
