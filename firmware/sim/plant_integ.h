@@ -37,6 +37,61 @@ typedef struct {
     double c, s, th;
 } base_t;
 
+/* cos, sin of theta_e at an RK4 stage (mechanical angle th relative to the sub-step start) and the
+ * known voltage in the rotor frame there */
+PL_INLINE void stage_angle_u(const ctx_t *k, double pp, double th, const base_t *b, int first,
+                             int mode, double *c, double *s, double *ud, double *uq)
+{
+    if (first) { /* the first stage sits at the sub-step start */
+        *c = b->c;
+        *s = b->s;
+    } else { /* e = p (th - th_base) ~ p h^2 dw/dt / 4 is tiny: second order is exact to 1e-16 */
+        const double e = pp * (th - b->th);
+        *c = b->c - e * (b->s + 0.5 * e * b->c);
+        *s = b->s + e * (b->c - 0.5 * e * b->s);
+    }
+    if (mode == MODE_UDQ) {
+        *ud = k->u1;
+        *uq = k->u2;
+    } else { /* stationary-frame voltage seen in the rotor frame */
+        *ud = *c * k->u1 + *s * k->u2;
+        *uq = -*s * k->u1 + *c * k->u2;
+    }
+}
+
+/* the stage angles of a step of h at the start speed w: half step, and full step by the
+ * double-angle formula (one small-angle rotation, no libm below 0.15 rad per half step) */
+PL_INLINE void stage_bases(const ctx_t *k, double pp, double h, double w, base_t *b1, base_t *b2,
+                           base_t *b4)
+{
+    const double h2 = 0.5 * h;
+    double cd, sd, c2, s2;
+    rot_small(pp * h2 * w, &cd, &sd);
+    c2 = cd * cd - sd * sd;
+    s2 = 2.0 * cd * sd;
+    b1->c = k->c0;
+    b1->s = k->s0;
+    b1->th = 0.0;
+    b2->c = k->c0 * cd - k->s0 * sd;
+    b2->s = k->s0 * cd + k->c0 * sd;
+    b2->th = h2 * w;
+    b4->c = k->c0 * c2 - k->s0 * s2;
+    b4->s = k->s0 * c2 + k->c0 * s2;
+    b4->th = h * w;
+}
+
+/* new angle reference after a step that turned the rotor by dth: the full-step base rotated by the
+ * step's own deviation (third order) */
+PL_INLINE void step_angle_end(ctx_t *k, double pp, double dth, const base_t *b4, double *th_tot)
+{
+    const double e = pp * (dth - b4->th);
+    const double e2 = 1.0 - 0.5 * e * e;
+    const double e3 = e * (1.0 - e * e * (1.0 / 6.0));
+    k->c0 = b4->c * e2 - b4->s * e3;
+    k->s0 = b4->s * e2 + b4->c * e3;
+    *th_tot += dth;
+}
+
 PL_INLINE void deriv(const plant_t *p, ctx_t *k, const xs_t *x, dx_t *dx, int mode, int mm,
                      const base_t *b, int first)
 {
@@ -44,21 +99,7 @@ PL_INLINE void deriv(const plant_t *p, ctx_t *k, const xs_t *x, dx_t *dx, int mo
     double c, s, ud, uq, we, rd, rq, te, idm, iqm;
     plant_mag_t m;
 
-    if (first) { /* the first stage sits at the sub-step start */
-        c = b->c;
-        s = b->s;
-    } else { /* e = p (th - th_base) ~ p h^2 dw/dt / 4 is tiny: second order is exact to 1e-16 */
-        const double e = pp * (x->th - b->th);
-        c = b->c - e * (b->s + 0.5 * e * b->c);
-        s = b->s + e * (b->c - 0.5 * e * b->s);
-    }
-    if (mode == MODE_UDQ) {
-        ud = k->u1;
-        uq = k->u2;
-    } else { /* stationary-frame voltage seen in the rotor frame */
-        ud = c * k->u1 + s * k->u2;
-        uq = -s * k->u1 + c * k->u2;
-    }
+    stage_angle_u(k, pp, x->th, b, first, mode, &c, &s, &ud, &uq);
     we = pp * x->w;
     mag_at(p, mm, x->id, x->iq, we, c, s, &m, &idm, &iqm);
     /* L_inc di/dt = u - R i + w_e (J psi - dpsi/dtheta),  J psi = (psi_q, -psi_d) */
@@ -145,21 +186,9 @@ PL_INLINE void rk4(const plant_t *p, ctx_t *k, xs_t *x, double h, int mode, int 
     base_t b1, b2, b4;
     const double pp = (double)p->cfg.pole_pairs;
     const double h2 = 0.5 * h, h6 = h * (1.0 / 6.0);
-    double cd, sd, c2, s2, dth, e, e2, e3;
+    double dth;
 
-    /* stage angles at the start speed: half step, and full step by the double-angle formula */
-    rot_small(pp * h2 * x->w, &cd, &sd);
-    c2 = cd * cd - sd * sd;
-    s2 = 2.0 * cd * sd;
-    b1.c = k->c0;
-    b1.s = k->s0;
-    b1.th = 0.0;
-    b2.c = k->c0 * cd - k->s0 * sd;
-    b2.s = k->s0 * cd + k->c0 * sd;
-    b2.th = h2 * x->w;
-    b4.c = k->c0 * c2 - k->s0 * s2;
-    b4.s = k->s0 * c2 + k->c0 * s2;
-    b4.th = h * x->w;
+    stage_bases(k, pp, h, x->w, &b1, &b2, &b4);
     if (mm) {
         k->t_cog = cog_torque(p, b2.c, b2.s);
     }
@@ -186,13 +215,7 @@ PL_INLINE void rk4(const plant_t *p, ctx_t *k, xs_t *x, double h, int mode, int 
     dth = h6 * (k1.dth + 2.0 * (k2.dth + k3.dth) + k4.dth);
     *aud += h6 * (k1.ud + 2.0 * (k2.ud + k3.ud) + k4.ud);
     *auq += h6 * (k1.uq + 2.0 * (k2.uq + k3.uq) + k4.uq);
-    /* new angle reference: the full-step base rotated by the step's own deviation (third order) */
-    e = pp * (dth - b4.th);
-    e2 = 1.0 - 0.5 * e * e;
-    e3 = e * (1.0 - e * e * (1.0 / 6.0));
-    k->c0 = b4.c * e2 - b4.s * e3;
-    k->s0 = b4.s * e2 + b4.c * e3;
-    *th_tot += dth;
+    step_angle_end(k, pp, dth, &b4, th_tot);
     x->th = 0.0;
 }
 
@@ -220,21 +243,7 @@ PL_INLINE void deriv_lam(const plant_t *p, ctx_t *k, xl_t *x, double *id, double
     double c, s, ud, uq, we, te, idm, iqm, psd, psq;
     plant_mag_t m;
 
-    if (first) {
-        c = b->c;
-        s = b->s;
-    } else {
-        const double e = pp * (x->th - b->th);
-        c = b->c - e * (b->s + 0.5 * e * b->c);
-        s = b->s + e * (b->c - 0.5 * e * b->s);
-    }
-    if (mode == MODE_UDQ) {
-        ud = k->u1;
-        uq = k->u2;
-    } else {
-        ud = c * k->u1 + s * k->u2;
-        uq = -s * k->u1 + c * k->u2;
-    }
+    stage_angle_u(k, pp, x->th, b, first, mode, &c, &s, &ud, &uq);
     we = pp * x->w;
     mag_gen(p, *id, *iq, c, s, &m);
     if (first) { /* the stage at the known current: lam = psi(i) */
@@ -279,6 +288,18 @@ PL_INLINE void lam_predict(double *id, double *iq, const double g[4], double dld
     *iq += g[2] * dld + g[3] * dlq;
 }
 
+/* the next stage's state l0 + a k, and its current predicted from the last stage's by Gamma dlam */
+PL_INLINE void lam_next(xl_t *y, const xl_t *l0, double a, const dx_t *kp, double *id, double *iq,
+                        const double g[4])
+{
+    const double pld = y->ld, plq = y->lq;
+    y->ld = l0->ld + a * kp->did;
+    y->lq = l0->lq + a * kp->diq;
+    y->w = l0->w + a * kp->dw;
+    y->th = a * kp->dth;
+    lam_predict(id, iq, g, y->ld - pld, y->lq - plq);
+}
+
 /* The step's end: Newton until |correction| < PL_LAM_TOL_A (the error left is then ~ the map's
  * curvature times its square, < 1e-7 A), at most PL_LAM_NEWTON_MAX evaluations (one, mostly). */
 #define PL_LAM_TOL_A      1e-3
@@ -294,21 +315,10 @@ PL_INLINE void rk4_lam(const plant_t *p, ctx_t *k, xs_t *x, double h, int mode, 
     base_t b1, b2, b4;
     const double pp = (double)p->cfg.pole_pairs;
     const double h2 = 0.5 * h, h6 = h * (1.0 / 6.0);
-    double cd, sd, c2, s2, dth, e, e2, e3, id, iq, g[4], lde, lqe;
+    double dth, id, iq, g[4], lde, lqe;
     int n;
 
-    rot_small(pp * h2 * x->w, &cd, &sd);
-    c2 = cd * cd - sd * sd;
-    s2 = 2.0 * cd * sd;
-    b1.c = k->c0;
-    b1.s = k->s0;
-    b1.th = 0.0;
-    b2.c = k->c0 * cd - k->s0 * sd;
-    b2.s = k->s0 * cd + k->c0 * sd;
-    b2.th = h2 * x->w;
-    b4.c = k->c0 * c2 - k->s0 * s2;
-    b4.s = k->s0 * c2 + k->c0 * s2;
-    b4.th = h * x->w;
+    stage_bases(k, pp, h, x->w, &b1, &b2, &b4);
     k->t_cog = cog_torque(p, b2.c, b2.s);
 
     l0.ld = 0.0; /* set by the first stage */
@@ -318,29 +328,12 @@ PL_INLINE void rk4_lam(const plant_t *p, ctx_t *k, xs_t *x, double h, int mode, 
     id = x->id;
     iq = x->iq;
     deriv_lam(p, k, &l0, &id, &iq, g, &k1, mode, &b1, 1);
-    y.ld = l0.ld + h2 * k1.did;
-    y.lq = l0.lq + h2 * k1.diq;
-    y.w = l0.w + h2 * k1.dw;
-    y.th = h2 * k1.dth;
-    lam_predict(&id, &iq, g, h2 * k1.did, h2 * k1.diq);
+    y = l0;
+    lam_next(&y, &l0, h2, &k1, &id, &iq, g);
     deriv_lam(p, k, &y, &id, &iq, g, &k2, mode, &b2, 0);
-    {
-        const double pld = y.ld, plq = y.lq;
-        y.ld = l0.ld + h2 * k2.did;
-        y.lq = l0.lq + h2 * k2.diq;
-        y.w = l0.w + h2 * k2.dw;
-        y.th = h2 * k2.dth;
-        lam_predict(&id, &iq, g, y.ld - pld, y.lq - plq);
-    }
+    lam_next(&y, &l0, h2, &k2, &id, &iq, g);
     deriv_lam(p, k, &y, &id, &iq, g, &k3, mode, &b2, 0);
-    {
-        const double pld = y.ld, plq = y.lq;
-        y.ld = l0.ld + h * k3.did;
-        y.lq = l0.lq + h * k3.diq;
-        y.w = l0.w + h * k3.dw;
-        y.th = h * k3.dth;
-        lam_predict(&id, &iq, g, y.ld - pld, y.lq - plq);
-    }
+    lam_next(&y, &l0, h, &k3, &id, &iq, g);
     deriv_lam(p, k, &y, &id, &iq, g, &k4, mode, &b4, 0);
     lde = l0.ld + h6 * (k1.did + 2.0 * (k2.did + k3.did) + k4.did);
     lqe = l0.lq + h6 * (k1.diq + 2.0 * (k2.diq + k3.diq) + k4.diq);
@@ -348,12 +341,7 @@ PL_INLINE void rk4_lam(const plant_t *p, ctx_t *k, xs_t *x, double h, int mode, 
     dth = h6 * (k1.dth + 2.0 * (k2.dth + k3.dth) + k4.dth);
     *aud += h6 * (k1.ud + 2.0 * (k2.ud + k3.ud) + k4.ud);
     *auq += h6 * (k1.uq + 2.0 * (k2.uq + k3.uq) + k4.uq);
-    e = pp * (dth - b4.th);
-    e2 = 1.0 - 0.5 * e * e;
-    e3 = e * (1.0 - e * e * (1.0 / 6.0));
-    k->c0 = b4.c * e2 - b4.s * e3;
-    k->s0 = b4.s * e2 + b4.c * e3;
-    *th_tot += dth;
+    step_angle_end(k, pp, dth, &b4, th_tot);
     x->th = 0.0;
     /* the currents at the end: Newton on psi(i) = lam at the end angle */
     lam_predict(&id, &iq, g, lde - y.ld, lqe - y.lq);
