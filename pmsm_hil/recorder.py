@@ -324,7 +324,7 @@ class Recorder:
             "step": COMMISSION_STEPS.get(f["step"], str(f["step"])),
             "status": "ok" if f["status"] == 0 else COMMISSION_FAILS.get(f["status"], "failed"),
         }
-        for k in range(4):
+        for k in range(len(f["value"])):
             row[f"value_{k}"] = f["value"][k]
             row[f"spread_{k}"] = f["spread"][k]
         row["ref_0"], row["ref_1"] = f["truth_ref"][0], f["truth_ref"][1]

@@ -57,6 +57,9 @@ def check_bounds(profile, res, log):
         assert abs(err[f"offset_{ph}_a"]) <= 0.005, err
     assert abs(err["enc_offset_deg"]) <= 0.2, err
     assert abs(err["plateau_rel"]) <= 0.05, err
+    # the plateau split by the clamped-PWM staircase: the dead time's part and the device drop
+    assert abs(err["dead_time_rel"]) <= 0.05, err
+    assert abs(err["v_drop_v"]) <= 0.25, err
     assert abs(err["r_rel"]) <= 0.02, err
     assert abs(err["l_d_rel"]) <= 0.05, err
     assert abs(err["l_q_rel"]) <= 0.05, err
@@ -237,17 +240,16 @@ def test_identification_after_commissioning_holds_on_the_default_rig(tmp_path, s
 def test_identification_after_commissioning_on_lab_typical(tmp_path, seed):
     """NLMS-Adaline with the commissioned motor file on lab-typical (saturation and
     cross-saturation, the inverter's distortion, iron loss, sensor errors...), against the apparent
-    inductances (docs/identification.md). Issue 12's bounds where they are met: L_q 1 %, psi_f
-    1 %, R 2 %, L_q and psi_f converged within 0.5 s, psi_f's drift tracked within 0.5 s. Short of
-    the issue and guarded here at what is reached: L_d 2 % (1 % asked) and R's drift 1 s (0.5 s
-    asked: the drift's psi_f step moves i_q by 5 %, and with it the slope's offset)."""
+    inductances (docs/identification.md). Issue 12's bounds: L_d, L_q, psi_f 1 %, R 2 %, L_q and
+    psi_f converged within 0.5 s, psi_f's drift tracked within 0.5 s. Short of the issue on one
+    seed in ten and guarded here at 1 s: R's drift (0.5 s asked)."""
     from pmsm_hil.bench.identify_rigs import _one
 
     r = _one(
         resolve("paper-a-identify", "profile"), resolve("lab-typical", "rig"), seed, tmp_path, True
     )
     cells = r["cells"]
-    bounds = {"l_d_h": 0.02, "l_q_h": 0.01, "psi_f_wb": 0.01, "r_s_ohm": 0.02}
+    bounds = {"l_d_h": 0.01, "l_q_h": 0.01, "psi_f_wb": 0.01, "r_s_ohm": 0.02}
     for q, bound in bounds.items():
         err, conv = cells[("nlms_adaline", q)]
         assert abs(err) <= bound, (q, err)

@@ -22,6 +22,7 @@ void comm_start(comm_t *c, const comm_cfg_t *cfg)
     c->l_d_h = cfg->motor.l_d_h;
     c->l_q_h = cfg->motor.l_q_h;
     c->inv_i_dt_a = cfg->i_dt_nom_a > 0.0f ? cfg->i_dt_nom_a : 0.5f;
+    c->inv_drop_v = cfg->v_drop_nom_v;
     c->step = 0u;
     while (c->step < COMM_N_STEPS && (((uint16_t)(c->cfg.steps >> c->step)) & 1u) == 0u) {
         c->step = (uint16_t)(c->step + 1u);
@@ -58,6 +59,7 @@ void comm_fail(comm_t *c, uint16_t reason)
 {
     c->status = COMM_FAILED;
     c->fail_reason = reason;
+    c->dpwm_lo = false;
     c->res.step = c->step;
     c->res.status = reason;
     c->result_due = true;
@@ -68,6 +70,7 @@ void comm_finish_step(comm_t *c)
     c->res.step = c->step;
     c->res.status = 0u;
     c->result_due = true;
+    c->dpwm_lo = false;
     c->step = (uint16_t)(c->step + 1u);
     while (c->step < COMM_N_STEPS && (((uint16_t)(c->cfg.steps >> c->step)) & 1u) == 0u) {
         c->step = (uint16_t)(c->step + 1u);
@@ -106,7 +109,7 @@ float comm_smooth_sign(float i, float i_dt)
 
 float comm_inv_plateau(const comm_t *c, float v_dc)
 {
-    const float drop = c->cfg.v_drop_nom_v < c->inv_v ? c->cfg.v_drop_nom_v : c->inv_v;
+    const float drop = c->inv_drop_v < c->inv_v ? c->inv_drop_v : c->inv_v;
     if (!c->have_inv) {
         return 0.0f;
     }
@@ -133,11 +136,17 @@ void comm_voltage(comm_t *c, float cs, float sn, float u_d, float u_q, comm_out_
     hi = uc > hi ? uc : hi;
     lo = ua < ub ? ua : ub;
     lo = uc < lo ? uc : lo;
-    z = -0.5f * (hi + lo); /* min-max zero sequence: the space-vector range */
     inv = c->v_dc > 1.0f ? 1.0f / c->v_dc : 0.0f;
-    out->duty[0] = 0.5f + (ua + z) * inv;
-    out->duty[1] = 0.5f + (ub + z) * inv;
-    out->duty[2] = 0.5f + (uc + z) * inv;
+    if (c->dpwm_lo) { /* discontinuous PWM: the lowest leg sits at the lower rail (duty exactly 0) */
+        out->duty[0] = (ua - lo) * inv;
+        out->duty[1] = (ub - lo) * inv;
+        out->duty[2] = (uc - lo) * inv;
+    } else {
+        z = -0.5f * (hi + lo); /* min-max zero sequence: the space-vector range */
+        out->duty[0] = 0.5f + (ua + z) * inv;
+        out->duty[1] = 0.5f + (ub + z) * inv;
+        out->duty[2] = 0.5f + (uc + z) * inv;
+    }
     for (x = 0u; x < 3u; x++) {
         out->duty[x] = out->duty[x] < 0.0f ? 0.0f : (out->duty[x] > 1.0f ? 1.0f : out->duty[x]);
     }

@@ -15,7 +15,8 @@
 #include "proto_gen.h"
 
 #define COMM_N_STEPS   7u
-#define COMM_STAIR_MAX 24u /* staircase levels, both directions */
+#define COMM_STAIR_MAX 48u /* staircase levels: both directions, space-vector and clamped PWM */
+#define COMM_RES_N     6u  /* values (and spreads) of one step's result */
 
 #define COMM_RUNNING 0u
 #define COMM_DONE    1u
@@ -50,7 +51,7 @@ typedef struct {
 /* One step's result as sent to the host (proto commission_result). */
 typedef struct {
     uint16_t step, status;
-    float value[4], spread[4], ref[2];
+    float value[COMM_RES_N], spread[COMM_RES_N], ref[2];
 } comm_result_t;
 
 /* Running sums of a linear regression y = sum a_j x_j (n_x regressors, the last one 1). */
@@ -80,7 +81,9 @@ typedef struct {
     bool have_enc;
     float inv_v, inv_i_dt_a; /* inverter distortion plateau (per leg) and current band */
     float inv_vdc_v;         /* the DC voltage inv_v was measured at (its dead-time part scales) */
+    float inv_drop_v;        /* its device-drop part (does not scale with v_dc) */
     bool have_inv;
+    bool dpwm_lo; /* comm_voltage clamps the lowest leg to the lower rail (no edges in that leg) */
     float r_ohm;
     bool have_r;
     float l_d_h, l_q_h;
@@ -109,6 +112,7 @@ typedef struct {
     /* staircase */
     float st_i[COMM_STAIR_MAX], st_u[COMM_STAIR_MAX], st_abc[COMM_STAIR_MAX][3];
     float st_th[COMM_STAIR_MAX], st_vdc[COMM_STAIR_MAX];
+    float st_sw[COMM_STAIR_MAX][3]; /* share of the periods in which each leg switched */
     uint16_t st_n, st_k;
     comm_reg_t reg[2];
     /* spin */

@@ -1,12 +1,16 @@
 /* Commissioning step: the inverter's distortion voltage against current (docs/commissioning.md).
  *
  * At standstill, a d-axis current staircase in both directions (the q current held at zero, so
- * the rotor feels no torque) gives, at each level, the commanded voltage that holds the current:
- * u_d = R i_d + V g_d(i_abc / i_dt), where g_d is the d component of the per-leg smooth sign
- * sigma (the model the firmware compensates with, mpcc.c) and V the plateau of one leg's
- * distortion (dead time v_dc t_d / Ts plus device drop). For each current band i_dt on a grid,
- * R and V follow by least squares; the band with the smallest residual wins. V fitted on each
- * direction alone shows the repeatability. */
+ * the rotor feels no torque) gives, at each level, the commanded voltage that holds the current.
+ * Each leg adds its device drop V_drop sigma(i / i_dt) in every period and its dead time
+ * V_dt sigma(i / i_dt) (V_dt = v_dc t_d / Ts) only in a period in which it switches (sigma: the
+ * smooth sign the firmware compensates with, mpcc.c). The staircase runs twice: with space-vector
+ * PWM (every leg switches, the two add up to one plateau) and with discontinuous PWM (the lowest
+ * leg clamped to the lower rail: no edges, only its drop), which tells them apart:
+ * u_d = R i_d + V_dt (v_dc_k / v_dc_ref) g_sw + V_drop g_all, g the d components of the legs'
+ * signs (g_sw: weighted by the share of periods each leg switched). For each current band i_dt on
+ * a grid, R, V_dt and V_drop follow by least squares; the band with the smallest residual wins.
+ * The fit on each direction alone shows the repeatability. */
 #include "comm.h"
 #include "transforms.h"
 
@@ -15,145 +19,185 @@
 #define INV_SETTLE_S 0.03f
 #define INV_MEAS_S   0.04f
 #define INV_GRID_N   29u
-#define INV_LEVELS   12u /* per direction; COMM_STAIR_MAX = 2 INV_LEVELS */
+#define INV_LEVELS   12u /* per direction and PWM; COMM_STAIR_MAX = 4 INV_LEVELS */
 
-/* level k of one direction, as a multiple of the nominal band (knee) or of the test current */
+/* level k of the staircase (INV_LEVELS per direction, positive first; SVPWM, then clamped PWM),
+ * as a multiple of the nominal band (knee) or of the test current */
 static float level_a(const comm_t *c, uint16_t k)
 {
     static const float knee[9] = { 0.2f, 0.4f, 0.6f, 0.9f, 1.2f, 1.6f, 2.0f, 2.6f, 3.4f };
     static const float top[3] = { 0.4f, 0.7f, 1.0f };
-    return k < 9u ? knee[k] * c->cfg.i_dt_nom_a : top[k - 9u] * c->cfg.i_test_a;
+    const uint16_t j = (uint16_t)(k % INV_LEVELS);
+    const float a = j < 9u ? knee[j] * c->cfg.i_dt_nom_a : top[j - 9u] * c->cfg.i_test_a;
+    return ((k / INV_LEVELS) & 1u) == 0u ? a : -a;
 }
 
-static float g_d(const comm_t *c, uint16_t k, float i_dt)
+/* d components of the legs' smooth signs at point k: all legs (g_all), and weighted by the share
+ * of periods in which each switched (g_sw) */
+static void g_d(const comm_t *c, uint16_t k, float i_dt, float *g_all, float *g_sw)
 {
-    float al, be;
-    tf_clarke(comm_smooth_sign(c->st_abc[k][0], i_dt), comm_smooth_sign(c->st_abc[k][1], i_dt),
-              comm_smooth_sign(c->st_abc[k][2], i_dt), &al, &be);
-    return cosf(c->st_th[k]) * al + sinf(c->st_th[k]) * be;
+    float sg[3], al, be, cs, sn;
+    uint16_t x;
+    for (x = 0u; x < 3u; x++) {
+        sg[x] = comm_smooth_sign(c->st_abc[k][x], i_dt);
+    }
+    cs = cosf(c->st_th[k]);
+    sn = sinf(c->st_th[k]);
+    tf_clarke(sg[0], sg[1], sg[2], &al, &be);
+    *g_all = cs * al + sn * be;
+    tf_clarke(sg[0] * c->st_sw[k][0], sg[1] * c->st_sw[k][1], sg[2] * c->st_sw[k][2], &al, &be);
+    *g_sw = cs * al + sn * be;
 }
 
-/* The plateau's dead-time part scales with the DC voltage (v_dc t_d / Ts), the device drop does
- * not: with the nominal drop, u - drop g = R i + V_dt (v_dc_k / v_dc_ref) g is linear in R, V_dt. */
-static float drop_v(const comm_t *c)
-{
-    return c->cfg.v_drop_nom_v;
-}
-
+/* The dead time's part scales with the DC voltage (v_dc t_d / Ts), the device drop does not. */
 static float scale_k(const comm_t *c, uint16_t k)
 {
     return c->inv_vdc_v > 1.0f ? c->st_vdc[k] / c->inv_vdc_v : 1.0f;
 }
 
-/* least squares of u = R i + V g over points [k0, k1); returns the sum of squared residuals */
-static float fit(const comm_t *c, float i_dt, uint16_t k0, uint16_t k1, float *r, float *v)
+/* a point of direction dir (+1, -1; 0: both) */
+static bool in_dir(const comm_t *c, uint16_t k, int16_t dir)
 {
-    float sii = 0.0f, sig = 0.0f, sgg = 0.0f, siu = 0.0f, sgu = 0.0f, det, sse = 0.0f;
-    uint16_t k;
-    for (k = k0; k < k1; k++) {
-        const float g0 = g_d(c, k, i_dt), g = g0 * scale_k(c, k), i = c->st_i[k];
-        const float u = c->st_u[k] - drop_v(c) * g0;
-        sii += i * i;
-        sig += i * g;
-        sgg += g * g;
-        siu += i * u;
-        sgu += g * u;
-    }
-    det = sii * sgg - sig * sig;
-    if (!(fabsf(det) > 1e-12f)) {
-        *r = 0.0f;
-        *v = 0.0f;
-        return 1e30f;
-    }
-    *r = (siu * sgg - sgu * sig) / det;
-    *v = (sgu * sii - siu * sig) / det;
-    for (k = k0; k < k1; k++) {
-        const float g0 = g_d(c, k, i_dt);
-        const float e = c->st_u[k] - drop_v(c) * g0 - *r * c->st_i[k] - *v * g0 * scale_k(c, k);
-        sse += e * e;
-    }
-    *v += drop_v(c); /* the plateau at v_dc_ref */
-    return sse;
+    return dir == 0 || (dir > 0 ? c->st_i[k] > 0.0f : c->st_i[k] < 0.0f);
 }
 
-/* V alone over [k0, k1), R given */
-static float fit_v(const comm_t *c, float i_dt, float r, uint16_t k0, uint16_t k1)
+typedef struct {
+    float r, v_dt, v_drop; /* v_dt at the reference DC voltage */
+} inv_fit_t;
+
+/* least squares of u = R i + V_dt s g_sw + V_drop g_all over the points of direction dir;
+ * returns the sum of squared residuals (1e30 when singular) */
+static float fit(const comm_t *c, float i_dt, int16_t dir, inv_fit_t *f)
 {
-    float sgg = 0.0f, sgu = 0.0f;
-    uint16_t k;
-    for (k = k0; k < k1; k++) {
-        const float g0 = g_d(c, k, i_dt), g = g0 * scale_k(c, k);
-        sgg += g * g;
-        sgu += g * (c->st_u[k] - drop_v(c) * g0 - r * c->st_i[k]);
+    float a[3][3] = { { 0.0f } }, b[3] = { 0.0f }, x[3], det, sse = 0.0f;
+    uint16_t k, i, j;
+    for (k = 0u; k < c->st_n; k++) {
+        float g_all, g_sw, ph[3];
+        if (!in_dir(c, k, dir)) {
+            continue;
+        }
+        g_d(c, k, i_dt, &g_all, &g_sw);
+        ph[0] = c->st_i[k];
+        ph[1] = g_sw * scale_k(c, k);
+        ph[2] = g_all;
+        for (i = 0u; i < 3u; i++) {
+            b[i] += ph[i] * c->st_u[k];
+            for (j = 0u; j < 3u; j++) {
+                a[i][j] += ph[i] * ph[j];
+            }
+        }
     }
-    return (sgg > 0.0f ? sgu / sgg : 0.0f) + drop_v(c);
+    det = a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) -
+          a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0]) +
+          a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
+    if (!(fabsf(det) > 1e-12f)) {
+        f->r = f->v_dt = f->v_drop = 0.0f;
+        return 1e30f;
+    }
+    for (i = 0u; i < 3u; i++) { /* Cramer's rule: column i replaced by b */
+        float m[3][3];
+        for (j = 0u; j < 3u; j++) {
+            m[j][0] = i == 0u ? b[j] : a[j][0];
+            m[j][1] = i == 1u ? b[j] : a[j][1];
+            m[j][2] = i == 2u ? b[j] : a[j][2];
+        }
+        x[i] = (m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) -
+                m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0]) +
+                m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])) /
+               det;
+    }
+    f->r = x[0];
+    f->v_dt = x[1];
+    f->v_drop = x[2];
+    for (k = 0u; k < c->st_n; k++) {
+        float g_all, g_sw, e;
+        if (!in_dir(c, k, dir)) {
+            continue;
+        }
+        g_d(c, k, i_dt, &g_all, &g_sw);
+        e = c->st_u[k] - f->r * c->st_i[k] - f->v_dt * g_sw * scale_k(c, k) - f->v_drop * g_all;
+        sse += e * e;
+    }
+    return sse;
 }
 
 static void finish(comm_t *c)
 {
     const float i_dt0 = c->cfg.i_dt_nom_a;
-    float best = 1e30f, r_best = 0.0f, v_best = 0.0f, i_dt_best = i_dt0, vp, vn, rms, v_dc = 0.0f;
+    float best = 1e30f, i_dt_best = i_dt0, rms, v_dc, v_best, drop;
+    inv_fit_t fb = { 0.0f, 0.0f, 0.0f }, fp, fn;
     uint16_t g, k;
     c->inv_vdc_v = c->acc[7] / (float)(c->acc_n > 0u ? c->acc_n : 1u);
     for (g = 0u; g < INV_GRID_N; g++) {
         const float i_dt = i_dt0 * (0.2f + 0.1f * (float)g);
-        float r, v;
-        const float sse = fit(c, i_dt, 0u, c->st_n, &r, &v);
+        inv_fit_t f;
+        const float sse = fit(c, i_dt, 0, &f);
         if (sse < best) {
             best = sse;
-            r_best = r;
-            v_best = v;
+            fb = f;
             i_dt_best = i_dt;
         }
     }
-    vp = fit_v(c, i_dt_best, r_best, 0u, INV_LEVELS);
-    vn = fit_v(c, i_dt_best, r_best, INV_LEVELS, c->st_n);
+    (void)fit(c, i_dt_best, 1, &fp);
+    (void)fit(c, i_dt_best, -1, &fn);
     rms = sqrtf(best / (float)c->st_n);
-    for (k = 0u; k < 4u; k++) {
+    v_best = fb.v_dt + fb.v_drop; /* one leg's plateau at v_dc_ref (both parts) */
+    drop = fb.v_drop;
+    for (k = 0u; k < COMM_RES_N; k++) {
         c->res.value[k] = 0.0f;
         c->res.spread[k] = 0.0f;
     }
     c->res.value[0] = v_best;
     c->res.value[1] = i_dt_best;
-    c->res.value[2] = r_best;
-    c->res.value[3] = rms;
-    c->res.spread[0] = 0.5f * fabsf(vp - vn);
+    c->res.value[2] = fb.r;
+    c->res.value[3] = drop;
+    c->res.value[4] = rms;
+    c->res.spread[0] = 0.5f * fabsf((fp.v_dt + fp.v_drop) - (fn.v_dt + fn.v_drop));
+    c->res.spread[3] = 0.5f * fabsf(fp.v_drop - fn.v_drop);
     v_dc = c->inv_vdc_v;
     c->res.ref[0] = v_dc;
     c->res.ref[1] = c->cfg.i_test_a;
     if (!(v_best >= -0.5f && v_best <= 0.25f * v_dc) ||
-        !(r_best >= 0.25f * c->cfg.motor.r_s_ohm && r_best <= 4.0f * c->cfg.motor.r_s_ohm) ||
-        !(rms <= 0.5f + 0.05f * fabsf(v_best))) {
+        !(fb.r >= 0.25f * c->cfg.motor.r_s_ohm && fb.r <= 4.0f * c->cfg.motor.r_s_ohm) ||
+        !(rms <= 0.5f + 0.05f * fabsf(v_best)) || !(drop >= -0.5f && drop <= v_best + 0.5f)) {
         comm_fail(c, PROTO_COMMISSION_FAIL_IMPLAUSIBLE);
         return;
     }
-    if (!(fabsf(vp - vn) <= 0.1f * v_best + 0.2f)) {
+    if (!(2.0f * c->res.spread[0] <= 0.1f * v_best + 0.2f) ||
+        !(2.0f * c->res.spread[3] <= 0.2f * fabsf(drop) + 0.2f)) {
         comm_fail(c, PROTO_COMMISSION_FAIL_NOT_REPEATABLE);
         return;
     }
     if (v_best < 0.3f) { /* no measurable distortion (an ideal inverter): no model, no band */
         v_best = 0.0f;
+        drop = 0.0f;
         i_dt_best = i_dt0;
         c->res.value[0] = 0.0f;
         c->res.value[1] = i_dt0;
+        c->res.value[3] = 0.0f;
     }
+    /* the device drop within [0, plateau]: the split the firmware's model can hold */
+    drop = drop < 0.0f ? 0.0f : (drop > v_best ? v_best : drop);
+    c->res.value[3] = drop;
     c->inv_v = v_best;
+    c->inv_drop_v = drop;
     c->inv_i_dt_a = i_dt_best;
     c->have_inv = true;
-    c->r_ohm = r_best;
+    c->r_ohm = fb.r;
     comm_finish_step(c);
 }
 
 void comm_inverter_step(comm_t *c, comm_out_t *out)
 {
     const uint16_t k = c->st_k;
-    const float sign = k < INV_LEVELS ? 1.0f : -1.0f;
-    const float ref = sign * level_a(c, (uint16_t)(k < INV_LEVELS ? k : k - INV_LEVELS));
+    const float ref = level_a(c, k);
     float id, iq;
+    uint16_t x;
     c->i_max_step = 1.5f * c->cfg.i_test_a + 1.0f;
     if (comm_over_current(c)) {
         return;
     }
+    c->dpwm_lo = k >= 2u * INV_LEVELS;
     comm_current(c, c->c_rot, c->s_rot, ref, 0.0f, &id, &iq, out);
     c->acc[7] += c->v_dc;
     c->acc_n++;
@@ -164,8 +208,14 @@ void comm_inverter_step(comm_t *c, comm_out_t *out)
             c->acc[0] = c->acc[1] = c->acc[2] = c->acc[3] = c->acc[4] = 0.0f;
             c->acc[5] = c->acc[6] = 0.0f;
             c->st_vdc[k] = 0.0f;
+            for (x = 0u; x < 3u; x++) {
+                c->st_sw[k][x] = 0.0f;
+            }
         }
         return;
+    }
+    for (x = 0u; x < 3u; x++) { /* a leg switches in a period unless its duty sits on a rail */
+        c->st_sw[k][x] += (out->duty[x] > 0.0f && out->duty[x] < 1.0f) ? 1.0f : 0.0f;
     }
     c->acc[0] += id;
     c->acc[1] += c->u_d;
@@ -187,12 +237,15 @@ void comm_inverter_step(comm_t *c, comm_out_t *out)
         c->st_abc[k][2] = c->acc[4] / n;
         c->st_th[k] = atan2f(c->acc[6], c->acc[5]);
         c->st_vdc[k] /= n;
+        for (x = 0u; x < 3u; x++) {
+            c->st_sw[k][x] /= n;
+        }
         c->st_n = (uint16_t)(k + 1u);
         c->st_k = (uint16_t)(k + 1u);
     }
     c->phase = 0u;
     c->t = 0u;
-    if (c->st_k >= 2u * INV_LEVELS) {
+    if (c->st_k >= 4u * INV_LEVELS) {
         finish(c);
     }
 }

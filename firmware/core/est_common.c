@@ -100,6 +100,7 @@ void est_core_init(est_core_t *e, const est_cfg_t *cfg)
     e->excited = false;
     e->converged = false;
     e->ever_converged = false;
+    e->inc_n = 0u;
 }
 
 void est_core_set_r(est_core_t *e, float r_s_ohm)
@@ -121,7 +122,9 @@ void est_core_excitation(const est_core_t *e, const id_sample_t *s, est_excite_t
     x->psi = x->any;
     x->ld = x->any && fabsf(s->i_d_a) >= c->i_d_min_a;
     x->lq = x->any && fabsf(s->i_q_a) >= c->i_q_min_a;
-    x->r = x->ld && e->ever_converged && c->mu_r > 0.0f;
+    /* the online R once the L di/dt terms have been learnt for a while: its calibration takes
+     * the slope as it is, and the slope moves while they settle */
+    x->r = x->ld && e->ever_converged && e->inc_n >= EST_R_AFTER_INC_N && c->mu_r > 0.0f;
     x->omega_e_rad_s = s->omega_e_rad_s;
     x->i_q_a = s->i_q_a;
 }
@@ -169,8 +172,11 @@ void est_core_track_inc(est_core_t *e, const id_sample_t *s)
     bool wound = false;
     const float l_d = e->cfg.nominal[EST_LD], l_q = e->cfg.nominal[EST_LQ];
     const float p_max = EST_INC_P0;
-    if (!e->ever_converged) { /* until then the errors are the parameters' own (tens of volts) */
-        return;
+    if (!e->ever_converged && e->updates < EST_INC_WARM_N) {
+        return; /* the first windows' errors are the parameters' own (tens of volts) */
+    }
+    if (e->inc_n < 0xFFFFu) {
+        e->inc_n++;
     }
     est_core_targets(e, s, &y_d, &y_q);
     e_d = y_d - (e->w[EST_R] * s->i_d_a - e->w[EST_LQ] * s->w_i_q_a_rad_s);

@@ -54,6 +54,15 @@ typedef struct {
 
 /* Common state of an estimator (weights in SI units). */
 #define EST_INC_N 4u /* di_d/T, di_q/T, x di_d/T, x di_q/T */
+/* The L di/dt terms are learnt once the estimates have settled or after this many windows,
+ * whichever comes first: without them L_d's window noise can keep the estimates from ever
+ * settling to within conv_tol. */
+#ifndef EST_INC_WARM_N
+#define EST_INC_WARM_N 64u
+#endif
+#ifndef EST_R_AFTER_INC_N
+#define EST_R_AFTER_INC_N 150u
+#endif
 
 typedef struct {
     est_cfg_t cfg;
@@ -79,6 +88,7 @@ typedef struct {
     uint16_t r_state;           /* EST_R_IDLE, EST_R_CAL, EST_R_TRACK */
     bool r_cal_new;             /* a calibration has just begun (RLS opens R's covariance) */
     uint32_t updates;
+    uint16_t inc_n; /* windows since the L di/dt terms began to be learnt (saturates) */
     bool excited, converged, ever_converged;
 } est_core_t;
 

@@ -59,7 +59,7 @@ static void send_commission_result(fw_t *f)
         f->tick > 0u ? f->tick - 1u : 0u; /* the period that ended the step (flushed after it) */
     r.step = c->step;
     r.status = c->status;
-    for (k = 0u; k < 4u; k++) {
+    for (k = 0u; k < COMM_RES_N; k++) {
         r.value[k] = c->value[k];
         r.spread[k] = c->spread[k];
     }

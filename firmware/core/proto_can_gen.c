@@ -185,7 +185,7 @@ bool proto_can_layout(uint16_t msg_id, proto_can_layout_t *l)
     case PROTO_ID_COMMISSION_RESULT:
         l->func = 0x7Eu;
         l->transfer = 1u;
-        l->n_frames = 8u;
+        l->n_frames = 10u;
         l->h2d = 0u;
         l->crc_frame = 0xFFu;
         return true;

@@ -634,14 +634,14 @@ uint16_t proto_commission_result_pack(const proto_commission_result_t *m, uint16
     put_u32(&buf[0], m->tick);
     put_u8(&buf[4], m->step);
     put_u8(&buf[5], m->status);
-    for (i = 0u; i < 4u; i++) {
+    for (i = 0u; i < 6u; i++) {
         put_f32(&buf[6u + 4u * i], m->value[i]);
     }
-    for (i = 0u; i < 4u; i++) {
-        put_f32(&buf[22u + 4u * i], m->spread[i]);
+    for (i = 0u; i < 6u; i++) {
+        put_f32(&buf[30u + 4u * i], m->spread[i]);
     }
     for (i = 0u; i < 2u; i++) {
-        put_f32(&buf[38u + 4u * i], m->truth_ref[i]);
+        put_f32(&buf[54u + 4u * i], m->truth_ref[i]);
     }
     return PROTO_LEN_COMMISSION_RESULT;
 }
@@ -655,14 +655,14 @@ bool proto_commission_result_unpack(proto_commission_result_t *m, const uint16_t
     m->tick = get_u32(&buf[0]);
     m->step = get_u8(&buf[4]);
     m->status = get_u8(&buf[5]);
-    for (i = 0u; i < 4u; i++) {
+    for (i = 0u; i < 6u; i++) {
         m->value[i] = get_f32(&buf[6u + 4u * i]);
     }
-    for (i = 0u; i < 4u; i++) {
-        m->spread[i] = get_f32(&buf[22u + 4u * i]);
+    for (i = 0u; i < 6u; i++) {
+        m->spread[i] = get_f32(&buf[30u + 4u * i]);
     }
     for (i = 0u; i < 2u; i++) {
-        m->truth_ref[i] = get_f32(&buf[38u + 4u * i]);
+        m->truth_ref[i] = get_f32(&buf[54u + 4u * i]);
     }
     return true;
 }

@@ -10,7 +10,7 @@
 #include <stdbool.h>
 
 #define PROTO_VERSION 2u
-#define PROTO_SCHEMA_HASH 0xB0506F40UL  /* CRC-32 of the canonical yaml */
+#define PROTO_SCHEMA_HASH 0xA60E78B7UL  /* CRC-32 of the canonical yaml */
 #define PROTO_MAX_PAYLOAD 111u  /* octets */
 #define PROTO_MSG_COUNT 25u
 
@@ -419,13 +419,13 @@ bool proto_capture_chunk_unpack(proto_capture_chunk_t *m, const uint16_t *buf, u
 
 /* commission_result: 0x96, device -> host */
 #define PROTO_ID_COMMISSION_RESULT 0x96u
-#define PROTO_LEN_COMMISSION_RESULT 46u
+#define PROTO_LEN_COMMISSION_RESULT 62u
 typedef struct {
     uint32_t tick;                 /* u32 */
     uint16_t step;                 /* u8; enum commission_step */
     uint16_t status;               /* u8; 0 ok, else enum commission_fail */
-    float value[4];                /* f32[4]; the step's results (docs/commissioning.md) */
-    float spread[4];               /* f32[4]; their spread over repetitions */
+    float value[6];                /* f32[6]; the step's results (docs/commissioning.md) */
+    float spread[6];               /* f32[6]; their spread over repetitions */
     float truth_ref[2];            /* f32[2]; step-specific operating point (e.g. test current) */
 } proto_commission_result_t;
 uint16_t proto_commission_result_pack(const proto_commission_result_t *m, uint16_t *buf);

@@ -759,16 +759,19 @@ static void golden_17_check(const uint16_t *payload, uint16_t len)
 /* 18: commission_result */
 static const uint16_t golden_18_payload[] = {
     0x40u, 0xE2u, 0x01u, 0x00u, 0x03u, 0x00u, 0x00u, 0x00u, 0xE4u, 0x41u, 0x00u, 0x00u,
-    0x00u, 0x3Fu, 0x5Cu, 0x8Fu, 0x82u, 0x3Fu, 0xACu, 0xC5u, 0x27u, 0x36u, 0xCDu, 0xCCu,
-    0xCCu, 0x3Du, 0x00u, 0x00u, 0x00u, 0x00u, 0x0Au, 0xD7u, 0x23u, 0x3Cu, 0x00u, 0x00u,
-    0x00u, 0x00u, 0x00u, 0x00u, 0x00u, 0x41u, 0x00u, 0x00u, 0x00u, 0x00u
+    0x00u, 0x3Fu, 0x5Cu, 0x8Fu, 0x82u, 0x3Fu, 0x00u, 0x00u, 0xC0u, 0x3Fu, 0xCDu, 0xCCu,
+    0x4Cu, 0x3Du, 0x00u, 0x00u, 0x00u, 0x00u, 0xCDu, 0xCCu, 0xCCu, 0x3Du, 0x00u, 0x00u,
+    0x00u, 0x00u, 0x0Au, 0xD7u, 0x23u, 0x3Cu, 0x0Au, 0xD7u, 0xA3u, 0x3Cu, 0x00u, 0x00u,
+    0x00u, 0x00u, 0x00u, 0x00u, 0x00u, 0x00u, 0x00u, 0x00u, 0x00u, 0x41u, 0x00u, 0x00u,
+    0x00u, 0x00u
 };
 static const uint16_t golden_18_frame[] = {
     0x06u, 0x96u, 0x0Fu, 0x40u, 0xE2u, 0x01u, 0x02u, 0x03u, 0x01u, 0x01u, 0x03u, 0xE4u,
-    0x41u, 0x01u, 0x01u, 0x0Eu, 0x3Fu, 0x5Cu, 0x8Fu, 0x82u, 0x3Fu, 0xACu, 0xC5u, 0x27u,
-    0x36u, 0xCDu, 0xCCu, 0xCCu, 0x3Du, 0x01u, 0x01u, 0x01u, 0x05u, 0x0Au, 0xD7u, 0x23u,
-    0x3Cu, 0x01u, 0x01u, 0x01u, 0x01u, 0x01u, 0x01u, 0x02u, 0x41u, 0x01u, 0x01u, 0x01u,
-    0x03u, 0x44u, 0xA5u, 0x00u
+    0x41u, 0x01u, 0x01u, 0x06u, 0x3Fu, 0x5Cu, 0x8Fu, 0x82u, 0x3Fu, 0x01u, 0x07u, 0xC0u,
+    0x3Fu, 0xCDu, 0xCCu, 0x4Cu, 0x3Du, 0x01u, 0x01u, 0x01u, 0x05u, 0xCDu, 0xCCu, 0xCCu,
+    0x3Du, 0x01u, 0x01u, 0x01u, 0x09u, 0x0Au, 0xD7u, 0x23u, 0x3Cu, 0x0Au, 0xD7u, 0xA3u,
+    0x3Cu, 0x01u, 0x01u, 0x01u, 0x01u, 0x01u, 0x01u, 0x01u, 0x01u, 0x01u, 0x01u, 0x02u,
+    0x41u, 0x01u, 0x01u, 0x01u, 0x03u, 0x7Fu, 0x7Du, 0x00u
 };
 
 static uint16_t golden_18_pack(uint16_t *buf)
@@ -781,11 +784,15 @@ static uint16_t golden_18_pack(uint16_t *buf)
     m.value[0] = 28.5f;
     m.value[1] = 0.5f;
     m.value[2] = 1.0199999809265137f;
-    m.value[3] = 2.499999936844688e-06f;
+    m.value[3] = 1.5f;
+    m.value[4] = 0.05000000074505806f;
+    m.value[5] = 0.0f;
     m.spread[0] = 0.10000000149011612f;
     m.spread[1] = 0.0f;
     m.spread[2] = 0.009999999776482582f;
-    m.spread[3] = 0.0f;
+    m.spread[3] = 0.019999999552965164f;
+    m.spread[4] = 0.0f;
+    m.spread[5] = 0.0f;
     m.truth_ref[0] = 8.0f;
     m.truth_ref[1] = 0.0f;
     return proto_commission_result_pack(&m, buf);
@@ -805,11 +812,15 @@ static void golden_18_check(const uint16_t *payload, uint16_t len)
     CHECK_NEAR(m.value[0], 28.5, 0.0, "golden 18 commission_result.value[0]");
     CHECK_NEAR(m.value[1], 0.5, 0.0, "golden 18 commission_result.value[1]");
     CHECK_NEAR(m.value[2], 1.0199999809265137, 0.0, "golden 18 commission_result.value[2]");
-    CHECK_NEAR(m.value[3], 2.499999936844688e-06, 0.0, "golden 18 commission_result.value[3]");
+    CHECK_NEAR(m.value[3], 1.5, 0.0, "golden 18 commission_result.value[3]");
+    CHECK_NEAR(m.value[4], 0.05000000074505806, 0.0, "golden 18 commission_result.value[4]");
+    CHECK_NEAR(m.value[5], 0.0, 0.0, "golden 18 commission_result.value[5]");
     CHECK_NEAR(m.spread[0], 0.10000000149011612, 0.0, "golden 18 commission_result.spread[0]");
     CHECK_NEAR(m.spread[1], 0.0, 0.0, "golden 18 commission_result.spread[1]");
     CHECK_NEAR(m.spread[2], 0.009999999776482582, 0.0, "golden 18 commission_result.spread[2]");
-    CHECK_NEAR(m.spread[3], 0.0, 0.0, "golden 18 commission_result.spread[3]");
+    CHECK_NEAR(m.spread[3], 0.019999999552965164, 0.0, "golden 18 commission_result.spread[3]");
+    CHECK_NEAR(m.spread[4], 0.0, 0.0, "golden 18 commission_result.spread[4]");
+    CHECK_NEAR(m.spread[5], 0.0, 0.0, "golden 18 commission_result.spread[5]");
     CHECK_NEAR(m.truth_ref[0], 8.0, 0.0, "golden 18 commission_result.truth_ref[0]");
     CHECK_NEAR(m.truth_ref[1], 0.0, 0.0, "golden 18 commission_result.truth_ref[1]");
 }
@@ -1592,7 +1603,7 @@ static const golden_frame_t golden_frames[] = {
     {"capture_read", 0x0Au, 10u, golden_15_payload, 2u, golden_15_frame, 8u, golden_15_pack, golden_15_check},
     {"config_calib", 0x10u, 13u, golden_16_payload, 24u, golden_16_frame, 30u, golden_16_pack, golden_16_check},
     {"config_commission", 0x11u, 14u, golden_17_payload, 10u, golden_17_frame, 16u, golden_17_pack, golden_17_check},
-    {"commission_result", 0x96u, 15u, golden_18_payload, 46u, golden_18_frame, 52u, golden_18_pack, golden_18_check},
+    {"commission_result", 0x96u, 15u, golden_18_payload, 62u, golden_18_frame, 68u, golden_18_pack, golden_18_check},
     {"ack", 0x80u, 11u, golden_19_payload, 3u, golden_19_frame, 9u, golden_19_pack, golden_19_check},
     {"identify", 0x81u, 12u, golden_20_payload, 14u, golden_20_frame, 20u, golden_20_pack, golden_20_check},
     {"telem_fast", 0x90u, 13u, golden_21_payload, 28u, golden_21_frame, 34u, golden_21_pack, golden_21_check},

@@ -21,6 +21,8 @@ TARGETS = {
     "offset_c_a": ("sensor offset c", "mA", 1e3, 0.005),
     "enc_offset_deg": ("encoder offset", "deg el.", 1.0, 0.2),
     "plateau_rel": ("dead-time plateau", "%", 100.0, 0.05),
+    "dead_time_rel": ("dead time alone", "%", 100.0, 0.05),
+    "v_drop_v": ("device drop", "V", 1.0, 0.25),
     "r_rel": ("R (vs hot truth)", "%", 100.0, 0.02),
     "l_d_rel": ("L_d at standstill", "%", 100.0, 0.05),
     "l_q_rel": ("L_q at standstill", "%", 100.0, 0.05),

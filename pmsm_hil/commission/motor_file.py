@@ -35,9 +35,8 @@ def commissioned_values(motor: Motor, q: dict[str, Measured], ts_s: float) -> di
         out["psi_f_wb"] = q["psi_f_wb"].value
     if "v_dist_plateau_v" in q:
         plateau, v_dc = q["v_dist_plateau_v"].value, q["v_dc_ref_v"].value
-        # one DC voltage cannot split the plateau into dead time and device drop: the drop keeps
-        # its nominal value, the dead time takes the rest (they act the same at that voltage)
-        drop = min(float(motor.v_drop_v), plateau)
+        # the staircase under clamped PWM splits the plateau into device drop and dead time
+        drop = min(float(q["v_drop_v"].value), plateau)
         out["dead_time_s"] = max(plateau - drop, 0.0) * ts_s / v_dc if v_dc > 0 else 0.0
         out["v_drop_v"] = drop
         out["i_dt_a"] = q["i_dt_a"].value

@@ -62,6 +62,11 @@ def commission_errors(
         if dt.enabled:
             true_v = q["v_dc_ref_v"].value * dt.dead_time_s / ts_s + dt.v_drop_v
             out["plateau_rel"] = q["v_dist_plateau_v"].value / true_v - 1.0
+            if "v_drop_v" in q:
+                v_dt = q["v_dist_plateau_v"].value - q["v_drop_v"].value
+                true_dt = q["v_dc_ref_v"].value * dt.dead_time_s / ts_s
+                out["dead_time_rel"] = v_dt / true_dt - 1.0
+                out["v_drop_v"] = q["v_drop_v"].value - dt.v_drop_v
     if "r_s_ohm" in q and "r_s" in win:
         t = truth_in(log_path, *win["r_s"])
         out["r_rel"] = q["r_s_ohm"].value / t["r_s_ohm"] - 1.0

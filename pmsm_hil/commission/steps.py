@@ -62,8 +62,9 @@ class Measured:
 
 def step_quantities(row: dict) -> dict[str, Measured]:
     """The named quantities of one /pmsm/commission row (firmware/core/comm_*.c)."""
-    v = [row[f"value_{k}"] for k in range(4)]
-    s = [row[f"spread_{k}"] for k in range(4)]
+    n = sum(1 for k in row if k.startswith("value_"))
+    v = [row[f"value_{k}"] for k in range(n)]
+    s = [row[f"spread_{k}"] for k in range(n)]
     step = row["step"]
     if step == "offsets":
         return {
@@ -93,7 +94,8 @@ def step_quantities(row: dict) -> dict[str, Measured]:
             "v_dist_plateau_v": Measured(v[0], s[0], "V"),
             "i_dt_a": Measured(v[1], s[1], "A"),
             "r_staircase_ohm": Measured(v[2], s[2], "ohm"),
-            "fit_rms_v": Measured(v[3], 0.0, "V"),
+            "v_drop_v": Measured(v[3], s[3], "V"),
+            "fit_rms_v": Measured(v[4], 0.0, "V"),
             "v_dc_ref_v": Measured(row["ref_0"], 0.0, "V"),
         }
     if step == "r_s":

@@ -46,7 +46,7 @@ LAYOUTS = {
     0x92: CanLayout(0x92, 'status', 0x22, False, (8, 8, 8, 4), 0x03),
     0x93: CanLayout(0x93, 'event', 0x05, False, (7, 6), 0x01),
     0x94: CanLayout(0x94, 'capture_chunk', 0x7E, True, (6, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 7), 0xFF),
-    0x96: CanLayout(0x96, 'commission_result', 0x7E, True, (6, 8, 8, 8, 8, 8, 8, 5), 0xFF),
+    0x96: CanLayout(0x96, 'commission_result', 0x7E, True, (6, 8, 8, 8, 8, 8, 8, 8, 8, 7), 0xFF),
     0xA0: CanLayout(0xA0, 'sim_truth', 0x7E, True, (6, 8, 8, 8, 8, 8, 8, 8, 4), 0xFF),
     0x95: CanLayout(0x95, 'telem_est', 0x26, False, (8, 8), 0x01),
     0x0B: CanLayout(0x0B, 'config_sensorless', 0x0C, True, (6, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 7), 0xFF),

@@ -6,7 +6,7 @@ import struct
 from typing import NamedTuple
 
 PROTOCOL_VERSION = 2
-SCHEMA_HASH = 0xB0506F40
+SCHEMA_HASH = 0xA60E78B7
 MAX_PAYLOAD = 111  # octets
 
 # wire type: (struct code, octets, min, max); min/max are None for f32
@@ -326,14 +326,14 @@ MESSAGES = (
         FieldSpec('theta_e_rad', 'u16', 8, 9.587379924285257e-05, 79),
         FieldSpec('omega_e_rad_s', 'i16', 8, 0.1, 95),
     ), struct.Struct('<HBI8h8h8h8B8h8H8h')),
-    MessageSpec(0x96, 'commission_result', 'd2h', False, 46, (
+    MessageSpec(0x96, 'commission_result', 'd2h', False, 62, (
         FieldSpec('tick', 'u32', 1, None, 0),
         FieldSpec('step', 'u8', 1, None, 4),
         FieldSpec('status', 'u8', 1, None, 5),
-        FieldSpec('value', 'f32', 4, None, 6),
-        FieldSpec('spread', 'f32', 4, None, 22),
-        FieldSpec('truth_ref', 'f32', 2, None, 38),
-    ), struct.Struct('<IBB4f4f2f')),
+        FieldSpec('value', 'f32', 6, None, 6),
+        FieldSpec('spread', 'f32', 6, None, 30),
+        FieldSpec('truth_ref', 'f32', 2, None, 54),
+    ), struct.Struct('<IBB6f6f2f')),
     MessageSpec(0xA0, 'sim_truth', 'd2h', True, 52, (
         FieldSpec('tick', 'u32', 1, None, 0),
         FieldSpec('l_d_h', 'f32', 1, None, 4),
