@@ -144,7 +144,9 @@ def test_a_killed_hosts_log_holds_every_message_it_had_received(data, tmp_path):
                     seen.setdefault((path, "n"), []).append(seen[path][rec.channel_id])
     assert len(seen[(out, "n")]) == n
     journal = read_journal(out, n)  # what the log's chunks do not hold
-    assert journal and len(journal) <= len(seen[(journal_path(out), "n")])
+    # what came after the last chunk is in the journal; the kill can land just after a chunk was
+    # written (a loaded machine), and then there is nothing after it yet
+    assert len(journal) <= len(seen.get((journal_path(out), "n"), []))
     n_all = n + len(journal)
     device = ("/pmsm/", "/sim/")
     n_device = sum(t.startswith(device) for t in seen[(out, "n")]) + sum(
@@ -163,7 +165,8 @@ def test_a_killed_hosts_log_holds_every_message_it_had_received(data, tmp_path):
     assert f"{n} messages" in r.stdout
     n_tel = log.counts["/pmsm/telemetry"]
     assert f"/pmsm/telemetry: {n_tel} messages" in r.stdout
-    assert f"{len(journal)} more messages, received after the last chunk" in r.stdout
+    if journal:
+        assert f"{len(journal)} more messages, received after the last chunk" in r.stdout
     assert f"all {n_all} messages rewritten" in r.stdout
     assert "lost: none of the device's messages the host had received" in r.stdout
     assert f"last {LOG_FLUSH_WALL_S:g} s of wall time" in r.stdout  # the host's own events
