@@ -24,8 +24,12 @@
  * EST_R_OP_IQ (relative, at least EST_R_OP_IQ_MIN_A) for EST_R_OP_AWAY_N windows: a new
  * operating point, not the transient of a parameter step (a drift of R and psi_f moves i_q for a
  * while, and a calibration then would take the change of R for the operating point's). */
-#define EST_R_CAL_N       200u
-#define EST_R_CAL_AVG     80u
+#ifndef EST_R_CAL_N
+#define EST_R_CAL_N 200u
+#endif
+#ifndef EST_R_CAL_AVG
+#define EST_R_CAL_AVG 80u
+#endif
 #define EST_R_OP_W        0.1f
 #define EST_R_OP_IQ       0.2f
 #define EST_R_OP_IQ_MIN_A 1.0f
@@ -100,7 +104,6 @@ void est_core_init(est_core_t *e, const est_cfg_t *cfg)
     e->excited = false;
     e->converged = false;
     e->ever_converged = false;
-    e->inc_n = 0u;
 }
 
 void est_core_set_r(est_core_t *e, float r_s_ohm)
@@ -122,9 +125,7 @@ void est_core_excitation(const est_core_t *e, const id_sample_t *s, est_excite_t
     x->psi = x->any;
     x->ld = x->any && fabsf(s->i_d_a) >= c->i_d_min_a;
     x->lq = x->any && fabsf(s->i_q_a) >= c->i_q_min_a;
-    /* the online R once the L di/dt terms have been learnt for a while: its calibration takes
-     * the slope as it is, and the slope moves while they settle */
-    x->r = x->ld && e->ever_converged && e->inc_n >= EST_R_AFTER_INC_N && c->mu_r > 0.0f;
+    x->r = x->ld && e->ever_converged && c->mu_r > 0.0f;
     x->omega_e_rad_s = s->omega_e_rad_s;
     x->i_q_a = s->i_q_a;
 }
@@ -174,9 +175,6 @@ void est_core_track_inc(est_core_t *e, const id_sample_t *s)
     const float p_max = EST_INC_P0;
     if (!e->ever_converged && e->updates < EST_INC_WARM_N) {
         return; /* the first windows' errors are the parameters' own (tens of volts) */
-    }
-    if (e->inc_n < 0xFFFFu) {
-        e->inc_n++;
     }
     est_core_targets(e, s, &y_d, &y_q);
     e_d = y_d - (e->w[EST_R] * s->i_d_a - e->w[EST_LQ] * s->w_i_q_a_rad_s);
@@ -255,8 +253,10 @@ static void r_offset(est_core_t *e, const est_excite_t *x)
         e->op_away_n = 0u;
     }
     if (e->r_state == EST_R_IDLE || e->op_away_n >= EST_R_OP_AWAY_N) {
+        /* R as it was before this window: the first window with x->r has already moved the
+         * slope (w[EST_R]) by one update, which would otherwise become the held R */
+        e->r_hold = e->r_state == EST_R_IDLE ? e->r_ref : est_core_r(e);
         e->op_away_n = 0u;
-        e->r_hold = est_core_r(e);
         e->op_w_rad_s = e->w_f_rad_s;
         e->op_i_q_a = e->i_q_f_a;
         e->r_cal_n = 0u;

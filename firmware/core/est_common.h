@@ -60,9 +60,6 @@ typedef struct {
 #ifndef EST_INC_WARM_N
 #define EST_INC_WARM_N 64u
 #endif
-#ifndef EST_R_AFTER_INC_N
-#define EST_R_AFTER_INC_N 150u
-#endif
 
 typedef struct {
     est_cfg_t cfg;
@@ -88,7 +85,6 @@ typedef struct {
     uint16_t r_state;           /* EST_R_IDLE, EST_R_CAL, EST_R_TRACK */
     bool r_cal_new;             /* a calibration has just begun (RLS opens R's covariance) */
     uint32_t updates;
-    uint16_t inc_n; /* windows since the L di/dt terms began to be learnt (saturates) */
     bool excited, converged, ever_converged;
 } est_core_t;
 
