@@ -241,8 +241,7 @@ def test_identification_after_commissioning_on_lab_typical(tmp_path, seed):
     """NLMS-Adaline with the commissioned motor file on lab-typical (saturation and
     cross-saturation, the inverter's distortion, iron loss, sensor errors...), against the apparent
     inductances (docs/identification.md). Issue 12's bounds: L_d, L_q, psi_f 1 %, R 2 %, L_q and
-    psi_f converged within 0.5 s, psi_f's drift tracked within 0.5 s. Short of the issue on one
-    seed in ten and guarded here at 1 s: R's drift (0.5 s asked)."""
+    psi_f converged within 0.5 s, the drift step of R and psi_f tracked within 0.5 s."""
     from pmsm_hil.bench.identify_rigs import _one
 
     r = _one(
@@ -255,5 +254,5 @@ def test_identification_after_commissioning_on_lab_typical(tmp_path, seed):
         assert abs(err) <= bound, (q, err)
         if q in ("l_q_h", "psi_f_wb"):
             assert conv is not None and conv <= 0.5, (q, conv)
-    assert r["drift_s"]["psi_f_wb"] is not None and r["drift_s"]["psi_f_wb"] <= 0.5
-    assert r["drift_s"]["r_s_ohm"] is not None and r["drift_s"]["r_s_ohm"] <= 1.0
+    for q in ("r_s_ohm", "psi_f_wb"):
+        assert r["drift_s"][q] is not None and r["drift_s"][q] <= 0.5, (q, r["drift_s"][q])
