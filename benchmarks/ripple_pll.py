@@ -100,7 +100,11 @@ def main() -> None:
     ap.add_argument("--rig", action="append", default=None)
     ap.add_argument("--angles", type=int, default=20)
     args = ap.parse_args()
-    rigs = args.rig or [shipped_file("rigs/default.yaml"), shipped_file("rigs/lab-typical.yaml")]
+    # a rig file named relative to here is written into a profile in a temporary folder: absolute
+    rigs = [str(Path(r).resolve()) if Path(r).exists() else r for r in args.rig or []] or [
+        shipped_file("rigs/default.yaml"),
+        shipped_file("rigs/lab-typical.yaml"),
+    ]
     with tempfile.TemporaryDirectory() as d:
         tmp = Path(d)
         for rig in rigs:
