@@ -16,12 +16,16 @@ the host's error), whether the motor was at rest at the end (the emulator's own 
 host is gone: a silent host must be stopped by the heartbeat), the messages the host rejected
 (CRC, COBS, length, order: median and worst over the seeds), the sequence gaps (messages lost), the
 frames the firmware rejected (status.rx_bad), and the messages the host accepted that the device
-had not sent (decoded from the clean stream before the noise): this must be 0 in every run.
+had not sent (decoded from the clean stream before the noise). A CRC-16 passes a randomly
+corrupted frame about once in 65,536 (docs/protocol.md): over all runs the accepted corruptions
+must stay within what that rate allows (a Poisson bound on the frames the CRC rejected), and the
+motor must be at rest at the end of every run.
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import random
 import statistics
 import sys
@@ -145,6 +149,7 @@ def run_case(kind: str, level: float, seed: int, rig, tmp: Path, after_s: float 
         completed=res["stop"] == "profile end" and not res["error"],
         at_rest=not dev.active,
         end_state=STATE.get(dev.state, str(dev.state)),
+        crc=dec.crc_errors,
         rejected=dec.crc_errors
         + getattr(dec, "cobs_errors", 0)
         + dec.len_errors
@@ -180,6 +185,7 @@ def main() -> int:
         f"{'gaps med/max':>13} {'rx_bad max':>10} {'bad accepted':>12}  other endings"
     )
     ok = True
+    crc_total = bad_total = 0
     with tempfile.TemporaryDirectory() as d:
         for rig_name, rig in rigs.items():
             for kind, level, after_s in cases:
@@ -191,7 +197,9 @@ def main() -> int:
                 )
                 bad = sum(r["bad_accepted"] for r in rs)
                 rest = sum(r["at_rest"] for r in rs)
-                ok &= bad == 0 and rest == len(rs)
+                ok &= rest == len(rs)
+                bad_total += bad
+                crc_total += sum(r["crc"] for r in rs)
                 lvl = f"{100 * level:.0f} %" if kind == "can" else f"{level:.0f} ppm"
                 print(
                     f"{rig_name:<12} {kind:<6} {lvl:>9} {after_s:>3.0f} s {sum(r['completed'] for r in rs):>2}/{len(rs)} "
@@ -200,6 +208,13 @@ def main() -> int:
                     f"{max(r['rx_bad'] for r in rs):>10d} {bad:>12d}  {'; '.join(others)}",
                     flush=True,
                 )
+    expected = crc_total / 65536.0
+    bound = expected + 3.0 * math.sqrt(expected) + 1.0
+    print(
+        f"corrupted messages accepted: {bad_total}, of {crc_total} that the CRC rejected (a CRC-16 "
+        f"lets about {expected:.1f} through; bound {bound:.1f})"
+    )
+    ok &= bad_total <= bound
     return 0 if ok else 1
 
 
