@@ -10,7 +10,7 @@ STEP_TITLES = {
     "offsets": "current-sensor offsets (PWM off)",
     "v_dc": "DC-link voltage",
     "encoder": "encoder offset by d-axis alignment (direction, pole pairs, sensor gains)",
-    "inverter": "inverter distortion (standstill current staircase)",
+    "inverter": "inverter distortion: dead time and device drop (standstill staircases, SVPWM and clamped)",
     "r_s": "stator resistance by injection",
     "l_dq": "L_d and L_q at standstill (voltage pulses)",
     "psi_f": "psi_f by a short spin",
