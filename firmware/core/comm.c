@@ -218,19 +218,22 @@ void comm_reg_add(comm_reg_t *r, const float x[COMM_REG_N], float y)
 }
 
 /* Normal equations by Gaussian elimination with partial pivoting. */
-bool comm_reg_solve(const comm_reg_t *r, float a[COMM_REG_N])
+bool comm_reg_solve(const comm_reg_t *r, uint16_t n, float a[COMM_REG_N])
 {
     float m[COMM_REG_N][COMM_REG_N + 1u];
     uint16_t i, j, k, p;
-    for (i = 0u; i < COMM_REG_N; i++) {
-        for (j = 0u; j < COMM_REG_N; j++) {
+    if (n > COMM_REG_N) {
+        n = COMM_REG_N;
+    }
+    for (i = 0u; i < n; i++) {
+        for (j = 0u; j < n; j++) {
             m[i][j] = r->sxx[i][j];
         }
-        m[i][COMM_REG_N] = r->sxy[i];
+        m[i][n] = r->sxy[i];
     }
-    for (k = 0u; k < COMM_REG_N; k++) {
+    for (k = 0u; k < n; k++) {
         p = k;
-        for (i = (uint16_t)(k + 1u); i < COMM_REG_N; i++) {
+        for (i = (uint16_t)(k + 1u); i < n; i++) {
             if (fabsf(m[i][k]) > fabsf(m[p][k])) {
                 p = i;
             }
@@ -238,21 +241,21 @@ bool comm_reg_solve(const comm_reg_t *r, float a[COMM_REG_N])
         if (!(fabsf(m[p][k]) > 1e-20f)) {
             return false;
         }
-        for (j = 0u; j <= COMM_REG_N; j++) {
+        for (j = 0u; j <= n; j++) {
             float t = m[k][j];
             m[k][j] = m[p][j];
             m[p][j] = t;
         }
-        for (i = (uint16_t)(k + 1u); i < COMM_REG_N; i++) {
+        for (i = (uint16_t)(k + 1u); i < n; i++) {
             float f = m[i][k] / m[k][k];
-            for (j = k; j <= COMM_REG_N; j++) {
+            for (j = k; j <= n; j++) {
                 m[i][j] -= f * m[k][j];
             }
         }
     }
-    for (i = COMM_REG_N; i-- > 0u;) {
-        float s = m[i][COMM_REG_N];
-        for (j = (uint16_t)(i + 1u); j < COMM_REG_N; j++) {
+    for (i = n; i-- > 0u;) {
+        float s = m[i][n];
+        for (j = (uint16_t)(i + 1u); j < n; j++) {
             s -= m[i][j] * a[j];
         }
         a[i] = s / m[i][i];

@@ -148,7 +148,8 @@ float comm_inv_plateau(const comm_t *c, float v_dc);
 bool comm_over_current(comm_t *c);
 void comm_reg_reset(comm_reg_t *r);
 void comm_reg_add(comm_reg_t *r, const float x[COMM_REG_N], float y);
-bool comm_reg_solve(const comm_reg_t *r, float a[COMM_REG_N]);
+/* Least squares on the first n regressors (n <= COMM_REG_N; the others' sums are ignored). */
+bool comm_reg_solve(const comm_reg_t *r, uint16_t n, float a[COMM_REG_N]);
 
 /* the steps */
 void comm_offset_step(comm_t *c, comm_out_t *out);

@@ -65,58 +65,46 @@ typedef struct {
     float r, v_dt, v_drop; /* v_dt at the reference DC voltage */
 } inv_fit_t;
 
+/* the regressors of point k: i, the switching legs' signs scaled by the DC voltage, all legs'
+ * signs (the fourth unused) */
+static void regressors(const comm_t *c, uint16_t k, float i_dt, float x[COMM_REG_N])
+{
+    float g_all, g_sw;
+    g_d(c, k, i_dt, &g_all, &g_sw);
+    x[0] = c->st_i[k];
+    x[1] = g_sw * scale_k(c, k);
+    x[2] = g_all;
+    x[3] = 0.0f;
+}
+
 /* least squares of u = R i + V_dt s g_sw + V_drop g_all over the points of direction dir;
  * returns the sum of squared residuals (1e30 when singular) */
 static float fit(const comm_t *c, float i_dt, int16_t dir, inv_fit_t *f)
 {
-    float a[3][3] = { { 0.0f } }, b[3] = { 0.0f }, x[3], det, sse = 0.0f;
-    uint16_t k, i, j;
+    comm_reg_t reg;
+    float x[COMM_REG_N], a[COMM_REG_N], sse = 0.0f;
+    uint16_t k;
+    comm_reg_reset(&reg);
     for (k = 0u; k < c->st_n; k++) {
-        float g_all, g_sw, ph[3];
-        if (!in_dir(c, k, dir)) {
-            continue;
-        }
-        g_d(c, k, i_dt, &g_all, &g_sw);
-        ph[0] = c->st_i[k];
-        ph[1] = g_sw * scale_k(c, k);
-        ph[2] = g_all;
-        for (i = 0u; i < 3u; i++) {
-            b[i] += ph[i] * c->st_u[k];
-            for (j = 0u; j < 3u; j++) {
-                a[i][j] += ph[i] * ph[j];
-            }
+        if (in_dir(c, k, dir)) {
+            regressors(c, k, i_dt, x);
+            comm_reg_add(&reg, x, c->st_u[k]);
         }
     }
-    det = a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) -
-          a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0]) +
-          a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
-    if (!(fabsf(det) > 1e-12f)) {
+    if (!comm_reg_solve(&reg, 3u, a)) {
         f->r = f->v_dt = f->v_drop = 0.0f;
         return 1e30f;
     }
-    for (i = 0u; i < 3u; i++) { /* Cramer's rule: column i replaced by b */
-        float m[3][3];
-        for (j = 0u; j < 3u; j++) {
-            m[j][0] = i == 0u ? b[j] : a[j][0];
-            m[j][1] = i == 1u ? b[j] : a[j][1];
-            m[j][2] = i == 2u ? b[j] : a[j][2];
-        }
-        x[i] = (m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) -
-                m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0]) +
-                m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])) /
-               det;
-    }
-    f->r = x[0];
-    f->v_dt = x[1];
-    f->v_drop = x[2];
+    f->r = a[0];
+    f->v_dt = a[1];
+    f->v_drop = a[2];
     for (k = 0u; k < c->st_n; k++) {
-        float g_all, g_sw, e;
-        if (!in_dir(c, k, dir)) {
-            continue;
+        if (in_dir(c, k, dir)) {
+            float e;
+            regressors(c, k, i_dt, x);
+            e = c->st_u[k] - f->r * x[0] - f->v_dt * x[1] - f->v_drop * x[2];
+            sse += e * e;
         }
-        g_d(c, k, i_dt, &g_all, &g_sw);
-        e = c->st_u[k] - f->r * c->st_i[k] - f->v_dt * g_sw * scale_k(c, k) - f->v_drop * g_all;
-        sse += e * e;
     }
     return sse;
 }
@@ -174,7 +162,6 @@ static void finish(comm_t *c)
         i_dt_best = i_dt0;
         c->res.value[0] = 0.0f;
         c->res.value[1] = i_dt0;
-        c->res.value[3] = 0.0f;
     }
     /* the device drop within [0, plateau]: the split the firmware's model can hold */
     drop = drop < 0.0f ? 0.0f : (drop > v_best ? v_best : drop);

@@ -122,7 +122,7 @@ static float l_of(const comm_reg_t *a, const comm_reg_t *b, float ts_s)
         }
         s.n += b->n;
     }
-    if (!comm_reg_solve(&s, x)) {
+    if (!comm_reg_solve(&s, COMM_REG_N, x)) {
         return 0.0f;
     }
     return (x[0] + x[1] + x[2]) > 0.0f ? ts_s / (x[0] + x[1] + x[2]) : 0.0f;

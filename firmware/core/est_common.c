@@ -24,12 +24,8 @@
  * EST_R_OP_IQ (relative, at least EST_R_OP_IQ_MIN_A) for EST_R_OP_AWAY_N windows: a new
  * operating point, not the transient of a parameter step (a drift of R and psi_f moves i_q for a
  * while, and a calibration then would take the change of R for the operating point's). */
-#ifndef EST_R_CAL_N
-#define EST_R_CAL_N 200u
-#endif
-#ifndef EST_R_CAL_AVG
-#define EST_R_CAL_AVG 80u
-#endif
+#define EST_R_CAL_N       200u
+#define EST_R_CAL_AVG     80u
 #define EST_R_OP_W        0.1f
 #define EST_R_OP_IQ       0.2f
 #define EST_R_OP_IQ_MIN_A 1.0f

@@ -57,9 +57,7 @@ typedef struct {
 /* The L di/dt terms are learnt once the estimates have settled or after this many windows,
  * whichever comes first: without them L_d's window noise can keep the estimates from ever
  * settling to within conv_tol. */
-#ifndef EST_INC_WARM_N
 #define EST_INC_WARM_N 64u
-#endif
 
 typedef struct {
     est_cfg_t cfg;

@@ -49,13 +49,13 @@ static void test_regression(void)
         x[3] = 1.0f;
         comm_reg_add(&r, x, 2.0f * x[0] - 1.0f * x[1] + 0.5f * x[2] + 3.0f);
     }
-    CHECK(comm_reg_solve(&r, a), "regression solvable");
+    CHECK(comm_reg_solve(&r, COMM_REG_N, a), "regression solvable");
     CHECK_NEAR(a[0], 2.0, 1e-3, "a0");
     CHECK_NEAR(a[1], -1.0, 1e-3, "a1");
     CHECK_NEAR(a[2], 0.5, 1e-3, "a2");
     CHECK_NEAR(a[3], 3.0, 1e-3, "a3");
     comm_reg_reset(&r);
-    CHECK(!comm_reg_solve(&r, a), "no data: not solvable");
+    CHECK(!comm_reg_solve(&r, COMM_REG_N, a), "no data: not solvable");
 }
 
 static void test_inverter_model(void)
