@@ -256,3 +256,19 @@ def test_identification_after_commissioning_on_lab_typical(tmp_path, seed):
             assert conv is not None and conv <= 0.5, (q, conv)
     for q in ("r_s_ohm", "psi_f_wb"):
         assert r["drift_s"][q] is not None and r["drift_s"][q] <= 0.5, (q, r["drift_s"][q])
+
+
+def test_an_inverter_row_from_before_the_drop_was_measured_reads_as_it_was_written():
+    """A log with four values per step (the plateau, band, R, fit rms): no device drop, the motor
+    file then keeps its nominal drop."""
+    from pmsm_hil.commission.steps import step_quantities
+
+    row = {"step": "inverter", "ref_0": 540.0, "ref_1": 8.0}
+    for k, (v, s) in enumerate([(28.5, 0.03), (0.5, 0.0), (1.02, 0.0), (0.06, 0.0)]):
+        row[f"value_{k}"], row[f"spread_{k}"] = v, s
+    q = step_quantities(row)
+    assert "v_drop_v" not in q
+    assert q["fit_rms_v"].value == 0.06 and q["v_dist_plateau_v"].value == 28.5
+    row.update(value_4=0.07, spread_4=0.0, value_3=1.5, spread_3=0.1, value_5=0.0, spread_5=0.0)
+    q = step_quantities(row)
+    assert q["v_drop_v"].value == 1.5 and q["fit_rms_v"].value == 0.07

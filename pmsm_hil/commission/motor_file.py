@@ -35,8 +35,9 @@ def commissioned_values(motor: Motor, q: dict[str, Measured], ts_s: float) -> di
         out["psi_f_wb"] = q["psi_f_wb"].value
     if "v_dist_plateau_v" in q:
         plateau, v_dc = q["v_dist_plateau_v"].value, q["v_dc_ref_v"].value
-        # the staircase under clamped PWM splits the plateau into device drop and dead time
-        drop = min(float(q["v_drop_v"].value), plateau)
+        # the staircase under clamped PWM splits the plateau into device drop and dead time (a log
+        # from before that: the motor file's drop)
+        drop = min(float(q["v_drop_v"].value if "v_drop_v" in q else motor.v_drop_v), plateau)
         out["dead_time_s"] = max(plateau - drop, 0.0) * ts_s / v_dc if v_dc > 0 else 0.0
         out["v_drop_v"] = drop
         out["i_dt_a"] = q["i_dt_a"].value

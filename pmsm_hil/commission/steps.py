@@ -89,6 +89,14 @@ def step_quantities(row: dict) -> dict[str, Measured]:
             "i_b_gain_err": Measured(gb, 0.0, ""),
             "i_c_gain_err": Measured(-(ga + gb), 0.0, ""),
         }
+    if step == "inverter" and n < 5:  # a log from before the drop was measured apart
+        return {
+            "v_dist_plateau_v": Measured(v[0], s[0], "V"),
+            "i_dt_a": Measured(v[1], s[1], "A"),
+            "r_staircase_ohm": Measured(v[2], s[2], "ohm"),
+            "fit_rms_v": Measured(v[3], 0.0, "V"),
+            "v_dc_ref_v": Measured(row["ref_0"], 0.0, "V"),
+        }
     if step == "inverter":
         return {
             "v_dist_plateau_v": Measured(v[0], s[0], "V"),
