@@ -79,6 +79,22 @@ typedef struct {
     uint32_t hold_ticks; /* periods at zero reference and (nearly) zero speed */
 } fw_stop_t;
 
+/* The telemetry streams' phases: tick % div for the fast, params, status and estimator frames,
+ * carried from period to period instead of a division each (fw_msg.c). */
+enum {
+    FW_TEL_FAST = 0,
+    FW_TEL_PARAMS,
+    FW_TEL_STATUS,
+    FW_TEL_EST,
+    FW_TEL_N
+};
+typedef struct {
+    uint32_t tick;          /* the tick the phases below belong to */
+    uint16_t div[FW_TEL_N]; /* the dividers they were taken with */
+    uint16_t ph[FW_TEL_N];  /* tick % div[k] (0 for a stream that is off) */
+    uint16_t at[FW_TEL_N];  /* the phase a frame goes out at, % div[k] (fast, status, est) */
+} fw_tel_phase_t;
+
 typedef struct {
     fw_cfg_t cfg;
     fw_motor_t motor;
@@ -126,6 +142,7 @@ typedef struct {
     fw_signals_t sig; /* telemetry */
     evq_t events;     /* raised during the period, sent at its end */
     bool status_due;  /* a status frame follows the period's events */
+    fw_tel_phase_t tel;
 
     /* commissioning (comm.h): the sequence runs in a `commission` segment */
     proto_config_calib_t calib; /* current-sensor calibration (all 0: none) */

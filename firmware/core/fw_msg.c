@@ -215,11 +215,52 @@ static void send_est(fw_t *f)
     (void)fw_send(f, PROTO_ID_TELEM_EST, f->link.payload_buf, n);
 }
 
+/* The streams' phases for this tick: carried from the last period (no division: the C28x has no
+ * integer divider, % is a library call of some 100 cycles), taken by % again only when the tick or
+ * a divider changed other than by one period, and at the tick's wrap (2^32 is no multiple of a
+ * divider). */
+static void tel_phases(fw_t *f, const uint16_t div[FW_TEL_N])
+{
+    fw_tel_phase_t *t = &f->tel;
+    uint16_t k;
+    bool same = t->tick == f->tick && f->tick != 0u;
+    for (k = 0u; k < FW_TEL_N; k++) {
+        same = same && t->div[k] == div[k];
+    }
+    if (same) {
+        return;
+    }
+    for (k = 0u; k < FW_TEL_N; k++) {
+        t->div[k] = div[k];
+        t->ph[k] = div[k] != 0u ? (uint16_t)(f->tick % div[k]) : 0u;
+    }
+    t->at[FW_TEL_FAST] = 0u;
+    t->at[FW_TEL_STATUS] = div[FW_TEL_STATUS] != 0u ? FW_PHASE_STATUS % div[FW_TEL_STATUS] : 0u;
+    t->at[FW_TEL_EST] = div[FW_TEL_EST] != 0u ? FW_PHASE_EST % div[FW_TEL_EST] : 0u;
+    t->tick = f->tick;
+}
+
+/* the phases of the next tick */
+static void tel_advance(fw_t *f)
+{
+    fw_tel_phase_t *t = &f->tel;
+    uint16_t k;
+    for (k = 0u; k < FW_TEL_N; k++) {
+        if (t->div[k] != 0u) {
+            t->ph[k] = (uint16_t)(t->ph[k] + 1u >= t->div[k] ? 0u : t->ph[k] + 1u);
+        }
+    }
+    t->tick = f->tick + 1u;
+}
+
 void fw_send_telemetry(fw_t *f)
 {
     const proto_config_ctrl_t *c = &f->ctrl;
+    const uint16_t div[FW_TEL_N] = { c->fast_div, c->params_div, c->status_div, c->est_div };
+    const uint16_t *ph = f->tel.ph;
     uint16_t n;
-    if (c->fast_div != 0u && (f->tick % c->fast_div) == 0u) {
+    tel_phases(f, div);
+    if (c->fast_div != 0u && ph[FW_TEL_FAST] == f->tel.at[FW_TEL_FAST]) {
         proto_telem_fast_t t;
         t.tick = f->tick;
         t.speed_ref_rpm = f->sig.speed_ref_rpm;
@@ -238,17 +279,18 @@ void fw_send_telemetry(fw_t *f)
         (void)fw_send(f, PROTO_ID_TELEM_FAST, f->link.payload_buf, n);
     }
     if (c->params_div != 0u) {
-        uint32_t ph = f->tick % c->params_div;
+        uint32_t p = ph[FW_TEL_PARAMS];
         uint16_t slots = (uint16_t)(c->identify != 0u ? IDENT_N_EST + 1u : 1u);
-        if (ph >= FW_PHASE_PARAMS && ph < FW_PHASE_PARAMS + slots) {
-            fw_send_params(f, (uint16_t)(ph - FW_PHASE_PARAMS));
+        if (p >= FW_PHASE_PARAMS && p < FW_PHASE_PARAMS + slots) {
+            fw_send_params(f, (uint16_t)(p - FW_PHASE_PARAMS));
         }
     }
-    if (c->status_div != 0u && (f->tick % c->status_div) == FW_PHASE_STATUS % c->status_div) {
+    if (c->status_div != 0u && ph[FW_TEL_STATUS] == f->tel.at[FW_TEL_STATUS]) {
         fw_send_status(f);
     }
     if (c->est_div != 0u && angle_src_is_estimator(c->angle_src) &&
-        (f->tick % c->est_div) == FW_PHASE_EST % c->est_div) {
+        ph[FW_TEL_EST] == f->tel.at[FW_TEL_EST]) {
         send_est(f);
     }
+    tel_advance(f);
 }
