@@ -380,7 +380,8 @@ def test_can_run_with_the_live_view_on_a_terminal(data, tmp_path):
 
 def test_the_emulator_child_takes_the_hosts_settings_and_imports_no_profile_loader(tmp_path):
     """The host builds the sim board's settings (it has loaded the files already) and hands them
-    over in a file: the child reads neither motor nor rig and imports no pydantic."""
+    over in a file: the child reads neither motor nor rig and imports no pydantic, nor numpy on a
+    clean line (the link noise's generator is only needed with --corrupt-ppm/--drop-ppm)."""
     from pmsm_hil.device import DeviceSpec, _child_settings
 
     profile = load_profile(
@@ -408,7 +409,7 @@ def test_the_emulator_child_takes_the_hosts_settings_and_imports_no_profile_load
         _, err = p.communicate(timeout=10)
     imported = {line.split("|")[-1].strip() for line in err.splitlines() if "|" in line}
     assert "pmsm_hil.emulator.fwlib" in imported
-    assert not {m for m in imported if m.startswith(("pydantic", "pmsm_hil.profiles"))}
+    assert not {m for m in imported if m.startswith(("pydantic", "pmsm_hil.profiles", "numpy"))}
     f.write_text("{not json")
     r = cli("emulate", "--settings-file", f)
     assert r.returncode == 2 and "settings.json" in r.stderr and "Traceback" not in r.stderr

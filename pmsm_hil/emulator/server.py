@@ -132,6 +132,16 @@ class ParentWatch:
         return os.getppid() != self.parent_pid and not self.dev.active
 
 
+def _link_noise(flip_ppm: float, drop_ppm: float, seed: int):
+    """A noisy line, or None for a clean one: then the child imports no numpy (some 60 ms of its
+    start, which every `pmsm-hil run` waits for)."""
+    if not (flip_ppm or drop_ppm):
+        return None
+    from pmsm_hil.emulator.link_noise import LinkNoise
+
+    return LinkNoise(flip_ppm, drop_ppm, seed)
+
+
 class PtyServer:
     """Serves one EmulatedDevice on a pty until stopped."""
 
@@ -144,15 +154,11 @@ class PtyServer:
         drop_ppm: float = 0.0,
         noise_h2d: bool = False,
     ):
-        from pmsm_hil.emulator.link_noise import LinkNoise
-
         self.dev = device
         self.pacer = Pacer(pace=pace)
-        self.corrupt = LinkNoise(corrupt_ppm, drop_ppm, seed) or None  # device -> host
+        self.corrupt = _link_noise(corrupt_ppm, drop_ppm, seed)  # device -> host
         # host -> device: the same rates, another stream of the same seed
-        self.noise_h2d = (
-            (LinkNoise(corrupt_ppm, drop_ppm, seed + 7919) or None) if noise_h2d else None
-        )
+        self.noise_h2d = _link_noise(corrupt_ppm, drop_ppm, seed + 7919) if noise_h2d else None
         self.master, self.slave = os.openpty()
         tty.setraw(self.slave)
         os.set_blocking(self.master, False)
