@@ -25,6 +25,7 @@ from pmsm_hil.profiles import (
     load_profile,
     load_rig,
 )
+from pmsm_hil.profiles.shipped import shipped_file
 
 ROOT = Path(__file__).resolve().parents[1]
 PROFILES = ROOT / "profiles"
@@ -419,10 +420,13 @@ def test_missing_motor_file_reported_at_the_reference(ws):
     assert len(msgs) == 1  # the default rig is found next to motors/ all the same
 
 
-def test_missing_default_rig(ws):
+def test_missing_default_rig_is_the_shipped_default_with_a_note(ws):
     (ws / "rigs" / "default.yaml").unlink()
-    (msg,) = problems_of(write("x.yaml", GOOD))
-    assert msg == "x.yaml:1: rig is not given and the default rig rigs/default.yaml does not exist"
+    p = load_profile(write("x.yaml", GOOD))
+    assert p.rig.path == shipped_file("rigs/default.yaml")
+    assert any(
+        w.startswith("x.yaml: no rig given, and nothing at rigs/default.yaml") for w in p.warnings
+    )
 
 
 def test_motor_file_problems_name_the_motor_file(ws):

@@ -52,6 +52,50 @@ def test_a_file_path_wins_over_a_shipped_name(tmp_path):
     assert resolve("paper-a", "profile") != "paper-a"  # no such file: the shipped one
 
 
+def test_a_shipped_profile_copied_elsewhere_finds_the_shipped_motor_rig_and_maps(tmp_path):
+    """The first thing a user does with a shipped profile is copy it to edit it: its motor and rig
+    (written relative to the shipped tree) are then not beside it. The shipped files of those
+    names are used, each with a note naming the line; a bare name works as on the command line."""
+    text = (shipped_root() / "paper-a.yaml").read_text()
+    (tmp_path / "mine.yaml").write_text(text)
+    p = load_profile(str(tmp_path / "mine.yaml"), rig_override=resolve("lab-typical", "rig"))
+    assert p.motor.path == str(shipped_root() / "motors" / "paper-a-ipmsm.yaml")
+    assert any("mine.yaml:11: motor" in w and "'paper-a-ipmsm' is used" in w for w in p.warnings)
+    assert p.rig.flux_map() is not None  # lab-typical's map, shipped beside it
+    named = text.replace("motors/paper-a-ipmsm.yaml", "paper-a-ipmsm").replace(
+        "rigs/default.yaml", "lab-typical"
+    )
+    (tmp_path / "named.yaml").write_text(named)
+    p = load_profile(str(tmp_path / "named.yaml"))
+    assert p.rig.enabled("saturation") and p.motor.name == "paper-a-ipmsm"
+    # a motor of its own beside the profile wins; one that exists nowhere is reported at its line
+    (tmp_path / "motors").mkdir()
+    mine = (shipped_root() / "motors" / "paper-a-ipmsm.yaml").read_text()
+    (tmp_path / "motors" / "paper-a-ipmsm.yaml").write_text(
+        mine.replace("psi_f_wb: 0.18", "psi_f_wb: 0.19")
+    )
+    p = load_profile(str(tmp_path / "mine.yaml"))
+    assert p.motor.path == str(tmp_path / "motors" / "paper-a-ipmsm.yaml")
+    assert p.motor.psi_f_wb == 0.19
+    assert not any("motor =" in w for w in p.warnings)
+    (tmp_path / "typo.yaml").write_text(
+        text.replace("motors/paper-a-ipmsm.yaml", "motors/paper-q.yaml")
+    )
+    with pytest.raises(ProfileError) as e:
+        load_profile(str(tmp_path / "typo.yaml"))
+    assert "typo.yaml:11: motor = 'motors/paper-q.yaml'" in str(e.value)
+    r = cli(
+        "run",
+        tmp_path / "mine.yaml",
+        "--stop-after",
+        "0.05",
+        "--no-live",
+        "-o",
+        tmp_path / "m.mcap",
+    )
+    assert r.returncode == 0, r.stderr
+
+
 def test_an_unknown_name_lists_what_is_shipped(tmp_path):
     with pytest.raises(ProfileError) as e:
         resolve("paper-z", "profile")

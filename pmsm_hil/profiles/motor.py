@@ -10,6 +10,7 @@ from pydantic import Field, ValidationError
 
 from ._base import FileModel, StrictModel, default_file, meta_value, num
 from ._source import Problem, ProfileError, Source, fmt_num, read_source, validation_problems
+from .shipped import in_file
 
 if TYPE_CHECKING:
     from .fluxmap import FluxMap
@@ -168,12 +169,14 @@ class Motor(FileModel):
         return mtpa_torque_nm(i_s_a, self.pole_pairs, self.psi_f_wb, self.l_d_h, self.l_q_h)
 
     def flux_map_path(self) -> str | None:
-        """The motor's flux map path (relative to the motor file's directory), or None."""
+        """The motor's flux map path (relative to the motor file's directory; where nothing is
+        there, the shipped map of that name), or None."""
         if not self.flux_map:
             return None
         if os.path.isabs(self.flux_map):
             return self.flux_map
-        return os.path.normpath(os.path.join(os.path.dirname(self.path or "."), self.flux_map))
+        rel = os.path.normpath(os.path.join(os.path.dirname(self.path or "."), self.flux_map))
+        return in_file(rel, self.flux_map, "map")[0]
 
     def load_flux_map(self) -> FluxMap | None:
         """The motor's FluxMap (pmsm_hil.profiles.fluxmap), or None."""

@@ -24,6 +24,7 @@ from ._source import (
 from .acceptance import Acceptance, acceptance_problems
 from .motor import Motor, _load_motor_source
 from .rig import Rig, _load_rig_source, plant_problems
+from .shipped import in_file
 
 __all__ = [
     "FRAME_OVERHEAD_OCTETS",
@@ -464,13 +465,16 @@ def load_profile(
     d = src.data
     motor: Motor | None = None
     motor_path = None
+    notes: list[str] = []  # files taken from the shipped ones (shipped.in_file)
     if motor_override is not None:
         motor_path = os.fspath(motor_override)
         msrc = read_source(motor_path, what="motor file")
         motor, mprobs = _load_motor_source(msrc)
         problems += mprobs
     elif isinstance(d.get("motor"), str) and d["motor"]:
-        motor_path = resolve_ref(path, d["motor"])
+        motor_path, note = in_file(resolve_ref(path, d["motor"]), d["motor"], "motor")
+        if note:
+            notes.append(f"{path}:{src.line(('motor',))}: motor = {d['motor']!r}: {note}")
         msrc = read_source(
             motor_path, what="motor file", referenced_by=(src, ("motor",), d["motor"])
         )
@@ -482,11 +486,17 @@ def load_profile(
     if rig_override is not None:
         rsrc = read_source(os.fspath(rig_override), what="rig file")
     elif isinstance(rig_ref, str) and rig_ref:
-        rig_path = resolve_ref(path, rig_ref)
+        rig_path, note = in_file(resolve_ref(path, rig_ref), rig_ref, "rig")
+        if note:
+            notes.append(f"{path}:{src.line(('rig',))}: rig = {rig_ref!r}: {note}")
         rsrc = read_source(rig_path, what="rig file", referenced_by=(src, ("rig",), rig_ref))
     elif rig_ref is None:
         base = os.path.dirname(os.path.dirname(motor_path)) if motor_path else os.path.dirname(path)
-        rig_path = os.path.normpath(os.path.join(base, "rigs", "default.yaml"))
+        rig_path, note = in_file(
+            os.path.normpath(os.path.join(base, "rigs", "default.yaml")), "default", "rig"
+        )
+        if note:
+            notes.append(f"{path}: no rig given, and {note}")
         rsrc = read_source(
             rig_path,
             what="rig file",
@@ -509,7 +519,7 @@ def load_profile(
     if problems:
         raise ProfileError(_ordered(problems))
     assert spec is not None and motor is not None and rig is not None
-    profile = Profile(spec, path, src.text, motor, rig, warnings)
+    profile = Profile(spec, path, src.text, motor, rig, notes + warnings)
     budget = link_budget(profile)
     if budget["warning"]:
         profile.warnings.append(f"{path}:{src.line(('telemetry',))}: {budget['warning']}")

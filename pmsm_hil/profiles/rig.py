@@ -17,6 +17,7 @@ from pydantic import Field, ValidationError
 
 from ._base import FileModel, StrictModel, default_file, meta_value
 from ._source import Problem, ProfileError, Source, read_source, validation_problems
+from .shipped import in_file
 
 if TYPE_CHECKING:
     from .fluxmap import FluxMap
@@ -342,13 +343,15 @@ class Rig(FileModel):
         return mask
 
     def map_path(self) -> str | None:
-        """The saturation flux map's path (relative to the rig file's directory), or None."""
+        """The saturation flux map's path (relative to the rig file's directory; where nothing is
+        there, the shipped map of that name), or None."""
         sat = self.effects.saturation
         if not sat.enabled or not sat.map:
             return None
         if os.path.isabs(sat.map):
             return sat.map
-        return os.path.normpath(os.path.join(os.path.dirname(self.path or "."), sat.map))
+        rel = os.path.normpath(os.path.join(os.path.dirname(self.path or "."), sat.map))
+        return in_file(rel, sat.map, "map")[0]
 
     def flux_map(self) -> FluxMap | None:
         """The saturation effect's FluxMap (pmsm_hil.profiles.fluxmap), or None when off."""

@@ -8,6 +8,11 @@ repository's `sweeps/` folder likewise, as `pmsm_hil.shipped.sweeps`:
     resolve("lab-typical", "rig")        -> .../shipped/rigs/lab-typical.yaml
     resolve("tolerance", "sweep")        -> .../shipped/sweeps/tolerance.yaml
     resolve("my/own.yaml", "profile")    -> my/own.yaml   (a path that exists always wins)
+
+A file that names another (a profile its motor and rig, a motor or rig its flux map) names it by a
+path relative to itself; where nothing is there, the shipped file of that kind and name is taken
+(`in_file`), so a shipped profile copied to a folder of one's own still runs, and `motor:
+paper-a-ipmsm` works as on the command line.
 """
 
 from __future__ import annotations
@@ -94,3 +99,18 @@ def resolve(name: str | os.PathLike, kind: str) -> str:
             )
         )
     return text
+
+
+def in_file(path: str, ref: str, kind: str) -> tuple[str, str | None]:
+    """The file that ``ref`` (written in a file, already resolved against it: ``path``) names: the
+    path itself if there is a file there, else the shipped file of that kind with the same name,
+    with a note that says so; else the path (its loader reports it)."""
+    if os.path.exists(path):
+        return path, None
+    sub, suffix = KINDS[kind]
+    base = os.path.basename(ref)
+    stem = base[: -len(suffix)] if base.endswith(suffix) else base
+    candidate = _root(kind) / sub / f"{stem}{suffix}"
+    if stem and candidate.is_file():
+        return str(candidate), f"nothing at {path}: the shipped {kind} {stem!r} is used"
+    return path, None
