@@ -79,6 +79,7 @@ void fw_enter_stopping(fw_t *f, uint16_t reason)
         ramp_reset(&f->stop.ramp, f->sig.speed_ref_rpm);
         f->stop.ticks = 0u;
         f->stop.hold_ticks = 0u;
+        f->stop.hold_sum_rpm = 0.0f;
     }
 }
 
@@ -135,20 +136,32 @@ static void check_heartbeat(fw_t *f)
     }
 }
 
-/* End of a stop: reference at zero and the rotor (nearly) still for a while, or too long. */
+/* End of a stop: the reference at zero and the rotor still, or too long. Still: the speed's mean
+ * over a window of FW_STOP_HOLD_S below FW_STOP_SPEED_RPM. Not every sample: an encoder's speed at
+ * standstill toggles by about a count per observer time constant (+-3.5 r/min on a 2048-line
+ * encoder), so a per-sample test ran into the timeout; the mean over the window is the rotor's
+ * position change over it. A window whose mean is too high starts the next one. */
 static bool stop_finished(fw_t *f)
 {
     if (f->state != PROTO_STATE_STOPPING) {
         return false;
     }
     f->stop.ticks++;
-    if (f->stop.ramp.out_rpm == 0.0f && fabsf(f->ang.speed_rpm) < FW_STOP_SPEED_RPM) {
+    if (f->stop.ramp.out_rpm == 0.0f) {
         f->stop.hold_ticks++;
+        f->stop.hold_sum_rpm += f->ang.speed_rpm;
     } else {
         f->stop.hold_ticks = 0u;
+        f->stop.hold_sum_rpm = 0.0f;
     }
-    return (float)f->stop.hold_ticks * f->ctrl.ts_s >= FW_STOP_HOLD_S ||
-           (float)f->stop.ticks * f->ctrl.ts_s >= FW_STOP_TIMEOUT_S;
+    if ((float)f->stop.hold_ticks * f->ctrl.ts_s >= FW_STOP_HOLD_S) {
+        if (fabsf(f->stop.hold_sum_rpm) < FW_STOP_SPEED_RPM * (float)f->stop.hold_ticks) {
+            return true;
+        }
+        f->stop.hold_ticks = 0u; /* still turning (or a NaN speed): the next window */
+        f->stop.hold_sum_rpm = 0.0f;
+    }
+    return (float)f->stop.ticks * f->ctrl.ts_s >= FW_STOP_TIMEOUT_S;
 }
 
 /* ------------------------------------------------------------------ the stages */

@@ -76,7 +76,8 @@ typedef struct {
 typedef struct {
     ramp_t ramp;
     uint32_t ticks;      /* periods since the stop began */
-    uint32_t hold_ticks; /* periods at zero reference and (nearly) zero speed */
+    uint32_t hold_ticks; /* periods of the present window at zero reference */
+    float hold_sum_rpm;  /* the speed summed over them */
 } fw_stop_t;
 
 /* The telemetry streams' phases: tick % div for the fast, params, status and estimator frames,

@@ -16,8 +16,8 @@
 #define FW_GAIN_MAX           1.0e7f /* speed PI gains, observer bandwidth */
 
 #define FW_STOP_RAMP_RPM_S   3000.0f /* quick-stop deceleration */
-#define FW_STOP_SPEED_RPM    3.0f    /* below this, with the reference at zero, PWM goes off */
-#define FW_STOP_HOLD_S       0.05f   /* zero reference held this long before PWM off */
+#define FW_STOP_SPEED_RPM    3.0f    /* mean speed below this over a window: PWM goes off */
+#define FW_STOP_HOLD_S       0.05f   /* the window: zero reference held this long before PWM off */
 #define FW_STOP_TIMEOUT_S    3.0f    /* PWM off after this long in any case */
 #define FW_RPM_PER_RAD_S     9.549296585513720f
 #define FW_SPEED_REF_WEIGHT  0.7f  /* set-point weight of the speed PI's proportional path */

@@ -1,0 +1,61 @@
+/* The quick stop ends once the rotor is still: the speed's mean over a 50 ms window below 3 r/min.
+ * An encoder at the edge of a count (its speed toggling by a few r/min around zero) is still; a
+ * rotor turning at 10 r/min is not, and its stop ends at the 3 s timeout. */
+#include <math.h>
+
+#include "fw_host.h"
+
+/* One stop after a 10 ms profile at zero speed: the encoder count follows count_at(period). Returns
+ * the periods from the profile's end to PWM off; *peak_rpm: the largest |speed| the firmware saw. */
+static uint32_t stop_periods(uint32_t (*count_at)(uint32_t), float *peak_rpm)
+{
+    fw_meas_t meas = { 0.0f, 0.0f, 0.0f, 540.0f, 0u };
+    fw_cmd_t cmd;
+    proto_profile_segment_t s;
+    uint32_t k = 0u, end = 0u;
+    memset(&s, 0, sizeof s);
+    s.duration_s = 0.01f;
+    host_configure(100u, 2000u, &s);
+    host_start();
+    *peak_rpm = 0.0f;
+    while (fw_active(&fw) && k < 100000u) {
+        meas.enc_count = count_at(k);
+        fw_isr(&fw, &meas, &cmd);
+        host_collect();
+        if (fw_state(&fw) == PROTO_STATE_STOPPING) {
+            end = end == 0u ? k : end;
+            *peak_rpm = fmaxf(*peak_rpm, fabsf(fw.ang.speed_rpm));
+        }
+        k++;
+    }
+    CHECK(!fw_active(&fw) && end > 0u, "the run ends through a stop");
+    return k - end;
+}
+
+static uint32_t at_an_edge(uint32_t k)
+{
+    return 5000u + ((k / 40u) & 1u); /* one count back and forth every 2 ms */
+}
+
+static uint32_t turning(uint32_t k)
+{
+    return 5000u + k / 12u; /* 10000 counts per turn: 10 r/min */
+}
+
+int main(void)
+{
+    fw_cfg_t cfg = { PROTO_BOARD_EMULATOR, 1u };
+    uint32_t n;
+    float peak;
+    fw_init(&fw, &cfg);
+    frame_parser_init(&host_rx);
+    host_obs_bw_rad_s = 3000.0f; /* a fast observer: a count's step shows as some r/min */
+
+    n = stop_periods(at_an_edge, &peak);
+    CHECK(peak > 3.0f, "the encoder's speed at the edge of a count swings beyond 3 r/min");
+    CHECK(n * 50e-6f < 0.2f, "a rotor still on average: PWM off within a few 50 ms windows");
+
+    n = stop_periods(turning, &peak);
+    CHECK(n * 50e-6f > 2.9f && n * 50e-6f < 3.1f, "a turning rotor: PWM off at the 3 s timeout");
+    return CHECK_DONE();
+}
