@@ -108,8 +108,14 @@ def test_null_record_selects_nothing(logs, motor):
 
 
 def test_dead_time_found_with_its_size_and_closure(logs, motor):
-    res = diagnose(load_record(logs["dead_time"]), motor)
+    said: list[str] = []
+    res = diagnose(load_record(logs["dead_time"]), motor, progress=said.append)
     assert res["selected"][:1] == ["dead_time"]
+    # what a long diagnosis's status line shows: every candidate of every step, then the last fits
+    n_cand = sum(1 for m in said if m.startswith("step 1: "))
+    assert n_cand >= 5 and "step 1: dead_time (candidate" in " ".join(said)
+    assert any(m.startswith("step 2: dead_time + ") for m in said)
+    assert said.index(next(m for m in said if m.startswith("final fit: dead_time"))) > n_cand
     e = res["effects"][0]
     assert e["name"] == "dead_time" and e["selected"]
     assert e["magnitude"] == pytest.approx(1.5e-6, rel=0.15)

@@ -11,10 +11,12 @@ pmsm-hil gap verify LOG.mcap --rig fitted-rig.yaml [--json]        (re-runs the 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import sys
 import tempfile
+import time
 
 from pmsm_hil.cli.errors import fail
 
@@ -99,7 +101,22 @@ def _diagnose(args, path):
             f"{args.holdout}: holds steady-state data; a held-out record for control-rate data "
             "must be control-rate too"
         )
-    return diagnose(rec, m, holdout=hold, seed=args.seed), m, rec
+    with _status(not args.json, f"gap: {path}") as say:
+        return diagnose(rec, m, holdout=hold, seed=args.seed, progress=say), m, rec
+
+
+@contextlib.contextmanager
+def _status(show: bool, title: str):
+    """A status line on a terminal's stderr while a long diagnosis runs (what it fits, the time
+    so far); nothing otherwise (a pipe, a log, --json)."""
+    if not (show and sys.stderr.isatty()):
+        yield lambda _msg: None
+        return
+    from rich.console import Console
+
+    t0 = time.monotonic()
+    with Console(stderr=True).status(title) as st:
+        yield lambda msg: st.update(f"{title}: {msg}  [{time.monotonic() - t0:.0f} s]")
 
 
 def main(args: argparse.Namespace) -> int:

@@ -3,7 +3,7 @@ effects on held-out blocks, closure with block-bootstrap intervals (docs/gap.md)
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import TypedDict
 
 import numpy as np
@@ -63,7 +63,11 @@ def diagnose(
     holdout: ControlRecord | None = None,
     seed: int = 0,
     candidates: Sequence[str] | None = None,
+    progress: Callable[[str], None] | None = None,
 ) -> dict:
+    """``progress``: told what the diagnosis is doing (each candidate fit of the forward selection,
+    the final fits), for a long diagnosis's status line."""
+    say = progress or (lambda _msg: None)
     probe = Probe(rec, motor)
     k = probe.idx
     if len(k) < 200:
@@ -114,9 +118,12 @@ def diagnose(
     floor_mean = float(np.mean(fl_guess))
     while len(chosen) < MAX_EFFECTS:
         rows = []
-        for c in candidates:
-            if c in chosen:
-                continue
+        todo = [c for c in candidates if c not in chosen]
+        for n_c, c in enumerate(todo):
+            say(
+                f"step {len(chosen) + 1}: {' + '.join([*chosen, c])} "
+                f"(candidate {n_c + 1} of {len(todo)})"
+            )
             f = fit_effects(
                 probe, [*chosen, c], tr_sub, warm=warm, max_nfev=12 * (len(EFFECTS[c].params) + 1)
             )
@@ -149,6 +156,7 @@ def diagnose(
             fl_guess = floor_arr(probe.residual(f.effects()))
             floor_mean = float(np.mean(fl_guess))
 
+    say(f"final fit: {' + '.join(chosen) or 'no effect'} on every training block")
     final = (
         fit_effects(probe, chosen, tr_sel, warm=warm, blocks=blk[tr_sel], max_nfev=80)
         if chosen
@@ -181,6 +189,7 @@ def diagnose(
         }
     )
     # parametric gap (separately): best constant R, Ld, Lq, psi_f on the nominal model
+    say("parametric gap: best constant R, L_d, L_q, psi_f")
     pf = fit_effects(probe, ["parameters"], tr_sub, blocks=blk[tr_sub], max_nfev=40)
     r_par = probe.residual(pf.effects(), te_sel)
     pc = bootstrap_closure(r_base[te_sel], r_par, floor[te_sel], blk[te_sel], n_boot=200, seed=seed)
@@ -192,6 +201,7 @@ def diagnose(
         "closure": pc["closure"],
     }
     # held-out operating region: fit below the median speed, test above it
+    say("held-out speed region: fit below the median speed, test above it")
     if chosen:
         assert final is not None  # fitted whenever an effect was chosen
         sp = np.abs(rec.omega_e_rad_s[k])
@@ -274,6 +284,7 @@ def diagnose(
     # the views: dc_link, and the torque balance's friction, cogging and sensor offsets; a view that
     # sees an effect the one-step residual could not select takes that effect's entry
     pos = {e["name"]: j for j, e in enumerate(effects)}
+    say("views: DC link, torque balance (friction, cogging, sensor offsets)")
     for v in view_effects(rec, motor):
         j = pos.get(v["name"])
         if j is None:
