@@ -109,6 +109,9 @@ def test_profiles_command_lists_the_shipped_files():
     assert r.returncode == 0, r.stderr
     for name in ("paper-a", "paper-a-identify", "sew-cm3c80s", "lab-typical", "effect-dead-time"):
         assert name in r.stdout
+    # a motor file says what machine it is (its data: motor files carry no description field)
+    line = next(x for x in r.stdout.splitlines() if x.split()[:1] == ["paper-b-spmsm"])
+    assert "SPMSM, p = 4, R 2.875 ohm, L_d 8.5 mH" in line
 
 
 def test_emulator_child_ignores_a_source_tree_in_the_working_directory(tmp_path, data):

@@ -17,7 +17,8 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
 
 
 def _first_line(path) -> str:
-    """A file's description: the YAML `description:` field, else nothing."""
+    """A file's description: the YAML `description:` field; for a motor file without one, its
+    machine data (pole pairs, R, L_d, L_q, psi_f, and whether it names a flux map)."""
     import yaml
 
     try:
@@ -25,7 +26,27 @@ def _first_line(path) -> str:
             data = yaml.safe_load(f)
     except (OSError, yaml.YAMLError):
         return ""
-    return str(data.get("description", "") or "") if isinstance(data, dict) else ""
+    if not isinstance(data, dict):
+        return ""
+    if data.get("description"):
+        return str(data["description"])
+    if "pole_pairs" in data and "psi_f_wb" in data:
+        return _motor_line(data)
+    return ""
+
+
+def _motor_line(d: dict) -> str:
+    def num(key: str, scale: float, unit: str) -> str:
+        v = d.get(key)
+        return f"{v * scale:g} {unit}" if isinstance(v, int | float) else "?"
+
+    kind = "SPMSM" if d.get("l_d_h") == d.get("l_q_h") else "IPMSM"
+    text = (
+        f"{kind}, p = {d.get('pole_pairs')}, R {num('r_s_ohm', 1, 'ohm')}, "
+        f"L_d {num('l_d_h', 1e3, 'mH')}, L_q {num('l_q_h', 1e3, 'mH')}, "
+        f"psi_f {num('psi_f_wb', 1, 'Wb')}"
+    )
+    return text + (", with its flux map" if d.get("flux_map") else "")
 
 
 def main(args: argparse.Namespace) -> int:
