@@ -316,7 +316,7 @@ def test_report_plots_each_metric_and_a_pass_map_for_a_2d_grid(tmp_path, data):
     assert (rep / "pass_map.png").stat().st_size > 1000
     assert (rep / "speed_error_max_rpm.png").stat().st_size > 1000
     summary = (rep / "summary.md").read_text()
-    assert "4 runs, 4 ok, 0 failed, 4 passed" in summary
+    assert "4 runs, 4 ok, 0 failed; 4 of 4 within the profile's acceptance criteria" in summary
     assert "| speed_error_max_rpm | 4 |" in summary
     r = subprocess.run([*CLI, "sweep", "report", str(tmp_path)], capture_output=True, text=True)
     assert r.returncode == 2 and "no results.parquet" in r.stderr

@@ -54,8 +54,9 @@ def _finite(xs):
 def _summary(rows, cols) -> str:
     ok = [r for r in rows if r.get("status") == "ok"]
     lines = [
-        f"# Sweep results: {len(rows)} runs, {len(ok)} ok, {len(rows) - len(ok)} failed, "
-        f"{sum(passed(r) for r in rows)} passed",
+        f"# Sweep results: {len(rows)} runs, {len(ok)} ok, {len(rows) - len(ok)} failed; "
+        f"{sum(passed(r) for r in rows)} of {len(rows)} within the profile's acceptance criteria "
+        "(complete, no fault)",
         "",
         "| metric | runs | median | worst (largest magnitude) | min | max |",
         "|---|---|---|---|---|---|",
