@@ -232,11 +232,12 @@ static void tel_phases(fw_t *f, const uint16_t div[FW_TEL_N])
     }
     for (k = 0u; k < FW_TEL_N; k++) {
         t->div[k] = div[k];
-        t->ph[k] = div[k] != 0u ? (uint16_t)(f->tick % div[k]) : 0u;
+        t->ph[k] = (uint16_t)(div[k] != 0u ? f->tick % div[k] : 0u);
     }
     t->at[FW_TEL_FAST] = 0u;
-    t->at[FW_TEL_STATUS] = div[FW_TEL_STATUS] != 0u ? FW_PHASE_STATUS % div[FW_TEL_STATUS] : 0u;
-    t->at[FW_TEL_EST] = div[FW_TEL_EST] != 0u ? FW_PHASE_EST % div[FW_TEL_EST] : 0u;
+    t->at[FW_TEL_STATUS] =
+        (uint16_t)(div[FW_TEL_STATUS] != 0u ? FW_PHASE_STATUS % div[FW_TEL_STATUS] : 0u);
+    t->at[FW_TEL_EST] = (uint16_t)(div[FW_TEL_EST] != 0u ? FW_PHASE_EST % div[FW_TEL_EST] : 0u);
     t->tick = f->tick;
 }
 
