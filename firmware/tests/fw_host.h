@@ -1,6 +1,6 @@
 /* A host for the firmware's unit tests: the firmware object, sending a message as the host would
- * (the status of its ack), the frames the device sends back (host_on_frame), and a plain motor,
- * control configuration and one-segment profile to run. */
+ * (the status of its ack), the frames the device sends back (host_on_frame), a sane motor and
+ * control configuration, and a profile of one segment to run. */
 #ifndef FW_HOST_H
 #define FW_HOST_H
 
@@ -17,10 +17,9 @@ static uint16_t payload[PROTO_MAX_PAYLOAD + 4u];
 static uint16_t wire[2u * PROTO_MAX_PAYLOAD + 16u];
 static uint16_t ack_id, ack_status;
 static void (*host_on_frame)(const frame_parser_t *rx); /* every frame but acks (may be NULL) */
-static float host_obs_bw_rad_s = 500.0f;                /* the encoder speed observer's */
 
 /* Reads what the device has sent. */
-static void host_collect(void)
+static inline void host_collect(void)
 {
     uint16_t octet;
     while (fw_tx_pop(&fw, &octet)) {
@@ -40,7 +39,7 @@ static void host_collect(void)
 }
 
 /* Sends one message as the host would; the status of the device's ack (0xFFFF: none). */
-static uint16_t host_send(uint16_t id, uint16_t n)
+static inline uint16_t host_send(uint16_t id, uint16_t n)
 {
     static uint16_t seq = 0u;
     uint16_t len =
@@ -55,12 +54,10 @@ static uint16_t host_send(uint16_t id, uint16_t n)
     return ack_id == id ? ack_status : 0xFFFFu;
 }
 
-/* A 4-pole-pair IPMSM, the control at 20 kHz with these telemetry dividers, and one segment. */
-static void host_configure(uint16_t fast_div, uint16_t status_div, const proto_profile_segment_t *s)
+/* A sane motor: paper A's 4-pole-pair IPMSM with its limits. */
+static inline proto_config_motor_t host_good_motor(void)
 {
     proto_config_motor_t m;
-    proto_config_ctrl_t c;
-    proto_profile_clear_t clr;
     memset(&m, 0, sizeof m);
     m.pole_pairs = 4u;
     m.r_s_ohm = 0.9f;
@@ -74,27 +71,42 @@ static void host_configure(uint16_t fast_div, uint16_t status_div, const proto_p
     m.speed_trip_rpm = 1800.0f;
     m.v_dc_min_v = 400.0f;
     m.v_dc_max_v = 700.0f;
-    CHECK(host_send(PROTO_ID_CONFIG_MOTOR, proto_config_motor_pack(&m, payload)) ==
-              PROTO_ACK_STATUS_OK,
-          "motor");
+    return m;
+}
+
+/* A sane control configuration: 20 kHz, fast telemetry every 10 periods, status every 2000. */
+static inline proto_config_ctrl_t host_good_ctrl(void)
+{
+    proto_config_ctrl_t c;
     memset(&c, 0, sizeof c);
     c.ts_s = 50e-6f;
     c.rho = 1.0f;
     c.speed_kp_a_per_rad_s = 0.5f;
     c.speed_ki_a_per_rad = 20.0f;
     c.speed_div = 20u;
-    c.heartbeat_timeout_s = 5.0f;
-    c.fast_div = fast_div;
-    c.status_div = status_div;
+    c.heartbeat_timeout_s = 0.5f;
+    c.fast_div = 10u;
+    c.status_div = 2000u;
     c.enc_counts = 10000u;
-    c.speed_obs_bw_rad_s = host_obs_bw_rad_s;
+    c.speed_obs_bw_rad_s = 500.0f;
     c.capture_pre = 16u;
     c.id_window = 20u;
     c.pred_scale_l_d = 1.0f;
     c.pred_scale_l_q = 1.0f;
     c.pred_scale_psi_f = 1.0f;
     c.pred_scale_r_s = 1.0f;
-    CHECK(host_send(PROTO_ID_CONFIG_CTRL, proto_config_ctrl_pack(&c, payload)) ==
+    return c;
+}
+
+/* The sane motor, this control configuration and a profile of one segment. */
+static inline void host_configure(const proto_config_ctrl_t *c, const proto_profile_segment_t *s)
+{
+    proto_config_motor_t m = host_good_motor();
+    proto_profile_clear_t clr;
+    CHECK(host_send(PROTO_ID_CONFIG_MOTOR, proto_config_motor_pack(&m, payload)) ==
+              PROTO_ACK_STATUS_OK,
+          "motor");
+    CHECK(host_send(PROTO_ID_CONFIG_CTRL, proto_config_ctrl_pack(c, payload)) ==
               PROTO_ACK_STATUS_OK,
           "ctrl");
     memset(&clr, 0, sizeof clr);
@@ -107,7 +119,7 @@ static void host_configure(uint16_t fast_div, uint16_t status_div, const proto_p
           "segment");
 }
 
-static void host_start(void)
+static inline void host_start(void)
 {
     proto_start_t st = { 0u };
     CHECK(host_send(PROTO_ID_START, proto_start_pack(&st, payload)) == PROTO_ACK_STATUS_OK,

@@ -13,9 +13,13 @@ static uint32_t stop_periods(uint32_t (*count_at)(uint32_t), float *peak_rpm)
     fw_cmd_t cmd;
     proto_profile_segment_t s;
     uint32_t k = 0u, end = 0u;
+    proto_config_ctrl_t c = host_good_ctrl();
+    c.heartbeat_timeout_s = 5.0f;   /* the 3 s stop timeout comes first */
+    c.speed_obs_bw_rad_s = 3000.0f; /* a fast observer: a count's step shows as some r/min */
+    c.fast_div = 100u;
     memset(&s, 0, sizeof s);
     s.duration_s = 0.01f;
-    host_configure(100u, 2000u, &s);
+    host_configure(&c, &s);
     host_start();
     *peak_rpm = 0.0f;
     while (fw_active(&fw) && k < 100000u) {
@@ -49,7 +53,6 @@ int main(void)
     float peak;
     fw_init(&fw, &cfg);
     frame_parser_init(&host_rx);
-    host_obs_bw_rad_s = 3000.0f; /* a fast observer: a count's step shows as some r/min */
 
     n = stop_periods(at_an_edge, &peak);
     CHECK(peak > 3.0f, "the encoder's speed at the edge of a count swings beyond 3 r/min");

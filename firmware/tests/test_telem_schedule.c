@@ -24,10 +24,13 @@ static void on_frame(const frame_parser_t *rx)
 
 static void configure(uint16_t fast_div, uint16_t status_div)
 {
+    proto_config_ctrl_t c = host_good_ctrl();
     proto_profile_segment_t s;
+    c.fast_div = fast_div;
+    c.status_div = status_div;
     memset(&s, 0, sizeof s);
     s.duration_s = 0.02f; /* 400 periods, then the stop */
-    host_configure(fast_div, status_div, &s);
+    host_configure(&c, &s);
 }
 
 /* One run from start to rest; returns the number of periods it lasted. */
