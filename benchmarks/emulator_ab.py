@@ -30,12 +30,11 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-import pmsm_hil.emulator.fwlib as fwlib  # noqa: E402
-from pmsm_hil.emulator.settings import emulator_settings  # noqa: E402
+from pmsm_hil.emulator import fwlib  # noqa: E402
 from pmsm_hil.profiles import load_profile  # noqa: E402
-from pmsm_hil.protocol.session import Session  # noqa: E402
-from pmsm_hil.runner import configure  # noqa: E402
-from pmsm_hil.transport.inproc import InProcessTransport  # noqa: E402
+
+sys.path.insert(0, str(ROOT / "benchmarks"))
+from emulator_speed import start_inproc  # noqa: E402
 
 CHUNK = 2000
 
@@ -44,15 +43,7 @@ def _device(so: str, profile):
     """A started emulator on the library ``so`` (fwlib loads the library PMSM_HIL_FW_LIB names)."""
     os.environ["PMSM_HIL_FW_LIB"] = so
     fwlib.lib.cache_clear()
-    st = emulator_settings(
-        profile.motor, profile.rig, seed=1, baud=profile.link.baud, ts_s=profile.control.ts_s
-    )
-    tr = InProcessTransport(st)
-    s = Session(tr)
-    s.hello()
-    configure(s, profile)
-    s.request("start")
-    return tr.dev, s
+    return start_inproc(profile)
 
 
 def paired(a_so: str, b_so: str, profile, repeat: int) -> dict:
@@ -98,7 +89,9 @@ def main() -> None:
     ap.add_argument("old", help="the extension of the reference build (a .so file)")
     ap.add_argument("new", help="the extension of the build to compare (a .so file)")
     ap.add_argument("--profile", default=str(ROOT / "profiles" / "paper-a.yaml"))
-    ap.add_argument("--rig", action="append", default=None, help="rig file(s) (default: the profile's)")
+    ap.add_argument(
+        "--rig", action="append", default=None, help="rig file(s) (default: the profile's)"
+    )
     ap.add_argument("--repeat", type=int, default=2, help="runs of the profile per rig")
     args = ap.parse_args()
     for so in (args.old, args.new):

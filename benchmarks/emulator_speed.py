@@ -28,8 +28,8 @@ from pmsm_hil.runner import configure  # noqa: E402
 from pmsm_hil.transport.inproc import InProcessTransport  # noqa: E402
 
 
-def emulator_realtime_factor(profile_path: str, rig: str | None = None, seed: int = 1) -> dict:
-    profile = load_profile(profile_path, rig_override=rig)
+def start_inproc(profile, seed: int = 1):
+    """The emulator in this process, configured for ``profile`` and started: (device, session)."""
     settings = emulator_settings(
         profile.motor, profile.rig, seed=seed, baud=profile.link.baud, ts_s=profile.control.ts_s
     )
@@ -38,7 +38,12 @@ def emulator_realtime_factor(profile_path: str, rig: str | None = None, seed: in
     s.hello()
     configure(s, profile)
     s.request("start")
-    dev = tr.dev
+    return tr.dev, s
+
+
+def emulator_realtime_factor(profile_path: str, rig: str | None = None, seed: int = 1) -> dict:
+    profile = load_profile(profile_path, rig_override=rig)
+    dev, s = start_inproc(profile, seed)
     ticks = 0
     octets = 0
     t0 = time.perf_counter()
