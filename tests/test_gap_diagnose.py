@@ -171,11 +171,15 @@ def test_cli_json_report_and_augment(logs, tmp_path, capsys):
         and (tmp_path / "rep/index.html").exists()
         and (tmp_path / "rep/gap.json").exists()
     )
+    # the report has the fitted rig beside it (one diagnosis, not a second by `gap augment`)
+    assert "fitted-rig.yaml" in text and "gap verify" in text
+    in_report = load_rig(tmp_path / "rep" / "fitted-rig.yaml")
     rig_path = tmp_path / "fitted-rig.yaml"
     assert (
         main(["gap", "augment", str(logs["dead_time"]), "--motor", MOTOR, "-o", str(rig_path)]) == 0
     )
     rig = load_rig(rig_path)
+    assert in_report.effects.dead_time.dead_time_s == rig.effects.dead_time.dead_time_s
     assert rig.effects.dead_time.enabled
     assert rig.effects.dead_time.dead_time_s == pytest.approx(1.5e-6, rel=0.15)
     assert rig.effects.adc_noise.i_noise_a == pytest.approx(0.02)

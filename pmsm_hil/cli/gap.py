@@ -206,8 +206,14 @@ def main(args: argparse.Namespace) -> int:
         rig = fitted_rig(res, m, args.out, getattr(rec, "sensor_spec", {}))
         print(f"{args.out}: {', '.join(rig['effects']) or 'no effect'}")
         return 0
+    fitted = None
     if args.report:
         write_report(res, args.report)
+        if "effects" in res:  # control-rate data: the selected effects as a rig file beside it
+            from pmsm_hil.gap.rigfile import fitted_rig
+
+            fitted = os.path.join(args.report, "fitted-rig.yaml")
+            fitted_rig(res, m, fitted, getattr(rec, "sensor_spec", {}))
     if args.json:
         print(json.dumps(jsonable(res)))
     else:
@@ -215,5 +221,10 @@ def main(args: argparse.Namespace) -> int:
             verdict_lines(res) if "discretisation_gap" in res else [f"gap: {res['verdict']}"]
         ):
             print(line)
+        if fitted:
+            print(
+                f"report {args.report}; the fitted effects as a rig file: {fitted} "
+                f"(check it: pmsm-hil gap verify {path} --rig {fitted})"
+            )
     sys.stdout.flush()
     return 0
