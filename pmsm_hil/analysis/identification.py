@@ -303,7 +303,9 @@ def convergence_plot(
     par = log.topic("/pmsm/params")
     t_all = np.asarray(par["t_s"], dtype=float)
     names = np.asarray(par["estimator"]).astype(str)
-    fig, axes = plt.subplots(4, 1, figsize=(9, 10), sharex=True)
+    from pmsm_hil.analysis.report_style import legend
+
+    fig, axes = plt.subplots(4, 1, figsize=(11, 10), sharex=True)
     for ax, p in zip(axes, ("l_d_h", "l_q_h", "psi_f_wb", "r_s_ohm"), strict=False):
         name, unit, k = UNITS[p]
         for est in (*ESTIMATORS, "nominal"):
@@ -329,7 +331,7 @@ def convergence_plot(
             ax.set_ylim(lo * 0.8, hi * 1.2)
         ax.set_ylabel(f"{name} ({unit})")
         ax.grid(alpha=0.3)
-    axes[0].legend(loc="lower right", fontsize=8, ncol=3)
+    legend(axes[0])  # to the right of the axes: it covers no estimate
     axes[-1].set_xlabel("device time (s)")
     fig.suptitle(f"online identification: {Path(path).name}")
     fig.tight_layout()
