@@ -18,7 +18,11 @@ setup(
     packages=find_packages(include=["pmsm_hil", "pmsm_hil.*"])
     + ["pmsm_hil.shipped", "pmsm_hil.shipped.sweeps"],
     package_dir={"pmsm_hil.shipped": "profiles", "pmsm_hil.shipped.sweeps": "sweeps"},
-    package_data={"pmsm_hil.shipped": SHIPPED, "pmsm_hil.shipped.sweeps": ["*.yaml"]},
+    package_data={
+        "pmsm_hil.shipped": SHIPPED,
+        "pmsm_hil.shipped.sweeps": ["*.yaml"],
+        "pmsm_hil.live": ["foxglove-layout.json"],  # run --foxglove prints its installed path
+    },
     ext_modules=[
         Extension(
             "pmsm_hil._fw",

@@ -12,10 +12,17 @@ import struct
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 
-from pmsm_hil.live.foxglove import LIVE_TOPICS, FoxgloveError, FoxgloveSink, json_schema
+from pmsm_hil.live.foxglove import (
+    LIVE_TOPICS,
+    FoxgloveError,
+    FoxgloveSink,
+    json_schema,
+    layout_path,
+)
 from pmsm_hil.log.reader import read_log
 from pmsm_hil.log.schemas import TOPICS
 
@@ -109,9 +116,7 @@ def test_run_serves_the_live_streams_to_a_foxglove_client(root, tmp_path):
         for line in proc.stdout:  # the address is printed before the run starts
             if line.startswith("foxglove:"):
                 break
-        assert (
-            line.strip() == f"foxglove: ws://127.0.0.1:{port} (layout: docs/foxglove-layout.json)"
-        )
+        assert line.strip() == f"foxglove: ws://127.0.0.1:{port} (layout: {layout_path()})"
         t0 = time.monotonic()
         channels, got = asyncio.run(_listen(port, 30.0))  # until the run ends
         print(
@@ -184,7 +189,7 @@ def test_json_schemas_carry_units():
 
 
 def test_layout_plots_only_fields_that_are_streamed(root):
-    layout = json.loads((root / "docs" / "foxglove-layout.json").read_text())
+    layout = json.loads(Path(layout_path()).read_text())
     text = json.dumps(layout)
     import re
 
@@ -199,7 +204,9 @@ def test_layout_plots_only_fields_that_are_streamed(root):
 
 
 def test_layout_file_is_generated(root):
-    """docs/foxglove-layout.json is the output of tools/gen_foxglove_layout.py, not edited by hand."""
+    """The layout is the output of tools/gen_foxglove_layout.py, not edited by hand, and installed
+    with the package (an installed pmsm-hil prints where)."""
+    assert Path(layout_path()).is_file() and Path(layout_path()).parent.name == "live"
     r = subprocess.run(
         [sys.executable, "-m", "tools.gen_foxglove_layout", "--check"],
         cwd=root,

@@ -1,7 +1,7 @@
-"""Generate docs/foxglove-layout.json, the Foxglove layout for `pmsm-hil run --foxglove` and for
+"""Generate pmsm_hil/live/foxglove-layout.json, the Foxglove layout for `pmsm-hil run --foxglove` and for
 logs opened in Foxglove, with foxglove-sdk's layout types.
 
-    python3 -m tools.gen_foxglove_layout           rewrite docs/foxglove-layout.json
+    python3 -m tools.gen_foxglove_layout           rewrite pmsm_hil/live/foxglove-layout.json
     python3 -m tools.gen_foxglove_layout --check   exit 1 if the file in the tree is stale
 
 Panels: speed (reference, measured, estimated), i_d / i_q with their references, the four
@@ -20,7 +20,7 @@ from pathlib import Path
 import foxglove.layouts as fl
 
 ROOT = Path(__file__).resolve().parent.parent
-OUT = "docs/foxglove-layout.json"
+OUT = "pmsm_hil/live/foxglove-layout.json"  # package data: installed beside the code
 ESTIMATORS = ("rls", "adaline", "nlms_adaline")
 WINDOW_S = 10.0
 

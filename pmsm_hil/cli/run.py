@@ -256,13 +256,13 @@ def main(args: argparse.Namespace) -> int:
 
     sinks = []
     if args.foxglove is not None:  # docs/foxglove.md
-        from pmsm_hil.live.foxglove import FoxgloveError, FoxgloveSink
+        from pmsm_hil.live.foxglove import FoxgloveError, FoxgloveSink, layout_path
 
         try:
             sinks.append(FoxgloveSink(args.foxglove))
         except FoxgloveError as e:
             return fail("error", str(e), 2)
-        print(f"foxglove: {sinks[0].url} (layout: docs/foxglove-layout.json)", flush=True)
+        print(f"foxglove: {sinks[0].url} (layout: {layout_path()})", flush=True)
     for name in _DEVICE:
         importlib.import_module(name)
     later = _import_meanwhile(_LATER)

@@ -22,8 +22,16 @@ import json
 import math
 import sys
 import time
+from pathlib import Path
 
 from pmsm_hil.log.schemas import TOPICS
+
+
+def layout_path() -> str:
+    """The Foxglove layout for these streams (installed with the package; written by
+    tools/gen_foxglove_layout.py): Foxglove, Layouts, Import from file."""
+    return str(Path(__file__).with_name("foxglove-layout.json"))
+
 
 DEFAULT_PORT = 8765
 HOST = "127.0.0.1"
