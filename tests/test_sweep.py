@@ -90,6 +90,31 @@ def test_sweep_file_errors_name_file_line_field(tmp_path, body, line, field, tex
     assert text in msg
 
 
+def test_the_files_mistakes_come_in_one_report(tmp_path):
+    """A missing `draws` and an axis naming no field of the base files: both at once (what the CLI
+    does: load_sweep(defer=True), then plan_runs), not one per round."""
+    p = write_sweep(
+        tmp_path,
+        "name: t\nprofile: paper-a\naxes:\n  - {field: motor.r_s_ohmz, values: [0.8]}\n"
+        "  - {field: rig.effects.dead_time.dead_time_s, uniform: {low: 1.0e-6, high: 3.0e-6}}\n",
+    )
+    with pytest.raises(ProfileError) as e:
+        load_sweep(p)  # without defer: the file's own problems first, as before
+    assert "draws is missing" in str(e.value) and "r_s_ohmz" not in str(e.value)
+    with pytest.raises(ProfileError) as e:
+        plan_runs(load_sweep(p, defer=True))
+    msg = str(e.value)
+    assert "draws is missing" in msg
+    assert f"{p}:4: axes[0].field = 'motor.r_s_ohmz' names no field of the motor" in msg
+    r = subprocess.run(
+        [sys.executable, "-m", "pmsm_hil.cli.main", "sweep", str(p), "--out", str(tmp_path / "o")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert r.returncode == 2 and "draws is missing" in r.stderr and "r_s_ohmz" in r.stderr
+
+
 def test_an_axis_naming_no_field_is_reported_at_its_line(tmp_path):
     p = write_sweep(
         tmp_path,

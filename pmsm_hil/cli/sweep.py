@@ -68,7 +68,7 @@ def main(args: argparse.Namespace) -> int:
     if args.workers is not None and args.workers < 1:
         return fail("error", f"--workers = {args.workers} must be >= 1", 2)
     try:
-        sweep = load_sweep(resolve(args.sweep, "sweep"))
+        sweep = load_sweep(resolve(args.sweep, "sweep"), defer=True)
         runs = plan_runs(sweep)
     except ProfileError as e:
         return fail("error", str(e), 2)

@@ -144,7 +144,7 @@ class _Base:
 
 
 def _check_axes(sweep: Sweep, base: _Base) -> None:
-    problems: list[Problem] = []
+    problems: list[Problem] = list(sweep.problems)  # the file's own, kept by load_sweep(defer=True)
     for i, ax in enumerate(sweep.axes):
         if ax.field == "seed":
             continue

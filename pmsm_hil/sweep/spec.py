@@ -157,6 +157,9 @@ class Sweep:
         self.motor_path = motor_path
         self.rig_path = rig_path
         self.axes: list[Axis] = list(spec.axes)
+        # problems found in the file that do not keep its axes from being checked against the
+        # base files (load_sweep(..., defer=True)): plan_runs reports them with those
+        self.problems: list[Problem] = []
 
     def axis_line(self, i: int) -> int | None:
         return self.src.line(("axes", i, "field"))
@@ -177,8 +180,11 @@ def _resolve(src: Source, key: str, value: str, kind: str) -> tuple[str | None, 
     return found, []
 
 
-def load_sweep(path: str | os.PathLike) -> Sweep:
-    """Read and validate a sweep file; raises ProfileError (file:line: field = value message)."""
+def load_sweep(path: str | os.PathLike, defer: bool = False) -> Sweep:
+    """Read and validate a sweep file; raises ProfileError (file:line: field = value message).
+    ``defer``: problems that leave every axis's field readable (a missing `draws`, a bad bound, a
+    field swept twice) are kept on the Sweep for plan_runs, which reports them together with the
+    axes that name no field of the base files: one round of corrections, not three."""
     path = os.fspath(path)
     src = read_source(path, what="sweep file")
     if src.problems:
@@ -199,8 +205,10 @@ def load_sweep(path: str | os.PathLike) -> Sweep:
             resolved[key], probs = _resolve(src, key, value, kind)
             problems += probs
     seen: dict[str, int] = {}
+    unreadable = False  # an axis field plan_runs could not check against the base files
     for i, ax in enumerate(spec.axes):
         if not FIELD_RE.match(ax.field):
+            unreadable = True
             problems.append(
                 src.problem(
                     ("axes", i, "field"),
@@ -241,8 +249,11 @@ def load_sweep(path: str | os.PathLike) -> Sweep:
         )
     if not has_random and spec.draws is not None:
         problems.append(src.problem(("draws",), "is given but no axis is random", spec.draws))
-    if problems:
+    files_ok = all(resolved[k] is not None or getattr(spec, k) is None for k in resolved)
+    if problems and not (defer and files_ok and not unreadable):
         raise ProfileError(problems)
     profile_path = resolved["profile"]
     assert profile_path is not None  # the profile is required and was resolved, or a problem
-    return Sweep(spec, path, src, profile_path, resolved["motor"], resolved["rig"])
+    sweep = Sweep(spec, path, src, profile_path, resolved["motor"], resolved["rig"])
+    sweep.problems = problems
+    return sweep
