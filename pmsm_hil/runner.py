@@ -230,6 +230,9 @@ def run_profile(
     configure(session, profile)
     for name, fields in options.requests:
         session.request(name, **fields)
+    if options.stop_after_s is not None:  # the device stops itself at that tick, exactly (an
+        # emulator runs ahead of what the host has read); the host's own stop stays the fallback
+        session.request("stop_at", tick=max(1, round(options.stop_after_s / profile.control.ts_s)))
     names = [s.name or f"segment {i}" for i, s in enumerate(profile.segments)]
     interrupted = False
     error = ""

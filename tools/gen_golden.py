@@ -181,6 +181,7 @@ VECTORS: list[tuple[str, str, int, dict]] = [
     ("gamma_node", "gamma_node", 13, dict(index=395, g_dd=177.6, g_qq=80.1, g_dq=-12.5, g_qd=9.75)),
     ("start", "start", 7, {}),
     ("stop", "stop", 8, {}),
+    ("stop_at", "stop_at", 14, dict(tick=100000)),
     ("abort", "abort", 255, {}),
     ("heartbeat max", "heartbeat", 9, dict(counter=0xFFFFFFFF)),
     ("heartbeat zero", "heartbeat", 0, dict(counter=0)),

@@ -85,6 +85,7 @@ void fw_enter_stopping(fw_t *f, uint16_t reason)
 
 void fw_pwm_off(fw_t *f, uint16_t new_state, uint16_t reason)
 {
+    f->stop_at_tick = 0u; /* a stop_at belongs to the run that ends here */
     f->state = new_state;
     f->stop_reason = reason;
     fw_raise(f, PROTO_EVENT_STOPPED, (int32_t)reason);
@@ -511,6 +512,9 @@ static void period(fw_t *f, const fw_meas_t *m, fw_cmd_t *cmd)
     }
     if (fw_active(f)) {
         check_heartbeat(f);
+        if (f->stop_at_tick != 0u && f->tick >= f->stop_at_tick) {
+            fw_enter_stopping(f, PROTO_STOP_REASON_HOST_STOP); /* stop_at: as a host stop */
+        }
         stage_profile(f, &speed_ref_rpm, &load_nm);
     }
     if (!fw_active(f)) { /* a fault, or the profile's end */

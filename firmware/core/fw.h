@@ -103,12 +103,13 @@ typedef struct {
     proto_config_ctrl_t ctrl;
     bool have_motor, have_ctrl;
 
-    uint16_t state;       /* PROTO_STATE_* */
-    uint16_t faults;      /* PROTO_FAULT_* bits */
-    uint16_t stop_reason; /* arg of the stopped event (PROTO_STOP_REASON_*) */
-    uint32_t tick;        /* control periods since start */
-    uint32_t isr_count;   /* free-running */
-    uint32_t hb_isr;      /* isr_count at the last heartbeat */
+    uint16_t state;        /* PROTO_STATE_* */
+    uint16_t faults;       /* PROTO_FAULT_* bits */
+    uint16_t stop_reason;  /* arg of the stopped event (PROTO_STOP_REASON_*) */
+    uint32_t stop_at_tick; /* stop_at: the run stops (host_stop) at this tick; 0: never */
+    uint32_t tick;         /* control periods since start */
+    uint32_t isr_count;    /* free-running */
+    uint32_t hb_isr;       /* isr_count at the last heartbeat */
     bool hb_lost;
 
     /* the pipeline's stages */

@@ -307,6 +307,15 @@ static void handle_frame(fw_t *f, uint16_t id, uint16_t seq, const uint16_t *p, 
             st = PROTO_ACK_STATUS_OK; /* already stopped: idempotent */
         }
         break;
+    case PROTO_ID_STOP_AT: { /* for the run about to start or running; cleared at its end */
+        proto_stop_at_t a;
+        if (proto_stop_at_unpack(&a, p, n)) {
+            f->stop_at_tick = a.tick;
+        } else {
+            st = PROTO_ACK_STATUS_BAD_VALUE;
+        }
+        break;
+    }
     case PROTO_ID_ABORT:
         if (fw_active(f)) {
             fw_pwm_off(f, PROTO_STATE_IDLE, PROTO_STOP_REASON_ABORT);

@@ -222,6 +222,14 @@ bool proto_can_layout(uint16_t msg_id, proto_can_layout_t *l)
         l->len[1] = 8u;
         l->len[2] = 6u;
         return true;
+    case PROTO_ID_STOP_AT:
+        l->func = 0x2Bu;
+        l->transfer = 0u;
+        l->n_frames = 1u;
+        l->h2d = 1u;
+        l->crc_frame = 0xFFu;
+        l->len[0] = 5u;
+        return true;
     default:
         return false;
     }
@@ -268,6 +276,7 @@ int16_t proto_can_func_msg(uint16_t func, uint16_t *frame)
     case 0x28u: *frame = 0u; return (int16_t)PROTO_ID_GAMMA_NODE;
     case 0x29u: *frame = 1u; return (int16_t)PROTO_ID_GAMMA_NODE;
     case 0x2Au: *frame = 2u; return (int16_t)PROTO_ID_GAMMA_NODE;
+    case 0x2Bu: *frame = 0u; return (int16_t)PROTO_ID_STOP_AT;
     default: *frame = 0u; return -1;
     }
 }

@@ -809,6 +809,21 @@ bool proto_gamma_node_unpack(proto_gamma_node_t *m, const uint16_t *buf, uint16_
     return true;
 }
 
+uint16_t proto_stop_at_pack(const proto_stop_at_t *m, uint16_t *buf)
+{
+    put_u32(&buf[0], m->tick);
+    return PROTO_LEN_STOP_AT;
+}
+
+bool proto_stop_at_unpack(proto_stop_at_t *m, const uint16_t *buf, uint16_t len)
+{
+    if (len != PROTO_LEN_STOP_AT) {
+        return false;
+    }
+    m->tick = get_u32(&buf[0]);
+    return true;
+}
+
 int16_t proto_payload_len(uint16_t msg_id)
 {
     switch (msg_id) {
@@ -837,6 +852,7 @@ int16_t proto_payload_len(uint16_t msg_id)
     case PROTO_ID_TELEM_EST: return (int16_t)PROTO_LEN_TELEM_EST;
     case PROTO_ID_CONFIG_SENSORLESS: return (int16_t)PROTO_LEN_CONFIG_SENSORLESS;
     case PROTO_ID_GAMMA_NODE: return (int16_t)PROTO_LEN_GAMMA_NODE;
+    case PROTO_ID_STOP_AT: return (int16_t)PROTO_LEN_STOP_AT;
     default: return -1;
     }
 }

@@ -10,9 +10,9 @@
 #include <stdbool.h>
 
 #define PROTO_VERSION 2u
-#define PROTO_SCHEMA_HASH 0xA60E78B7UL  /* CRC-32 of the canonical yaml */
+#define PROTO_SCHEMA_HASH 0xF9094F1DUL  /* CRC-32 of the canonical yaml */
 #define PROTO_MAX_PAYLOAD 111u  /* octets */
-#define PROTO_MSG_COUNT 25u
+#define PROTO_MSG_COUNT 26u
 
 /* enum state */
 #define PROTO_STATE_IDLE 0u
@@ -507,6 +507,15 @@ typedef struct {
 } proto_gamma_node_t;
 uint16_t proto_gamma_node_pack(const proto_gamma_node_t *m, uint16_t *buf);
 bool proto_gamma_node_unpack(proto_gamma_node_t *m, const uint16_t *buf, uint16_t len);
+
+/* stop_at: 0x0D, host -> device */
+#define PROTO_ID_STOP_AT 0x0Du
+#define PROTO_LEN_STOP_AT 4u
+typedef struct {
+    uint32_t tick;                 /* u32; the run stops as on `stop` at this control period (0: never); sent before `start` (run --stop-after) */
+} proto_stop_at_t;
+uint16_t proto_stop_at_pack(const proto_stop_at_t *m, uint16_t *buf);
+bool proto_stop_at_unpack(proto_stop_at_t *m, const uint16_t *buf, uint16_t len);
 
 /* Payload octets of a message id, or -1 for an unknown id. */
 int16_t proto_payload_len(uint16_t msg_id);

@@ -580,69 +580,69 @@ static void golden_11_check(const uint16_t *payload, uint16_t len)
     }
 }
 
-/* 12: abort */
-static const uint16_t golden_12_payload[] = {0u};
+/* 12: stop_at */
+static const uint16_t golden_12_payload[] = {
+    0xA0u, 0x86u, 0x01u, 0x00u
+};
 static const uint16_t golden_12_frame[] = {
-    0x05u, 0x08u, 0xFFu, 0x8Au, 0x56u, 0x00u
+    0x06u, 0x0Du, 0x0Eu, 0xA0u, 0x86u, 0x01u, 0x03u, 0xDFu, 0x46u, 0x00u
 };
 
 static uint16_t golden_12_pack(uint16_t *buf)
+{
+    proto_stop_at_t m;
+    memset(&m, 0, sizeof m);
+    m.tick = 100000UL;
+    return proto_stop_at_pack(&m, buf);
+}
+
+static void golden_12_check(const uint16_t *payload, uint16_t len)
+{
+    proto_stop_at_t m;
+    bool ok = proto_stop_at_unpack(&m, payload, len);
+    CHECK(ok, "golden 12 stop_at: unpack");
+    if (!ok) {
+        return;
+    }
+    CHECK(m.tick == 100000UL, "golden 12 stop_at.tick");
+}
+
+/* 13: abort */
+static const uint16_t golden_13_payload[] = {0u};
+static const uint16_t golden_13_frame[] = {
+    0x05u, 0x08u, 0xFFu, 0x8Au, 0x56u, 0x00u
+};
+
+static uint16_t golden_13_pack(uint16_t *buf)
 {
     proto_abort_t m;
     memset(&m, 0, sizeof m);
     return proto_abort_pack(&m, buf);
 }
 
-static void golden_12_check(const uint16_t *payload, uint16_t len)
+static void golden_13_check(const uint16_t *payload, uint16_t len)
 {
     proto_abort_t m;
     bool ok = proto_abort_unpack(&m, payload, len);
-    CHECK(ok, "golden 12 abort: unpack");
+    CHECK(ok, "golden 13 abort: unpack");
     if (!ok) {
         return;
     }
 }
 
-/* 13: heartbeat max */
-static const uint16_t golden_13_payload[] = {
+/* 14: heartbeat max */
+static const uint16_t golden_14_payload[] = {
     0xFFu, 0xFFu, 0xFFu, 0xFFu
 };
-static const uint16_t golden_13_frame[] = {
-    0x09u, 0x09u, 0x09u, 0xFFu, 0xFFu, 0xFFu, 0xFFu, 0x77u, 0x41u, 0x00u
-};
-
-static uint16_t golden_13_pack(uint16_t *buf)
-{
-    proto_heartbeat_t m;
-    memset(&m, 0, sizeof m);
-    m.counter = 4294967295UL;
-    return proto_heartbeat_pack(&m, buf);
-}
-
-static void golden_13_check(const uint16_t *payload, uint16_t len)
-{
-    proto_heartbeat_t m;
-    bool ok = proto_heartbeat_unpack(&m, payload, len);
-    CHECK(ok, "golden 13 heartbeat: unpack");
-    if (!ok) {
-        return;
-    }
-    CHECK(m.counter == 4294967295UL, "golden 13 heartbeat.counter");
-}
-
-/* 14: heartbeat zero */
-static const uint16_t golden_14_payload[] = {
-    0x00u, 0x00u, 0x00u, 0x00u
-};
 static const uint16_t golden_14_frame[] = {
-    0x02u, 0x09u, 0x01u, 0x01u, 0x01u, 0x01u, 0x03u, 0x46u, 0xF2u, 0x00u
+    0x09u, 0x09u, 0x09u, 0xFFu, 0xFFu, 0xFFu, 0xFFu, 0x77u, 0x41u, 0x00u
 };
 
 static uint16_t golden_14_pack(uint16_t *buf)
 {
     proto_heartbeat_t m;
     memset(&m, 0, sizeof m);
-    m.counter = 0UL;
+    m.counter = 4294967295UL;
     return proto_heartbeat_pack(&m, buf);
 }
 
@@ -654,18 +654,45 @@ static void golden_14_check(const uint16_t *payload, uint16_t len)
     if (!ok) {
         return;
     }
-    CHECK(m.counter == 0UL, "golden 14 heartbeat.counter");
+    CHECK(m.counter == 4294967295UL, "golden 14 heartbeat.counter");
 }
 
-/* 15: capture_read */
+/* 15: heartbeat zero */
 static const uint16_t golden_15_payload[] = {
-    0x00u, 0x10u
+    0x00u, 0x00u, 0x00u, 0x00u
 };
 static const uint16_t golden_15_frame[] = {
-    0x03u, 0x0Au, 0x0Au, 0x04u, 0x10u, 0x39u, 0x9Bu, 0x00u
+    0x02u, 0x09u, 0x01u, 0x01u, 0x01u, 0x01u, 0x03u, 0x46u, 0xF2u, 0x00u
 };
 
 static uint16_t golden_15_pack(uint16_t *buf)
+{
+    proto_heartbeat_t m;
+    memset(&m, 0, sizeof m);
+    m.counter = 0UL;
+    return proto_heartbeat_pack(&m, buf);
+}
+
+static void golden_15_check(const uint16_t *payload, uint16_t len)
+{
+    proto_heartbeat_t m;
+    bool ok = proto_heartbeat_unpack(&m, payload, len);
+    CHECK(ok, "golden 15 heartbeat: unpack");
+    if (!ok) {
+        return;
+    }
+    CHECK(m.counter == 0UL, "golden 15 heartbeat.counter");
+}
+
+/* 16: capture_read */
+static const uint16_t golden_16_payload[] = {
+    0x00u, 0x10u
+};
+static const uint16_t golden_16_frame[] = {
+    0x03u, 0x0Au, 0x0Au, 0x04u, 0x10u, 0x39u, 0x9Bu, 0x00u
+};
+
+static uint16_t golden_16_pack(uint16_t *buf)
 {
     proto_capture_read_t m;
     memset(&m, 0, sizeof m);
@@ -673,29 +700,29 @@ static uint16_t golden_15_pack(uint16_t *buf)
     return proto_capture_read_pack(&m, buf);
 }
 
-static void golden_15_check(const uint16_t *payload, uint16_t len)
+static void golden_16_check(const uint16_t *payload, uint16_t len)
 {
     proto_capture_read_t m;
     bool ok = proto_capture_read_unpack(&m, payload, len);
-    CHECK(ok, "golden 15 capture_read: unpack");
+    CHECK(ok, "golden 16 capture_read: unpack");
     if (!ok) {
         return;
     }
-    CHECK(m.offset == 4096u, "golden 15 capture_read.offset");
+    CHECK(m.offset == 4096u, "golden 16 capture_read.offset");
 }
 
-/* 16: config_calib */
-static const uint16_t golden_16_payload[] = {
+/* 17: config_calib */
+static const uint16_t golden_17_payload[] = {
     0xCDu, 0xCCu, 0x4Cu, 0x3Du, 0x8Fu, 0xC2u, 0xF5u, 0xBCu, 0x00u, 0x00u, 0x00u, 0x00u,
     0x00u, 0x00u, 0x00u, 0x00u, 0x0Au, 0xD7u, 0x23u, 0x3Cu, 0x0Au, 0xD7u, 0xA3u, 0xBBu
 };
-static const uint16_t golden_16_frame[] = {
+static const uint16_t golden_17_frame[] = {
     0x0Bu, 0x10u, 0x0Du, 0xCDu, 0xCCu, 0x4Cu, 0x3Du, 0x8Fu, 0xC2u, 0xF5u, 0xBCu, 0x01u,
     0x01u, 0x01u, 0x01u, 0x01u, 0x01u, 0x01u, 0x0Bu, 0x0Au, 0xD7u, 0x23u, 0x3Cu, 0x0Au,
     0xD7u, 0xA3u, 0xBBu, 0xBBu, 0xADu, 0x00u
 };
 
-static uint16_t golden_16_pack(uint16_t *buf)
+static uint16_t golden_17_pack(uint16_t *buf)
 {
     proto_config_calib_t m;
     memset(&m, 0, sizeof m);
@@ -708,32 +735,32 @@ static uint16_t golden_16_pack(uint16_t *buf)
     return proto_config_calib_pack(&m, buf);
 }
 
-static void golden_16_check(const uint16_t *payload, uint16_t len)
+static void golden_17_check(const uint16_t *payload, uint16_t len)
 {
     proto_config_calib_t m;
     bool ok = proto_config_calib_unpack(&m, payload, len);
-    CHECK(ok, "golden 16 config_calib: unpack");
+    CHECK(ok, "golden 17 config_calib: unpack");
     if (!ok) {
         return;
     }
-    CHECK_NEAR(m.i_a_offset_a, 0.05000000074505806, 0.0, "golden 16 config_calib.i_a_offset_a");
-    CHECK_NEAR(m.i_b_offset_a, -0.029999999329447746, 0.0, "golden 16 config_calib.i_b_offset_a");
-    CHECK_NEAR(m.i_c_offset_a, 0.0, 0.0, "golden 16 config_calib.i_c_offset_a");
-    CHECK_NEAR(m.i_a_gain_err, 0.0, 0.0, "golden 16 config_calib.i_a_gain_err");
-    CHECK_NEAR(m.i_b_gain_err, 0.009999999776482582, 0.0, "golden 16 config_calib.i_b_gain_err");
-    CHECK_NEAR(m.i_c_gain_err, -0.004999999888241291, 0.0, "golden 16 config_calib.i_c_gain_err");
+    CHECK_NEAR(m.i_a_offset_a, 0.05000000074505806, 0.0, "golden 17 config_calib.i_a_offset_a");
+    CHECK_NEAR(m.i_b_offset_a, -0.029999999329447746, 0.0, "golden 17 config_calib.i_b_offset_a");
+    CHECK_NEAR(m.i_c_offset_a, 0.0, 0.0, "golden 17 config_calib.i_c_offset_a");
+    CHECK_NEAR(m.i_a_gain_err, 0.0, 0.0, "golden 17 config_calib.i_a_gain_err");
+    CHECK_NEAR(m.i_b_gain_err, 0.009999999776482582, 0.0, "golden 17 config_calib.i_b_gain_err");
+    CHECK_NEAR(m.i_c_gain_err, -0.004999999888241291, 0.0, "golden 17 config_calib.i_c_gain_err");
 }
 
-/* 17: config_commission */
-static const uint16_t golden_17_payload[] = {
+/* 18: config_commission */
+static const uint16_t golden_18_payload[] = {
     0x7Fu, 0x00u, 0x00u, 0x00u, 0x00u, 0x41u, 0x00u, 0x80u, 0x3Bu, 0x44u
 };
-static const uint16_t golden_17_frame[] = {
+static const uint16_t golden_18_frame[] = {
     0x04u, 0x11u, 0x0Eu, 0x7Fu, 0x01u, 0x01u, 0x01u, 0x02u, 0x41u, 0x06u, 0x80u, 0x3Bu,
     0x44u, 0x3Bu, 0xDAu, 0x00u
 };
 
-static uint16_t golden_17_pack(uint16_t *buf)
+static uint16_t golden_18_pack(uint16_t *buf)
 {
     proto_config_commission_t m;
     memset(&m, 0, sizeof m);
@@ -743,21 +770,21 @@ static uint16_t golden_17_pack(uint16_t *buf)
     return proto_config_commission_pack(&m, buf);
 }
 
-static void golden_17_check(const uint16_t *payload, uint16_t len)
+static void golden_18_check(const uint16_t *payload, uint16_t len)
 {
     proto_config_commission_t m;
     bool ok = proto_config_commission_unpack(&m, payload, len);
-    CHECK(ok, "golden 17 config_commission: unpack");
+    CHECK(ok, "golden 18 config_commission: unpack");
     if (!ok) {
         return;
     }
-    CHECK(m.steps == 127u, "golden 17 config_commission.steps");
-    CHECK_NEAR(m.i_test_a, 8.0, 0.0, "golden 17 config_commission.i_test_a");
-    CHECK_NEAR(m.spin_rpm, 750.0, 0.0, "golden 17 config_commission.spin_rpm");
+    CHECK(m.steps == 127u, "golden 18 config_commission.steps");
+    CHECK_NEAR(m.i_test_a, 8.0, 0.0, "golden 18 config_commission.i_test_a");
+    CHECK_NEAR(m.spin_rpm, 750.0, 0.0, "golden 18 config_commission.spin_rpm");
 }
 
-/* 18: commission_result */
-static const uint16_t golden_18_payload[] = {
+/* 19: commission_result */
+static const uint16_t golden_19_payload[] = {
     0x40u, 0xE2u, 0x01u, 0x00u, 0x03u, 0x00u, 0x00u, 0x00u, 0xE4u, 0x41u, 0x00u, 0x00u,
     0x00u, 0x3Fu, 0x5Cu, 0x8Fu, 0x82u, 0x3Fu, 0x00u, 0x00u, 0xC0u, 0x3Fu, 0xCDu, 0xCCu,
     0x4Cu, 0x3Du, 0x00u, 0x00u, 0x00u, 0x00u, 0xCDu, 0xCCu, 0xCCu, 0x3Du, 0x00u, 0x00u,
@@ -765,7 +792,7 @@ static const uint16_t golden_18_payload[] = {
     0x00u, 0x00u, 0x00u, 0x00u, 0x00u, 0x00u, 0x00u, 0x00u, 0x00u, 0x41u, 0x00u, 0x00u,
     0x00u, 0x00u
 };
-static const uint16_t golden_18_frame[] = {
+static const uint16_t golden_19_frame[] = {
     0x06u, 0x96u, 0x0Fu, 0x40u, 0xE2u, 0x01u, 0x02u, 0x03u, 0x01u, 0x01u, 0x03u, 0xE4u,
     0x41u, 0x01u, 0x01u, 0x06u, 0x3Fu, 0x5Cu, 0x8Fu, 0x82u, 0x3Fu, 0x01u, 0x07u, 0xC0u,
     0x3Fu, 0xCDu, 0xCCu, 0x4Cu, 0x3Du, 0x01u, 0x01u, 0x01u, 0x05u, 0xCDu, 0xCCu, 0xCCu,
@@ -774,7 +801,7 @@ static const uint16_t golden_18_frame[] = {
     0x41u, 0x01u, 0x01u, 0x01u, 0x03u, 0x7Fu, 0x7Du, 0x00u
 };
 
-static uint16_t golden_18_pack(uint16_t *buf)
+static uint16_t golden_19_pack(uint16_t *buf)
 {
     proto_commission_result_t m;
     memset(&m, 0, sizeof m);
@@ -798,42 +825,42 @@ static uint16_t golden_18_pack(uint16_t *buf)
     return proto_commission_result_pack(&m, buf);
 }
 
-static void golden_18_check(const uint16_t *payload, uint16_t len)
+static void golden_19_check(const uint16_t *payload, uint16_t len)
 {
     proto_commission_result_t m;
     bool ok = proto_commission_result_unpack(&m, payload, len);
-    CHECK(ok, "golden 18 commission_result: unpack");
+    CHECK(ok, "golden 19 commission_result: unpack");
     if (!ok) {
         return;
     }
-    CHECK(m.tick == 123456UL, "golden 18 commission_result.tick");
-    CHECK(m.step == 3u, "golden 18 commission_result.step");
-    CHECK(m.status == 0u, "golden 18 commission_result.status");
-    CHECK_NEAR(m.value[0], 28.5, 0.0, "golden 18 commission_result.value[0]");
-    CHECK_NEAR(m.value[1], 0.5, 0.0, "golden 18 commission_result.value[1]");
-    CHECK_NEAR(m.value[2], 1.0199999809265137, 0.0, "golden 18 commission_result.value[2]");
-    CHECK_NEAR(m.value[3], 1.5, 0.0, "golden 18 commission_result.value[3]");
-    CHECK_NEAR(m.value[4], 0.05000000074505806, 0.0, "golden 18 commission_result.value[4]");
-    CHECK_NEAR(m.value[5], 0.0, 0.0, "golden 18 commission_result.value[5]");
-    CHECK_NEAR(m.spread[0], 0.10000000149011612, 0.0, "golden 18 commission_result.spread[0]");
-    CHECK_NEAR(m.spread[1], 0.0, 0.0, "golden 18 commission_result.spread[1]");
-    CHECK_NEAR(m.spread[2], 0.009999999776482582, 0.0, "golden 18 commission_result.spread[2]");
-    CHECK_NEAR(m.spread[3], 0.019999999552965164, 0.0, "golden 18 commission_result.spread[3]");
-    CHECK_NEAR(m.spread[4], 0.0, 0.0, "golden 18 commission_result.spread[4]");
-    CHECK_NEAR(m.spread[5], 0.0, 0.0, "golden 18 commission_result.spread[5]");
-    CHECK_NEAR(m.truth_ref[0], 8.0, 0.0, "golden 18 commission_result.truth_ref[0]");
-    CHECK_NEAR(m.truth_ref[1], 0.0, 0.0, "golden 18 commission_result.truth_ref[1]");
+    CHECK(m.tick == 123456UL, "golden 19 commission_result.tick");
+    CHECK(m.step == 3u, "golden 19 commission_result.step");
+    CHECK(m.status == 0u, "golden 19 commission_result.status");
+    CHECK_NEAR(m.value[0], 28.5, 0.0, "golden 19 commission_result.value[0]");
+    CHECK_NEAR(m.value[1], 0.5, 0.0, "golden 19 commission_result.value[1]");
+    CHECK_NEAR(m.value[2], 1.0199999809265137, 0.0, "golden 19 commission_result.value[2]");
+    CHECK_NEAR(m.value[3], 1.5, 0.0, "golden 19 commission_result.value[3]");
+    CHECK_NEAR(m.value[4], 0.05000000074505806, 0.0, "golden 19 commission_result.value[4]");
+    CHECK_NEAR(m.value[5], 0.0, 0.0, "golden 19 commission_result.value[5]");
+    CHECK_NEAR(m.spread[0], 0.10000000149011612, 0.0, "golden 19 commission_result.spread[0]");
+    CHECK_NEAR(m.spread[1], 0.0, 0.0, "golden 19 commission_result.spread[1]");
+    CHECK_NEAR(m.spread[2], 0.009999999776482582, 0.0, "golden 19 commission_result.spread[2]");
+    CHECK_NEAR(m.spread[3], 0.019999999552965164, 0.0, "golden 19 commission_result.spread[3]");
+    CHECK_NEAR(m.spread[4], 0.0, 0.0, "golden 19 commission_result.spread[4]");
+    CHECK_NEAR(m.spread[5], 0.0, 0.0, "golden 19 commission_result.spread[5]");
+    CHECK_NEAR(m.truth_ref[0], 8.0, 0.0, "golden 19 commission_result.truth_ref[0]");
+    CHECK_NEAR(m.truth_ref[1], 0.0, 0.0, "golden 19 commission_result.truth_ref[1]");
 }
 
-/* 19: ack */
-static const uint16_t golden_19_payload[] = {
+/* 20: ack */
+static const uint16_t golden_20_payload[] = {
     0x05u, 0xC8u, 0x02u
 };
-static const uint16_t golden_19_frame[] = {
+static const uint16_t golden_20_frame[] = {
     0x08u, 0x80u, 0x0Bu, 0x05u, 0xC8u, 0x02u, 0x79u, 0x8Cu, 0x00u
 };
 
-static uint16_t golden_19_pack(uint16_t *buf)
+static uint16_t golden_20_pack(uint16_t *buf)
 {
     proto_ack_t m;
     memset(&m, 0, sizeof m);
@@ -843,30 +870,30 @@ static uint16_t golden_19_pack(uint16_t *buf)
     return proto_ack_pack(&m, buf);
 }
 
-static void golden_19_check(const uint16_t *payload, uint16_t len)
+static void golden_20_check(const uint16_t *payload, uint16_t len)
 {
     proto_ack_t m;
     bool ok = proto_ack_unpack(&m, payload, len);
-    CHECK(ok, "golden 19 ack: unpack");
+    CHECK(ok, "golden 20 ack: unpack");
     if (!ok) {
         return;
     }
-    CHECK(m.cmd_id == 5u, "golden 19 ack.cmd_id");
-    CHECK(m.cmd_seq == 200u, "golden 19 ack.cmd_seq");
-    CHECK(m.status == 2u, "golden 19 ack.status");
+    CHECK(m.cmd_id == 5u, "golden 20 ack.cmd_id");
+    CHECK(m.cmd_seq == 200u, "golden 20 ack.cmd_seq");
+    CHECK(m.status == 2u, "golden 20 ack.status");
 }
 
-/* 20: identify */
-static const uint16_t golden_20_payload[] = {
+/* 21: identify */
+static const uint16_t golden_21_payload[] = {
     0x01u, 0x00u, 0x78u, 0x56u, 0x34u, 0x12u, 0x00u, 0x01u, 0x00u, 0x00u, 0x00u, 0x10u,
     0x00u, 0x20u
 };
-static const uint16_t golden_20_frame[] = {
+static const uint16_t golden_21_frame[] = {
     0x04u, 0x81u, 0x0Cu, 0x01u, 0x05u, 0x78u, 0x56u, 0x34u, 0x12u, 0x02u, 0x01u, 0x01u,
     0x01u, 0x02u, 0x10u, 0x04u, 0x20u, 0x38u, 0x9Au, 0x00u
 };
 
-static uint16_t golden_20_pack(uint16_t *buf)
+static uint16_t golden_21_pack(uint16_t *buf)
 {
     proto_identify_t m;
     memset(&m, 0, sizeof m);
@@ -881,37 +908,37 @@ static uint16_t golden_20_pack(uint16_t *buf)
     return proto_identify_pack(&m, buf);
 }
 
-static void golden_20_check(const uint16_t *payload, uint16_t len)
+static void golden_21_check(const uint16_t *payload, uint16_t len)
 {
     proto_identify_t m;
     bool ok = proto_identify_unpack(&m, payload, len);
-    CHECK(ok, "golden 20 identify: unpack");
+    CHECK(ok, "golden 21 identify: unpack");
     if (!ok) {
         return;
     }
-    CHECK(m.proto_version == 1u, "golden 20 identify.proto_version");
-    CHECK(m.schema_hash == 305419896UL, "golden 20 identify.schema_hash");
-    CHECK(m.fw_major == 0u, "golden 20 identify.fw_major");
-    CHECK(m.fw_minor == 1u, "golden 20 identify.fw_minor");
-    CHECK(m.fw_patch == 0u, "golden 20 identify.fw_patch");
-    CHECK(m.board == 0u, "golden 20 identify.board");
-    CHECK(m.tx_buf_octets == 4096u, "golden 20 identify.tx_buf_octets");
-    CHECK(m.capture_len == 8192u, "golden 20 identify.capture_len");
+    CHECK(m.proto_version == 1u, "golden 21 identify.proto_version");
+    CHECK(m.schema_hash == 305419896UL, "golden 21 identify.schema_hash");
+    CHECK(m.fw_major == 0u, "golden 21 identify.fw_major");
+    CHECK(m.fw_minor == 1u, "golden 21 identify.fw_minor");
+    CHECK(m.fw_patch == 0u, "golden 21 identify.fw_patch");
+    CHECK(m.board == 0u, "golden 21 identify.board");
+    CHECK(m.tx_buf_octets == 4096u, "golden 21 identify.tx_buf_octets");
+    CHECK(m.capture_len == 8192u, "golden 21 identify.capture_len");
 }
 
-/* 21: telem_fast */
-static const uint16_t golden_21_payload[] = {
+/* 22: telem_fast */
+static const uint16_t golden_22_payload[] = {
     0x40u, 0xE2u, 0x01u, 0x00u, 0x98u, 0x3Au, 0x8Bu, 0x3Au, 0xA4u, 0x3Au, 0xA3u, 0x59u,
     0xB6u, 0x5Du, 0x32u, 0xFFu, 0x40u, 0x06u, 0x00u, 0x00u, 0x72u, 0x06u, 0x97u, 0xFDu,
     0x50u, 0x1Du, 0xDCu, 0x05u
 };
-static const uint16_t golden_21_frame[] = {
+static const uint16_t golden_22_frame[] = {
     0x06u, 0x90u, 0x0Du, 0x40u, 0xE2u, 0x01u, 0x0Fu, 0x98u, 0x3Au, 0x8Bu, 0x3Au, 0xA4u,
     0x3Au, 0xA3u, 0x59u, 0xB6u, 0x5Du, 0x32u, 0xFFu, 0x40u, 0x06u, 0x01u, 0x0Bu, 0x72u,
     0x06u, 0x97u, 0xFDu, 0x50u, 0x1Du, 0xDCu, 0x05u, 0x90u, 0xD8u, 0x00u
 };
 
-static uint16_t golden_21_pack(uint16_t *buf)
+static uint16_t golden_22_pack(uint16_t *buf)
 {
     proto_telem_fast_t m;
     memset(&m, 0, sizeof m);
@@ -931,42 +958,42 @@ static uint16_t golden_21_pack(uint16_t *buf)
     return proto_telem_fast_pack(&m, buf);
 }
 
-static void golden_21_check(const uint16_t *payload, uint16_t len)
+static void golden_22_check(const uint16_t *payload, uint16_t len)
 {
     proto_telem_fast_t m;
     bool ok = proto_telem_fast_unpack(&m, payload, len);
-    CHECK(ok, "golden 21 telem_fast: unpack");
+    CHECK(ok, "golden 22 telem_fast: unpack");
     if (!ok) {
         return;
     }
-    CHECK(m.tick == 123456UL, "golden 21 telem_fast.tick");
-    CHECK_NEAR(m.speed_ref_rpm, 1500.0, 0.0015, "golden 21 telem_fast.speed_ref_rpm");
-    CHECK_NEAR(m.speed_rpm, 1498.7, 0.0015, "golden 21 telem_fast.speed_rpm");
-    CHECK_NEAR(m.speed_est_rpm, 1501.2, 0.0015, "golden 21 telem_fast.speed_est_rpm");
-    CHECK_NEAR(m.theta_e_rad, 2.200016071225738, 2.2e-06, "golden 21 telem_fast.theta_e_rad");
-    CHECK_NEAR(m.theta_e_est_rad, 2.3000124438360334, 2.3e-06, "golden 21 telem_fast.theta_e_est_rad");
-    CHECK_NEAR(m.i_d_a, -0.41200000000000003, 4.12e-07, "golden 21 telem_fast.i_d_a");
-    CHECK_NEAR(m.i_q_a, 3.2, 3.2e-06, "golden 21 telem_fast.i_q_a");
-    CHECK_NEAR(m.i_d_ref_a, 0.0, 2e-09, "golden 21 telem_fast.i_d_ref_a");
-    CHECK_NEAR(m.i_q_ref_a, 3.3000000000000003, 3.3e-06, "golden 21 telem_fast.i_q_ref_a");
-    CHECK_NEAR(m.u_d_v, -12.34, 1.23e-05, "golden 21 telem_fast.u_d_v");
-    CHECK_NEAR(m.u_q_v, 150.08, 0.00015, "golden 21 telem_fast.u_q_v");
-    CHECK_NEAR(m.load_nm, 1.5, 1.5e-06, "golden 21 telem_fast.load_nm");
+    CHECK(m.tick == 123456UL, "golden 22 telem_fast.tick");
+    CHECK_NEAR(m.speed_ref_rpm, 1500.0, 0.0015, "golden 22 telem_fast.speed_ref_rpm");
+    CHECK_NEAR(m.speed_rpm, 1498.7, 0.0015, "golden 22 telem_fast.speed_rpm");
+    CHECK_NEAR(m.speed_est_rpm, 1501.2, 0.0015, "golden 22 telem_fast.speed_est_rpm");
+    CHECK_NEAR(m.theta_e_rad, 2.200016071225738, 2.2e-06, "golden 22 telem_fast.theta_e_rad");
+    CHECK_NEAR(m.theta_e_est_rad, 2.3000124438360334, 2.3e-06, "golden 22 telem_fast.theta_e_est_rad");
+    CHECK_NEAR(m.i_d_a, -0.41200000000000003, 4.12e-07, "golden 22 telem_fast.i_d_a");
+    CHECK_NEAR(m.i_q_a, 3.2, 3.2e-06, "golden 22 telem_fast.i_q_a");
+    CHECK_NEAR(m.i_d_ref_a, 0.0, 2e-09, "golden 22 telem_fast.i_d_ref_a");
+    CHECK_NEAR(m.i_q_ref_a, 3.3000000000000003, 3.3e-06, "golden 22 telem_fast.i_q_ref_a");
+    CHECK_NEAR(m.u_d_v, -12.34, 1.23e-05, "golden 22 telem_fast.u_d_v");
+    CHECK_NEAR(m.u_q_v, 150.08, 0.00015, "golden 22 telem_fast.u_q_v");
+    CHECK_NEAR(m.load_nm, 1.5, 1.5e-06, "golden 22 telem_fast.load_nm");
 }
 
-/* 22: telem_fast negative */
-static const uint16_t golden_22_payload[] = {
+/* 23: telem_fast negative */
+static const uint16_t golden_23_payload[] = {
     0x00u, 0x28u, 0x6Bu, 0xEEu, 0xA0u, 0xF6u, 0xA1u, 0xF6u, 0x93u, 0xF6u, 0x9Cu, 0xFCu,
     0x39u, 0x01u, 0xE3u, 0xE7u, 0x60u, 0xF0u, 0x0Cu, 0xFEu, 0x60u, 0xF0u, 0x66u, 0xC5u,
     0xB7u, 0xF7u, 0x62u, 0xF5u
 };
-static const uint16_t golden_22_frame[] = {
+static const uint16_t golden_23_frame[] = {
     0x03u, 0x90u, 0x0Eu, 0x1Eu, 0x28u, 0x6Bu, 0xEEu, 0xA0u, 0xF6u, 0xA1u, 0xF6u, 0x93u,
     0xF6u, 0x9Cu, 0xFCu, 0x39u, 0x01u, 0xE3u, 0xE7u, 0x60u, 0xF0u, 0x0Cu, 0xFEu, 0x60u,
     0xF0u, 0x66u, 0xC5u, 0xB7u, 0xF7u, 0x62u, 0xF5u, 0xB4u, 0x39u, 0x00u
 };
 
-static uint16_t golden_22_pack(uint16_t *buf)
+static uint16_t golden_23_pack(uint16_t *buf)
 {
     proto_telem_fast_t m;
     memset(&m, 0, sizeof m);
@@ -986,42 +1013,42 @@ static uint16_t golden_22_pack(uint16_t *buf)
     return proto_telem_fast_pack(&m, buf);
 }
 
-static void golden_22_check(const uint16_t *payload, uint16_t len)
+static void golden_23_check(const uint16_t *payload, uint16_t len)
 {
     proto_telem_fast_t m;
     bool ok = proto_telem_fast_unpack(&m, payload, len);
-    CHECK(ok, "golden 22 telem_fast: unpack");
+    CHECK(ok, "golden 23 telem_fast: unpack");
     if (!ok) {
         return;
     }
-    CHECK(m.tick == 4000000000UL, "golden 22 telem_fast.tick");
-    CHECK_NEAR(m.speed_ref_rpm, -240.0, 0.00024, "golden 22 telem_fast.speed_ref_rpm");
-    CHECK_NEAR(m.speed_rpm, -239.9, 0.00024, "golden 22 telem_fast.speed_rpm");
-    CHECK_NEAR(m.speed_est_rpm, -241.3, 0.000241, "golden 22 telem_fast.speed_est_rpm");
-    CHECK_NEAR(m.theta_e_rad, 6.19996684943679, 6.2e-06, "golden 22 telem_fast.theta_e_rad");
-    CHECK_NEAR(m.theta_e_est_rad, 0.030008499163012854, 3e-08, "golden 22 telem_fast.theta_e_est_rad");
-    CHECK_NEAR(m.i_d_a, -12.346, 1.23e-05, "golden 22 telem_fast.i_d_a");
-    CHECK_NEAR(m.i_q_a, -8.0, 8e-06, "golden 22 telem_fast.i_q_a");
-    CHECK_NEAR(m.i_d_ref_a, -1.0, 1e-06, "golden 22 telem_fast.i_d_ref_a");
-    CHECK_NEAR(m.i_q_ref_a, -8.0, 8e-06, "golden 22 telem_fast.i_q_ref_a");
-    CHECK_NEAR(m.u_d_v, -300.04, 0.0003, "golden 22 telem_fast.u_d_v");
-    CHECK_NEAR(m.u_q_v, -42.42, 4.24e-05, "golden 22 telem_fast.u_q_v");
-    CHECK_NEAR(m.load_nm, -2.718, 2.72e-06, "golden 22 telem_fast.load_nm");
+    CHECK(m.tick == 4000000000UL, "golden 23 telem_fast.tick");
+    CHECK_NEAR(m.speed_ref_rpm, -240.0, 0.00024, "golden 23 telem_fast.speed_ref_rpm");
+    CHECK_NEAR(m.speed_rpm, -239.9, 0.00024, "golden 23 telem_fast.speed_rpm");
+    CHECK_NEAR(m.speed_est_rpm, -241.3, 0.000241, "golden 23 telem_fast.speed_est_rpm");
+    CHECK_NEAR(m.theta_e_rad, 6.19996684943679, 6.2e-06, "golden 23 telem_fast.theta_e_rad");
+    CHECK_NEAR(m.theta_e_est_rad, 0.030008499163012854, 3e-08, "golden 23 telem_fast.theta_e_est_rad");
+    CHECK_NEAR(m.i_d_a, -12.346, 1.23e-05, "golden 23 telem_fast.i_d_a");
+    CHECK_NEAR(m.i_q_a, -8.0, 8e-06, "golden 23 telem_fast.i_q_a");
+    CHECK_NEAR(m.i_d_ref_a, -1.0, 1e-06, "golden 23 telem_fast.i_d_ref_a");
+    CHECK_NEAR(m.i_q_ref_a, -8.0, 8e-06, "golden 23 telem_fast.i_q_ref_a");
+    CHECK_NEAR(m.u_d_v, -300.04, 0.0003, "golden 23 telem_fast.u_d_v");
+    CHECK_NEAR(m.u_q_v, -42.42, 4.24e-05, "golden 23 telem_fast.u_q_v");
+    CHECK_NEAR(m.load_nm, -2.718, 2.72e-06, "golden 23 telem_fast.load_nm");
 }
 
-/* 23: telem_fast saturation */
-static const uint16_t golden_23_payload[] = {
+/* 24: telem_fast saturation */
+static const uint16_t golden_24_payload[] = {
     0x01u, 0x00u, 0x00u, 0x00u, 0xFFu, 0x7Fu, 0x00u, 0x80u, 0xFFu, 0x7Fu, 0xFFu, 0xFFu,
     0x00u, 0x00u, 0xFFu, 0x7Fu, 0x00u, 0x80u, 0xEEu, 0x7Fu, 0x00u, 0x80u, 0xFFu, 0x7Fu,
     0x00u, 0x80u, 0xFFu, 0x7Fu
 };
-static const uint16_t golden_23_frame[] = {
+static const uint16_t golden_24_frame[] = {
     0x04u, 0x90u, 0x0Fu, 0x01u, 0x01u, 0x01u, 0x03u, 0xFFu, 0x7Fu, 0x06u, 0x80u, 0xFFu,
     0x7Fu, 0xFFu, 0xFFu, 0x01u, 0x03u, 0xFFu, 0x7Fu, 0x04u, 0x80u, 0xEEu, 0x7Fu, 0x04u,
     0x80u, 0xFFu, 0x7Fu, 0x06u, 0x80u, 0xFFu, 0x7Fu, 0x3Eu, 0xF3u, 0x00u
 };
 
-static uint16_t golden_23_pack(uint16_t *buf)
+static uint16_t golden_24_pack(uint16_t *buf)
 {
     proto_telem_fast_t m;
     memset(&m, 0, sizeof m);
@@ -1041,42 +1068,42 @@ static uint16_t golden_23_pack(uint16_t *buf)
     return proto_telem_fast_pack(&m, buf);
 }
 
-static void golden_23_check(const uint16_t *payload, uint16_t len)
+static void golden_24_check(const uint16_t *payload, uint16_t len)
 {
     proto_telem_fast_t m;
     bool ok = proto_telem_fast_unpack(&m, payload, len);
-    CHECK(ok, "golden 23 telem_fast: unpack");
+    CHECK(ok, "golden 24 telem_fast: unpack");
     if (!ok) {
         return;
     }
-    CHECK(m.tick == 1UL, "golden 23 telem_fast.tick");
-    CHECK_NEAR(m.speed_ref_rpm, 3276.7000000000003, 0.00328, "golden 23 telem_fast.speed_ref_rpm");
-    CHECK_NEAR(m.speed_rpm, -3276.8, 0.00328, "golden 23 telem_fast.speed_rpm");
-    CHECK_NEAR(m.speed_est_rpm, 3276.7000000000003, 0.00328, "golden 23 telem_fast.speed_est_rpm");
-    CHECK_NEAR(m.theta_e_rad, 6.2830894333803435, 6.28e-06, "golden 23 telem_fast.theta_e_rad");
-    CHECK_NEAR(m.theta_e_est_rad, 0.0, 9.59e-11, "golden 23 telem_fast.theta_e_est_rad");
-    CHECK_NEAR(m.i_d_a, 65.534, 6.55e-05, "golden 23 telem_fast.i_d_a");
-    CHECK_NEAR(m.i_q_a, -65.536, 6.55e-05, "golden 23 telem_fast.i_q_a");
-    CHECK_NEAR(m.i_d_ref_a, 65.5, 6.55e-05, "golden 23 telem_fast.i_d_ref_a");
-    CHECK_NEAR(m.i_q_ref_a, -65.536, 6.55e-05, "golden 23 telem_fast.i_q_ref_a");
-    CHECK_NEAR(m.u_d_v, 655.34, 0.000655, "golden 23 telem_fast.u_d_v");
-    CHECK_NEAR(m.u_q_v, -655.36, 0.000655, "golden 23 telem_fast.u_q_v");
-    CHECK_NEAR(m.load_nm, 32.767, 3.28e-05, "golden 23 telem_fast.load_nm");
+    CHECK(m.tick == 1UL, "golden 24 telem_fast.tick");
+    CHECK_NEAR(m.speed_ref_rpm, 3276.7000000000003, 0.00328, "golden 24 telem_fast.speed_ref_rpm");
+    CHECK_NEAR(m.speed_rpm, -3276.8, 0.00328, "golden 24 telem_fast.speed_rpm");
+    CHECK_NEAR(m.speed_est_rpm, 3276.7000000000003, 0.00328, "golden 24 telem_fast.speed_est_rpm");
+    CHECK_NEAR(m.theta_e_rad, 6.2830894333803435, 6.28e-06, "golden 24 telem_fast.theta_e_rad");
+    CHECK_NEAR(m.theta_e_est_rad, 0.0, 9.59e-11, "golden 24 telem_fast.theta_e_est_rad");
+    CHECK_NEAR(m.i_d_a, 65.534, 6.55e-05, "golden 24 telem_fast.i_d_a");
+    CHECK_NEAR(m.i_q_a, -65.536, 6.55e-05, "golden 24 telem_fast.i_q_a");
+    CHECK_NEAR(m.i_d_ref_a, 65.5, 6.55e-05, "golden 24 telem_fast.i_d_ref_a");
+    CHECK_NEAR(m.i_q_ref_a, -65.536, 6.55e-05, "golden 24 telem_fast.i_q_ref_a");
+    CHECK_NEAR(m.u_d_v, 655.34, 0.000655, "golden 24 telem_fast.u_d_v");
+    CHECK_NEAR(m.u_q_v, -655.36, 0.000655, "golden 24 telem_fast.u_q_v");
+    CHECK_NEAR(m.load_nm, 32.767, 3.28e-05, "golden 24 telem_fast.load_nm");
 }
 
-/* 24: telem_fast all zero */
-static const uint16_t golden_24_payload[] = {
+/* 25: telem_fast all zero */
+static const uint16_t golden_25_payload[] = {
     0x00u, 0x00u, 0x00u, 0x00u, 0x00u, 0x00u, 0x00u, 0x00u, 0x00u, 0x00u, 0x00u, 0x00u,
     0x00u, 0x00u, 0x00u, 0x00u, 0x00u, 0x00u, 0x00u, 0x00u, 0x00u, 0x00u, 0x00u, 0x00u,
     0x00u, 0x00u, 0x00u, 0x00u
 };
-static const uint16_t golden_24_frame[] = {
+static const uint16_t golden_25_frame[] = {
     0x02u, 0x90u, 0x01u, 0x01u, 0x01u, 0x01u, 0x01u, 0x01u, 0x01u, 0x01u, 0x01u, 0x01u,
     0x01u, 0x01u, 0x01u, 0x01u, 0x01u, 0x01u, 0x01u, 0x01u, 0x01u, 0x01u, 0x01u, 0x01u,
     0x01u, 0x01u, 0x01u, 0x01u, 0x01u, 0x01u, 0x03u, 0x74u, 0xB1u, 0x00u
 };
 
-static uint16_t golden_24_pack(uint16_t *buf)
+static uint16_t golden_25_pack(uint16_t *buf)
 {
     proto_telem_fast_t m;
     memset(&m, 0, sizeof m);
@@ -1096,40 +1123,40 @@ static uint16_t golden_24_pack(uint16_t *buf)
     return proto_telem_fast_pack(&m, buf);
 }
 
-static void golden_24_check(const uint16_t *payload, uint16_t len)
+static void golden_25_check(const uint16_t *payload, uint16_t len)
 {
     proto_telem_fast_t m;
     bool ok = proto_telem_fast_unpack(&m, payload, len);
-    CHECK(ok, "golden 24 telem_fast: unpack");
+    CHECK(ok, "golden 25 telem_fast: unpack");
     if (!ok) {
         return;
     }
-    CHECK(m.tick == 0UL, "golden 24 telem_fast.tick");
-    CHECK_NEAR(m.speed_ref_rpm, 0.0, 1e-07, "golden 24 telem_fast.speed_ref_rpm");
-    CHECK_NEAR(m.speed_rpm, 0.0, 1e-07, "golden 24 telem_fast.speed_rpm");
-    CHECK_NEAR(m.speed_est_rpm, 0.0, 1e-07, "golden 24 telem_fast.speed_est_rpm");
-    CHECK_NEAR(m.theta_e_rad, 0.0, 9.59e-11, "golden 24 telem_fast.theta_e_rad");
-    CHECK_NEAR(m.theta_e_est_rad, 0.0, 9.59e-11, "golden 24 telem_fast.theta_e_est_rad");
-    CHECK_NEAR(m.i_d_a, 0.0, 2e-09, "golden 24 telem_fast.i_d_a");
-    CHECK_NEAR(m.i_q_a, 0.0, 2e-09, "golden 24 telem_fast.i_q_a");
-    CHECK_NEAR(m.i_d_ref_a, 0.0, 2e-09, "golden 24 telem_fast.i_d_ref_a");
-    CHECK_NEAR(m.i_q_ref_a, 0.0, 2e-09, "golden 24 telem_fast.i_q_ref_a");
-    CHECK_NEAR(m.u_d_v, 0.0, 2e-08, "golden 24 telem_fast.u_d_v");
-    CHECK_NEAR(m.u_q_v, 0.0, 2e-08, "golden 24 telem_fast.u_q_v");
-    CHECK_NEAR(m.load_nm, 0.0, 1e-09, "golden 24 telem_fast.load_nm");
+    CHECK(m.tick == 0UL, "golden 25 telem_fast.tick");
+    CHECK_NEAR(m.speed_ref_rpm, 0.0, 1e-07, "golden 25 telem_fast.speed_ref_rpm");
+    CHECK_NEAR(m.speed_rpm, 0.0, 1e-07, "golden 25 telem_fast.speed_rpm");
+    CHECK_NEAR(m.speed_est_rpm, 0.0, 1e-07, "golden 25 telem_fast.speed_est_rpm");
+    CHECK_NEAR(m.theta_e_rad, 0.0, 9.59e-11, "golden 25 telem_fast.theta_e_rad");
+    CHECK_NEAR(m.theta_e_est_rad, 0.0, 9.59e-11, "golden 25 telem_fast.theta_e_est_rad");
+    CHECK_NEAR(m.i_d_a, 0.0, 2e-09, "golden 25 telem_fast.i_d_a");
+    CHECK_NEAR(m.i_q_a, 0.0, 2e-09, "golden 25 telem_fast.i_q_a");
+    CHECK_NEAR(m.i_d_ref_a, 0.0, 2e-09, "golden 25 telem_fast.i_d_ref_a");
+    CHECK_NEAR(m.i_q_ref_a, 0.0, 2e-09, "golden 25 telem_fast.i_q_ref_a");
+    CHECK_NEAR(m.u_d_v, 0.0, 2e-08, "golden 25 telem_fast.u_d_v");
+    CHECK_NEAR(m.u_q_v, 0.0, 2e-08, "golden 25 telem_fast.u_q_v");
+    CHECK_NEAR(m.load_nm, 0.0, 1e-09, "golden 25 telem_fast.load_nm");
 }
 
-/* 25: telem_est */
-static const uint16_t golden_25_payload[] = {
+/* 26: telem_est */
+static const uint16_t golden_26_payload[] = {
     0xCDu, 0x81u, 0x01u, 0x00u, 0x01u, 0x03u, 0xD6u, 0x85u, 0xFFu, 0x19u, 0x00u, 0xC8u,
     0x01u
 };
-static const uint16_t golden_25_frame[] = {
+static const uint16_t golden_26_frame[] = {
     0x06u, 0x95u, 0x15u, 0xCDu, 0x81u, 0x01u, 0x07u, 0x01u, 0x03u, 0xD6u, 0x85u, 0xFFu,
     0x19u, 0x05u, 0xC8u, 0x01u, 0x9Du, 0xC0u, 0x00u
 };
 
-static uint16_t golden_25_pack(uint16_t *buf)
+static uint16_t golden_26_pack(uint16_t *buf)
 {
     proto_telem_est_t m;
     memset(&m, 0, sizeof m);
@@ -1143,35 +1170,35 @@ static uint16_t golden_25_pack(uint16_t *buf)
     return proto_telem_est_pack(&m, buf);
 }
 
-static void golden_25_check(const uint16_t *payload, uint16_t len)
+static void golden_26_check(const uint16_t *payload, uint16_t len)
 {
     proto_telem_est_t m;
     bool ok = proto_telem_est_unpack(&m, payload, len);
-    CHECK(ok, "golden 25 telem_est: unpack");
+    CHECK(ok, "golden 26 telem_est: unpack");
     if (!ok) {
         return;
     }
-    CHECK(m.tick == 98765UL, "golden 25 telem_est.tick");
-    CHECK(m.estimator == 1u, "golden 25 telem_est.estimator");
-    CHECK(m.flags == 3u, "golden 25 telem_est.flags");
-    CHECK_NEAR(m.confidence, 0.856, 8.56e-07, "golden 25 telem_est.confidence");
-    CHECK_NEAR(m.theta_err_rad, -0.0123, 1.23e-08, "golden 25 telem_est.theta_err_rad");
-    CHECK_NEAR(m.speed_err_rpm, 2.5, 2.5e-06, "golden 25 telem_est.speed_err_rpm");
-    CHECK_NEAR(m.err_signal, 0.0456, 4.56e-08, "golden 25 telem_est.err_signal");
+    CHECK(m.tick == 98765UL, "golden 26 telem_est.tick");
+    CHECK(m.estimator == 1u, "golden 26 telem_est.estimator");
+    CHECK(m.flags == 3u, "golden 26 telem_est.flags");
+    CHECK_NEAR(m.confidence, 0.856, 8.56e-07, "golden 26 telem_est.confidence");
+    CHECK_NEAR(m.theta_err_rad, -0.0123, 1.23e-08, "golden 26 telem_est.theta_err_rad");
+    CHECK_NEAR(m.speed_err_rpm, 2.5, 2.5e-06, "golden 26 telem_est.speed_err_rpm");
+    CHECK_NEAR(m.err_signal, 0.0456, 4.56e-08, "golden 26 telem_est.err_signal");
 }
 
-/* 26: params */
-static const uint16_t golden_26_payload[] = {
+/* 27: params */
+static const uint16_t golden_27_payload[] = {
     0xD0u, 0x07u, 0x00u, 0x00u, 0x03u, 0x07u, 0x18u, 0x44u, 0xA4u, 0x3Bu, 0x4Eu, 0x97u,
     0x45u, 0x3Cu, 0x35u, 0x5Eu, 0x3Au, 0x3Eu, 0x5Au, 0x64u, 0x7Bu, 0x3Fu
 };
-static const uint16_t golden_26_frame[] = {
+static const uint16_t golden_27_frame[] = {
     0x05u, 0x91u, 0x10u, 0xD0u, 0x07u, 0x01u, 0x15u, 0x03u, 0x07u, 0x18u, 0x44u, 0xA4u,
     0x3Bu, 0x4Eu, 0x97u, 0x45u, 0x3Cu, 0x35u, 0x5Eu, 0x3Au, 0x3Eu, 0x5Au, 0x64u, 0x7Bu,
     0x3Fu, 0x54u, 0xB5u, 0x00u
 };
 
-static uint16_t golden_26_pack(uint16_t *buf)
+static uint16_t golden_27_pack(uint16_t *buf)
 {
     proto_params_t m;
     memset(&m, 0, sizeof m);
@@ -1185,36 +1212,36 @@ static uint16_t golden_26_pack(uint16_t *buf)
     return proto_params_pack(&m, buf);
 }
 
-static void golden_26_check(const uint16_t *payload, uint16_t len)
+static void golden_27_check(const uint16_t *payload, uint16_t len)
 {
     proto_params_t m;
     bool ok = proto_params_unpack(&m, payload, len);
-    CHECK(ok, "golden 26 params: unpack");
+    CHECK(ok, "golden 27 params: unpack");
     if (!ok) {
         return;
     }
-    CHECK(m.tick == 2000UL, "golden 26 params.tick");
-    CHECK(m.estimator == 3u, "golden 26 params.estimator");
-    CHECK(m.flags == 7u, "golden 26 params.flags");
-    CHECK_NEAR(m.l_d_h, 0.0050130002200603485, 0.0, "golden 26 params.l_d_h");
-    CHECK_NEAR(m.l_q_h, 0.012059999629855156, 0.0, "golden 26 params.l_q_h");
-    CHECK_NEAR(m.psi_f_wb, 0.18199999630451202, 0.0, "golden 26 params.psi_f_wb");
-    CHECK_NEAR(m.r_s_ohm, 0.9819999933242798, 0.0, "golden 26 params.r_s_ohm");
+    CHECK(m.tick == 2000UL, "golden 27 params.tick");
+    CHECK(m.estimator == 3u, "golden 27 params.estimator");
+    CHECK(m.flags == 7u, "golden 27 params.flags");
+    CHECK_NEAR(m.l_d_h, 0.0050130002200603485, 0.0, "golden 27 params.l_d_h");
+    CHECK_NEAR(m.l_q_h, 0.012059999629855156, 0.0, "golden 27 params.l_q_h");
+    CHECK_NEAR(m.psi_f_wb, 0.18199999630451202, 0.0, "golden 27 params.psi_f_wb");
+    CHECK_NEAR(m.r_s_ohm, 0.9819999933242798, 0.0, "golden 27 params.r_s_ohm");
 }
 
-/* 27: status */
-static const uint16_t golden_27_payload[] = {
+/* 28: status */
+static const uint16_t golden_28_payload[] = {
     0x20u, 0x4Eu, 0x00u, 0x00u, 0x01u, 0x02u, 0x00u, 0x00u, 0x00u, 0x29u, 0x0Cu, 0x00u,
     0x00u, 0x00u, 0x00u, 0x03u, 0x00u, 0x87u, 0xD6u, 0x12u, 0x00u, 0x78u, 0x00u, 0x00u,
     0x20u
 };
-static const uint16_t golden_27_frame[] = {
+static const uint16_t golden_28_frame[] = {
     0x05u, 0x92u, 0x11u, 0x20u, 0x4Eu, 0x01u, 0x03u, 0x01u, 0x02u, 0x01u, 0x01u, 0x03u,
     0x29u, 0x0Cu, 0x01u, 0x01u, 0x01u, 0x02u, 0x03u, 0x04u, 0x87u, 0xD6u, 0x12u, 0x02u,
     0x78u, 0x01u, 0x04u, 0x20u, 0x15u, 0xA6u, 0x00u
 };
 
-static uint16_t golden_27_pack(uint16_t *buf)
+static uint16_t golden_28_pack(uint16_t *buf)
 {
     proto_status_t m;
     memset(&m, 0, sizeof m);
@@ -1231,39 +1258,39 @@ static uint16_t golden_27_pack(uint16_t *buf)
     return proto_status_pack(&m, buf);
 }
 
-static void golden_27_check(const uint16_t *payload, uint16_t len)
+static void golden_28_check(const uint16_t *payload, uint16_t len)
 {
     proto_status_t m;
     bool ok = proto_status_unpack(&m, payload, len);
-    CHECK(ok, "golden 27 status: unpack");
+    CHECK(ok, "golden 28 status: unpack");
     if (!ok) {
         return;
     }
-    CHECK(m.tick == 20000UL, "golden 27 status.tick");
-    CHECK(m.state == 1u, "golden 27 status.state");
-    CHECK(m.segment == 2u, "golden 27 status.segment");
-    CHECK(m.faults == 0u, "golden 27 status.faults");
-    CHECK_NEAR(m.v_dc_v, 311.3, 0.000311, "golden 27 status.v_dc_v");
-    CHECK(m.tx_dropped == 0UL, "golden 27 status.tx_dropped");
-    CHECK(m.rx_bad == 3u, "golden 27 status.rx_bad");
-    CHECK(m.rx_frames == 1234567UL, "golden 27 status.rx_frames");
-    CHECK(m.hb_age_ms == 120u, "golden 27 status.hb_age_ms");
-    CHECK(m.capture_count == 8192u, "golden 27 status.capture_count");
+    CHECK(m.tick == 20000UL, "golden 28 status.tick");
+    CHECK(m.state == 1u, "golden 28 status.state");
+    CHECK(m.segment == 2u, "golden 28 status.segment");
+    CHECK(m.faults == 0u, "golden 28 status.faults");
+    CHECK_NEAR(m.v_dc_v, 311.3, 0.000311, "golden 28 status.v_dc_v");
+    CHECK(m.tx_dropped == 0UL, "golden 28 status.tx_dropped");
+    CHECK(m.rx_bad == 3u, "golden 28 status.rx_bad");
+    CHECK(m.rx_frames == 1234567UL, "golden 28 status.rx_frames");
+    CHECK(m.hb_age_ms == 120u, "golden 28 status.hb_age_ms");
+    CHECK(m.capture_count == 8192u, "golden 28 status.capture_count");
 }
 
-/* 28: status fault, undervoltage */
-static const uint16_t golden_28_payload[] = {
+/* 29: status fault, undervoltage */
+static const uint16_t golden_29_payload[] = {
     0x70u, 0x11u, 0x01u, 0x00u, 0x03u, 0xFFu, 0xFFu, 0x05u, 0x00u, 0xCEu, 0xFFu, 0xFFu,
     0xFFu, 0xFFu, 0xFFu, 0xFFu, 0xFFu, 0x00u, 0x00u, 0x00u, 0x00u, 0x00u, 0x00u, 0x00u,
     0x00u
 };
-static const uint16_t golden_28_frame[] = {
+static const uint16_t golden_29_frame[] = {
     0x06u, 0x92u, 0x12u, 0x70u, 0x11u, 0x01u, 0x05u, 0x03u, 0xFFu, 0xFFu, 0x05u, 0x09u,
     0xCEu, 0xFFu, 0xFFu, 0xFFu, 0xFFu, 0xFFu, 0xFFu, 0xFFu, 0x01u, 0x01u, 0x01u, 0x01u,
     0x01u, 0x01u, 0x01u, 0x03u, 0x8Bu, 0xA5u, 0x00u
 };
 
-static uint16_t golden_28_pack(uint16_t *buf)
+static uint16_t golden_29_pack(uint16_t *buf)
 {
     proto_status_t m;
     memset(&m, 0, sizeof m);
@@ -1280,74 +1307,42 @@ static uint16_t golden_28_pack(uint16_t *buf)
     return proto_status_pack(&m, buf);
 }
 
-static void golden_28_check(const uint16_t *payload, uint16_t len)
+static void golden_29_check(const uint16_t *payload, uint16_t len)
 {
     proto_status_t m;
     bool ok = proto_status_unpack(&m, payload, len);
-    CHECK(ok, "golden 28 status: unpack");
+    CHECK(ok, "golden 29 status: unpack");
     if (!ok) {
         return;
     }
-    CHECK(m.tick == 70000UL, "golden 28 status.tick");
-    CHECK(m.state == 3u, "golden 28 status.state");
-    CHECK(m.segment == 65535u, "golden 28 status.segment");
-    CHECK(m.faults == 5u, "golden 28 status.faults");
-    CHECK_NEAR(m.v_dc_v, -5.0, 5e-06, "golden 28 status.v_dc_v");
-    CHECK(m.tx_dropped == 4294967295UL, "golden 28 status.tx_dropped");
-    CHECK(m.rx_bad == 65535u, "golden 28 status.rx_bad");
-    CHECK(m.rx_frames == 0UL, "golden 28 status.rx_frames");
-    CHECK(m.hb_age_ms == 0u, "golden 28 status.hb_age_ms");
-    CHECK(m.capture_count == 0u, "golden 28 status.capture_count");
+    CHECK(m.tick == 70000UL, "golden 29 status.tick");
+    CHECK(m.state == 3u, "golden 29 status.state");
+    CHECK(m.segment == 65535u, "golden 29 status.segment");
+    CHECK(m.faults == 5u, "golden 29 status.faults");
+    CHECK_NEAR(m.v_dc_v, -5.0, 5e-06, "golden 29 status.v_dc_v");
+    CHECK(m.tx_dropped == 4294967295UL, "golden 29 status.tx_dropped");
+    CHECK(m.rx_bad == 65535u, "golden 29 status.rx_bad");
+    CHECK(m.rx_frames == 0UL, "golden 29 status.rx_frames");
+    CHECK(m.hb_age_ms == 0u, "golden 29 status.hb_age_ms");
+    CHECK(m.capture_count == 0u, "golden 29 status.capture_count");
 }
 
-/* 29: event capture_triggered by fault */
-static const uint16_t golden_29_payload[] = {
+/* 30: event capture_triggered by fault */
+static const uint16_t golden_30_payload[] = {
     0x7Bu, 0x00u, 0x00u, 0x00u, 0x06u, 0x00u, 0xFFu, 0xFFu, 0xFFu, 0xFFu
 };
-static const uint16_t golden_29_frame[] = {
+static const uint16_t golden_30_frame[] = {
     0x04u, 0x93u, 0x13u, 0x7Bu, 0x01u, 0x01u, 0x02u, 0x06u, 0x07u, 0xFFu, 0xFFu, 0xFFu,
     0xFFu, 0x01u, 0x7Bu, 0x00u
-};
-
-static uint16_t golden_29_pack(uint16_t *buf)
-{
-    proto_event_t m;
-    memset(&m, 0, sizeof m);
-    m.tick = 123UL;
-    m.code = 6u;
-    m.arg = (int32_t)-1L;
-    return proto_event_pack(&m, buf);
-}
-
-static void golden_29_check(const uint16_t *payload, uint16_t len)
-{
-    proto_event_t m;
-    bool ok = proto_event_unpack(&m, payload, len);
-    CHECK(ok, "golden 29 event: unpack");
-    if (!ok) {
-        return;
-    }
-    CHECK(m.tick == 123UL, "golden 29 event.tick");
-    CHECK(m.code == 6u, "golden 29 event.code");
-    CHECK(m.arg == (int32_t)-1L, "golden 29 event.arg");
-}
-
-/* 30: event extremes */
-static const uint16_t golden_30_payload[] = {
-    0xFFu, 0xFFu, 0xFFu, 0xFFu, 0x02u, 0x00u, 0x00u, 0x00u, 0x00u, 0x80u
-};
-static const uint16_t golden_30_frame[] = {
-    0x08u, 0x93u, 0x14u, 0xFFu, 0xFFu, 0xFFu, 0xFFu, 0x02u, 0x01u, 0x01u, 0x01u, 0x04u,
-    0x80u, 0xD2u, 0x22u, 0x00u
 };
 
 static uint16_t golden_30_pack(uint16_t *buf)
 {
     proto_event_t m;
     memset(&m, 0, sizeof m);
-    m.tick = 4294967295UL;
-    m.code = 2u;
-    m.arg = INT32_MIN;
+    m.tick = 123UL;
+    m.code = 6u;
+    m.arg = (int32_t)-1L;
     return proto_event_pack(&m, buf);
 }
 
@@ -1359,13 +1354,45 @@ static void golden_30_check(const uint16_t *payload, uint16_t len)
     if (!ok) {
         return;
     }
-    CHECK(m.tick == 4294967295UL, "golden 30 event.tick");
-    CHECK(m.code == 2u, "golden 30 event.code");
-    CHECK(m.arg == INT32_MIN, "golden 30 event.arg");
+    CHECK(m.tick == 123UL, "golden 30 event.tick");
+    CHECK(m.code == 6u, "golden 30 event.code");
+    CHECK(m.arg == (int32_t)-1L, "golden 30 event.arg");
 }
 
-/* 31: capture_chunk max length */
+/* 31: event extremes */
 static const uint16_t golden_31_payload[] = {
+    0xFFu, 0xFFu, 0xFFu, 0xFFu, 0x02u, 0x00u, 0x00u, 0x00u, 0x00u, 0x80u
+};
+static const uint16_t golden_31_frame[] = {
+    0x08u, 0x93u, 0x14u, 0xFFu, 0xFFu, 0xFFu, 0xFFu, 0x02u, 0x01u, 0x01u, 0x01u, 0x04u,
+    0x80u, 0xD2u, 0x22u, 0x00u
+};
+
+static uint16_t golden_31_pack(uint16_t *buf)
+{
+    proto_event_t m;
+    memset(&m, 0, sizeof m);
+    m.tick = 4294967295UL;
+    m.code = 2u;
+    m.arg = INT32_MIN;
+    return proto_event_pack(&m, buf);
+}
+
+static void golden_31_check(const uint16_t *payload, uint16_t len)
+{
+    proto_event_t m;
+    bool ok = proto_event_unpack(&m, payload, len);
+    CHECK(ok, "golden 31 event: unpack");
+    if (!ok) {
+        return;
+    }
+    CHECK(m.tick == 4294967295UL, "golden 31 event.tick");
+    CHECK(m.code == 2u, "golden 31 event.code");
+    CHECK(m.arg == INT32_MIN, "golden 31 event.arg");
+}
+
+/* 32: capture_chunk max length */
+static const uint16_t golden_32_payload[] = {
     0xF8u, 0x0Fu, 0x08u, 0xCDu, 0x81u, 0x01u, 0x00u, 0x00u, 0x80u, 0xEBu, 0xD8u, 0x97u,
     0xFDu, 0x00u, 0x00u, 0xD8u, 0x00u, 0x83u, 0x06u, 0x0Bu, 0x27u, 0xFFu, 0x7Fu, 0x8Du,
     0x13u, 0x7Fu, 0x0Du, 0x71u, 0x07u, 0x63u, 0x01u, 0x55u, 0xFBu, 0x47u, 0xF5u, 0x39u,
@@ -1377,7 +1404,7 @@ static const uint16_t golden_31_payload[] = {
     0x18u, 0x75u, 0xE7u, 0x00u, 0x00u, 0x64u, 0x00u, 0x00u, 0x80u, 0xFFu, 0x7Fu, 0x0Cu,
     0x00u, 0xF8u, 0xFFu
 };
-static const uint16_t golden_31_frame[] = {
+static const uint16_t golden_32_frame[] = {
     0x09u, 0x94u, 0x15u, 0xF8u, 0x0Fu, 0x08u, 0xCDu, 0x81u, 0x01u, 0x01u, 0x06u, 0x80u,
     0xEBu, 0xD8u, 0x97u, 0xFDu, 0x01u, 0x02u, 0xD8u, 0x27u, 0x83u, 0x06u, 0x0Bu, 0x27u,
     0xFFu, 0x7Fu, 0x8Du, 0x13u, 0x7Fu, 0x0Du, 0x71u, 0x07u, 0x63u, 0x01u, 0x55u, 0xFBu,
@@ -1390,7 +1417,7 @@ static const uint16_t golden_31_frame[] = {
     0xFFu, 0x7Fu, 0x0Cu, 0x05u, 0xF8u, 0xFFu, 0xA3u, 0x6Fu, 0x00u
 };
 
-static uint16_t golden_31_pack(uint16_t *buf)
+static uint16_t golden_32_pack(uint16_t *buf)
 {
     proto_capture_chunk_t m;
     memset(&m, 0, sizeof m);
@@ -1456,84 +1483,84 @@ static uint16_t golden_31_pack(uint16_t *buf)
     return proto_capture_chunk_pack(&m, buf);
 }
 
-static void golden_31_check(const uint16_t *payload, uint16_t len)
+static void golden_32_check(const uint16_t *payload, uint16_t len)
 {
     proto_capture_chunk_t m;
     bool ok = proto_capture_chunk_unpack(&m, payload, len);
-    CHECK(ok, "golden 31 capture_chunk: unpack");
+    CHECK(ok, "golden 32 capture_chunk: unpack");
     if (!ok) {
         return;
     }
-    CHECK(m.offset == 4088u, "golden 31 capture_chunk.offset");
-    CHECK(m.n_valid == 8u, "golden 31 capture_chunk.n_valid");
-    CHECK(m.tick0 == 98765UL, "golden 31 capture_chunk.tick0");
-    CHECK_NEAR(m.i_a_a[0], -65.536, 6.55e-05, "golden 31 capture_chunk.i_a_a[0]");
-    CHECK_NEAR(m.i_a_a[1], -20.01, 2e-05, "golden 31 capture_chunk.i_a_a[1]");
-    CHECK_NEAR(m.i_a_a[2], -1.234, 1.23e-06, "golden 31 capture_chunk.i_a_a[2]");
-    CHECK_NEAR(m.i_a_a[3], 0.0, 2e-09, "golden 31 capture_chunk.i_a_a[3]");
-    CHECK_NEAR(m.i_a_a[4], 0.432, 4.32e-07, "golden 31 capture_chunk.i_a_a[4]");
-    CHECK_NEAR(m.i_a_a[5], 3.334, 3.33e-06, "golden 31 capture_chunk.i_a_a[5]");
-    CHECK_NEAR(m.i_a_a[6], 19.990000000000002, 2e-05, "golden 31 capture_chunk.i_a_a[6]");
-    CHECK_NEAR(m.i_a_a[7], 65.534, 6.55e-05, "golden 31 capture_chunk.i_a_a[7]");
-    CHECK_NEAR(m.i_b_a[0], 10.01, 1e-05, "golden 31 capture_chunk.i_b_a[0]");
-    CHECK_NEAR(m.i_b_a[1], 6.91, 6.91e-06, "golden 31 capture_chunk.i_b_a[1]");
-    CHECK_NEAR(m.i_b_a[2], 3.81, 3.81e-06, "golden 31 capture_chunk.i_b_a[2]");
-    CHECK_NEAR(m.i_b_a[3], 0.71, 7.1e-07, "golden 31 capture_chunk.i_b_a[3]");
-    CHECK_NEAR(m.i_b_a[4], -2.39, 2.39e-06, "golden 31 capture_chunk.i_b_a[4]");
-    CHECK_NEAR(m.i_b_a[5], -5.49, 5.49e-06, "golden 31 capture_chunk.i_b_a[5]");
-    CHECK_NEAR(m.i_b_a[6], -8.59, 8.59e-06, "golden 31 capture_chunk.i_b_a[6]");
-    CHECK_NEAR(m.i_b_a[7], -11.69, 1.17e-05, "golden 31 capture_chunk.i_b_a[7]");
-    CHECK_NEAR(m.i_c_a[0], -5.0, 5e-06, "golden 31 capture_chunk.i_c_a[0]");
-    CHECK_NEAR(m.i_c_a[1], -3.6, 3.6e-06, "golden 31 capture_chunk.i_c_a[1]");
-    CHECK_NEAR(m.i_c_a[2], -2.2, 2.2e-06, "golden 31 capture_chunk.i_c_a[2]");
-    CHECK_NEAR(m.i_c_a[3], -0.8, 8e-07, "golden 31 capture_chunk.i_c_a[3]");
-    CHECK_NEAR(m.i_c_a[4], 0.6, 6e-07, "golden 31 capture_chunk.i_c_a[4]");
-    CHECK_NEAR(m.i_c_a[5], 2.0, 2e-06, "golden 31 capture_chunk.i_c_a[5]");
-    CHECK_NEAR(m.i_c_a[6], 3.4, 3.4e-06, "golden 31 capture_chunk.i_c_a[6]");
-    CHECK_NEAR(m.i_c_a[7], 4.8, 4.8e-06, "golden 31 capture_chunk.i_c_a[7]");
-    CHECK(m.s_abc[0] == 0u, "golden 31 capture_chunk.s_abc[0]");
-    CHECK(m.s_abc[1] == 1u, "golden 31 capture_chunk.s_abc[1]");
-    CHECK(m.s_abc[2] == 3u, "golden 31 capture_chunk.s_abc[2]");
-    CHECK(m.s_abc[3] == 2u, "golden 31 capture_chunk.s_abc[3]");
-    CHECK(m.s_abc[4] == 6u, "golden 31 capture_chunk.s_abc[4]");
-    CHECK(m.s_abc[5] == 4u, "golden 31 capture_chunk.s_abc[5]");
-    CHECK(m.s_abc[6] == 5u, "golden 31 capture_chunk.s_abc[6]");
-    CHECK(m.s_abc[7] == 7u, "golden 31 capture_chunk.s_abc[7]");
-    CHECK_NEAR(m.v_dc_v[0], 311.20000000000005, 0.000311, "golden 31 capture_chunk.v_dc_v[0]");
-    CHECK_NEAR(m.v_dc_v[1], 311.3, 0.000311, "golden 31 capture_chunk.v_dc_v[1]");
-    CHECK_NEAR(m.v_dc_v[2], 310.90000000000003, 0.000311, "golden 31 capture_chunk.v_dc_v[2]");
-    CHECK_NEAR(m.v_dc_v[3], 0.0, 1e-07, "golden 31 capture_chunk.v_dc_v[3]");
-    CHECK_NEAR(m.v_dc_v[4], 0.0, 1e-07, "golden 31 capture_chunk.v_dc_v[4]");
-    CHECK_NEAR(m.v_dc_v[5], 3276.7000000000003, 0.00328, "golden 31 capture_chunk.v_dc_v[5]");
-    CHECK_NEAR(m.v_dc_v[6], 3276.7000000000003, 0.00328, "golden 31 capture_chunk.v_dc_v[6]");
-    CHECK_NEAR(m.v_dc_v[7], 300.0, 0.0003, "golden 31 capture_chunk.v_dc_v[7]");
-    CHECK_NEAR(m.theta_e_rad[0], 0.0, 9.59e-11, "golden 31 capture_chunk.theta_e_rad[0]");
-    CHECK_NEAR(m.theta_e_rad[1], 0.7999709808823618, 8e-07, "golden 31 capture_chunk.theta_e_rad[1]");
-    CHECK_NEAR(m.theta_e_rad[2], 1.6000378355639666, 1.6e-06, "golden 31 capture_chunk.theta_e_rad[2]");
-    CHECK_NEAR(m.theta_e_rad[3], 2.4000088164463285, 2.4e-06, "golden 31 capture_chunk.theta_e_rad[3]");
-    CHECK_NEAR(m.theta_e_rad[4], 3.1999797973286905, 3.2e-06, "golden 31 capture_chunk.theta_e_rad[4]");
-    CHECK_NEAR(m.theta_e_rad[5], 4.000046652010295, 4e-06, "golden 31 capture_chunk.theta_e_rad[5]");
-    CHECK_NEAR(m.theta_e_rad[6], 6.19996684943679, 6.2e-06, "golden 31 capture_chunk.theta_e_rad[6]");
-    CHECK_NEAR(m.theta_e_rad[7], 6.2830894333803435, 6.28e-06, "golden 31 capture_chunk.theta_e_rad[7]");
-    CHECK_NEAR(m.omega_e_rad_s[0], 628.3000000000001, 0.000628, "golden 31 capture_chunk.omega_e_rad_s[0]");
-    CHECK_NEAR(m.omega_e_rad_s[1], -628.3000000000001, 0.000628, "golden 31 capture_chunk.omega_e_rad_s[1]");
-    CHECK_NEAR(m.omega_e_rad_s[2], 0.0, 1e-07, "golden 31 capture_chunk.omega_e_rad_s[2]");
-    CHECK_NEAR(m.omega_e_rad_s[3], 10.0, 1e-05, "golden 31 capture_chunk.omega_e_rad_s[3]");
-    CHECK_NEAR(m.omega_e_rad_s[4], -3276.8, 0.00328, "golden 31 capture_chunk.omega_e_rad_s[4]");
-    CHECK_NEAR(m.omega_e_rad_s[5], 3276.7000000000003, 0.00328, "golden 31 capture_chunk.omega_e_rad_s[5]");
-    CHECK_NEAR(m.omega_e_rad_s[6], 1.2000000000000002, 1.2e-06, "golden 31 capture_chunk.omega_e_rad_s[6]");
-    CHECK_NEAR(m.omega_e_rad_s[7], -0.8, 8e-07, "golden 31 capture_chunk.omega_e_rad_s[7]");
+    CHECK(m.offset == 4088u, "golden 32 capture_chunk.offset");
+    CHECK(m.n_valid == 8u, "golden 32 capture_chunk.n_valid");
+    CHECK(m.tick0 == 98765UL, "golden 32 capture_chunk.tick0");
+    CHECK_NEAR(m.i_a_a[0], -65.536, 6.55e-05, "golden 32 capture_chunk.i_a_a[0]");
+    CHECK_NEAR(m.i_a_a[1], -20.01, 2e-05, "golden 32 capture_chunk.i_a_a[1]");
+    CHECK_NEAR(m.i_a_a[2], -1.234, 1.23e-06, "golden 32 capture_chunk.i_a_a[2]");
+    CHECK_NEAR(m.i_a_a[3], 0.0, 2e-09, "golden 32 capture_chunk.i_a_a[3]");
+    CHECK_NEAR(m.i_a_a[4], 0.432, 4.32e-07, "golden 32 capture_chunk.i_a_a[4]");
+    CHECK_NEAR(m.i_a_a[5], 3.334, 3.33e-06, "golden 32 capture_chunk.i_a_a[5]");
+    CHECK_NEAR(m.i_a_a[6], 19.990000000000002, 2e-05, "golden 32 capture_chunk.i_a_a[6]");
+    CHECK_NEAR(m.i_a_a[7], 65.534, 6.55e-05, "golden 32 capture_chunk.i_a_a[7]");
+    CHECK_NEAR(m.i_b_a[0], 10.01, 1e-05, "golden 32 capture_chunk.i_b_a[0]");
+    CHECK_NEAR(m.i_b_a[1], 6.91, 6.91e-06, "golden 32 capture_chunk.i_b_a[1]");
+    CHECK_NEAR(m.i_b_a[2], 3.81, 3.81e-06, "golden 32 capture_chunk.i_b_a[2]");
+    CHECK_NEAR(m.i_b_a[3], 0.71, 7.1e-07, "golden 32 capture_chunk.i_b_a[3]");
+    CHECK_NEAR(m.i_b_a[4], -2.39, 2.39e-06, "golden 32 capture_chunk.i_b_a[4]");
+    CHECK_NEAR(m.i_b_a[5], -5.49, 5.49e-06, "golden 32 capture_chunk.i_b_a[5]");
+    CHECK_NEAR(m.i_b_a[6], -8.59, 8.59e-06, "golden 32 capture_chunk.i_b_a[6]");
+    CHECK_NEAR(m.i_b_a[7], -11.69, 1.17e-05, "golden 32 capture_chunk.i_b_a[7]");
+    CHECK_NEAR(m.i_c_a[0], -5.0, 5e-06, "golden 32 capture_chunk.i_c_a[0]");
+    CHECK_NEAR(m.i_c_a[1], -3.6, 3.6e-06, "golden 32 capture_chunk.i_c_a[1]");
+    CHECK_NEAR(m.i_c_a[2], -2.2, 2.2e-06, "golden 32 capture_chunk.i_c_a[2]");
+    CHECK_NEAR(m.i_c_a[3], -0.8, 8e-07, "golden 32 capture_chunk.i_c_a[3]");
+    CHECK_NEAR(m.i_c_a[4], 0.6, 6e-07, "golden 32 capture_chunk.i_c_a[4]");
+    CHECK_NEAR(m.i_c_a[5], 2.0, 2e-06, "golden 32 capture_chunk.i_c_a[5]");
+    CHECK_NEAR(m.i_c_a[6], 3.4, 3.4e-06, "golden 32 capture_chunk.i_c_a[6]");
+    CHECK_NEAR(m.i_c_a[7], 4.8, 4.8e-06, "golden 32 capture_chunk.i_c_a[7]");
+    CHECK(m.s_abc[0] == 0u, "golden 32 capture_chunk.s_abc[0]");
+    CHECK(m.s_abc[1] == 1u, "golden 32 capture_chunk.s_abc[1]");
+    CHECK(m.s_abc[2] == 3u, "golden 32 capture_chunk.s_abc[2]");
+    CHECK(m.s_abc[3] == 2u, "golden 32 capture_chunk.s_abc[3]");
+    CHECK(m.s_abc[4] == 6u, "golden 32 capture_chunk.s_abc[4]");
+    CHECK(m.s_abc[5] == 4u, "golden 32 capture_chunk.s_abc[5]");
+    CHECK(m.s_abc[6] == 5u, "golden 32 capture_chunk.s_abc[6]");
+    CHECK(m.s_abc[7] == 7u, "golden 32 capture_chunk.s_abc[7]");
+    CHECK_NEAR(m.v_dc_v[0], 311.20000000000005, 0.000311, "golden 32 capture_chunk.v_dc_v[0]");
+    CHECK_NEAR(m.v_dc_v[1], 311.3, 0.000311, "golden 32 capture_chunk.v_dc_v[1]");
+    CHECK_NEAR(m.v_dc_v[2], 310.90000000000003, 0.000311, "golden 32 capture_chunk.v_dc_v[2]");
+    CHECK_NEAR(m.v_dc_v[3], 0.0, 1e-07, "golden 32 capture_chunk.v_dc_v[3]");
+    CHECK_NEAR(m.v_dc_v[4], 0.0, 1e-07, "golden 32 capture_chunk.v_dc_v[4]");
+    CHECK_NEAR(m.v_dc_v[5], 3276.7000000000003, 0.00328, "golden 32 capture_chunk.v_dc_v[5]");
+    CHECK_NEAR(m.v_dc_v[6], 3276.7000000000003, 0.00328, "golden 32 capture_chunk.v_dc_v[6]");
+    CHECK_NEAR(m.v_dc_v[7], 300.0, 0.0003, "golden 32 capture_chunk.v_dc_v[7]");
+    CHECK_NEAR(m.theta_e_rad[0], 0.0, 9.59e-11, "golden 32 capture_chunk.theta_e_rad[0]");
+    CHECK_NEAR(m.theta_e_rad[1], 0.7999709808823618, 8e-07, "golden 32 capture_chunk.theta_e_rad[1]");
+    CHECK_NEAR(m.theta_e_rad[2], 1.6000378355639666, 1.6e-06, "golden 32 capture_chunk.theta_e_rad[2]");
+    CHECK_NEAR(m.theta_e_rad[3], 2.4000088164463285, 2.4e-06, "golden 32 capture_chunk.theta_e_rad[3]");
+    CHECK_NEAR(m.theta_e_rad[4], 3.1999797973286905, 3.2e-06, "golden 32 capture_chunk.theta_e_rad[4]");
+    CHECK_NEAR(m.theta_e_rad[5], 4.000046652010295, 4e-06, "golden 32 capture_chunk.theta_e_rad[5]");
+    CHECK_NEAR(m.theta_e_rad[6], 6.19996684943679, 6.2e-06, "golden 32 capture_chunk.theta_e_rad[6]");
+    CHECK_NEAR(m.theta_e_rad[7], 6.2830894333803435, 6.28e-06, "golden 32 capture_chunk.theta_e_rad[7]");
+    CHECK_NEAR(m.omega_e_rad_s[0], 628.3000000000001, 0.000628, "golden 32 capture_chunk.omega_e_rad_s[0]");
+    CHECK_NEAR(m.omega_e_rad_s[1], -628.3000000000001, 0.000628, "golden 32 capture_chunk.omega_e_rad_s[1]");
+    CHECK_NEAR(m.omega_e_rad_s[2], 0.0, 1e-07, "golden 32 capture_chunk.omega_e_rad_s[2]");
+    CHECK_NEAR(m.omega_e_rad_s[3], 10.0, 1e-05, "golden 32 capture_chunk.omega_e_rad_s[3]");
+    CHECK_NEAR(m.omega_e_rad_s[4], -3276.8, 0.00328, "golden 32 capture_chunk.omega_e_rad_s[4]");
+    CHECK_NEAR(m.omega_e_rad_s[5], 3276.7000000000003, 0.00328, "golden 32 capture_chunk.omega_e_rad_s[5]");
+    CHECK_NEAR(m.omega_e_rad_s[6], 1.2000000000000002, 1.2e-06, "golden 32 capture_chunk.omega_e_rad_s[6]");
+    CHECK_NEAR(m.omega_e_rad_s[7], -0.8, 8e-07, "golden 32 capture_chunk.omega_e_rad_s[7]");
 }
 
-/* 32: sim_truth */
-static const uint16_t golden_32_payload[] = {
+/* 33: sim_truth */
+static const uint16_t golden_33_payload[] = {
     0x20u, 0xA1u, 0x07u, 0x00u, 0x0Au, 0xD7u, 0xA3u, 0x3Bu, 0xA6u, 0x9Bu, 0x44u, 0x3Cu,
     0xECu, 0x51u, 0x38u, 0x3Eu, 0x33u, 0x33u, 0x73u, 0x3Fu, 0x66u, 0x66u, 0x46u, 0xC0u,
     0x00u, 0xE0u, 0x79u, 0xC4u, 0x00u, 0x00u, 0x10u, 0x40u, 0x00u, 0x00u, 0xABu, 0x42u,
     0x00u, 0x00u, 0x71u, 0x42u, 0x05u, 0x00u, 0x00u, 0x00u, 0xC3u, 0x64u, 0xAAu, 0x3Bu,
     0x31u, 0x08u, 0x2Cu, 0x3Cu
 };
-static const uint16_t golden_32_frame[] = {
+static const uint16_t golden_33_frame[] = {
     0x06u, 0xA0u, 0x16u, 0x20u, 0xA1u, 0x07u, 0x15u, 0x0Au, 0xD7u, 0xA3u, 0x3Bu, 0xA6u,
     0x9Bu, 0x44u, 0x3Cu, 0xECu, 0x51u, 0x38u, 0x3Eu, 0x33u, 0x33u, 0x73u, 0x3Fu, 0x66u,
     0x66u, 0x46u, 0xC0u, 0x04u, 0xE0u, 0x79u, 0xC4u, 0x01u, 0x03u, 0x10u, 0x40u, 0x01u,
@@ -1541,7 +1568,7 @@ static const uint16_t golden_32_frame[] = {
     0x64u, 0xAAu, 0x3Bu, 0x31u, 0x08u, 0x2Cu, 0x3Cu, 0xA3u, 0x62u, 0x00u
 };
 
-static uint16_t golden_32_pack(uint16_t *buf)
+static uint16_t golden_33_pack(uint16_t *buf)
 {
     proto_sim_truth_t m;
     memset(&m, 0, sizeof m);
@@ -1561,27 +1588,27 @@ static uint16_t golden_32_pack(uint16_t *buf)
     return proto_sim_truth_pack(&m, buf);
 }
 
-static void golden_32_check(const uint16_t *payload, uint16_t len)
+static void golden_33_check(const uint16_t *payload, uint16_t len)
 {
     proto_sim_truth_t m;
     bool ok = proto_sim_truth_unpack(&m, payload, len);
-    CHECK(ok, "golden 32 sim_truth: unpack");
+    CHECK(ok, "golden 33 sim_truth: unpack");
     if (!ok) {
         return;
     }
-    CHECK(m.tick == 500000UL, "golden 32 sim_truth.tick");
-    CHECK_NEAR(m.l_d_h, 0.004999999888241291, 0.0, "golden 32 sim_truth.l_d_h");
-    CHECK_NEAR(m.l_q_h, 0.012000000104308128, 0.0, "golden 32 sim_truth.l_q_h");
-    CHECK_NEAR(m.psi_f_wb, 0.18000000715255737, 0.0, "golden 32 sim_truth.psi_f_wb");
-    CHECK_NEAR(m.r_s_ohm, 0.949999988079071, 0.0, "golden 32 sim_truth.r_s_ohm");
-    CHECK_NEAR(m.theta_e_rad, -3.0999999046325684, 0.0, "golden 32 sim_truth.theta_e_rad");
-    CHECK_NEAR(m.speed_rpm, -999.5, 0.0, "golden 32 sim_truth.speed_rpm");
-    CHECK_NEAR(m.torque_nm, 2.25, 0.0, "golden 32 sim_truth.torque_nm");
-    CHECK_NEAR(m.temp_winding_c, 85.5, 0.0, "golden 32 sim_truth.temp_winding_c");
-    CHECK_NEAR(m.temp_magnet_c, 60.25, 0.0, "golden 32 sim_truth.temp_magnet_c");
-    CHECK(m.effects == 5UL, "golden 32 sim_truth.effects");
-    CHECK_NEAR(m.l_d_secant_h, 0.005200000014156103, 0.0, "golden 32 sim_truth.l_d_secant_h");
-    CHECK_NEAR(m.l_q_secant_h, 0.010499999858438969, 0.0, "golden 32 sim_truth.l_q_secant_h");
+    CHECK(m.tick == 500000UL, "golden 33 sim_truth.tick");
+    CHECK_NEAR(m.l_d_h, 0.004999999888241291, 0.0, "golden 33 sim_truth.l_d_h");
+    CHECK_NEAR(m.l_q_h, 0.012000000104308128, 0.0, "golden 33 sim_truth.l_q_h");
+    CHECK_NEAR(m.psi_f_wb, 0.18000000715255737, 0.0, "golden 33 sim_truth.psi_f_wb");
+    CHECK_NEAR(m.r_s_ohm, 0.949999988079071, 0.0, "golden 33 sim_truth.r_s_ohm");
+    CHECK_NEAR(m.theta_e_rad, -3.0999999046325684, 0.0, "golden 33 sim_truth.theta_e_rad");
+    CHECK_NEAR(m.speed_rpm, -999.5, 0.0, "golden 33 sim_truth.speed_rpm");
+    CHECK_NEAR(m.torque_nm, 2.25, 0.0, "golden 33 sim_truth.torque_nm");
+    CHECK_NEAR(m.temp_winding_c, 85.5, 0.0, "golden 33 sim_truth.temp_winding_c");
+    CHECK_NEAR(m.temp_magnet_c, 60.25, 0.0, "golden 33 sim_truth.temp_magnet_c");
+    CHECK(m.effects == 5UL, "golden 33 sim_truth.effects");
+    CHECK_NEAR(m.l_d_secant_h, 0.005200000014156103, 0.0, "golden 33 sim_truth.l_d_secant_h");
+    CHECK_NEAR(m.l_q_secant_h, 0.010499999858438969, 0.0, "golden 33 sim_truth.l_q_secant_h");
 }
 
 static const golden_frame_t golden_frames[] = {
@@ -1597,28 +1624,29 @@ static const golden_frame_t golden_frames[] = {
     {"gamma_node", 0x0Cu, 13u, golden_9_payload, 18u, golden_9_frame, 24u, golden_9_pack, golden_9_check},
     {"start", 0x06u, 7u, golden_10_payload, 0u, golden_10_frame, 6u, golden_10_pack, golden_10_check},
     {"stop", 0x07u, 8u, golden_11_payload, 0u, golden_11_frame, 6u, golden_11_pack, golden_11_check},
-    {"abort", 0x08u, 255u, golden_12_payload, 0u, golden_12_frame, 6u, golden_12_pack, golden_12_check},
-    {"heartbeat max", 0x09u, 9u, golden_13_payload, 4u, golden_13_frame, 10u, golden_13_pack, golden_13_check},
-    {"heartbeat zero", 0x09u, 0u, golden_14_payload, 4u, golden_14_frame, 10u, golden_14_pack, golden_14_check},
-    {"capture_read", 0x0Au, 10u, golden_15_payload, 2u, golden_15_frame, 8u, golden_15_pack, golden_15_check},
-    {"config_calib", 0x10u, 13u, golden_16_payload, 24u, golden_16_frame, 30u, golden_16_pack, golden_16_check},
-    {"config_commission", 0x11u, 14u, golden_17_payload, 10u, golden_17_frame, 16u, golden_17_pack, golden_17_check},
-    {"commission_result", 0x96u, 15u, golden_18_payload, 62u, golden_18_frame, 68u, golden_18_pack, golden_18_check},
-    {"ack", 0x80u, 11u, golden_19_payload, 3u, golden_19_frame, 9u, golden_19_pack, golden_19_check},
-    {"identify", 0x81u, 12u, golden_20_payload, 14u, golden_20_frame, 20u, golden_20_pack, golden_20_check},
-    {"telem_fast", 0x90u, 13u, golden_21_payload, 28u, golden_21_frame, 34u, golden_21_pack, golden_21_check},
-    {"telem_fast negative", 0x90u, 14u, golden_22_payload, 28u, golden_22_frame, 34u, golden_22_pack, golden_22_check},
-    {"telem_fast saturation", 0x90u, 15u, golden_23_payload, 28u, golden_23_frame, 34u, golden_23_pack, golden_23_check},
-    {"telem_fast all zero", 0x90u, 0u, golden_24_payload, 28u, golden_24_frame, 34u, golden_24_pack, golden_24_check},
-    {"telem_est", 0x95u, 21u, golden_25_payload, 13u, golden_25_frame, 19u, golden_25_pack, golden_25_check},
-    {"params", 0x91u, 16u, golden_26_payload, 22u, golden_26_frame, 28u, golden_26_pack, golden_26_check},
-    {"status", 0x92u, 17u, golden_27_payload, 25u, golden_27_frame, 31u, golden_27_pack, golden_27_check},
-    {"status fault, undervoltage", 0x92u, 18u, golden_28_payload, 25u, golden_28_frame, 31u, golden_28_pack, golden_28_check},
-    {"event capture_triggered by fault", 0x93u, 19u, golden_29_payload, 10u, golden_29_frame, 16u, golden_29_pack, golden_29_check},
-    {"event extremes", 0x93u, 20u, golden_30_payload, 10u, golden_30_frame, 16u, golden_30_pack, golden_30_check},
-    {"capture_chunk max length", 0x94u, 21u, golden_31_payload, 111u, golden_31_frame, 117u, golden_31_pack, golden_31_check},
-    {"sim_truth", 0xA0u, 22u, golden_32_payload, 52u, golden_32_frame, 58u, golden_32_pack, golden_32_check},
+    {"stop_at", 0x0Du, 14u, golden_12_payload, 4u, golden_12_frame, 10u, golden_12_pack, golden_12_check},
+    {"abort", 0x08u, 255u, golden_13_payload, 0u, golden_13_frame, 6u, golden_13_pack, golden_13_check},
+    {"heartbeat max", 0x09u, 9u, golden_14_payload, 4u, golden_14_frame, 10u, golden_14_pack, golden_14_check},
+    {"heartbeat zero", 0x09u, 0u, golden_15_payload, 4u, golden_15_frame, 10u, golden_15_pack, golden_15_check},
+    {"capture_read", 0x0Au, 10u, golden_16_payload, 2u, golden_16_frame, 8u, golden_16_pack, golden_16_check},
+    {"config_calib", 0x10u, 13u, golden_17_payload, 24u, golden_17_frame, 30u, golden_17_pack, golden_17_check},
+    {"config_commission", 0x11u, 14u, golden_18_payload, 10u, golden_18_frame, 16u, golden_18_pack, golden_18_check},
+    {"commission_result", 0x96u, 15u, golden_19_payload, 62u, golden_19_frame, 68u, golden_19_pack, golden_19_check},
+    {"ack", 0x80u, 11u, golden_20_payload, 3u, golden_20_frame, 9u, golden_20_pack, golden_20_check},
+    {"identify", 0x81u, 12u, golden_21_payload, 14u, golden_21_frame, 20u, golden_21_pack, golden_21_check},
+    {"telem_fast", 0x90u, 13u, golden_22_payload, 28u, golden_22_frame, 34u, golden_22_pack, golden_22_check},
+    {"telem_fast negative", 0x90u, 14u, golden_23_payload, 28u, golden_23_frame, 34u, golden_23_pack, golden_23_check},
+    {"telem_fast saturation", 0x90u, 15u, golden_24_payload, 28u, golden_24_frame, 34u, golden_24_pack, golden_24_check},
+    {"telem_fast all zero", 0x90u, 0u, golden_25_payload, 28u, golden_25_frame, 34u, golden_25_pack, golden_25_check},
+    {"telem_est", 0x95u, 21u, golden_26_payload, 13u, golden_26_frame, 19u, golden_26_pack, golden_26_check},
+    {"params", 0x91u, 16u, golden_27_payload, 22u, golden_27_frame, 28u, golden_27_pack, golden_27_check},
+    {"status", 0x92u, 17u, golden_28_payload, 25u, golden_28_frame, 31u, golden_28_pack, golden_28_check},
+    {"status fault, undervoltage", 0x92u, 18u, golden_29_payload, 25u, golden_29_frame, 31u, golden_29_pack, golden_29_check},
+    {"event capture_triggered by fault", 0x93u, 19u, golden_30_payload, 10u, golden_30_frame, 16u, golden_30_pack, golden_30_check},
+    {"event extremes", 0x93u, 20u, golden_31_payload, 10u, golden_31_frame, 16u, golden_31_pack, golden_31_check},
+    {"capture_chunk max length", 0x94u, 21u, golden_32_payload, 111u, golden_32_frame, 117u, golden_32_pack, golden_32_check},
+    {"sim_truth", 0xA0u, 22u, golden_33_payload, 52u, golden_33_frame, 58u, golden_33_pack, golden_33_check},
 };
-#define GOLDEN_FRAME_COUNT 33u
+#define GOLDEN_FRAME_COUNT 34u
 
 #endif

@@ -93,9 +93,8 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         type=float,
         default=None,
         metavar="S",
-        help="ask the device to stop once the host has read S seconds of device time (an "
-        "unpaced emulator runs ahead of what the host has read, up to about a second of device "
-        "time: it stops there; --pace holds it to the host)",
+        help="stop the run after S seconds of device time (the device stops itself at that "
+        "control period: stop_at, docs/protocol.md)",
     )
 
 

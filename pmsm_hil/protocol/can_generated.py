@@ -51,6 +51,7 @@ LAYOUTS = {
     0x95: CanLayout(0x95, 'telem_est', 0x26, False, (8, 8), 0x01),
     0x0B: CanLayout(0x0B, 'config_sensorless', 0x0C, True, (6, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 7), 0xFF),
     0x0C: CanLayout(0x0C, 'gamma_node', 0x28, False, (7, 8, 6), 0x02),
+    0x0D: CanLayout(0x0D, 'stop_at', 0x2B, False, (5,), 0xFF),
 }
 
 # function code -> (message id, frame index), direct messages only
@@ -93,4 +94,5 @@ BY_FUNC = {
     0x28: (0x0C, 0),
     0x29: (0x0C, 1),
     0x2A: (0x0C, 2),
+    0x2B: (0x0D, 0),
 }

@@ -6,7 +6,7 @@ import struct
 from typing import NamedTuple
 
 PROTOCOL_VERSION = 2
-SCHEMA_HASH = 0xA60E78B7
+SCHEMA_HASH = 0xF9094F1D
 MAX_PAYLOAD = 111  # octets
 
 # wire type: (struct code, octets, min, max); min/max are None for f32
@@ -387,6 +387,9 @@ MESSAGES = (
         FieldSpec('g_dq', 'f32', 1, None, 10),
         FieldSpec('g_qd', 'f32', 1, None, 14),
     ), struct.Struct('<Hffff')),
+    MessageSpec(0x0D, 'stop_at', 'h2d', False, 4, (
+        FieldSpec('tick', 'u32', 1, None, 0),
+    ), struct.Struct('<I')),
 )
 
 BY_ID = {m.id: m for m in MESSAGES}
@@ -417,3 +420,4 @@ ID_SIM_TRUTH = 0xA0
 ID_TELEM_EST = 0x95
 ID_CONFIG_SENSORLESS = 0x0B
 ID_GAMMA_NODE = 0x0C
+ID_STOP_AT = 0x0D
