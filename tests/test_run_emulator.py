@@ -110,3 +110,8 @@ def test_host_stop_ends_the_run_cleanly(data, tmp_path):
     assert result.state == "idle"
     tel = read_log(out).topic("/pmsm/telemetry")
     assert abs(tel["speed_rpm"][-1]) < 5.0
+    # the device stopped itself at 1.2 s of device time (stop_at), not when the host read it:
+    # the reference holds 300 r/min up to 1.2 s and ramps down from there
+    t, ref = np.asarray(tel["t_s"]), np.asarray(tel["speed_ref_rpm"])
+    t_down = float(t[np.argmax((t > 1.1) & (ref < 299.0))])
+    assert 1.2 <= t_down <= 1.2 + 0.002, t_down
