@@ -273,6 +273,12 @@ void pl_apparent_ld_step(plant_t *p)
     double psi_d, psi_q, l[4];
     const int n_blk = (int)(PL_APP_BLOCK_S * p->inv_ts + 0.5);
     map_eval(p->cfg.map, p->i_d_a, p->i_q_a, &psi_d, &psi_q, l);
+    p->map_memo_ok = 1; /* the map at these currents, for the next period's first stage */
+    p->map_memo_id = p->i_d_a;
+    p->map_memo_iq = p->i_q_a;
+    p->map_memo_pd = psi_d;
+    p->map_memo_pq = psi_q;
+    memcpy(p->map_memo_l, l, sizeof l);
     if (p->inv_r_fe > 0.0) { /* the flux of the magnetising current (mag_at), without harmonics */
         const double we = (double)p->cfg.pole_pairs * p->omega_m_rad_s;
         const double ifd = -we * psi_q * p->inv_r_fe;

@@ -168,6 +168,10 @@ typedef struct {
     int app_n;
     double app_blk_i, app_blk_psi, app_blk_iq, app_blk_psiq;
     double app_s0, app_si, app_sp, app_sii, app_sip, app_sq, app_spq;
+    /* the flux map at the end-of-period currents, evaluated for the apparent L_d: the next
+     * period's first RK4 stage asks for it again (mag_gen takes it from here) */
+    int map_memo_ok;
+    double map_memo_id, map_memo_iq, map_memo_pd, map_memo_pq, map_memo_l[4];
 } plant_t;
 
 typedef struct {

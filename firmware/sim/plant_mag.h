@@ -38,7 +38,14 @@ PL_INLINE void mag_gen(const plant_t *p, double id, double iq, double c, double 
     m->dpsi_q_dth_wb = 0.0;
     m->t_extra_nm = 0.0;
     if (p->cfg.map != NULL) {
-        map_eval(p->cfg.map, id, iq, &m->psi_d_wb, &m->psi_q_wb, l);
+        if (p->map_memo_ok && id == p->map_memo_id && iq == p->map_memo_iq) {
+            /* the same evaluation, done at the end of the last period (pl_apparent_ld_step) */
+            m->psi_d_wb = p->map_memo_pd;
+            m->psi_q_wb = p->map_memo_pq;
+            memcpy(l, p->map_memo_l, sizeof l);
+        } else {
+            map_eval(p->cfg.map, id, iq, &m->psi_d_wb, &m->psi_q_wb, l);
+        }
         m->psi_d_wb += p->psi_shift_wb;
     } else {
         m->psi_d_wb = p->l_d_h * id + p->psi_f_wb;
