@@ -81,7 +81,7 @@ typedef struct {
 } fw_stop_t;
 
 /* The telemetry streams' phases: tick % div for the fast, params, status and estimator frames,
- * carried from period to period instead of a division each (fw_msg.c). */
+ * set at a run's start and carried from period to period instead of a division each (fw_msg.c). */
 enum {
     FW_TEL_FAST = 0,
     FW_TEL_PARAMS,
@@ -90,7 +90,6 @@ enum {
     FW_TEL_N
 };
 typedef struct {
-    uint32_t tick;          /* the tick the phases below belong to */
     uint16_t div[FW_TEL_N]; /* the dividers they were taken with */
     uint16_t ph[FW_TEL_N];  /* tick % div[k] (0 for a stream that is off) */
     uint16_t at[FW_TEL_N];  /* the phase a frame goes out at, % div[k] (fast, status, est) */

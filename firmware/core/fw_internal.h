@@ -52,6 +52,7 @@ void fw_send_identify(fw_t *f);
 void fw_send_capture_chunk(fw_t *f, uint16_t offset);
 void fw_send_status(fw_t *f);
 void fw_send_params(fw_t *f, uint16_t slot);
+void fw_tel_start(fw_t *f); /* the telemetry streams' phases of tick 0 (fw_start_run) */
 void fw_send_telemetry(fw_t *f);
 
 /* fw_snl.c: the sensorless estimator's configuration from the host's frames (or defaults) */

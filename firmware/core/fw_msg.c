@@ -215,52 +215,41 @@ static void send_est(fw_t *f)
     (void)fw_send(f, PROTO_ID_TELEM_EST, f->link.payload_buf, n);
 }
 
-/* The streams' phases for this tick: carried from the last period (no division: the C28x has no
- * integer divider, % is a library call of some 100 cycles), taken by % again only when the tick or
- * a divider changed other than by one period, and at the tick's wrap (2^32 is no multiple of a
- * divider). */
-static void tel_phases(fw_t *f, const uint16_t div[FW_TEL_N])
+/* The streams' phases at a run's start (tick 0; the dividers cannot change while a run is active,
+ * config_ctrl answers busy), then carried from period to period: no division per period (the
+ * C28x has no integer divider, % is a library call of some 100 cycles). */
+void fw_tel_start(fw_t *f)
 {
+    const proto_config_ctrl_t *c = &f->ctrl;
     fw_tel_phase_t *t = &f->tel;
-    uint16_t k;
-    bool same = t->tick == f->tick && f->tick != 0u;
-    for (k = 0u; k < FW_TEL_N; k++) {
-        same = same && t->div[k] == div[k];
-    }
-    if (same) {
-        return;
-    }
-    for (k = 0u; k < FW_TEL_N; k++) {
-        t->div[k] = div[k];
-        t->ph[k] = (uint16_t)(div[k] != 0u ? f->tick % div[k] : 0u);
-    }
+    t->div[FW_TEL_FAST] = c->fast_div;
+    t->div[FW_TEL_PARAMS] = c->params_div;
+    t->div[FW_TEL_STATUS] = c->status_div;
+    t->div[FW_TEL_EST] = c->est_div;
+    memset(t->ph, 0, sizeof(t->ph));
     t->at[FW_TEL_FAST] = 0u;
-    t->at[FW_TEL_STATUS] =
-        (uint16_t)(div[FW_TEL_STATUS] != 0u ? FW_PHASE_STATUS % div[FW_TEL_STATUS] : 0u);
-    t->at[FW_TEL_EST] = (uint16_t)(div[FW_TEL_EST] != 0u ? FW_PHASE_EST % div[FW_TEL_EST] : 0u);
-    t->tick = f->tick;
+    t->at[FW_TEL_PARAMS] = 0u; /* unused: params go out in slots from FW_PHASE_PARAMS */
+    t->at[FW_TEL_STATUS] = (uint16_t)(c->status_div != 0u ? FW_PHASE_STATUS % c->status_div : 0u);
+    t->at[FW_TEL_EST] = (uint16_t)(c->est_div != 0u ? FW_PHASE_EST % c->est_div : 0u);
 }
 
-/* the phases of the next tick */
+/* the phases of the next tick (all 0 again where the tick wraps: 2^32 is no multiple of a
+ * divider, and tick % div starts again there) */
 static void tel_advance(fw_t *f)
 {
     fw_tel_phase_t *t = &f->tel;
     uint16_t k;
     for (k = 0u; k < FW_TEL_N; k++) {
-        if (t->div[k] != 0u) {
-            t->ph[k] = (uint16_t)(t->ph[k] + 1u >= t->div[k] ? 0u : t->ph[k] + 1u);
-        }
+        t->ph[k] =
+            (uint16_t)(t->ph[k] + 1u >= t->div[k] || f->tick == 0xFFFFFFFFu ? 0u : t->ph[k] + 1u);
     }
-    t->tick = f->tick + 1u;
 }
 
 void fw_send_telemetry(fw_t *f)
 {
     const proto_config_ctrl_t *c = &f->ctrl;
-    const uint16_t div[FW_TEL_N] = { c->fast_div, c->params_div, c->status_div, c->est_div };
     const uint16_t *ph = f->tel.ph;
     uint16_t n;
-    tel_phases(f, div);
     if (c->fast_div != 0u && ph[FW_TEL_FAST] == f->tel.at[FW_TEL_FAST]) {
         proto_telem_fast_t t;
         t.tick = f->tick;

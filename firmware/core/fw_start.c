@@ -140,6 +140,7 @@ uint16_t fw_start_run(fw_t *f)
     f->faults = 0u;
     f->commissioning = false;
     f->tick = 0u;
+    fw_tel_start(f);
     f->hb_isr = f->isr_count;
     f->hb_lost = false;
     f->state = PROTO_STATE_RUNNING;
