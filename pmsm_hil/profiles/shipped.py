@@ -80,11 +80,9 @@ def resolve(name: str | os.PathLike, kind: str) -> str:
     text = os.fspath(name)
     if os.path.isfile(text):
         return text
-    sub, suffix = KINDS[kind]
     if os.sep not in text and "/" not in text:
-        stem = text[: -len(suffix)] if text.endswith(suffix) else text
-        candidate = _root(kind) / sub / f"{stem}{suffix}"
-        if candidate.is_file():
+        candidate = _shipped_named(text, kind)
+        if candidate is not None:
             return str(candidate)
         names = ", ".join(p.stem for p in shipped(kind))
         raise ProfileError(
@@ -107,10 +105,15 @@ def in_file(path: str, ref: str, kind: str) -> tuple[str, str | None]:
     with a note that says so; else the path (its loader reports it)."""
     if os.path.exists(path):
         return path, None
-    sub, suffix = KINDS[kind]
-    base = os.path.basename(ref)
-    stem = base[: -len(suffix)] if base.endswith(suffix) else base
-    candidate = _root(kind) / sub / f"{stem}{suffix}"
-    if stem and candidate.is_file():
-        return str(candidate), f"nothing at {path}: the shipped {kind} {stem!r} is used"
+    candidate = _shipped_named(os.path.basename(ref), kind)
+    if candidate is not None:
+        return str(candidate), f"nothing at {path}: the shipped {kind} {candidate.stem!r} is used"
     return path, None
+
+
+def _shipped_named(name: str, kind: str) -> Path | None:
+    """The shipped file of that kind called ``name`` (with or without its suffix), or None."""
+    sub, suffix = KINDS[kind]
+    stem = name[: -len(suffix)] if name.endswith(suffix) else name
+    candidate = _root(kind) / sub / f"{stem}{suffix}"
+    return candidate if stem and candidate.is_file() else None
