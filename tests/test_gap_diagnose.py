@@ -111,9 +111,13 @@ def test_dead_time_found_with_its_size_and_closure(logs, motor):
     said: list[str] = []
     res = diagnose(load_record(logs["dead_time"]), motor, progress=said.append)
     assert res["selected"][:1] == ["dead_time"]
-    # what a long diagnosis's status line shows: every candidate of every step, then the last fits
-    n_cand = sum(1 for m in said if m.startswith("step 1: "))
-    assert n_cand >= 5 and "step 1: dead_time (candidate" in " ".join(said)
+    # what a long diagnosis's status line shows: each step, every candidate as its fit ends, then
+    # the last fits
+    step1 = [m for m in said if m.startswith("step 1: ")]
+    n_cand = len(step1) - 1
+    assert n_cand >= 5 and step1[0] == f"step 1: fitting {n_cand} candidates"
+    assert any(m.startswith("step 1: dead_time fitted (") for m in step1)
+    assert step1[-1].endswith(f"({n_cand} of {n_cand} candidates)")
     assert any(m.startswith("step 2: dead_time + ") for m in said)
     assert said.index(next(m for m in said if m.startswith("final fit: dead_time"))) > n_cand
     e = res["effects"][0]
@@ -122,6 +126,16 @@ def test_dead_time_found_with_its_size_and_closure(logs, motor):
     assert e["interval"][0] <= 1.5e-6 * 1.15 and e["interval"][1] >= 1.5e-6 * 0.85
     assert res["closure"]["closure"] > 0.8
     assert res["discretisation_gap"]["excess_v2"] > 0
+
+
+def test_the_same_diagnosis_with_fits_side_by_side(logs, motor):
+    """--workers 2 runs the candidate fits of each step in two processes: the diagnosis is the same,
+    bit for bit, as in one (every fit runs with one BLAS thread, wherever it runs)."""
+    rec = load_record(logs["delay"])
+    one = diagnose(rec, motor, workers=1)
+    two = diagnose(rec, motor, workers=2)
+    assert one["selected"][:1] == ["delay"]
+    assert json.dumps(two, sort_keys=True) == json.dumps(one, sort_keys=True)
 
 
 def test_encoder_offset_found(logs, motor):
@@ -212,3 +226,51 @@ def test_verify_reruns_the_logs_profile(tmp_path, capsys):
     assert nominal["signals"]["u_q_v"]["rms_nominal"] > 0.5
     assert main(["gap", "verify", str(real), "--rig", str(rig), "--seed", "4"]) == 0
     assert "closure" in capsys.readouterr().out
+
+
+def test_ctrl_c_stops_the_diagnosis_and_its_fit_processes(tmp_path):
+    """Ctrl-C during a long diagnosis (a lab-typical record, about a minute): one line and 130,
+    no traceback, and the fit processes end with it."""
+    import os
+    import signal
+    import time
+
+    log = tmp_path / "real.mcap"
+    cli = [sys.executable, "-m", "pmsm_hil.cli.main", "gap"]
+    rig = str(ROOT / "profiles/rigs/lab-typical.yaml")
+    rec = [*cli, "record", str(ROOT / "profiles/diagnose.yaml"), "--rig", rig, "-o", str(log)]
+    subprocess.run(rec, check=True, capture_output=True, cwd=tmp_path)
+    # Ctrl-C's KeyboardInterrupt installed explicitly (a shell's background job passes SIGINT
+    # ignored, and Python then keeps it so)
+    interruptible = (
+        "import runpy, signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
+        "sys.argv = sys.argv[1:]; runpy.run_module('pmsm_hil.cli.main', run_name='__main__')"
+    )
+    p = subprocess.Popen(
+        [sys.executable, "-c", interruptible, "pmsm-hil", "gap", str(log), "--workers", "2"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=tmp_path,
+        start_new_session=True,
+    )
+
+    def children() -> list[int]:
+        out = subprocess.run(["pgrep", "-P", str(p.pid)], capture_output=True, text=True).stdout
+        return [int(x) for x in out.split()]
+
+    deadline = time.monotonic() + 60
+    while len(children()) < 2 and time.monotonic() < deadline and p.poll() is None:
+        time.sleep(0.1)
+    kids = children()
+    assert len(kids) >= 2, "the diagnosis should have started its fit processes"
+    time.sleep(3.0)  # into the forward selection
+    assert p.poll() is None
+    os.killpg(p.pid, signal.SIGINT)  # the group: what the terminal does
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == 130, err
+    assert "pmsm-hil gap: interrupted" in err and "Traceback" not in err
+    deadline = time.monotonic() + 30
+    while any(os.path.exists(f"/proc/{c}") for c in kids) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not any(os.path.exists(f"/proc/{c}") for c in kids)

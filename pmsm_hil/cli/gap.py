@@ -1,6 +1,6 @@
 """`pmsm-hil gap`: sim-to-real gap diagnosis (docs/gap.md).
 
-pmsm-hil gap LOG.mcap --motor M.yaml [--json] [--report DIR] [--holdout LOG2.mcap]
+pmsm-hil gap LOG.mcap --motor M.yaml [--json] [--report DIR] [--holdout LOG2.mcap] [--workers W]
 pmsm-hil gap augment LOG.mcap [--motor M.yaml] -o fitted-rig.yaml
 pmsm-hil gap record PROFILE.yaml --rig RIG.yaml -o real.mcap [--seed N]   (emulator, continuous)
 pmsm-hil gap selftest --trials N --seed S [--workers W] [--scheduler ADDR] [-o DIR] [--json]
@@ -55,7 +55,8 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         "--workers",
         type=int,
         default=None,
-        help="selftest: worker processes of the local Dask cluster (default: CPUs)",
+        help="processes: the diagnosis's candidate fits side by side (the same result for any "
+        "number); selftest: workers of the local Dask cluster (default: CPUs)",
     )
     p.add_argument(
         "--scheduler",
@@ -102,7 +103,9 @@ def _diagnose(args, path):
             "must be control-rate too"
         )
     with _status(not args.json, f"gap: {path}") as say:
-        return diagnose(rec, m, holdout=hold, seed=args.seed, progress=say), m, rec
+        workers = args.workers or os.cpu_count() or 1
+        res = diagnose(rec, m, holdout=hold, seed=args.seed, progress=say, workers=workers)
+        return res, m, rec
 
 
 @contextlib.contextmanager

@@ -74,6 +74,11 @@ def main(argv: list[str] | None = None) -> int:
     _quiet_libraries()
     try:
         return COMMANDS[args.command].main(args)
+    except KeyboardInterrupt:
+        # Ctrl-C in a command without its own handling (run, sweep and commission stop the motor
+        # or keep the journal and say so themselves): one line, not a traceback
+        print(f"pmsm-hil {args.command}: interrupted", file=sys.stderr)
+        return 130
     except BrokenPipeError:
         # the reader of our output went away (`| head`): the work itself has ended cleanly
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())

@@ -13,6 +13,7 @@ from pmsm_hil.gap.fit import bootstrap_closure, fit_effects
 from pmsm_hil.gap.maps import residual_maps
 from pmsm_hil.gap.model import MotorModel
 from pmsm_hil.gap.noise import floor_from_data, floor_from_spec
+from pmsm_hil.gap.pool import FitJob, FitPool, one_blas_thread
 from pmsm_hil.gap.probe import Probe, mse
 from pmsm_hil.gap.record import ControlRecord
 from pmsm_hil.gap.views import view_effects
@@ -64,11 +65,28 @@ def diagnose(
     seed: int = 0,
     candidates: Sequence[str] | None = None,
     progress: Callable[[str], None] | None = None,
+    workers: int = 1,
 ) -> dict:
-    """``progress``: told what the diagnosis is doing (each candidate fit of the forward selection,
-    the final fits), for a long diagnosis's status line."""
-    say = progress or (lambda _msg: None)
+    """``progress``: told what the diagnosis is doing (each candidate fit of the forward selection
+    as it ends, the final fits), for a long diagnosis's status line. ``workers``: processes for the
+    fits (the candidates of a forward step side by side; pmsm_hil.gap.pool); the result is the same
+    for any number. BLAS runs on one thread throughout, so that it is the same on any machine."""
     probe = Probe(rec, motor)
+    with one_blas_thread(), FitPool(probe, workers) as pool:
+        return _diagnose(rec, motor, probe, holdout, seed, candidates, progress, pool)
+
+
+def _diagnose(
+    rec: ControlRecord,
+    motor: MotorModel,
+    probe: Probe,
+    holdout: ControlRecord | None,
+    seed: int,
+    candidates: Sequence[str] | None,
+    progress: Callable[[str], None] | None,
+    pool: FitPool,
+) -> dict:
+    say = progress or (lambda _msg: None)
     k = probe.idx
     if len(k) < 200:
         raise ValueError(
@@ -116,20 +134,33 @@ def diagnose(
     ambiguous = []
     fl_guess = floor_arr(r_base)
     floor_mean = float(np.mean(fl_guess))
+    # the parametric gap (best constant R, Ld, Lq, psi_f) does not depend on the selection: its fit
+    # runs beside the selection's
+    par_fit = pool.submit(FitJob(("parameters",), tr_sub, 40, blocks=blk[tr_sub], test=te_sel))
+    took: dict[str, float] = {}
     while len(chosen) < MAX_EFFECTS:
         rows = []
         todo = [c for c in candidates if c not in chosen]
-        for n_c, c in enumerate(todo):
+        jobs = [
+            FitJob((*chosen, c), tr_sub, 12 * (len(EFFECTS[c].params) + 1), warm, test=te_sel)
+            for c in todo
+        ]
+
+        def ended(j: int, n_done: int, todo: list[str] = todo) -> None:
             say(
-                f"step {len(chosen) + 1}: {' + '.join([*chosen, c])} "
-                f"(candidate {n_c + 1} of {len(todo)})"
+                f"step {len(chosen) + 1}: {' + '.join([*chosen, todo[j]])} fitted "
+                f"({n_done} of {len(todo)} candidates)"
             )
-            f = fit_effects(
-                probe, [*chosen, c], tr_sub, warm=warm, max_nfev=12 * (len(EFFECTS[c].params) + 1)
-            )
-            if not np.isfinite(f.cost):
+
+        say(f"step {len(chosen) + 1}: fitting {len(todo)} candidates")
+        # the longest fits first (a candidate's time in the step before, or its parameter count)
+        cost = [took.get(c, len(EFFECTS[c].params)) for c in todo]
+        fitted = pool.map(jobs, ended, cost)
+        took = dict(zip(todo, pool.seconds, strict=True))
+        for c, (f, r_fit) in zip(todo, fitted, strict=True):
+            if r_fit is None:  # the fit failed (non-finite residuals)
                 continue
-            r_te = probe.residual(f.effects(), te_sel)
+            r_te = r_fit
             st = bootstrap_closure(
                 cur_test, r_te, fl_guess[te_sel], blk[te_sel], n_boot=200, seed=seed
             )
@@ -158,7 +189,15 @@ def diagnose(
 
     say(f"final fit: {' + '.join(chosen) or 'no effect'} on every training block")
     final = (
-        fit_effects(probe, chosen, tr_sel, warm=warm, blocks=blk[tr_sel], max_nfev=80)
+        fit_effects(
+            probe,
+            chosen,
+            tr_sel,
+            warm=warm,
+            blocks=blk[tr_sel],
+            max_nfev=80,
+            workers=pool.columns(),
+        )
         if chosen
         else None
     )
@@ -190,8 +229,8 @@ def diagnose(
     )
     # parametric gap (separately): best constant R, Ld, Lq, psi_f on the nominal model
     say("parametric gap: best constant R, L_d, L_q, psi_f")
-    pf = fit_effects(probe, ["parameters"], tr_sub, blocks=blk[tr_sub], max_nfev=40)
-    r_par = probe.residual(pf.effects(), te_sel)
+    pf, r_par_fit = par_fit.result()
+    r_par = r_par_fit if r_par_fit is not None else probe.residual(pf.effects(), te_sel)
     pc = bootstrap_closure(r_base[te_sel], r_par, floor[te_sel], blk[te_sel], n_boot=200, seed=seed)
     par_scale = [float(v) for v in pf.x["parameters"]]
     out["parametric_gap"] = {
@@ -208,7 +247,9 @@ def diagnose(
         lo_r = np.nonzero(train & (sp <= np.median(sp)))[0]
         hi_r = np.nonzero(test & (sp > np.median(sp)))[0]
         if len(lo_r) > 100 and len(hi_r) > 100:
-            fr = fit_effects(probe, chosen, lo_r[::2], warm=final.x, max_nfev=40)
+            fr = fit_effects(
+                probe, chosen, lo_r[::2], warm=final.x, max_nfev=40, workers=pool.columns()
+            )
             cr = bootstrap_closure(
                 r_base[hi_r],
                 probe.residual(fr.effects(), hi_r),

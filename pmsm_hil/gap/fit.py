@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import TypedDict
 
@@ -45,6 +45,41 @@ def _split(names, v):
     return out
 
 
+_WORKER: dict[str, Probe] = {}  # the probe of a worker process of pmsm_hil.gap.pool
+
+
+def set_worker_probe(probe: Probe) -> None:
+    """The probe of this (worker) process: fits sent here, and ``Objective``s, evaluate on it."""
+    _WORKER["probe"] = probe
+
+
+def worker_probe() -> Probe:
+    probe = _WORKER.get("probe")
+    if probe is None:
+        raise RuntimeError("a fit sent to a process that holds no probe (set_worker_probe)")
+    return probe
+
+
+class Objective:
+    """The residual vector of the named effects at parameters z on the transitions idx[sel]. It
+    pickles without its probe (a map-like ``workers`` sends it to processes that hold the probe:
+    ``set_worker_probe``), so that the finite-difference columns of a fit's Jacobian can be
+    evaluated side by side."""
+
+    def __init__(self, probe: Probe, names: tuple[str, ...], sel: np.ndarray | None):
+        self.probe, self.names, self.sel = probe, names, sel
+
+    def __call__(self, z: np.ndarray) -> np.ndarray:
+        effects = [(LIB[n], v) for n, v in _split(self.names, z).items()]
+        return self.probe.residual(effects, self.sel).ravel()
+
+    def __getstate__(self) -> dict:
+        return {"names": self.names, "sel": self.sel}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__init__(worker_probe(), state["names"], state["sel"])  # type: ignore[misc]
+
+
 def fit_effects(
     probe: Probe,
     names: Iterable[str],
@@ -52,9 +87,12 @@ def fit_effects(
     warm: dict | None = None,
     blocks: np.ndarray | None = None,
     max_nfev: int = 60,
+    workers: Callable | None = None,
 ) -> Fit:
     """Least-squares fit of the named effects' parameters on the transitions idx[sel]. ``blocks``
-    (block id per selected transition) gives cluster-robust standard errors."""
+    (block id per selected transition) gives cluster-robust standard errors. ``workers``: a
+    map-like callable for the Jacobian's columns (processes that hold the probe; the same result
+    as without)."""
     names = tuple(names)
     if not names:
         return Fit((), {}, {}, float(np.mean(probe.residual((), sel) ** 2)))
@@ -73,8 +111,7 @@ def fit_effects(
                     alt[j] = np.asarray(s, float)
                     yield np.concatenate(alt)
 
-    def fun(z):
-        return probe.residual([(LIB[n], v) for n, v in _split(names, z).items()], sel).ravel()
+    fun = Objective(probe, names, sel)
 
     best = None
     for x0 in starts():
@@ -89,6 +126,7 @@ def fit_effects(
                 max_nfev=max_nfev,
                 method="trf",
                 tr_solver="lsmr" if len(x0) > 1 else "exact",
+                workers=workers,
             )
         except ValueError:
             continue

@@ -54,6 +54,7 @@ class Probe:
         # correlated with the current, which would read as a resistance error)
         self.omega = speed_from_angle(rec.theta_e_rad, rec.omega_e_rad_s, rec.runs, rec.ts_s)
         self._u_cache: list = []  # u_at's last results
+        self._last_i_abc: np.ndarray | None = None  # the last evaluation's currents (work)
 
     # ------------------------------------------------------------------ evaluation
     def work(self, effects: Iterable[tuple[Effect, np.ndarray]]) -> Work:
@@ -71,6 +72,15 @@ class Probe:
         ctx = _Ctx(self.ts_s, self.m)
         for eff, x in sorted(effects, key=lambda ex: STAGE_ORDER[ex[0].stage]):
             eff.apply(w, x, ctx)
+        # An effect on the sensors (gain, offsets) makes new currents at every evaluation; the same
+        # values as the last evaluation's become that array again, so that u_at's cache (keyed by
+        # the arrays' identity) serves a fit's columns that move only other parameters
+        last = self._last_i_abc
+        if w.i_abc is not rec.i_abc:
+            if last is not None and last.shape == w.i_abc.shape and np.array_equal(last, w.i_abc):
+                w.i_abc = last
+            else:
+                self._last_i_abc = w.i_abc
         return w
 
     def u_at(self, w: Work, rows: np.ndarray) -> np.ndarray:

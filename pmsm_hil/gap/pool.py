@@ -1,0 +1,201 @@
+"""The gap diagnosis's fits side by side: the candidate fits of a forward-selection step are
+independent, so they run in a pool of worker processes (docs/gap.md, "Time").
+
+    with FitPool(probe, workers=2) as pool:
+        fits = pool.map([FitJob(("saturation",), tr_sub, test=te_sel), ...])
+
+Each worker holds the probe (sent once, when it starts) and fits one job at a time. Every fit, in a
+worker or in this process, runs with its BLAS on one thread (``one_blas_thread``): the numerics
+are then the same bits whatever the machine's core count and whatever the number of workers, so
+``pmsm-hil gap --workers 1`` and ``--workers 2`` print the same diagnosis (tested). With
+``workers <= 1`` there is no pool: the jobs run here, in order, when their result is asked for.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import pickle
+import signal
+import tempfile
+import time
+from collections.abc import Callable, Iterator
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from contextlib import AbstractContextManager
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from threadpoolctl import threadpool_limits
+
+from pmsm_hil.gap.fit import Fit, fit_effects, set_worker_probe, worker_probe
+
+if TYPE_CHECKING:
+    from pmsm_hil.gap.probe import Probe
+
+__all__ = ["FitJob", "FitPool", "Pending", "one_blas_thread"]
+
+
+def one_blas_thread() -> AbstractContextManager[Any]:
+    """BLAS (numpy's and scipy's) on one thread while the context lasts: a fit's sums are then
+    split the same way on any machine (several threads split a matrix product by core count, and
+    the last bits of a fit move with it)."""
+    return threadpool_limits(1, user_api="blas")
+
+
+@dataclass(frozen=True)
+class FitJob:
+    """One least-squares fit of ``names`` on the transitions ``sel`` (see fit_effects); with
+    ``test``, also the fitted model's residual on those transitions."""
+
+    names: tuple[str, ...]
+    sel: np.ndarray
+    max_nfev: int = 60
+    warm: dict = field(default_factory=dict)
+    blocks: np.ndarray | None = None
+    test: np.ndarray | None = None
+
+
+def run_job(probe: Probe, job: FitJob) -> tuple[Fit, np.ndarray | None]:
+    """The job's fit, and its residual on ``job.test`` (None when no test is asked for or the fit
+    failed)."""
+    f = fit_effects(
+        probe, job.names, job.sel, warm=job.warm, blocks=job.blocks, max_nfev=job.max_nfev
+    )
+    r = None
+    if job.test is not None and np.isfinite(f.cost):
+        r = probe.residual(f.effects(), job.test)
+    return f, r
+
+
+def _start_worker(probe_file: str) -> None:
+    with open(probe_file, "rb") as f:
+        set_worker_probe(pickle.load(f))
+    # Ctrl-C goes to the whole process group: the diagnosing process stops the pool
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    threadpool_limits(1, user_api="blas")
+
+
+def _work(job: FitJob) -> tuple[Fit, np.ndarray | None, float]:
+    t0 = time.perf_counter()
+    f, r = run_job(worker_probe(), job)
+    return f, r, time.perf_counter() - t0
+
+
+class _Later:
+    """A job to run in this process when its result is first asked for (no pool)."""
+
+    def __init__(self, fn: Callable[[], tuple[Fit, np.ndarray | None]]):
+        self._fn = fn
+        self._value: tuple[Fit, np.ndarray | None, float] | None = None
+
+    def result(self) -> tuple[Fit, np.ndarray | None, float]:
+        if self._value is None:
+            t0 = time.perf_counter()
+            with one_blas_thread():
+                f, r = self._fn()
+            self._value = (f, r, time.perf_counter() - t0)
+        return self._value
+
+
+class Pending:
+    """A submitted job: ``result()`` waits for it (its fit and test residual)."""
+
+    def __init__(self, task: Future[tuple[Fit, np.ndarray | None, float]] | _Later):
+        self.task = task
+
+    def result(self) -> tuple[Fit, np.ndarray | None]:
+        f, r, _ = self.task.result()
+        return f, r
+
+
+class FitPool:
+    """``workers`` processes for the fits (a context manager; ``workers <= 1``: none)."""
+
+    def __init__(self, probe: Probe, workers: int = 1):
+        self.probe = probe
+        self.workers = max(int(workers), 1)
+        self.seconds: list[float] = []  # each job's time in the last map()
+        self._ex: ProcessPoolExecutor | None = None
+        self._dir: tempfile.TemporaryDirectory[str] | None = None
+        if self.workers > 1:
+            # The probe goes to the workers through a file: handed over as the initializer's
+            # argument it would fill the pipe to a child that is still importing numpy, and this
+            # process would wait for it (1.4 s on a 2 s record)
+            self._dir = tempfile.TemporaryDirectory(prefix="pmsm-hil-gap-")
+            path = os.path.join(self._dir.name, "probe.pickle")
+            with open(path, "wb") as f:
+                pickle.dump(probe, f, protocol=pickle.HIGHEST_PROTOCOL)
+            # spawn, not fork: the diagnosing process may hold threads (a status line, a live
+            # view), and a forked child would inherit their locks
+            self._ex = ProcessPoolExecutor(
+                self.workers,
+                mp_context=multiprocessing.get_context("spawn"),
+                initializer=_start_worker,
+                initargs=(path,),
+            )
+            for _ in range(self.workers):  # start them now: they load while the base residuals run
+                self._ex.submit(int)
+
+    def __enter__(self) -> FitPool:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close(cancel=exc[0] is not None)
+
+    def close(self, cancel: bool = False) -> None:
+        if self._ex is not None:
+            self._ex.shutdown(wait=not cancel, cancel_futures=cancel)
+            self._ex = None
+        if self._dir is not None:
+            self._dir.cleanup()
+            self._dir = None
+
+    def columns(self) -> Callable | None:
+        """A map-like callable over the workers, for a fit's Jacobian columns in this process
+        (``fit_effects(workers=...)``); None without a pool."""
+        if self._ex is None:
+            return None
+        ex = self._ex
+        return lambda fn, items: list(ex.map(fn, items))
+
+    def submit(self, job: FitJob) -> Pending:
+        """Start ``job`` (in a worker; without a pool, when its result is asked for)."""
+        return Pending(self._task(job))
+
+    def _task(self, job: FitJob) -> Future[tuple[Fit, np.ndarray | None, float]] | _Later:
+        if self._ex is None:
+            return _Later(lambda: run_job(self.probe, job))
+        return self._ex.submit(_work, job)
+
+    def map(
+        self,
+        jobs: list[FitJob],
+        done: Callable[[int, int], None] | None = None,
+        cost: list[float] | None = None,
+    ) -> list[tuple[Fit, np.ndarray | None]]:
+        """The jobs' results in the order of ``jobs``; ``done(j, n_done)`` after each job ends
+        (in the order they end). ``cost``: each job's expected time, to start the longest first
+        (the step ends sooner; the results do not depend on it). ``seconds`` then holds each
+        job's time."""
+        order = sorted(range(len(jobs)), key=lambda j: -cost[j]) if cost else range(len(jobs))
+        tasks = {j: self._task(jobs[j]) for j in order}
+        out: dict[int, tuple[Fit, np.ndarray | None, float]] = {}
+        for n, j in enumerate(self._in_finish_order(tasks)):
+            out[j] = tasks[j].result()
+            if done is not None:
+                done(j, n + 1)
+        self.seconds = [out[j][2] for j in range(len(jobs))]
+        return [out[j][:2] for j in range(len(jobs))]
+
+    @staticmethod
+    def _in_finish_order(tasks: dict) -> Iterator[int]:
+        pending = {t: j for j, t in tasks.items() if isinstance(t, Future)}
+        for j, t in tasks.items():  # jobs run here: in order
+            if not isinstance(t, Future):
+                t.result()
+                yield j
+        while pending:
+            finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+            for t in sorted(finished, key=lambda t: pending[t]):
+                yield pending.pop(t)
