@@ -78,6 +78,7 @@ class HilRun:
         return all(c.passed for c in self.checks)
 
     def assert_accepted(self) -> None:
+        __tracebackhide__ = True  # pytest shows the user's line, not this one
         failed = [c for c in self.checks if not c.passed]
         if failed:
             lines = [

@@ -86,3 +86,23 @@ def test_the_rig_path_runs_a_profile_over_can(pytester, data):
     )
     r = pytester.runpytest_subprocess("--hil-can", "emulator", "-p", "no:cacheprovider")
     r.assert_outcomes(passed=1)
+
+
+def test_a_failed_acceptance_points_at_the_users_line(pytester, data):
+    """A failing `assert_accepted()` shows the user's test line and the failed bounds, not the
+    plugin's own code."""
+    strict = pytester.path / "strict.yaml"
+    text = (data / "short.yaml").read_text()
+    strict.write_text(text + "\nacceptance:\n  run:\n    recovery_max_s: 0.0001\n")
+    pytester.makepyfile(
+        test_user=f"""
+        def test_strict(hil_device):
+            run = hil_device.run({str(strict)!r})
+            run.assert_accepted()  # THE USER'S LINE
+    """
+    )
+    r = pytester.runpytest_subprocess("-p", "no:cacheprovider")
+    r.assert_outcomes(failed=1)
+    out = r.stdout.str()
+    assert "THE USER'S LINE" in out and "recovery measured" in out and "bound <= 0.0001 s" in out
+    assert "def assert_accepted" not in out and "testing.py" not in out

@@ -137,3 +137,34 @@ def test_a_run_carries_its_motors_flux_map_wherever_it_executes(tmp_path):
         (tmp_path / name).write_text(text, encoding="utf-8")
     prof = load_profile(str(tmp_path / "profile.yaml"))
     assert prof.motor.load_flux_map() is not None
+
+
+def test_a_scheduler_without_workers_is_said_and_a_joining_worker_runs_the_trials(tmp_path, capsys):
+    """Dask waits silently for a worker: the user is told why nothing moves, and the trials run
+    once one joins."""
+    import threading
+
+    from distributed import LocalCluster
+
+    with LocalCluster(
+        n_workers=0,
+        processes=True,
+        host="127.0.0.1",
+        dashboard_address=None,
+        scheduler_kwargs={"dashboard": False},
+    ) as cluster:
+        timer = threading.Timer(2.0, lambda: cluster.scale(1))
+        timer.start()
+        try:
+            res = run_tasks(
+                _square,
+                [{"x": 3, "calls": str(tmp_path)}],
+                name="sq",
+                scheduler=cluster.scheduler_address,
+                progress=False,
+            )
+        finally:
+            timer.cancel()
+    assert res == [{"x": 3, "square": 9, "third": 1.0}]
+    err = capsys.readouterr().err
+    assert "the scheduler has no workers yet" in err and "dask worker tcp://127.0.0.1:" in err

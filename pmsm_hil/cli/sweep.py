@@ -94,7 +94,8 @@ def main(args: argparse.Namespace) -> int:
     print(
         f"{res.ok} ok, {res.failed} failed, {res.skipped} done before"
         + (
-            f"; {res.runs_per_min:.1f} runs/min on {res.workers} workers"
+            f"; {res.runs_per_min:.1f} runs/min on {res.workers} "
+            f"worker{'s' if res.workers != 1 else ''}"
             if res.ok + res.failed
             else ""
         )

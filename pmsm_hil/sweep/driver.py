@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -81,7 +82,15 @@ def _client(scheduler: str | None, workers: int | None):
     from distributed import Client, LocalCluster
 
     if scheduler:
-        return Client(scheduler, timeout="10s"), None
+        client = Client(scheduler, timeout="10s")
+        if not client.scheduler_info().get("workers"):
+            # dask waits for one silently: say why nothing moves
+            print(
+                f"{scheduler}: the scheduler has no workers yet; the runs start when one joins "
+                f"(e.g. `dask worker {scheduler}`)",
+                file=sys.stderr,
+            )
+        return client, None
     dask.config.set(SCHEDULER_CONFIG)
     cluster = LocalCluster(
         n_workers=workers or os.cpu_count() or 1,
