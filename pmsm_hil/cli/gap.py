@@ -55,8 +55,8 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         "--workers",
         type=int,
         default=None,
-        help="processes: the diagnosis's candidate fits side by side (the same result for any "
-        "number); selftest: workers of the local Dask cluster (default: CPUs)",
+        help="the diagnosis: processes for its fits (the same result for any number; default: one "
+        "per core, at most 4); selftest: workers of the local Dask cluster (default: CPUs)",
     )
     p.add_argument(
         "--scheduler",
@@ -103,7 +103,8 @@ def _diagnose(args, path):
             "must be control-rate too"
         )
     with _status(not args.json, f"gap: {path}") as say:
-        workers = args.workers or os.cpu_count() or 1
+        # one per core, at most 4: each holds the record, and the final fit does not divide further
+        workers = args.workers or min(os.cpu_count() or 1, 4)
         res = diagnose(rec, m, holdout=hold, seed=args.seed, progress=say, workers=workers)
         return res, m, rec
 
