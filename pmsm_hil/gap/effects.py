@@ -64,8 +64,9 @@ class Effect:
     starts: tuple[tuple[float, ...], ...] = ()  # further start points for the fit
 
 
-def _sigma(i, i_dt):
-    return np.tanh(i / max(i_dt, 1e-3))
+def current_sign(i_abc: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """The smooth sign of the phase currents that the dead-time model (parameters x) uses."""
+    return np.tanh(i_abc / max(x[2], 1e-3))
 
 
 def _dead_time(w: Work, x, m) -> None:
@@ -82,10 +83,13 @@ def dead_time_dist(
     pwm_on: np.ndarray,
     was_off: np.ndarray,
     ts_s: float,
+    sg: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Pole-voltage distortion (M, 3) of the inverter over a period (dead time and device drop)."""
-    td, v_drop, i_dt = x
-    sg = _sigma(i_abc, i_dt)
+    """Pole-voltage distortion (M, 3) of the inverter over a period (dead time and device drop).
+    ``sg``: current_sign(i_abc, x) if already computed."""
+    td, v_drop, _ = x
+    if sg is None:
+        sg = current_sign(i_abc, x)
     if kind == "switch":
         d = cmd - prev
         d[was_off] = 0.0

@@ -7,7 +7,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from pmsm_hil.gap.effects import EFFECTS, STAGE_ORDER, Effect, Work, dead_time_dist
+from pmsm_hil.gap.effects import EFFECTS, STAGE_ORDER, Effect, Work, current_sign, dead_time_dist
 from pmsm_hil.gap.model import (
     MotorModel,
     PlantTerms,
@@ -114,13 +114,16 @@ class Probe:
     def _u_at(self, w: Work, rows: np.ndarray) -> np.ndarray:
         n_int = int(np.floor(w.pwm_delay))
         frac = w.pwm_delay - n_int
-        u = self._u_int(w, rows, n_int)
+        at_rows: dict = {}  # what both delays' voltages take at the rows (computed once)
+        u = self._u_int(w, rows, n_int, at_rows)
         if frac > 0:
-            u = (1 - frac) * u + frac * self._u_int(w, rows, n_int + 1)
+            u = (1 - frac) * u + frac * self._u_int(w, rows, n_int + 1, at_rows)
         return u
 
-    def _u_int(self, w: Work, rows, n):
-        rs = self.run_start[rows]
+    def _u_int(self, w: Work, rows, n, at_rows: dict):
+        if "rs" not in at_rows:
+            at_rows["rs"] = self.run_start[rows]
+        rs = at_rows["rs"]
         j = np.maximum(rows - n, rs)
         dead = w.extra.get("dead_time")
         if w.cmd is None or dead is None:
@@ -128,12 +131,25 @@ class Probe:
         jp = np.maximum(j - 1, rs)
         cmd, prev = w.cmd[j], w.cmd[jp]
         was_off = (~w.pwm_on[jp]) | (jp == j)
-        i_ab = w.i_abc[rows, :2]  # leg c carries -(i_a + i_b): i_c need not be measured
-        i3 = np.column_stack([i_ab, -i_ab.sum(axis=1)])
+        if "i3" not in at_rows:
+            i_ab = w.i_abc[rows, :2]  # leg c carries -(i_a + i_b): i_c need not be measured
+            at_rows["i3"] = i3 = np.column_stack([i_ab, -i_ab.sum(axis=1)])
+            at_rows["v_dc"] = w.v_dc[rows]
+            at_rows["sg"] = current_sign(i3, dead)
+        v_dc = at_rows["v_dc"]
         dist = dead_time_dist(
-            dead, w.kind, cmd, prev.copy(), i3, w.v_dc[rows], w.pwm_on[j], was_off, self.ts_s
+            dead,
+            w.kind,
+            cmd,
+            prev.copy(),
+            at_rows["i3"],
+            v_dc,
+            w.pwm_on[j],
+            was_off,
+            self.ts_s,
+            sg=at_rows["sg"],
         )
-        v = cmd * w.v_dc[rows][:, None] + dist
+        v = cmd * v_dc[:, None] + dist
         u = np.stack(
             [(2 * v[:, 0] - v[:, 1] - v[:, 2]) / 3.0, (v[:, 1] - v[:, 2]) / np.sqrt(3.0)], axis=1
         )
