@@ -16,7 +16,6 @@ import json
 import os
 import sys
 import tempfile
-import time
 
 from pmsm_hil.cli.errors import fail
 
@@ -117,10 +116,16 @@ def _status(show: bool, title: str):
         yield lambda _msg: None
         return
     from rich.console import Console
+    from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+    from rich.table import Column
 
-    t0 = time.monotonic()
-    with Console(stderr=True).status(title) as st:
-        yield lambda msg: st.update(f"{title}: {msg}  [{time.monotonic() - t0:.0f} s]")
+    # the message takes what the line has left (cut at its end), the time keeps its width
+    text = TextColumn("{task.description}", table_column=Column(ratio=1, no_wrap=True))
+    clock = TimeElapsedColumn(table_column=Column(min_width=7, no_wrap=True))
+    columns = (SpinnerColumn(), clock, text)
+    with Progress(*columns, console=Console(stderr=True), transient=True) as bar:
+        task = bar.add_task(title, total=None)  # the time runs on between the messages
+        yield lambda msg: bar.update(task, description=f"{title}: {msg}")
 
 
 def main(args: argparse.Namespace) -> int:
