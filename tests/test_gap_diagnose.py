@@ -274,3 +274,31 @@ def test_ctrl_c_stops_the_diagnosis_and_its_fit_processes(tmp_path):
     while any(os.path.exists(f"/proc/{c}") for c in kids) and time.monotonic() < deadline:
         time.sleep(0.1)
     assert not any(os.path.exists(f"/proc/{c}") for c in kids)
+
+
+def test_a_fractional_pwm_delay_is_written_whole_and_said(tmp_path, motor):
+    """A rig's PWM update is late by whole periods: the fitted fraction is rounded, and the file
+    says what was dropped when it is more than a twentieth of a period."""
+    from pmsm_hil.gap.rigfile import fitted_rig
+
+    def written(periods: float) -> tuple[dict, str]:
+        res = {
+            "effects": [
+                {
+                    "name": "delay",
+                    "selected": True,
+                    "parameters": {"sample_delay_s": 2e-6, "pwm_delay_periods": periods},
+                }
+            ]
+        }
+        path = tmp_path / f"rig-{periods}.yaml"
+        fitted_rig(res, motor, path)
+        text = path.read_text()
+        return yaml.safe_load(text)["effects"]["delay"], text
+
+    d, text = written(0.43)
+    assert d == {"sample_delay_s": 2e-6, "pwm_delay_periods": 0}
+    assert "# delay: the fitted PWM delay of 0.43 periods is written as 0" in text
+    d, text = written(1.02)
+    assert d["pwm_delay_periods"] == 1 and "# delay:" not in text
+    load_rig(str(tmp_path / "rig-1.02.yaml"))  # a rig file the loader takes

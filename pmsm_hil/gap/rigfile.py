@@ -49,10 +49,16 @@ def fitted_rig(
         p = dict(e.get("parameters") or {})
         n = e["name"]
         if n == "delay":
+            periods = float(p["pwm_delay_periods"])
             p = {
                 "sample_delay_s": max(p["sample_delay_s"], 0.0),
-                "pwm_delay_periods": round(p["pwm_delay_periods"]),
+                "pwm_delay_periods": max(round(periods), 0),
             }
+            if abs(periods - p["pwm_delay_periods"]) > 0.05:
+                notes.append(
+                    f"delay: the fitted PWM delay of {periods:.2f} periods is written as "
+                    f"{p['pwm_delay_periods']} (a rig's PWM update is late by whole periods)"
+                )
         elif n == "encoder":
             p = {
                 "lines": int(spec.get("encoder_lines", 2500) or 2500),
