@@ -226,6 +226,11 @@ def test_verify_reruns_the_logs_profile(tmp_path, capsys):
     assert nominal["signals"]["u_q_v"]["rms_nominal"] > 0.5
     assert main(["gap", "verify", str(real), "--rig", str(rig), "--seed", "4"]) == 0
     assert "closure" in capsys.readouterr().out
+    # a shipped rig by its name, as `gap record --rig` takes it: the true rig, closure 1
+    assert main(["gap", "verify", str(real), "--rig", "effect-dead-time", "--seed", "4"]) == 0
+    assert "free-run closure (median over i_d, i_q, u_d, u_q) 1.00" in capsys.readouterr().out
+    assert main(["gap", "verify", str(real), "--rig", "no-such-rig"]) == 2
+    assert "no-such-rig: is neither a file nor a shipped rig" in capsys.readouterr().err
 
 
 def test_ctrl_c_stops_the_diagnosis_and_its_fit_processes(tmp_path):

@@ -174,10 +174,12 @@ def main(args: argparse.Namespace) -> int:
 
             if not args.rest or not args.rig:
                 return fail("error", "gap verify LOG.mcap --rig fitted-rig.yaml", 2)
-            for f in (args.rest[0], args.rig):
-                if not os.path.exists(f):
-                    return fail("error", f"{f}: no such file", 2)
-            v = verify(args.rest[0], args.rig, seed=args.seed)
+            from pmsm_hil.profiles.shipped import resolve
+
+            if not os.path.exists(args.rest[0]):
+                return fail("error", f"{args.rest[0]}: no such file", 2)
+            # a rig file, or a shipped rig by its name (`--rig lab-typical`), as for `gap record`
+            v = verify(args.rest[0], resolve(args.rig, "rig"), seed=args.seed)
             if args.json:
                 print(json.dumps(v))
             else:
