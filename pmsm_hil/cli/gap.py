@@ -47,7 +47,7 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         help="output file (augment: rig yaml; record: log); selftest: a folder for the "
         "trials' journal (resumable)",
     )
-    p.add_argument("--rig", help="record, verify: the rig file")
+    p.add_argument("--rig", help="record, verify: the rig file (or shipped name)")
     p.add_argument("--trials", type=int, default=20, help="selftest: number of trials")
     p.add_argument("--seed", type=int, default=1, help="selftest / record: seed")
     p.add_argument(
