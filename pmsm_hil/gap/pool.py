@@ -8,7 +8,8 @@ Each worker holds the probe (sent once, when it starts) and fits one job at a ti
 worker or in this process, runs with its BLAS on one thread (``one_blas_thread``): the numerics
 are then the same bits whatever the machine's core count and whatever the number of workers, so
 ``pmsm-hil gap --workers 1`` and ``--workers 2`` print the same diagnosis (tested). With
-``workers <= 1`` there is no pool: the jobs run here, in order, when their result is asked for.
+``workers <= 1`` there is no pool: the jobs run here, one after another, when their results are
+asked for.
 """
 
 from __future__ import annotations
@@ -191,7 +192,7 @@ class FitPool:
     @staticmethod
     def _in_finish_order(tasks: dict) -> Iterator[int]:
         pending = {t: j for j, t in tasks.items() if isinstance(t, Future)}
-        for j, t in tasks.items():  # jobs run here: in order
+        for j, t in tasks.items():  # jobs run here: one after another
             if not isinstance(t, Future):
                 t.result()
                 yield j
