@@ -20,7 +20,7 @@ import pickle
 import signal
 import tempfile
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
@@ -157,8 +157,22 @@ class FitPool:
         (``fit_effects(workers=...)``); None without a pool."""
         if self._ex is None:
             return None
-        ex = self._ex
-        return lambda fn, items: list(ex.map(fn, items))
+        ex, n = self._ex, self.workers
+
+        def columns(fn: Callable, items: Iterable) -> list:
+            # one chunk per worker, the columns dealt out in turn (neighbouring columns cost alike:
+            # a model parameter's reuse the applied voltage, an inverter's do not), so that ``fn``
+            # and its transitions travel once per worker, not once per column
+            xs = list(items)
+            order = [j for w in range(n) for j in range(w, len(xs), n)]
+            size = -(-len(xs) // n)
+            dealt = list(ex.map(fn, [xs[j] for j in order], chunksize=size))
+            out: list = [None] * len(xs)
+            for j, r in zip(order, dealt, strict=True):
+                out[j] = r
+            return out
+
+        return columns
 
     def submit(self, job: FitJob) -> Pending:
         """Start ``job`` (in a worker; without a pool, when its result is asked for)."""
