@@ -4,6 +4,7 @@ keep the heartbeat, and end safely whatever happens (profile end, Ctrl-C, fault,
 from __future__ import annotations
 
 import contextlib
+import math
 import signal
 import threading
 import time
@@ -76,6 +77,10 @@ class RunInterrupted(Exception):
     pass
 
 
+COPPER_ALPHA_PER_K = 0.00393  # temperature coefficient of the winding's resistance
+T_REF_C = 25.0  # the motor file's temperature
+
+
 class PlantMismatch(DeviceError):
     """The emulator serves another motor than the profile's (it was started with other files)."""
 
@@ -86,6 +91,11 @@ def plant_mismatch(motor: Motor, truth: dict[str, Any]) -> str | None:
     out = []
     for key, unit, tol in (("psi_f_wb", "Wb", 0.2), ("r_s_ohm", "ohm", 0.6)):
         nominal, plant = float(getattr(motor, key)), float(truth.get(key, 0.0) or 0.0)
+        temp = float(truth.get("temp_winding_c", 0.0) or 0.0)
+        if key == "r_s_ohm" and temp > 0.0 and math.isfinite(temp):
+            # a winding the rig heats (a thermal effect, a fitted one up to 200 degC) is the
+            # same motor: compare its resistance at the reference temperature
+            plant /= 1.0 + COPPER_ALPHA_PER_K * (temp - T_REF_C)
         if plant and nominal and abs(plant / nominal - 1.0) > tol:
             out.append(
                 f"{key} {plant:.4g} {unit} in the emulator vs {nominal:.4g} {unit} in {motor.name}"

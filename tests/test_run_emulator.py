@@ -115,3 +115,25 @@ def test_host_stop_ends_the_run_cleanly(data, tmp_path):
     t, ref = np.asarray(tel["t_s"]), np.asarray(tel["speed_ref_rpm"])
     t_down = float(t[np.argmax((t > 1.1) & (ref < 299.0))])
     assert 1.2 <= t_down <= 1.2 + 0.002, t_down
+
+
+def test_a_hot_winding_is_the_same_motor_another_motor_is_not():
+    """The host refuses an emulator that serves another motor (its first truth frame against the
+    profile's motor file), but not this motor with a winding a rig heats: a fitted thermal effect
+    can put it at 190 degC, R 1.64 times the motor file's."""
+    from pmsm_hil.profiles import load_motor
+    from pmsm_hil.profiles._base import default_file
+    from pmsm_hil.runner import plant_mismatch
+
+    motor = load_motor(default_file("motors/paper-a-ipmsm.yaml"))
+    hot = 0.9 * (1 + 0.00393 * (188.0 - 25.0))
+    assert (
+        plant_mismatch(motor, {"r_s_ohm": hot, "psi_f_wb": 0.178, "temp_winding_c": 188.0}) is None
+    )
+    assert plant_mismatch(motor, {"r_s_ohm": 0.9, "psi_f_wb": 0.18, "temp_winding_c": 25.0}) is None
+    other = plant_mismatch(motor, {"r_s_ohm": 2.875, "psi_f_wb": 0.175, "temp_winding_c": 25.0})
+    assert other is not None and "r_s_ohm 2.875 ohm in the emulator vs 0.9 ohm" in other
+    # the same resistance at 188 degC reported as cold: not this motor's winding
+    assert plant_mismatch(motor, {"r_s_ohm": hot, "psi_f_wb": 0.18, "temp_winding_c": 25.0})
+    sew = plant_mismatch(motor, {"r_s_ohm": 0.9, "psi_f_wb": 0.0922})
+    assert sew is not None and "psi_f_wb 0.0922 Wb" in sew

@@ -129,6 +129,7 @@ def _status(show: bool, title: str):
 
 
 def main(args: argparse.Namespace) -> int:
+    from pmsm_hil.errors import DeviceError
     from pmsm_hil.gap.record import RecordError
     from pmsm_hil.log.reader import LogFormatError
     from pmsm_hil.profiles import ProfileError
@@ -209,6 +210,8 @@ def main(args: argparse.Namespace) -> int:
         res, m, rec = _diagnose(args, path)
     except (RecordError, ProfileError, LogFormatError, ValueError, KeyError) as e:
         return fail("error", str(e), 2)
+    except DeviceError as e:  # record, verify: the emulator refused the run (e.g. its plant)
+        return fail("error", str(e), 3)
     from pmsm_hil.gap.report import jsonable, verdict_lines, write_report
 
     if args.target == "augment":
