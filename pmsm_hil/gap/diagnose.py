@@ -157,10 +157,9 @@ def _diagnose(
         cost = [took.get(c, len(EFFECTS[c].params)) for c in todo]
         fitted = pool.map(jobs, ended, cost)
         took = dict(zip(todo, pool.seconds, strict=True))
-        for c, (f, r_fit) in zip(todo, fitted, strict=True):
-            if r_fit is None:  # the fit failed (non-finite residuals)
+        for c, (f, r_te) in zip(todo, fitted, strict=True):
+            if r_te is None:  # the fit failed (non-finite residuals)
                 continue
-            r_te = r_fit
             st = bootstrap_closure(
                 cur_test, r_te, fl_guess[te_sel], blk[te_sel], n_boot=200, seed=seed
             )
