@@ -4,6 +4,7 @@ the noise floor, selection, magnitudes, closure, the CLI, and the generator/diag
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -175,11 +176,11 @@ def test_cli_json_report_and_augment(logs, tmp_path, capsys):
     for k in ("name", "selected", "magnitude", "interval", "closure", "evidence"):
         assert k in out["effects"][0]
     assert "base_gap" in out and "discretisation_gap" in out and "closure" in out
-    assert (
-        main(["gap", str(logs["dead_time"]), "--motor", MOTOR, "--report", str(tmp_path / "rep")])
-        == 0
-    )
+    rep = ["gap", str(logs["dead_time"]), "--motor", MOTOR, "--report", str(tmp_path / "rep")]
+    assert main([*rep, "--workers", "1"]) == 0
     text = capsys.readouterr().out
+    # the last line: how long it took, on how many processes
+    assert re.search(r"\ndiagnosed in \d+ s with 1 fit process\n$", text), text[-200:]
     assert (
         "dead_time" in text
         and (tmp_path / "rep/index.html").exists()

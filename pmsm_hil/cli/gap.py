@@ -16,6 +16,7 @@ import json
 import os
 import sys
 import tempfile
+import time
 
 from pmsm_hil.cli.errors import fail
 
@@ -102,10 +103,14 @@ def _diagnose(args, path):
             "must be control-rate too"
         )
     with _status(not args.json, f"gap: {path}") as say:
-        # one per core, at most 4: each holds the record, and the final fit does not divide further
-        workers = args.workers or min(os.cpu_count() or 1, 4)
-        res = diagnose(rec, m, holdout=hold, seed=args.seed, progress=say, workers=workers)
+        res = diagnose(rec, m, holdout=hold, seed=args.seed, progress=say, workers=_workers(args))
         return res, m, rec
+
+
+def _workers(args: argparse.Namespace) -> int:
+    """The diagnosis's fit processes: one per core, at most 4 (each holds the record, and the
+    final fit does not divide further)."""
+    return int(args.workers or min(os.cpu_count() or 1, 4))
 
 
 @contextlib.contextmanager
@@ -207,7 +212,9 @@ def main(args: argparse.Namespace) -> int:
             return fail("error", "gap augment LOG.mcap -o fitted-rig.yaml", 2)
         if not os.path.exists(path):
             return fail("error", f"{path}: no such file", 2)
+        t0 = time.monotonic()
         res, m, rec = _diagnose(args, path)
+        took = time.monotonic() - t0
     except (RecordError, ProfileError, LogFormatError, ValueError, KeyError) as e:
         return fail("error", str(e), 2)
     except DeviceError as e:  # record, verify: the emulator refused the run (e.g. its plant)
@@ -240,5 +247,8 @@ def main(args: argparse.Namespace) -> int:
                 f"report {args.report}; the fitted effects as a rig file: {fitted} "
                 f"(check it: pmsm-hil gap verify {path} --rig {fitted})"
             )
+        if "discretisation_gap" in res:
+            n = _workers(args)
+            print(f"diagnosed in {took:.0f} s with {n} fit process{'es' if n > 1 else ''}")
     sys.stdout.flush()
     return 0
