@@ -89,9 +89,9 @@ def plant_mismatch(motor: Motor, truth: dict[str, Any]) -> str | None:
     """What differs between the emulator's plant (its first truth frame) and the profile's motor
     file, beyond what rig effects explain (temperature, saturation); None when they match."""
     out = []
+    temp = float(truth.get("temp_winding_c", 0.0) or 0.0)
     for key, unit, tol in (("psi_f_wb", "Wb", 0.2), ("r_s_ohm", "ohm", 0.6)):
         nominal, plant = float(getattr(motor, key)), float(truth.get(key, 0.0) or 0.0)
-        temp = float(truth.get("temp_winding_c", 0.0) or 0.0)
         if key == "r_s_ohm" and temp > 0.0 and math.isfinite(temp):
             # a winding the rig heats (a thermal effect, a fitted one up to 200 degC) is the
             # same motor: compare its resistance at the reference temperature

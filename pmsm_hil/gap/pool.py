@@ -8,8 +8,7 @@ Each worker holds the probe (sent once, when it starts) and fits one job at a ti
 worker or in this process, runs with its BLAS on one thread (``one_blas_thread``): the numerics
 are then the same bits whatever the machine's core count and whatever the number of workers, so
 ``pmsm-hil gap --workers 1`` and ``--workers 2`` print the same diagnosis (tested). With
-``workers <= 1`` there is no pool: the jobs run here, one after another, when their results are
-asked for.
+``workers <= 1`` there is no pool: the jobs run here, one after another.
 """
 
 from __future__ import annotations
@@ -20,8 +19,8 @@ import pickle
 import signal
 import tempfile
 import time
-from collections.abc import Callable, Iterable, Iterator
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from collections.abc import Callable, Iterable
+from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -77,32 +76,20 @@ def _start_worker(probe_file: str) -> None:
     threadpool_limits(1, user_api="blas")
 
 
-def _work(job: FitJob) -> tuple[Fit, np.ndarray | None, float]:
+def _timed(probe: Probe, job: FitJob) -> tuple[Fit, np.ndarray | None, float]:
     t0 = time.perf_counter()
-    f, r = run_job(worker_probe(), job)
+    f, r = run_job(probe, job)
     return f, r, time.perf_counter() - t0
 
 
-class _Later:
-    """A job to run in this process when its result is first asked for (no pool)."""
-
-    def __init__(self, fn: Callable[[], tuple[Fit, np.ndarray | None]]):
-        self._fn = fn
-        self._value: tuple[Fit, np.ndarray | None, float] | None = None
-
-    def result(self) -> tuple[Fit, np.ndarray | None, float]:
-        if self._value is None:
-            t0 = time.perf_counter()
-            with one_blas_thread():
-                f, r = self._fn()
-            self._value = (f, r, time.perf_counter() - t0)
-        return self._value
+def _work(job: FitJob) -> tuple[Fit, np.ndarray | None, float]:
+    return _timed(worker_probe(), job)
 
 
 class Pending:
     """A submitted job: ``result()`` waits for it (its fit and test residual)."""
 
-    def __init__(self, task: Future[tuple[Fit, np.ndarray | None, float]] | _Later):
+    def __init__(self, task: Future[tuple[Fit, np.ndarray | None, float]]):
         self.task = task
 
     def result(self) -> tuple[Fit, np.ndarray | None]:
@@ -175,13 +162,13 @@ class FitPool:
         return columns
 
     def submit(self, job: FitJob) -> Pending:
-        """Start ``job`` (in a worker; without a pool, when its result is asked for)."""
-        return Pending(self._task(job))
-
-    def _task(self, job: FitJob) -> Future[tuple[Fit, np.ndarray | None, float]] | _Later:
-        if self._ex is None:
-            return _Later(lambda: run_job(self.probe, job))
-        return self._ex.submit(_work, job)
+        """Start ``job`` in a worker (without a pool: run it now)."""
+        if self._ex is not None:
+            return Pending(self._ex.submit(_work, job))
+        done: Future[tuple[Fit, np.ndarray | None, float]] = Future()
+        with one_blas_thread():
+            done.set_result(_timed(self.probe, job))
+        return Pending(done)
 
     def map(
         self,
@@ -193,24 +180,19 @@ class FitPool:
         (in the order they end). ``cost``: each job's expected time, to start the longest first
         (the step ends sooner; the results do not depend on it). ``seconds`` then holds each
         job's time."""
-        order = sorted(range(len(jobs)), key=lambda j: -cost[j]) if cost else range(len(jobs))
-        tasks = {j: self._task(jobs[j]) for j in order}
         out: dict[int, tuple[Fit, np.ndarray | None, float]] = {}
-        for n, j in enumerate(self._in_finish_order(tasks)):
-            out[j] = tasks[j].result()
-            if done is not None:
-                done(j, n + 1)
+        if self._ex is None:  # here, one after another
+            with one_blas_thread():
+                for j, job in enumerate(jobs):
+                    out[j] = _timed(self.probe, job)
+                    if done is not None:
+                        done(j, j + 1)
+        else:
+            order = sorted(range(len(jobs)), key=lambda j: -cost[j]) if cost else range(len(jobs))
+            futures = {self._ex.submit(_work, jobs[j]): j for j in order}
+            for n, fut in enumerate(as_completed(futures)):
+                out[futures[fut]] = fut.result()
+                if done is not None:
+                    done(futures[fut], n + 1)
         self.seconds = [out[j][2] for j in range(len(jobs))]
         return [out[j][:2] for j in range(len(jobs))]
-
-    @staticmethod
-    def _in_finish_order(tasks: dict) -> Iterator[int]:
-        pending = {t: j for j, t in tasks.items() if isinstance(t, Future)}
-        for j, t in tasks.items():  # jobs run here: one after another
-            if not isinstance(t, Future):
-                t.result()
-                yield j
-        while pending:
-            finished, _ = wait(pending, return_when=FIRST_COMPLETED)
-            for t in sorted(finished, key=lambda t: pending[t]):
-                yield pending.pop(t)

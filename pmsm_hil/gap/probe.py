@@ -114,40 +114,37 @@ class Probe:
     def _u_at(self, w: Work, rows: np.ndarray) -> np.ndarray:
         n_int = int(np.floor(w.pwm_delay))
         frac = w.pwm_delay - n_int
-        at_rows: dict = {}  # what both delays' voltages take at the rows (computed once)
-        u = self._u_int(w, rows, n_int, at_rows)
-        if frac > 0:
-            u = (1 - frac) * u + frac * self._u_int(w, rows, n_int + 1, at_rows)
-        return u
-
-    def _u_int(self, w: Work, rows, n, at_rows: dict):
-        if "rs" not in at_rows:
-            at_rows["rs"] = self.run_start[rows]
-        rs = at_rows["rs"]
-        j = np.maximum(rows - n, rs)
+        rs = self.run_start[rows]
         dead = w.extra.get("dead_time")
         if w.cmd is None or dead is None:
-            return self._u0[j]
+
+            def at(n: int) -> np.ndarray:
+                return self._u0[np.maximum(rows - n, rs)]
+
+        else:
+            # what both delays' voltages take at the rows, once: the phase currents (leg c carries
+            # -(i_a + i_b): i_c need not be measured), the DC link and the currents' smooth sign
+            i_ab = w.i_abc[rows, :2]
+            i3 = np.column_stack([i_ab, -i_ab.sum(axis=1)])
+            at_rows = (i3, w.v_dc[rows], current_sign(i3, dead))
+
+            def at(n: int) -> np.ndarray:
+                return self._u_int(w, rows, rs, n, dead, at_rows)
+
+        u = at(n_int)
+        if frac > 0:
+            u = (1 - frac) * u + frac * at(n_int + 1)
+        return u
+
+    def _u_int(self, w: Work, rows, rs, n, dead, at_rows: tuple) -> np.ndarray:
+        assert w.cmd is not None
+        i3, v_dc, sg = at_rows
+        j = np.maximum(rows - n, rs)
         jp = np.maximum(j - 1, rs)
         cmd, prev = w.cmd[j], w.cmd[jp]
         was_off = (~w.pwm_on[jp]) | (jp == j)
-        if "i3" not in at_rows:
-            i_ab = w.i_abc[rows, :2]  # leg c carries -(i_a + i_b): i_c need not be measured
-            at_rows["i3"] = i3 = np.column_stack([i_ab, -i_ab.sum(axis=1)])
-            at_rows["v_dc"] = w.v_dc[rows]
-            at_rows["sg"] = current_sign(i3, dead)
-        v_dc = at_rows["v_dc"]
         dist = dead_time_dist(
-            dead,
-            w.kind,
-            cmd,
-            prev.copy(),
-            at_rows["i3"],
-            v_dc,
-            w.pwm_on[j],
-            was_off,
-            self.ts_s,
-            sg=at_rows["sg"],
+            dead, w.kind, cmd, prev.copy(), i3, v_dc, w.pwm_on[j], was_off, self.ts_s, sg=sg
         )
         v = cmd * v_dc[:, None] + dist
         u = np.stack(
