@@ -3,11 +3,24 @@
 The extension exports a plain C API (firmware/sim/emu.h) that pmsm_hil.emulator.fwlib loads with
 ctypes; its Python module init is only there so that pip builds and installs it like any extension.
 """
+import hashlib
 from glob import glob
 
 from setuptools import Extension, find_packages, setup
 
 sources = sorted(glob("firmware/core/*.c")) + sorted(glob("firmware/sim/*.c")) + ["pmsm_hil/_fw_module.c"]
+
+
+def source_sha256():
+    """The build's identity (emu_source_id, docs/sweep.md): SHA-256 over the names and contents
+    of the C sources and headers compiled in. A sweep's and a benchmark's journal keys carry it, so
+    that results of another firmware are never taken for this one's."""
+    h = hashlib.sha256()
+    for path in sorted(set(sources + glob("firmware/core/*.h") + glob("firmware/sim/*.h"))):
+        with open(path, "rb") as f:
+            h.update(path.encode() + b"\0" + f.read() + b"\0")
+    return h.hexdigest()[:16]
+
 
 # The shipped profiles, motor, rig and flux-map files (profiles/) are package data of
 # pmsm_hil.shipped, so that an installed pmsm-hil finds them from any directory (docs/profiles.md);
@@ -28,6 +41,7 @@ setup(
             "pmsm_hil._fw",
             sources=sources,
             include_dirs=["firmware/core", "firmware/sim"],
+            define_macros=[("EMU_SOURCE_SHA256", '"%s"' % source_sha256())],
             # -fno-semantic-interposition: calls between the extension's own functions are direct
             # (and may be inlined) instead of going through the PLT; no effect on the arithmetic
             # -flto: the emulator loop crosses some 40 small functions per period in a dozen

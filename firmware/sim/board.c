@@ -423,6 +423,15 @@ int emu_set_array(emu_t *e, const char *key, const double *values, uint32_t n)
     return 0;
 }
 
+#ifndef EMU_SOURCE_SHA256
+#define EMU_SOURCE_SHA256 "unknown"
+#endif
+
+const char *emu_source_id(void)
+{
+    return EMU_SOURCE_SHA256;
+}
+
 const char *emu_check(const emu_t *e)
 {
     if (e->sat_nd > 0 && e->pcfg.map == NULL) {

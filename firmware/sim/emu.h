@@ -41,6 +41,10 @@ int emu_plant_truth(const emu_t *e, double *out, int n);
  * NULL past the end. */
 const char *emu_setting_name(uint32_t i);
 const char *emu_truth_name(uint32_t i);
+/* The build's identity: the SHA-256 (first 16 hex digits) of the firmware core's and the sim
+ * board's sources it was compiled from (setup.py defines EMU_SOURCE_SHA256), "unknown" in a
+ * build without it. Two builds of the same sources give the same device data. */
+const char *emu_source_id(void);
 /* CAN (docs/can.md; settings can_bitrate, can_node): a frame from the host, and the frames the
  * sim board's controller sent during emu_run, at most cap: ids, dlc, data (8 octets per frame),
  * isr (control period at the end of the frame); returns how many. */

@@ -1,14 +1,17 @@
 """`pmsm-hil bench commission`: the commissioning sequence on the emulator over several rigs and
 seeds, each result scored against the plant (pmsm_hil.commission.score); one table per rig with
-the median and the worst error over the seeds beside the target (docs/commissioning.md)."""
+the median and the worst error over the seeds beside the target (docs/commissioning.md). The rigs'
+and seeds' runs are trials on the sweep's Dask machinery (pmsm_hil.bench.trials)."""
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+from pmsm_hil.bench.trials import Cluster, run_trials
 
 if TYPE_CHECKING:
     from pmsm_hil.commission.sequence import CommissionResult
@@ -65,10 +68,17 @@ def commission_once(
     return profile, res, errs
 
 
-def table(rig_name: str, runs: list[tuple[int, CommissionResult, dict[str, float]]]) -> str:
-    """Markdown: per quantity, target, median and worst |error|, seeds within the target."""
+def commission_trial(task: dict[str, Any]) -> dict[str, Any]:
+    """One rig and seed (a Dask task): whether it completed, why not, its errors."""
+    _p, res, errs = commission_once(task["rig"], task["seed"], Path(task["log"]))
+    return {"ok": bool(res.ok), "failure": str(res.failure or res.run.stop_reason), "errors": errs}
+
+
+def table(rig_name: str, runs: list[tuple[int, dict[str, Any]]]) -> str:
+    """Markdown: per quantity, target, median and worst |error|, seeds within the target. A run
+    is (seed, commission_trial's result)."""
     n = len(runs)
-    ok = [r for r in runs if r[1].ok]
+    ok = [r for _s, r in runs if r.get("ok")]
     lines = [
         f"### rig {rig_name}: {len(ok)} of {n} seeds completed",
         "",
@@ -76,7 +86,7 @@ def table(rig_name: str, runs: list[tuple[int, CommissionResult, dict[str, float
         "|---|---|---|---|---|",
     ]
     for key, (label, unit, k, target) in TARGETS.items():
-        vals = np.array([abs(e[key]) for _s, _r, e in ok if key in e])
+        vals = np.array([abs(r["errors"][key]) for r in ok if key in r["errors"]])
         if vals.size == 0:
             continue
         within = int(np.sum(vals <= target))
@@ -84,16 +94,20 @@ def table(rig_name: str, runs: list[tuple[int, CommissionResult, dict[str, float
             f"| {label} | {target * k:g} {unit} | {np.median(vals) * k:.3g} {unit} | "
             f"{vals.max() * k:.3g} {unit} | {within}/{vals.size} |"
         )
-    for s, r, _e in runs:
-        if not r.ok:
-            lines.append(f"\nseed {s}: {r.failure or r.run.stop_reason}")
+    for s, r in runs:
+        if not r.get("ok"):
+            lines.append(f"\nseed {s}: {r.get('failure') or r.get('error')}")
     return "\n".join(lines)
 
 
 def bench_commission(
-    rigs: list[str], seeds: list[int], out: Path, echo: Callable[[str], None] = print
+    rigs: list[str],
+    seeds: list[int],
+    out: Path,
+    echo: Callable[[str], None] = print,
+    cluster: Cluster | None = None,
 ) -> str:
-    """Runs every (rig, seed), prints and writes the tables (out/commission.md)."""
+    """Runs every (rig, seed) as trials, prints and writes the tables (out/commission.md)."""
     from pmsm_hil.profiles.shipped import resolve
 
     out.mkdir(parents=True, exist_ok=True)
@@ -105,12 +119,20 @@ def bench_commission(
         "and L_q against the incremental truth at the test's operating point (d-current bias).",
         "",
     ]
-    for rig in rigs:
-        path = resolve(rig, "rig")
-        runs: list[tuple[int, CommissionResult, dict[str, float]]] = []
-        for s in seeds:
-            _p, res, errs = commission_once(path, s, out / f"commission-{Path(path).stem}-{s}.mcap")
-            runs.append((s, res, errs))
+    paths = [resolve(rig, "rig") for rig in rigs]
+    tasks = [
+        {
+            "rig": str(Path(p).resolve()),
+            "seed": int(s),
+            "log": str((out / f"commission-{Path(p).stem}-{s}.mcap").resolve()),
+            "text": Path(p).read_text(encoding="utf-8"),  # in the key only
+        }
+        for p in paths
+        for s in seeds
+    ]
+    every = run_trials(commission_trial, tasks, out, cluster, name="commission")
+    for k, path in enumerate(paths):
+        runs = list(zip(seeds, every[k * len(seeds) : (k + 1) * len(seeds)], strict=True))
         t = table(Path(path).stem, runs)
         echo(t + "\n")
         parts += [t, ""]

@@ -2,9 +2,9 @@
 emulator in this process, the Table-2 figures beside the paper's, the mismatch benchmark and the
 per-effect table. Results are written to a folder and echoed as text.
 
-The benchmark's runs go through the sweep's Dask machinery (pmsm_hil.sweep.tasks; docs/sweep.md):
-one run in this process, several (the mismatch cases, the rigs of the per-effect table) as tasks on
-a local cluster or the scheduler given, each writing its log into the output folder; a journal
+The benchmark's runs go through the sweep's Dask machinery (pmsm_hil.bench.trials; docs/sweep.md):
+one run in this process, several (the mismatch cases, the rigs of the per-effect table, the rigs and
+seeds of `--rigs`) as tasks on a local cluster or the scheduler given, each writing its log into the output folder; a journal
 there (bench.jsonl, keyed by the run's profile and rig texts, seed and log) lets an interrupted
 benchmark skip the runs whose logs are already written. The figures are computed here from the
 logs, whichever process ran them."""
@@ -12,10 +12,10 @@ logs, whichever process ran them."""
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from pmsm_hil.bench.trials import Cluster, run_trials
 from pmsm_hil.device import DeviceSpec, open_device
 
 
@@ -102,15 +102,6 @@ def identify(
     echo(f"\nlog {log}\nplot {png}\ntable {md}")
 
 
-@dataclass
-class Cluster:
-    """Where the benchmark's runs go: workers of a local cluster, or a scheduler's address."""
-
-    workers: int | None = None
-    scheduler: str | None = None
-    progress: bool = False
-
-
 def bench_run(task: dict) -> dict:
     """One benchmark run (a Dask task): the profile at task["profile"] (rig task["rig"] or its own)
     with task["seed"] on the in-process emulator, logged to task["log"]."""
@@ -131,21 +122,7 @@ def _job(profile_path, log: Path, seed: int, rig=None) -> dict:
 
 def run_jobs(jobs: list[dict], out: Path, cluster: Cluster | None = None) -> list[dict]:
     """The runs of ``jobs`` (see _job): one in this process, several on Dask; results in order."""
-    cluster = cluster or Cluster()
-    if len(jobs) == 1 and cluster.scheduler is None:
-        return [bench_run(jobs[0])]
-    from pmsm_hil.sweep.tasks import run_tasks
-
-    return run_tasks(
-        bench_run,
-        jobs,
-        out,
-        name="bench",
-        scheduler=cluster.scheduler,
-        workers=cluster.workers,
-        progress=cluster.progress,
-        done_if=lambda task, result: Path(task["log"]).is_file(),
-    )
+    return run_trials(bench_run, jobs, out, cluster)
 
 
 def _run_profile(profile, log: Path, seed: int):

@@ -1,14 +1,18 @@
 """`pmsm-hil bench identify --rigs default,lab-typical [--commissioned]`: the identification run
 on several rigs and seeds, one table per rig with the median and the worst error over the seeds
 (docs/identification.md). With --commissioned each seed first commissions its rig
-(`pmsm-hil commission`) and identifies with the commissioned motor file, as a drive would."""
+(`pmsm-hil commission`) and identifies with the commissioned motor file, as a drive would. The
+rigs' and seeds' runs are trials on the sweep's Dask machinery (pmsm_hil.bench.trials)."""
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+
+from pmsm_hil.bench.trials import Cluster, run_trials
 
 PARAMS = (("l_d_h", "L_d"), ("l_q_h", "L_q"), ("psi_f_wb", "psi_f"), ("r_s_ohm", "R"))
 ESTIMATORS = ("rls", "nlms_adaline")
@@ -69,6 +73,61 @@ def _one(
     return {"cells": cells, "drift_s": drift_s}
 
 
+def identify_trial(task: dict[str, Any]) -> dict[str, Any]:
+    """One rig and seed of the table (a Dask task): `_one` with its cells as JSON-able rows."""
+    r = _one(
+        task["profile"],
+        task["rig"],
+        task["seed"],
+        Path(task["out"]),
+        task["commissioned"],
+        task["motor"],
+    )
+    if "cells" in r:
+        r["cells"] = [[e, q, err, conv] for (e, q), (err, conv) in r["cells"].items()]
+    return r
+
+
+def _trials(
+    path: Path | str,
+    rig_paths: list[str],
+    seeds: list[int],
+    out: Path,
+    commissioned: bool,
+    motor: Path | str | None,
+    cluster: Cluster | None,
+) -> list[dict]:
+    """`_one` for every rig and seed (rig-major), run as trials; cells keyed by (estimator,
+    quantity) again, a trial that could not be made as {"failed": why}."""
+    text = lambda p: Path(p).read_text(encoding="utf-8") if p else ""  # noqa: E731
+    tasks = []
+    for rp in rig_paths:
+        stem = Path(rp).stem
+        for s in seeds:
+            logs = [str((out / f"identify-{stem}-{s}.mcap").resolve())]
+            if commissioned:
+                logs.append(str((out / f"commission-{stem}-{s}.mcap").resolve()))
+            tasks.append(
+                {
+                    "profile": str(Path(path).resolve()),
+                    "rig": str(Path(rp).resolve()),
+                    "seed": int(s),
+                    "out": str(out.resolve()),
+                    "commissioned": commissioned,
+                    "motor": str(Path(motor).resolve()) if motor else None,
+                    "logs": logs,
+                    "texts": [text(path), text(rp), text(motor)],  # in the key only
+                }
+            )
+    results = run_trials(identify_trial, tasks, out, cluster, name="identify-rigs")
+    for r in results:
+        if "error" in r:
+            r["failed"] = r.pop("error")
+        if "cells" in r:
+            r["cells"] = {(e, q): (err, conv) for e, q, err, conv in r["cells"]}
+    return results
+
+
 def _fmt(vals: list[float]) -> str:
     a = np.abs(np.array(vals)) * 100.0
     return f"{np.median(a):.2f} % / {a.max():.2f} %"
@@ -82,6 +141,7 @@ def identify_rigs(
     commissioned: bool = False,
     motor: Path | str | None = None,
     echo: Callable[[str], None] = print,
+    cluster: Cluster | None = None,
 ) -> str:
     from pmsm_hil.profiles.shipped import resolve
 
@@ -94,9 +154,10 @@ def identify_rigs(
         f"docs/identification.md), median / worst over the seeds; convergence time median / worst",
         "",
     ]
-    for rig in rigs:
-        rp = resolve(rig, "rig")
-        results = [(s, _one(path, rp, s, out, commissioned, motor)) for s in seeds]
+    rig_paths = [resolve(rig, "rig") for rig in rigs]
+    every = _trials(path, rig_paths, seeds, out, commissioned, motor, cluster)
+    for k, rp in enumerate(rig_paths):
+        results = list(zip(seeds, every[k * len(seeds) : (k + 1) * len(seeds)], strict=True))
         ok = [r["cells"] for _s, r in results if "cells" in r]
         lines = [
             f"### rig {Path(rp).stem}: {len(ok)} of {len(seeds)} seeds ran",
@@ -148,7 +209,11 @@ def identify_rigs(
 
 
 def per_effect_commissioned(
-    path: Path | str, seeds: list[int], out: Path, echo: Callable[[str], None] = print
+    path: Path | str,
+    seeds: list[int],
+    out: Path,
+    echo: Callable[[str], None] = print,
+    cluster: Cluster | None = None,
 ) -> str:
     """What each rig effect still costs after commissioning: NLMS-Adaline's |error| (median /
     worst over the seeds) on the ideal rig, each effect alone, default and lab-typical, each seed
@@ -172,8 +237,11 @@ def per_effect_commissioned(
         "|---|" + "---|" * len(PARAMS),
     ]
     echo("\n".join(lines))
-    for r in rigs:
-        res = [_one(path, str(rigs_dir / f"{r}.yaml"), s, out, True) for s in seeds]
+    every = _trials(
+        path, [str(rigs_dir / f"{r}.yaml") for r in rigs], seeds, out, True, None, cluster
+    )
+    for k, r in enumerate(rigs):
+        res = every[k * len(seeds) : (k + 1) * len(seeds)]
         ok = [x["cells"] for x in res if "cells" in x]
         cells = []
         for q, _n in PARAMS:

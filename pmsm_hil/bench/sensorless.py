@@ -1,5 +1,6 @@
 """The sensorless benchmark (`pmsm-hil bench sensorless`): each scenario's profile run on the
-emulator in this process, with the estimate closing the loop and the encoder as truth, per rig and
+in-process emulator (as trials on the sweep's Dask machinery: bench/sensorless_report.py), with the
+estimate closing the loop and the encoder as truth, per rig and
 over several seeds; the angle and speed figures (median and worst over the seeds) beside the
 papers' and the targets, PNG plots of angle error and speed. docs/sensorless.md.
 
@@ -16,7 +17,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from pmsm_hil.bench.identify import BenchError, _run_profile
+from pmsm_hil.bench.identify import BenchError
 
 if TYPE_CHECKING:
     from pmsm_hil.profiles import Profile
@@ -271,16 +272,6 @@ def rig_for(profile_path: str, rig_name: str, out: Path) -> tuple[str, str]:
         f"scaled to {m.name} (currents / {scaled['s_d']:.3g} on d, / {scaled['s_q']:.3g} on q)"
     )
     return path, note
-
-
-def run_one(profile_path: str, rig_path: str, seed: int, log: Path) -> tuple[object, RunData]:
-    from pmsm_hil.profiles import load_profile
-
-    profile = load_profile(profile_path, rig_override=rig_path)
-    _, result = _run_profile(profile, log, seed)
-    if result.error:
-        raise BenchError(f"the run failed ({result.error}); log {log}")
-    return profile, read_run(log, profile)
 
 
 def scenario_figures(sc: Scenario, run: RunData) -> dict:

@@ -1,6 +1,7 @@
 """`pmsm-hil bench sensorless`: runs the scenarios (bench/sensorless.py) per rig and seed, reduces
 each figure to its median and worst over the seeds, and writes the table (markdown, echoed as
-text) and the PNG plots of angle error and speed."""
+text) and the PNG plots of angle error and speed. The runs (profiles x rigs x seeds) are trials on
+the sweep's Dask machinery (pmsm_hil.bench.trials); the figures are computed here from their logs."""
 
 from __future__ import annotations
 
@@ -16,10 +17,11 @@ from pmsm_hil.bench.sensorless import (
     SCENARIOS,
     RunData,
     Scenario,
+    read_run,
     rig_for,
-    run_one,
     scenario_figures,
 )
+from pmsm_hil.bench.trials import Cluster
 
 # figure key -> (column title, format, how "worst" is taken)
 STEADY_COLS = (
@@ -163,9 +165,12 @@ def sensorless(
     rigs: Sequence[str] = DEFAULT_RIGS,
     only: str | None = None,
     echo: Callable[[str], None] = print,
+    cluster: Cluster | None = None,
 ) -> dict:
     """Run every scenario (or those whose profile or name contains `only`) on each rig and seed;
     write out/sensorless.md and the plots; return {(scenario, rig): [figures per seed]}."""
+    from pmsm_hil.bench.identify import BenchError, _job, run_jobs
+    from pmsm_hil.profiles import load_profile
     from pmsm_hil.profiles.shipped import shipped_file
 
     out.mkdir(parents=True, exist_ok=True)
@@ -173,31 +178,38 @@ def sensorless(
     profiles = sorted({s.profile for s in chosen})
     results: dict = {}
     md = ["# Sensorless benchmark", "", f"seeds {', '.join(map(str, seeds))}; median / worst", ""]
+    cases = []  # (profile name, its path, rig name, rig path, note), as the table goes
     for prof in profiles:
         ppath = shipped_file(prof)
         for rig in rigs:
-            rig_path, note = rig_for(ppath, rig, out)
-            if note:
-                echo("note: " + note)
-                md += [f"note: {note}", ""]
-            runs = []
-            for seed in seeds:
-                log = out / f"{Path(prof).stem}-{rig}-seed{seed}.mcap"
-                _profile, run = run_one(ppath, rig_path, seed, log)
-                runs.append(run)
-            plot_run(
-                runs[0], f"{prof} on {rig}, seed {seeds[0]}", out / f"{Path(prof).stem}-{rig}.png"
-            )
-            for sc in [s for s in chosen if s.profile == prof]:
-                per_seed = [scenario_figures(sc, r) for r in runs]
-                results[(sc.name, rig)] = per_seed
-                lines = [f"## {sc.name} - rig {rig}", "", *scenario_table(sc, per_seed)]
-                if sc.paper:
-                    lines += ["", f"paper: {sc.paper}"]
-                if rig == "default":
-                    lines += [""] + [f"target: {x}" for x in targets_met(sc, per_seed)]
-                md += [*lines, ""]
-                echo("\n".join(lines) + "\n")
+            cases.append((prof, ppath, rig, *rig_for(ppath, rig, out)))
+    jobs = [
+        _job(ppath, out / f"{Path(prof).stem}-{rig}-seed{seed}.mcap", seed, rig=rig_path)
+        for prof, ppath, rig, rig_path, _note in cases
+        for seed in seeds
+    ]
+    done = run_jobs(jobs, out, cluster)
+    for k, (prof, ppath, rig, rig_path, note) in enumerate(cases):
+        if note:
+            echo("note: " + note)
+            md += [f"note: {note}", ""]
+        profile = load_profile(ppath, rig_override=rig_path)
+        runs, part = [], slice(k * len(seeds), (k + 1) * len(seeds))
+        for job, res in zip(jobs[part], done[part], strict=True):
+            if res.get("error"):
+                raise BenchError(f"the run failed ({res['error']}); log {job['log']}")
+            runs.append(read_run(Path(job["log"]), profile))
+        plot_run(runs[0], f"{prof} on {rig}, seed {seeds[0]}", out / f"{Path(prof).stem}-{rig}.png")
+        for sc in [s for s in chosen if s.profile == prof]:
+            per_seed = [scenario_figures(sc, r) for r in runs]
+            results[(sc.name, rig)] = per_seed
+            lines = [f"## {sc.name} - rig {rig}", "", *scenario_table(sc, per_seed)]
+            if sc.paper:
+                lines += ["", f"paper: {sc.paper}"]
+            if rig == "default":
+                lines += [""] + [f"target: {x}" for x in targets_met(sc, per_seed)]
+            md += [*lines, ""]
+            echo("\n".join(lines) + "\n")
     (out / "sensorless.md").write_text("\n".join(md) + "\n")
     echo(f"written: {out / 'sensorless.md'} and the plots in {out}")
     return results

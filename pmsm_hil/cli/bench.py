@@ -4,8 +4,12 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from pmsm_hil.cli.errors import fail
+
+if TYPE_CHECKING:
+    from pmsm_hil.bench.trials import Cluster
 
 
 def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -75,21 +79,7 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         default=None,
         help="run only that part (skips the Table-2 run)",
     )
-    b.add_argument(
-        "--workers",
-        type=int,
-        default=None,
-        metavar="N",
-        help="--mismatch / --per-effect runs: worker processes of the local Dask cluster "
-        "(default: one per core; docs/sweep.md)",
-    )
-    b.add_argument(
-        "--scheduler",
-        default=None,
-        metavar="ADDR",
-        help="--mismatch / --per-effect runs on this Dask scheduler, e.g. tcp://HOST:8786 "
-        "(the output folder must be on a filesystem the workers share)",
-    )
+    _cluster_args(b, "--rigs / --mismatch / --per-effect runs")
 
     c = bsub.add_parser(
         "commission",
@@ -98,6 +88,7 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     c.add_argument("--rigs", default="default,lab-typical", help="comma-separated rigs")
     c.add_argument("--seeds", default="1-10", help="e.g. 1-10 or 1,2,3")
     c.add_argument("--out", "-o", default="runs/bench-commission", help="directory for logs, table")
+    _cluster_args(c, "the rigs' and seeds' runs")
     s = bsub.add_parser(
         "sensorless",
         help="sensorless estimators closing the loop: angle and speed errors per scenario and rig "
@@ -115,6 +106,42 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     s.add_argument(
         "--only", default=None, help="only the scenarios whose profile or name contains this"
     )
+    _cluster_args(s, "the scenarios' runs")
+
+
+def _cluster_args(p: argparse.ArgumentParser, what: str) -> None:
+    """--workers / --scheduler: where a benchmark's runs go (pmsm_hil.bench.trials)."""
+    p.add_argument(
+        "--workers",
+        type=_workers,
+        default=None,
+        metavar="N",
+        help=f"{what}: worker processes of the local Dask cluster (default: one per core; "
+        "docs/sweep.md)",
+    )
+    p.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDR",
+        help=f"{what} on this Dask scheduler, e.g. tcp://HOST:8786 (the output folder must be on "
+        "a filesystem the workers share)",
+    )
+
+
+def _workers(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: give a whole number of workers, at least 1")
+    return n
+
+
+def _cluster(args: argparse.Namespace) -> Cluster:
+    from pmsm_hil.bench.trials import Cluster
+
+    return Cluster(workers=args.workers, scheduler=args.scheduler, progress=True)
 
 
 def main(args: argparse.Namespace) -> int:
@@ -128,18 +155,12 @@ def main(args: argparse.Namespace) -> int:
                 [r.strip() for r in args.rigs.split(",") if r.strip()],
                 parse_seeds(args.seeds),
                 Path(args.out),
+                cluster=_cluster(args),
             )
         except ValueError as e:
             return fail("error", f"--seeds {args.seeds}: {e}", 2)
         return 0
-    from pmsm_hil.bench.identify import (
-        BenchError,
-        Cluster,
-        default_profile,
-        identify,
-        mismatch,
-        per_effect,
-    )
+    from pmsm_hil.bench.identify import BenchError, default_profile, identify, mismatch, per_effect
     from pmsm_hil.profiles import ProfileError
     from pmsm_hil.profiles.shipped import resolve
 
@@ -152,7 +173,9 @@ def main(args: argparse.Namespace) -> int:
             from pmsm_hil.bench.commission import parse_seeds
             from pmsm_hil.bench.identify_rigs import per_effect_commissioned
 
-            per_effect_commissioned(path, parse_seeds(args.seeds or "1-2"), out)
+            per_effect_commissioned(
+                path, parse_seeds(args.seeds or "1-2"), out, cluster=_cluster(args)
+            )
             return 0
         if args.rigs:
             from pmsm_hil.bench.commission import parse_seeds
@@ -165,9 +188,10 @@ def main(args: argparse.Namespace) -> int:
                 out,
                 commissioned=args.commissioned,
                 motor=motor,
+                cluster=_cluster(args),
             )
             return 0
-        cluster = Cluster(workers=args.workers, scheduler=args.scheduler, progress=True)
+        cluster = _cluster(args)
         if args.only not in {"per-effect", "mismatch"}:
             identify(path, out, args.seed, rig, args.until, motor=motor)
         if args.mismatch or args.only == "mismatch":
@@ -194,7 +218,7 @@ def _sensorless(args: argparse.Namespace) -> int:
         return fail("error", f"--seeds: not a list of integers: {args.seeds!r}", 2)
     rigs = tuple(x.strip() for x in args.rigs.split(",") if x.strip())
     try:
-        sensorless(Path(args.out), seeds, rigs, args.only)
+        sensorless(Path(args.out), seeds, rigs, args.only, cluster=_cluster(args))
     except ProfileError as e:
         return fail("error", str(e), 2)
     except BenchError as e:

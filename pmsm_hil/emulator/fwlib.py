@@ -31,6 +31,7 @@ def lib() -> ctypes.CDLL:
     so.emu_set_array.restype = ctypes.c_int
     so.emu_check.argtypes = [ctypes.c_void_p]
     so.emu_check.restype = ctypes.c_char_p
+    so.emu_source_id.restype = ctypes.c_char_p
     so.emu_plant_flux.argtypes = [
         ctypes.c_void_p,
         ctypes.c_double,
@@ -206,3 +207,21 @@ class EmulatedDevice:
     @property
     def state(self) -> int:
         return self._lib.emu_state(self._p)
+
+
+def source_id() -> str:
+    """The firmware build's identity: a hash of the C sources it was compiled from ("unknown" for
+    a build without it). Sweeps and benchmarks key their journals with it (docs/sweep.md)."""
+    return str(lib().emu_source_id().decode())
+
+
+def other_build(firmware: str) -> str | None:
+    """Why this process cannot run work planned for the firmware build ``firmware`` (a worker
+    of a cluster with another pmsm-hil installed), or None when it is this build."""
+    own = source_id()
+    if own == firmware:
+        return None
+    return (
+        f"this worker's firmware build is {own}, the client's {firmware}: install the same "
+        "pmsm-hil on every worker"
+    )

@@ -48,6 +48,12 @@ def execute_run(task: dict[str, Any]) -> dict[str, Any]:
 
     t_wall = time.perf_counter()
     row: dict[str, Any] = {"key": task["key"], "status": "failed", "error": "", "log_path": ""}
+    from pmsm_hil.emulator.fwlib import other_build
+
+    why = other_build(task.get("firmware", ""))
+    if why is not None:
+        row.update(error=why, wall_s=0.0)
+        return row
     tmp = tempfile.mkdtemp(prefix=f"pmsm-sweep-{task['key']}-")
     try:
         for name, text in task["texts"].items():

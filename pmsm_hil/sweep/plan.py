@@ -41,9 +41,13 @@ class Run:
     key: str = ""
 
     def task(self, metrics: list[str], log_path: str | None) -> dict:
-        """What a worker needs: plain data (picklable, no paths to read)."""
+        """What a worker needs: plain data (picklable, no paths to read), and the firmware build
+        the run was planned for (a worker with another build refuses it)."""
+        from pmsm_hil.emulator.fwlib import source_id
+
         return {
             "key": self.key,
+            "firmware": source_id(),
             "index": self.index,
             "seed": self.seed,
             "texts": dict(self.texts),
@@ -213,7 +217,13 @@ def materialise(
 
 
 def run_key(texts: dict[str, str], seed: int) -> str:
-    blob = json.dumps({"texts": [texts[f] for f in FILES], "seed": seed}, sort_keys=True)
+    """A hash of what a run is: its three texts, its seed and the firmware build that runs it
+    (fwlib.source_id): a sweep resumed after a firmware change runs everything again."""
+    from pmsm_hil.emulator.fwlib import source_id
+
+    blob = json.dumps(
+        {"texts": [texts[f] for f in FILES], "seed": seed, "firmware": source_id()}, sort_keys=True
+    )
     return hashlib.sha256(blob.encode("utf-8")).hexdigest()[:16]
 
 

@@ -8,7 +8,12 @@ by each trial's inputs so that an interrupted batch resumes where it stopped. `g
 
 ``fn`` takes one trial (a JSON-able dict) and returns a JSON-able dict; it runs in a worker
 process, so it must be importable there (a module-level function). Every result comes back through
-JSON, so a fresh result and one read from the journal are the same values.
+JSON, so a fresh result and one read from the journal are the same values. A trial that raises is
+reported failed with its error (one line, no worker traceback on the terminal).
+
+The key of a trial is a hash of its inputs and of the firmware build (``fwlib.source_id``, a hash
+of the C sources the emulator was compiled from): after a firmware change nothing is taken from the
+journal, and a worker whose build is not the client's fails its trials with both builds named.
 
 Dask starts each worker process with its BLAS and OpenMP libraries on one thread (the nanny's
 ``pre-spawn-environ``: the variables in BLAS_THREADS set to 1), so a trial whose numerics go
@@ -35,9 +40,30 @@ BLAS_THREADS = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
 
 
 def task_key(task: dict[str, Any]) -> str:
-    """The key of a trial: a hash of its inputs (the same trial, the same key)."""
-    text = json.dumps(task, sort_keys=True, separators=(",", ":"))
+    """The key of a trial: a hash of its inputs and the firmware build (the same trial on the same
+    firmware, the same key)."""
+    from pmsm_hil.emulator.fwlib import source_id
+
+    text = json.dumps(
+        {"task": task, "firmware": source_id()}, sort_keys=True, separators=(",", ":")
+    )
     return hashlib.sha256(text.encode()).hexdigest()[:20]
+
+
+_FAILED = "__pmsm_trial_failed__"
+
+
+def _in_worker(fn: Callable[[dict], dict], firmware: str, task: dict[str, Any]) -> dict:
+    """``fn(task)`` in a worker: its result, or why it failed (the firmware build, an exception)."""
+    from pmsm_hil.emulator.fwlib import other_build
+
+    why = other_build(firmware)
+    if why is not None:
+        return {_FAILED: why}
+    try:
+        return fn(task)
+    except Exception as e:
+        return {_FAILED: f"{type(e).__name__}: {e}"}
 
 
 def _normal(value: Any) -> Any:
@@ -61,6 +87,9 @@ def run_tasks(
     ``done_if(trial, result)``, those for which it holds: e.g. the trial's log is still there)."""
     from distributed import as_completed
 
+    from pmsm_hil.emulator.fwlib import source_id
+
+    firmware = source_id()
     keys = [task_key(t) for t in tasks]
     results: dict[str, dict[str, Any]] = {}
     journal = None
@@ -80,7 +109,8 @@ def run_tasks(
         t0 = time.perf_counter()
         try:
             futures = [
-                client.submit(fn, t, key=f"pmsm-{name}-{k}", pure=False) for k, t in todo.items()
+                client.submit(_in_worker, fn, firmware, t, key=f"pmsm-{name}-{k}", pure=False)
+                for k, t in todo.items()
             ]
             prefix = len(f"pmsm-{name}-")
             with bar:
@@ -91,6 +121,8 @@ def run_tasks(
                         res = _normal(fut.result())
                     except Exception as e:
                         res, status = {"error": _error_of(e)}, "failed"
+                    if _FAILED in res:
+                        res, status = {"error": res[_FAILED]}, "failed"
                     fut.release()
                     results[k] = res
                     if journal is not None:
