@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from gap_records import record_rig
 
 from pmsm_hil.cli.main import main
 from pmsm_hil.gap.diagnose import diagnose
@@ -24,29 +25,10 @@ from pmsm_hil.profiles import load_motor, load_rig
 ROOT = Path(__file__).resolve().parents[1]
 MOTOR = str(ROOT / "profiles/motors/paper-a-ipmsm.yaml")
 PROFILE = ROOT / "tests/data/gap-short.yaml"
-SENSORS = {
-    "adc_noise": {"i_noise_a": 0.02},
-    "adc_quantisation": {"adc_lsb_a": 100 / 4096},
-    "encoder": {"lines": 2500, "offset_e_rad": 0.0},
-}
-SPEC = {"i_noise_a": 0.02, "adc_lsb_a": 100 / 4096, "encoder_lines": 2500.0}
 
 
 def _record(tmp, name, effects, sensors=True, seed=7):
-    from pmsm_hil.gapgen.recorder import record_profile
-
-    eff = dict(SENSORS) if sensors else {}
-    for k, v in effects.items():
-        eff[k] = dict(eff.get(k, {}), **v)
-    rig = tmp / f"{name}.yaml"
-    rig.write_text(
-        yaml.safe_dump({"name": name, "description": "test", "v_dc_v": None, "effects": eff})
-    )
-    out = tmp / f"{name}.mcap"
-    record_profile(
-        PROFILE, out, rig_path=rig, seed=seed, full_log=False, sensors=SPEC if sensors else None
-    )
-    return out
+    return record_rig(tmp, name, effects, PROFILE, seed, sensors=sensors)
 
 
 @pytest.fixture(scope="module")

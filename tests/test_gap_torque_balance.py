@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import yaml
+from gap_records import record_rig
 
 from pmsm_hil.gap.diagnose import diagnose
 from pmsm_hil.gap.model import MotorModel
@@ -20,27 +20,10 @@ from pmsm_hil.profiles import load_motor
 ROOT = Path(__file__).resolve().parents[1]
 MOTOR = str(ROOT / "profiles/motors/paper-a-ipmsm.yaml")
 PROFILE = ROOT / "tests/data/gap-mech.yaml"
-SENSORS = {
-    "adc_noise": {"i_noise_a": 0.02},
-    "adc_quantisation": {"adc_lsb_a": 100 / 4096},
-    "encoder": {"lines": 2500, "offset_e_rad": 0.0},
-}
-SPEC = {"i_noise_a": 0.02, "adc_lsb_a": 100 / 4096, "encoder_lines": 2500.0}
 
 
 def _record(tmp, name, effects, seed=5):
-    from pmsm_hil.gapgen.recorder import record_profile
-
-    eff = dict(SENSORS)
-    for k, v in effects.items():
-        eff[k] = dict(eff.get(k, {}), **v)
-    rig = tmp / f"{name}.yaml"
-    rig.write_text(
-        yaml.safe_dump({"name": name, "description": "test", "v_dc_v": None, "effects": eff})
-    )
-    out = tmp / f"{name}.mcap"
-    record_profile(PROFILE, out, rig_path=rig, seed=seed, full_log=False, sensors=SPEC)
-    return load_record(out)
+    return load_record(record_rig(tmp, name, effects, PROFILE, seed))
 
 
 @pytest.fixture(scope="module")

@@ -13,6 +13,7 @@ from pmsm_hil.gap.fit import bootstrap_closure, fit_effects
 from pmsm_hil.gap.maps import residual_maps
 from pmsm_hil.gap.model import MotorModel
 from pmsm_hil.gap.noise import floor_from_data, floor_from_spec
+from pmsm_hil.gap.plateaus import less_iron_drag, plateau_view
 from pmsm_hil.gap.pool import FitJob, FitPool, one_blas_thread
 from pmsm_hil.gap.probe import Probe, mse
 from pmsm_hil.gap.record import ControlRecord
@@ -74,6 +75,19 @@ def diagnose(
     probe = Probe(rec, motor)
     with one_blas_thread(), FitPool(probe, workers) as pool:
         return _diagnose(rec, motor, probe, holdout, seed, candidates, progress, pool)
+
+
+def _take_view(effects: list[dict], seen: list[dict]) -> None:
+    """A view's entries into the list (in place): a new name is added; a view that selects an
+    effect the one-step residual did not takes that effect's entry."""
+    pos = {e["name"]: j for j, e in enumerate(effects)}
+    for v in seen:
+        j = pos.get(v["name"])
+        if j is None:
+            effects.append(v)
+        elif v["selected"] and not effects[j]["selected"]:
+            v["evidence"] += f"; one-step residual: {effects[j]['evidence']}"
+            effects[j] = v
 
 
 def _diagnose(
@@ -323,15 +337,25 @@ def _diagnose(
         )
     # the views: dc_link, and the torque balance's friction, cogging and sensor offsets; a view that
     # sees an effect the one-step residual could not select takes that effect's entry
-    pos = {e["name"]: j for j, e in enumerate(effects)}
     say("views: DC link, torque balance (friction, cogging, sensor offsets)")
-    for v in view_effects(rec, motor):
-        j = pos.get(v["name"])
-        if j is None:
-            effects.append(v)
-        elif v["selected"] and not effects[j]["selected"]:
-            v["evidence"] += f"; one-step residual: {effects[j]['evidence']}"
-            effects[j] = v
+    _take_view(effects, view_effects(rec, motor))
+    # the settled plateaus: iron loss, the encoder's offset and the temperatures, with the selected
+    # effects held (those of the one-step residual and the views' that act on the probe)
+    say("view: settled plateaus (iron loss, encoder offset, temperatures)")
+    fixed = final.effects() if final else []
+    for ent in effects:
+        name, par = str(ent["name"]), ent.get("parameters")
+        if (
+            ent["selected"]
+            and name not in chosen
+            and name in EFFECTS
+            and isinstance(par, dict)
+            and all(q in par for q in EFFECTS[name].params)
+        ):
+            fixed.append((EFFECTS[name], np.array([par[q] for q in EFFECTS[name].params])))
+    pv, out["plateaus"] = plateau_view(probe, motor, fixed, exclude=[str(e) for e in chosen])
+    _take_view(effects, pv)
+    less_iron_drag(effects, motor)
     effects.sort(key=lambda e: not e["selected"])  # stable: the residual's selection first
     view_sel = [str(e["name"]) for e in effects if e["selected"] and e["name"] not in chosen]
     out["effects"] = effects

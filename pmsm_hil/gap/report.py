@@ -67,6 +67,19 @@ def verdict_lines(res: dict) -> list[str]:
         out.append(
             f"  ? {a['effects'][0]} and {a['effects'][1]} cannot be told apart on this data: {a['experiment']}"
         )
+    pl = res.get("plateaus") or {}
+    if "rms_before_v" in pl:
+        b4, af = pl["rms_before_v"], pl["rms_after_v"]
+        out.append(
+            f"  settled plateaus: {pl['plateaus']}, mean residual d / q {b4[0]:.2f} / {b4[1]:.2f} V rms"
+            + (
+                f" -> {af[0]:.2f} / {af[1]:.2f} V with {' + '.join(pl['selected'])}"
+                if pl.get("selected")
+                else " (nothing taken)"
+            )
+        )
+    elif pl.get("note"):
+        out.append(f"  settled plateaus: {pl['note']}")
     p = res["parametric_gap"]
     out.append(
         f"  parametric (best constant values): R {p['r_s_ohm']:.3g} ohm, Ld {p['l_d_h'] * 1e3:.3g} mH, "
