@@ -168,3 +168,16 @@ def test_a_scheduler_without_workers_is_said_and_a_joining_worker_runs_the_trial
     assert res == [{"x": 3, "square": 9, "third": 1.0}]
     err = capsys.readouterr().err
     assert "the scheduler has no workers yet" in err and "dask worker tcp://127.0.0.1:" in err
+
+
+def test_a_batch_taken_whole_from_the_journal_says_so(tmp_path, capsys):
+    calls = tmp_path / "calls"
+    calls.mkdir()
+    tasks = [{"x": x, "calls": str(calls)} for x in (1, 2)]
+    out = tmp_path / "out"
+    run_tasks(_square, tasks, out, name="sq", workers=1, progress=False)
+    capsys.readouterr()
+    again = run_tasks(_square, tasks, out, name="sq", workers=1, progress=True)
+    assert [r["square"] for r in again] == [1, 4] and len(os.listdir(calls)) == 2
+    err = capsys.readouterr().err
+    assert f"sq: all 2 trials taken from {out / 'sq.jsonl'}" in err

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -104,6 +105,12 @@ def run_tasks(
     bar = _Bar(
         len(set(keys)), len(set(keys)) - len(todo), enabled=progress, label=name, unit="trials"
     )
+    if progress and out is not None and results and not todo:
+        print(
+            f"{name}: all {len(results)} trials taken from {Path(out, name + '.jsonl')} (this "
+            "firmware build, the same inputs; remove it to run them again)",
+            file=sys.stderr,
+        )
     if todo:
         client, cluster = _client(scheduler, workers)
         t0 = time.perf_counter()
