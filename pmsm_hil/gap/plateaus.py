@@ -12,10 +12,11 @@ a little and that the residual's mean square hardly weighs against the switching
 A plateau is the second half of a stretch where the 20 ms mean speed stays within 0.5 % (at least
 2 rad/s) and the load is constant, lasting at least 0.15 s. Every subset of the candidates is
 fitted jointly to the plateau means in volts, the selected effects held at their fitted values
-(one at a time they take up each other's part); the subset whose fits on random halves of the
-plateaus best predict the other halves is taken (the smallest within ``TIE_REL`` of the best) when
-it lowers their sum of squares by at least ``MIN_GAIN_REL`` and by ``MIN_GAIN_V2`` per plateau,
-with every value inside its range.
+(one at a time they take up each other's part), on a model of the means linear in the candidates'
+parameters about their null values; the subset whose fits on random halves of the plateaus best
+predict the other halves is taken (the smallest within ``TIE_REL`` of the best) when it lowers
+their sum of squares by at least ``MIN_GAIN_REL`` and by ``MIN_GAIN_V2`` per plateau, and, fitted
+again in full (nonlinear), has every value inside its range.
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ from pmsm_hil.gap.model import MotorModel
 from pmsm_hil.gap.probe import Probe
 from pmsm_hil.gap.record import ControlRecord
 
-__all__ = ["find_plateaus", "less_iron_drag", "plateau_means", "plateau_view"]
+__all__ = ["find_plateaus", "less_iron_drag", "plateau_view"]
 
 CANDIDATES = ("iron_loss", "encoder", "thermal")
 SMOOTH_S = 0.02
@@ -40,7 +41,6 @@ MIN_PLATEAU_S = 0.15
 MIN_PLATEAUS = 6
 MIN_GAIN_REL = 0.25  # of the held-out plateaus' sum of squares
 MIN_GAIN_V2 = 0.05  # per plateau: (0.22 V)^2
-BLOCK_S = 0.005  # the standard error of a plateau mean: 5 ms blocks
 SPLITS = 3  # random halvings of the plateaus for the held-out gain
 # the candidates' null values and the steps of the central differences about them
 NULL = {"iron_loss": (0.0,), "encoder": (0.0,), "thermal": (0.0, 0.0)}
@@ -77,25 +77,6 @@ def _rows(probe: Probe, plateaus: Sequence[tuple[int, int]]) -> tuple[np.ndarray
         sel.append(s)
         lab.append(np.full(len(s), p))
     return np.concatenate(sel), np.concatenate(lab)
-
-
-def plateau_means(
-    probe: Probe, effects: list[tuple[Effect, np.ndarray]], plateaus: Sequence[tuple[int, int]]
-) -> tuple[np.ndarray, np.ndarray]:
-    """Each plateau's mean residual (P, 2) in volts (d, q) with the effects, and its standard error
-    from 5 ms blocks."""
-    sel, lab = _rows(probe, plateaus)
-    r = probe.residual(effects, sel)
-    nb = max(round(BLOCK_S / probe.ts_s), 1)
-    means, se = np.zeros((len(plateaus), 2)), np.zeros((len(plateaus), 2))
-    for p in range(len(plateaus)):
-        rp = r[lab == p]
-        means[p] = rp.mean(0)
-        m = len(rp) // nb
-        if m >= 2:
-            blocks = rp[: m * nb].reshape(m, nb, 2).mean(1)
-            se[p] = blocks.std(0, ddof=1) / np.sqrt(m)
-    return means, se
 
 
 class _PlateauFit:
