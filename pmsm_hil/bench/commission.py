@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from pmsm_hil.bench.trials import Cluster, run_trials
+from pmsm_hil.bench.trials import Cluster, groups, key_text, run_trials
 
 if TYPE_CHECKING:
     from pmsm_hil.commission.sequence import CommissionResult
@@ -125,14 +125,14 @@ def bench_commission(
             "rig": str(Path(p).resolve()),
             "seed": int(s),
             "log": str((out / f"commission-{Path(p).stem}-{s}.mcap").resolve()),
-            "text": Path(p).read_text(encoding="utf-8"),  # in the key only
+            "text": key_text(p),  # in the key only
         }
         for p in paths
         for s in seeds
     ]
     every = run_trials(commission_trial, tasks, out, cluster, name="commission")
-    for k, path in enumerate(paths):
-        runs = list(zip(seeds, every[k * len(seeds) : (k + 1) * len(seeds)], strict=True))
+    for path, part in zip(paths, groups(every, len(seeds)), strict=True):
+        runs = list(zip(seeds, part, strict=True))
         t = table(Path(path).stem, runs)
         echo(t + "\n")
         parts += [t, ""]

@@ -3,10 +3,11 @@ emulator in this process, the Table-2 figures beside the paper's, the mismatch b
 per-effect table. Results are written to a folder and echoed as text.
 
 The benchmark's runs go through the sweep's Dask machinery (pmsm_hil.bench.trials; docs/sweep.md):
-one run in this process, several (the mismatch cases, the rigs of the per-effect table, the rigs and
-seeds of `--rigs`) as tasks on a local cluster or the scheduler given, each writing its log into the output folder; a journal
-there (bench.jsonl, keyed by the run's profile and rig texts, seed and log) lets an interrupted
-benchmark skip the runs whose logs are already written. The figures are computed here from the
+one run in this process, several (the mismatch cases, the rigs of the per-effect table; the rigs
+and seeds of `--rigs` in bench/identify_rigs.py) as tasks on a local cluster or the scheduler
+given, each writing its log into the output folder; a journal there (bench.jsonl, keyed by the
+run's profile and rig texts, seed and log) lets an interrupted benchmark skip the runs whose logs
+are already written. The figures are computed here from the
 logs, whichever process ran them."""
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from pmsm_hil.bench.trials import Cluster, run_trials
+from pmsm_hil.bench.trials import Cluster, key_text, run_trials
 from pmsm_hil.device import DeviceSpec, open_device
 
 
@@ -110,13 +111,15 @@ def bench_run(task: dict) -> dict:
 
 
 def _job(profile_path, log: Path, seed: int, rig=None) -> dict:
-    text = lambda p: Path(p).read_text(encoding="utf-8") if p else ""  # noqa: E731
     return {
         "profile": str(Path(profile_path).resolve()),
         "rig": str(Path(rig).resolve()) if rig else None,
         "seed": int(seed),
         "log": str(Path(log).resolve()),
-        "texts": [text(profile_path), text(rig)],  # in the key only: a changed file runs again
+        "texts": [
+            key_text(profile_path),
+            key_text(rig),
+        ],  # in the key only: a changed file runs again
     }
 
 

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from pmsm_hil.bench.trials import Cluster, run_trials
+from pmsm_hil.bench.trials import Cluster, groups, key_text, run_trials
 
 PARAMS = (("l_d_h", "L_d"), ("l_q_h", "L_q"), ("psi_f_wb", "psi_f"), ("r_s_ohm", "R"))
 ESTIMATORS = ("rls", "nlms_adaline")
@@ -99,7 +99,6 @@ def _trials(
 ) -> list[dict]:
     """`_one` for every rig and seed (rig-major), run as trials; cells keyed by (estimator,
     quantity) again, a trial that could not be made as {"failed": why}."""
-    text = lambda p: Path(p).read_text(encoding="utf-8") if p else ""  # noqa: E731
     tasks = []
     for rp in rig_paths:
         stem = Path(rp).stem
@@ -116,7 +115,7 @@ def _trials(
                     "commissioned": commissioned,
                     "motor": str(Path(motor).resolve()) if motor else None,
                     "logs": logs,
-                    "texts": [text(path), text(rp), text(motor)],  # in the key only
+                    "texts": [key_text(path), key_text(rp), key_text(motor)],  # in the key only
                 }
             )
     results = run_trials(identify_trial, tasks, out, cluster, name="identify-rigs")
@@ -156,8 +155,8 @@ def identify_rigs(
     ]
     rig_paths = [resolve(rig, "rig") for rig in rigs]
     every = _trials(path, rig_paths, seeds, out, commissioned, motor, cluster)
-    for k, rp in enumerate(rig_paths):
-        results = list(zip(seeds, every[k * len(seeds) : (k + 1) * len(seeds)], strict=True))
+    for rp, part in zip(rig_paths, groups(every, len(seeds)), strict=True):
+        results = list(zip(seeds, part, strict=True))
         ok = [r["cells"] for _s, r in results if "cells" in r]
         lines = [
             f"### rig {Path(rp).stem}: {len(ok)} of {len(seeds)} seeds ran",
@@ -240,8 +239,7 @@ def per_effect_commissioned(
     every = _trials(
         path, [str(rigs_dir / f"{r}.yaml") for r in rigs], seeds, out, True, None, cluster
     )
-    for k, r in enumerate(rigs):
-        res = every[k * len(seeds) : (k + 1) * len(seeds)]
+    for r, res in zip(rigs, groups(every, len(seeds)), strict=True):
         ok = [x["cells"] for x in res if "cells" in x]
         cells = []
         for q, _n in PARAMS:

@@ -1,8 +1,8 @@
 """The sensorless benchmark (`pmsm-hil bench sensorless`): each scenario's profile run on the
 in-process emulator (as trials on the sweep's Dask machinery: bench/sensorless_report.py), with the
-estimate closing the loop and the encoder as truth, per rig and
-over several seeds; the angle and speed figures (median and worst over the seeds) beside the
-papers' and the targets, PNG plots of angle error and speed. docs/sensorless.md.
+estimate closing the loop and the encoder as truth, per rig and over several seeds; the angle and
+speed figures (median and worst over the seeds) beside the papers' and the targets, PNG plots of
+angle error and speed. docs/sensorless.md.
 
 A scenario is a row of `SCENARIOS`: a shipped profile, the windows of its segments that are
 steady and the events that start a transient. Runs are shared between the scenarios of one

@@ -21,7 +21,7 @@ from pmsm_hil.bench.sensorless import (
     rig_for,
     scenario_figures,
 )
-from pmsm_hil.bench.trials import Cluster
+from pmsm_hil.bench.trials import Cluster, groups
 
 # figure key -> (column title, format, how "worst" is taken)
 STEADY_COLS = (
@@ -189,13 +189,15 @@ def sensorless(
         for seed in seeds
     ]
     done = run_jobs(jobs, out, cluster)
-    for k, (prof, ppath, rig, rig_path, note) in enumerate(cases):
+    for (prof, ppath, rig, rig_path, note), case_jobs, case_done in zip(
+        cases, groups(jobs, len(seeds)), groups(done, len(seeds)), strict=True
+    ):
         if note:
             echo("note: " + note)
             md += [f"note: {note}", ""]
         profile = load_profile(ppath, rig_override=rig_path)
-        runs, part = [], slice(k * len(seeds), (k + 1) * len(seeds))
-        for job, res in zip(jobs[part], done[part], strict=True):
+        runs = []
+        for job, res in zip(case_jobs, case_done, strict=True):
             if res.get("error"):
                 raise BenchError(f"the run failed ({res['error']}); log {job['log']}")
             runs.append(read_run(Path(job["log"]), profile))

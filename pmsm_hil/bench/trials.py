@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-__all__ = ["Cluster", "logs_written", "run_trials"]
+__all__ = ["Cluster", "groups", "key_text", "logs_written", "run_trials"]
 
 
 @dataclass
@@ -21,6 +21,16 @@ class Cluster:
     workers: int | None = None
     scheduler: str | None = None
     progress: bool = False
+
+
+def key_text(path: str | Path | None) -> str:
+    """A file's text for a trial's key (a changed file runs again); "" for none."""
+    return Path(path).read_text(encoding="utf-8") if path else ""
+
+
+def groups(items: list, size: int) -> list[list]:
+    """``items`` cut into consecutive groups of ``size`` (a rig's seeds in rig-major results)."""
+    return [items[k : k + size] for k in range(0, len(items), size)]
 
 
 def logs_written(task: dict[str, Any], result: dict[str, Any]) -> bool:

@@ -40,14 +40,14 @@ __all__ = ["BLAS_THREADS", "run_tasks", "task_key"]
 BLAS_THREADS = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
 
 
-def task_key(task: dict[str, Any]) -> str:
+def task_key(task: dict[str, Any], firmware: str | None = None) -> str:
     """The key of a trial: a hash of its inputs and the firmware build (the same trial on the same
-    firmware, the same key)."""
-    from pmsm_hil.emulator.fwlib import source_id
+    firmware, the same key); ``firmware``: the build's id when the caller has it already."""
+    if firmware is None:
+        from pmsm_hil.emulator.fwlib import source_id
 
-    text = json.dumps(
-        {"task": task, "firmware": source_id()}, sort_keys=True, separators=(",", ":")
-    )
+        firmware = source_id()
+    text = json.dumps({"task": task, "firmware": firmware}, sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(text.encode()).hexdigest()[:20]
 
 
@@ -91,7 +91,7 @@ def run_tasks(
     from pmsm_hil.emulator.fwlib import source_id
 
     firmware = source_id()
-    keys = [task_key(t) for t in tasks]
+    keys = [task_key(t, firmware) for t in tasks]
     results: dict[str, dict[str, Any]] = {}
     journal = None
     if out is not None:
