@@ -87,9 +87,6 @@ class _PlateauFit:
         self.sel, self.lab, self.n = sel, lab, n
         self.lo = np.array([v for c in names for v in EFFECTS[c].lower], float)
         self.hi = np.array([v for c in names for v in EFFECTS[c].upper], float)
-        self.x0 = np.clip(
-            np.array([v for c in names for v in EFFECTS[c].x0], float), self.lo, self.hi
-        )
 
     def effects(self, z: np.ndarray) -> list[tuple[Effect, np.ndarray]]:
         out, p = [], 0
