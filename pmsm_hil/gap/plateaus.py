@@ -32,7 +32,7 @@ from pmsm_hil.gap.model import MotorModel
 from pmsm_hil.gap.probe import Probe
 from pmsm_hil.gap.record import ControlRecord
 
-__all__ = ["find_plateaus", "less_iron_drag", "plateau_view"]
+__all__ = ["find_plateaus", "less_iron_drag", "plateau_bootstrap", "plateau_view"]
 
 CANDIDATES = ("iron_loss", "encoder", "thermal")
 SMOOTH_S = 0.02
@@ -46,6 +46,7 @@ SPLITS = 3  # random halvings of the plateaus for the held-out gain
 NULL = {"iron_loss": (0.0,), "encoder": (0.0,), "thermal": (0.0, 0.0)}
 STEP = {"iron_loss": (2.0,), "encoder": (0.01,), "thermal": (20.0, 20.0)}
 TIE_REL = 0.1  # a smaller subset within 10 % of the best held-out gain is taken instead
+BOOT = 1000  # resamples of the plateaus for the intervals
 
 
 def find_plateaus(rec: ControlRecord, omega: np.ndarray) -> list[tuple[int, int]]:
@@ -125,6 +126,28 @@ def _held_out(m0: np.ndarray, jac: np.ndarray, cols, lo, hi, halves) -> tuple[fl
     return cv, lsq_linear(a, b, bounds=(lo, hi)).x
 
 
+def plateau_bootstrap(
+    jac: np.ndarray, resid: np.ndarray, z: np.ndarray, lo: np.ndarray, hi: np.ndarray, seed: int = 1
+) -> np.ndarray:
+    """The fit ``z`` again on ``BOOT`` resamples of the plateaus (drawn with replacement), each by
+    one Gauss-Newton step from ``z`` on the final fit's Jacobian and residuals (rows plateau-major,
+    d then q) and clipped to the range: (BOOT, len(z)). A plateau's misfit is a model error as much
+    as noise (the loaded plateaus carry the saturation model's), so the spread between plateaus,
+    not the residuals' scatter, bounds the fit."""
+    n, k = len(resid) // 2, len(z)
+    jb = jac.reshape(n, 2, k)
+    rb = resid.reshape(n, 2)
+    gram = np.einsum("pik,pil->pkl", jb, jb).reshape(n, k * k)
+    grad = np.einsum("pik,pi->pk", jb, rb)
+    counts = (
+        np.random.default_rng(seed).multinomial(n, np.full(n, 1.0 / n), size=BOOT).astype(float)
+    )
+    a = (counts @ gram).reshape(BOOT, k, k)
+    g = counts @ grad
+    dz = -np.einsum("bkl,bl->bk", np.linalg.pinv(a), g)
+    return np.clip(z + dz, lo, hi)
+
+
 def plateau_view(
     probe: Probe, motor: MotorModel, fixed: list[tuple[Effect, np.ndarray]], exclude: Sequence[str]
 ) -> tuple[list[dict], dict]:
@@ -191,9 +214,11 @@ def plateau_view(
         dof = max(after.size - len(z), 1)
         cov = np.linalg.pinv(res.jac.T @ res.jac) * float(np.sum(after**2)) / dof
         se_all = np.sqrt(np.maximum(np.diag(cov), 0.0))
+        boot = plateau_bootstrap(res.jac, res.fun, z, pf.lo, pf.hi)
     else:  # below the threshold: the linear fit's values are quoted, nothing refitted
         z, se_all = z_lin, np.zeros(len(z_lin))
         after = m0.reshape(n, 2)
+        boot = np.empty((0, len(z)))
     inside = bool(np.all(z > pf.lo) & np.all(z < pf.hi))
     entries: list[dict] = []
     p = 0
@@ -201,15 +226,18 @@ def plateau_view(
         e = EFFECTS[c]
         x = z[p : p + len(e.params)]
         se = se_all[p : p + len(e.params)]
-        p += len(e.params)
         ends = [primary_value(e, x + s * 1.96 * se, motor, rec.ts_s) for s in (-1, 1)]
+        if len(boot):  # the wider of the fit's own interval and the plateaus' resampling's
+            vals = [primary_value(e, zb[p : p + len(e.params)], motor, rec.ts_s) for zb in boot]
+            ends += [float(v) for v in np.percentile(vals, [2.5, 97.5])]
+        p += len(e.params)
         entries.append(
             {
                 "name": c,
                 "selected": take,
                 "magnitude": primary_value(e, x, motor, rec.ts_s),
                 "quantity": e.primary,
-                "interval": sorted(ends) if take else None,
+                "interval": [min(ends), max(ends)] if take else None,
                 "parameters": e.report(x, motor),
                 "closure": None,
                 "evidence": f"settled plateaus ({n}), fitted with {' + '.join(names)}: the "
