@@ -1,19 +1,26 @@
 """`pmsm-hil gap verify LOG --rig fitted-rig.yaml`: end-to-end closure. The log's own profile (its
 `profile.yaml` and `motor.yaml` attachments) is re-run on the emulator twice, with the nominal model
-(`rigs/ideal.yaml`) and with the fitted rig; the free-run telemetry of both is compared with the
-log's, smoothed over 5 ms so that sensor noise and switching ripple, which no model reproduces
-sample by sample, do not count, and each segment's settled half by its mean (docs/gap.md, "How
-far")."""
+(`rigs/ideal.yaml`) and with the fitted rig; the free run of both is compared with the log's,
+smoothed over 5 ms so that sensor noise and switching ripple, which no model reproduces sample by
+sample, do not count, and each segment's settled half by its mean (docs/gap.md, "How far").
+
+The dq currents and voltages come from the continuous control-rate recording when the log holds one
+(a `gap record` log; the re-runs always do): every period, the voltage from the switch states or
+duties and the DC link at the period's mid angle. The 2 kHz telemetry samples one period in ten of
+a finite-control-set voltage that switches by hundreds of volts, and its aliases moved a segment's
+mean u_d by up to 17 V between two runs of the same rig; it is used only for a log without the
+recording (and always for the speed)."""
 
 from __future__ import annotations
 
-import itertools
 import os
 import tempfile
 
 import numpy as np
 import yaml
 
+from pmsm_hil.gap.model import abc_to_ab, rot_cs
+from pmsm_hil.gap.record import CONTROL_TOPIC, ControlRecord, load_record
 from pmsm_hil.gapgen.recorder import record_profile
 from pmsm_hil.log.reader import read_log
 from pmsm_hil.profiles._base import default_file
@@ -23,11 +30,37 @@ SMOOTH_S = 5e-3
 
 
 def _smooth(t, x, t_grid):
+    """The 5 ms moving mean of x (NaN samples left out) at the times t_grid."""
     dt = np.median(np.diff(t)) if len(t) > 1 else 1.0
     n = max(round(SMOOTH_S / dt), 1)
     k = np.ones(n) / n
-    xs = np.convolve(x, k, mode="same")
-    return np.interp(t_grid, t, xs)
+    ok = np.isfinite(x)
+    cnt = np.convolve(ok.astype(float), k, mode="same")
+    with np.errstate(invalid="ignore", divide="ignore"):
+        xs = np.convolve(np.where(ok, x, 0.0), k, mode="same") / cnt
+    good = np.isfinite(xs)
+    return np.interp(t_grid, t[good], xs[good]) if good.any() else np.full(len(t_grid), np.nan)
+
+
+def _series(log, path) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Each signal's (t_s, values): the dq currents and voltages at the control rate when the log
+    holds the continuous recording, else (and the speed always) the telemetry's."""
+    tel = log.topic("/pmsm/telemetry")
+    out = {s: (np.asarray(tel["t_s"], float), np.asarray(tel[s], float)) for s in SIGNALS}
+    if CONTROL_TOPIC not in log.topics:
+        return out
+    rec = load_record(path)
+    if not isinstance(rec, ControlRecord) or rec.n < 2:
+        return out
+    th = rec.theta_e_rad
+    i_dq = rot_cs(abc_to_ab(rec.i_abc), np.cos(th), -np.sin(th))
+    mid = th + 0.5 * rec.omega_e_rad_s * rec.ts_s  # the voltage acts over the period
+    u_dq = rot_cs(rec.u_alpha_beta(), np.cos(mid), -np.sin(mid))
+    u_dq[~rec.pwm_on] = np.nan  # no voltage is applied: not a sample of the model's
+    for j, (i_name, u_name) in enumerate((("i_d_a", "u_d_v"), ("i_q_a", "u_q_v"))):
+        out[i_name] = (rec.t_s, i_dq[:, j])
+        out[u_name] = (rec.t_s, u_dq[:, j])
+    return out
 
 
 def verify(log_path: str | os.PathLike, rig_path: str | os.PathLike, seed: int = 1) -> dict:
@@ -59,12 +92,13 @@ def verify(log_path: str | os.PathLike, rig_path: str | os.PathLike, seed: int =
         ):
             path = os.path.join(d, f"{tag}.mcap")
             record_profile(prof, path, rig_path=rig, seed=seed, full_log=True)
-            runs[tag] = read_log(path).topic("/pmsm/telemetry")
-    t = real["t_s"]
+            runs[tag] = _series(read_log(path), path)
+    ours = _series(log, log_path)
+    t = np.asarray(real["t_s"], float)  # the comparison's grid: the log's telemetry times
     for s in SIGNALS:
-        ref = _smooth(t, real[s], t)
-        e = {tag: _smooth(r["t_s"], r[s], t) - ref for tag, r in runs.items()}
-        mb, ma = float(np.mean(e["nominal"] ** 2)), float(np.mean(e["fitted"] ** 2))
+        ref = _smooth(*ours[s], t)
+        e = {tag: _smooth(*r[s], t) - ref for tag, r in runs.items()}
+        mb, ma = float(np.nanmean(e["nominal"] ** 2)), float(np.nanmean(e["fitted"] ** 2))
         signals[s] = {
             "rms_nominal": float(np.sqrt(mb)),
             "rms_fitted": float(np.sqrt(ma)),
@@ -74,11 +108,15 @@ def verify(log_path: str | os.PathLike, rig_path: str | os.PathLike, seed: int =
     out["closure_median"] = float(np.median(cl))
     # the same on each segment's settled half (its mean): what a steady-state comparison sees,
     # free of the switching pattern and of the speed loop's noise, which no two runs share
-    bounds = _segment_bounds(log, float(t[-1]))
+    segs = spec.get("segments") or []
+    durations = (
+        [float(g["duration_s"]) for g in segs] if all("duration_s" in g for g in segs) else None
+    )
+    bounds = _segment_bounds(log, float(t[-1]), durations)
     plateau: dict[str, dict[str, float]] = {}
     for s in SIGNALS:
-        means = {tag: _plateau_means(r["t_s"], r[s], bounds) for tag, r in runs.items()}
-        ref = _plateau_means(t, real[s], bounds)
+        means = {tag: _plateau_means(*r[s], bounds) for tag, r in runs.items()}
+        ref = _plateau_means(*ours[s], bounds)
         mb = float(np.nanmean((means["nominal"] - ref) ** 2))
         ma = float(np.nanmean((means["fitted"] - ref) ** 2))
         plateau[s] = {
@@ -93,21 +131,27 @@ def verify(log_path: str | os.PathLike, rig_path: str | os.PathLike, seed: int =
     return out
 
 
-def _segment_bounds(log, t_end: float) -> list[tuple[float, float]]:
-    """(start, end) of each segment's second half, from the log's segment_start events."""
+def _segment_bounds(
+    log, t_end: float, durations: list[float] | None = None
+) -> list[tuple[float, float]]:
+    """(start, end) of each segment's second half, from the log's segment_start events; a segment
+    ends at the next one's start or, given the profile's ``durations``, after its own duration (the
+    last one is not followed into the stop after the profile)."""
     ev = log.topic("/pmsm/events") if "/pmsm/events" in log.topics else {"t_s": [], "kind": []}
     starts = [
         float(ts) for ts, k in zip(ev["t_s"], ev["kind"], strict=True) if k == "segment_start"
     ]
-    edges = [*starts, t_end]
-    return [(a + 0.5 * (b - a), b) for a, b in itertools.pairwise(edges) if b > a]
+    ends = [*starts[1:], t_end]
+    if durations is not None and len(durations) >= len(starts):
+        ends = [min(b, a + float(d)) for a, b, d in zip(starts, ends, durations, strict=False)]
+    return [(a + 0.5 * (b - a), b) for a, b in zip(starts, ends, strict=True) if b > a]
 
 
 def _plateau_means(t, x, bounds) -> np.ndarray:
     t, x = np.asarray(t, float), np.asarray(x, float)
-    return np.array(
-        [
-            np.mean(x[(t >= a) & (t < b)]) if np.any((t >= a) & (t < b)) else np.nan
-            for a, b in bounds
-        ]
-    )
+    out = []
+    for a, b in bounds:
+        v = x[(t >= a) & (t < b)]
+        v = v[np.isfinite(v)]
+        out.append(float(np.mean(v)) if len(v) else np.nan)
+    return np.array(out)
