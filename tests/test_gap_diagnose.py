@@ -219,9 +219,9 @@ def test_verify_reruns_the_logs_profile(tmp_path, capsys):
 def test_verify_compares_the_control_rate_not_the_telemetrys_samples(tmp_path):
     """The true rig run again with another noise seed reproduces every segment's settled dq
     currents and voltages (closure >= 0.9): they come from the control-rate recording, every period.
-    The 2 kHz telemetry samples one period in ten of the FCS voltage, whose aliases moved a settled
-    u_d by volts between two seeds (closure -0.3 to 0 on diagnose.yaml, lab-typical). A log without
-    the recording is compared on its telemetry."""
+    The 2 kHz telemetry of earlier firmware builds sampled one period in ten of the FCS voltage,
+    whose aliases moved a settled u_d by volts between two seeds (closure -0.3 to 0 on diagnose.yaml,
+    lab-typical). A log without the recording is compared on its telemetry."""
     from pmsm_hil.gapgen.recorder import record_profile
     from pmsm_hil.gapgen.verify import SIGNALS, _series, verify
     from pmsm_hil.log.reader import read_log

@@ -93,6 +93,10 @@ typedef struct {
     uint16_t div[FW_TEL_N]; /* the dividers they were taken with */
     uint16_t ph[FW_TEL_N];  /* tick % div[k] (0 for a stream that is off) */
     uint16_t at[FW_TEL_N];  /* the phase a frame goes out at, % div[k] (fast, status, est) */
+    /* the dq voltage summed over the periods since the last fast frame, which carries its mean:
+     * one period's FCS vector, sampled one period in div, would alias the switching */
+    float u_d_sum_v, u_q_sum_v;
+    uint16_t u_n;
 } fw_tel_phase_t;
 
 typedef struct {

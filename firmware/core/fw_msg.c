@@ -227,6 +227,9 @@ void fw_tel_start(fw_t *f)
     t->div[FW_TEL_STATUS] = c->status_div;
     t->div[FW_TEL_EST] = c->est_div;
     memset(t->ph, 0, sizeof(t->ph));
+    t->u_d_sum_v = 0.0f;
+    t->u_q_sum_v = 0.0f;
+    t->u_n = 0u;
     t->at[FW_TEL_FAST] = 0u;
     t->at[FW_TEL_PARAMS] = 0u; /* unused: params go out in slots from FW_PHASE_PARAMS */
     t->at[FW_TEL_STATUS] = (uint16_t)(c->status_div != 0u ? FW_PHASE_STATUS % c->status_div : 0u);
@@ -249,9 +252,16 @@ void fw_send_telemetry(fw_t *f)
 {
     const proto_config_ctrl_t *c = &f->ctrl;
     const uint16_t *ph = f->tel.ph;
+    fw_tel_phase_t *acc = &f->tel;
     uint16_t n;
+    if (c->fast_div != 0u) { /* the voltages' mean over the frame's interval (fw.h) */
+        acc->u_d_sum_v += f->sig.u_d_v;
+        acc->u_q_sum_v += f->sig.u_q_v;
+        acc->u_n++;
+    }
     if (c->fast_div != 0u && ph[FW_TEL_FAST] == f->tel.at[FW_TEL_FAST]) {
         proto_telem_fast_t t;
+        const float inv_n = 1.0f / (float)acc->u_n;
         t.tick = f->tick;
         t.speed_ref_rpm = f->sig.speed_ref_rpm;
         t.speed_rpm = f->sig.speed_rpm;
@@ -262,8 +272,11 @@ void fw_send_telemetry(fw_t *f)
         t.i_q_a = f->sig.i_q_a;
         t.i_d_ref_a = f->sig.i_d_ref_a;
         t.i_q_ref_a = f->sig.i_q_ref_a;
-        t.u_d_v = f->sig.u_d_v;
-        t.u_q_v = f->sig.u_q_v;
+        t.u_d_v = acc->u_d_sum_v * inv_n;
+        t.u_q_v = acc->u_q_sum_v * inv_n;
+        acc->u_d_sum_v = 0.0f;
+        acc->u_q_sum_v = 0.0f;
+        acc->u_n = 0u;
         t.load_nm = f->sig.load_nm;
         n = proto_telem_fast_pack(&t, f->link.payload_buf);
         (void)fw_send(f, PROTO_ID_TELEM_FAST, f->link.payload_buf, n);

@@ -348,8 +348,8 @@ typedef struct {
     float i_q_a;                   /* i16 x 0.002 on the wire, -65.536 .. 65.534 */
     float i_d_ref_a;               /* i16 x 0.002 on the wire, -65.536 .. 65.534 */
     float i_q_ref_a;               /* i16 x 0.002 on the wire, -65.536 .. 65.534 */
-    float u_d_v;                   /* i16 x 0.02 on the wire, -655.36 .. 655.34 */
-    float u_q_v;                   /* i16 x 0.02 on the wire, -655.36 .. 655.34 */
+    float u_d_v;                   /* i16 x 0.02 on the wire, -655.36 .. 655.34; mean over the periods since the last frame */
+    float u_q_v;                   /* i16 x 0.02 on the wire, -655.36 .. 655.34; mean over the periods since the last frame */
     float load_nm;                 /* i16 x 0.001 on the wire, -32.768 .. 32.767 */
 } proto_telem_fast_t;
 uint16_t proto_telem_fast_pack(const proto_telem_fast_t *m, uint16_t *buf);

@@ -67,8 +67,8 @@ def currents(ctx: RunContext) -> Figure | str:
 
 
 def _mean(t: np.ndarray, x: np.ndarray, window_s: float) -> np.ndarray:
-    """Centred moving mean over about window_s (the MPCC applies one switching vector per period,
-    so single samples of u_d, u_q jump between vectors; their mean is the applied voltage)."""
+    """Centred moving mean over about window_s (the MPCC applies one switching vector per period;
+    telemetry's u_d, u_q are their mean over ten periods, which still scatters by tens of volts)."""
     if len(t) < 3:
         return x
     n = max(1, round(window_s / float(np.median(np.diff(t)))))

@@ -6,10 +6,10 @@ sample, do not count, and each segment's settled half by its mean (docs/gap.md, 
 
 The dq currents and voltages come from the continuous control-rate recording when the log holds one
 (a `gap record` log; the re-runs always do): every period, the voltage from the switch states or
-duties and the DC link at the period's mid angle. The 2 kHz telemetry samples one period in ten of
-a finite-control-set voltage that switches by hundreds of volts, and its aliases moved a segment's
-mean u_d by up to 17 V between two runs of the same rig; it is used only for a log without the
-recording (and always for the speed)."""
+duties and the DC link at the period's mid angle. Firmware builds before the telemetry carried
+each interval's mean voltage sent one period's in ten, of a finite-control-set voltage switching by
+hundreds of volts, whose aliases moved a segment's mean u_d by up to 17 V between two runs of the
+same rig; the telemetry is used for a log without the recording (and always for the speed)."""
 
 from __future__ import annotations
 
@@ -42,12 +42,13 @@ def _smooth(t, x, t_grid):
     return np.interp(t_grid, t[good], xs[good]) if good.any() else np.full(len(t_grid), np.nan)
 
 
-def _series(log, path) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """Each signal's (t_s, values): the dq currents and voltages at the control rate when the log
-    holds the continuous recording, else (and the speed always) the telemetry's."""
+def _series(log, path, control: bool = True) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Each signal's (t_s, values): the dq currents and voltages at the control rate when
+    ``control`` and the log holds the continuous recording, else (and the speed always) the
+    telemetry's."""
     tel = log.topic("/pmsm/telemetry")
     out = {s: (np.asarray(tel["t_s"], float), np.asarray(tel[s], float)) for s in SIGNALS}
-    if CONTROL_TOPIC not in log.topics:
+    if not control or CONTROL_TOPIC not in log.topics:
         return out
     rec = load_record(path)
     if not isinstance(rec, ControlRecord) or rec.n < 2:
@@ -86,13 +87,14 @@ def verify(log_path: str | os.PathLike, rig_path: str | os.PathLike, seed: int =
         with open(prof, "w") as f:
             yaml.safe_dump(spec, f)
         runs = {}
+        control = CONTROL_TOPIC in log.topics  # the re-runs are read as the log is
         for tag, rig in (
             ("nominal", default_file("rigs/ideal.yaml")),
             ("fitted", os.fspath(rig_path)),
         ):
             path = os.path.join(d, f"{tag}.mcap")
             record_profile(prof, path, rig_path=rig, seed=seed, full_log=True)
-            runs[tag] = _series(read_log(path), path)
+            runs[tag] = _series(read_log(path), path, control)
     ours = _series(log, log_path)
     t = np.asarray(real["t_s"], float)  # the comparison's grid: the log's telemetry times
     for s in SIGNALS:

@@ -134,8 +134,12 @@ TOPICS: dict[str, TopicDef] = {
                 _f("i_q_a", "A", "measured q-axis current"),
                 _f("i_d_ref_a", "A", "d-axis current reference"),
                 _f("i_q_ref_a", "A", "q-axis current reference"),
-                _f("u_d_v", "V", "applied d-axis voltage (as commanded)"),
-                _f("u_q_v", "V", "applied q-axis voltage (as commanded)"),
+                _f(
+                    "u_d_v", "V", "applied d-axis voltage (as commanded), mean since the last frame"
+                ),
+                _f(
+                    "u_q_v", "V", "applied q-axis voltage (as commanded), mean since the last frame"
+                ),
                 _f("load_nm", "N m", "load torque commanded by the profile"),
             ),
             "telemetry.fast_hz (<= 2 kHz)",
