@@ -17,10 +17,14 @@ import contextlib
 import itertools
 import os
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from pmsm_hil.log.schemas import FieldDef, TopicDef
+
+if TYPE_CHECKING:
+    from pmsm_hil.log.reader import Log
 
 CONTROL_TOPIC = "/pmsm/control_rate"
 STEADY_TOPIC = "/pmsm/steady_dq"
@@ -279,7 +283,11 @@ def load_record(path: str | os.PathLike) -> ControlRecord | SteadyRecord:
     """The diagnosis's data from an MCAP log (see the module doc); raises RecordError."""
     from pmsm_hil.log.reader import read_log
 
-    log = read_log(path)
+    return record_from_log(read_log(path), path)
+
+
+def record_from_log(log: Log, path: str | os.PathLike) -> ControlRecord | SteadyRecord:
+    """``load_record`` of a log already read (``path`` names it in the messages)."""
     spec = sensor_spec_from_metadata(log.metadata)
     ts = None
     run_meta = log.metadata.get("run") or {}

@@ -20,7 +20,7 @@ import numpy as np
 import yaml
 
 from pmsm_hil.gap.model import abc_to_ab, rot_cs
-from pmsm_hil.gap.record import CONTROL_TOPIC, ControlRecord, load_record
+from pmsm_hil.gap.record import CONTROL_TOPIC, ControlRecord, record_from_log
 from pmsm_hil.gapgen.recorder import record_profile
 from pmsm_hil.log.reader import read_log
 from pmsm_hil.profiles._base import default_file
@@ -50,7 +50,7 @@ def _series(log, path, control: bool = True) -> dict[str, tuple[np.ndarray, np.n
     out = {s: (np.asarray(tel["t_s"], float), np.asarray(tel[s], float)) for s in SIGNALS}
     if not control or CONTROL_TOPIC not in log.topics:
         return out
-    rec = load_record(path)
+    rec = record_from_log(log, path)
     if not isinstance(rec, ControlRecord) or rec.n < 2:
         return out
     th = rec.theta_e_rad
