@@ -99,13 +99,7 @@ def verify(log_path: str | os.PathLike, rig_path: str | os.PathLike, seed: int =
     t = np.asarray(real["t_s"], float)  # the comparison's grid: the log's telemetry times
     for s in SIGNALS:
         ref = _smooth(*ours[s], t)
-        e = {tag: _smooth(*r[s], t) - ref for tag, r in runs.items()}
-        mb, ma = float(np.nanmean(e["nominal"] ** 2)), float(np.nanmean(e["fitted"] ** 2))
-        signals[s] = {
-            "rms_nominal": float(np.sqrt(mb)),
-            "rms_fitted": float(np.sqrt(ma)),
-            "closure": (mb - ma) / mb if mb > 0 else 0.0,
-        }
+        signals[s] = _score(*(_smooth(*runs[tag][s], t) - ref for tag in ("nominal", "fitted")))
     cl = [v["closure"] for k, v in signals.items() if k != "speed_rpm"]
     out["closure_median"] = float(np.median(cl))
     # the same on each segment's settled half (its mean): what a steady-state comparison sees,
@@ -117,20 +111,25 @@ def verify(log_path: str | os.PathLike, rig_path: str | os.PathLike, seed: int =
     bounds = _segment_bounds(log, float(t[-1]), durations)
     plateau: dict[str, dict[str, float]] = {}
     for s in SIGNALS:
-        means = {tag: _plateau_means(*r[s], bounds) for tag, r in runs.items()}
         ref = _plateau_means(*ours[s], bounds)
-        mb = float(np.nanmean((means["nominal"] - ref) ** 2))
-        ma = float(np.nanmean((means["fitted"] - ref) ** 2))
-        plateau[s] = {
-            "rms_nominal": float(np.sqrt(mb)),
-            "rms_fitted": float(np.sqrt(ma)),
-            "closure": (mb - ma) / mb if mb > 0 else 0.0,
-        }
+        plateau[s] = _score(
+            *(_plateau_means(*runs[tag][s], bounds) - ref for tag in ("nominal", "fitted"))
+        )
     out["plateau"] = plateau
     out["plateau_closure_median"] = float(
         np.median([v["closure"] for k, v in plateau.items() if k != "speed_rpm"])
     )
     return out
+
+
+def _score(err_nominal: np.ndarray, err_fitted: np.ndarray) -> dict[str, float]:
+    """Both models' rms errors against the log (NaN left out) and the closure 1 - MSE_f / MSE_n."""
+    mb, ma = float(np.nanmean(err_nominal**2)), float(np.nanmean(err_fitted**2))
+    return {
+        "rms_nominal": float(np.sqrt(mb)),
+        "rms_fitted": float(np.sqrt(ma)),
+        "closure": (mb - ma) / mb if mb > 0 else 0.0,
+    }
 
 
 def _segment_bounds(
