@@ -104,3 +104,53 @@ def test_vectorised_decode_of_strings_equals_the_codec():
     with pytest.raises(ValueError):
         decode_columns(codec, np.frombuffer(bad, np.uint8), [0], [len(bad)])
     assert datas[0][:4] == CDR_LE_HEADER
+
+
+def _chunk_threads() -> list:
+    import threading
+
+    return [t for t in threading.enumerate() if t.name.startswith("mcap-chunks")]
+
+
+@pytest.mark.parametrize("finalised", [True, False])
+def test_chunks_read_ahead_give_what_one_chunk_at_a_time_gives(
+    mixed_log, tmp_path, monkeypatch, finalised
+):
+    """Chunks are read and decompressed on a second thread ahead of the decoding: the columns,
+    times, counts and problems are those of decoding each chunk as it is met, in a finalised log
+    and in one cut short, and no thread outlives the read."""
+    from pmsm_hil.log import parse
+
+    path = mixed_log
+    if not finalised:
+        path = tmp_path / "cut.mcap"
+        data = mixed_log.read_bytes()
+        path.write_bytes(data[: len(data) * 2 // 3])
+    ahead = read_log(path)
+    monkeypatch.setattr(parse, "_AHEAD", 0)
+    one = read_log(path)
+    assert ahead.chunks_read == one.chunks_read > 10
+    assert ahead.finalised == one.finalised == finalised
+    assert ahead.counts == one.counts and ahead.problems == one.problems
+    for t in one.topics:
+        assert_same(ahead.topic(t), one.topic(t))
+        np.testing.assert_array_equal(ahead.log_times_ns(t), one.log_times_ns(t))
+    assert not _chunk_threads()
+
+
+def test_a_read_that_fails_midway_leaves_no_read_ahead_behind(mixed_log, monkeypatch):
+    from pmsm_hil.log import parse
+
+    seen = []
+    original = parse._Parser._decode_chunk
+
+    def failing(self, records, indexes):
+        seen.append(1)
+        if len(seen) == 3:
+            raise RuntimeError("decoding failed on the third chunk")
+        original(self, records, indexes)
+
+    monkeypatch.setattr(parse._Parser, "_decode_chunk", failing)
+    with pytest.raises(RuntimeError, match="third chunk"):
+        read_log(mixed_log)
+    assert len(seen) == 3 and not _chunk_threads()

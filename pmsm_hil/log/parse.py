@@ -1,13 +1,18 @@
 """The walk over an MCAP file's records for pmsm_hil.log.reader: top-level records one by one,
 chunks opened only when they hold an asked topic (or channels not yet known), their messages
-gathered through the chunks' message indexes and decoded in large batches (pmsm_hil.log.columns)."""
+gathered through the chunks' message indexes and decoded in large batches (pmsm_hil.log.columns).
+The chunks to open are read, decompressed and CRC-checked on a second thread a few ahead of the
+one being decoded (docs/log-format.md, "Read-ahead")."""
 
 from __future__ import annotations
 
 import io
+import os
 import struct
 import zlib
+from collections import deque
 from collections.abc import Callable, Iterable, Mapping
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import TypeVar
 
@@ -26,6 +31,7 @@ _U64 = struct.Struct("<Q").unpack_from
 _MSG = struct.Struct("<HIQQ").unpack_from
 _FOOTER = 1 + 8 + 20  # opcode, length, summary_start, summary_offset_start, crc
 _BATCH_OCTETS = 8 << 20  # message data gathered across chunks before it is decoded at once
+_AHEAD = 4  # chunks read, decompressed and CRC-checked ahead of the one being decoded
 
 
 _CHUNK_HEAD = struct.Struct("<QQQI")  # message start and end time, uncompressed size and CRC
@@ -147,6 +153,10 @@ class _Parser:
         # every channel known up front (the summary of a finalised file): chunks may be skipped
         self.all_known = False
         self._decompressors: dict[str, Callable[[memoryview, int], bytes] | None] = {}
+        # chunks being read and decompressed on a second thread (zstd, the CRC and the read
+        # release the GIL), decoded here in file order
+        self._ahead: deque[tuple[Future[bytes | str], dict[int, np.ndarray]]] = deque()
+        self._pool: ThreadPoolExecutor | None = None
 
     def _at(self, p: int, n: int) -> bytes:
         self.f.seek(p)
@@ -169,6 +179,13 @@ class _Parser:
         self.log._by_topic.setdefault(r.topic, ch)
 
     def run(self) -> None:
+        try:
+            self._walk()
+        finally:
+            if self._pool is not None:
+                self._pool.shutdown(wait=True, cancel_futures=True)
+
+    def _walk(self) -> None:
         log, size = self.log, self.size
         if self._at(0, len(MCAP_MAGIC)) != MCAP_MAGIC:
             raise LogFormatError(f"{log.path}: not an MCAP file (bad magic)")
@@ -197,6 +214,8 @@ class _Parser:
             if pending is not None:
                 self._chunk_done(*pending)
                 pending = None
+            if op != 0x06:  # any other record is taken after the chunks before it
+                self._drain(0)
             if op == 0x06:
                 pending = (p + 9, length, {})
             elif op == 0x0F:  # data end: the summary follows
@@ -222,6 +241,7 @@ class _Parser:
             p = end
         if pending is not None:
             self._chunk_done(*pending)
+        self._drain(0)
         for ch in log._chans.values():
             self._decode_pending(ch)
 
@@ -280,7 +300,23 @@ class _Parser:
                 chans[cid].count += len(idx)
             self.log.chunks_skipped += 1
             return
-        records = chunk_records(self._at(start, length), self._decompressors)
+        if self._pool is None:
+            self._pool = ThreadPoolExecutor(1, thread_name_prefix="mcap-chunks")
+        self._ahead.append((self._pool.submit(self._load, start, length), indexes))
+        self._drain(_AHEAD)
+
+    def _load(self, start: int, length: int) -> bytes | str:
+        """A chunk's records, read (pread: the walk's file position is left alone), decompressed
+        and CRC-checked, on the read-ahead thread."""
+        return chunk_records(os.pread(self.f.fileno(), length, start), self._decompressors)
+
+    def _drain(self, keep: int) -> None:
+        """Decode the chunks read ahead, oldest first, until ``keep`` are left in flight."""
+        while len(self._ahead) > keep:
+            fut, indexes = self._ahead.popleft()
+            self._decode_chunk(fut.result(), indexes)
+
+    def _decode_chunk(self, records: bytes | str, indexes: dict[int, np.ndarray]) -> None:
         if isinstance(records, str):
             self.log.problems.append(records)
             return
