@@ -157,6 +157,7 @@ class _Parser:
         # release the GIL), decoded here in file order
         self._ahead: deque[tuple[Future[bytes | str], dict[int, np.ndarray]]] = deque()
         self._pool: ThreadPoolExecutor | None = None
+        self._own: io.BufferedReader | None = None
 
     def _at(self, p: int, n: int) -> bytes:
         self.f.seek(p)
@@ -184,6 +185,8 @@ class _Parser:
         finally:
             if self._pool is not None:
                 self._pool.shutdown(wait=True, cancel_futures=True)
+            if self._own is not None:
+                self._own.close()
 
     def _walk(self) -> None:
         log, size = self.log, self.size
@@ -308,7 +311,14 @@ class _Parser:
     def _load(self, start: int, length: int) -> bytes | str:
         """A chunk's records, read (pread: the walk's file position is left alone), decompressed
         and CRC-checked, on the read-ahead thread."""
-        return chunk_records(os.pread(self.f.fileno(), length, start), self._decompressors)
+        if hasattr(os, "pread"):
+            content = os.pread(self.f.fileno(), length, start)
+        else:  # no pread (Windows): a handle of this thread's own
+            if self._own is None:
+                self._own = open(self.log.path, "rb")  # noqa: SIM115 (closed after the walk)
+            self._own.seek(start)
+            content = self._own.read(length)
+        return chunk_records(content, self._decompressors)
 
     def _drain(self, keep: int) -> None:
         """Decode the chunks read ahead, oldest first, until ``keep`` are left in flight."""
