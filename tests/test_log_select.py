@@ -156,3 +156,27 @@ def test_a_read_that_fails_midway_leaves_no_read_ahead_behind(mixed_log, monkeyp
     with pytest.raises(RuntimeError, match="third chunk"):
         read_log(mixed_log)
     assert len(seen) == 3 and not _chunk_threads()
+
+
+def test_the_read_ahead_is_bounded_in_octets(mixed_log, monkeypatch):
+    """With chunks larger than the read-ahead's octet bound, at most one is in flight at a time:
+    the memory held stays that of the chunk being decoded whatever the file's chunk size."""
+    from pmsm_hil.log import parse
+
+    in_flight = []
+    original = parse._Parser._drain
+
+    def watched(self, keep):
+        original(self, keep)
+        in_flight.append(len(self._ahead))
+
+    monkeypatch.setattr(parse._Parser, "_drain", watched)
+    full = read_log(mixed_log)
+    assert max(in_flight) == parse._AHEAD  # small chunks: four ahead
+    in_flight.clear()
+    monkeypatch.setattr(parse, "_AHEAD_OCTETS", 1)
+    bounded = read_log(mixed_log)
+    assert max(in_flight) == 0
+    assert bounded.counts == full.counts
+    for t in full.topics:
+        assert_same(bounded.topic(t), full.topic(t))

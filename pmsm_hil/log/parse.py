@@ -32,6 +32,7 @@ _MSG = struct.Struct("<HIQQ").unpack_from
 _FOOTER = 1 + 8 + 20  # opcode, length, summary_start, summary_offset_start, crc
 _BATCH_OCTETS = 8 << 20  # message data gathered across chunks before it is decoded at once
 _AHEAD = 4  # chunks read, decompressed and CRC-checked ahead of the one being decoded
+_AHEAD_OCTETS = 32 << 20  # ... and at most this many compressed octets of them (large chunks)
 
 
 _CHUNK_HEAD = struct.Struct("<QQQI")  # message start and end time, uncompressed size and CRC
@@ -155,7 +156,8 @@ class _Parser:
         self._decompressors: dict[str, Callable[[memoryview, int], bytes] | None] = {}
         # chunks being read and decompressed on a second thread (zstd, the CRC and the read
         # release the GIL), decoded here in file order
-        self._ahead: deque[tuple[Future[bytes | str], dict[int, np.ndarray]]] = deque()
+        self._ahead: deque[tuple[Future[bytes | str], dict[int, np.ndarray], int]] = deque()
+        self._ahead_octets = 0
         self._pool: ThreadPoolExecutor | None = None
         self._own: io.BufferedReader | None = None
 
@@ -305,7 +307,8 @@ class _Parser:
             return
         if self._pool is None:
             self._pool = ThreadPoolExecutor(1, thread_name_prefix="mcap-chunks")
-        self._ahead.append((self._pool.submit(self._load, start, length), indexes))
+        self._ahead.append((self._pool.submit(self._load, start, length), indexes, length))
+        self._ahead_octets += length
         self._drain(_AHEAD)
 
     def _load(self, start: int, length: int) -> bytes | str:
@@ -321,9 +324,11 @@ class _Parser:
         return chunk_records(content, self._decompressors)
 
     def _drain(self, keep: int) -> None:
-        """Decode the chunks read ahead, oldest first, until ``keep`` are left in flight."""
-        while len(self._ahead) > keep:
-            fut, indexes = self._ahead.popleft()
+        """Decode the chunks read ahead, oldest first, until ``keep`` are left in flight, holding
+        at most ``_AHEAD_OCTETS`` compressed octets (a file of large chunks keeps fewer)."""
+        while len(self._ahead) > keep or (self._ahead and self._ahead_octets > _AHEAD_OCTETS):
+            fut, indexes, length = self._ahead.popleft()
+            self._ahead_octets -= length
             self._decode_chunk(fut.result(), indexes)
 
     def _decode_chunk(self, records: bytes | str, indexes: dict[int, np.ndarray]) -> None:
