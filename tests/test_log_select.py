@@ -180,3 +180,32 @@ def test_the_read_ahead_is_bounded_in_octets(mixed_log, monkeypatch):
     assert bounded.counts == full.counts
     for t in full.topics:
         assert_same(bounded.topic(t), full.topic(t))
+
+
+@pytest.mark.parametrize("finalised", [True, False])
+def test_a_message_that_is_not_little_endian_cdr_is_its_topics_error(tmp_path, finalised):
+    """A fixed-layout message with another CDR header: reading its topic names the topic and the
+    problem, in a finalised file and in one without its summary; the other topics read as
+    written."""
+    codec = codec_for("/pmsm/telemetry")
+    rows = sample_rows("/pmsm/telemetry", 60)
+    status = sample_rows("/pmsm/status", 10)
+    path = tmp_path / "be.mcap"
+    w = LogWriter(path, META, ATTACH)
+    write_rows(w, "/pmsm/status", status)
+    for i, r in enumerate(rows):
+        data = codec.encode([r[k] for k in codec.names])
+        if i == 30:
+            data = b"\x00\x00" + data[2:]  # big-endian CDR
+        w.write_encoded("/pmsm/telemetry", round(r["t_s"] * 1e9), data)
+    w.flush()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(path.read_bytes())  # as a killed writer leaves it: no summary
+    w.close()
+    log = read_log(path if finalised else cut)
+    assert log.finalised == finalised
+    with pytest.raises(ValueError, match=r"/pmsm/telemetry: not little-endian CDR data"):
+        log.topic("/pmsm/telemetry")
+    np.testing.assert_array_equal(
+        log.topic("/pmsm/status")["t_s"], np.array([r["t_s"] for r in status])
+    )

@@ -29,8 +29,10 @@ def rows_at(buf: np.ndarray, pos: np.ndarray, width: int) -> np.ndarray:
     """(n, width) uint8: the octets buf[pos[i] : pos[i] + width] of each message."""
     if width == 0 or len(buf) < width:
         return np.empty((len(pos), width), np.uint8)
-    windows = np.ndarray((len(buf) - width + 1, width), np.uint8, buf, 0, (1, 1))
-    return windows[pos]
+    # one window of `width` octets per position, as a single opaque item: the gather copies each
+    # row at once (as a (positions, width) uint8 view it copied octet by octet, twice as slow)
+    windows = np.ndarray((len(buf) - width + 1,), np.dtype((np.void, width)), buf, 0, (1,))
+    return windows[pos].view(np.uint8).reshape(len(pos), width)
 
 
 def gather(buf: np.ndarray, starts: np.ndarray, sizes: np.ndarray) -> np.ndarray:
