@@ -198,3 +198,66 @@ def test_a_stopped_run_says_it_did_not_reach_the_end(data, tmp_path):
     html = build_report(out, tmp_path / "out").html.read_text()
     assert "did not reach the profile&#x27;s end" in html and "host stop" in html
     assert "not finalised" not in html
+
+
+def test_a_long_series_is_drawn_from_each_slices_extremes_in_time_order():
+    from pmsm_hil.analysis.report_style import envelope
+
+    rng = np.random.default_rng(3)
+    t = np.arange(10_037) * 5e-4
+    y = rng.normal(size=len(t))
+    y[4000:4100] = np.nan  # slice 40 entirely: a gap, as the full line shows
+    y[4150] = np.nan  # one sample of slice 41: its extremes are the finite ones
+    slices, k = 100, len(t) // 100
+    te, ye = envelope(t, y, slices=slices)
+    assert len(te) == 2 * slices + (len(t) - slices * k)
+    assert np.all(np.diff(te) >= 0)
+    idx = np.searchsorted(t, te)
+    np.testing.assert_array_equal(t[idx], te)  # every point is a sample, at its own time
+    np.testing.assert_array_equal(y[idx], ye)
+    for i in range(slices):
+        run, got = y[i * k : (i + 1) * k], ye[2 * i : 2 * i + 2]
+        if np.all(np.isnan(run)):
+            assert np.isnan(got).all()
+        else:
+            assert np.nanmin(run) == got.min() and np.nanmax(run) == got.max(), i
+    np.testing.assert_array_equal(ye[2 * slices :], y[slices * k :])  # the remainder as is
+    ts, ys = envelope(t[:150], y[:150], slices=slices)  # short: unchanged
+    np.testing.assert_array_equal(ts, t[:150])
+    np.testing.assert_array_equal(ys, y[:150])
+
+
+def test_report_reads_the_log_once_and_draws_long_series_from_their_envelope(
+    short_log, tmp_path, monkeypatch
+):
+    """The panels, the summary and the identification table come from one read of the file;
+    a series longer than the envelope's slices is drawn from its extremes (the figure's lines
+    have at most two points per slice and show the data's full range)."""
+    from pmsm_hil.analysis import report_signals, report_style
+    from pmsm_hil.analysis.report_context import run_context
+    from pmsm_hil.log import parse
+    from pmsm_hil.log.reader import read_log
+
+    reads = []
+    original = parse._Parser.run
+
+    def counted(self):
+        reads.append(1)
+        original(self)
+
+    monkeypatch.setattr(parse._Parser, "run", counted)
+    build_report(short_log, tmp_path / "rep")
+    assert len(reads) == 1
+
+    slices = 200
+    monkeypatch.setattr(report_style, "ENVELOPE_SLICES", slices)
+    log = read_log(short_log)
+    tel = log.topic("/pmsm/telemetry")
+    assert len(tel["t_s"]) > 4 * slices
+    fig = report_signals.currents(run_context(log, short_log))
+    lines = [ln for ax in fig.axes for ln in ax.get_lines() if ln.get_label() == "i_d measured"]
+    assert len(lines) == 1
+    x, y = lines[0].get_data()
+    assert len(x) <= 3 * slices
+    assert y.min() == tel["i_d_a"].min() and y.max() == tel["i_d_a"].max()
+    report_style.close(fig)

@@ -13,7 +13,7 @@ from pathlib import Path
 
 from pmsm_hil.analysis import report_capture, report_params, report_signals
 from pmsm_hil.analysis.report_context import run_context
-from pmsm_hil.log.reader import LogFormatError, read_log
+from pmsm_hil.log.reader import Log, LogFormatError, read_log
 
 # key (file name), title, function, caption
 PANELS = (
@@ -80,17 +80,17 @@ def _png(fig) -> bytes:
     return buf.getvalue()
 
 
-def _tables(path: Path, notes: list[str]):
+def _tables(path: Path, log: Log, notes: list[str]):
     from pmsm_hil.analysis.identification import identification_table
     from pmsm_hil.analysis.summary import summarize_log
 
     summary = ident = None
     try:
-        summary = summarize_log(path)
+        summary = summarize_log(path, log)
     except (KeyError, ValueError, IndexError) as e:
         notes.append(f"The per-segment summary could not be computed: {e}")
     try:
-        ident = identification_table(path)
+        ident = identification_table(path, log=log)
     except (KeyError, ValueError, IndexError) as e:
         notes.append(f"The identification table could not be computed: {e}")
     return summary, ident
@@ -119,7 +119,7 @@ def build_report(log_path: Path | str, out_dir: Path | str | None = None) -> Rep
     except OSError as e:
         raise ReportError(f"-o {out}: cannot create the directory ({e.strerror or e})") from None
     notes: list[str] = []
-    summary, ident = _tables(path, notes)
+    summary, ident = _tables(path, log, notes)  # from the log read once
     report = Report(out_dir=out, html=out / "report.html")
     panels: list[tuple[str, str, bytes | None, str]] = []
     for key, title, fn, caption in PANELS:

@@ -9,7 +9,7 @@ import numpy as np
 
 from pmsm_hil.analysis.identification import TOL
 from pmsm_hil.analysis.report_context import RunContext
-from pmsm_hil.analysis.report_style import figure, legend, segment_markers, time_axis
+from pmsm_hil.analysis.report_style import envelope, figure, legend, segment_markers, time_axis
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -49,7 +49,7 @@ def parameters(ctx: RunContext) -> Figure | str:
     clipped = False
     for ax, p in zip(axes, ORDER, strict=False):
         k, unit = SCALE[p]
-        tt, tv = np.asarray(tr["t_s"], float), np.asarray(tr[p], float) * k
+        tt, tv = envelope(np.asarray(tr["t_s"], float), np.asarray(tr[p], float) * k)
         ax.fill_between(
             tt,
             tv * (1 - TOL),
@@ -63,7 +63,9 @@ def parameters(ctx: RunContext) -> Figure | str:
             sel = names == e
             v = np.asarray(par[p], float)[sel] * k
             ax.plot(
-                t_all[sel], v, label=e if e != "nominal" else "nominal (motor file)", **STYLE[e]
+                *envelope(t_all[sel], v),
+                label=e if e != "nominal" else "nominal (motor file)",
+                **STYLE[e],
             )
         lo, hi = float(np.nanmin(tv)), float(np.nanmax(tv))
         y0, y1 = lo * (1 - ZOOM), hi * (1 + ZOOM)

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from pmsm_hil.analysis.report_context import RunContext
-from pmsm_hil.analysis.report_style import figure, legend, segment_markers, time_axis
+from pmsm_hil.analysis.report_style import envelope, figure, legend, segment_markers, time_axis
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -27,15 +27,20 @@ def speed(ctx: RunContext) -> Figure | str:
     tel = ctx.topic(TEL)
     fig, (ax,) = figure(ctx, "Speed", 1)
     t = tel["t_s"]
-    ax.plot(t, tel["speed_rpm"], lw=0.9, color="C0", label="measured (encoder)")
+    ax.plot(*envelope(t, tel["speed_rpm"]), lw=0.9, color="C0", label="measured (encoder)")
     if not np.array_equal(tel["speed_est_rpm"], tel["speed_rpm"]):
         ax.plot(
-            t, tel["speed_est_rpm"], lw=0.8, color="C2", label="estimated (used by the firmware)"
+            *envelope(t, tel["speed_est_rpm"]),
+            lw=0.8,
+            color="C2",
+            label="estimated (used by the firmware)",
         )
-    ax.plot(t, tel["speed_ref_rpm"], lw=1.2, color="k", ls="--", label="reference")
+    ax.plot(*envelope(t, tel["speed_ref_rpm"]), lw=1.2, color="k", ls="--", label="reference")
     if ctx.has("/sim/truth"):
         tr = ctx.topic("/sim/truth")
-        ax.plot(tr["t_s"], tr["speed_rpm"], lw=0.8, color="C3", ls=":", label="plant (truth)")
+        ax.plot(
+            *envelope(tr["t_s"], tr["speed_rpm"]), lw=0.8, color="C3", ls=":", label="plant (truth)"
+        )
     segment_markers(ax, ctx, label=True)
     ax.set_ylabel("speed n (r/min)")
     time_axis(ax)
@@ -52,13 +57,18 @@ def currents(ctx: RunContext) -> Figure | str:
     fig, axes = figure(ctx, "dq currents", 2)
     for ax, axis in zip(axes, ("d", "q"), strict=False):
         ax.plot(
-            t,
-            tel[f"i_{axis}_a"],
+            *envelope(t, tel[f"i_{axis}_a"]),
             lw=0.6,
             color="C0" if axis == "d" else "C1",
             label=f"i_{axis} measured",
         )
-        ax.plot(t, tel[f"i_{axis}_ref_a"], lw=1.1, color="k", ls="--", label=f"i_{axis}* reference")
+        ax.plot(
+            *envelope(t, tel[f"i_{axis}_ref_a"]),
+            lw=1.1,
+            color="k",
+            ls="--",
+            label=f"i_{axis}* reference",
+        )
         segment_markers(ax, ctx, label=axis == "d")
         ax.set_ylabel(f"i_{axis} (A)")
         legend(ax)
@@ -95,17 +105,22 @@ def voltages(ctx: RunContext) -> Figure | str:
     fig, axes = figure(ctx, "dq voltages (as commanded)", 2)
     for ax, axis, c in zip(axes, ("d", "q"), ("C0", "C1"), strict=False):
         u = np.asarray(tel[f"u_{axis}_v"], float)
-        ax.plot(t, u, lw=0.4, color=c, alpha=0.25, label=f"u_{axis}, each sample")
+        ax.plot(*envelope(t, u), lw=0.4, color=c, alpha=0.25, label=f"u_{axis}, each sample")
         ax.plot(
-            t,
-            _mean(t, u, VOLTAGE_MEAN_S),
+            *envelope(t, _mean(t, u, VOLTAGE_MEAN_S)),
             lw=1.1,
             color=c,
             label=f"u_{axis}, {VOLTAGE_MEAN_S * 1e3:.0f} ms mean",
         )
         if lim is not None:
-            ax.plot(lim[0], lim[1], lw=1.0, color="0.3", ls="--", label="±V_dc/√3 (linear limit)")
-            ax.plot(lim[0], -lim[1], lw=1.0, color="0.3", ls="--")
+            ax.plot(
+                *envelope(lim[0], lim[1]),
+                lw=1.0,
+                color="0.3",
+                ls="--",
+                label="±V_dc/√3 (linear limit)",
+            )
+            ax.plot(*envelope(lim[0], -lim[1]), lw=1.0, color="0.3", ls="--")
         segment_markers(ax, ctx, label=axis == "d")
         ax.set_ylabel(f"u_{axis} (V)")
         legend(ax)
@@ -141,9 +156,9 @@ def estimation_error(ctx: RunContext) -> Figure | str:
         bad = ~np.asarray(est["locked"], bool) & np.asarray(est["in_loop"], bool)
         unlocked = te[bad]
     fig, axes = figure(ctx, f"Angle and speed estimation error (estimate − encoder){name}", 2)
-    axes[0].plot(t, np.degrees(d_theta), lw=0.6, color="C4", label="θe,est − θe")
+    axes[0].plot(*envelope(t, np.degrees(d_theta)), lw=0.6, color="C4", label="θe,est − θe")
     axes[0].set_ylabel("angle error (° electrical)")
-    axes[1].plot(t, d_speed, lw=0.6, color="C2", label="n_est − n")
+    axes[1].plot(*envelope(t, d_speed), lw=0.6, color="C2", label="n_est − n")
     axes[1].set_ylabel("speed error (r/min)")
     for i, ax in enumerate(axes):
         ax.axhline(0.0, color="k", lw=0.6)
