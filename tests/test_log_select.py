@@ -209,3 +209,24 @@ def test_a_message_that_is_not_little_endian_cdr_is_its_topics_error(tmp_path, f
     np.testing.assert_array_equal(
         log.topic("/pmsm/status")["t_s"], np.array([r["t_s"] for r in status])
     )
+
+
+def test_rewrite_streams_the_log_chunk_by_chunk(mixed_log, tmp_path):
+    """rewrite_log writes each chunk's messages as they are read: the rewritten file holds every
+    message of a cut-short source (all fields, the same log times, strings included) while the
+    log it returns holds only their device times (the memory of a long log's recovery)."""
+    from pmsm_hil.log.reader import rewrite_log
+
+    cut = tmp_path / "cut.mcap"
+    data = mixed_log.read_bytes()
+    cut.write_bytes(data[: len(data) * 3 // 4])
+    src = read_log(cut)
+    assert not src.finalised and src.chunks_read > 10
+    got = rewrite_log(cut, tmp_path / "fixed.mcap")
+    fixed = read_log(tmp_path / "fixed.mcap")
+    assert fixed.finalised and fixed.counts == src.counts == got.counts
+    for t in src.topics:
+        assert_same(fixed.topic(t), src.topic(t))
+        np.testing.assert_array_equal(fixed.log_times_ns(t), src.log_times_ns(t))
+        assert list(got.topic(t)) == ["t_s"]
+        np.testing.assert_array_equal(got.topic(t)["t_s"], src.topic(t)["t_s"])

@@ -139,11 +139,15 @@ class _Schema:
 # ----------------------------------------------------------------------------------- parsing
 
 Wanted = Mapping[str, "Iterable[str] | None"]
+# called with each batch of an asked topic's messages as read: (topic, chunk octets, data starts,
+# data sizes, log times); the octets are valid during the call only
+Sink = Callable[[str, np.ndarray, np.ndarray, np.ndarray, np.ndarray], None]
 
 
 class _Parser:
-    def __init__(self, log, f, size: int, wanted: Wanted | None):
+    def __init__(self, log, f, size: int, wanted: Wanted | None, sink: Sink | None = None):
         self.log = log
+        self.sink = sink
         self.f = f
         self.size = size
         self.wanted = (
@@ -349,6 +353,8 @@ class _Parser:
         codec = self.log._codec(ch)
         starts = np.asarray(starts, dtype=np.int64)
         sizes = np.asarray(sizes, dtype=np.int64)
+        if self.sink is not None:
+            self.sink(ch.topic, buf, starts, sizes, lts)
         if codec is None:
             ch.lts.append(lts)
             ch.var_data.extend(

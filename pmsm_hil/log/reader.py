@@ -30,7 +30,7 @@ from collections.abc import Iterable, Mapping
 
 import numpy as np
 
-from pmsm_hil.log.parse import Attachment, LogFormatError, Wanted, _Chan, _Parser, _Schema
+from pmsm_hil.log.parse import Attachment, LogFormatError, Sink, Wanted, _Chan, _Parser, _Schema
 from pmsm_hil.log.schemas import PRIMITIVES, TOPICS, Codec, FieldDef, TopicDef, codec_for
 
 __all__ = ["Attachment", "Log", "LogFormatError", "merge_topics", "read_log", "rewrite_log"]
@@ -229,18 +229,23 @@ class Log:
         return cols
 
 
-def read_log(path: str | os.PathLike, topics: Iterable[str] | Wanted | None = None) -> Log:
+def read_log(
+    path: str | os.PathLike, topics: Iterable[str] | Wanted | None = None, sink: Sink | None = None
+) -> Log:
     """Read an MCAP log (finalised or not). Raises LogFormatError if it is not MCAP at all.
 
     ``topics``: None reads every topic; names (``["/pmsm/params"]``) read only those; a mapping
-    of names to field names (or None: all fields) reads only those fields of them."""
+    of names to field names (or None: all fields) reads only those fields of them.
+    ``sink(topic, octets, starts, sizes, log_times)``: also called with each batch of an asked
+    topic's messages as it is read, in file order (their CDR data at ``starts`` in ``octets``,
+    valid during the call only): a whole file streamed with only the asked fields held."""
     path = os.fspath(path)
     if topics is not None and not isinstance(topics, Mapping):
         topics = {t: None for t in ([topics] if isinstance(topics, str) else topics)}
     log = Log(path)
     with open(path, "rb") as f:
         size = os.fstat(f.fileno()).st_size
-        _Parser(log, f, size, topics).run()
+        _Parser(log, f, size, topics, sink).run()
     return log
 
 
@@ -261,28 +266,41 @@ def rewrite_log(src: str | os.PathLike, dst: str | os.PathLike) -> Log:
     """Read ``src`` (finalised or not) and write its messages, metadata and attachments to a new,
     finalised ``dst`` (e.g. to open a log of a killed run in Foxglove), then the messages of its
     journal that it does not hold (pmsm_hil.log.journal). Topics whose schema is not flat are left
-    out (listed in the returned log's ``problems``)."""
+    out (listed in the returned log's ``problems``).
+
+    Streamed: a first pass takes the metadata, attachments and channels (no message decoded), the
+    second writes each chunk's messages as they are read, their CDR data and log times as they
+    are, so the memory held is one chunk and the device times (``t_s``) of the returned log,
+    whatever the length of the log (an hour at the contract's rates: some 50 MiB)."""
     from pmsm_hil.log.journal import read_journal
     from pmsm_hil.log.writer import LogWriter
 
-    log = read_log(src)
-    extra = []
-    for topic in log.topics:
-        codec = log._codec(log._by_topic[topic])
-        if codec is not None and topic not in TOPICS:
+    head = read_log(src, topics=[])
+    flat, extra, not_flat = [], [], []
+    for topic in head.topics:
+        codec = head._codec(head._by_topic[topic])
+        if codec is None:
+            not_flat.append(f"{topic}: schema is not flat; not rewritten")
+            continue
+        flat.append(topic)
+        if topic not in TOPICS:
             extra.append(codec.topic)
-    meta = {k: v for k, v in log.metadata.items() if k != "log"}
-    atts = [(a.name, a.media_type, a.data) for a in log.attachments]
-    offset_ns = int(log.metadata.get("log", {}).get("log_time_offset_ns", "0") or 0)
+    meta = {k: v for k, v in head.metadata.items() if k != "log"}
+    atts = [(a.name, a.media_type, a.data) for a in head.attachments]
+    offset_ns = int(head.metadata.get("log", {}).get("log_time_offset_ns", "0") or 0)
     extra_names = {t.topic for t in extra}
     with LogWriter(dst, meta, atts, topics=extra, wall_start_s=offset_ns / 1e9 or None) as w:
-        for topic in log.topics:
-            if log._codec(log._by_topic[topic]) is None:
-                log.problems.append(f"{topic}: schema is not flat; not rewritten")
-                continue
-            cols = log.topic(topic)
-            if len(cols["t_s"]):
-                w.write_many(topic, cols)
+
+        def write(topic: str, octets: np.ndarray, starts, sizes, lts) -> None:
+            data = octets.data  # a memoryview of the chunk: a slice per message, no copy
+            w.write_encoded_many(
+                topic,
+                lts.tolist(),
+                (data[a : a + n] for a, n in zip(starts.tolist(), sizes.tolist(), strict=True)),
+            )
+
+        log = read_log(src, topics={t: ("t_s",) for t in flat}, sink=write)
+        log.problems += not_flat
         for m in read_journal(src, sum(log.counts.values())):  # received after the last chunk
             if m.topic in TOPICS or m.topic in extra_names:
                 w.write_encoded(m.topic, m.log_time, m.data)

@@ -422,6 +422,19 @@ class LogWriter:
             self._check_open()
             self._add(ch, int(log_time), bytes(data))
 
+    def write_encoded_many(
+        self, topic: str, log_times: Iterable[int], datas: Iterable[bytes | memoryview]
+    ) -> None:
+        """Messages of one topic as they are in an MCAP file (``write_encoded`` each), under one
+        taking of the lock: a log rewritten chunk by chunk (``rewrite_log``)."""
+        ch = self._channels.get(topic)
+        with self._lock:
+            ch = ch or self._open_channel(topic)
+            self._check_open()
+            add = self._add
+            for lt, data in zip(log_times, datas, strict=True):
+                add(ch, int(lt), bytes(data))
+
     def write_many(self, topic: str, rows: Any) -> int:
         """Many messages at once; returns the count. ``rows``: a mapping of columns (``t_s`` and
         field arrays of one length), a numpy structured array, or an iterable of mappings.
