@@ -222,6 +222,17 @@ def test_a_long_series_is_drawn_from_each_slices_extremes_in_time_order():
         else:
             assert np.nanmin(run) == got.min() and np.nanmax(run) == got.max(), i
     np.testing.assert_array_equal(ye[2 * slices :], y[slices * k :])  # the remainder as is
+    finite = np.nan_to_num(y)  # no NaN: the same extremes (taken without a copy)
+    _, yf = envelope(t, finite, slices=slices)
+    runs = finite[: slices * k].reshape(slices, k)
+    np.testing.assert_array_equal(
+        yf[: 2 * slices : 2],
+        np.where(runs.argmin(axis=1) < runs.argmax(axis=1), runs.min(axis=1), runs.max(axis=1)),
+    )
+    np.testing.assert_array_equal(
+        np.sort(yf[: 2 * slices].reshape(slices, 2), axis=1),
+        np.stack([runs.min(axis=1), runs.max(axis=1)], axis=1),
+    )
     ts, ys = envelope(t[:150], y[:150], slices=slices)  # short: unchanged
     np.testing.assert_array_equal(ts, t[:150])
     np.testing.assert_array_equal(ys, y[:150])

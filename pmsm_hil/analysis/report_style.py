@@ -42,9 +42,12 @@ def envelope(
     k = n // slices
     m = k * slices
     runs = y[:m].reshape(slices, k)
-    finite = np.isfinite(runs)
-    lo = np.where(finite, runs, np.inf).argmin(axis=1)
-    hi = np.where(finite, runs, -np.inf).argmax(axis=1)
+    if np.isfinite(runs).all():  # no copy of the series (an hour's is 58 MB a copy)
+        lo, hi = runs.argmin(axis=1), runs.argmax(axis=1)
+    else:
+        finite = np.isfinite(runs)
+        lo = np.where(finite, runs, np.inf).argmin(axis=1)
+        hi = np.where(finite, runs, -np.inf).argmax(axis=1)
     base = np.arange(slices) * k
     idx = np.stack([base + np.minimum(lo, hi), base + np.maximum(lo, hi)], axis=1).reshape(-1)
     idx = np.concatenate([idx, np.arange(m, n)])
