@@ -1,5 +1,6 @@
-"""What the log writer needs besides the records: the compressions this installation offers, and
-holding SIGINT/SIGTERM/SIGHUP back while a chunk or the summary goes to disk (pmsm_hil.log.writer)."""
+"""What the log writer needs besides the records: the compressions this installation offers,
+holding SIGINT/SIGTERM/SIGHUP back while a chunk or the summary goes to disk, and the error it
+raises when the file cannot be written (pmsm_hil.log.writer)."""
 
 from __future__ import annotations
 
@@ -7,7 +8,13 @@ import contextlib
 import signal
 from collections.abc import Iterator
 
-__all__ = ["HELD_SIGNALS", "available_compressions", "check_compression", "signals_held"]
+__all__ = [
+    "HELD_SIGNALS",
+    "LogWriteError",
+    "available_compressions",
+    "check_compression",
+    "signals_held",
+]
 
 
 def available_compressions() -> list[str]:
@@ -52,3 +59,18 @@ def signals_held() -> Iterator[None]:
             # a signal that was already pending raised between the block and its record: the
             # mask must not stay blocked (a child process would inherit it and never see SIGINT)
             signal.pthread_sigmask(signal.SIG_UNBLOCK, HELD_SIGNALS)
+
+
+class LogWriteError(OSError):
+    """The log file cannot be written (a full disk, a file size limit, an I/O error). The file
+    keeps every chunk written before (``disk_t_s``: device time of the last message on disk);
+    the writer writes nothing more and ``close()`` only releases the file."""
+
+    def __init__(self, path: str, err: OSError, octets: int, disk_t_s: float | None):
+        self.path, self.octets, self.disk_t_s = path, octets, disk_t_s
+        upto = f"up to t = {disk_t_s:.3f} s" if disk_t_s is not None else "no messages"
+        super().__init__(
+            err.errno,
+            f"cannot write the log {path}: {err.strerror or err} after {octets} octets; "
+            f"the file holds the messages {upto}",
+        )

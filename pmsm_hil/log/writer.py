@@ -53,24 +53,14 @@ from pmsm_hil.log.schemas import (
     codec_for,
     schema_hash,
 )
-from pmsm_hil.log.write_support import available_compressions, check_compression, signals_held
+from pmsm_hil.log.write_support import (
+    LogWriteError,
+    available_compressions,
+    check_compression,
+    signals_held,
+)
 
 __all__ = ["MCAP_MAGIC", "LogWriteError", "LogWriter", "available_compressions"]
-
-
-class LogWriteError(OSError):
-    """The log file cannot be written (a full disk, a file size limit, an I/O error). The file
-    keeps every chunk written before (``disk_t_s``: device time of the last message on disk);
-    the writer writes nothing more and ``close()`` only releases the file."""
-
-    def __init__(self, path: str, err: OSError, octets: int, disk_t_s: float | None):
-        self.path, self.octets, self.disk_t_s = path, octets, disk_t_s
-        upto = f"up to t = {disk_t_s:.3f} s" if disk_t_s is not None else "no messages"
-        super().__init__(
-            err.errno,
-            f"cannot write the log {path}: {err.strerror or err} after {octets} octets; "
-            f"the file holds the messages {upto}",
-        )
 
 
 MCAP_MAGIC = MAGIC
@@ -416,11 +406,7 @@ class LogWriter:
     def write_encoded(self, topic: str, log_time: int, data: bytes) -> None:
         """One message as it is in an MCAP file: its log time (ns, this writer's offset
         included) and its CDR data (e.g. from a journal, ``rewrite_log``)."""
-        ch = self._channels.get(topic)
-        with self._lock:
-            ch = ch or self._open_channel(topic)
-            self._check_open()
-            self._add(ch, int(log_time), bytes(data))
+        self.write_encoded_many(topic, (log_time,), (data,))
 
     def write_encoded_many(
         self, topic: str, log_times: Iterable[int], datas: Iterable[bytes | memoryview]
