@@ -142,7 +142,9 @@ def bench_loop(repeat: int) -> None:
         print(line)
 
 
-def bench_analyze(repeat: int, log: str | None, base: str | None = None) -> None:
+def hour_log(log: str | None) -> str:
+    """The one-hour log at the contract's fastest rates: ``log`` (or one in the temporary
+    directory), written by benchmarks/log_reader.py's generator if it is not there yet."""
     from log_reader import make_log
 
     path = log or os.path.join(tempfile.gettempdir(), "pmsm-hil-hour.mcap")
@@ -152,6 +154,11 @@ def bench_analyze(repeat: int, log: str | None, base: str | None = None) -> None
         print(
             f"wrote {path} ({os.path.getsize(path) / 2**20:.0f} MiB) in {time.perf_counter() - t0:.0f} s"
         )
+    return path
+
+
+def bench_analyze(repeat: int, log: str | None, base: str | None = None) -> None:
+    path = hour_log(log)
     envs = _envs(base)
     runs: dict[str, list[dict]] = {k: [] for k in envs}
     for _ in range(repeat):

@@ -17,25 +17,11 @@ import os
 import shutil
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from end_to_end import CLI, _envs, _pairs, med, timed
-
-
-def _hour_log(path: str | None) -> str:
-    from log_reader import make_log
-
-    path = path or os.path.join(tempfile.gettempdir(), "pmsm-hil-hour.mcap")
-    if not os.path.exists(path):
-        t0 = time.perf_counter()
-        make_log(path, 60.0)
-        print(
-            f"wrote {path} ({os.path.getsize(path) / 2**20:.0f} MiB) in {time.perf_counter() - t0:.0f} s"
-        )
-    return path
+from end_to_end import CLI, _envs, _pairs, hour_log, med, timed
 
 
 def bench(name: str, command, repeat: int, base: str | None) -> None:
@@ -79,7 +65,7 @@ def main() -> None:
     args = ap.parse_args()
     skip = set(filter(None, args.skip.split(",")))
     print(f"load average at the start: {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
-    hour = _hour_log(args.log)
+    hour = hour_log(args.log)
     size = os.path.getsize(hour)
     if "report" not in skip:
         bench(
