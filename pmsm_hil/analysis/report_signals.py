@@ -101,7 +101,7 @@ def voltages(ctx: RunContext) -> Figure | str:
         st = ctx.topic("/pmsm/status")
         v = np.asarray(st["v_dc_v"], float) / np.sqrt(3.0)
         if np.any(np.isfinite(v) & (v > 0)):
-            lim = (st["t_s"], v)
+            lim = envelope(st["t_s"], v)  # once for both axes; -v has the same envelope, negated
     fig, axes = figure(ctx, "dq voltages (as commanded)", 2)
     for ax, axis, c in zip(axes, ("d", "q"), ("C0", "C1"), strict=False):
         u = np.asarray(tel[f"u_{axis}_v"], float)
@@ -113,14 +113,8 @@ def voltages(ctx: RunContext) -> Figure | str:
             label=f"u_{axis}, {VOLTAGE_MEAN_S * 1e3:.0f} ms mean",
         )
         if lim is not None:
-            ax.plot(
-                *envelope(lim[0], lim[1]),
-                lw=1.0,
-                color="0.3",
-                ls="--",
-                label="±V_dc/√3 (linear limit)",
-            )
-            ax.plot(*envelope(lim[0], -lim[1]), lw=1.0, color="0.3", ls="--")
+            ax.plot(*lim, lw=1.0, color="0.3", ls="--", label="±V_dc/√3 (linear limit)")
+            ax.plot(lim[0], -lim[1], lw=1.0, color="0.3", ls="--")
         segment_markers(ax, ctx, label=axis == "d")
         ax.set_ylabel(f"u_{axis} (V)")
         legend(ax)
