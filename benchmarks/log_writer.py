@@ -1,7 +1,7 @@
 """Log writer throughput (the project's chunks, pmsm_hil.log.mcap_file, with its CDR codecs):
 messages per second through LogWriter.write(), LogWriter.write_many() and
-LogWriter.write_data_many() (the run's recorder: data packed by the fixed_layout pack, a batch at a
-time), best and median of several runs, as a multiple of the fastest link's message rate
+LogWriter.message_block() / write_block() (the run's recorder: a receive batch of 100 frames made at
+once, written in runs of 20 between other messages), best and median of several runs, as a multiple of the fastest link's message rate
 (docs/log-format.md, "Writing").
 
     python3 benchmarks/log_writer.py [--repeat 5] [--n 40000]
@@ -24,7 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from pmsm_hil.log.schemas import TOPICS
+from pmsm_hil.log.blocks import cdr_from_columns
+from pmsm_hil.log.schemas import TOPICS, codec_for
 from pmsm_hil.log.writer import LogWriter
 from pmsm_hil.profiles import load_profile
 from pmsm_hil.profiles.profile import FRAME_OVERHEAD_OCTETS, OCTETS_PER_SYMBOL, PAYLOAD_OCTETS
@@ -71,6 +72,7 @@ def main() -> None:
     rows = [{k: i * 1e-3 + j for j, k in enumerate(names)} for i in range(args.n)]
     cols = {"t_s": np.arange(args.n) * 5e-4}
     cols.update({k: np.array([r[k] for r in rows]) for k in names})
+    codec = codec_for(TOPICS["/pmsm/telemetry"])
 
     def one_by_one(path):
         with LogWriter(path) as w:
@@ -81,15 +83,16 @@ def main() -> None:
         with LogWriter(path) as w:
             w.write_many("/pmsm/telemetry", cols)
 
-    def encoded(path):
+    def blocks(path):
         with LogWriter(path) as w:
-            _, pack = w.fixed_layout("/pmsm/telemetry")
+            layout = w.fixed_layout("/pmsm/telemetry")
+            assert layout is not None
             for at in range(0, len(rows), 100):  # receive batches of 100 frames
-                items = []
-                for i in range(at, min(at + 100, len(rows))):
-                    t = i * 5e-4
-                    items.append(("/pmsm/telemetry", t, pack(0x100, t, *rows[i].values())))
-                w.write_data_many(items)
+                batch = {k: v[at : at + 100] for k, v in cols.items()}
+                data = cdr_from_columns("/pmsm/telemetry", codec, batch, len(batch["t_s"]))
+                block = w.message_block("/pmsm/telemetry", batch["t_s"], data)
+                for stop in range(20, len(block) + 20, 20):  # runs between params frames
+                    w.write_block(block, min(stop, len(block)))
 
     def ros2_writer(path):
         # for comparison: mcap_ros2's writer, which encodes from dicts itself
@@ -109,7 +112,9 @@ def main() -> None:
     results = {
         "LogWriter.write": bench(one_by_one, args.n, args.repeat),
         "LogWriter.write_many": bench(in_bulk, args.n, args.repeat),
-        "LogWriter.write_data_many (packs included)": bench(encoded, args.n, args.repeat),
+        "LogWriter.write_block (the recorder's; encoding included)": bench(
+            blocks, args.n, args.repeat
+        ),
         "mcap_ros2 Writer (not used)": bench(ros2_writer, args.n, args.repeat),
     }
     links = link_rates()

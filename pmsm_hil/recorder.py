@@ -7,7 +7,10 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Protocol
 
+import numpy as np
+
 from pmsm_hil.protocol import generated as gen
+from pmsm_hil.wire_blocks import block_encoder
 
 if TYPE_CHECKING:
     from pmsm_hil.log.writer import LogWriter
@@ -79,33 +82,6 @@ DIRECT = {
 }
 
 
-def direct_encoder(
-    msg: str, ts_s: float, names: tuple[str, ...], pack: Callable[..., bytes]
-) -> Callable[[bytes], tuple[float, bytes]] | None:
-    """Payload octets of device message ``msg`` -> (t_s, the CDR data of its log message), with the
-    very operations of the decoder (pmsm_hil.protocol.codec) and the writer: the same values and
-    octets. ``names``: the log fields in schema order (``t_s`` first), ``pack`` their CDR pack
-    (LogWriter.fixed_layout). None when a log field is not one of the message's."""
-    spec = gen.BY_NAME[msg]
-    expr: dict[str, str] = {}
-    i = 0
-    for f in spec.fields:
-        if f.count == 1:  # as codec._payload_decoder writes it
-            expr[f.name] = f"v[{i}]" + ("" if f.scale is None else f" * {f.scale!r}")
-        i += f.count
-    if "tick" not in expr or any(n not in expr for n in names[1:]):
-        return None
-    src = (
-        f"def encode_{msg}(p):\n"
-        f"    v = unpack(p)\n"
-        f"    t = {expr['tick']} * ts_s\n"
-        f"    return t, pack(0x100, t, {', '.join(expr[n] for n in names[1:])})\n"
-    )
-    namespace: dict[str, Any] = {"unpack": spec.struct.unpack, "pack": pack, "ts_s": ts_s}
-    exec(compile(src, f"<recorder {msg}>", "exec"), namespace)
-    return namespace[f"encode_{msg}"]
-
-
 def fault_text(bits: int) -> str:
     names = [name for name, b in FAULT_BITS.items() if bits & b]
     return "+".join(names) if names else "none"
@@ -160,19 +136,19 @@ class Recorder:
         self._last_seq: int | None = None
         # message id -> (topic, encoder from the payload), made at the message's first frame
         # (its channel opens then, as it would for write); not with sinks, which want the fields
-        self._direct: dict[int, tuple[str, Callable[[bytes], tuple[float, bytes]]]] = {}
+        self._direct: dict[int, tuple[str, Callable[[bytes], tuple[np.ndarray, np.ndarray]]]] = {}
         self._direct_due = set() if self.sinks else {gen.BY_NAME[m].id for m in DIRECT}
 
     def _make_direct(
         self, msg_id: int
-    ) -> tuple[str, Callable[[bytes], tuple[float, bytes]]] | None:
+    ) -> tuple[str, Callable[[bytes], tuple[np.ndarray, np.ndarray]]] | None:
         self._direct_due.discard(msg_id)
         msg = gen.BY_ID[msg_id].name
         topic, fields = DIRECT[msg]
         layout = self.w.fixed_layout(topic)
-        if layout is None or set(layout[0][1:]) != set(fields):
+        if layout is None or set(layout.names[1:]) != set(fields):
             return None
-        enc = direct_encoder(msg, self.ts_s, *layout)
+        enc = block_encoder(msg, self.ts_s, layout.names, layout.dtype)
         if enc is None:
             return None
         entry = self._direct[msg_id] = (topic, enc)
@@ -192,51 +168,67 @@ class Recorder:
 
     def frames(self, frames: Iterable[Frame]) -> None:
         """One receive batch: each frame to its handler, then the batch to the OS (the writer's
-        journal, pmsm_hil.log.journal), so that a host killed after this call has logged all of it."""
+        journal, pmsm_hil.log.journal), so that a host killed after this call has logged all of it.
+
+        The DIRECT messages go to the log without their handlers: each one's frames in the batch
+        encoded at once (``block_encoder``), then written run by run, in the order received,
+        between the other frames' messages (LogWriter.write_block)."""
+        frames = frames if isinstance(frames, list) else list(frames)
         live = self.live
-        direct = self._direct
-        items: list[tuple[str, float, bytes]] = []  # direct messages not yet written
-        last: dict[int, tuple[float, Frame]] = {}  # the last frame written directly, per message
-        n = gaps = 0
-        last_seq = self._last_seq
+        n = len(frames)
+        # a frame's key: its id, or -1 - id without payload octets (its fields only: a handler)
+        keys = [fr.msg_id if fr.payload else -1 - fr.msg_id for fr in frames]
+        blocks: dict[int, tuple[str, Any, np.ndarray]] = {}  # id -> (topic, block, t_s)
+        last: dict[int, Frame] = {}  # the last frame written directly, per message
+        i = 0
         try:
-            for fr in frames:
-                n += 1
-                seq = fr.seq
-                if last_seq is not None and seq != ((last_seq + 1) & 0xFF):
-                    gaps += 1
-                last_seq = seq
-                entry = direct.get(fr.msg_id)
-                if entry is None and fr.msg_id in self._direct_due:
-                    if items:  # its channel opens after the messages before it
-                        self.w.write_data_many(items)
-                        items = []
-                    entry = self._make_direct(fr.msg_id)
-                if entry is not None and fr.payload:
-                    t, data = entry[1](fr.payload)
-                    items.append((entry[0], t, data))
-                    last[fr.msg_id] = (t, fr)
-                    continue
-                handler = getattr(self, "_on_" + fr.name, None)
-                if handler is not None:
-                    if items:  # in order
-                        self.w.write_data_many(items)
-                        items = []
-                    handler(fr.fields)
-            if items:
-                self.w.write_data_many(items)
+            while i < n:
+                key = keys[i]
+                j = i + 1
+                while j < n and keys[j] == key:
+                    j += 1
+                entry = self._direct.get(key)
+                if entry is None and key in self._direct_due:
+                    entry = self._make_direct(key)
+                if entry is None:
+                    for fr in frames[i:j]:
+                        handler = getattr(self, "_on_" + fr.name, None)
+                        if handler is not None:
+                            handler(fr.fields)
+                else:
+                    got = blocks.get(key)
+                    if got is None:
+                        payloads = b"".join(
+                            [f.payload for f, k in zip(frames, keys, strict=True) if k == key]
+                        )
+                        t, data = entry[1](payloads)
+                        got = blocks[key] = (entry[0], self.w.message_block(entry[0], t, data), t)
+                    block = got[1]
+                    self.w.write_block(block, block.pos + (j - i))
+                    last[key] = frames[j - 1]
+                i = j
         finally:
-            live.frames += n
-            live.seq_gaps += gaps
-            self._last_seq = last_seq
-            for t, fr in last.values():  # the live state as the handlers would leave it
+            live.frames += i
+            self._count_gaps(frames[:i])
+            for fr in last.values():  # the live state as the handlers would leave it
                 if fr.name == "telem_fast":
-                    live.t_s = t
+                    live.t_s = self._t(fr.fields["tick"])
                     live.telemetry = {k: fr.fields[k] for k in TELEMETRY_FIELDS}
                 else:
                     live.truth = {k: fr.fields[k] for k in TRUTH_FIELDS}
         if n:
             self.w.flush_batch()
+
+    def _count_gaps(self, frames: list[Frame]) -> None:
+        """Sequence numbers that do not follow the one before (the batch's and the last batch's)."""
+        last_seq, gaps = self._last_seq, 0
+        for fr in frames:
+            seq = fr.seq
+            if last_seq is not None and seq != ((last_seq + 1) & 0xFF):
+                gaps += 1
+            last_seq = seq
+        self._last_seq = last_seq
+        self.live.seq_gaps += gaps
 
     # one handler per device message -------------------------------------------------------
     def _on_telem_fast(self, f: dict) -> None:

@@ -14,9 +14,12 @@ from pathlib import Path
 from types import FrameType
 from typing import Any, Protocol
 
+import numpy as np
+
 from pmsm_hil import __version__
 from pmsm_hil.control_design import calibration_config, device_config
 from pmsm_hil.errors import DeviceError, TransportError
+from pmsm_hil.log.blocks import MessageBlock
 from pmsm_hil.log.writer import LogWriteError, LogWriter
 from pmsm_hil.profiles import Motor, Profile
 from pmsm_hil.profiles.motor import nominal_machine
@@ -315,11 +318,14 @@ class _NoLog(LogWriter):
     def write_data(self, topic: str, t_s: float, data: bytes) -> None:
         pass
 
-    def write_data_many(self, items: Any) -> None:
-        pass
-
     def fixed_layout(self, topic: str) -> None:
         return None
+
+    def message_block(self, topic: str, t_s: Any, data: Any) -> MessageBlock:
+        return MessageBlock(topic, 0, 0, np.zeros(len(data), dtype=np.int64), data)
+
+    def write_block(self, block: MessageBlock, stop: int | None = None) -> None:
+        block.pos = len(block) if stop is None else max(block.pos, stop)
 
     def write_many(self, topic: str, rows: Any) -> int:
         return 0

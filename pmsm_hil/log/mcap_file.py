@@ -188,6 +188,18 @@ class McapFile:
         self.n += 1
         return rec
 
+    def add_records(self, cid: int, log_times: list[int], records: bytes, size: int) -> None:
+        """Message records of one channel made by the caller (pmsm_hil.log.blocks: the octets
+        ``add_message`` makes), each ``size`` octets, into the open chunk."""
+        index = self._index.get(cid)
+        if index is None:
+            index = self._index[cid] = _Index()
+        index.times.extend(log_times)
+        index.offsets.extend(range(self.size, self.size + len(records), size))
+        self._records.append(records)
+        self.size += len(records)
+        self.n += len(log_times)
+
     def flush_chunk(self) -> None:
         """The open chunk and its message indexes to the stream (nothing without messages);
         then the stream is flushed to the OS."""

@@ -33,13 +33,15 @@ import struct
 import threading
 import time
 import weakref
+from bisect import bisect_left
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from operator import itemgetter
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from pmsm_hil import __version__
+from pmsm_hil.log.blocks import MessageBlock, cdr_from_columns, log_times
 from pmsm_hil.log.journal import Journal
 from pmsm_hil.log.mcap_file import MAGIC, McapFile
 from pmsm_hil.log.schemas import (
@@ -60,12 +62,18 @@ from pmsm_hil.log.write_support import (
     signals_held,
 )
 
-__all__ = ["MCAP_MAGIC", "LogWriteError", "LogWriter", "available_compressions"]
+__all__ = ["MCAP_MAGIC", "FixedLayout", "LogWriteError", "LogWriter", "available_compressions"]
 
 
 MCAP_MAGIC = MAGIC
 PROFILE = "ros2"
 LIBRARY = f"pmsm-hil {__version__}"
+
+
+class FixedLayout(NamedTuple):
+    names: tuple[str, ...]  # t_s first
+    pack: Callable[..., bytes]
+    dtype: np.dtype
 
 
 class _Channel:
@@ -299,10 +307,7 @@ class LogWriter:
         """One message into the open chunk; the chunk is closed before it when it spans
         chunk_span_s, after it when it holds chunk_size octets. Called with the lock held."""
         w = self._w
-        if w.n and (
-            lt - self._t0 >= self._span_ns
-            or (self._flush_wall_s and time.monotonic() - self._wall0 >= self._flush_wall_s)
-        ):
+        if w.n and (lt - self._t0 >= self._span_ns or self._wall_due()):
             self._flush_chunk()
         if not w.n:
             self._t0 = lt
@@ -345,63 +350,89 @@ class LogWriter:
                 bad.append(f"{f.name} = {v!r} (not a {f.type})")
         return ValueError(f"{ch.topic}: cannot encode {'; '.join(bad) or list(vals)}: {e}")
 
-    def fixed_layout(self, topic: str) -> tuple[tuple[str, ...], Callable[..., bytes]] | None:
-        """A topic of fixed layout: its field names (``t_s`` first) and the ``struct`` pack of
-        its whole CDR data, whose first argument is the encapsulation header ``0x100`` and the
-        rest the fields in that order (for ``write_data``); None for a layout with strings."""
+    def fixed_layout(self, topic: str) -> FixedLayout | None:
+        """A topic of fixed layout: its field names (``t_s`` first), the ``struct`` pack of its
+        whole CDR data (first argument the encapsulation header ``0x100``, then the fields in that
+        order: for ``write_data``) and its numpy dtype (for ``message_block``); None for a layout
+        with strings."""
         ch = self._channels.get(topic)
         if ch is None:
             with self._lock:
                 ch = self._channels.get(topic) or self._open_channel(topic)
-        if ch.pack is None:
+        if ch.pack is None or ch.dtype is None:
             return None
-        return tuple(ch.codec.names), ch.pack
+        return FixedLayout(tuple(ch.codec.names), ch.pack, ch.dtype)
 
     def write_data(self, topic: str, t_s: float, data: bytes) -> None:
         """One message at device time ``t_s`` whose CDR data is already encoded (e.g. by the
         pack of ``fixed_layout``): the same record as ``write`` with the same values."""
-        self.write_data_many(((topic, t_s, data),))
+        ch = self._channels.get(topic)
+        with self._lock:
+            ch = ch or self._open_channel(topic)
+            self._check_open()
+            self._add(ch, int(log_times(topic, t_s, self._off_ns)[0]), data)
 
-    def write_data_many(self, items: Iterable[tuple[str, float, bytes]]) -> None:
-        """Messages of encoded data, in order: (topic, t_s, data) each; the records of the same
-        ``write_data`` calls, made in one loop (the run's recorder writes a receive batch so):
-        ``_add`` without a call per message but the record's."""
-        monotonic = time.monotonic
+    def message_block(self, topic: str, t_s: Any, data: np.ndarray) -> MessageBlock:
+        """Messages of a fixed-layout topic made at once, to be written in order by
+        ``write_block`` (between other messages if need be): ``t_s`` their device times, ``data``
+        their CDR data (``Codec.dtype`` of the topic: encapsulation header and fields)."""
+        ch = self._channels.get(topic)
+        if ch is None:
+            with self._lock:
+                ch = self._channels.get(topic) or self._open_channel(topic)
+        if ch.dtype is None or data.dtype.itemsize * (data.shape[1] if data.ndim > 1 else 1) != (
+            ch.dtype.itemsize
+        ):
+            raise ValueError(f"{topic}: data of {data.dtype} is not the topic's fixed layout")
+        return MessageBlock(topic, ch.id, ch.seq, log_times(topic, t_s, self._off_ns), data)
+
+    def write_block(self, block: MessageBlock, stop: int | None = None) -> None:
+        """The block's messages from ``block.pos`` up to ``stop`` (all by default), in order: the
+        records ``write`` would make, the chunks closed where it would close them (the wall-time
+        bound checked once per chunk's part instead of per message)."""
+        ch = self._channels[block.topic]
+        stop = len(block) if stop is None else stop
         with self._lock:
             self._check_open()
-            w = self._w
-            add_message = w.add_message
-            pending = self._journal.pending if self._journal is not None else None
-            channels = self._channels
-            span, off, limit = self._span_ns, self._off_ns, self._chunk_size
-            wall_s = self._flush_wall_s
-            for topic, t_s, data in items:
-                ch = channels.get(topic) or self._open_channel(topic)
-                try:
-                    lt = round(t_s * 1e9)
-                    if lt < 0:
-                        raise ValueError
-                except (ValueError, OverflowError, TypeError):
-                    raise ValueError(
-                        f"{topic}: t_s = {t_s!r} is not a device time (finite, >= 0 s)"
-                    ) from None
-                lt += off
-                if w.n and (
-                    lt - self._t0 >= span or (wall_s and monotonic() - self._wall0 >= wall_s)
-                ):
+            if (block.seq0 + block.pos) & 0xFFFFFFFF != ch.seq:  # other messages came between
+                block.renumber(ch.seq)
+            w, times, raw, size = self._w, block.times, block.raw, block.size
+            span = self._span_ns
+            i = block.pos
+            while i < stop:
+                lt = times[i]
+                if w.n and (lt - self._t0 >= span or self._wall_due()):
                     self._flush_chunk()
                 if not w.n:
                     self._t0 = lt
-                    if wall_s:
-                        self._wall0 = monotonic()
-                rec = add_message(ch.id, ch.seq, lt, data)
-                if pending is not None:
-                    pending.append(rec)
-                self._last_lt = lt
-                ch.seq = (ch.seq + 1) & 0xFFFFFFFF
-                ch.count += 1
-                if w.size >= limit:
+                    if self._flush_wall_s:
+                        self._wall0 = time.monotonic()
+                j = self._span_end(
+                    block, i, min(stop, i + max(1, -(-(self._chunk_size - w.size) // size)))
+                )
+                part = raw[i * size : j * size]
+                w.add_records(ch.id, times[i:j], part, size)
+                if self._journal is not None:
+                    self._journal.add_record(part)
+                self._last_lt = times[j - 1]
+                ch.seq = (ch.seq + (j - i)) & 0xFFFFFFFF
+                ch.count += j - i
+                if w.size >= self._chunk_size:
                     self._flush_chunk()
+                i = j
+            block.pos = max(block.pos, stop)
+
+    def _span_end(self, block: MessageBlock, i: int, j: int) -> int:
+        """The first of the block's messages i+1 .. j-1 whose log time reaches the open chunk's
+        span (``write`` closes the chunk before it), or j."""
+        end = self._t0 + self._span_ns
+        if block.increasing:
+            return j if block.times[j - 1] < end else bisect_left(block.times, end, i + 1, j)
+        late = np.flatnonzero(block.log_times[i + 1 : j] >= end)
+        return i + 1 + int(late[0]) if late.size else j
+
+    def _wall_due(self) -> bool:
+        return bool(self._flush_wall_s) and time.monotonic() - self._wall0 >= self._flush_wall_s
 
     def write_encoded(self, topic: str, log_time: int, data: bytes) -> None:
         """One message as it is in an MCAP file: its log time (ns, this writer's offset
@@ -468,35 +499,8 @@ class LogWriter:
                     {nm: (c[i].item() if hasattr(c[i], "item") else c[i]) for nm, c in present},
                 )
             return count
-        if np.any(t < 0) or not np.all(np.isfinite(t)):
-            raise ValueError(f"{topic}: t_s must be finite and >= 0")
-        lt = (np.rint(t * 1e9).astype(np.uint64) + np.uint64(self._off_ns)).tolist()
-        recs = np.zeros(count, dtype=dtype)
-        recs.view(np.uint8).reshape(count, -1)[:, :4] = np.frombuffer(b"\x00\x01\x00\x00", np.uint8)
-        recs["t_s"] = t
-        for nm, f in zip(ch.names, ch.codec.fields[1:], strict=False):
-            col = cols.get(nm)
-            if col is None:
-                recs[nm] = f.default
-            else:
-                arr = np.asarray(col)
-                if arr.shape != (count,) and arr.ndim != 0:
-                    raise ValueError(
-                        f"{topic}.{nm}: {arr.shape[0] if arr.ndim else 1} values for {count} rows"
-                    )
-                if f.type == "bool":
-                    arr = arr.astype(bool)
-                elif f.type not in ("float32", "float64"):
-                    info = np.iinfo(recs[nm].dtype)
-                    if arr.size and (np.any(arr < info.min) or np.any(arr > info.max)):
-                        raise ValueError(f"{topic}.{nm}: values outside the {f.type} range")
-                recs[nm] = arr
-        raw = recs.tobytes()
-        size = dtype.itemsize
-        with self._lock:
-            self._check_open()
-            for i in range(count):
-                self._add(ch, lt[i], raw[i * size : (i + 1) * size])
+        recs = cdr_from_columns(topic, ch.codec, cols, count)
+        self.write_block(self.message_block(topic, t, recs))
         return count
 
     # ------------------------------------------------------------------ chunks
