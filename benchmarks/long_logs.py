@@ -21,13 +21,14 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from end_to_end import CLI, _envs, _pairs, hour_log, med, timed
+from end_to_end import CLI, _envs, _pairs, hour_log, med, timed, warm
 
 
 def bench(name: str, command, repeat: int, base: str | None) -> None:
     """``command(out)`` -> the argument list after the CLI for a run writing ``out`` (removed
     after the run: a recovered hour is most of a GiB)."""
     envs = _envs(base)
+    warm(envs)
     runs: dict[str, list[dict]] = {k: [] for k in envs}
     with tempfile.TemporaryDirectory() as d:
         for i in range(repeat):

@@ -393,11 +393,13 @@ class LogWriter:
         ch = self._channels[block.topic]
         stop = len(block) if stop is None else stop
         with self._lock:
-            self._check_open()
+            if self._failed is not None or self._closed or self._closing:
+                self._check_open()
             if (block.seq0 + block.pos) & 0xFFFFFFFF != ch.seq:  # other messages came between
                 block.renumber(ch.seq)
             w, times, raw, size = self._w, block.times, block.raw, block.size
-            span = self._span_ns
+            span, limit = self._span_ns, self._chunk_size
+            pending = self._journal.pending if self._journal is not None else None
             i = block.pos
             while i < stop:
                 lt = times[i]
@@ -407,17 +409,17 @@ class LogWriter:
                     self._t0 = lt
                     if self._flush_wall_s:
                         self._wall0 = time.monotonic()
-                j = self._span_end(
-                    block, i, min(stop, i + max(1, -(-(self._chunk_size - w.size) // size)))
-                )
+                j = min(stop, i + max(1, -(-(limit - w.size) // size)))
+                if not block.increasing or times[j - 1] - self._t0 >= span:
+                    j = self._span_end(block, i, j)  # the chunk's span ends within the run
                 part = raw[i * size : j * size]
                 w.add_records(ch.id, times[i:j], part, size)
-                if self._journal is not None:
-                    self._journal.add_record(part)
+                if pending is not None:
+                    pending.append(part)
                 self._last_lt = times[j - 1]
                 ch.seq = (ch.seq + (j - i)) & 0xFFFFFFFF
                 ch.count += j - i
-                if w.size >= self._chunk_size:
+                if w.size >= limit:
                     self._flush_chunk()
                 i = j
             block.pos = max(block.pos, stop)
