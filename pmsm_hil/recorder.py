@@ -5,7 +5,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
@@ -13,6 +13,7 @@ from pmsm_hil.protocol import generated as gen
 from pmsm_hil.wire_blocks import block_encoder
 
 if TYPE_CHECKING:
+    from pmsm_hil.log.blocks import MessageBlock
     from pmsm_hil.log.writer import LogWriter
     from pmsm_hil.protocol.codec import Frame
 
@@ -178,7 +179,7 @@ class Recorder:
         n = len(frames)
         # a frame's key: its id, or -1 - id without payload octets (its fields only: a handler)
         keys = [fr.msg_id if fr.payload else -1 - fr.msg_id for fr in frames]
-        blocks: dict[int, tuple[str, Any, np.ndarray]] = {}  # id -> (topic, block, t_s)
+        blocks: dict[int, MessageBlock] = {}  # id -> its frames in this batch, as log records
         last: dict[int, Frame] = {}  # the last frame written directly, per message
         i = 0
         try:
@@ -196,14 +197,13 @@ class Recorder:
                         if handler is not None:
                             handler(fr.fields)
                 else:
-                    got = blocks.get(key)
-                    if got is None:
+                    block = blocks.get(key)
+                    if block is None:
                         payloads = b"".join(
                             [f.payload for f, k in zip(frames, keys, strict=True) if k == key]
                         )
                         t, data = entry[1](payloads)
-                        got = blocks[key] = (entry[0], self.w.message_block(entry[0], t, data), t)
-                    block = got[1]
+                        block = blocks[key] = self.w.message_block(entry[0], t, data)
                     self.w.write_block(block, block.pos + (j - i))
                     last[key] = frames[j - 1]
                 i = j

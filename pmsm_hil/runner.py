@@ -315,9 +315,6 @@ class _NoLog(LogWriter):
     def write(self, topic: str, t_s: float, fields: Mapping[str, Any]) -> None:
         pass
 
-    def write_data(self, topic: str, t_s: float, data: bytes) -> None:
-        pass
-
     def fixed_layout(self, topic: str) -> None:
         return None
 

@@ -72,8 +72,7 @@ LIBRARY = f"pmsm-hil {__version__}"
 
 class FixedLayout(NamedTuple):
     names: tuple[str, ...]  # t_s first
-    pack: Callable[..., bytes]
-    dtype: np.dtype
+    dtype: np.dtype  # the CDR data: encapsulation header, then the fields at their offsets
 
 
 class _Channel:
@@ -351,26 +350,15 @@ class LogWriter:
         return ValueError(f"{ch.topic}: cannot encode {'; '.join(bad) or list(vals)}: {e}")
 
     def fixed_layout(self, topic: str) -> FixedLayout | None:
-        """A topic of fixed layout: its field names (``t_s`` first), the ``struct`` pack of its
-        whole CDR data (first argument the encapsulation header ``0x100``, then the fields in that
-        order: for ``write_data``) and its numpy dtype (for ``message_block``); None for a layout
-        with strings."""
+        """A topic of fixed layout: its field names (``t_s`` first) and the numpy dtype of its
+        whole CDR data (for ``message_block``); None for a layout with strings."""
         ch = self._channels.get(topic)
         if ch is None:
             with self._lock:
                 ch = self._channels.get(topic) or self._open_channel(topic)
-        if ch.pack is None or ch.dtype is None:
+        if ch.dtype is None:
             return None
-        return FixedLayout(tuple(ch.codec.names), ch.pack, ch.dtype)
-
-    def write_data(self, topic: str, t_s: float, data: bytes) -> None:
-        """One message at device time ``t_s`` whose CDR data is already encoded (e.g. by the
-        pack of ``fixed_layout``): the same record as ``write`` with the same values."""
-        ch = self._channels.get(topic)
-        with self._lock:
-            ch = ch or self._open_channel(topic)
-            self._check_open()
-            self._add(ch, int(log_times(topic, t_s, self._off_ns)[0]), data)
+        return FixedLayout(tuple(ch.codec.names), ch.dtype)
 
     def message_block(self, topic: str, t_s: Any, data: np.ndarray) -> MessageBlock:
         """Messages of a fixed-layout topic made at once, to be written in order by
