@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import gc
 import importlib
 import sys
 import threading
@@ -226,6 +227,28 @@ def _import_meanwhile(names: tuple[str, ...]) -> threading.Thread:
 
 
 def main(args: argparse.Namespace) -> int:
+    """`pmsm-hil run`. The garbage collector is held off while the run starts (see ``_settle``)."""
+    collecting = gc.isenabled()
+    gc.disable()
+    try:
+        return _run(args, collecting)
+    finally:
+        gc.unfreeze()  # an in-process caller gets its collector back as it was
+        if collecting:
+            gc.enable()
+
+
+def _settle(collecting: bool) -> None:
+    """The imports and the profile's validation are done: the objects they made (some 10^5:
+    pydantic's schemas, numpy's tables, the modules), made without the collector's passes, are
+    moved out of its reach, and collection resumes: the stream's collections walk the stream's
+    own objects only. paper-a's run spent 53 ms in 141 collections, most of them during the start."""
+    gc.freeze()
+    if collecting:
+        gc.enable()
+
+
+def _run(args: argparse.Namespace, collecting: bool) -> int:
     from pmsm_hil.device import open_device
     from pmsm_hil.errors import TransportError, TransportSpecError
     from pmsm_hil.profiles import ProfileError
@@ -280,6 +303,8 @@ def main(args: argparse.Namespace) -> int:
     from pmsm_hil.log.writer import LogWriteError
     from pmsm_hil.protocol.session import DeviceError, Session
     from pmsm_hil.runner import HostError, PlantMismatch, RunOptions, run_profile
+
+    _settle(collecting)
 
     names = [s.name or f"segment {i}" for i, s in enumerate(profile.segments)]
     observer = make_observer(args.no_live, f"{profile.name} on {link.name}", link.bit_rate, names)
