@@ -91,6 +91,26 @@ def warm(envs: dict[str, dict]) -> None:
         subprocess.run([sys.executable, "-c", code], env=env, check=True, cwd=tempfile.gettempdir())
 
 
+def interleaved(name: str, repeat: int, base: str | None, command, ok=None, after=None) -> dict:
+    """``repeat`` rounds of ``pmsm-hil *command(i)``, one per tree in each round (this tree and the
+    base, interleaved), each in a fresh process: {tree: [timed(...)]}. ``ok(result)`` judges a
+    run (default: exit 0, no traceback; otherwise the benchmark stops with its stderr); ``after(i)``
+    runs after each command (e.g. removes its output)."""
+    ok = ok or (lambda r: r["code"] == 0 and "Traceback" not in r["stderr"])
+    envs = _envs(base)
+    warm(envs)
+    runs: dict[str, list[dict]] = {k: [] for k in envs}
+    for i in range(repeat):
+        for label, env in envs.items():
+            r = timed([*CLI, *command(i)], env=env)
+            if not ok(r):
+                sys.exit(f"{name} ({label}) failed: {r['stderr'][-2000:]}")
+            runs[label].append(r)
+            if after is not None:
+                after(i)
+    return runs
+
+
 def _pairs(name: str, runs: dict[str, list[dict]], key: str) -> None:
     """The speed-up of this tree over the base, per interleaved pair."""
     if "base" in runs:
@@ -102,18 +122,14 @@ def _pairs(name: str, runs: dict[str, list[dict]], key: str) -> None:
 
 
 def bench_run(repeat: int, base: str | None = None) -> None:
-    envs = _envs(base)
-    warm(envs)
-    runs: dict[str, list[dict]] = {k: [] for k in envs}
+    paper_a = str(ROOT / "profiles" / "paper-a.yaml")
     with tempfile.TemporaryDirectory() as d:
-        for i in range(repeat):
-            for label, env in envs.items():
-                out = os.path.join(d, f"a{i}.mcap")
-                cmd = [*CLI, "run", str(ROOT / "profiles" / "paper-a.yaml"), "--seed", "1"]
-                r = timed([*cmd, "--no-live", "--out", out], env=env)  # CPU: its child included
-                if r["code"] != 0 or "Traceback" in r["stderr"]:
-                    sys.exit(f"run ({label}) failed: {r['stderr'][-2000:]}")
-                runs[label].append(r)
+        runs = interleaved(  # CPU: the emulator child's included
+            "run",
+            repeat,
+            base,
+            lambda i: ["run", paper_a, "--seed", "1", "--no-live", "--out", f"{d}/a{i}.mcap"],
+        )
     for label, rs in runs.items():
         walls = [r["wall_s"] for r in rs]
         cpus = [r["cpu_s"] for r in rs]
@@ -178,16 +194,14 @@ def hour_log(log: str | None) -> str:
 
 def bench_analyze(repeat: int, log: str | None, base: str | None = None) -> None:
     path = hour_log(log)
-    envs = _envs(base)
-    warm(envs)
-    runs: dict[str, list[dict]] = {k: [] for k in envs}
-    for _ in range(repeat):
-        for label, env in envs.items():
-            r = timed([*CLI, "analyze", path], env=env)
-            # exit 1 is "bounds missed" (a synthetic log); anything on stderr is a failure
-            if r["code"] not in (0, 1) or r["stderr"].strip():
-                sys.exit(f"analyze ({label}) failed: {r['stderr'][-2000:]}")
-            runs[label].append(r)
+    # exit 1 is "bounds missed" (a synthetic log); anything on stderr is a failure
+    runs = interleaved(
+        "analyze",
+        repeat,
+        base,
+        lambda i: ["analyze", path],
+        ok=lambda r: r["code"] in (0, 1) and not r["stderr"].strip(),
+    )
     size = os.path.getsize(path) / 2**20
     for label, rs in runs.items():
         w = [r["wall_s"] for r in rs]

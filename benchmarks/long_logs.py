@@ -21,27 +21,24 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from end_to_end import CLI, _envs, _pairs, hour_log, med, timed, warm
+from end_to_end import _pairs, hour_log, interleaved, med
 
 
 def bench(name: str, command, repeat: int, base: str | None) -> None:
     """``command(out)`` -> the argument list after the CLI for a run writing ``out`` (removed
     after the run: a recovered hour is most of a GiB)."""
-    envs = _envs(base)
-    warm(envs)
-    runs: dict[str, list[dict]] = {k: [] for k in envs}
     with tempfile.TemporaryDirectory() as d:
-        for i in range(repeat):
-            for label, env in envs.items():
-                out = os.path.join(d, f"out-{i}")
-                r = timed([*CLI, *command(out)], env=env)
-                if r["code"] != 0 or "Traceback" in r["stderr"]:
-                    sys.exit(f"{name} ({label}) failed: {r['stderr'][-2000:]}")
-                runs[label].append(r)
-                if os.path.isdir(out):
-                    shutil.rmtree(out)
-                elif os.path.exists(out):
-                    os.remove(out)
+
+        def remove(i: int) -> None:
+            out = os.path.join(d, f"out-{i}")
+            if os.path.isdir(out):
+                shutil.rmtree(out)
+            elif os.path.exists(out):
+                os.remove(out)
+
+        runs = interleaved(
+            name, repeat, base, lambda i: command(os.path.join(d, f"out-{i}")), after=remove
+        )
     for label, rs in runs.items():
         w, c, m = ([r[k] for r in rs] for k in ("wall_s", "cpu_s", "rss_mib"))
         print(

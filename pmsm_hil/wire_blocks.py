@@ -11,11 +11,10 @@ from collections.abc import Callable
 
 import numpy as np
 
+from pmsm_hil.log.blocks import CDR_HEADER
 from pmsm_hil.protocol import generated as gen
 
 __all__ = ["block_encoder", "wire_dtype"]
-
-_CDR_HEADER = np.frombuffer(b"\x00\x01\x00\x00", np.uint8)  # CDR little endian, options 0
 
 
 def wire_dtype(msg: str) -> np.dtype:
@@ -69,7 +68,7 @@ def block_encoder(
         v = np.frombuffer(payloads, dtype=wire)
         n = len(v)
         raw = np.zeros((n, size), dtype=np.uint8)
-        raw[:, :4] = _CDR_HEADER
+        raw[:, :4] = CDR_HEADER
         t = v["tick"] * ts_s
         raw[:, t_at : t_at + 8].view("<f8")[:, 0] = t
         out = raw.view(dtype).reshape(n)

@@ -16,12 +16,22 @@ from typing import Any
 
 import numpy as np
 
-from pmsm_hil.log.schemas import Codec
+from pmsm_hil.log.mcap_file import MESSAGE_HEAD
+from pmsm_hil.log.schemas import CDR_LE_HEADER, Codec
 
-__all__ = ["HEAD_SIZE", "MessageBlock", "cdr_from_columns", "log_times", "record_dtype"]
+__all__ = [
+    "CDR_HEADER",
+    "HEAD_SIZE",
+    "MessageBlock",
+    "cdr_from_columns",
+    "log_times",
+    "record_dtype",
+]
 
-HEAD_SIZE = 31  # opcode 1, record length 8, channel 2, sequence 4, log time 8, publish time 8
-_CDR_HEADER = np.frombuffer(b"\x00\x01\x00\x00", np.uint8)  # CDR little endian, options 0
+HEAD_SIZE = (
+    MESSAGE_HEAD.size
+)  # opcode 1, record length 8, channel 2, sequence 4, log and publish time 8
+CDR_HEADER = np.frombuffer(CDR_LE_HEADER, np.uint8)  # the encapsulation header as octets
 
 
 @functools.lru_cache(maxsize=64)
@@ -56,7 +66,7 @@ def cdr_from_columns(topic: str, codec: Codec, cols: Mapping[str, Any], count: i
     from columns: ``t_s`` and any fields; a field not given is its default, as for ``write``."""
     assert codec.dtype is not None  # a fixed layout
     recs = np.zeros(count, dtype=codec.dtype)
-    recs.view(np.uint8).reshape(count, -1)[:, :4] = _CDR_HEADER
+    recs.view(np.uint8).reshape(count, -1)[:, :4] = CDR_HEADER
     recs["t_s"] = np.asarray(cols["t_s"], dtype=np.float64).reshape(-1)
     for f in codec.fields[1:]:
         col = cols.get(f.name)
