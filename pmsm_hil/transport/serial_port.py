@@ -13,11 +13,12 @@ from pmsm_hil.transport.base import TransportError
 READ_MAX = 1 << 16  # octets gathered by one read() while the link keeps delivering
 
 
-def _read_ready(fd: int) -> bytes:
-    """The octets waiting on a non-blocking descriptor; b"" when none (a tty in raw mode with
-    VMIN = VTIME = 0, as pyserial sets it, reads 0 octets then rather than failing with EAGAIN)."""
+def _read_ready(fd: int, most: int = READ_MAX) -> bytes:
+    """At most ``most`` of the octets waiting on a non-blocking descriptor; b"" when none (a tty in
+    raw mode with VMIN = VTIME = 0, as pyserial sets it, reads 0 octets then rather than failing
+    with EAGAIN)."""
     try:
-        return os.read(fd, READ_MAX)
+        return os.read(fd, most)
     except BlockingIOError:
         return b""
 
@@ -84,7 +85,7 @@ class SerialTransport:
                     raise OSError("the port reports data but gives none (disconnected?)")
             parts, size = [got], len(got)
             while size < READ_MAX:
-                more = _read_ready(fd)
+                more = _read_ready(fd, READ_MAX - size)  # a pty may hand over more than 4 KiB
                 if not more:
                     break
                 parts.append(more)
