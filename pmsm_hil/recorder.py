@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 
 from pmsm_hil.protocol import generated as gen
-from pmsm_hil.wire_blocks import block_encoder
+from pmsm_hil.wire_blocks import block_encoder, wire_dtype
 
 if TYPE_CHECKING:
     from pmsm_hil.log.blocks import MessageBlock
@@ -81,11 +81,36 @@ DIRECT = {
     "telem_fast": ("/pmsm/telemetry", TELEMETRY_FIELDS),
     "sim_truth": ("/sim/truth", TRUTH_FIELDS),
 }
+# and the estimators' parameters, one layout per estimator (its name is a string in the log): a
+# params frame's key in a batch is PARAMS_KEY | the estimator's code (Recorder.frames)
+PARAMS_ID = gen.BY_NAME["params"].id
+PARAMS_KEY = 0x10000
+_ESTIMATOR_AT = wire_dtype("params").fields["estimator"][1]  # type: ignore[index]
+PARAMS_BITS = {n: ("flags", PARAMS_FLAGS[n]) for n in ("excited", "converged", "feeds_predictor")}
 
 
 def fault_text(bits: int) -> str:
     names = [name for name, b in FAULT_BITS.items() if bits & b]
     return "+".join(names) if names else "none"
+
+
+def _estimator_name(code: int) -> str:
+    return ESTIMATOR_NAMES.get(code, str(code))
+
+
+def _params_row(f: dict) -> tuple[str, dict]:
+    """A params frame's estimator and its /pmsm/params fields."""
+    name = _estimator_name(f["estimator"])
+    flags = f["flags"]
+    row = {
+        "estimator": name,
+        "l_d_h": f["l_d_h"],
+        "l_q_h": f["l_q_h"],
+        "psi_f_wb": f["psi_f_wb"],
+        "r_s_ohm": f["r_s_ohm"],
+        **{k: bool(flags & mask) for k, (_, mask) in PARAMS_BITS.items()},
+    }
+    return name, row
 
 
 @dataclass
@@ -138,21 +163,33 @@ class Recorder:
         # message id -> (topic, encoder from the payload), made at the message's first frame
         # (its channel opens then, as it would for write); not with sinks, which want the fields
         self._direct: dict[int, tuple[str, Callable[[bytes], tuple[np.ndarray, np.ndarray]]]] = {}
-        self._direct_due = set() if self.sinks else {gen.BY_NAME[m].id for m in DIRECT}
+        self._direct_ids = (
+            set() if self.sinks else {gen.BY_NAME[m].id for m in DIRECT} | {PARAMS_ID}
+        )
+        self._not_direct: set[int] = set()  # keys found to need their handler
 
     def _make_direct(
-        self, msg_id: int
+        self, key: int
     ) -> tuple[str, Callable[[bytes], tuple[np.ndarray, np.ndarray]]] | None:
-        self._direct_due.discard(msg_id)
-        msg = gen.BY_ID[msg_id].name
-        topic, fields = DIRECT[msg]
-        layout = self.w.fixed_layout(topic)
-        if layout is None or set(layout.names[1:]) != set(fields):
-            return None
-        enc = block_encoder(msg, self.ts_s, layout.names, layout.dtype)
+        enc = None
+        if key & PARAMS_KEY:
+            topic = "/pmsm/params"
+            name = _estimator_name(key & 0xFF)
+            layout = self.w.fixed_layout(topic, {"estimator": name})
+            if layout is not None:
+                enc = block_encoder(
+                    "params", self.ts_s, layout.names, layout.dtype, layout.template, PARAMS_BITS
+                )
+        elif key in self._direct_ids:
+            msg = gen.BY_ID[key].name
+            topic, fields = DIRECT[msg]
+            layout = self.w.fixed_layout(topic)
+            if layout is not None and set(layout.names[1:]) == set(fields):
+                enc = block_encoder(msg, self.ts_s, layout.names, layout.dtype)
         if enc is None:
+            self._not_direct.add(key)
             return None
-        entry = self._direct[msg_id] = (topic, enc)
+        entry = self._direct[key] = (topic, enc)
         return entry
 
     def _write(self, topic: str, t_s: float, row: dict) -> None:
@@ -177,8 +214,15 @@ class Recorder:
         frames = frames if isinstance(frames, list) else list(frames)
         live = self.live
         n = len(frames)
-        # a frame's key: its id, or -1 - id without payload octets (its fields only: a handler)
-        keys = [fr.msg_id if fr.payload else -1 - fr.msg_id for fr in frames]
+        # a frame's key: its id (params: PARAMS_KEY | the estimator's code), or -1 - id without
+        # payload octets (its fields only: a handler)
+        pid, at = (PARAMS_ID if self._direct_ids else -1), _ESTIMATOR_AT
+        keys = [
+            (fr.msg_id if fr.msg_id != pid else PARAMS_KEY | fr.payload[at])
+            if fr.payload
+            else -1 - fr.msg_id
+            for fr in frames
+        ]
         blocks: dict[int, MessageBlock] = {}  # id -> its frames in this batch, as log records
         last: dict[int, Frame] = {}  # the last frame written directly, per message
         i = 0
@@ -189,7 +233,7 @@ class Recorder:
                 while j < n and keys[j] == key:
                     j += 1
                 entry = self._direct.get(key)
-                if entry is None and key in self._direct_due:
+                if entry is None and key >= 0 and self._direct_ids and key not in self._not_direct:
                     entry = self._make_direct(key)
                 if entry is None:
                     for fr in frames[i:j]:
@@ -214,6 +258,9 @@ class Recorder:
                 if fr.name == "telem_fast":
                     live.t_s = self._t(fr.fields["tick"])
                     live.telemetry = {k: fr.fields[k] for k in TELEMETRY_FIELDS}
+                elif fr.name == "params":
+                    name, row = _params_row(fr.fields)
+                    live.params[name] = row
                 else:
                     live.truth = {k: fr.fields[k] for k in TRUTH_FIELDS}
         if n:
@@ -254,20 +301,8 @@ class Recorder:
         self.live.estimator = row
 
     def _on_params(self, f: dict) -> None:
-        t = self._t(f["tick"])
-        name = ESTIMATOR_NAMES.get(f["estimator"], str(f["estimator"]))
-        flags = f["flags"]
-        row = {
-            "estimator": name,
-            "l_d_h": f["l_d_h"],
-            "l_q_h": f["l_q_h"],
-            "psi_f_wb": f["psi_f_wb"],
-            "r_s_ohm": f["r_s_ohm"],
-            "excited": bool(flags & PARAMS_FLAGS["excited"]),
-            "converged": bool(flags & PARAMS_FLAGS["converged"]),
-            "feeds_predictor": bool(flags & PARAMS_FLAGS["feeds_predictor"]),
-        }
-        self._write("/pmsm/params", t, row)
+        name, row = _params_row(f)
+        self._write("/pmsm/params", self._t(f["tick"]), row)
         self.live.params[name] = row
 
     def _on_status(self, f: dict) -> None:

@@ -315,7 +315,7 @@ class _NoLog(LogWriter):
     def write(self, topic: str, t_s: float, fields: Mapping[str, Any]) -> None:
         pass
 
-    def fixed_layout(self, topic: str) -> None:
+    def fixed_layout(self, topic: str, strings: Mapping[str, str] | None = None) -> None:
         return None
 
     def message_block(self, topic: str, t_s: Any, data: Any) -> MessageBlock:

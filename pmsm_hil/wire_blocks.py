@@ -7,7 +7,7 @@ field's CDR type), so that the octets are those of the frame handlers' ``LogWrit
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 
 import numpy as np
 
@@ -42,38 +42,62 @@ def _float64_run(dtype: np.dtype, names: tuple[str, ...]) -> int | None:
 
 
 def block_encoder(
-    msg: str, ts_s: float, names: tuple[str, ...], dtype: np.dtype
+    msg: str,
+    ts_s: float,
+    names: tuple[str, ...],
+    dtype: np.dtype,
+    template: bytes | None = None,
+    bits: Mapping[str, tuple[str, int]] | None = None,
 ) -> Callable[[bytes], tuple[np.ndarray, np.ndarray]] | None:
     """Payload octets of many ``msg`` frames (joined) -> (t_s, the CDR data of their log
-    messages as ``dtype``, the topic's layout). ``names``: the log fields, ``t_s`` first. None when
-    a log field is not a scalar field of the message.
+    messages as ``dtype``, the topic's layout). ``names``: the log fields, ``t_s`` first;
+    ``template``: the data's octets before the fields are filled in (a layout with strings,
+    ``LogWriter.fixed_layout``; by default the encapsulation header and zeros); ``bits``: log
+    fields that are a bit of a message field (name -> (field, mask)), as booleans. None when a log
+    field is neither a scalar field of the message nor such a bit.
 
     When the log fields after ``t_s`` are float64 one after the other (telemetry), they are cast
     in one conversion and the scaled ones multiplied by their scales in one; otherwise field by
     field."""
     spec = gen.BY_NAME[msg]
     scales = {f.name: f.scale for f in spec.fields if f.count == 1}
+    bits = dict(bits or {})
     fields = list(names[1:])
-    if "tick" not in scales or any(n not in scales for n in fields):
+    if "tick" not in scales or any(n not in scales and n not in bits for n in fields):
         return None
+    if any(src not in scales for src, _mask in bits.values()):
+        return None
+    if template is not None and len(template) != dtype.itemsize:
+        return None
+    tpl = np.frombuffer(template, np.uint8) if template is not None else None
     wire = wire_dtype(msg)
     size = dtype.itemsize
     t_at = dtype.fields["t_s"][1]  # type: ignore[index]
     run_at = _float64_run(dtype, tuple(fields))
     as_f8 = np.dtype({"names": fields, "formats": ["<f8"] * len(fields)})
-    scaled = np.array([k for k, n in enumerate(fields) if scales[n] is not None], dtype=np.intp)
+    scaled = np.array(
+        [k for k, n in enumerate(fields) if n not in bits and scales[n] is not None], dtype=np.intp
+    )
     factors = np.array([scales[fields[k]] for k in scaled], dtype=np.float64)
 
     def encode(payloads: bytes) -> tuple[np.ndarray, np.ndarray]:
         v = np.frombuffer(payloads, dtype=wire)
         n = len(v)
-        raw = np.zeros((n, size), dtype=np.uint8)
-        raw[:, :4] = CDR_HEADER
+        if tpl is None:
+            raw = np.zeros((n, size), dtype=np.uint8)
+            raw[:, :4] = CDR_HEADER
+        else:
+            raw = np.empty((n, size), dtype=np.uint8)
+            raw[:] = tpl
         t = v["tick"] * ts_s
         raw[:, t_at : t_at + 8].view("<f8")[:, 0] = t
         out = raw.view(dtype).reshape(n)
         if run_at is None:
             for name in fields:
+                if name in bits:
+                    src, mask = bits[name]
+                    out[name] = (v[src] & mask) != 0
+                    continue
                 sc = scales[name]
                 out[name] = v[name] if sc is None else v[name] * sc
             return t, out

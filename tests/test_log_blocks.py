@@ -121,3 +121,62 @@ def test_bad_times_and_layouts_are_refused_with_the_topic(tmp_path):
         with pytest.raises(ValueError, match="values for 3 rows"):
             cdr_from_columns(TEL, codec, {"t_s": np.zeros(3), "i_d_a": np.zeros(2)}, 3)
     assert read_log(tmp_path / "x.mcap").counts.get(TEL, 0) == 0
+
+
+PARAMS = "/pmsm/params"
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    names=st.lists(st.text(max_size=20), min_size=1, max_size=3),
+    values=st.lists(
+        st.tuples(st.floats(0, 1e3), st.floats(allow_nan=False), st.booleans()),
+        min_size=1,
+        max_size=30,
+    ),
+)
+def test_a_topic_with_strings_has_a_block_layout_per_string_value(tmp_path_factory, names, values):
+    """/pmsm/params (its estimator a string): blocks made from the layout that ``fixed_layout``
+    gives for each estimator's name, filled from its template, are the octets of ``write``."""
+    tmp = tmp_path_factory.mktemp("p")
+    rows = [
+        {
+            "estimator": names[k % len(names)],
+            "l_d_h": x,
+            "l_q_h": -x,
+            "psi_f_wb": 0.25,
+            "r_s_ohm": x / 3,
+            "excited": flag,
+            "converged": not flag,
+            "feeds_predictor": flag,
+        }
+        for k, (_t, x, flag) in enumerate(values)
+    ]
+    times = sorted(t for t, _x, _f in values)
+    with LogWriter(tmp / "a.mcap") as w:
+        for t, row in zip(times, rows, strict=True):
+            w.write(PARAMS, t, row)
+    with LogWriter(tmp / "b.mcap") as w:
+        assert w.fixed_layout(PARAMS) is None  # a string's value is needed
+        for t, row in zip(times, rows, strict=True):  # one block per message: any order of names
+            layout = w.fixed_layout(PARAMS, {"estimator": row["estimator"]})
+            assert layout is not None and layout.template is not None
+            assert "estimator" not in layout.names
+            raw = np.empty((1, layout.dtype.itemsize), np.uint8)
+            raw[:] = np.frombuffer(layout.template, np.uint8)
+            data = raw.view(layout.dtype).reshape(1)
+            data["t_s"] = t
+            for n in layout.names[1:]:
+                data[n] = row[n]
+            w.write_block(w.message_block(PARAMS, [t], data))
+    assert (tmp / "a.mcap").read_bytes() == (tmp / "b.mcap").read_bytes()
+
+
+def test_a_layout_with_strings_is_one_the_writer_gave(tmp_path):
+    with LogWriter(tmp_path / "x.mcap") as w:
+        layout = w.fixed_layout(PARAMS, {"estimator": "rls"})
+        assert layout is not None
+        other = np.dtype({"names": ["t_s"], "formats": ["<f8"], "offsets": [4], "itemsize": 55})
+        with pytest.raises(ValueError, match=r"/pmsm/params: data of .* not the topic's fixed"):
+            w.message_block(PARAMS, [0.0], np.zeros(1, other))
+        w.message_block(PARAMS, [0.0], np.zeros(1, layout.dtype))  # the one it gave: taken

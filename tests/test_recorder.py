@@ -24,7 +24,9 @@ def _value(rnd: random.Random, f) -> float | int:
 
 
 def _stream(n: int) -> bytes:
-    """A device's output: telemetry every period, truth and status now and then, events."""
+    """A device's output: telemetry every period, truth, the estimators' parameters (the three
+    estimators and a code the host does not know, in turn or in a row) and status now and then,
+    events."""
     rnd = random.Random(5)
     out = []
     seq = 0
@@ -32,6 +34,8 @@ def _stream(n: int) -> bytes:
         names = ["telem_fast"]
         if k % 20 == 3:
             names.append("sim_truth")
+        if k % 20 == 5:
+            names += ["params"] * (1 + (k // 20) % 3)
         if k % 200 == 7:
             names.append("status")
         if k % 500 == 11:
@@ -44,6 +48,8 @@ def _stream(n: int) -> bytes:
                 fields["state"] = 1
             if name == "event":
                 fields["code"], fields["arg"] = 1, 0
+            if name == "params":
+                fields["estimator"] = (1, 2, 3, 1, 9)[rnd.randrange(5)]
             out.append(codec.encode(name, seq, **fields))
             seq = (seq + 1) & 0xFF
     return b"".join(out)
@@ -71,17 +77,28 @@ def test_direct_path_writes_what_the_handlers_write(tmp_path):
         lives.append(rec.live)
     assert logs[0] == logs[1]
     a, b = lives
-    assert (a.t_s, a.frames, a.seq_gaps, a.telemetry, a.truth, a.status) == (
+    assert (a.t_s, a.frames, a.seq_gaps, a.telemetry, a.truth, a.status, a.params) == (
         b.t_s,
         b.frames,
         b.seq_gaps,
         b.telemetry,
         b.truth,
         b.status,
+        b.params,
     )
+    assert set(a.params) == {"rls", "adaline", "nlms_adaline", "9"}
     log = read_log(tmp_path / "direct.mcap")
     assert log.counts["/pmsm/telemetry"] == 3000
     assert log.counts["/sim/truth"] == 150
+    assert log.counts["/pmsm/params"] == 300
+    # the parameters and the flags' bits as the device sent them
+    sent = [fr.fields for fr in codec.FrameDecoder().feed(data) if fr.name == "params"]
+    params = log.topic("/pmsm/params")
+    names = {1: "rls", 2: "adaline", 3: "nlms_adaline"}
+    assert list(params["estimator"]) == [names.get(f["estimator"], "9") for f in sent]
+    assert list(params["l_q_h"]) == [f["l_q_h"] for f in sent]
+    for field, bit in (("excited", 1), ("converged", 2), ("feeds_predictor", 4)):
+        assert list(params[field]) == [bool(f["flags"] & bit) for f in sent]
 
 
 def test_frames_decode_their_fields_when_asked():

@@ -41,7 +41,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from pmsm_hil import __version__
-from pmsm_hil.log.blocks import MessageBlock, cdr_from_columns, log_times
+from pmsm_hil.log.blocks import MessageBlock, cdr_from_columns, log_times, string_layout
 from pmsm_hil.log.journal import Journal
 from pmsm_hil.log.mcap_file import MAGIC, McapFile
 from pmsm_hil.log.schemas import (
@@ -71,8 +71,9 @@ LIBRARY = f"pmsm-hil {__version__}"
 
 
 class FixedLayout(NamedTuple):
-    names: tuple[str, ...]  # t_s first
+    names: tuple[str, ...]  # t_s first; not the strings of a topic with strings
     dtype: np.dtype  # the CDR data: encapsulation header, then the fields at their offsets
+    template: bytes | None = None  # with strings: the data's header and strings in place
 
 
 class _Channel:
@@ -83,6 +84,7 @@ class _Channel:
         "fixed",
         "getter",
         "id",
+        "layouts",
         "n",
         "name_set",
         "names",
@@ -111,6 +113,7 @@ class _Channel:
             struct.Struct("<I" + body).pack if self.fixed and body is not None else None
         )
         self.dtype: np.dtype | None = self.codec.dtype if self.fixed else None
+        self.layouts: set[np.dtype] = set()  # with strings: the layouts given out (fixed_layout)
 
 
 class LogWriter:
@@ -349,28 +352,38 @@ class LogWriter:
                 bad.append(f"{f.name} = {v!r} (not a {f.type})")
         return ValueError(f"{ch.topic}: cannot encode {'; '.join(bad) or list(vals)}: {e}")
 
-    def fixed_layout(self, topic: str) -> FixedLayout | None:
+    def fixed_layout(
+        self, topic: str, strings: Mapping[str, str] | None = None
+    ) -> FixedLayout | None:
         """A topic of fixed layout: its field names (``t_s`` first) and the numpy dtype of its
-        whole CDR data (for ``message_block``); None for a layout with strings."""
+        whole CDR data (for ``message_block``). A topic with strings has one when each string's
+        value is given (``strings``: field -> text): its other fields' names and layout, and the
+        data's template with the strings in place; None without them."""
         ch = self._channels.get(topic)
         if ch is None:
             with self._lock:
                 ch = self._channels.get(topic) or self._open_channel(topic)
-        if ch.dtype is None:
+        if ch.dtype is not None:
+            return FixedLayout(tuple(ch.codec.names), ch.dtype)
+        if not strings:
             return None
-        return FixedLayout(tuple(ch.codec.names), ch.dtype)
+        dtype, template = string_layout(ch.codec, tuple(sorted(strings.items())))
+        ch.layouts.add(dtype)
+        fields = set(dtype.names or ())
+        return FixedLayout(tuple(n for n in ch.codec.names if n in fields), dtype, template)
 
     def message_block(self, topic: str, t_s: Any, data: np.ndarray) -> MessageBlock:
         """Messages of a fixed-layout topic made at once, to be written in order by
         ``write_block`` (between other messages if need be): ``t_s`` their device times, ``data``
-        their CDR data (``Codec.dtype`` of the topic: encapsulation header and fields)."""
+        their CDR data (``Codec.dtype`` of the topic: encapsulation header and fields; for a
+        topic with strings, a layout ``fixed_layout`` gave, filled from its template)."""
         ch = self._channels.get(topic)
         if ch is None:
             with self._lock:
                 ch = self._channels.get(topic) or self._open_channel(topic)
-        if ch.dtype is None or data.dtype.itemsize * (data.shape[1] if data.ndim > 1 else 1) != (
-            ch.dtype.itemsize
-        ):
+        size = data.dtype.itemsize * (data.shape[1] if data.ndim > 1 else 1)
+        fixed = ch.dtype is not None and size == ch.dtype.itemsize
+        if not (fixed or data.dtype in ch.layouts):
             raise ValueError(f"{topic}: data of {data.dtype} is not the topic's fixed layout")
         return MessageBlock(topic, ch.id, ch.seq, log_times(topic, t_s, self._off_ns), data)
 
