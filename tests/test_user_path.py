@@ -104,6 +104,37 @@ def test_an_unknown_name_lists_what_is_shipped(tmp_path):
     assert r.returncode == 2 and "paper-z" in r.stderr and "Traceback" not in r.stderr
 
 
+def test_a_path_to_nothing_with_a_shipped_name_gives_the_bare_name(tmp_path):
+    """The README's `profiles/paper-a.yaml` from another directory: the error says what to type."""
+    r = cli("run", "profiles/paper-a.yaml", "--no-live", cwd=tmp_path)
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert "profiles/paper-a.yaml: no such file" in r.stderr and "bare name: paper-a" in r.stderr
+    r = cli("run", "paper-a", "--rig", "x/lab-typical.yaml", "--no-live", cwd=tmp_path)
+    assert r.returncode == 2 and "shipped rig" in r.stderr and "bare name: lab-typical" in r.stderr
+    assert not (tmp_path / "runs").exists()
+
+
+def test_two_runs_started_in_the_same_second_keep_their_own_logs(tmp_path, monkeypatch):
+    from pmsm_hil.cli import run as run_cli
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(run_cli.time, "strftime", lambda fmt: "20261128-120000")
+    paths = [run_cli.default_log_path("profiles/paper-b.yaml") for _ in range(3)]
+    assert [p.name for p in paths] == [
+        "paper-b-20261128-120000.mcap",
+        "paper-b-20261128-120000-2.mcap",
+        "paper-b-20261128-120000-3.mcap",
+    ]
+    assert all(p.is_file() for p in paths)  # each made for its run: no other run takes it
+
+
+def test_stop_after_must_be_a_positive_time(data, tmp_path):
+    r = cli("run", data / "short.yaml", "--stop-after", -5, "--no-live", cwd=tmp_path)
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert "--stop-after -5.0: must be a positive device time" in r.stderr
+    assert not (tmp_path / "runs").exists()
+
+
 def test_profiles_command_lists_the_shipped_files():
     r = cli("profiles")
     assert r.returncode == 0, r.stderr

@@ -6,6 +6,7 @@ import argparse
 import contextlib
 import gc
 import importlib
+import os
 import sys
 import threading
 import time
@@ -100,8 +101,21 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
 
 
 def default_log_path(profile_path: str) -> Path:
-    stem = Path(profile_path).stem
-    return Path("runs") / f"{stem}-{time.strftime('%Y%m%d-%H%M%S')}.mcap"
+    """runs/PROFILE-YYYYmmdd-HHMMSS.mcap, or -2, -3 ... after it when a run started in the same
+    second has that name: the file is created here, exclusively, so that two runs never share a
+    log (OSError when runs/ cannot be written)."""
+    base = f"{Path(profile_path).stem}-{time.strftime('%Y%m%d-%H%M%S')}"
+    runs = Path("runs")
+    runs.mkdir(parents=True, exist_ok=True)
+    k = 1
+    while True:
+        path = runs / (base + (f"-{k}" if k > 1 else "") + ".mcap")
+        try:
+            os.close(os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o666))
+        except FileExistsError:
+            k += 1
+            continue
+        return path
 
 
 def device_spec(args: argparse.Namespace) -> DeviceSpec:
@@ -263,6 +277,10 @@ def _run(args: argparse.Namespace, collecting: bool) -> int:
         return fail(
             "error", f"--pace {args.pace}: must be between 0.001 and 1000 (times real time)", 2
         )
+    if args.stop_after is not None and not args.stop_after > 0:
+        return fail(
+            "error", f"--stop-after {args.stop_after}: must be a positive device time (s)", 2
+        )
     if args.pace is not None and (args.port or (args.can not in (None, "emulator", ""))):
         return fail("error", "--pace sets the emulator's speed; a rig runs in real time", 2)
     for w in profile.warnings:
@@ -270,11 +288,18 @@ def _run(args: argparse.Namespace, collecting: bool) -> int:
     code = check_link_budget(args, profile)
     if code is not None:
         return code
-    out = Path(args.out) if args.out else default_log_path(args.profile)
-    existed = out.exists()
-    code = _check_out(out)
-    if code is not None:
-        return code
+    if args.out:
+        out = Path(args.out)
+        existed = out.exists()
+        code = _check_out(out)
+        if code is not None:
+            return code
+    else:
+        try:
+            out = default_log_path(args.profile)
+        except OSError as e:
+            return fail("error", f"runs/: cannot write the log there ({e.strerror or e})", 2)
+        existed = False  # made for this run: removed again if the device cannot be opened
 
     sinks = []
     if args.foxglove is not None:  # docs/foxglove.md
@@ -361,8 +386,6 @@ def _finish(result, print_summary, summarize_log, profile=None) -> int:
     except (
         BrokenPipeError
     ):  # `| head`: the reader left; the exit code still tells how the run ended
-        import os
-
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
     except (
         OSError,

@@ -75,7 +75,9 @@ def resolve(name: str | os.PathLike, kind: str) -> str:
     """A path given by the user, or the shipped file of that kind and name.
 
     An existing file wins; otherwise a bare name (no folder), with or without its suffix, is looked
-    up among the shipped files. Anything else is returned unchanged, so the loader reports it.
+    up among the shipped files. A path to no file whose name is a shipped file's (e.g. the
+    repository's ``profiles/paper-a.yaml`` from another directory) is an error that gives the bare
+    name. Anything else is returned unchanged, so the loader reports it.
     """
     text = os.fspath(name)
     if os.path.isfile(text):
@@ -93,6 +95,19 @@ def resolve(name: str | os.PathLike, kind: str) -> str:
                 None,
                 f"is neither a file nor a shipped {kind} (shipped: {names}; "
                 f"`pmsm-hil profiles` lists them)",
+                has_value=False,
+            )
+        )
+    shipped_one = _shipped_named(os.path.basename(text), kind)
+    if shipped_one is not None and not os.path.exists(text):
+        raise ProfileError(
+            Problem(
+                text,
+                None,
+                None,
+                None,
+                f"no such file; the shipped {kind} of that name is found from any directory by "
+                f"its bare name: {shipped_one.stem}",
                 has_value=False,
             )
         )
