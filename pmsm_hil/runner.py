@@ -438,7 +438,10 @@ def _stream(
         if options.stop_after_s is not None and live.t_s >= options.stop_after_s and not stop_sent:
             session.send("stop")
             stop_sent = True
-            rec.event(live.t_s, "host", 0, 0, "stop requested by the host")
+            # at the tick the device stops itself (stop_at): the summary ends the last segment
+            # there, not after the quick stop the host's reading lags into
+            t_stop = max(1, round(options.stop_after_s / rec.ts_s)) * rec.ts_s
+            rec.event(min(live.t_s, t_stop), "host", 0, 0, "stop requested by the host")
         if now - last_data_wall > options.device_timeout_s:
             raise DeviceError(
                 f"device fell silent for {options.device_timeout_s:.1f} s on "

@@ -115,6 +115,9 @@ def test_host_stop_ends_the_run_cleanly(data, tmp_path):
     t, ref = np.asarray(tel["t_s"]), np.asarray(tel["speed_ref_rpm"])
     t_down = float(t[np.argmax((t > 1.1) & (ref < 299.0))])
     assert 1.2 <= t_down <= 1.2 + 0.002, t_down
+    # the summary judges the cut-short segment up to there, not through the quick stop
+    hold = summarize_log(out).segments[-1]
+    assert (hold.name, hold.setpoint_rpm, hold.t_end_s) == ("hold", 300.0, 1.2)
 
 
 def test_a_hot_winding_is_the_same_motor_another_motor_is_not():

@@ -83,7 +83,7 @@ def summary_html(summary: RunSummary | None) -> str:
             str(s.faults),
         ]
         rows.append(row)
-    verdict = "all plateaus within bounds" if summary.ok else "bounds missed"
+    verdict = "all plateaus within bounds" if summary.ok else "generic plateau bounds missed"
     out = [
         _table(head, rows),
         f"<p>{len(summary.segments)} segments, {summary.duration_s:.2f} s: "

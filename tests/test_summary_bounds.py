@@ -1,0 +1,77 @@
+"""The run summary's generic plateau bounds (docs/analysis.md) on synthetic logs: a segment that
+reaches its set-point only at its end has no plateau and is not judged on its mean error; the
+plant's true speed error is the mean error corrected by the measurement's error at the truth's
+instants, so a sparse truth over a transient does not make up an error the plant does not have."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pmsm_hil.analysis.summary import MIN_PLATEAU_S, summarize, verdict_text
+
+TS = 5e-4  # telemetry at 2 kHz
+
+
+def _log(speed_of_t, ref_of_t, t_end_s, seg_starts, truth_hz=50.0):
+    t = np.arange(0.0, t_end_s, TS)
+    zeros = np.zeros_like(t)
+    tel = {
+        "t_s": t,
+        "speed_ref_rpm": ref_of_t(t),
+        "speed_rpm": speed_of_t(t),
+        "load_nm": zeros,
+        "i_d_a": zeros,
+        "i_d_ref_a": zeros,
+        "i_q_a": zeros,
+        "i_q_ref_a": zeros,
+    }
+    kinds = ["segment_start"] * len(seg_starts) + ["profile_done"]
+    events = {
+        "t_s": np.array([*seg_starts, t_end_s]),
+        "kind": kinds,
+        "arg": np.arange(len(kinds)),
+        "text": [""] * len(kinds),
+    }
+    tt = np.arange(0.0, t_end_s, 1.0 / truth_hz)
+    truth = {"t_s": tt, "speed_rpm": speed_of_t(tt)}
+    return tel, events, truth
+
+
+def test_a_ramp_to_the_segments_end_is_shown_but_not_judged():
+    # segment 1 ramps 1500 -> 300 r/min and ends 40 ms after reaching it, the speed lagging 20 r/min
+    def ref(t):
+        return np.where(t < 1.0, 1500.0, np.maximum(300.0, 1500.0 - 6000.0 * (t - 1.0)))
+
+    def speed(t):
+        return ref(t) + np.where(t < 1.0, 0.0, 20.0)
+
+    tel, events, truth = _log(speed, ref, 1.24, [0.0, 1.0])
+    s = summarize(tel, events, ["hold", "down"], truth=truth)
+    seg = s.segments[1]
+    assert seg.plateau_s < MIN_PLATEAU_S and not seg.mean_judged
+    assert abs(seg.mean_error_rpm - 20.0) < 1e-9 and seg.band_rpm == 3.0
+    assert seg.mean_ok and s.ok and "within bounds" in verdict_text(s)
+    # the same error on a plateau of 0.5 s is judged, and missed
+    tel, events, truth = _log(speed, ref, 1.7, [0.0, 1.0])
+    seg = summarize(tel, events, ["hold", "down"], truth=truth).segments[1]
+    assert seg.mean_judged and not seg.mean_ok
+
+
+def test_the_true_error_is_not_made_up_by_a_sparse_truth_over_a_transient():
+    # the speed reaches its 600 r/min set-point at 0.42 s, inside the plateau window (0.4-0.8 s);
+    # the measurement is exact, the truth sampled at 50 Hz: the plant's error is the mean error
+    def ref(t):
+        return np.full_like(t, 600.0)
+
+    def speed(t):
+        return np.minimum(600.0, 600.0 * t / 0.42)
+
+    tel, events, truth = _log(speed, ref, 0.8, [0.0])
+    seg = summarize(tel, events, ["start"], truth=truth).segments[0]
+    assert seg.mean_error_rpm < -0.5
+    assert abs(seg.true_mean_error_rpm - seg.mean_error_rpm) < 1e-9
+    # a measurement that reads 2 r/min high: the plant is 2 r/min further below
+    tel["speed_rpm"] = tel["speed_rpm"] + 2.0
+    seg2 = summarize(tel, events, ["start"], truth=truth).segments[0]
+    assert abs(seg2.true_mean_error_rpm - seg.mean_error_rpm) < 1e-9
+    assert abs(seg2.mean_error_rpm - (seg.mean_error_rpm + 2.0)) < 1e-9
