@@ -407,6 +407,14 @@ def _stream(
                 if why:
                     rec.event(live.t_s, "host", 0, 0, why)
                     raise PlantMismatch(why)
+        if options.stop_after_s is not None and live.t_s >= options.stop_after_s and not stop_sent:
+            if not live.stopped:  # the fallback: the device stops itself at that tick (stop_at)
+                session.send("stop")
+            stop_sent = True
+            # at the tick the device stopped: the summary ends the last segment there, not after
+            # the quick stop that the host's reading lags into
+            t_stop = max(1, round(options.stop_after_s / rec.ts_s)) * rec.ts_s
+            rec.event(min(live.t_s, t_stop), "host", 0, 0, "stop requested by the host")
         rec.w.flush_if_due()
         live.octets = session.decoder.octets
         live.bad_frames = _bad_frames(session)
@@ -435,13 +443,6 @@ def _stream(
             session.send("heartbeat", counter=hb_counter)
             hb_counter = (hb_counter + 1) & 0xFFFFFFFF
             last_hb_dev, last_hb_wall = live.t_s, now
-        if options.stop_after_s is not None and live.t_s >= options.stop_after_s and not stop_sent:
-            session.send("stop")
-            stop_sent = True
-            # at the tick the device stops itself (stop_at): the summary ends the last segment
-            # there, not after the quick stop the host's reading lags into
-            t_stop = max(1, round(options.stop_after_s / rec.ts_s)) * rec.ts_s
-            rec.event(min(live.t_s, t_stop), "host", 0, 0, "stop requested by the host")
         if now - last_data_wall > options.device_timeout_s:
             raise DeviceError(
                 f"device fell silent for {options.device_timeout_s:.1f} s on "

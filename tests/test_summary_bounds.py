@@ -75,3 +75,12 @@ def test_the_true_error_is_not_made_up_by_a_sparse_truth_over_a_transient():
     seg2 = summarize(tel, events, ["start"], truth=truth).segments[0]
     assert abs(seg2.true_mean_error_rpm - seg.mean_error_rpm) < 1e-9
     assert abs(seg2.mean_error_rpm - (seg.mean_error_rpm + 2.0)) < 1e-9
+
+
+def test_a_log_with_no_segment_says_none_can_be_checked():
+    tel, events, truth = _log(lambda t: t * 0, lambda t: t * 0, 0.01, [])
+    events = {"t_s": np.array([]), "kind": [], "arg": np.array([], int), "text": []}
+    s = summarize(tel, events, ["a", "b"], truth=truth)
+    assert not s.segments
+    assert "no segment can be checked" in verdict_text(s)
+    assert "within bounds" not in verdict_text(s)

@@ -14,6 +14,7 @@ Definitions (docs/analysis.md):
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -383,6 +384,11 @@ _COLUMNS = (
 )
 
 
+def _num(x: float, spec: str) -> str:
+    """A figure, or a dash where the window held no sample."""
+    return "—" if math.isnan(x) else format(x, spec)
+
+
 def _summary_rows(summary: RunSummary) -> list[dict[str, str]]:
     rows = []
     for s in summary.segments:
@@ -399,14 +405,14 @@ def _summary_rows(summary: RunSummary) -> list[dict[str, str]]:
                 "name": s.name,
                 "setpoint r/min": f"{s.setpoint_rpm:.1f}",
                 "load N·m": f"{s.load_nm:.2f}",
-                "mean err r/min": f"{ok}{s.mean_error_rpm:+.3f}"
+                "mean err r/min": f"{ok}{_num(s.mean_error_rpm, '+.3f')}"
                 + ("" if s.mean_judged else " ramp"),
                 "true err r/min": "" if te is None else f"{te_ok}{te:+.3f}",
                 "band": f"±{s.band_rpm:.2f}",
                 "recovery s": ""
                 if s.recovery_s is None
                 else ("[green]" if s.recovery_ok else "[red]") + f"{s.recovery_s:.3f}",
-                "ripple d/q A": f"{s.ripple_d_a:.3f}/{s.ripple_q_a:.3f}",
+                "ripple d/q A": f"{_num(s.ripple_d_a, '.3f')}/{_num(s.ripple_q_a, '.3f')}",
                 "faults": str(s.faults),
             }
         )
@@ -528,5 +534,7 @@ def verdict_text(summary: RunSummary, interrupted: bool = False) -> str:
     if summary.problems and not summary.partial and not summary.missing:
         parts.append("the file is damaged")
     missed = [s.index for s in summary.segments if not (s.mean_ok and s.recovery_ok is not False)]
+    if not summary.segments:
+        return f"[red]INCOMPLETE[/] ({'; '.join(parts)}): no segment can be checked"
     seen = "bounds missed in the segments seen" if missed else "segments seen are within bounds"
     return f"[red]INCOMPLETE[/] ({'; '.join(parts)}): {seen}, the others were not checked"
