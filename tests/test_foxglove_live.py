@@ -102,6 +102,8 @@ def test_run_serves_the_live_streams_to_a_foxglove_client(root, tmp_path):
             "--no-live",
             "--foxglove",
             str(port),
+            "--pace",
+            "20",
             "--stop-after",
             "10",
             "--out",
@@ -226,3 +228,27 @@ def test_run_with_a_taken_port_is_bad_input(data, capsys):
         assert main(["run", str(data / "short.yaml"), "--no-live", "--foxglove", str(port)]) == 2
     err = capsys.readouterr().err
     assert f"--foxglove {port}: cannot listen on 127.0.0.1:{port}" in err and "Traceback" not in err
+
+
+def test_on_the_emulator_the_stream_goes_in_real_time_unless_paced(data, tmp_path, monkeypatch):
+    """A run streamed to Foxglove is there to be watched: on the emulator it goes at --pace 1
+    unless --pace says otherwise (the device is not opened here: the pace it would get is seen)."""
+    from pmsm_hil.cli import run as run_cli
+    from pmsm_hil.cli.main import main
+    from pmsm_hil.errors import TransportSpecError
+
+    paces = []
+
+    def device_spec(args):
+        paces.append(args.pace)
+        raise TransportSpecError("not opened in this test")
+
+    monkeypatch.setattr(run_cli, "device_spec", device_spec)
+    for extra in ([], ["--pace", "5"]):
+        with socket.socket() as s:
+            s.bind(("127.0.0.1", 0))
+            port = s.getsockname()[1]
+        args = ["run", str(data / "short.yaml"), "--no-live", "--out", str(tmp_path / "x.mcap")]
+        assert main([*args, "--foxglove", str(port), *extra]) == 2
+    assert main(args) == 2  # without --foxglove: as fast as it can
+    assert paces == [1.0, 5.0, None]

@@ -281,8 +281,12 @@ def _run(args: argparse.Namespace, collecting: bool) -> int:
         return fail(
             "error", f"--stop-after {args.stop_after}: must be a positive device time (s)", 2
         )
-    if args.pace is not None and (args.port or (args.can not in (None, "emulator", ""))):
+    emulator = not args.port and args.can in (None, "emulator", "")
+    if args.pace is not None and not emulator:
         return fail("error", "--pace sets the emulator's speed; a rig runs in real time", 2)
+    if args.foxglove is not None and args.pace is None and emulator:
+        args.pace = 1.0  # a stream to watch: not over before Foxglove has connected
+        report("note", "--foxglove: the emulator runs in real time (--pace 1; --pace N for N x)")
     for w in profile.warnings:
         report("warning", w)
     code = check_link_budget(args, profile)
