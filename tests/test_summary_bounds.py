@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pmsm_hil.analysis.summary import MIN_PLATEAU_S, summarize, verdict_text
+from pmsm_hil.analysis.summary import MIN_PLATEAU_S, run_tag, summarize, verdict_text
 
 TS = 5e-4  # telemetry at 2 kHz
 
@@ -84,3 +84,14 @@ def test_a_log_with_no_segment_says_none_can_be_checked():
     assert not s.segments
     assert "no segment can be checked" in verdict_text(s)
     assert "within bounds" not in verdict_text(s)
+
+
+def test_the_summary_names_what_ran():
+    emu = {
+        "run": {"profile": "paper-a", "rig": "/x/rigs/lab-typical.yaml", "seed": "4"},
+        "device": {"board": "emulator"},
+    }
+    assert run_tag(emu) == "profile paper-a, rig lab-typical, seed 4"
+    rig = {"run": {"profile": "paper-a", "rig": "", "seed": ""}, "device": {"board": "f28335"}}
+    assert run_tag(rig) == "profile paper-a, board f28335"
+    assert run_tag({}) == ""

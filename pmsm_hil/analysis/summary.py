@@ -73,6 +73,7 @@ class RunSummary:
     ended: str = ""  # "profile end", "stopped: REASON", or "" (the log just ends)
     problems: list[str] = field(default_factory=list)  # truncated file, no summary section, ...
     estimator: dict | None = None  # the angle estimator closing the loop (estimator_stats)
+    run: str = ""  # what ran: profile, rig, seed (from the log's metadata; "" when not there)
 
     @property
     def complete(self) -> bool:
@@ -94,6 +95,7 @@ class RunSummary:
     def as_dict(self) -> dict:
         return {
             "path": self.path,
+            "run": self.run,
             "ok": self.ok,
             "complete": self.complete,
             "ended": self.ended,
@@ -328,9 +330,25 @@ def summarize_log(path: Path, log: Log | None = None) -> RunSummary:
         log.topic("/pmsm/telemetry"), log.topic("/pmsm/events"), names, str(path), truth
     )
     summary.problems = log_problems(log)
+    summary.run = run_tag(log.metadata)
     if "/pmsm/estimator" in log.topics:
         summary.estimator = estimator_stats(log.topic("/pmsm/estimator"))
     return summary
+
+
+def run_tag(meta: dict) -> str:
+    """What ran, from a log's metadata: "profile paper-a, rig lab-typical, seed 4" (a rig's run,
+    which has no seed, names its board)."""
+    run = meta.get("run", {})
+    rig = run.get("rig", "") or meta.get("rig_effects", {}).get("rig", "")
+    parts = [f"profile {run['profile']}"] if run.get("profile") else []
+    if rig:
+        parts.append(f"rig {Path(rig).stem}")
+    if run.get("seed"):
+        parts.append(f"seed {run['seed']}")
+    elif meta.get("device", {}).get("board"):
+        parts.append(f"board {meta['device']['board']}")
+    return ", ".join(parts)
 
 
 def estimator_stats(est: dict) -> dict | None:
@@ -441,7 +459,7 @@ def print_summary(
 
     def table(cs):
         tab = Table(
-            title=f"run summary: {summary.path}",
+            title=f"run summary: {summary.path}" + (f" ({summary.run})" if summary.run else ""),
             header_style="bold",
             box=box.SIMPLE_HEAD if narrow else box.HEAVY_HEAD,
         )
