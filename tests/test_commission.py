@@ -272,3 +272,13 @@ def test_an_inverter_row_from_before_the_drop_was_measured_reads_as_it_was_writt
     row.update(value_4=0.07, spread_4=0.0, value_3=1.5, spread_3=0.1, value_5=0.0, spread_5=0.0)
     q = step_quantities(row)
     assert q["v_drop_v"].value == 1.5 and q["fit_rms_v"].value == 0.07
+
+
+def test_a_quantity_shows_its_spread_only_when_the_step_measured_one():
+    from pmsm_hil.commission.steps import Measured
+
+    assert Measured(1.02091, 0.0001, "ohm").text() == "1.02091 ohm +- 0.0001"
+    assert Measured(540.0, 0.0, "V").text() == "540 V"
+    assert Measured(0.971189, 0.0, "").text() == "0.971189"
+    assert Measured(-0.02105, 0.02496, "rad").text() == "-1.206 deg (-0.02105 rad) +- 1.430 deg"
+    assert Measured(-0.00476, 0.0, "rad").text() == "-0.273 deg (-0.00476 rad)"

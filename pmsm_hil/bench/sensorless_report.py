@@ -205,7 +205,13 @@ def sensorless(
         for sc in [s for s in chosen if s.profile == prof]:
             per_seed = [scenario_figures(sc, r) for r in runs]
             results[(sc.name, rig)] = per_seed
-            lines = [f"## {sc.name} - rig {rig}", "", *scenario_table(sc, per_seed)]
+            lines = [
+                f"## {sc.name} - rig {rig}",
+                "",
+                f"each cell: median / worst over seeds {', '.join(map(str, seeds))}",
+                "",
+                *scenario_table(sc, per_seed),
+            ]
             if sc.paper:
                 lines += ["", f"paper: {sc.paper}"]
             if rig == "default":

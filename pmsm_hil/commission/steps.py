@@ -54,10 +54,13 @@ class Measured:
     unit: str
 
     def text(self) -> str:
+        """The value with its unit, and its spread when the step repeated the measurement (a
+        quantity measured once, or derived, has none: nothing is shown rather than +- 0)."""
         v, s = self.value, self.spread
         if self.unit == "rad":
-            return f"{math.degrees(v):+.3f} deg ({v:+.5f} rad) +- {math.degrees(s):.3f} deg"
-        return f"{v:.6g} {self.unit} +- {s:.2g}"
+            spread = f" +- {math.degrees(s):.3f} deg" if s > 0 else ""
+            return f"{math.degrees(v):+.3f} deg ({v:+.5f} rad){spread}"
+        return f"{v:.6g} {self.unit}".rstrip() + (f" +- {s:.2g}" if s > 0 else "")
 
 
 def step_quantities(row: dict) -> dict[str, Measured]:
