@@ -266,6 +266,11 @@ def text_table(table: IdentTable, with_paper: bool = True) -> str:
         f"identification ({table.path}, truth: {table.truth_source}, "
         f"t = {table.t0_s:.3f} .. {table.t1_s:.3f} s; convergence: stays within +-{100 * TOL:.0f} %)"
     ]
+    if with_paper:
+        out.append(
+            "  paper: paper A's Table 2 as published (its estimates, their errors against its own "
+            "nominal motor, its times)"
+        )
     hdr = f"  {'param':<10}{'truth':>10}{'ours':>11}{'error':>10}{'t_conv s':>10}"
     if with_paper:
         hdr += f"   |{'paper':>9}{'error':>9}{'t s':>7}"
