@@ -127,13 +127,24 @@ def test_encoder_offset_found(logs, motor):
     assert res["effects"][0]["magnitude"] == pytest.approx(0.04, rel=0.2)
 
 
-def test_delay_quoted_as_the_total_delay(logs, motor):
+def test_delay_quoted_as_the_total_delay(logs, motor, tmp_path):
+    """The total delay (4 us sample delay + one period of PWM delay) with an interval that holds
+    it, and `gap augment`'s rig file carries the same total as the diagnosis quotes."""
+    from pmsm_hil.gap.rigfile import fitted_rig
+
     res = diagnose(load_record(logs["delay"]), motor)
     assert res["selected"][:1] == ["delay"]
     e = res["effects"][0]
     assert e["quantity"] == "total_delay_s"
     assert e["magnitude"] == pytest.approx(54e-6, rel=0.15)
     assert e["parameters"]["pwm_delay_periods"] == pytest.approx(1.0, abs=0.2)
+    lo, hi = e["interval"]
+    assert 0 < lo <= 54e-6 <= hi
+    fitted_rig(res, motor, tmp_path / "rig.yaml")
+    d = load_rig(tmp_path / "rig.yaml").effects.delay
+    assert d.sample_delay_s + d.pwm_delay_periods * res["ts_s"] == pytest.approx(
+        e["magnitude"], rel=1e-9
+    )
 
 
 def test_cli_json_report_and_augment(logs, tmp_path, capsys):
@@ -296,29 +307,62 @@ def test_ctrl_c_stops_the_diagnosis_and_its_fit_processes(tmp_path):
     assert not any(os.path.exists(f"/proc/{c}") for c in kids)
 
 
-def test_a_fractional_pwm_delay_is_written_whole_and_said(tmp_path, motor):
-    """A rig's PWM update is late by whole periods: the fitted fraction is rounded, and the file
-    says what was dropped when it is more than a twentieth of a period."""
+def test_augment_writes_the_total_delay_the_diagnosis_quotes(tmp_path, motor):
+    """A rig's PWM update is late by whole periods: the fitted fraction of a period moves to the
+    sample delay (the one-step residual cannot tell the two apart), so the rig's total delay is
+    the diagnosis's, and the file says what moved. The first case is a lab-typical record's fit
+    (1.51 us quoted, 3e-13 s of sample delay and 0.03 periods of PWM delay: the rig file had
+    `sample_delay_s: 2.99e-13` and no PWM delay, the delay dropped without a word)."""
+    from pmsm_hil.gap.effects import EFFECTS, primary_value
     from pmsm_hil.gap.rigfile import fitted_rig
 
-    def written(periods: float) -> tuple[dict, str]:
+    ts_s = 50e-6
+
+    def written(sample_s: float, periods: float) -> tuple[dict, str, float]:
         res = {
+            "ts_s": ts_s,
             "effects": [
                 {
                     "name": "delay",
                     "selected": True,
-                    "parameters": {"sample_delay_s": 2e-6, "pwm_delay_periods": periods},
+                    "parameters": {"sample_delay_s": sample_s, "pwm_delay_periods": periods},
                 }
-            ]
+            ],
         }
-        path = tmp_path / f"rig-{periods}.yaml"
+        path = tmp_path / f"rig-{sample_s}-{periods}.yaml"
         fitted_rig(res, motor, path)
+        load_rig(str(path))  # a rig file the loader takes
         text = path.read_text()
-        return yaml.safe_load(text)["effects"]["delay"], text
+        quoted = primary_value(EFFECTS["delay"], np.array([sample_s, periods]), motor, ts_s)
+        return yaml.safe_load(text)["effects"]["delay"], text, quoted
 
-    d, text = written(0.43)
-    assert d == {"sample_delay_s": 2e-6, "pwm_delay_periods": 0}
-    assert "# delay: the fitted PWM delay of 0.43 periods is written as 0" in text
-    d, text = written(1.02)
-    assert d["pwm_delay_periods"] == 1 and "# delay:" not in text
-    load_rig(str(tmp_path / "rig-1.02.yaml"))  # a rig file the loader takes
+    for sample_s, periods, whole in (
+        (2.9885408599357397e-13, 0.030237141121022725, 0),
+        (2e-6, 0.43, 0),
+        (2e-6, 1.6, 1),
+        (0.0, 0.97, 0),  # rounded up, the sample delay would be negative
+    ):
+        d, text, quoted = written(sample_s, periods)
+        assert d["pwm_delay_periods"] == whole
+        assert d["sample_delay_s"] >= 0
+        assert d["sample_delay_s"] + whole * ts_s == pytest.approx(quoted, rel=1e-9)
+        assert (
+            f"# delay: the fitted PWM delay of {periods:.3f} periods is written as {whole}" in text
+        )
+    d, text, _ = written(5e-6, 1.0)  # whole periods: nothing moves, nothing said
+    assert d == {"sample_delay_s": 5e-6, "pwm_delay_periods": 1} and "# delay:" not in text
+
+
+def test_total_delay_interval_takes_the_parameters_correlation():
+    """The lab-typical record's final fit: sample and PWM delay correlate at -0.99; their bounds
+    moved together gave [-1.47, 4.49] us about 1.51 us; the covariance gives an interval that
+    excludes zero (and is at least the model-form term wide)."""
+    from pmsm_hil.gap.diagnose import MODEL_FORM_REL, total_delay_interval
+
+    cov = np.array([[5.692e-13, -1.12689e-8], [-1.12689e-8, 2.25348e-4]])
+    lo, hi = total_delay_interval(1.5119e-6, cov, 50e-6)
+    assert 1.1e-6 < lo < 1.3e-6 and 1.7e-6 < hi < 1.9e-6
+    assert hi - lo >= 2 * 1.96 * MODEL_FORM_REL * 1.5119e-6
+    # uncorrelated, the same standard errors: the interval is wide and is cut at zero
+    lo, hi = total_delay_interval(1.5119e-6, np.diag(np.diag(cov)), 50e-6)
+    assert lo == 0.0 and hi > 3e-6

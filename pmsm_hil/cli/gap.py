@@ -238,9 +238,7 @@ def main(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(jsonable(res)))
     else:
-        for line in (
-            verdict_lines(res) if "discretisation_gap" in res else [f"gap: {res['verdict']}"]
-        ):
+        for line in verdict_lines(res):  # steady-state data: the fitted values and the gap
             print(line)
         if fitted:
             print(

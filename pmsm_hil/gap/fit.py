@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TypedDict
 
 import numpy as np
@@ -31,6 +31,9 @@ class Fit:
     x: dict[str, np.ndarray]
     se: dict[str, np.ndarray]
     cost: float
+    # per effect, its parameters' covariance (cluster-robust, as ``se``): the interval of a quantity
+    # that combines two correlated parameters (the total delay) needs it
+    cov: dict[str, np.ndarray] = field(default_factory=dict)
 
     def effects(self) -> list[tuple[Effect, np.ndarray]]:
         return [(LIB[n], self.x[n]) for n in self.names]
@@ -134,31 +137,42 @@ def fit_effects(
             best = r
     if best is None:  # every start failed (non-finite residuals): the candidate cannot be fitted
         x = np.concatenate([np.asarray(warm.get(n, LIB[n].x0), float) for n in names])
-        return Fit(names, _split(names, x), _split(names, np.full(len(x), np.inf)), float("inf"))
+        unknown = {n: np.diag(np.full(len(LIB[n].params), np.inf)) for n in names}
+        inf_se = _split(names, np.full(len(x), np.inf))
+        return Fit(names, _split(names, x), inf_se, float("inf"), unknown)
     x = best.x
-    se = _robust_se(best, blocks, len(sel) if sel is not None else len(probe.idx))
-    return Fit(names, _split(names, x), _split(names, se), float(2 * best.cost / best.fun.size))
+    cov = _robust_cov(best, blocks)
+    se = np.sqrt(np.maximum(np.diag(cov), 0))
+    blk = {}
+    p = 0
+    for n in names:  # each effect's block of the covariance
+        k = len(LIB[n].params)
+        blk[n] = cov[p : p + k, p : p + k]
+        p += k
+    return Fit(
+        names, _split(names, x), _split(names, se), float(2 * best.cost / best.fun.size), blk
+    )
 
 
-def _robust_se(r, blocks, m) -> np.ndarray:
-    """Cluster-robust (per block) standard errors of a least-squares fit."""
+def _robust_cov(r, blocks) -> np.ndarray:
+    """Cluster-robust (per block) covariance of a least-squares fit's parameters."""
     J = r.jac
     J = J.toarray() if hasattr(J, "toarray") else np.asarray(J)
     f = r.fun
     try:
         H = np.linalg.pinv(J.T @ J)
     except np.linalg.LinAlgError:
-        return np.full(J.shape[1], np.inf)
+        return np.diag(np.full(J.shape[1], np.inf))
     if blocks is None:
         s2 = float(f @ f) / max(len(f) - J.shape[1], 1)
-        return np.sqrt(np.maximum(np.diag(H) * s2, 0))
+        return H * s2
     b2 = np.repeat(blocks, 2)  # two residual components per transition
     g = J * f[:, None]
     ub, inv = np.unique(b2, return_inverse=True)
     G = np.zeros((len(ub), J.shape[1]))
     np.add.at(G, inv, g)
     S = G.T @ G * len(ub) / max(len(ub) - 1, 1)
-    return np.sqrt(np.maximum(np.diag(H @ S @ H), 0))
+    return H @ S @ H
 
 
 def block_mse(r: np.ndarray, blocks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

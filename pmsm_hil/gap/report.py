@@ -35,7 +35,36 @@ def _clo(v):
     return "< -1" if v is not None and v < -1 else f"{v:.2f}"
 
 
+def steady_lines(res: dict) -> list[str]:
+    """The verdict of steady-state dq data (pmsm_hil.gap.steady): the fitted constant values are in
+    the verdict itself; then the gap, the motor file's values and what was not assessed."""
+    p, b = res["parametric_gap"], res["base_gap"]
+    nom = p.get("motor_file") or {}
+    out = [
+        f"gap: {res['verdict']}",
+        f"  {res['samples']} steady-state operating points; base gap {b['rms_v']:.3g} V rms "
+        f"(u_d, u_q against the motor file), {np.sqrt(max(p['mse_after_v2'], 0)):.3g} V rms with "
+        "the fitted values",
+    ]
+    if nom:
+        out.append(
+            f"  motor file: R {nom['r_s_ohm']:.4g} ohm, Ld {nom['l_d_h'] * 1e3:.4g} mH, "
+            f"Lq {nom['l_q_h'] * 1e3:.4g} mH, psi_f {nom['psi_f_wb']:.4g} Wb"
+        )
+    th = res.get("thermal")
+    if th:
+        out.append(
+            f"  R against the winding temperature: {th['r_s_ohm_per_k']:.3g} ohm/K "
+            f"(alpha {th['alpha_r_per_k']:.3g} 1/K at 25 degC)"
+        )
+    for part, why in (res.get("not_assessed") or {}).items():
+        out.append(f"  not assessed: {part.replace('_', ' ')} ({why})")
+    return out
+
+
 def verdict_lines(res: dict) -> list[str]:
+    if "discretisation_gap" not in res:  # steady-state dq data
+        return steady_lines(res)
     b, d = res["base_gap"], res["discretisation_gap"]
     out = [
         f"gap: {res['verdict']}",
@@ -89,18 +118,50 @@ def verdict_lines(res: dict) -> list[str]:
 
 
 def write_report(res: dict, out_dir: str | os.PathLike) -> list[str]:
-    """gap.json, residual-map plots and index.html in out_dir; returns the files written."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    """gap.json, residual-map plots and index.html in out_dir; returns the files written. A
+    steady-state result (pmsm_hil.gap.steady) has no residual maps and no effects: the page states
+    what was not assessed and why (its ``not_assessed``)."""
     os.makedirs(out_dir, exist_ok=True)
     files = []
     with open(os.path.join(out_dir, "gap.json"), "w") as f:
         json.dump(jsonable(res), f, indent=1)
     files.append("gap.json")
+    if "where" in res:
+        files += _plots(res, out_dir)
+    rows = "".join(
+        f"<tr><td>{html.escape(e['name'])}</td><td>{'yes' if e.get('selected') else ''}</td>"
+        f"<td>{html.escape(str(e.get('quantity')))}</td><td>{_fmt(e.get('magnitude'))}</td>"
+        f"<td>{html.escape(str(e.get('interval')))}</td><td>{_fmt(e.get('closure'))}</td>"
+        f"<td>{html.escape(e.get('evidence', ''))}</td></tr>"
+        for e in res.get("effects", [])
+    )
+    page = (
+        f"<html><head><meta charset='utf-8'><title>gap</title></head><body><h1>Sim-to-real gap</h1>"
+        f"<pre>{html.escape(chr(10).join(verdict_lines(res)))}</pre>"
+        + (
+            f"<table border=1><tr><th>effect</th><th>selected</th><th>quantity</th>"
+            f"<th>magnitude</th><th>interval</th><th>closure</th><th>evidence</th></tr>{rows}</table>"
+            if "effects" in res
+            else ""
+        )
+        + "".join(f"<p><img src='{f}'></p>" for f in files if f.endswith(".png"))
+        + "</body></html>"
+    )
+    with open(os.path.join(out_dir, "index.html"), "w") as f:
+        f.write(page)
+    files.append("index.html")
+    return files
+
+
+def _plots(res: dict, out_dir: str | os.PathLike) -> list[str]:
+    """The residual maps and the order spectrum (control-rate data); returns the files written."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
     where = res["where"]
+    files = []
     keys = ["speed", "current", "current_angle", "electrical_angle", "current_sign_sector", "time"]
     fig, axs = plt.subplots(2, 3, figsize=(12, 6))
     for ax, key in zip(axs.ravel(), keys, strict=False):
@@ -138,22 +199,4 @@ def write_report(res: dict, out_dir: str | os.PathLike) -> list[str]:
         fig.savefig(os.path.join(out_dir, "order_spectrum.png"), dpi=90)
         plt.close(fig)
         files.append("order_spectrum.png")
-    rows = "".join(
-        f"<tr><td>{html.escape(e['name'])}</td><td>{'yes' if e.get('selected') else ''}</td>"
-        f"<td>{html.escape(str(e.get('quantity')))}</td><td>{_fmt(e.get('magnitude'))}</td>"
-        f"<td>{html.escape(str(e.get('interval')))}</td><td>{_fmt(e.get('closure'))}</td>"
-        f"<td>{html.escape(e.get('evidence', ''))}</td></tr>"
-        for e in res["effects"]
-    )
-    page = (
-        f"<html><head><meta charset='utf-8'><title>gap</title></head><body><h1>Sim-to-real gap</h1>"
-        f"<pre>{html.escape(chr(10).join(verdict_lines(res)))}</pre>"
-        f"<table border=1><tr><th>effect</th><th>selected</th><th>quantity</th><th>magnitude</th>"
-        f"<th>interval</th><th>closure</th><th>evidence</th></tr>{rows}</table>"
-        + "".join(f"<p><img src='{f}'></p>" for f in files if f.endswith(".png"))
-        + "</body></html>"
-    )
-    with open(os.path.join(out_dir, "index.html"), "w") as f:
-        f.write(page)
-    files.append("index.html")
     return files

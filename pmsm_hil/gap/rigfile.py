@@ -29,6 +29,30 @@ def _flux_map_csv(path: str, m: MotorModel, k: dict) -> None:
                 f.write(f"{float(id_)!r},{float(iq)!r},{float(pd):.10g},{float(pq):.10g}\n")
 
 
+def rig_delay(p: dict, ts_s: float) -> tuple[dict[str, float | int], str]:
+    """The fitted delay as a rig takes it: the same total delay (sample delay + PWM delay x Ts, the
+    magnitude the diagnosis quotes), its PWM part in whole periods (a rig's PWM update is late by
+    whole periods) and the rest as the sample delay. The one-step residual cannot tell a fraction
+    of a period of PWM delay from the same time of sample delay (both shift the measured current's
+    increment alike; their fitted values correlate at -0.99), so the fraction moves to the sample
+    delay rather than being dropped. Returns the rig parameters and a note (empty when nothing
+    moved)."""
+    sample_s = max(float(p["sample_delay_s"]), 0.0)
+    periods = max(float(p["pwm_delay_periods"]), 0.0)
+    total_s = sample_s + periods * ts_s
+    whole = min(round(periods), int(np.floor(total_s / ts_s + 1e-9)))
+    rig_sample_s = max(sample_s + (periods - whole) * ts_s, 0.0)
+    note = ""
+    if abs(periods - whole) > 1e-3:
+        note = (
+            f"delay: the fitted PWM delay of {periods:.3f} periods is written as {whole} and the "
+            f"sample delay as {rig_sample_s:.3g} s (fitted {sample_s:.3g} s), so that the total "
+            f"{total_s:.3g} s is the one the diagnosis quotes (a rig's PWM update is late by whole "
+            "periods; a fraction of a period of it and a sample delay are alike to the diagnosis)"
+        )
+    return {"sample_delay_s": rig_sample_s, "pwm_delay_periods": whole}, note
+
+
 def fitted_rig(
     result: dict,
     m: MotorModel,
@@ -43,22 +67,18 @@ def fitted_rig(
     if spec.get("adc_lsb_a"):
         eff["adc_quantisation"] = {"adc_lsb_a": float(spec["adc_lsb_a"])}
     notes = []
-    for e in result["effects"]:
+    why = (result.get("not_assessed") or {}).get("fitted_rig")
+    if why:  # steady-state dq data: no effect was fitted
+        notes.append(why)
+    for e in result.get("effects", []):
         if not e.get("selected"):
             continue
         p = dict(e.get("parameters") or {})
         n = e["name"]
         if n == "delay":
-            periods = float(p["pwm_delay_periods"])
-            p = {
-                "sample_delay_s": max(p["sample_delay_s"], 0.0),
-                "pwm_delay_periods": max(round(periods), 0),
-            }
-            if abs(periods - p["pwm_delay_periods"]) > 0.05:
-                notes.append(
-                    f"delay: the fitted PWM delay of {periods:.2f} periods is written as "
-                    f"{p['pwm_delay_periods']} (a rig's PWM update is late by whole periods)"
-                )
+            p, note = rig_delay(p, float(result["ts_s"]))  # a control-rate result's period
+            if note:
+                notes.append(note)
         elif n == "encoder":
             p = {
                 "lines": int(spec.get("encoder_lines", 2500) or 2500),
@@ -94,7 +114,7 @@ def fitted_rig(
     rig = {
         "name": "fitted",
         "description": "Effects fitted by pmsm-hil gap augment: "
-        + (", ".join(e["name"] for e in result["effects"] if e.get("selected")) or "none"),
+        + (", ".join(e["name"] for e in result.get("effects", []) if e.get("selected")) or "none"),
         "v_dc_v": None,
         "effects": eff,
     }

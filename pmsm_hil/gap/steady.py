@@ -5,9 +5,45 @@ from __future__ import annotations
 
 import numpy as np
 
-from pmsm_hil.gap.effects import ALL_NAMES
 from pmsm_hil.gap.model import MotorModel
 from pmsm_hil.gap.record import SteadyRecord
+
+Z95 = 1.96  # the 95 % intervals: fitted value +- Z95 standard errors
+
+# the parts of a control-rate diagnosis that steady-state dq data cannot give, with the reason
+NOT_ASSESSED = {
+    "effects": "steady-state dq data: the library's effects (dead time, delay, saturation, ...) are "
+    "fitted to the one-step residual of control-rate data; only the parametric gap is assessed",
+    "residual_maps": "steady-state dq data: no one-step residual, so no residual maps or order "
+    "spectrum",
+    "discretisation_gap": "steady-state dq data: no one-step prediction (Euler vs RK4)",
+    "noise_floor": "steady-state dq data: no sensor noise model; the base gap is the voltage "
+    "equations' rms residual",
+    "fitted_rig": "no effect is fitted on steady-state data: the parametric values belong in the "
+    "motor file",
+}
+
+
+def parameter_text(p: dict) -> str:
+    """R, Ld, Lq, psi_f with their units and 95 % intervals (the parametric gap of steady data)."""
+    iv = p.get("interval_95") or {}
+    parts = []
+    for key, name, unit, scale in (
+        ("r_s_ohm", "R", "ohm", 1.0),
+        ("l_d_h", "Ld", "mH", 1e3),
+        ("l_q_h", "Lq", "mH", 1e3),
+        ("psi_f_wb", "psi_f", "Wb", 1.0),
+    ):
+        v, lo_hi = p[key] * scale, iv.get(key)
+        if lo_hi:
+            lo, hi = lo_hi[0] * scale, lo_hi[1] * scale
+            # enough digits that the interval's ends differ from the value (2 of the half-width)
+            ratio = max(abs(v), 1e-300) / max((hi - lo) / 2, 1e-300)
+            digits = min(max(3, int(np.ceil(np.log10(ratio))) + 2), 8)
+            parts.append(f"{name} {v:.{digits}g} {unit} [{lo:.{digits}g}, {hi:.{digits}g}]")
+        else:
+            parts.append(f"{name} {v:.4g} {unit}")
+    return ", ".join(parts) + f" (95 % intervals; closure {p['closure']:.2f})"
 
 
 def diagnose_steady(rec: SteadyRecord, m: MotorModel) -> dict:
@@ -28,23 +64,32 @@ def diagnose_steady(rec: SteadyRecord, m: MotorModel) -> dict:
     base = float(np.mean(np.concatenate([rd, rq]) ** 2))
     par = float(np.mean(res**2))
     closure = (base - par) / base if base > 0 else 0.0
-    effects: list[dict[str, object]] = []
+    half = Z95 * se
+    fitted = {"r_s_ohm": x[0], "l_d_h": x[1], "l_q_h": x[2], "psi_f_wb": x[3]}
+    pg: dict[str, object] = {
+        **{k: float(v) for k, v in fitted.items()},
+        "se": [float(s) for s in se],
+        "interval_95": {
+            k: [float(v - h), float(v + h)] for (k, v), h in zip(fitted.items(), half, strict=True)
+        },
+        "motor_file": {
+            "r_s_ohm": m.r_s_ohm,
+            "l_d_h": m.l_d_h,
+            "l_q_h": m.l_q_h,
+            "psi_f_wb": m.psi_f_wb,
+        },
+        "mse_after_v2": par,
+        "closure": closure,
+    }
     out: dict[str, object] = {
         "source": rec.source,
         "samples": len(w),
         "kind": "steady-state dq",
         "base_gap": {"mse_v2": base, "rms_v": float(np.sqrt(base))},
-        "parametric_gap": {
-            "r_s_ohm": float(x[0]),
-            "l_d_h": float(x[1]),
-            "l_q_h": float(x[2]),
-            "psi_f_wb": float(x[3]),
-            "se": [float(s) for s in se],
-            "mse_after_v2": par,
-            "closure": closure,
-        },
+        "parametric_gap": pg,
         "selected": [],
-        "effects": effects,
+        # what the steady-state analysis does not assess, and why (the report states it)
+        "not_assessed": dict(NOT_ASSESSED),
     }
     temp = rec.temp_winding_c
     if temp is not None and np.ptp(temp) > 5:
@@ -57,20 +102,11 @@ def diagnose_steady(rec: SteadyRecord, m: MotorModel) -> dict:
                 "r_s_ohm_per_k": float(slope),
                 "alpha_r_per_k": float(slope / max(icpt + slope * 25, 1e-9)),
             }
-    for n in ALL_NAMES:
-        effects.append(
-            {
-                "name": n,
-                "selected": False,
-                "magnitude": None,
-                "interval": None,
-                "closure": None,
-                "evidence": "steady-state dq data: only the parametric gap is assessed",
-            }
-        )
-    out["verdict"] = (
+    verdict = (
         "parametric gap (steady-state data; effects need control-rate data)"
         if closure > 0.5
         else "no structural gap found (steady-state data)"
     )
+    # the verdict carries the fitted values: it is the line `pmsm-hil gap` prints for such data
+    out["verdict"] = f"{verdict}: {parameter_text(pg)}"
     return out

@@ -330,6 +330,10 @@ def print_selftest(res: dict) -> None:
     ):
         v = res[k]
         print(f"  {k.replace('_', ' '):36s} {'-' if v is None else f'{v:.2f}'}")
+    print(
+        "  (closure: the share of the gap above the noise floor that the found effects remove; "
+        "above 1 when they take the residual below the floor's estimate)"
+    )
     print(f"  95 % interval coverage              {f(res['interval_coverage'])}")
     print("  confusion (truth: answers)")
     for t, row in sorted(res["confusion"].items()):
