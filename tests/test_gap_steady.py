@@ -99,3 +99,16 @@ def test_augment_of_steady_data_says_why_the_rig_is_empty(scope, tmp_path, capsy
     text = out.read_text()
     assert yaml.safe_load(text)["effects"] == {}
     assert "# no effect is fitted on steady-state data" in text
+
+
+def test_verify_is_offered_only_for_a_log_whose_profile_it_can_rerun(scope, data, tmp_path):
+    """`gap --report` points at `gap verify`, which re-runs the log's own profile: an imported
+    log has none, a `pmsm-hil run` log has it."""
+    from emu_helpers import run_inproc
+
+    from pmsm_hil.cli.gap import _reruns
+
+    assert not _reruns(scope)
+    run_log = tmp_path / "run.mcap"
+    run_inproc(data / "short.yaml", run_log)
+    assert _reruns(run_log)

@@ -87,6 +87,14 @@ def _motor(args, log_path):
         os.unlink(f.name)
 
 
+def _reruns(log_path) -> bool:
+    """Whether `gap verify` can re-run the log's profile (a `pmsm-hil run` log: its attachments)."""
+    from pmsm_hil.log.reader import read_log
+
+    names = {a.name for a in read_log(log_path, topics={}).attachments}
+    return {"profile.yaml", "motor.yaml"} <= names
+
+
 def _diagnose(args, path):
     from pmsm_hil.gap.diagnose import diagnose
     from pmsm_hil.gap.record import SteadyRecord, load_record
@@ -241,10 +249,12 @@ def main(args: argparse.Namespace) -> int:
         for line in verdict_lines(res):  # steady-state data: the fitted values and the gap
             print(line)
         if fitted:
-            print(
-                f"report {args.report}; the fitted effects as a rig file: {fitted} "
-                f"(check it: pmsm-hil gap verify {path} --rig {fitted})"
+            check = (
+                f"check it: pmsm-hil gap verify {path} --rig {fitted}"
+                if _reruns(path)
+                else "gap verify re-runs a pmsm-hil run log's own profile; this log carries none"
             )
+            print(f"report {args.report}; the fitted effects as a rig file: {fitted} ({check})")
         if "discretisation_gap" in res:
             n = _workers(args)
             print(f"diagnosed in {took:.0f} s with {n} fit process{'es' if n > 1 else ''}")
