@@ -32,7 +32,13 @@ def _fmt(v):
 
 
 def _clo(v):
-    return "< -1" if v is not None and v < -1 else f"{v:.2f}"
+    """A closure for the console: beyond [-1, 10] it only says that the gap above the noise floor
+    is within the floor's own error (the ratio's denominator near zero: it once printed 3.6e10)."""
+    if v is None:
+        return "-"
+    if v < -1:
+        return "< -1"
+    return "> 10" if v > 10 else f"{v:.2f}"
 
 
 def steady_lines(res: dict) -> list[str]:
