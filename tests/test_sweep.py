@@ -165,7 +165,7 @@ def test_cli_sweep_limit_runs_the_first_runs(tmp_path, data):
     assert r.returncode == 0, r.stderr
     assert (
         "3 runs of short.yaml, the first 1" in r.stdout
-        and "1 ok, 0 failed, 0 done before" in r.stdout
+        and "runs: 1 completed, 0 failed to run, 0 done before" in r.stdout
     )
     rows = read_table(out)
     assert [(x["index"], x["seed"], x["status"], x["faults"]) for x in rows] == [(0, 1, "ok", 0)]
@@ -192,12 +192,14 @@ def test_plan_is_grid_times_draws_and_reproducible(tmp_path, data):
     assert [r.key for r in runs] == [r.key for r in plan_runs(load_sweep(p))]
     assert len({r.key for r in runs}) == len(runs)
     # one draw is shared by its grid points; the draws differ
-    assert len({r.values["motor_r_s_ohm"] for r in runs[:6]}) == 1
-    assert len({r.values["motor_r_s_ohm"] for r in runs}) == 4
+    assert len({r.values["motor_r_s_factor"] for r in runs[:6]}) == 1
+    assert len({r.values["motor_r_s_factor"] for r in runs}) == 4
     assert [r.seed for r in runs[:6]] == [1, 1, 2, 2, 3, 3]
-    # relative: a factor on the motor file's value; an int field stays an int
+    # relative: a factor on the motor file's value (0.9 ohm), the ohms beside it; an int field
+    # stays an int
     r = runs[0]
-    assert f"r_s_ohm: {0.9 * r.values['motor_r_s_ohm']!r}" in r.texts["motor.yaml"]
+    assert r.values["motor_r_s_ohm"] == 0.9 * r.values["motor_r_s_factor"]
+    assert f"r_s_ohm: {r.values['motor_r_s_ohm']!r}" in r.texts["motor.yaml"]
     assert "lines: 1000\n" in r.texts["rig.yaml"] and "lines: 2000\n" in runs[1].texts["rig.yaml"]
 
 
@@ -341,7 +343,10 @@ def test_report_plots_each_metric_and_a_pass_map_for_a_2d_grid(tmp_path, data):
     assert (rep / "pass_map.png").stat().st_size > 1000
     assert (rep / "speed_error_max_rpm.png").stat().st_size > 1000
     summary = (rep / "summary.md").read_text()
-    assert "4 runs, 4 ok, 0 failed; 4 of 4 within the profile's acceptance criteria" in summary
+    assert (
+        "4 runs: 4 completed, 0 failed to run; the profile has no acceptance criteria: " in summary
+    )
+    assert "4 of 4 played the whole profile without a fault" in summary
     assert "| speed_error_max_rpm | 4 |" in summary
     r = subprocess.run([*CLI, "sweep", "report", str(tmp_path)], capture_output=True, text=True)
     assert r.returncode == 2 and "no results.parquet" in r.stderr

@@ -62,6 +62,7 @@ def main(args: argparse.Namespace) -> int:
     from pmsm_hil.profiles import ProfileError
     from pmsm_hil.profiles.shipped import resolve
     from pmsm_hil.sweep import load_sweep, plan_runs, run_sweep
+    from pmsm_hil.sweep.results import ResultsFormatError
 
     if args.limit is not None and args.limit < 1:
         return fail("error", f"--limit = {args.limit} must be >= 1", 2)
@@ -89,21 +90,17 @@ def main(args: argparse.Namespace) -> int:
             progress=not args.no_progress,
             runs=runs,
         )
+    except ResultsFormatError as e:
+        return fail("error", str(e), 2)
     except OSError as e:
         return fail("error", f"cannot reach the scheduler {args.scheduler}: {e}", 3)
-    print(
-        f"{res.ok} ok, {res.failed} failed, {res.skipped} done before"
-        + (
-            f"; {res.runs_per_min:.1f} runs/min on {res.workers} "
-            f"worker{'s' if res.workers != 1 else ''}"
-            if res.ok + res.failed
-            else ""
-        )
-        + (" (interrupted: run the same command again to resume)" if res.interrupted else "")
-    )
+    ran, *judged = res.end_lines()
+    print(ran)
     for r in res.rows:
         if r.get("status") != "ok":
-            print(f"  run {r['index']} ({r['key']}) failed: {r.get('error', '')}")
+            print(f"  run {r['index']} ({r['key']}) failed to run: {r.get('error', '')}")
+    for line in judged:
+        print(line)
     print(f"results {res.parquet}\n        {res.csv}")
     if res.interrupted:
         return 130
@@ -118,9 +115,53 @@ def _report(args: argparse.Namespace) -> int:
             "error", "sweep report needs the sweep's output folder: pmsm-hil sweep report DIR", 2
         )
     try:
-        paths = write_report(Path(args.dir))
+        report = write_report(Path(args.dir))
     except ReportError as e:
         return fail("error", str(e), 2)
-    for p in paths:
-        print(p)
+    _print_report(report)
     return 0
+
+
+def _print_report(report) -> None:
+    """The metrics' median and worst over the completed runs, the pass count, the files."""
+    from rich import box
+    from rich.console import Console
+    from rich.markup import escape
+    from rich.table import Table
+
+    console = Console()
+    if not console.is_terminal:
+        console = Console(width=max(console.width, 100))
+    for note in report.notes:
+        console.print(f"[yellow]note:[/] {escape(note)}", highlight=False)
+    tab = Table(
+        title=f"{report.out} (over the completed runs)",
+        title_justify="left",
+        header_style="bold",
+        box=box.SIMPLE_HEAD,
+    )
+    for col in ("metric", "runs", "median", "worst"):
+        tab.add_column(col, justify="left" if col == "metric" else "right")
+    for m in report.stats:
+        tab.add_row(m.metric, str(m.runs), _fmt(m.metric, m.median), _fmt(m.metric, m.worst))
+    console.print(tab)
+    console.print(report.headline(), highlight=False, soft_wrap=True)
+    plots = [p for p in report.files if p.suffix == ".png"]
+    console.print(
+        f"report {report.files[0]}"
+        + (f" and {len(plots)} plots in {plots[0].parent}/" if plots else ""),
+        highlight=False,
+        soft_wrap=True,
+    )
+
+
+def _fmt(metric: str, x: float) -> str:
+    """A statistic as the console shows it: relative errors in %, the rest in the column's unit
+    (its name's suffix), 4 significant digits; an empty cell for no value."""
+    import math
+
+    if math.isnan(x):
+        return ""
+    if metric.endswith("_rel"):
+        return f"{100 * x:+.2f} %"
+    return f"{x:.4g}"

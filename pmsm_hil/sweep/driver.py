@@ -18,7 +18,7 @@ from typing import Any
 
 from .execute import execute_run
 from .plan import FILES, Run, plan_runs
-from .results import Journal, write_table
+from .results import Journal, check_resumable, passed, write_meta, write_table
 from .spec import Sweep
 
 __all__ = [
@@ -42,6 +42,9 @@ SCHEDULER_CONFIG = {
 
 @dataclass
 class SweepOutcome:
+    """What a sweep did. ``ok``/``failed``: runs of this call that completed / could not be run
+    (a completed run may still miss the profile's acceptance criteria: ``met``)."""
+
     out: Path
     planned: int
     skipped: int = 0  # done in an earlier, interrupted sweep
@@ -53,11 +56,50 @@ class SweepOutcome:
     parquet: Path | None = None
     csv: Path | None = None
     workers: int = 0
+    criteria: bool = False  # the profile has acceptance criteria
 
     @property
     def runs_per_min(self) -> float:
         n = self.ok + self.failed
         return 60.0 * n / self.wall_s if self.wall_s > 0 else 0.0
+
+    @property
+    def completed(self) -> int:
+        """Rows of the table (this call's and those done before) whose run completed."""
+        return sum(1 for r in self.rows if r.get("status") == "ok")
+
+    @property
+    def met(self) -> int:
+        """Rows that completed, whole and without a fault, within the acceptance criteria."""
+        return sum(1 for r in self.rows if passed(r))
+
+    def end_lines(self) -> list[str]:
+        """The sweep's last words: what ran (completed / failed to run: an ok run is not a
+        pass), then how many completed runs met the profile's acceptance criteria."""
+        n = self.ok + self.failed
+        lines = [
+            f"runs: {self.ok} completed, {self.failed} failed to run, {self.skipped} done before"
+            + (
+                f"; {self.runs_per_min:.1f} runs/min on {self.workers} "
+                f"worker{'s' if self.workers != 1 else ''}"
+                if n
+                else ""
+            )
+            + (" (interrupted: run the same command again to resume)" if self.interrupted else "")
+        ]
+        report = f"`pmsm-hil sweep report {self.out}`"
+        if self.criteria:
+            lines.append(
+                f"acceptance criteria: met by {self.met} of the {self.completed} completed runs, "
+                f"missed by {self.completed - self.met}"
+                + (f" ({report} for the metrics)" if self.completed - self.met else "")
+            )
+        else:
+            lines.append(
+                f"acceptance criteria: none in the profile, nothing judged ({self.met} of the "
+                f"{self.completed} completed runs played it whole without a fault)"
+            )
+        return lines
 
 
 def write_inputs(out: Path, run: Run) -> Path:
@@ -123,33 +165,21 @@ def run_sweep(
     task_fn: Callable[[dict], dict] = execute_run,
     runs: list[Run] | None = None,
 ) -> SweepOutcome:
-    """Run the sweep (its first ``limit`` runs) into ``out``; skip the runs done there before."""
+    """Run the sweep (its first ``limit`` runs) into ``out``; skip the runs done there before.
+    Raises ResultsFormatError when ``out`` holds an older pmsm-hil's results."""
     out = Path(out)
+    check_resumable(out)
     out.mkdir(parents=True, exist_ok=True)
     runs = plan_runs(sweep) if runs is None else runs
     if limit is not None:
         runs = runs[:limit]
-    (out / "sweep.json").write_text(
-        json.dumps(
-            {
-                "name": sweep.name,
-                "file": str(sweep.path),
-                "profile": str(sweep.profile_path),
-                "axes": [
-                    {"name": a.name, "field": a.field, "kind": a.kind, "relative": a.relative}
-                    for a in sweep.axes
-                ],
-            },
-            indent=1,
-        )
-        + "\n"
-    )
+    write_meta(out, sweep.name, str(sweep.path), str(sweep.profile_path), sweep.axes)
     return run_runs(
         runs,
         out,
         list(sweep.spec.metrics),
         keep_logs=sweep.spec.keep_logs,
-        axes=[a.name for a in sweep.axes],
+        axes=[c for a in sweep.axes for c in a.columns],
         scheduler=scheduler,
         workers=workers,
         progress=progress,
@@ -168,8 +198,12 @@ def run_runs(
     workers: int | None = None,
     progress: bool = True,
     task_fn: Callable[[dict], dict] = execute_run,
+    label: str = "sweep",
 ) -> SweepOutcome:
-    """Run ``runs`` on Dask into ``out`` (the machinery of a sweep, also for `pmsm-hil test`)."""
+    """Run ``runs`` on Dask into ``out`` (the machinery of a sweep, also for `pmsm-hil test`,
+    whose progress bar is labelled ``label``). The table's rows take their index, seed and axis
+    columns from ``runs`` (the key is a hash of the inputs, so a journalled row of the same key
+    is the same run, whatever an older pmsm-hil named its columns)."""
     from distributed import as_completed
 
     out = Path(out)
@@ -178,13 +212,22 @@ def run_runs(
     journal = Journal(out)
     done = journal.done()
     todo = [r for r in runs if r.key not in done]
-    res = SweepOutcome(out=out, planned=len(runs), skipped=len(runs) - len(todo))
+    res = SweepOutcome(
+        out=out, planned=len(runs), skipped=len(runs) - len(todo), criteria=_has_criteria(runs)
+    )
     by_key = {r.key: r for r in runs}
     for r in runs:
         write_inputs(out, r)
     t0 = time.perf_counter()
     client = cluster = None
-    bar = _Bar(len(runs), res.skipped, enabled=progress)
+    missed = sum(1 for r in runs if r.key in done and not passed(_row(journal.rows[r.key], r)))
+    bar = _Bar(
+        len(runs),
+        res.skipped,
+        enabled=progress,
+        label=label,
+        missed=missed if res.criteria else None,
+    )
     try:
         if todo:
             client, cluster = _client(scheduler, workers)
@@ -210,19 +253,13 @@ def run_runs(
                             "log_path": "",
                         }
                     fut.release()
-                    row = {
-                        "index": run.index,
-                        "key": run.key,
-                        "seed": run.seed,
-                        **run.values,
-                        **row,
-                    }
+                    row = _row(row, run)
                     journal.add(row)
                     if row["status"] == "ok":
                         res.ok += 1
                     else:
                         res.failed += 1
-                    bar.advance(row["status"] == "ok", time.perf_counter() - t0)
+                    bar.advance(row["status"] == "ok", time.perf_counter() - t0, met=passed(row))
     except KeyboardInterrupt:
         res.interrupted = True
     finally:
@@ -231,20 +268,53 @@ def run_runs(
             client.close()
         if cluster is not None:
             cluster.close()
-        res.rows = [journal.rows[r.key] for r in runs if r.key in journal.rows]
+        res.rows = [_row(journal.rows[r.key], r) for r in runs if r.key in journal.rows]
         res.parquet, res.csv = write_table(out, res.rows, axes)
     return res
 
 
+_PLAN_COLUMNS = ("index", "key", "seed")
+
+
+def _row(result: dict[str, Any], run: Run) -> dict[str, Any]:
+    """A run's row: its index, key, seed and axis columns (from the plan), then its results."""
+    return {
+        "index": run.index,
+        "key": run.key,
+        "seed": run.seed,
+        **run.values,
+        **{k: v for k, v in result.items() if k not in run.values and k not in _PLAN_COLUMNS},
+    }
+
+
+def _has_criteria(runs: list[Run]) -> bool:
+    """Whether the runs' profile has acceptance criteria (the first run's: a sweep's runs share
+    the profile, and an axis cannot add or remove the section)."""
+    import yaml
+
+    return bool(runs) and bool(
+        (yaml.safe_load(runs[0].texts["profile.yaml"]) or {}).get("acceptance")
+    )
+
+
 class _Bar:
-    """rich progress: runs done (and skipped), failed, runs per minute, time left."""
+    """rich progress: runs done (and skipped), failed to run, runs per minute, time left; with
+    ``missed`` (the count so far: the profile has acceptance criteria) the completed runs that
+    missed them, so that a run done is not read as a run passed."""
 
     def __init__(
-        self, total: int, skipped: int, enabled: bool, label: str = "sweep", unit: str = "runs"
+        self,
+        total: int,
+        skipped: int,
+        enabled: bool,
+        label: str = "sweep",
+        unit: str = "runs",
+        missed: int | None = None,
     ):
         self.unit = unit
         self.enabled = enabled
         self.total, self.done, self.failed = total, skipped, 0
+        self.missed = missed
         self.new = 0
         if enabled:
             from rich.progress import (
@@ -255,17 +325,20 @@ class _Bar:
                 TimeRemainingColumn,
             )
 
-            self.progress = Progress(
+            columns = [
                 TextColumn(label),
                 BarColumn(),
                 MofNCompleteColumn(),
-                TextColumn("{task.fields[failed]} failed"),
-                TextColumn("{task.fields[rate]}"),
-                TimeRemainingColumn(),
-                transient=False,
+                TextColumn(f"{unit} done"),
+                TextColumn("{task.fields[failed]} failed to run"),
+            ]
+            if missed is not None:
+                columns.append(TextColumn("{task.fields[missed]} missed the criteria"))
+            self.progress = Progress(
+                *columns, TextColumn("{task.fields[rate]}"), TimeRemainingColumn(), transient=False
             )
             self.task = self.progress.add_task(
-                "sweep", total=total, completed=skipped, failed=0, rate=""
+                label, total=total, completed=skipped, failed=0, missed=missed or 0, rate=""
             )
 
     def __enter__(self):
@@ -277,15 +350,19 @@ class _Bar:
         if self.enabled:
             self.progress.__exit__(*exc)
 
-    def advance(self, ok: bool, elapsed_s: float) -> None:
+    def advance(self, ok: bool, elapsed_s: float, met: bool = True) -> None:
+        """One more done: ``ok`` it completed, ``met`` it met the acceptance criteria."""
         self.done += 1
         self.new += 1
         self.failed += 0 if ok else 1
+        if self.missed is not None and ok and not met:
+            self.missed += 1
         if self.enabled:
             rate = 60.0 * self.new / elapsed_s if elapsed_s > 0 else 0.0
             self.progress.update(
                 self.task,
                 completed=self.done,
                 failed=self.failed,
+                missed=self.missed or 0,
                 rate=f"{rate:.1f} {self.unit}/min",
             )

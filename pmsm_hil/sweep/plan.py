@@ -35,7 +35,7 @@ _PART = re.compile(r"([a-z_][a-z0-9_]*)(?:\[(\d+)\])?")
 @dataclass
 class Run:
     index: int
-    values: dict[str, Any]  # axis column name -> value
+    values: dict[str, Any]  # results column of an axis (Axis.columns) -> value
     seed: int
     texts: dict[str, str] = field(default_factory=dict)  # FILES -> YAML text
     key: str = ""
@@ -198,22 +198,29 @@ def _concrete(value: Any, base_value: Any, relative: bool) -> Any:
 
 def materialise(
     base: _Base, axes: list[Axis], values: dict[str, Any], seed: int
-) -> tuple[dict[str, str], int]:
-    """The three YAML texts and the seed of one run (``values``: axis field -> value)."""
+) -> tuple[dict[str, str], int, dict[str, Any]]:
+    """The three YAML texts and the seed of one run (``values``: axis field -> value as drawn),
+    and the results columns of its axes (``Axis.columns``: a relative axis's factor and the
+    absolute value the files hold)."""
     data = copy.deepcopy(base.data)
+    columns: dict[str, Any] = {}
     for ax in axes:
         v = values[ax.field]
         if ax.field == "seed":
             seed = int(v)
+            columns[ax.name] = seed
             continue
         parts = _parts(ax.field)
         root, rest = str(parts[0]), parts[1:]
-        _set(data[root], rest, _concrete(v, _base_value(base.objects[root], rest), ax.relative))
+        concrete = _concrete(v, _base_value(base.objects[root], rest), ax.relative)
+        _set(data[root], rest, concrete)
+        columns[ax.column] = v
+        columns[ax.name] = concrete
     texts = {
         f"{k}.yaml": yaml.safe_dump(data[k], sort_keys=False, width=1_000_000)
         for k in ("profile", "motor", "rig")
     }
-    return texts, seed
+    return texts, seed, columns
 
 
 def run_key(texts: dict[str, str], seed: int) -> str:
@@ -241,8 +248,7 @@ def plan_runs(sweep: Sweep) -> list[Run]:
         for combo in combos:
             by_field = dict(drawn)
             by_field.update({a.field: v for a, v in zip(grid, combo, strict=False)})
-            texts, seed = materialise(base, sweep.axes, by_field, sweep.spec.seed)
-            values = {a.name: by_field[a.field] for a in sweep.axes}
+            texts, seed, values = materialise(base, sweep.axes, by_field, sweep.spec.seed)
             runs.append(
                 Run(
                     index=len(runs), values=values, seed=seed, texts=texts, key=run_key(texts, seed)
@@ -260,5 +266,5 @@ def profile_run(
 ) -> Run:
     """One run of a profile as it is (with another rig or motor file if given): a sweep of one
     point. Raises ProfileError for an invalid profile."""
-    texts, seed = materialise(_Base(profile_path, rig_path, motor_path), [], {}, seed)
+    texts, seed, _ = materialise(_Base(profile_path, rig_path, motor_path), [], {}, seed)
     return Run(index=index, values={}, seed=seed, texts=texts, key=run_key(texts, seed))

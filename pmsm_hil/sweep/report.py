@@ -1,23 +1,80 @@
 """`pmsm-hil sweep report DIR`: from DIR/results.parquet, a table of every metric (runs, median,
-worst) in DIR/report/summary.md, one PNG per metric against each axis, and for a sweep with two
-grid axes a pass/fail map over the grid (pass: the run is ok, complete, without faults and, when
-the profile has acceptance criteria, within them)."""
+worst) in DIR/report/summary.md (and as ``SweepReport.stats`` for the console), one PNG per metric
+against each axis, and for a sweep with two grid axes a pass/fail map over the grid (pass: the
+run completed, whole, without faults and, when the profile has acceptance criteria, within
+them)."""
 
 from __future__ import annotations
 
-import json
 import math
 import re
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .results import FIRST_COLUMNS, LAST_COLUMNS, read_table
+from .results import (
+    FIRST_COLUMNS,
+    LAST_COLUMNS,
+    ResultsFormatError,
+    has_criteria,
+    passed,
+    read_meta,
+    read_table,
+)
 
-__all__ = ["ReportError", "metric_columns", "passed", "write_report"]
+__all__ = [
+    "MetricStats",
+    "ReportError",
+    "SweepReport",
+    "metric_columns",
+    "metric_stats",
+    "passed",
+    "write_report",
+]
 
 
 class ReportError(Exception):
     pass
+
+
+@dataclass
+class MetricStats:
+    """One metric over the completed runs that have a value for it (NaN: none has)."""
+
+    metric: str
+    runs: int
+    median: float
+    worst: float  # the value of largest magnitude
+    min: float
+    max: float
+
+
+@dataclass
+class SweepReport:
+    out: Path
+    runs: int  # rows of the table
+    completed: int  # runs that completed (status ok)
+    met: int  # completed, whole, without fault, within the acceptance criteria
+    criteria: bool  # the profile has acceptance criteria (else `met` counts whole, no fault)
+    stats: list[MetricStats] = field(default_factory=list)
+    files: list[Path] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)  # e.g. an older directory's columns renamed
+
+    def headline(self) -> str:
+        """Runs completed / failed to run, and how many met the criteria: one line."""
+        ran = (
+            f"{self.runs} runs: {self.completed} completed, "
+            f"{self.runs - self.completed} failed to run"
+        )
+        if self.criteria:
+            return (
+                f"{ran}; {self.met} of {self.runs} met the profile's acceptance criteria "
+                f"(and played the whole profile without a fault), {self.runs - self.met} did not"
+            )
+        return (
+            f"{ran}; the profile has no acceptance criteria: {self.met} of {self.runs} "
+            "played the whole profile without a fault"
+        )
 
 
 def metric_columns(rows: list[dict[str, Any]], axes: list[str]) -> list[str]:
@@ -33,16 +90,6 @@ def metric_columns(rows: list[dict[str, Any]], axes: list[str]) -> list[str]:
     return cols
 
 
-def passed(row: dict[str, Any]) -> bool:
-    if row.get("status") != "ok":
-        return False
-    if row.get("complete") is False or (row.get("faults") or 0) > 0:
-        return False
-    return row.get("acceptance_failed", 0) in (0, None) or (
-        isinstance(row.get("acceptance_failed"), float) and math.isnan(row["acceptance_failed"])
-    )
-
-
 def _finite(xs):
     return [
         x
@@ -51,25 +98,38 @@ def _finite(xs):
     ]
 
 
-def _summary(rows, cols) -> str:
+def metric_stats(rows: list[dict[str, Any]], cols: list[str]) -> list[MetricStats]:
+    """Per metric column: runs with a value, median, worst (largest magnitude), min, max over
+    the completed runs."""
     ok = [r for r in rows if r.get("status") == "ok"]
+    out = []
+    for c in cols:
+        v = sorted(_finite([float(r[c]) for r in ok if r.get(c) is not None]))
+        if not v:
+            out.append(MetricStats(c, 0, math.nan, math.nan, math.nan, math.nan))
+            continue
+        med = v[len(v) // 2] if len(v) % 2 else 0.5 * (v[len(v) // 2 - 1] + v[len(v) // 2])
+        out.append(MetricStats(c, len(v), med, max(v, key=abs), v[0], v[-1]))
+    return out
+
+
+def _summary(rep: SweepReport) -> str:
     lines = [
-        f"# Sweep results: {len(rows)} runs, {len(ok)} ok, {len(rows) - len(ok)} failed; "
-        f"{sum(passed(r) for r in rows)} of {len(rows)} within the profile's acceptance criteria "
-        "(complete, no fault)",
+        f"# Sweep results: {rep.headline()}",
         "",
+        *[f"Note: {n}" for n in rep.notes],
+        *([""] if rep.notes else []),
         "| metric | runs | median | worst (largest magnitude) | min | max |",
         "|---|---|---|---|---|---|",
     ]
-    for c in cols:
-        v = _finite([float(r[c]) for r in ok if r.get(c) is not None])
-        if not v:
-            lines.append(f"| {c} | 0 | | | | |")
+    for m in rep.stats:
+        if not m.runs:
+            lines.append(f"| {m.metric} | 0 | | | | |")
             continue
-        v.sort()
-        med = v[len(v) // 2] if len(v) % 2 else 0.5 * (v[len(v) // 2 - 1] + v[len(v) // 2])
-        worst = max(v, key=abs)
-        lines.append(f"| {c} | {len(v)} | {med:.4g} | {worst:.4g} | {v[0]:.4g} | {v[-1]:.4g} |")
+        lines.append(
+            f"| {m.metric} | {m.runs} | {m.median:.4g} | {m.worst:.4g} | {m.min:.4g} | "
+            f"{m.max:.4g} |"
+        )
     return "\n".join(lines) + "\n"
 
 
@@ -77,10 +137,12 @@ def _safe(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", name)
 
 
-def write_report(out: Path) -> list[Path]:
-    """Write the report of the sweep in ``out``; return the files written."""
+def write_report(out: Path) -> SweepReport:
+    """Write the report of the sweep in ``out``; return it (the files written, the statistics,
+    the counts)."""
     from pmsm_hil.analysis.report_style import plt
 
+    out = Path(out)
     if not (out / "results.parquet").is_file():
         raise ReportError(
             f"{out}: no results.parquet here (run `pmsm-hil sweep SWEEP --out {out}` first)"
@@ -88,17 +150,27 @@ def write_report(out: Path) -> list[Path]:
     rows = read_table(out)
     if not rows:
         raise ReportError(f"{out}/results.parquet: the table is empty")
-    meta = (
-        json.loads((out / "sweep.json").read_text())
-        if (out / "sweep.json").is_file()
-        else {"axes": []}
+    try:
+        meta, notes = read_meta(out, rows)
+    except ResultsFormatError as e:
+        raise ReportError(str(e)) from None
+    axes = [a["column"] for a in meta["axes"] if a["column"] in rows[0]]
+    values = [a["value_column"] for a in meta["axes"] if a.get("value_column")]
+    cols = metric_columns(rows, axes + values)
+    report = SweepReport(
+        out=out,
+        runs=len(rows),
+        completed=sum(1 for r in rows if r.get("status") == "ok"),
+        met=sum(1 for r in rows if passed(r)),
+        criteria=has_criteria(rows),
+        stats=metric_stats(rows, cols),
+        notes=notes,
     )
-    axes = [a["name"] for a in meta["axes"] if a["name"] in rows[0]]
-    cols = metric_columns(rows, axes)
     rep = out / "report"
     rep.mkdir(exist_ok=True)
-    written = [rep / "summary.md"]
-    written[0].write_text(_summary(rows, cols))
+    written = report.files
+    written.append(rep / "summary.md")
+    written[0].write_text(_summary(report))
     ok = [r for r in rows if r.get("status") == "ok"]
     num_axes = [a for a in axes if all(isinstance(r.get(a), (int, float)) for r in rows)]
     if num_axes and ok:
@@ -131,15 +203,15 @@ def write_report(out: Path) -> list[Path]:
             plt.close(fig)
             written.append(p)
     grid = [
-        a["name"]
+        a["column"]
         for a in meta["axes"]
         if a["kind"] in ("values", "linspace")
-        and a["name"] in rows[0]
-        and len({r[a["name"]] for r in rows}) > 1
+        and a["column"] in rows[0]
+        and len({r[a["column"]] for r in rows}) > 1
     ]
     if len(grid) == 2:
         written.append(_pass_map(rows, grid, rep, meta.get("name", out.name)))
-    return written
+    return report
 
 
 def _pass_map(rows, grid, rep: Path, name: str) -> Path:

@@ -14,10 +14,31 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
-__all__ = ["FIRST_COLUMNS", "LAST_COLUMNS", "Journal", "read_table", "write_table"]
+__all__ = [
+    "FIRST_COLUMNS",
+    "LAST_COLUMNS",
+    "META_FORMAT",
+    "Journal",
+    "ResultsFormatError",
+    "check_resumable",
+    "has_criteria",
+    "passed",
+    "read_meta",
+    "read_table",
+    "write_meta",
+    "write_table",
+]
 
 FIRST_COLUMNS = ("index", "key", "status", "seed")
 LAST_COLUMNS = ("state", "stop_reason", "log_path", "error", "acceptance_checks", "wall_s")
+# OUT/sweep.json's format: 2 since a relative axis has a factor column (``motor_r_s_factor``) and
+# its absolute value under the field's name (``motor_r_s_ohm``, ohms); format 1 (no "format" key)
+# held the factor under the field's name
+META_FORMAT = 2
+
+
+class ResultsFormatError(Exception):
+    """A results directory this pmsm-hil cannot read or resume (the message names the file)."""
 
 
 class Journal:
@@ -95,3 +116,113 @@ def read_table(out: Path) -> list[dict[str, Any]]:
             if v is None and k not in FIRST_COLUMNS + LAST_COLUMNS:
                 r[k] = math.nan
     return rows
+
+
+def _nan(x: Any) -> bool:
+    return x is None or (isinstance(x, float) and math.isnan(x))
+
+
+def passed(row: dict[str, Any]) -> bool:
+    """The run completed (status ok), played the whole profile without a fault and met the
+    profile's acceptance criteria (``acceptance_failed`` 0; a row without criteria: the first
+    three alone)."""
+    if row.get("status") != "ok":
+        return False
+    if row.get("complete") is False or (row.get("faults") or 0) > 0:
+        return False
+    return _nan(row.get("acceptance_failed")) or row["acceptance_failed"] == 0
+
+
+def has_criteria(rows: Iterable[dict[str, Any]]) -> bool:
+    """Whether any completed run was judged against acceptance criteria of its profile."""
+    return any(not _nan(r.get("acceptance_failed")) for r in rows)
+
+
+def write_meta(out: Path, name: str, file: str, profile: str, axes: list) -> None:
+    """OUT/sweep.json: the sweep's name, files and axes (``Axis``) with their results columns."""
+    meta = {
+        "format": META_FORMAT,
+        "name": name,
+        "file": file,
+        "profile": profile,
+        "axes": [
+            {
+                "column": a.column,
+                "value_column": a.name if a.relative else None,
+                "field": a.field,
+                "kind": a.kind,
+                "relative": a.relative,
+            }
+            for a in axes
+        ],
+    }
+    (Path(out) / "sweep.json").write_text(json.dumps(meta, indent=1) + "\n")
+
+
+def read_meta(out: Path, rows: list[dict[str, Any]]) -> tuple[dict[str, Any], list[str]]:
+    """OUT/sweep.json (absent: no axes) with every axis's ``column`` and ``value_column``, and
+    notes for the reader. A format-1 directory (an older pmsm-hil) held a relative axis's factor
+    under the field's name: its rows get the column renamed to the factor's, in place (the files
+    stay as they are), and a note says so."""
+    from .spec import factor_column
+
+    path = Path(out) / "sweep.json"
+    if not path.is_file():
+        return {"axes": []}, []
+    try:
+        meta = json.loads(path.read_text(encoding="utf-8"))
+        axes = meta["axes"]
+        fmt = meta.get("format", 1)
+    except (ValueError, KeyError, TypeError) as e:
+        raise ResultsFormatError(
+            f"{path}: not a sweep's sweep.json ({type(e).__name__}: {e})"
+        ) from None
+    if not isinstance(fmt, int) or fmt > META_FORMAT:
+        raise ResultsFormatError(
+            f"{path}: format = {fmt!r} is not one this pmsm-hil reads (1 to {META_FORMAT}); "
+            "a newer pmsm-hil wrote it?"
+        )
+    notes: list[str] = []
+    if fmt == 1:
+        renamed = []
+        for a in axes:
+            a["column"], a["value_column"] = a["name"], None
+            if a.get("relative"):
+                a["column"] = factor_column(a["name"])
+                renamed.append(f"{a['name']} as {a['column']}")
+                for r in rows:
+                    if a["name"] in r:
+                        r[a["column"]] = r.pop(a["name"])
+        notes.append(
+            f"{path}: written by an older pmsm-hil (format 1)"
+            + (
+                ": the relative axes' columns hold factors, read here " + ", ".join(renamed)
+                if renamed
+                else ""
+            )
+            + "; its speed_error_max_rpm, ripple_d_max_a and ripple_q_max_a leave out the "
+            "segments at standstill. Sweep into a new folder for the absolute values and "
+            "today's definitions."
+        )
+    return meta, notes
+
+
+def check_resumable(out: Path) -> None:
+    """Raise ResultsFormatError when ``out`` holds the journal of an older pmsm-hil's sweep
+    (sweep.json without this format): resuming would mix its rows (a relative axis's factor under
+    the field's name, the ``_max`` metrics without the standstill segments) with today's."""
+    meta, journal = Path(out) / "sweep.json", Path(out) / "results.jsonl"
+    if not (meta.is_file() and journal.is_file()):
+        return
+    try:
+        fmt = json.loads(meta.read_text(encoding="utf-8")).get("format", 1)
+    except (ValueError, AttributeError):
+        fmt = None
+    if fmt != META_FORMAT:
+        raise ResultsFormatError(
+            f"{meta}: format = {fmt!r}, not {META_FORMAT}: {out} holds the results of an older "
+            "pmsm-hil (a relative axis's factor under the field's name, speed_error_max_rpm "
+            "without the standstill segments), which a resumed sweep would mix with today's. "
+            f"Sweep into a new folder, or remove {journal} to run every run again "
+            f"(`pmsm-hil sweep report {out}` still reads the old table)"
+        )

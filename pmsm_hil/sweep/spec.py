@@ -34,7 +34,7 @@ from pmsm_hil.profiles._source import (
     validation_problems,
 )
 
-__all__ = ["FIELD_RE", "METRICS", "Axis", "Sweep", "SweepFile", "load_sweep"]
+__all__ = ["FIELD_RE", "METRICS", "Axis", "Sweep", "SweepFile", "factor_column", "load_sweep"]
 
 METRICS = ("speed_error", "ripple", "recovery", "faults", "completeness", "identification", "angle")
 # profile.FIELD.PATH / motor.FIELD / rig.FIELD.PATH (list items as [i]) or seed
@@ -110,8 +110,33 @@ class Axis(StrictModel):
 
     @property
     def name(self) -> str:
-        """Column name of the axis in the results: the field with dots and brackets as _."""
+        """The field with dots and brackets as _: the column of the value the run's files hold
+        (for a relative axis the absolute value, in the field's unit)."""
         return "seed" if self.field == "seed" else re.sub(r"[.\[\]]+", "_", self.field).strip("_")
+
+    @property
+    def column(self) -> str:
+        """The axis's column in the results: ``name``, or for a relative axis the factor's column
+        (``factor_column(name)``: ``motor_r_s_ohm`` -> ``motor_r_s_factor``)."""
+        return factor_column(self.name) if self.relative else self.name
+
+    @property
+    def columns(self) -> list[str]:
+        """Every results column of the axis: the factor and the absolute value when relative."""
+        return [self.column, self.name] if self.relative else [self.name]
+
+
+# the unit at the end of a field's name (docs/profiles.md); the longest first
+_UNIT_SUFFIX = re.compile(
+    r"_(a_per_rad_s|rad_s|rpm_s|per_k|j_k|k_w|kgm2|nms|ohm|wb|nm|rpm|hz|rad|h|s|v|a|c|k|w|f)$"
+)
+
+
+def factor_column(name: str) -> str:
+    """The column of a relative axis's factor: the field's name less its unit, ``_factor`` after
+    (``motor_r_s_ohm`` -> ``motor_r_s_factor``, ``rig_effects_sensor_gain_i_b_gain`` ->
+    ``rig_effects_sensor_gain_i_b_gain_factor``): a column named with a unit holds that unit."""
+    return _UNIT_SUFFIX.sub("", name) + "_factor"
 
 
 class SweepFile(StrictModel):
@@ -205,6 +230,7 @@ def load_sweep(path: str | os.PathLike, defer: bool = False) -> Sweep:
             resolved[key], probs = _resolve(src, key, value, kind)
             problems += probs
     seen: dict[str, int] = {}
+    columns: dict[str, int] = {}  # results column -> the first axis that has it
     unreadable = False  # an axis field plan_runs could not check against the base files
     for i, ax in enumerate(spec.axes):
         if not FIELD_RE.match(ax.field):
@@ -225,6 +251,17 @@ def load_sweep(path: str | os.PathLike, defer: bool = False) -> Sweep:
                 )
             )
         seen.setdefault(ax.field, i)
+        for col in ax.columns:
+            j = columns.setdefault(col, i)
+            if j != i and spec.axes[j].field != ax.field:
+                problems.append(
+                    src.problem(
+                        ("axes", i, "field"),
+                        f"has the results column {col!r} of axes[{j}] "
+                        f"({spec.axes[j].field}); sweep one of them",
+                        ax.field,
+                    )
+                )
         if ax.log_uniform is not None and ax.log_uniform.low <= 0:
             problems.append(
                 src.problem(("axes", i, "log_uniform", "low"), "must be > 0", ax.log_uniform.low)

@@ -93,6 +93,7 @@ def run_suite(
             scheduler=scheduler,
             workers=workers,
             progress=progress,
+            label="test",
         )
         rows = res.rows
     by_key = {r["key"]: r for r in rows}

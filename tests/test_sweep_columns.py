@@ -1,0 +1,283 @@
+"""Sweeps: what the end line, the progress bar and `sweep report` say (runs completed against runs
+that met the acceptance criteria), the columns of a relative axis (the factor and the value in its
+unit), the whole-run maxima against their segments, and an older pmsm-hil's result directory."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+from types import SimpleNamespace
+
+import pytest
+
+from pmsm_hil.profiles import ProfileError
+from pmsm_hil.sweep import load_sweep, read_table, run_sweep, write_table
+from pmsm_hil.sweep.driver import SweepOutcome, _Bar
+from pmsm_hil.sweep.metrics import summary_metrics
+from pmsm_hil.sweep.report import write_report
+from pmsm_hil.sweep.results import ResultsFormatError
+from pmsm_hil.sweep.spec import factor_column
+
+CLI = [sys.executable, "-m", "pmsm_hil.cli.main"]
+
+
+def _cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([*CLI, *args], capture_output=True, text=True, timeout=300)
+
+
+@pytest.fixture(scope="module")
+def judged_sweep(tmp_path_factory):
+    """tests/data/short.yaml with acceptance criteria, two runs on one worker: a recovery bound
+    of 0.1 ms that no load step meets, and one of 1 s that it does; the winding R at 1.1 x the
+    motor file's 0.9 ohm."""
+    tmp = tmp_path_factory.mktemp("judged")
+    data = Path(__file__).parent / "data"
+    profile = (
+        (data / "short.yaml")
+        .read_text()
+        .replace("../../profiles/", f"{data.parent.parent}/profiles/")
+    )
+    (tmp / "short.yaml").write_text(profile + "acceptance:\n  run: {complete: true}\n")
+    sweep = tmp / "s.yaml"
+    sweep.write_text(
+        "name: judged\nprofile: short.yaml\nmetrics: [speed_error, recovery, faults, completeness]\n"
+        "axes:\n"
+        "  - {field: motor.r_s_ohm, values: [1.1], relative: true}\n"
+        "  - {field: profile.acceptance.run.recovery_max_s, values: [1.0e-4, 1.0]}\n"
+    )
+    out = tmp / "out"
+    r = _cli("sweep", str(sweep), "--out", str(out), "--workers", "1", "--no-progress")
+    assert r.returncode == 0, r.stderr
+    return sweep, out, r.stdout
+
+
+def test_the_end_line_tells_runs_completed_from_runs_that_met_the_criteria(judged_sweep):
+    sweep, out, stdout = judged_sweep
+    assert "runs: 2 completed, 0 failed to run, 0 done before" in stdout
+    assert (
+        f"acceptance criteria: met by 1 of the 2 completed runs, missed by 1 "
+        f"(`pmsm-hil sweep report {out}` for the metrics)" in stdout
+    )
+    assert " ok," not in stdout  # "ok" read as a pass was the confusion
+    # resumed: nothing to run, the verdict still counts the runs done before
+    r = _cli("sweep", str(sweep), "--out", str(out), "--workers", "1", "--no-progress")
+    assert r.returncode == 0, r.stderr
+    assert "runs: 0 completed, 0 failed to run, 2 done before" in r.stdout
+    assert "acceptance criteria: met by 1 of the 2 completed runs, missed by 1" in r.stdout
+
+
+def test_end_lines_count_failed_runs_apart_and_say_when_nothing_is_judged(tmp_path):
+    rows = [
+        {"status": "ok", "complete": True, "faults": 0, "acceptance_failed": 0},
+        {"status": "ok", "complete": True, "faults": 0, "acceptance_failed": 2},
+        {"status": "failed", "error": "invalid inputs"},
+    ]
+    res = SweepOutcome(out=tmp_path, planned=3, ok=2, failed=1, rows=rows, criteria=True)
+    ran, judged = res.end_lines()
+    assert ran.startswith("runs: 2 completed, 1 failed to run, 0 done before")
+    assert judged.startswith("acceptance criteria: met by 1 of the 2 completed runs, missed by 1")
+    plain = [{k: v for k, v in r.items() if k != "acceptance_failed"} for r in rows]
+    res = SweepOutcome(out=tmp_path, planned=3, ok=2, failed=1, rows=plain, criteria=False)
+    assert res.end_lines()[1] == (
+        "acceptance criteria: none in the profile, nothing judged (2 of the 2 completed runs "
+        "played it whole without a fault)"
+    )
+
+
+def test_the_progress_bar_counts_failed_to_run_and_missed_criteria_apart():
+    from rich.console import Console
+
+    bar = _Bar(3, 0, enabled=True, label="test", missed=0)
+    bar.advance(True, 1.0, met=True)
+    bar.advance(True, 2.0, met=False)
+    bar.advance(False, 3.0, met=False)  # a run that failed to run missed nothing
+    assert (bar.done, bar.failed, bar.missed) == (3, 1, 1)
+    console = Console(record=True, width=200)
+    console.print(bar.progress.make_tasks_table(bar.progress.tasks))
+    text = console.export_text()
+    assert text.lstrip().startswith("test")
+    assert "3/3" in text and "1 failed to run" in text and "1 missed the criteria" in text
+    # without criteria (a sweep of a profile without them, the other trials) no such column
+    plain = _Bar(1, 0, enabled=True, label="sweep")
+    plain.advance(True, 1.0, met=False)
+    console = Console(record=True, width=200)
+    console.print(plain.progress.make_tasks_table(plain.progress.tasks))
+    assert "missed" not in console.export_text() and plain.missed is None
+
+
+def test_pmsm_hil_test_labels_its_progress_test(monkeypatch, tmp_path):
+    from pmsm_hil.profiles.shipped import shipped_file
+    from pmsm_hil.sweep import driver
+    from pmsm_hil.sweep.suite import plan_suite, run_suite
+
+    seen = {}
+
+    def fake_run_runs(runs, out, metrics, **kw):
+        seen.update(kw)
+        return SweepOutcome(out=out, planned=len(runs))
+
+    monkeypatch.setattr(driver, "run_runs", fake_run_runs)
+    cases = plan_suite([shipped_file("paper-a.yaml"), shipped_file("paper-b.yaml")])
+    run_suite(cases, tmp_path, progress=True)
+    assert seen["label"] == "test" and seen["progress"] is True
+
+
+def test_a_relative_axis_has_its_factor_and_its_value_in_ohms(judged_sweep):
+    _sweep, out, _ = judged_sweep
+    rows = read_table(out)
+    for r in rows:
+        assert r["motor_r_s_factor"] == 1.1
+        assert r["motor_r_s_ohm"] == pytest.approx(0.99)  # 1.1 x the file's 0.9 ohm
+        inputs = (out / "runs" / r["key"] / "motor.yaml").read_text()
+        assert f"r_s_ohm: {r['motor_r_s_ohm']!r}\n" in inputs
+    header = (out / "results.csv").read_text().splitlines()[0].split(",")
+    assert header[4:7] == [
+        '"motor_r_s_factor"',
+        '"motor_r_s_ohm"',
+        '"profile_acceptance_run_recovery_max_s"',
+    ]
+    meta = json.loads((out / "sweep.json").read_text())
+    assert meta["format"] == 2
+    assert meta["axes"][0]["column"] == "motor_r_s_factor"
+    assert meta["axes"][0]["value_column"] == "motor_r_s_ohm"
+    # the report plots against the factor and treats neither column as a metric
+    write_report(out)
+    summary = (out / "report" / "summary.md").read_text()
+    assert "| motor_r_s" not in summary and not (out / "report" / "motor_r_s_ohm.png").exists()
+
+
+@pytest.mark.parametrize(
+    "name, column",
+    [
+        ("motor_r_s_ohm", "motor_r_s_factor"),
+        ("motor_psi_f_wb", "motor_psi_f_factor"),
+        ("rig_effects_dead_time_dead_time_s", "rig_effects_dead_time_dead_time_factor"),
+        ("profile_control_speed_kp_a_per_rad_s", "profile_control_speed_kp_factor"),
+        ("rig_effects_thermal_alpha_r_per_k", "rig_effects_thermal_alpha_r_factor"),
+        ("rig_effects_sensor_gain_i_b_gain", "rig_effects_sensor_gain_i_b_gain_factor"),
+    ],
+)
+def test_a_factor_column_drops_the_unit(name, column):
+    assert factor_column(name) == column
+
+
+def test_two_axes_with_one_results_column_are_an_error_at_the_line(tmp_path):
+    p = tmp_path / "s.yaml"
+    p.write_text(
+        "name: t\nprofile: paper-a\naxes:\n"
+        "  - {field: rig.effects.x.i_a_a, values: [1.1], relative: true}\n"
+        "  - {field: rig.effects.x.i_a_v, values: [1.1], relative: true}\n"
+    )
+    with pytest.raises(ProfileError) as e:
+        load_sweep(p)
+    assert (
+        f"{p}:5: axes[1].field = 'rig.effects.x.i_a_v' has the results column "
+        "'rig_effects_x_i_a_factor' of axes[0] (rig.effects.x.i_a_a)" in str(e.value)
+    )
+
+
+def test_a_whole_run_maximum_is_never_below_one_of_its_segments(judged_sweep):
+    seg = SimpleNamespace
+    summary = SimpleNamespace(
+        segments=[
+            # standstill: the rotor creeps during an R injection (tolerance sweep: +0.50 r/min)
+            seg(index=0, setpoint_rpm=0.0, mean_error_rpm=-0.5048, ripple_d_a=1.4, ripple_q_a=0.6),
+            seg(
+                index=1, setpoint_rpm=1000.0, mean_error_rpm=0.1166, ripple_d_a=1.1, ripple_q_a=0.9
+            ),
+            seg(
+                index=2, setpoint_rpm=1000.0, mean_error_rpm=-0.002, ripple_d_a=1.0, ripple_q_a=0.8
+            ),
+        ],
+        faults=[],
+        complete=True,
+    )
+    m = summary_metrics(summary, ["speed_error", "ripple"])
+    assert m["speed_error_max_rpm"] == 0.5048
+    assert m["speed_error_max_at_speed_rpm"] == 0.1166
+    assert (m["ripple_d_max_a"], m["ripple_q_max_a"]) == (1.4, 0.9)
+    # and in a sweep's table: no _max below |one of its seg columns|
+    _sweep, out, _ = judged_sweep
+    for r in read_table(out):
+        for k, v in r.items():
+            if k.startswith("seg") and k.endswith("_speed_error_rpm") and not math.isnan(v):
+                assert r["speed_error_max_rpm"] >= abs(v), (k, v)
+
+
+def test_sweep_report_prints_the_metrics_and_the_pass_count(judged_sweep):
+    _sweep, out, _ = judged_sweep
+    r = _cli("sweep", "report", str(out))
+    assert r.returncode == 0, r.stderr
+    lines = r.stdout.splitlines()
+    head = next(ln for ln in lines if "metric" in ln)
+    assert head.split() == ["metric", "runs", "median", "worst"]
+    row = next(ln for ln in lines if ln.split()[:1] == ["seg1_recovery_s"]).split()
+    rows = read_table(out)
+    rec = sorted(x["seg1_recovery_s"] for x in rows)
+    assert row[1] == "2" and float(row[2]) == pytest.approx(sum(rec) / 2, rel=1e-3)
+    assert float(row[3]) == pytest.approx(rec[-1], rel=1e-3)
+    assert (
+        "2 runs: 2 completed, 0 failed to run; 1 of 2 met the profile's acceptance criteria "
+        "(and played the whole profile without a fault), 1 did not"
+    ) in " ".join(r.stdout.split())
+    assert f"report {out}/report/summary.md and " in r.stdout
+
+
+def _old_directory(out: Path) -> None:
+    """A result directory as pmsm-hil wrote it before format 2: a relative axis's factor under
+    the field's name, no "format" in sweep.json."""
+    out.mkdir()
+    rows = [
+        {
+            "index": i,
+            "key": f"k{i}",
+            "status": "ok",
+            "seed": 1,
+            "motor_r_s_ohm": f,
+            "faults": 0,
+            "complete": True,
+            "speed_error_max_rpm": 0.1 * (i + 1),
+        }
+        for i, f in enumerate([0.95, 1.05])
+    ]
+    write_table(out, rows, ["motor_r_s_ohm"])
+    (out / "results.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+    (out / "sweep.json").write_text(
+        json.dumps(
+            {
+                "name": "old",
+                "axes": [
+                    {
+                        "name": "motor_r_s_ohm",
+                        "field": "motor.r_s_ohm",
+                        "kind": "normal",
+                        "relative": True,
+                    }
+                ],
+            }
+        )
+    )
+
+
+def test_an_older_directory_is_read_with_its_factor_named_so_and_not_resumed(tmp_path, data):
+    out = tmp_path / "old"
+    _old_directory(out)
+    report = write_report(out)
+    assert "motor_r_s_ohm as motor_r_s_factor" in report.notes[0]
+    assert [m.metric for m in report.stats] == ["faults", "complete", "speed_error_max_rpm"]
+    assert (out / "report" / "speed_error_max_rpm.png").is_file()
+    assert "Note: " in (out / "report" / "summary.md").read_text()
+    sweep = tmp_path / "s.yaml"
+    sweep.write_text(
+        f"name: old\nprofile: {data / 'short.yaml'}\n"
+        "axes:\n  - {field: motor.r_s_ohm, values: [0.95, 1.05], relative: true}\n"
+    )
+    with pytest.raises(ResultsFormatError) as e:
+        run_sweep(load_sweep(sweep), out, workers=1, progress=False)
+    assert str(e.value).startswith(f"{out / 'sweep.json'}: format = 1, not 2: {out} holds")
+    assert json.loads((out / "sweep.json").read_text()).get("format") is None  # left alone
+    r = _cli("sweep", str(sweep), "--out", str(out), "--no-progress")
+    assert r.returncode == 2 and "format = 1, not 2" in r.stderr and "Traceback" not in r.stderr
