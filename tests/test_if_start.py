@@ -70,6 +70,11 @@ def test_starts_from_standstill_at_any_angle_and_hands_over_smoothly(
     assert np.max(np.abs(np.asarray(tel["i_q_a"])[near])) <= 10.0
     plateau = (t > 0.85) & (t < 1.0)
     assert abs(np.mean(spd[plateau]) - 600.0) < 6.0
+    # the estimator's frames say it closes the loop from the handover on, not before it (the I/f
+    # angle carries the control until then)
+    est = log.topic("/pmsm/estimator")
+    te, in_loop = np.asarray(est["t_s"]), np.asarray(est["in_loop"], bool)
+    assert not in_loop[te < t_h - 1e-3].any() and in_loop[(te > t_h + 1e-3) & (te < 2.0)].all()
 
 
 def test_a_rotor_that_cannot_follow_trips_lost_lock(tmp_path):

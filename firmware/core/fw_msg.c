@@ -202,7 +202,9 @@ static void send_est(fw_t *f)
 {
     proto_telem_est_t t;
     uint16_t n;
-    const bool in_loop = !f->seg_angle_encoder;
+    /* in the loop: its angle is the one the control uses (not an angle_encoder segment, nor the
+     * current-frequency start, whose open-loop angle carries the control until the handover) */
+    const bool in_loop = !f->seg_angle_encoder && !f->est.open_loop;
     t.tick = f->tick;
     t.estimator = f->ctrl.angle_src;
     t.flags = (uint16_t)((f->est.locked ? PROTO_EST_FLAG_LOCKED : 0u) |

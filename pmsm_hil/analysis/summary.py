@@ -373,7 +373,7 @@ def estimator_stats(est: dict) -> dict | None:
 
 def estimator_text(e: dict) -> str:
     if e["theta_err_mean_rad"] is None:
-        return f"estimator {e['estimator']}: ran beside the encoder only"
+        return f"estimator {e['estimator']}: did not close the loop"
     lock = (
         "locked throughout"
         if not e["unlocked_frames"]

@@ -113,7 +113,7 @@ def estimator_text(e: dict, markup: bool = True) -> str:
     lock = "locked" if e.get("locked") else "NOT LOCKED"
     if markup:
         lock = f"[{'green' if e.get('locked') else 'red'}]{lock}[/]"
-    loop = "closes the loop" if e.get("in_loop") else "beside the encoder"
+    loop = "closes the loop" if e.get("in_loop") else "not in the loop"
     return (
         f"estimator {e.get('estimator', '?')} {lock} ({loop}), confidence "
         f"{e.get('confidence', 0.0):.2f}, theta_err {e.get('theta_err_rad', 0.0):+.4f} rad, "
