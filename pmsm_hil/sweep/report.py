@@ -175,12 +175,12 @@ def write_report(out: Path) -> SweepReport:
     num_axes = [a for a in axes if all(isinstance(r.get(a), (int, float)) for r in rows)]
     if num_axes and ok:
         for c in cols:
-            fig, axs = plt.subplots(
-                1,
-                len(num_axes),
-                figsize=(3.2 * len(num_axes) + 1, 3.2),
-                squeeze=False,
-                layout="constrained",
+            # margins fixed in inches instead of a layout engine: constrained layout measured
+            # every axis's extent before each save, half of a report's time (46 plots: 42 s)
+            w_in = 3.2 * len(num_axes) + 1
+            fig, axs = plt.subplots(1, len(num_axes), figsize=(w_in, 3.2), squeeze=False)
+            fig.subplots_adjust(
+                left=0.9 / w_in, right=1 - 0.15 / w_in, bottom=0.17, top=0.86, wspace=0.35
             )
             for ax, a in zip(axs[0], num_axes, strict=False):
                 good = [r for r in ok if passed(r)]
@@ -195,6 +195,8 @@ def write_report(out: Path) -> SweepReport:
                         label="fail",
                     )
                 ax.set_xlabel(a, fontsize=8)
+                ax.locator_params(axis="x", nbins=4)  # close values' long tick labels would touch
+                ax.tick_params(labelsize=8)
                 ax.grid(alpha=0.3)
             axs[0][0].set_ylabel(c, fontsize=8)
             fig.suptitle(f"{meta.get('name', out.name)}: {c}", fontsize=10)
