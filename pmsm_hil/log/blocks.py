@@ -11,14 +11,13 @@ a ``struct.pack`` per message.
 from __future__ import annotations
 
 import functools
-import struct
 from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
 from pmsm_hil.log.mcap_file import MESSAGE_HEAD
-from pmsm_hil.log.schemas import CDR_LE_HEADER, PRIMITIVES, Codec
+from pmsm_hil.log.schemas import CDR_LE_HEADER, Codec
 
 __all__ = [
     "CDR_HEADER",
@@ -27,7 +26,6 @@ __all__ = [
     "cdr_from_columns",
     "log_times",
     "record_dtype",
-    "string_layout",
 ]
 
 HEAD_SIZE = (
@@ -47,36 +45,6 @@ def record_dtype(data_size: int) -> np.dtype:
             "itemsize": HEAD_SIZE + data_size,
         }
     )
-
-
-@functools.lru_cache(maxsize=64)
-def string_layout(codec: Codec, strings: tuple[tuple[str, str], ...]) -> tuple[np.dtype, bytes]:
-    """The CDR data of a topic with strings, when each string field has the value given
-    (``strings``: (field, text) pairs): its other fields' numpy layout (offsets after the strings
-    as ``Codec.encode`` pads them; header included) and the data's template, the encapsulation
-    header and the strings in place, zeros elsewhere. ValueError names a string field not given."""
-    given = dict(strings)
-    names, formats, offsets = [], [], []
-    tpl = bytearray(CDR_LE_HEADER)
-    off = 0  # CDR offset, after the header
-    for f in codec.fields:
-        if f.type == "string":
-            if f.name not in given:
-                raise ValueError(f"{codec.topic.topic}.{f.name}: a string field without its value")
-            b = given[f.name].encode("utf-8")
-            pad = (-off) & 3
-            tpl += b"\0" * pad + struct.pack("<I", len(b) + 1) + b + b"\0"
-            off += pad + 4 + len(b) + 1
-            continue
-        _, size, dt, _ = PRIMITIVES[f.type]
-        off += (-off) % size
-        names.append(f.name)
-        formats.append(dt)
-        offsets.append(4 + off)
-        off += size
-        tpl += b"\0" * (4 + off - len(tpl))
-    layout = {"names": names, "formats": formats, "offsets": offsets, "itemsize": len(tpl)}
-    return np.dtype(layout), bytes(tpl)  # type: ignore[call-overload]
 
 
 def log_times(topic: str, t_s: Any, offset_ns: int) -> np.ndarray:

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import hashlib
 import struct
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -385,6 +385,7 @@ class Codec:
             if f.type != "string" and f.type not in PRIMITIVES:
                 raise ValueError(f"{topic.topic}.{f.name}: unsupported type {f.type}")
         self.fixed = all(f.type != "string" for f in self.fields)
+        self._layouts: dict[tuple[tuple[str, str], ...], tuple[np.dtype, bytes]] = {}
         self.defaults = tuple(f.default for f in self.fields)
         # plan: list of ("run", fields, [struct per start mod 8]) | ("str", field)
         self.plan: list[tuple] = []
@@ -408,24 +409,47 @@ class Codec:
             self.body_format = body.format[1:]  # without "<"
             self.size = 4 + size  # data size incl. the encapsulation header
             self.data_struct = struct.Struct("<4s" + self.body_format)
-            # numpy layout of the data (header + fields at their CDR offsets)
-            names, formats, offsets = [], [], []
-            off = 0
-            for f in self.fields:
-                _, sz, dt, _ = PRIMITIVES[f.type]
-                off += (-off) % sz
-                names.append(f.name)
-                formats.append(dt)
-                offsets.append(4 + off)
-                off += sz
-            self.dtype = np.dtype(
-                {"names": names, "formats": formats, "offsets": offsets, "itemsize": self.size}
-            )
+            self.dtype = self.layout()[0]  # header + fields at their CDR offsets
         else:
             self.body_format = None
             self.size = None
             self.data_struct = None
             self.dtype = None
+
+    def layout(self, strings: Mapping[str, str] | None = None) -> tuple[np.dtype, bytes]:
+        """The numpy layout of the whole CDR data (header included; the non-string fields at their
+        offsets as ``encode`` pads them) and its template: the encapsulation header and the
+        strings in place, zeros elsewhere. A topic with strings needs each one's value
+        (``strings``: field -> text; ValueError names one not given)."""
+        key = tuple(sorted((strings or {}).items()))
+        got = self._layouts.get(key)
+        if got is not None:
+            return got
+        given = dict(key)
+        names, formats, offsets = [], [], []
+        tpl = bytearray(CDR_LE_HEADER)
+        off = 0  # CDR offset, after the header
+        for f in self.fields:
+            if f.type == "string":
+                if f.name not in given:
+                    raise ValueError(
+                        f"{self.topic.topic}.{f.name}: a string field without its value"
+                    )
+                b = given[f.name].encode("utf-8")
+                pad = (-off) & 3
+                tpl += b"\0" * pad + struct.pack("<I", len(b) + 1) + b + b"\0"
+                off += pad + 4 + len(b) + 1
+                continue
+            _, size, dt, _ = PRIMITIVES[f.type]
+            off += (-off) % size
+            names.append(f.name)
+            formats.append(dt)
+            offsets.append(4 + off)
+            off += size
+            tpl += b"\0" * (4 + off - len(tpl))
+        spec = {"names": names, "formats": formats, "offsets": offsets, "itemsize": len(tpl)}
+        got = self._layouts[key] = (np.dtype(spec), bytes(tpl))  # type: ignore[call-overload]
+        return got
 
     # ------------------------------------------------------------------ encode
     def encode(self, values: Sequence[Any]) -> bytes:

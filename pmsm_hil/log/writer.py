@@ -41,7 +41,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from pmsm_hil import __version__
-from pmsm_hil.log.blocks import MessageBlock, cdr_from_columns, log_times, string_layout
+from pmsm_hil.log.blocks import MessageBlock, cdr_from_columns, log_times
 from pmsm_hil.log.journal import Journal
 from pmsm_hil.log.mcap_file import MAGIC, McapFile
 from pmsm_hil.log.schemas import (
@@ -367,7 +367,7 @@ class LogWriter:
             return FixedLayout(tuple(ch.codec.names), ch.dtype)
         if not strings:
             return None
-        dtype, template = string_layout(ch.codec, tuple(sorted(strings.items())))
+        dtype, template = ch.codec.layout(strings)
         ch.layouts.add(dtype)
         fields = set(dtype.names or ())
         return FixedLayout(tuple(n for n in ch.codec.names if n in fields), dtype, template)
