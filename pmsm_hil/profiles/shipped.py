@@ -87,31 +87,24 @@ def resolve(name: str | os.PathLike, kind: str) -> str:
         if candidate is not None:
             return str(candidate)
         names = ", ".join(p.stem for p in shipped(kind))
-        raise ProfileError(
-            Problem(
-                text,
-                None,
-                None,
-                None,
-                f"is neither a file nor a shipped {kind} (shipped: {names}; "
-                f"`pmsm-hil profiles` lists them)",
-                has_value=False,
-            )
+        raise _not_found(
+            text,
+            f"is neither a file nor a shipped {kind} (shipped: {names}; "
+            "`pmsm-hil profiles` lists them)",
         )
     shipped_one = _shipped_named(os.path.basename(text), kind)
     if shipped_one is not None and not os.path.exists(text):
-        raise ProfileError(
-            Problem(
-                text,
-                None,
-                None,
-                None,
-                f"no such file; the shipped {kind} of that name is found from any directory by "
-                f"its bare name: {shipped_one.stem}",
-                has_value=False,
-            )
+        raise _not_found(
+            text,
+            f"no such file; the shipped {kind} of that name is found from any directory by its "
+            f"bare name: {shipped_one.stem}",
         )
     return text
+
+
+def _not_found(text: str, why: str) -> ProfileError:
+    """The error of a name or path that finds no file: the name and what to give instead."""
+    return ProfileError(Problem(text, None, None, None, why, has_value=False))
 
 
 def in_file(path: str, ref: str, kind: str) -> tuple[str, str | None]:
