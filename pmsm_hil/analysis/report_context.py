@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pmsm_hil.analysis.summary import rig_name
 from pmsm_hil.log.reader import Log
 
 
@@ -43,13 +44,6 @@ class RunContext:
         return self.log.topic(topic)
 
 
-def _rig_name(meta: dict) -> str:
-    rig = meta.get("run", {}).get("rig", "")
-    if rig:
-        return Path(rig).stem
-    return meta.get("rig_effects", {}).get("rig", "")
-
-
 def run_context(log: Log, path: Path) -> RunContext:
     meta = log.metadata
     run = meta.get("run", {})
@@ -57,7 +51,7 @@ def run_context(log: Log, path: Path) -> RunContext:
         log=log,
         path=Path(path),
         profile=run.get("profile", ""),
-        rig=_rig_name(meta),
+        rig=rig_name(meta),
         seed=run.get("seed", ""),
         board=meta.get("device", {}).get("board", ""),
     )

@@ -336,14 +336,22 @@ def summarize_log(path: Path, log: Log | None = None) -> RunSummary:
     return summary
 
 
+def rig_name(meta: dict) -> str:
+    """The rig a log's run was on, by name, from its metadata ("" when none is named)."""
+    rig = meta.get("run", {}).get("rig", "")
+    if rig:
+        return Path(rig).stem
+    return meta.get("rig_effects", {}).get("rig", "")
+
+
 def run_tag(meta: dict) -> str:
     """What ran, from a log's metadata: "profile paper-a, rig lab-typical, seed 4" (a rig's run,
     which has no seed, names its board)."""
     run = meta.get("run", {})
-    rig = run.get("rig", "") or meta.get("rig_effects", {}).get("rig", "")
+    rig = rig_name(meta)
     parts = [f"profile {run['profile']}"] if run.get("profile") else []
     if rig:
-        parts.append(f"rig {Path(rig).stem}")
+        parts.append(f"rig {rig}")
     if run.get("seed"):
         parts.append(f"seed {run['seed']}")
     elif meta.get("device", {}).get("board"):
