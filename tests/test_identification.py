@@ -122,3 +122,22 @@ def test_default_window_ends_where_the_estimators_stopped(ident_run):
     stop = [s for s in profile.segments if s.estimate is False and s.t_start_s > 1.0][-1]
     assert table.t1_s < float(np.max(par["t_s"])) - 0.3  # the stop segment lasts 0.8 s
     assert abs(table.t1_s - stop.t_start_s) < 0.02, (table.t1_s, stop.t_start_s)
+
+
+def test_convergence_text_says_never_or_shorter_than_one_update():
+    from pmsm_hil.analysis.identification import Cell, convergence_time
+
+    t = np.arange(0.0, 1.0, 0.01)
+    truth = np.full_like(t, 12e-3)
+    # within +-2 % from the first update on: 0 s, shown as shorter than one params period
+    at_once = convergence_time(t, truth * 1.01, truth, 0.0)
+    assert at_once == 0.0
+    c = Cell("rls", "l_q_h", 12e-3, 12e-3, 0.0, 0.0, 0.0, at_once, True, step_s=0.01)
+    assert c.conv_text() == "<0.010"
+    # settles at 0.5 s
+    est = np.where(t < 0.5, truth * 0.5, truth)
+    c.conv_s = convergence_time(t, est, truth, 0.0)
+    assert c.conv_text(2) == "0.50"
+    # leaves the band at the end: never
+    c.conv_s = convergence_time(t, np.where(t > 0.9, truth * 1.1, truth), truth, 0.0)
+    assert c.conv_s is None and c.conv_text() == "never"

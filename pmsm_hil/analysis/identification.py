@@ -68,6 +68,16 @@ class Cell:
     t_first_s: float | None  # first update (device time)
     conv_s: float | None  # convergence time from the first update
     converged_flag: bool  # the firmware's own flag at the end
+    step_s: float = 0.0  # the estimator's params period: the resolution of conv_s
+
+    def conv_text(self, digits: int = 3) -> str:
+        """conv_s for a table: "never", or "<step" when the first update already stays within
+        the tolerance (the time is then only known to be shorter than one params period)."""
+        if self.conv_s is None:
+            return "never"
+        if self.conv_s == 0.0 and self.step_s > 0.0:
+            return f"<{self.step_s:.{digits}f}"
+        return f"{self.conv_s:.{digits}f}"
 
 
 @dataclass
@@ -182,6 +192,7 @@ def identification_table(
         t = t_all[sel]
         truth, table.truth_source = _truth(log, t, inductance)
         conv_flag = bool(np.asarray(par["converged"])[sel][-1])
+        step = float(np.median(np.diff(t))) if len(t) > 1 else 0.0
         for p in PARAMS:
             v = np.asarray(par[p], dtype=float)[sel]
             nz = np.nonzero(v != 0.0)[0]
@@ -205,6 +216,7 @@ def identification_table(
                     t_first,
                     conv,
                     conv_flag,
+                    step,
                 )
             )
     return table
@@ -248,11 +260,7 @@ def markdown_table(table: IdentTable, with_paper: bool = True) -> str:
         for e in ests:
             c = table.cell(e, p)
             assert c is not None  # every listed estimator has every parameter
-            row += [
-                _fmt(p, c.final),
-                f"{100 * c.error_rel:+.2f} %",
-                "-" if c.conv_s is None else f"{c.conv_s:.3f}",
-            ]
+            row += [_fmt(p, c.final), f"{100 * c.error_rel:+.2f} %", c.conv_text()]
             if with_paper:
                 v, err, ts = PAPER_A_TABLE2[e][p]
                 row += [_fmt(p, v), f"{100 * err / PAPER_A_TRUE[p]:.2f} %", f"{ts:.2f}"]
@@ -283,7 +291,7 @@ def text_table(table: IdentTable, with_paper: bool = True) -> str:
             c = table.cell(e, p)
             assert c is not None  # the estimator has l_d_h, so it has all four
             name, unit, _ = UNITS[p]
-            conv = "never" if c.conv_s is None else f"{c.conv_s:.3f}"
+            conv = c.conv_text()
             line = (
                 f"  {name + ' ' + unit:<10}{_fmt(p, c.truth):>10}{_fmt(p, c.final):>11}"
                 f"{100 * c.error_rel:>+9.2f}%{conv:>10}"

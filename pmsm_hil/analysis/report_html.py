@@ -110,11 +110,7 @@ def ident_html(table: IdentTable | None) -> str:
             c = table.cell(e, p)
             assert c is not None
             ok = abs(c.error_rel) <= TOL
-            row += [
-                f"{c.final * k:.4g}",
-                _mark(ok, f"{100 * c.error_rel:+.2f} %"),
-                "never" if c.conv_s is None else f"{c.conv_s:.3f}",
-            ]
+            row += [f"{c.final * k:.4g}", _mark(ok, f"{100 * c.error_rel:+.2f} %"), c.conv_text()]
         rows.append(row)
     return (
         _table(head, rows)

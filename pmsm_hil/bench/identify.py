@@ -337,7 +337,7 @@ def per_effect(
             conv = []
             for q in ("l_d_h", "l_q_h", "psi_f_wb"):
                 c = tab.cell("nlms_adaline", q)
-                conv.append("never" if c is None or c.conv_s is None else f"{c.conv_s:.2f}")
+                conv.append("never" if c is None else c.conv_text(2))
             row = f"| {r} | " + " | ".join(cells) + " | " + " / ".join(conv) + " |"
         lines.append(row)
         echo(row)
