@@ -15,6 +15,7 @@
 #define SP_STUCK_S     1.5f
 #define SP_HOLD_S      0.05f
 #define SP_STILL_RPM   3.0f
+#define SP_START_RPM   10.0f
 #define SP_RPM_PER_RAD 9.549296585513720f
 #define SP_AGREE       0.05f
 
@@ -48,6 +49,7 @@ void comm_spin_step(comm_t *c, const comm_in_t *in, comm_out_t *out)
     const float i_lim = 0.5f * c->cfg.i_test_a;
     const float step = SP_RAMP_RPM_S * c->cfg.ts_s;
     float e, iq_ref, id, iq, i3[3], dd, dq;
+    bool braking;
 
     c->i_max_step = 1.5f * c->cfg.i_test_a + 1.0f;
     if (comm_over_current(c)) {
@@ -57,12 +59,19 @@ void comm_spin_step(comm_t *c, const comm_in_t *in, comm_out_t *out)
         comm_fail(c, PROTO_COMMISSION_FAIL_OVER_SPEED);
         return;
     }
+    /* the spin starts from rest: a rotor still turning from the previous step (a standstill
+     * step's test currents can leave it coasting) is first braked by the speed loop at 0 r/min
+     * (for at most SP_STUCK_S), and the direction check waits for the ramp */
+    braking = c->phase == 0u && c->spd_ref_rpm == 0.0f && !(fabsf(speed_rpm) < SP_START_RPM) &&
+              (float)c->t < comm_dt(c, SP_STUCK_S);
     if (c->phase < 2u && c->t_total > 0u && c->spd_ref_rpm > 30.0f && speed_rpm < -30.0f) {
         comm_fail(c, PROTO_COMMISSION_FAIL_WRONG_DIRECTION);
         return;
     }
     /* reference ramp and the speed PI (mechanical rad/s -> i_q) */
-    if (c->spd_ref_rpm < target) {
+    if (braking) {
+        /* hold the reference at 0 */
+    } else if (c->spd_ref_rpm < target) {
         c->spd_ref_rpm = c->spd_ref_rpm + step < target ? c->spd_ref_rpm + step : target;
     } else if (c->spd_ref_rpm > target) {
         c->spd_ref_rpm = c->spd_ref_rpm - step > target ? c->spd_ref_rpm - step : target;
@@ -89,7 +98,7 @@ void comm_spin_step(comm_t *c, const comm_in_t *in, comm_out_t *out)
         return;
     }
     if (c->spd_ref_rpm != target || !comm_elapsed(c, SP_SETTLE_S)) {
-        if (c->spd_ref_rpm != target) {
+        if (c->spd_ref_rpm != target && !braking) {
             c->t = 0u;
         }
         return;

@@ -51,17 +51,9 @@ def commission_once(
 ) -> tuple[Profile, CommissionResult, dict[str, float]]:
     """One in-process commissioning run: (result, errors against the plant)."""
     from pmsm_hil.commission.score import commission_errors
-    from pmsm_hil.commission.sequence import commission_profile, run_commission
-    from pmsm_hil.device import DeviceSpec, open_device
-    from pmsm_hil.protocol.session import Session
-    from pmsm_hil.runner import RunOptions
+    from pmsm_hil.commission.sequence import commission_in_process
 
-    profile = commission_profile(motor_path, rig_path)
-    link = open_device(DeviceSpec(in_process=True, seed=seed), profile)
-    try:
-        res = run_commission(profile, Session(link), log, RunOptions(seed=seed))
-    finally:
-        link.close()
+    profile, res = commission_in_process(motor_path, rig_path, seed, log)
     errs: dict[str, float] = (
         commission_errors(log, res.quantities, profile.rig, profile.control.ts_s) if res.ok else {}
     )

@@ -32,24 +32,14 @@ def _one(
 
     stem = Path(rig_path).stem
     if commissioned:
-        from pmsm_hil.bench.commission import commission_once
-        from pmsm_hil.commission.motor_file import commissioned_motor_yaml
+        from pmsm_hil.commission.sequence import commission_in_process
 
         log_c = out / f"commission-{stem}-{seed}.mcap"
-        prof_c, res, _errs = commission_once(rig_path, seed, log_c, motor)
+        motor_c = out / f"motor-{stem}-{seed}.yaml"
+        _prof, res = commission_in_process(motor, rig_path, seed, log_c, motor_c)
         if not res.ok:
             return {"failed": f"commissioning: {res.failure or res.run.stop_reason}"}
-        motor = out / f"motor-{stem}-{seed}.yaml"
-        motor.write_text(
-            commissioned_motor_yaml(
-                prof_c.motor,
-                res.quantities,
-                prof_c.control.ts_s,
-                "emulator",
-                str(log_c),
-                out_dir=str(out),
-            )
-        )
+        motor = motor_c
     profile = load_profile(path, rig_override=rig_path, motor_override=motor)
     log = out / f"identify-{stem}-{seed}.mcap"
     _, result = _run_profile(profile, log, seed)

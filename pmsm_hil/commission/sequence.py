@@ -101,3 +101,35 @@ def run_commission(
     if not out.failure and run.stop_reason == "commission failed":
         out.failure = "commissioning stopped (its result frame was lost; see the log's events)"
     return out
+
+
+def commission_in_process(
+    motor_path: Path | str | None,
+    rig_path: Path | str | None,
+    seed: int,
+    log: Path,
+    motor_out: Path | None = None,
+) -> tuple[Profile, CommissionResult]:
+    """One commissioning on the in-process emulator (as `pmsm-hil commission --motor M --rig R
+    --seed S`): the profile it ran and its result; with ``motor_out``, the commissioned motor
+    file is written there when the sequence completed."""
+    from pmsm_hil.commission.motor_file import commissioned_motor_yaml
+    from pmsm_hil.device import DeviceSpec, open_device
+
+    profile = commission_profile(motor_path, rig_path)
+    link = open_device(DeviceSpec(in_process=True, seed=seed), profile)
+    try:
+        res = run_commission(profile, Session(link), log, RunOptions(seed=seed))
+    finally:
+        link.close()
+    if motor_out is not None and res.ok:
+        text = commissioned_motor_yaml(
+            profile.motor,
+            res.quantities,
+            profile.control.ts_s,
+            "emulator",
+            str(log),
+            out_dir=str(Path(motor_out).parent),
+        )
+        Path(motor_out).write_text(text, encoding="utf-8")
+    return profile, res

@@ -60,6 +60,14 @@ def execute_run(task: dict[str, Any]) -> dict[str, Any]:
             Path(tmp, name).write_text(text, encoding="utf-8")
         try:
             profile = load_profile(os.path.join(tmp, "profile.yaml"))
+            if task.get("commission"):
+                from .commissioned import commission_then_load
+
+                commissioned, why = commission_then_load(Path(tmp), task["seed"])
+                if commissioned is None:
+                    row["error"] = why
+                    return row
+                profile = commissioned
         except ProfileError as e:
             row["error"] = "invalid inputs: " + str(e).replace(tmp + os.sep, "").replace("\n", "; ")
             return row

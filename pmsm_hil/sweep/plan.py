@@ -39,6 +39,7 @@ class Run:
     seed: int
     texts: dict[str, str] = field(default_factory=dict)  # FILES -> YAML text
     key: str = ""
+    commission: bool = False  # commission the drive on the run's rig first (sweep file)
 
     def task(self, metrics: list[str], log_path: str | None) -> dict:
         """What a worker needs: plain data (picklable, no paths to read), and the firmware build
@@ -53,6 +54,7 @@ class Run:
             "texts": dict(self.texts),
             "metrics": list(metrics),
             "log_path": log_path,
+            "commission": self.commission,
         }
 
 
@@ -223,14 +225,17 @@ def materialise(
     return texts, seed, columns
 
 
-def run_key(texts: dict[str, str], seed: int) -> str:
-    """A hash of what a run is: its three texts, its seed and the firmware build that runs it
-    (fwlib.source_id): a sweep resumed after a firmware change runs everything again."""
+def run_key(texts: dict[str, str], seed: int, commission: bool = False) -> str:
+    """A hash of what a run is: its three texts, its seed, whether it commissions first and the
+    firmware build that runs it (fwlib.source_id): a sweep resumed after a firmware change runs
+    everything again."""
     from pmsm_hil.emulator.fwlib import source_id
 
-    blob = json.dumps(
-        {"texts": [texts[f] for f in FILES], "seed": seed, "firmware": source_id()}, sort_keys=True
-    )
+    what: dict[str, Any] = {"texts": [texts[f] for f in FILES], "seed": seed}
+    what["firmware"] = source_id()
+    if commission:  # absent otherwise: the keys of sweeps without it are as before
+        what["commission"] = True
+    blob = json.dumps(what, sort_keys=True)
     return hashlib.sha256(blob.encode("utf-8")).hexdigest()[:16]
 
 
@@ -249,9 +254,15 @@ def plan_runs(sweep: Sweep) -> list[Run]:
             by_field = dict(drawn)
             by_field.update({a.field: v for a, v in zip(grid, combo, strict=False)})
             texts, seed, values = materialise(base, sweep.axes, by_field, sweep.spec.seed)
+            com = sweep.spec.commission
             runs.append(
                 Run(
-                    index=len(runs), values=values, seed=seed, texts=texts, key=run_key(texts, seed)
+                    index=len(runs),
+                    values=values,
+                    seed=seed,
+                    texts=texts,
+                    key=run_key(texts, seed, com),
+                    commission=com,
                 )
             )
     return runs

@@ -160,6 +160,11 @@ class SweepFile(StrictModel):
         default_factory=lambda: list(METRICS), min_length=1, description="metrics kept per run"
     )
     keep_logs: bool = Field(False, description="keep each run's MCAP log in OUT/logs/")
+    commission: bool = Field(
+        False,
+        description="each run first commissions the drive on its own rig, from its motor file "
+        "as the nominal values, and plays the profile with the commissioned motor file",
+    )
 
 
 class Sweep:
