@@ -281,3 +281,21 @@ def test_an_older_directory_is_read_with_its_factor_named_so_and_not_resumed(tmp
     assert json.loads((out / "sweep.json").read_text()).get("format") is None  # left alone
     r = _cli("sweep", str(sweep), "--out", str(out), "--no-progress")
     assert r.returncode == 2 and "format = 1, not 2" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_report_counts_the_runs_that_never_converged():
+    from pmsm_hil.sweep.report import metric_stats
+
+    nan = float("nan")
+    rows = [
+        {"status": "ok", "id_rls_l_d_h_conv_s": 0.4, "seg0_recovery_s": nan},
+        {"status": "ok", "id_rls_l_d_h_conv_s": nan, "seg0_recovery_s": nan},
+        {"status": "ok", "id_rls_l_d_h_conv_s": 0.6, "seg0_recovery_s": 0.1},
+        {"status": "failed", "id_rls_l_d_h_conv_s": nan, "seg0_recovery_s": nan},
+    ]
+    conv, rec = metric_stats(rows, ["id_rls_l_d_h_conv_s", "seg0_recovery_s"])
+    assert (conv.runs, conv.no_value, conv.median) == (2, 1, 0.5)
+    assert conv.runs_text() == "2 (1 never)"  # the failed run is not counted
+    assert rec.runs_text() == "1 (2 no value)"
+    full = metric_stats(rows[2:3], ["id_rls_l_d_h_conv_s"])[0]
+    assert full.runs_text() == "1"

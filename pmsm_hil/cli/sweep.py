@@ -143,7 +143,7 @@ def _print_report(report) -> None:
     for col in ("metric", "runs", "median", "worst"):
         tab.add_column(col, justify="left" if col == "metric" else "right")
     for m in report.stats:
-        tab.add_row(m.metric, str(m.runs), _fmt(m.metric, m.median), _fmt(m.metric, m.worst))
+        tab.add_row(m.metric, m.runs_text(), _fmt(m.metric, m.median), _fmt(m.metric, m.worst))
     console.print(tab)
     console.print(report.headline(), highlight=False, soft_wrap=True)
     plots = [p for p in report.files if p.suffix == ".png"]

@@ -47,6 +47,15 @@ class MetricStats:
     worst: float  # the value of largest magnitude
     min: float
     max: float
+    no_value: int = 0  # completed runs without a value (a convergence time: never converged)
+
+    def runs_text(self) -> str:
+        """The runs column: with a value, and how many completed runs have none (for a
+        convergence time, the runs that never stayed within the band)."""
+        if not self.no_value:
+            return str(self.runs)
+        what = "never" if self.metric.endswith("_conv_s") else "no value"
+        return f"{self.runs} ({self.no_value} {what})"
 
 
 @dataclass
@@ -105,11 +114,12 @@ def metric_stats(rows: list[dict[str, Any]], cols: list[str]) -> list[MetricStat
     out = []
     for c in cols:
         v = sorted(_finite([float(r[c]) for r in ok if r.get(c) is not None]))
+        missing = len(ok) - len(v)
         if not v:
-            out.append(MetricStats(c, 0, math.nan, math.nan, math.nan, math.nan))
+            out.append(MetricStats(c, 0, math.nan, math.nan, math.nan, math.nan, missing))
             continue
         med = v[len(v) // 2] if len(v) % 2 else 0.5 * (v[len(v) // 2 - 1] + v[len(v) // 2])
-        out.append(MetricStats(c, len(v), med, max(v, key=abs), v[0], v[-1]))
+        out.append(MetricStats(c, len(v), med, max(v, key=abs), v[0], v[-1], missing))
     return out
 
 
@@ -124,10 +134,10 @@ def _summary(rep: SweepReport) -> str:
     ]
     for m in rep.stats:
         if not m.runs:
-            lines.append(f"| {m.metric} | 0 | | | | |")
+            lines.append(f"| {m.metric} | {m.runs_text()} | | | | |")
             continue
         lines.append(
-            f"| {m.metric} | {m.runs} | {m.median:.4g} | {m.worst:.4g} | {m.min:.4g} | "
+            f"| {m.metric} | {m.runs_text()} | {m.median:.4g} | {m.worst:.4g} | {m.min:.4g} | "
             f"{m.max:.4g} |"
         )
     return "\n".join(lines) + "\n"
