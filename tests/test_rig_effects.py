@@ -127,7 +127,8 @@ def test_shipped_rigs_load_and_each_effect_file_has_one_effect():
         assert rig.enabled_effects == [name]
         assert rig.effects_mask == 1 << EFFECT_BITS[name]
     assert load_rig(RIGS / "ideal.yaml").enabled_effects == []
-    assert set(load_rig(RIGS / "lab-typical.yaml").enabled_effects) == names
+    # lab-typical's motor is its motor file's: a production spread is for sweeps to draw
+    assert set(load_rig(RIGS / "lab-typical.yaml").enabled_effects) == names - {"motor_deviation"}
     assert len(set(EFFECT_BITS.values())) == len(EFFECT_BITS)
 
 
@@ -399,7 +400,41 @@ def test_cogging_torque_has_its_period_and_size(tmp_path):
 
 def test_lab_typical_runs_the_short_profile(tmp_path):
     _prof, log, truth = run(RIGS / "lab-typical.yaml", tmp_path / "lab.mcap")
-    assert set(log.topic("/sim/truth")["effects"].tolist()) == {(1 << len(EFFECT_BITS)) - 1}
+    on = (1 << len(EFFECT_BITS)) - 1 - (1 << EFFECT_BITS["motor_deviation"])
+    assert set(log.topic("/sim/truth")["effects"].tolist()) == {on}
     tl = tel(log)
     assert abs(np.mean(tl["speed_rpm"]) - 600.0) < 6.0
     assert truth["temp_winding_c"][0] == pytest.approx(60.0, abs=0.1)
+
+
+def _small_current(dev: EmulatedDevice) -> tuple[float, float, float]:
+    """psi_f, L_d, L_q of the plant at small current (flux at 0 A; chords over +-0.5 A)."""
+    f0 = dev.plant_flux(0.0, 0.0)
+    fd = dev.plant_flux(0.5, 0.0)
+    fq = dev.plant_flux(0.0, 0.5)
+    return f0["psi_d_wb"], (fd["psi_d_wb"] - f0["psi_d_wb"]) / 0.5, fq["psi_q_wb"] / 0.5
+
+
+@pytest.mark.parametrize("plant", ["linear", "flux map"])
+def test_motor_deviation_moves_the_plant_not_the_firmware(tmp_path, plant):
+    dev_yaml = (
+        "  motor_deviation: {r_s_factor: 1.05, l_d_factor: 1.08, l_q_factor: 0.95, "
+        "psi_f_factor: 0.97}\n"
+    )
+    sat = "  saturation: {map: %s}\n" % (ROOT / "profiles" / "maps" / "paper-a-ipmsm.csv")
+    base_yaml = sat if plant == "flux map" else "  dead_time: {enabled: false}\n"
+    base = load_profile(str(STEADY), rig_override=str(write_rig(tmp_path, "b", base_yaml)))
+    off = load_profile(
+        str(STEADY), rig_override=str(write_rig(tmp_path, "d", base_yaml + dev_yaml))
+    )
+    s0 = emulator_settings(base.motor, base.rig)
+    s1 = emulator_settings(off.motor, off.rig)
+    assert s1["r_s_ohm"] == pytest.approx(1.05 * s0["r_s_ohm"], rel=1e-12)
+    psi0, ld0, lq0 = _small_current(EmulatedDevice(s0))
+    psi1, ld1, lq1 = _small_current(EmulatedDevice(s1))
+    assert psi1 / psi0 == pytest.approx(0.97, rel=2e-3)
+    assert ld1 / ld0 == pytest.approx(1.08, rel=2e-3)
+    assert lq1 / lq0 == pytest.approx(0.95, rel=2e-3)
+    # the firmware is told the motor file's values, whatever the plant
+    assert off.motor.l_d_h == base.motor.l_d_h and off.motor.psi_f_wb == base.motor.psi_f_wb
+    assert off.rig.effects_mask == base.rig.effects_mask | (1 << EFFECT_BITS["motor_deviation"])

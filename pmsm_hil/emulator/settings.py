@@ -58,6 +58,12 @@ def emulator_settings(
     s["enc_counts"] = 4 * int(getattr(enc, "lines", 2500)) if enc else 10000
     # the rig gives the offset as an electrical angle; the plant's encoder adds it to theta_m
     s["enc_offset_m_rad"] = getattr(enc, "offset_e_rad", 0.0) / motor.pole_pairs if enc else 0.0
+    dev = _eff(rig, "motor_deviation")
+    if dev is not None:  # the plant's motor departs from the file (a flux map: effect_settings)
+        s["r_s_ohm"] *= dev.r_s_factor
+        s["l_d_h"] *= dev.l_d_factor
+        s["l_q_h"] *= dev.l_q_factor
+        s["psi_f_wb"] *= dev.psi_f_factor
     fr = _eff(rig, "friction")
     if fr is not None:
         # the rig's friction adds to the motor file's nominal friction (docs/profiles.md)
@@ -102,6 +108,12 @@ def effect_settings(motor: Motor, rig: Rig) -> dict:
         from pmsm_hil.profiles.fluxmap import for_motor
 
         fm, _ = for_motor(fm, motor.psi_f_wb, motor.l_d_h, motor.l_q_h)
+    dev = _eff(rig, "motor_deviation")
+    if fm is not None and dev is not None:  # the plant's map departs from the motor's likewise
+        psi_m, l_d_m, l_q_m = fm.small_current()
+        fm, _ = fm.scaled_to(
+            psi_m * dev.psi_f_factor, l_d_m * dev.l_d_factor, l_q_m * dev.l_q_factor
+        )
     if fm is not None:
         s.update(fm.settings())
         # RK4 in the currents missed a map's voltage equation by 0.2-0.6 V on q at one sub-step

@@ -248,6 +248,18 @@ class IronLoss(Effect):
     r_fe_ohm: float = Field(300.0, gt=0, le=1e6, description="equivalent iron-loss resistance, ohm")
 
 
+class MotorDeviation(Effect):
+    """The motor on the rig departs from its motor file (a production spread, a datasheet's
+    tolerance): its R, L_d, L_q and psi_f are the file's times these factors, and a flux map's
+    small-current values likewise (the map scaled, docs/rigs.md). The firmware is told the file's
+    values, as a drive's parameters come from the datasheet until commissioning measures them."""
+
+    r_s_factor: float = Field(1.0, ge=0.5, le=2.0, description="plant R / the motor file's")
+    l_d_factor: float = Field(1.0, ge=0.5, le=2.0, description="plant L_d / the motor file's")
+    l_q_factor: float = Field(1.0, ge=0.5, le=2.0, description="plant L_q / the motor file's")
+    psi_f_factor: float = Field(1.0, ge=0.5, le=2.0, description="plant psi_f / the motor file's")
+
+
 # bit of each effect in /sim/truth.effects and the emulator's effect mask
 EFFECT_BITS: dict[str, int] = {
     "dead_time": 0,
@@ -264,6 +276,7 @@ EFFECT_BITS: dict[str, int] = {
     "delay": 11,
     "dc_link": 12,
     "iron_loss": 13,
+    "motor_deviation": 14,
 }
 
 
@@ -286,6 +299,7 @@ class Effects(StrictModel):
     delay: Delay = Field(default_factory=lambda: Delay(enabled=False))
     dc_link: DcLink = Field(default_factory=lambda: DcLink(enabled=False))
     iron_loss: IronLoss = Field(default_factory=lambda: IronLoss(enabled=False))
+    motor_deviation: MotorDeviation = Field(default_factory=lambda: MotorDeviation(enabled=False))
 
     def items(self) -> Iterator[tuple[str, Effect]]:
         for name in type(self).model_fields:
