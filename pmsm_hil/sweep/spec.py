@@ -7,10 +7,11 @@
     draw_seed: 1
     axes:
       - {field: motor.r_s_ohm, normal: {mean: 1.0, std: 0.05}, relative: true}
-      - {field: rig.effects.dead_time.dead_time_s, uniform: [1.5e-6, 3.0e-6]}
+      - {field: rig.effects.dead_time.dead_time_s, uniform: {low: 1.5e-6, high: 3.0e-6}}
       - {field: seed, values: [1, 2]}
     metrics: [speed_error, ripple, identification, faults, completeness]
     keep_logs: false
+    commission: true                   # each run commissions its drive first (docs/sweep.md)
 
 Validated with pydantic; every problem is reported as ``file:line: field = value message`` through
 the profile machinery (pmsm_hil/profiles/_source.py). The format is in docs/sweep.md.
