@@ -244,3 +244,26 @@ def test_a_missed_plateau_bound_is_named_in_the_verdict():
     assert "bounds missed" in v and "segment 0" not in v
     assert "segment 1 'b' mean speed error +2.50 r/min beyond ±1" in v
     assert "segment 2 'c' recovery 1.50 s > 0.3 s" in v
+
+
+def test_test_hints_at_commissioning_when_identification_fails_on_an_uncommissioned_rig():
+    """paper-a-identify on lab-typical with the motor file as shipped misses its identification
+    bounds (the rig's encoder offset, inverter): the verdict says why and what to run; on the
+    default rig (no effects) there is no such hint."""
+    r = subprocess.run(
+        [*CLI, "test", "paper-a-identify", "--rig", "lab-typical"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert r.returncode == 1, r.stdout + r.stderr
+    out = " ".join(r.stdout.split())
+    assert "hint: the motor file is not commissioned" in out
+    assert "pmsm-hil commission --rig lab-typical" in out and "--motor" in out
+    from pmsm_hil.cli.test import _commission_hint
+    from pmsm_hil.profiles.shipped import resolve
+    from pmsm_hil.sweep.suite import plan_suite
+
+    (case,) = plan_suite([resolve("paper-a-identify", "profile")], seed=1)
+    case.checks = [{"criterion": "nlms_adaline l_q_h error", "passed": False}]
+    assert _commission_hint(case) is None  # the default rig has no effect the firmware misses
