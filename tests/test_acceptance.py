@@ -260,10 +260,21 @@ def test_test_hints_at_commissioning_when_identification_fails_on_an_uncommissio
     out = " ".join(r.stdout.split())
     assert "hint: the motor file is not commissioned" in out
     assert "pmsm-hil commission --rig lab-typical" in out and "--motor" in out
-    from pmsm_hil.cli.test import _commission_hint
+    from pmsm_hil.analysis.acceptance import commission_hint
     from pmsm_hil.profiles.shipped import resolve
-    from pmsm_hil.sweep.suite import plan_suite
 
-    (case,) = plan_suite([resolve("paper-a-identify", "profile")], seed=1)
-    case.checks = [{"criterion": "nlms_adaline l_q_h error", "passed": False}]
-    assert _commission_hint(case) is None  # the default rig has no effect the firmware misses
+    def text(name: str, kind: str) -> str:
+        with open(resolve(name, kind), encoding="utf-8") as f:
+            return f.read()
+
+    motor, lab, default = (
+        text("paper-a-ipmsm", "motor"),
+        text("lab-typical", "rig"),
+        text("default", "rig"),
+    )
+    failed = ["nlms_adaline l_q_h error"]
+    assert "encoder offset" in (commission_hint(failed, motor, lab) or "")
+    assert commission_hint(failed, motor, default) is None  # the firmware's own inverter model
+    assert commission_hint(["speed error"], motor, lab) is None  # not an identification check
+    commissioned = motor + "commissioning: {nominal: {}}\n"
+    assert commission_hint(failed, commissioned, lab) is None

@@ -240,3 +240,46 @@ def acceptance_line(checks: list[Check], most: int = 3) -> str:
 
 def checks_failed(checks: list[Check]) -> int:
     return sum(1 for c in checks if not c.passed)
+
+
+def commission_hint(failed: list[str], motor_yaml: str, rig_yaml: str) -> str | None:
+    """When identification criteria (``failed``: the failed checks' criteria) missed with a
+    motor file that is not commissioned, on a rig with what commissioning measures and the motor
+    file does not say: what that is, and the commands that remove it (docs/sweep.md)."""
+    import yaml
+
+    from pmsm_hil.analysis.identification import ESTIMATORS
+
+    if not any(c.split(" ")[0] in ESTIMATORS for c in failed):
+        return None
+    motor = yaml.safe_load(motor_yaml or "") or {}
+    rig = yaml.safe_load(rig_yaml or "") or {}
+    if motor.get("commissioning"):
+        return None
+    on = {
+        n: e
+        for n, e in (rig.get("effects") or {}).items()
+        if isinstance(e, dict) and e.get("enabled", True) is not False
+    }
+    unknown = []
+    if on.get("encoder", {}).get("offset_e_rad", 0.0):
+        unknown.append("encoder offset")
+    if "sensor_offset" in on or "sensor_gain" in on:
+        unknown.append("current-sensor offsets and gains")
+    dt = on.get("dead_time")
+    if dt is not None and (
+        dt.get("dead_time_s", 2e-6) != motor.get("dead_time_s", 0.0)
+        or dt.get("v_drop_v", 1.0) != motor.get("v_drop_v", 0.0)
+    ):
+        unknown.append("inverter dead time and drop")
+    if "motor_deviation" in on:
+        unknown.append("the motor's own R, L, psi_f")
+    if not unknown:
+        return None
+    name = rig.get("name", "RIG")
+    return (
+        f"the motor file is not commissioned, and rig {name} has what commissioning measures and "
+        f"the firmware is not told ({', '.join(unknown)}); the identification is judged against "
+        f"the plant. Commission first (pmsm-hil commission --rig {name} -o commissioned.yaml) "
+        "and run with --motor commissioned.yaml"
+    )

@@ -382,11 +382,22 @@ def _finish(result, print_summary, summarize_log, profile=None) -> int:
         if ident is not None:
             print_identification(ident)
         if profile is not None and summary.complete:
-            from pmsm_hil.analysis.acceptance import acceptance_line, profile_checks
+            from pmsm_hil.analysis.acceptance import (
+                acceptance_line,
+                commission_hint,
+                profile_checks,
+            )
 
             checks = profile_checks(profile, result.log_path, summary, log)
             if checks:
                 print(acceptance_line(checks))
+                hint = commission_hint(
+                    [c.criterion for c in checks if not c.passed],
+                    profile.motor.yaml_text,
+                    profile.rig.yaml_text,
+                )
+                if hint:
+                    print(f"hint: {hint}")
     except (
         BrokenPipeError
     ):  # `| head`: the reader left; the exit code still tells how the run ended

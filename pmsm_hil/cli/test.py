@@ -141,44 +141,12 @@ def _print(cases) -> None:
 
 
 def _commission_hint(case) -> str | None:
-    """When identification checks failed on a rig with effects and a motor file that is not a
-    commissioned one: the likely cause, and the commands that remove it."""
-    import yaml
+    """The commissioning hint (analysis.acceptance.commission_hint) for a case of the suite."""
+    from pmsm_hil.analysis.acceptance import commission_hint
 
-    from pmsm_hil.analysis.identification import ESTIMATORS
-
-    failed = [ch for ch in case.checks if not ch["passed"]]
-    if not case.run or not any(ch["criterion"].split(" ")[0] in ESTIMATORS for ch in failed):
+    if not case.run:
         return None
-    motor = yaml.safe_load(case.run.texts.get("motor.yaml", "")) or {}
-    rig = yaml.safe_load(case.run.texts.get("rig.yaml", "")) or {}
-    if motor.get("commissioning"):
-        return None
-    on = {
-        n: e
-        for n, e in (rig.get("effects") or {}).items()
-        if isinstance(e, dict) and e.get("enabled", True) is not False
-    }
-    # what commissioning measures and the motor file does not say
-    unknown = []
-    if on.get("encoder", {}).get("offset_e_rad", 0.0):
-        unknown.append("encoder offset")
-    if "sensor_offset" in on or "sensor_gain" in on:
-        unknown.append("current-sensor offsets and gains")
-    dt = on.get("dead_time")
-    if dt is not None and (
-        dt.get("dead_time_s", 2e-6) != motor.get("dead_time_s", 0.0)
-        or dt.get("v_drop_v", 1.0) != motor.get("v_drop_v", 0.0)
-    ):
-        unknown.append("inverter dead time and drop")
-    if "motor_deviation" in on:
-        unknown.append("the motor's own R, L, psi_f")
-    if not unknown:
-        return None
-    name = rig.get("name", "the rig")
-    return (
-        f"the motor file is not commissioned, and rig {name} has what commissioning measures and "
-        f"the firmware is not told ({', '.join(unknown)}); the identification is judged against "
-        f"the plant. Commission first (pmsm-hil commission --rig {name} -o commissioned.yaml) "
-        "and test with --motor commissioned.yaml"
+    failed = [ch["criterion"] for ch in case.checks if not ch["passed"]]
+    return commission_hint(
+        failed, case.run.texts.get("motor.yaml", ""), case.run.texts.get("rig.yaml", "")
     )
