@@ -299,3 +299,40 @@ def test_report_counts_the_runs_that_never_converged():
     assert rec.runs_text() == "1 (2 no value)"
     full = metric_stats(rows[2:3], ["id_rls_l_d_h_conv_s"])[0]
     assert full.runs_text() == "1"
+
+
+@pytest.mark.parametrize(
+    "values, says",
+    [
+        ("[1, 1.5]", "values = 1.5 is not a whole number"),
+        ("[1, two]", "values = 'two' is not a whole number"),
+        ("[1, -2]", "values = -2 is not a whole number in 0..2147483647"),
+        ("[3, 3.0]", "repeats a seed"),
+    ],
+)
+def test_a_seed_axis_takes_distinct_whole_seeds(tmp_path, values, says):
+    p = tmp_path / "s.yaml"
+    p.write_text(f"name: s\nprofile: paper-a\naxes:\n  - {{field: seed, values: {values}}}\n")
+    r = _cli("sweep", str(p), "--out", str(tmp_path / "out"))
+    assert r.returncode == 2, r.stdout + r.stderr
+    assert f"{p}:4: axes[0]." in r.stderr and says in r.stderr
+    assert "Traceback" not in r.stderr
+
+
+def test_a_scheduler_address_dask_does_not_know_is_said(tmp_path):
+    r = _cli(
+        "sweep", "tolerance", "--out", str(tmp_path / "o"), "--scheduler", "http://127.0.0.1:1"
+    )
+    assert r.returncode == 3 and "Traceback" not in r.stderr, r.stderr
+    assert "cannot reach the scheduler http://127.0.0.1:1" in r.stderr
+    assert "tcp://HOST:8786" in r.stderr
+
+
+def test_report_summary_names_the_runs_that_failed():
+    from pmsm_hil.sweep.report import _summary
+
+    rep = SimpleNamespace(
+        headline=lambda: "2 runs", notes=[], stats=[], failed=[(1, "run error: the link dropped")]
+    )
+    text = _summary(rep)  # type: ignore[arg-type]
+    assert "## Runs that failed to run" in text and "- run 1: run error: the link dropped" in text

@@ -30,3 +30,22 @@ def fail(kind: str, message: str, code: int) -> int:
     report(kind, message)
     sys.stderr.flush()
     return code
+
+
+# what reaching a Dask scheduler can raise: OSError, nothing answers; ValueError, not an address
+# Dask knows (http://...); MemoryError, something answered that does not speak Dask's protocol
+SCHEDULER_ERRORS = (OSError, ValueError, MemoryError)
+
+
+def scheduler_failed(scheduler: str | None, e: BaseException) -> int:
+    """The message and exit code 3 for ``e`` (one of SCHEDULER_ERRORS) met while running on
+    ``scheduler``; re-raises an error that is not about reaching one (no scheduler given)."""
+    if not scheduler and not isinstance(e, OSError):
+        raise e
+    why = str(e) if isinstance(e, OSError) else f"{type(e).__name__}: {e}"
+    return fail(
+        "error",
+        f"cannot reach the scheduler {scheduler}: {why} (a Dask scheduler's address is "
+        "tcp://HOST:8786; 8787 is its dashboard)",
+        3,
+    )

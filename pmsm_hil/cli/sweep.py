@@ -7,7 +7,7 @@ import argparse
 import os
 from pathlib import Path
 
-from pmsm_hil.cli.errors import fail
+from pmsm_hil.cli.errors import SCHEDULER_ERRORS, fail, scheduler_failed
 
 
 def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -92,8 +92,8 @@ def main(args: argparse.Namespace) -> int:
         )
     except ResultsFormatError as e:
         return fail("error", str(e), 2)
-    except OSError as e:
-        return fail("error", f"cannot reach the scheduler {args.scheduler}: {e}", 3)
+    except SCHEDULER_ERRORS as e:
+        return scheduler_failed(args.scheduler, e)
     ran, *judged = res.end_lines()
     print(ran)
     for r in res.rows:
@@ -146,6 +146,10 @@ def _print_report(report) -> None:
         tab.add_row(m.metric, m.runs_text(), _fmt(m.metric, m.median), _fmt(m.metric, m.worst))
     console.print(tab)
     console.print(report.headline(), highlight=False, soft_wrap=True)
+    for i, err in report.failed[:5]:
+        console.print(f"  run {i} failed to run: {escape(err)}", highlight=False, soft_wrap=True)
+    if len(report.failed) > 5:
+        console.print(f"  and {len(report.failed) - 5} more (summary.md)", highlight=False)
     plots = [p for p in report.files if p.suffix == ".png"]
     console.print(
         f"report {report.files[0]}"

@@ -7,7 +7,7 @@ import argparse
 import tempfile
 from pathlib import Path
 
-from pmsm_hil.cli.errors import fail
+from pmsm_hil.cli.errors import SCHEDULER_ERRORS, fail, scheduler_failed
 
 EXIT_FAILED = 1
 
@@ -79,8 +79,8 @@ def main(args: argparse.Namespace) -> int:
             keep_logs=args.out is not None,
             progress=len(cases) > 1,
         )
-    except OSError as e:
-        return fail("error", f"cannot reach the scheduler {args.scheduler}: {e}", 3)
+    except SCHEDULER_ERRORS as e:
+        return scheduler_failed(args.scheduler, e)
     finally:
         if tmp is not None:
             tmp.cleanup()

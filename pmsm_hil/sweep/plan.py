@@ -149,10 +149,36 @@ class _Base:
         self.data["profile"]["rig"] = "rig.yaml"
 
 
+SEED_MAX = 2**31 - 1  # as the sweep file's and the profile's own seed
+
+
+def _seed_problems(sweep: Sweep, i: int, ax: Axis) -> list[Problem]:
+    """A seed axis takes whole numbers in 0..SEED_MAX, as a list or a linspace of them (a
+    drawn seed is not a seed: draws are already random)."""
+    if ax.values is None and ax.linspace is None:
+        return [sweep.src.problem(("axes", i, ax.kind), "a seed axis takes values: [...]", ax.kind)]
+    vals = axis_values(ax)
+    for v in vals:
+        ok = isinstance(v, (int, float)) and not isinstance(v, bool) and float(v).is_integer()
+        if not ok or not 0 <= v <= SEED_MAX:
+            key = "values" if ax.values is not None else "linspace"
+            return [
+                sweep.src.problem(
+                    ("axes", i, key), f"is not a whole number in 0..{SEED_MAX} (a seed)", v
+                )
+            ]
+    if len({int(v) for v in vals}) < len(vals):
+        return [
+            sweep.src.problem(("axes", i, "values"), "repeats a seed (the same run twice)", vals)
+        ]
+    return []
+
+
 def _check_axes(sweep: Sweep, base: _Base) -> None:
     problems: list[Problem] = list(sweep.problems)  # the file's own, kept by load_sweep(defer=True)
     for i, ax in enumerate(sweep.axes):
         if ax.field == "seed":
+            problems += _seed_problems(sweep, i, ax)
             continue
         parts = _parts(ax.field)
         root, rest = str(parts[0]), parts[1:]

@@ -68,6 +68,7 @@ class SweepReport:
     stats: list[MetricStats] = field(default_factory=list)
     files: list[Path] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)  # e.g. an older directory's columns renamed
+    failed: list[tuple[Any, str]] = field(default_factory=list)  # (run index, error) not run
 
     def headline(self) -> str:
         """Runs completed / failed to run, and how many met the criteria: one line."""
@@ -140,6 +141,9 @@ def _summary(rep: SweepReport) -> str:
             f"| {m.metric} | {m.runs_text()} | {m.median:.4g} | {m.worst:.4g} | {m.min:.4g} | "
             f"{m.max:.4g} |"
         )
+    if rep.failed:
+        lines += ["", "## Runs that failed to run", ""]
+        lines += [f"- run {i}: {err}" for i, err in rep.failed]
     return "\n".join(lines) + "\n"
 
 
@@ -175,6 +179,9 @@ def write_report(out: Path) -> SweepReport:
         criteria=has_criteria(rows),
         stats=metric_stats(rows, cols),
         notes=notes,
+        failed=[
+            (r.get("index"), str(r.get("error") or "")) for r in rows if r.get("status") != "ok"
+        ],
     )
     rep = out / "report"
     rep.mkdir(exist_ok=True)
@@ -182,7 +189,12 @@ def write_report(out: Path) -> SweepReport:
     written.append(rep / "summary.md")
     written[0].write_text(_summary(report))
     ok = [r for r in rows if r.get("status") == "ok"]
-    num_axes = [a for a in axes if all(isinstance(r.get(a), (int, float)) for r in rows)]
+    num_axes = [
+        a
+        for a in axes
+        if all(isinstance(r.get(a), (int, float)) for r in rows)
+        and len({r.get(a) for r in rows}) > 1  # a one-value axis is a fixed change: no panel
+    ]
     if num_axes and ok:
         for c in cols:
             # margins fixed in inches instead of a layout engine: constrained layout measured
