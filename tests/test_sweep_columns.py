@@ -336,3 +336,25 @@ def test_report_summary_names_the_runs_that_failed():
     )
     text = _summary(rep)  # type: ignore[arg-type]
     assert "## Runs that failed to run" in text and "- run 1: run error: the link dropped" in text
+
+
+def test_ctrl_c_on_a_local_sweep_leaves_only_its_summary(tmp_path):
+    """SIGINT to the whole process group, as a terminal's Ctrl-C: the workers ignore it (the
+    cluster closes them), the sweep says it was interrupted and how to resume, exit 130."""
+    import os
+    import signal
+    import time
+
+    p = subprocess.Popen(
+        [*CLI, "sweep", "tolerance", "--out", str(tmp_path / "out"), "--no-progress"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+    time.sleep(6.0)
+    os.killpg(p.pid, signal.SIGINT)
+    out, err = p.communicate(timeout=120)
+    assert p.returncode == 130, out + err
+    assert "Traceback" not in err and "KeyboardInterrupt" not in err, err
+    assert "interrupted: run the same command again to resume" in out
