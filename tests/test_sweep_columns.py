@@ -339,8 +339,9 @@ def test_report_summary_names_the_runs_that_failed():
 
 
 def test_ctrl_c_on_a_local_sweep_leaves_only_its_summary(tmp_path):
-    """SIGINT to the whole process group, as a terminal's Ctrl-C: the workers ignore it (the
-    cluster closes them), the sweep says it was interrupted and how to resume, exit 130."""
+    """SIGINT to the whole process group, as a terminal's Ctrl-C, once the sweep is running: the
+    workers ignore it (sweep/worker_setup.py; the cluster closes them), the sweep says it was
+    interrupted and how to resume, exit 130."""
     import os
     import signal
     import time
@@ -352,7 +353,11 @@ def test_ctrl_c_on_a_local_sweep_leaves_only_its_summary(tmp_path):
         text=True,
         start_new_session=True,
     )
-    time.sleep(6.0)
+    journal = tmp_path / "out" / "results.jsonl"
+    deadline = time.monotonic() + 120.0
+    while not (journal.is_file() and journal.read_text().strip()) and p.poll() is None:
+        assert time.monotonic() < deadline, "no run finished in 120 s"
+        time.sleep(0.2)  # a run has finished: the workers are up (their start is not covered)
     os.killpg(p.pid, signal.SIGINT)
     out, err = p.communicate(timeout=120)
     assert p.returncode == 130, out + err

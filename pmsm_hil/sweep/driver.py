@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import json
 import os
-import signal
 import sys
 import time
 from collections.abc import Callable
@@ -135,22 +134,16 @@ def _client(scheduler: str | None, workers: int | None):
             )
         return client, None
     dask.config.set(SCHEDULER_CONFIG)
-    # the worker processes start with SIGINT ignored (kept across exec; Python then installs no
-    # KeyboardInterrupt handler): a Ctrl-C in the terminal reaches the whole process group, and
-    # the workers' tracebacks buried the sweep's summary. They stop when the cluster closes.
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
-        cluster = LocalCluster(
-            n_workers=workers or os.cpu_count() or 1,
-            threads_per_worker=1,
-            processes=True,
-            host="127.0.0.1",
-            dashboard_address=None,
-            scheduler_kwargs={"dashboard": False},
-            silence_logs=logging.ERROR,
-        )
-    finally:
-        signal.signal(signal.SIGINT, previous)
+    cluster = LocalCluster(
+        n_workers=workers or os.cpu_count() or 1,
+        threads_per_worker=1,
+        processes=True,
+        host="127.0.0.1",
+        dashboard_address=None,
+        scheduler_kwargs={"dashboard": False},
+        silence_logs=logging.ERROR,
+        preload=["pmsm_hil.sweep.worker_setup"],  # the workers ignore the terminal's Ctrl-C
+    )
     return Client(cluster), cluster
 
 
