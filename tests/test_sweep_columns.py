@@ -346,8 +346,16 @@ def test_ctrl_c_on_a_local_sweep_leaves_only_its_summary(tmp_path):
     import signal
     import time
 
+    # as from a terminal: a job started in the background of a non-interactive shell (CI)
+    # inherits SIGINT ignored, and Python then installs no KeyboardInterrupt handler
+    start = (
+        "import runpy, signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
+        "sys.argv = ['pmsm-hil', *sys.argv[1:]]; "
+        "runpy.run_module('pmsm_hil.cli.main', run_name='__main__')"
+    )
+    out = str(tmp_path / "out")
     p = subprocess.Popen(
-        [*CLI, "sweep", "tolerance", "--out", str(tmp_path / "out"), "--no-progress"],
+        [sys.executable, "-c", start, "sweep", "tolerance", "--no-progress", "--out", out],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
