@@ -319,6 +319,58 @@ def test_a_seed_axis_takes_distinct_whole_seeds(tmp_path, values, says):
     assert "Traceback" not in r.stderr
 
 
+@pytest.mark.parametrize(
+    "axis, line_says",
+    [
+        (
+            "{field: rig.effects.dead_time.dead_time_s, values: [1.0e-6, -3.0e-6]}",
+            "axes[0].values[1] = -3e-06 makes the rig file invalid: "
+            "effects.dead_time.dead_time_s = -3e-06 is outside the allowed range",
+        ),
+        (
+            "{field: motor.r_s_ohm, relative: true, uniform: {low: -0.5, high: 1.1}}",
+            "axes[0].uniform.low = -0.5 makes the motor file invalid: r_s_ohm = -0.45 is "
+            "outside the allowed range (0, 1000] ohm (the factor -0.5 times the base value)",
+        ),
+        (
+            "{field: rig.effects.dead_time.v_drop_v, values: [1.0, two]}",
+            "axes[0].values[1] = 'two' makes the rig file invalid: effects.dead_time.v_drop_v = "
+            "'two' is not a number (write numbers without quotes)",
+        ),
+        (
+            "{field: motor.r_s_ohm, relative: true, values: [1, two]}",
+            "axes[0].values[1] = 'two' is not a number (a relative axis takes factors",
+        ),
+        (
+            "{field: motor.l_d_h, log_uniform: {low: 1.0e-3, high: 50.0}}",
+            "axes[0].log_uniform.high = 50 makes the motor file invalid: l_d_h = 50 is outside",
+        ),
+    ],
+)
+def test_a_value_the_files_do_not_take_is_named_at_the_sweep_files_line(tmp_path, axis, line_says):
+    """Checked while planning (exit 2 before anything runs), not at run time in a generated file."""
+    p = tmp_path / "s.yaml"
+    draws = "draws: 2" if "values" not in axis else "seed: 1"
+    p.write_text(f"name: s\nprofile: paper-a\n{draws}\naxes:\n  - {axis}\n")
+    with pytest.raises(ProfileError) as e:
+        run_sweep(load_sweep(p, defer=True), tmp_path / "out", workers=1, progress=False)
+    assert str(e.value).startswith(f"{p}:5: {line_says}"), str(e.value)
+    assert not (tmp_path / "out" / "results.csv").exists()
+
+
+def test_values_the_files_take_plan_as_before(tmp_path):
+    p = tmp_path / "s.yaml"
+    p.write_text(
+        "name: s\nprofile: paper-a\ndraws: 2\naxes:\n"
+        "  - {field: rig.effects.dead_time.dead_time_s, values: [0.0, 2.0e-6]}\n"
+        "  - {field: motor.r_s_ohm, relative: true, normal: {mean: 1.0, std: 0.05}}\n"
+    )
+    from pmsm_hil.sweep.plan import plan_runs
+
+    runs = plan_runs(load_sweep(p, defer=True))
+    assert [r.values["rig_effects_dead_time_dead_time_s"] for r in runs] == [0.0, 2e-6] * 2
+
+
 def test_a_scheduler_address_dask_does_not_know_is_said(tmp_path):
     r = _cli(
         "sweep", "tolerance", "--out", str(tmp_path / "o"), "--scheduler", "http://127.0.0.1:1"

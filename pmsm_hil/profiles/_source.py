@@ -408,6 +408,40 @@ def range_text(info: Any, name: str) -> str:
     return "is out of range"
 
 
+def error_message(err: Any, info: Any, name: str) -> str:
+    """The message of one pydantic error (not `missing` or `extra_forbidden`), in the profiles'
+    words: ``info`` is the field's FieldInfo (for its range), ``name`` its key (for the unit)."""
+    typ = err["type"]
+    value = err.get("input")
+    if typ in ("float_type", "float_parsing"):
+        return "is not a number" + (
+            " (write numbers without quotes)" if isinstance(value, str) else ""
+        )
+    if typ in ("int_type", "int_parsing", "int_from_float"):
+        return "is not a whole number"
+    if typ in ("bool_type", "bool_parsing"):
+        return "is not true or false"
+    if typ == "string_type":
+        return "is not text (put it in quotes)"
+    if typ == "literal_error":
+        return f"is not one of {err.get('ctx', {}).get('expected', '')}"
+    if typ == "finite_number":
+        return "is not a finite number"
+    if typ in ("greater_than", "greater_than_equal", "less_than", "less_than_equal"):
+        return range_text(info, name)
+    if typ in ("model_type", "model_attributes_type", "dict_type"):
+        return "must be a mapping of `key: value` lines"
+    if typ == "list_type":
+        return "must be a list (lines starting with `- `)"
+    if typ == "too_short":
+        return f"must have at least {err.get('ctx', {}).get('min_length')} item(s)"
+    if typ == "too_long":
+        return f"must have at most {err.get('ctx', {}).get('max_length')} items"
+    if typ == "string_too_short":
+        return "must not be empty"
+    return err["msg"][0].lower() + err["msg"][1:]
+
+
 def validation_problems(
     exc: ValidationError, src: Source, model: type[BaseModel], loc_prefix: tuple = ()
 ) -> list[Problem]:
@@ -437,34 +471,8 @@ def validation_problems(
                 msg = f"is not a field of {section} (known: {', '.join(allowed)})"
             out.append(src.problem(loc, msg, value))
             continue
-        if typ in ("float_type", "float_parsing"):
-            msg = "is not a number" + (
-                " (write numbers without quotes)" if isinstance(value, str) else ""
-            )
-        elif typ in ("int_type", "int_parsing", "int_from_float"):
-            msg = "is not a whole number"
-        elif typ in ("bool_type", "bool_parsing"):
-            msg = "is not true or false"
-        elif typ == "string_type":
-            msg = "is not text (put it in quotes)"
-        elif typ == "literal_error":
-            msg = f"is not one of {err.get('ctx', {}).get('expected', '')}"
-        elif typ == "finite_number":
-            msg = "is not a finite number"
-        elif typ in ("greater_than", "greater_than_equal", "less_than", "less_than_equal"):
-            msg = range_text(info, name)
-        elif typ in ("model_type", "model_attributes_type", "dict_type"):
-            msg = "must be a mapping of `key: value` lines"
-        elif typ == "list_type":
-            msg = "must be a list (lines starting with `- `)"
-        elif typ == "too_short":
-            msg = f"must have at least {err.get('ctx', {}).get('min_length')} item(s)"
-        elif typ == "too_long":
-            msg = f"must have at most {err.get('ctx', {}).get('max_length')} items"
-        elif typ == "string_too_short":
-            msg = "must not be empty"
         else:
-            msg = err["msg"][0].lower() + err["msg"][1:]
+            msg = error_message(err, info, name)
         out.append(src.problem(loc, msg, value))
     return out
 

@@ -16,13 +16,22 @@ import math
 import os
 import re
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
 import yaml
+from pydantic import TypeAdapter, ValidationError
 
 from pmsm_hil.profiles import ProfileError, load_profile
-from pmsm_hil.profiles._source import Problem, read_source, resolve_ref
+from pmsm_hil.profiles._source import (
+    Problem,
+    _resolve,
+    error_message,
+    fmt_value,
+    loc_str,
+    read_source,
+    resolve_ref,
+)
 
 from .spec import Axis, Sweep
 
@@ -207,6 +216,57 @@ def _check_axes(sweep: Sweep, base: _Base) -> None:
             )
     if problems:
         raise ProfileError(problems)
+    problems = []
+    for i, ax in enumerate(sweep.axes):
+        if ax.field != "seed":
+            problems += _value_problems(sweep, base, i, ax)
+    if problems:
+        raise ProfileError(problems)
+
+
+def _probe_values(ax: Axis) -> list[tuple[tuple, Any]]:
+    """The values of an axis that can be checked before the sweep runs, with where each is written:
+    every value of a grid, the ends of a uniform or log-uniform draw (a normal draw has none)."""
+    if ax.values is not None:
+        return [(("values", j), v) for j, v in enumerate(ax.values)]
+    if ax.linspace is not None:
+        return [(("linspace",), v) for v in axis_values(ax)]
+    rng = ax.uniform if ax.uniform is not None else ax.log_uniform
+    if rng is None:
+        return []
+    return [((ax.kind, "low"), rng.low), ((ax.kind, "high"), rng.high)]
+
+
+def _value_problems(sweep: Sweep, base: _Base, i: int, ax: Axis) -> list[Problem]:
+    """Each value of axis ``i`` against its field's own type and bounds in the motor, rig or
+    profile (those hold whatever the other axes do): a value the field does not take is reported
+    at the sweep file's line before anything runs, not at run time in a generated file. Checks
+    that involve other fields (a torque limit against the current limit) stay with the run, whose
+    other axes may change them. One problem per axis (its first bad value)."""
+    parts = _parts(ax.field)
+    root, rest = str(parts[0]), parts[1:]
+    _, info = _resolve(type(base.objects[root]), tuple(rest))
+    if info is None:
+        return []
+    typ: Any = Annotated[(info.annotation, *info.metadata)] if info.metadata else info.annotation
+    adapter: TypeAdapter[Any] = TypeAdapter(typ)
+    base_value = _base_value(base.objects[root], rest)
+    for loc, v in _probe_values(ax):
+        if ax.relative and (isinstance(v, bool) or not isinstance(v, (int, float))):
+            why = "is not a number (a relative axis takes factors of the base value)"
+            return [sweep.src.problem(("axes", i, *loc), why, v)]
+        concrete = _concrete(v, base_value, ax.relative)
+        try:
+            adapter.validate_python(concrete)
+        except ValidationError as e:
+            why = error_message(e.errors()[0], info, str(rest[-1]))
+            said = f"{loc_str(tuple(rest))} = {fmt_value(concrete)} {why}"
+            if ax.relative:
+                said += f" (the factor {fmt_value(v)} times the base value)"
+            return [
+                sweep.src.problem(("axes", i, *loc), f"makes the {root} file invalid: {said}", v)
+            ]
+    return []
 
 
 def _concrete(value: Any, base_value: Any, relative: bool) -> Any:
