@@ -337,9 +337,12 @@ def test_report_plots_each_metric_and_a_pass_map_for_a_2d_grid(tmp_path, data):
     )
     out = tmp_path / "out"
     run_sweep(load_sweep(p), out, workers=1, progress=False)
+    (out / "report").mkdir()
+    (out / "report" / "ident_rls_l_d_h_err.png").write_bytes(b"an earlier report's plot")
     r = subprocess.run([*CLI, "sweep", "report", str(out)], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     rep = out / "report"
+    assert not (rep / "ident_rls_l_d_h_err.png").exists()  # not this sweep's: removed
     assert (rep / "pass_map.png").stat().st_size > 1000
     assert (rep / "speed_error_max_rpm.png").stat().st_size > 1000
     summary = (rep / "summary.md").read_text()
@@ -381,3 +384,29 @@ def test_relative_axis_on_a_field_without_a_number_is_an_error(tmp_path):
     assert str(e.value).startswith(
         f"{p}:4: axes[0].relative = true needs a number in the base file, which has None"
     )
+
+
+def test_another_sweep_into_the_same_folder_is_refused(tmp_path, data):
+    one = short_sweep(
+        tmp_path, data, "  - {field: seed, values: [1]}\n", extra="metrics: [faults]\n"
+    )
+    out = tmp_path / "out"
+    run_sweep(load_sweep(one), out, workers=1, progress=False)
+    other = write_sweep(
+        tmp_path,
+        f"name: other\nprofile: {data / 'short.yaml'}\naxes:\n  - {{field: seed, values: [2]}}\n",
+        name="other.yaml",
+    )
+    r = subprocess.run(
+        [*CLI, "sweep", str(other), "--out", str(out)], capture_output=True, text=True
+    )
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+    assert f"{out / 'sweep.json'}: name = 't': {out} holds the results of sweep 't'" in r.stderr
+    assert "not of 'other'" in r.stderr
+    assert json.loads((out / "sweep.json").read_text())["name"] == "t"  # left alone
+    # the same sweep, edited (another seed), resumes into it: the first run is not run again
+    edited = short_sweep(
+        tmp_path, data, "  - {field: seed, values: [1, 2]}\n", extra="metrics: [faults]\n"
+    )
+    res = run_sweep(load_sweep(edited), out, workers=1, progress=False)
+    assert (res.skipped, res.ok) == (1, 1)

@@ -18,7 +18,7 @@ from typing import Any
 
 from .execute import execute_run
 from .plan import FILES, Run, plan_runs
-from .results import Journal, check_resumable, passed, write_meta, write_table
+from .results import Journal, check_resumable, check_same_sweep, passed, write_meta, write_table
 from .spec import Sweep
 
 __all__ = [
@@ -167,9 +167,10 @@ def run_sweep(
     runs: list[Run] | None = None,
 ) -> SweepOutcome:
     """Run the sweep (its first ``limit`` runs) into ``out``; skip the runs done there before.
-    Raises ResultsFormatError when ``out`` holds an older pmsm-hil's results."""
+    Raises ResultsFormatError when ``out`` holds an older pmsm-hil's results or another sweep's."""
     out = Path(out)
     check_resumable(out)
+    check_same_sweep(out, sweep.name)
     out.mkdir(parents=True, exist_ok=True)
     runs = plan_runs(sweep) if runs is None else runs
     if limit is not None:

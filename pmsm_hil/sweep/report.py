@@ -235,6 +235,8 @@ def write_report(out: Path) -> SweepReport:
     ]
     if len(grid) == 2:
         written.append(_pass_map(rows, grid, rep, meta.get("name", out.name)))
+    for stale in set(rep.glob("*.png")) - set(written):  # an earlier report's metric or map
+        stale.unlink()
     return report
 
 

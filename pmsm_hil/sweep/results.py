@@ -207,6 +207,26 @@ def read_meta(out: Path, rows: list[dict[str, Any]]) -> tuple[dict[str, Any], li
     return meta, notes
 
 
+def check_same_sweep(out: Path, name: str) -> None:
+    """Raise ResultsFormatError when ``out`` holds another sweep's results (its sweep.json names
+    another sweep): the table would be replaced and the two journals mixed. The same sweep, edited
+    (an axis added, more draws), resumes: its unchanged runs keep their keys."""
+    meta = Path(out) / "sweep.json"
+    if not meta.is_file():
+        return
+    try:
+        old = json.loads(meta.read_text(encoding="utf-8"))
+        old_name, old_file = old.get("name"), old.get("file", "?")
+    except (ValueError, AttributeError):
+        return  # check_resumable says what is wrong with it
+    if old_name is not None and old_name != name:
+        raise ResultsFormatError(
+            f"{meta}: name = {old_name!r}: {out} holds the results of sweep {old_name!r} "
+            f"({old_file}), not of {name!r}. Sweep into another folder (--out DIR), or remove "
+            f"{out} to replace them"
+        )
+
+
 def check_resumable(out: Path) -> None:
     """Raise ResultsFormatError when ``out`` holds the journal of an older pmsm-hil's sweep
     (sweep.json without this format): resuming would mix its rows (a relative axis's factor under
