@@ -390,6 +390,23 @@ def test_report_summary_names_the_runs_that_failed():
     assert "## Runs that failed to run" in text and "- run 1: run error: the link dropped" in text
 
 
+def test_summary_shows_relative_errors_in_percent_as_the_console_does():
+    from pmsm_hil.sweep.report import MetricStats, _summary
+
+    rep = SimpleNamespace(
+        headline=lambda: "2 runs",
+        notes=[],
+        failed=[],
+        stats=[
+            MetricStats("id_rls_l_d_h_error_rel", 2, 0.005, -0.0125, -0.0125, 0.005),
+            MetricStats("speed_error_max_rpm", 2, 1.5, 2.25, 1.0, 2.25),
+        ],
+    )
+    text = _summary(rep)  # type: ignore[arg-type]
+    assert "| id_rls_l_d_h_error_rel | 2 | +0.50 % | -1.25 % | -1.25 % | +0.50 % |" in text
+    assert "| speed_error_max_rpm | 2 | 1.5 | 2.25 | 1 | 2.25 |" in text
+
+
 def test_ctrl_c_on_a_local_sweep_leaves_only_its_summary(tmp_path):
     """SIGINT to the whole process group, as a terminal's Ctrl-C, once the sweep is running: the
     workers ignore it (sweep/worker_setup.py; the cluster closes them), the sweep says it was

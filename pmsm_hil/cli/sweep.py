@@ -129,6 +129,8 @@ def _print_report(report) -> None:
     from rich.markup import escape
     from rich.table import Table
 
+    from pmsm_hil.sweep.report import stat_text
+
     console = Console()
     if not console.is_terminal:
         console = Console(width=max(console.width, 100))
@@ -143,7 +145,9 @@ def _print_report(report) -> None:
     for col in ("metric", "runs", "median", "worst"):
         tab.add_column(col, justify="left" if col == "metric" else "right")
     for m in report.stats:
-        tab.add_row(m.metric, m.runs_text(), _fmt(m.metric, m.median), _fmt(m.metric, m.worst))
+        tab.add_row(
+            m.metric, m.runs_text(), stat_text(m.metric, m.median), stat_text(m.metric, m.worst)
+        )
     console.print(tab)
     console.print(report.headline(), highlight=False, soft_wrap=True)
     for i, err in report.failed[:5]:
@@ -157,15 +161,3 @@ def _print_report(report) -> None:
         highlight=False,
         soft_wrap=True,
     )
-
-
-def _fmt(metric: str, x: float) -> str:
-    """A statistic as the console shows it: relative errors in %, the rest in the column's unit
-    (its name's suffix), 4 significant digits; an empty cell for no value."""
-    import math
-
-    if math.isnan(x):
-        return ""
-    if metric.endswith("_rel"):
-        return f"{100 * x:+.2f} %"
-    return f"{x:.4g}"

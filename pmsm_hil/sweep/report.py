@@ -29,6 +29,7 @@ __all__ = [
     "metric_columns",
     "metric_stats",
     "passed",
+    "stat_text",
     "write_report",
 ]
 
@@ -124,6 +125,16 @@ def metric_stats(rows: list[dict[str, Any]], cols: list[str]) -> list[MetricStat
     return out
 
 
+def stat_text(metric: str, x: float) -> str:
+    """A statistic as the console and summary.md show it: relative errors in %, the rest in the
+    column's unit (its name's suffix), 4 significant digits; an empty cell for no value."""
+    if math.isnan(x):
+        return ""
+    if metric.endswith("_rel"):
+        return f"{100 * x:+.2f} %"
+    return f"{x:.4g}"
+
+
 def _summary(rep: SweepReport) -> str:
     lines = [
         f"# Sweep results: {rep.headline()}",
@@ -137,10 +148,8 @@ def _summary(rep: SweepReport) -> str:
         if not m.runs:
             lines.append(f"| {m.metric} | {m.runs_text()} | | | | |")
             continue
-        lines.append(
-            f"| {m.metric} | {m.runs_text()} | {m.median:.4g} | {m.worst:.4g} | {m.min:.4g} | "
-            f"{m.max:.4g} |"
-        )
+        cells = [stat_text(m.metric, x) for x in (m.median, m.worst, m.min, m.max)]
+        lines.append(f"| {m.metric} | {m.runs_text()} | " + " | ".join(cells) + " |")
     if rep.failed:
         lines += ["", "## Runs that failed to run", ""]
         lines += [f"- run {i}: {err}" for i, err in rep.failed]
@@ -154,8 +163,6 @@ def _safe(name: str) -> str:
 def write_report(out: Path) -> SweepReport:
     """Write the report of the sweep in ``out``; return it (the files written, the statistics,
     the counts)."""
-    from pmsm_hil.analysis.report_style import plt
-
     out = Path(out)
     if not (out / "results.parquet").is_file():
         raise ReportError(
@@ -197,34 +204,8 @@ def write_report(out: Path) -> SweepReport:
     ]
     if num_axes and ok:
         for c in cols:
-            # margins fixed in inches instead of a layout engine: constrained layout measured
-            # every axis's extent before each save, half of a report's time (46 plots: 42 s)
-            w_in = 3.2 * len(num_axes) + 1
-            fig, axs = plt.subplots(1, len(num_axes), figsize=(w_in, 3.2), squeeze=False)
-            fig.subplots_adjust(
-                left=0.9 / w_in, right=1 - 0.15 / w_in, bottom=0.17, top=0.86, wspace=0.35
-            )
-            for ax, a in zip(axs[0], num_axes, strict=False):
-                good = [r for r in ok if passed(r)]
-                bad = [r for r in ok if not passed(r)]
-                ax.plot([r[a] for r in good], [float(r[c]) for r in good], "o", ms=4, label="pass")
-                if bad:
-                    ax.plot(
-                        [r[a] for r in bad],
-                        [float(r[c]) for r in bad],
-                        "x",
-                        color="C3",
-                        label="fail",
-                    )
-                ax.set_xlabel(a, fontsize=8)
-                ax.locator_params(axis="x", nbins=4)  # close values' long tick labels would touch
-                ax.tick_params(labelsize=8)
-                ax.grid(alpha=0.3)
-            axs[0][0].set_ylabel(c, fontsize=8)
-            fig.suptitle(f"{meta.get('name', out.name)}: {c}", fontsize=10)
             p = rep / f"{_safe(c)}.png"
-            fig.savefig(p, dpi=90)
-            plt.close(fig)
+            _metric_plot(ok, c, num_axes, f"{meta.get('name', out.name)}: {c}", p)
             written.append(p)
     grid = [
         a["column"]
@@ -238,6 +219,72 @@ def write_report(out: Path) -> SweepReport:
     for stale in set(rep.glob("*.png")) - set(written):  # an earlier report's metric or map
         stale.unlink()
     return report
+
+
+PANELS_PER_ROW = 4
+
+
+def _metric_plot(
+    ok: list[dict[str, Any]], c: str, num_axes: list[str], title: str, p: Path
+) -> None:
+    """One metric against each numeric axis, a panel per axis, at most PANELS_PER_ROW to a row;
+    passing runs as dots, the others as crosses; a relative error in %, a whole-number axis (a
+    seed) with whole-number ticks."""
+    from matplotlib.ticker import EngFormatter, MaxNLocator
+
+    from pmsm_hil.analysis.report_style import plt
+    from pmsm_hil.profiles._source import unit_of
+
+    scale, unit = (100.0, " (%)") if c.endswith("_rel") else (1.0, "")
+    ncols = min(PANELS_PER_ROW, len(num_axes))
+    nrows = -(-len(num_axes) // ncols)
+    # margins fixed in inches instead of a layout engine: constrained layout measured every
+    # axis's extent before each save, half of a report's time (46 plots: 42 s)
+    w_in, h_in = 3.2 * ncols + 1, 2.9 * nrows + 0.5
+    fig, axs = plt.subplots(nrows, ncols, figsize=(w_in, h_in), squeeze=False)
+    fig.subplots_adjust(
+        left=0.9 / w_in,
+        right=1 - 0.15 / w_in,
+        bottom=0.55 / h_in,
+        top=1 - 0.45 / h_in,
+        wspace=0.35,
+        hspace=0.55,
+    )
+    good = [r for r in ok if passed(r)]
+    bad = [r for r in ok if not passed(r)]
+    for k, ax in enumerate(axs.flat):
+        if k >= len(num_axes):
+            ax.set_visible(False)
+            continue
+        a = num_axes[k]
+        ax.plot([r[a] for r in good], [scale * float(r[c]) for r in good], "o", ms=4, label="pass")
+        if bad:
+            ax.plot(
+                [r[a] for r in bad],
+                [scale * float(r[c]) for r in bad],
+                "x",
+                color="C3",
+                label="fail",
+            )
+        ax.set_xlabel(a, fontsize=8)
+        whole = all(isinstance(r[a], int) and not isinstance(r[a], bool) for r in ok)
+        # close values' long tick labels would touch: few ticks
+        ax.xaxis.set_major_locator(MaxNLocator(nbins=4, integer=whole))
+        if (
+            0 < max(abs(float(r[a])) for r in ok) < 1e-2
+        ):  # a dead time: 2 µs, not 2e-6 and an offset
+            ax.xaxis.set_major_formatter(EngFormatter(unit=unit_of(a), sep=" "))
+        ax.tick_params(labelsize=8)
+        ax.grid(alpha=0.3)
+        if k % ncols == 0:
+            ax.set_ylabel(c + unit, fontsize=8)
+    if bad:
+        fig.legend(
+            *axs[0][0].get_legend_handles_labels(), loc="upper right", fontsize=7, frameon=False
+        )
+    fig.suptitle(title, fontsize=10)
+    fig.savefig(p, dpi=90)
+    plt.close(fig)
 
 
 def _pass_map(rows, grid, rep: Path, name: str) -> Path:
