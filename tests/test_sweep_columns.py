@@ -440,3 +440,29 @@ def test_ctrl_c_on_a_local_sweep_leaves_only_its_summary(tmp_path):
     assert p.returncode == 130, out + err
     assert "Traceback" not in err and "KeyboardInterrupt" not in err, err
     assert "interrupted: run the same command again to resume" in out
+
+
+def test_a_local_cluster_does_not_warn_when_dasks_default_port_is_taken():
+    """A cluster already running on the machine holds 8787 (Dask's default for the scheduler's
+    HTTP server); the local sweep's scheduler takes a free port instead of warning about it."""
+    import socket
+    import warnings
+
+    from pmsm_hil.sweep.driver import _client
+
+    held = socket.socket()
+    held.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    try:
+        held.bind(("127.0.0.1", 8787))
+        held.listen()
+    except OSError:
+        pass  # taken already: the case itself
+    try:
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("always")
+            client, cluster = _client(None, 1)
+            client.close()
+            cluster.close()
+        assert not [w for w in seen if "already in use" in str(w.message)]
+    finally:
+        held.close()

@@ -78,7 +78,7 @@ def main(args: argparse.Namespace) -> int:
         f"sweep {sweep.name}: {len(runs)} runs of {Path(sweep.profile_path).name}"
         + (f", the first {min(args.limit, len(runs))}" if args.limit else "")
         + f" -> {out}/ on "
-        + (args.scheduler or f"a local cluster ({args.workers or os.cpu_count()} workers)")
+        + (args.scheduler or _local(args.workers or os.cpu_count() or 1))
     )
     try:
         res = run_sweep(
@@ -105,6 +105,10 @@ def main(args: argparse.Namespace) -> int:
     if res.interrupted:
         return 130
     return 0  # failed runs are results (status "failed" in the table), not a failed sweep
+
+
+def _local(n: int) -> str:
+    return f"a local cluster ({n} worker{'s' if n != 1 else ''})"
 
 
 def _report(args: argparse.Namespace) -> int:

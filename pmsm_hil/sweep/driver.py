@@ -139,7 +139,9 @@ def _client(scheduler: str | None, workers: int | None):
         threads_per_worker=1,
         processes=True,
         host="127.0.0.1",
-        dashboard_address=None,
+        # the scheduler's HTTP server (health, metrics; no dashboard) on a free port: Dask's
+        # default, 8787, is taken when a cluster runs on the machine, and Dask then warns
+        dashboard_address="127.0.0.1:0",
         scheduler_kwargs={"dashboard": False},
         silence_logs=logging.ERROR,
         preload=["pmsm_hil.sweep.worker_setup"],  # the workers ignore the terminal's Ctrl-C
