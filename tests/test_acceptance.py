@@ -165,9 +165,18 @@ def test_test_fails_with_the_measured_value_beside_the_bound(tmp_path, data):
 
 def test_test_reports_a_bad_profile_without_traceback(tmp_path, data):
     p = with_acceptance(tmp_path, data, "acceptance:\n  run: {faults: sometimes}\n")
-    r = subprocess.run([*CLI, "test", str(p)], capture_output=True, text=True, timeout=120)
+    junit = tmp_path / "out.xml"
+    r = subprocess.run(
+        [*CLI, "test", str(p), "--junit", str(junit)], capture_output=True, text=True, timeout=120
+    )
     assert r.returncode == 2 and "acceptance.run.faults = 'sometimes'" in r.stderr
     assert "Traceback" not in r.stderr
+    # CI finds a report that says why, not none
+    suite = ET.parse(junit).getroot().find("testsuite")
+    assert (suite.get("tests"), suite.get("errors")) == ("1", "1")
+    error = suite.find("testcase/error")
+    assert suite.find("testcase").get("name") == "inputs"
+    assert "acceptance.run.faults = 'sometimes'" in error.get("message")
 
 
 def test_angle_error_bounds_judge_the_estimator_closing_the_loop():

@@ -55,7 +55,12 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
 def main(args: argparse.Namespace) -> int:
     from pmsm_hil.profiles import ProfileError
     from pmsm_hil.profiles.shipped import resolve
-    from pmsm_hil.sweep.suite import junit_xml, plan_suite, run_suite
+    from pmsm_hil.sweep.suite import junit_error, junit_xml, plan_suite, run_suite
+
+    def junit(text: str) -> None:
+        if args.junit:
+            Path(args.junit).write_text(text, encoding="utf-8")
+            print(f"JUnit XML {args.junit}")
 
     try:
         profiles = [resolve(p, "profile") for p in args.profiles]
@@ -63,6 +68,7 @@ def main(args: argparse.Namespace) -> int:
         motor = resolve(args.motor, "motor") if args.motor else None
         cases = plan_suite(profiles, seed=args.seed, rig=rig, motor=motor)
     except ProfileError as e:
+        junit(junit_error("inputs", str(e)))
         return fail("error", str(e), 2)
     tmp = None
     if args.out is None:
@@ -80,14 +86,13 @@ def main(args: argparse.Namespace) -> int:
             progress=len(cases) > 1,
         )
     except SCHEDULER_ERRORS as e:
+        junit(junit_error("scheduler", f"{args.scheduler}: {type(e).__name__}: {e}"))
         return scheduler_failed(args.scheduler, e)
     finally:
         if tmp is not None:
             tmp.cleanup()
     _print(cases)
-    if args.junit:
-        Path(args.junit).write_text(junit_xml(cases), encoding="utf-8")
-        print(f"JUnit XML {args.junit}")
+    junit(junit_xml(cases))
     return 0 if all(c.passed for c in cases) else EXIT_FAILED
 
 

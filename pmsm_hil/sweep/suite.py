@@ -20,7 +20,7 @@ import yaml
 from .execute import execute_run
 from .plan import Run, profile_run, run_key
 
-__all__ = ["DEFAULT_ACCEPTANCE", "SuiteCase", "junit_xml", "plan_suite", "run_suite"]
+__all__ = ["DEFAULT_ACCEPTANCE", "SuiteCase", "junit_error", "junit_xml", "plan_suite", "run_suite"]
 
 DEFAULT_ACCEPTANCE = {"run": {"complete": True, "faults": "forbidden"}}
 METRICS = ["speed_error", "ripple", "recovery", "faults", "completeness", "angle"]
@@ -136,5 +136,17 @@ def junit_xml(cases: list[SuiteCase]) -> str:
         if c.log_path:
             props = ET.SubElement(suite, "properties")
             ET.SubElement(props, "property", name="log", value=c.log_path)
+    ET.indent(root)
+    return ET.tostring(root, encoding="unicode", xml_declaration=True) + "\n"
+
+
+def junit_error(what: str, message: str) -> str:
+    """JUnit XML for a suite that could not run (invalid inputs, no scheduler): one test case
+    ``what`` in error with ``message``, so that CI shows why instead of finding no report."""
+    root = ET.Element("testsuites", name="pmsm-hil test")
+    suite = ET.SubElement(root, "testsuite", name="pmsm-hil test", tests="1", failures="0")
+    suite.set("errors", "1")
+    tc = ET.SubElement(suite, "testcase", classname="pmsm-hil test", name=what)
+    ET.SubElement(tc, "error", message=message.splitlines()[0] if message else what).text = message
     ET.indent(root)
     return ET.tostring(root, encoding="unicode", xml_declaration=True) + "\n"
