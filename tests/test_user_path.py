@@ -143,6 +143,11 @@ def test_profiles_command_lists_the_shipped_files():
     # a motor file says what machine it is (its data: motor files carry no description field)
     line = next(x for x in r.stdout.splitlines() if x.split()[:1] == ["paper-b-spmsm"])
     assert "SPMSM, p = 4, R 2.875 ohm, L_d 8.5 mH" in line
+    # a profile says what `pmsm-hil test` judges it on
+    row = {x.split()[0]: x for x in r.stdout.splitlines() if x.split()}
+    assert "identification (4)" in row["paper-a-identify"]
+    assert "speed_error, recovery" in row["paper-a"]
+    assert row["paper-b"].rstrip().endswith(" -")  # none: complete, no fault
 
 
 def test_emulator_child_ignores_a_source_tree_in_the_working_directory(tmp_path, data):

@@ -35,6 +35,35 @@ def _first_line(path) -> str:
     return ""
 
 
+def _criteria(path) -> str:
+    """What a profile's `acceptance:` section bounds, in a few words (`pmsm-hil test` judges a
+    profile without one only on completing without a fault)."""
+    import yaml
+
+    try:
+        with open(path, encoding="utf-8") as f:
+            acc = (yaml.safe_load(f) or {}).get("acceptance")
+    except (OSError, yaml.YAMLError, AttributeError):
+        return ""
+    if not isinstance(acc, dict):
+        return "-"
+    words = []
+    run = acc.get("run")
+    if not isinstance(run, dict):
+        run = {}
+    for key, v in run.items():
+        if key == "identification" and isinstance(v, list):
+            words.append(f"identification ({len(v)})")
+        elif key not in ("complete", "faults"):
+            words.append(
+                key.removesuffix("_max_rpm").removesuffix("_max_s").removesuffix("_max_rad")
+            )
+    segs = acc.get("segments")
+    if isinstance(segs, list) and segs:
+        words.append(f"{len(segs)} segment{'s' if len(segs) > 1 else ''}")
+    return ", ".join(words) or "complete, no fault"
+
+
 def _motor_line(d: dict) -> str:
     def num(key: str, scale: float, unit: str) -> str:
         v = d.get(key)
@@ -63,15 +92,19 @@ def main(args: argparse.Namespace) -> int:
         tab = Table(title=f"{kind}s", title_justify="left", header_style="bold", box=None)
         tab.add_column("name", no_wrap=True)
         tab.add_column("path" if args.paths else "description")
+        criteria = kind == "profile" and not args.paths
+        if criteria:  # what `pmsm-hil test` judges it on
+            tab.add_column("acceptance criteria")
         for p in files:
-            tab.add_row(
+            row = [
                 p.stem,
                 str(p)
                 if args.paths
                 else (
                     _first_line(p) if p.suffix == ".yaml" else "flux map (psi_d, psi_q vs i_d, i_q)"
                 ),
-            )
+            ]
+            tab.add_row(*row, *([_criteria(p)] if criteria else []))
         console.print(tab)
         console.print()
     console.print(
