@@ -371,6 +371,19 @@ def test_values_the_files_take_plan_as_before(tmp_path):
     assert [r.values["rig_effects_dead_time_dead_time_s"] for r in runs] == [0.0, 2e-6] * 2
 
 
+def test_an_unquoted_indexed_field_in_braces_gets_the_hint_to_quote_it(tmp_path):
+    p = tmp_path / "s.yaml"
+    p.write_text(
+        "name: s\nprofile: paper-a\naxes:\n  - {field: profile.segments[1].load_nm, values: [1]}\n"
+    )
+    with pytest.raises(ProfileError) as e:
+        load_sweep(p)
+    assert str(e.value).startswith(f"{p}:4:29: invalid YAML: expected ',' or '}}', but got '['")
+    assert str(e.value).endswith(
+        "quote a field with an index inside {...}: 'profile.segments[1].load_nm'"
+    )
+
+
 def test_a_scheduler_address_dask_does_not_know_is_said(tmp_path):
     r = _cli(
         "sweep", "tolerance", "--out", str(tmp_path / "o"), "--scheduler", "http://127.0.0.1:1"

@@ -249,6 +249,19 @@ def _walk(node: yaml.Node, path: tuple, src: Source) -> None:
             _walk(item, (*path, i), src)
 
 
+def _bracket_hint(text: str, mark: Any, e: yaml.MarkedYAMLError) -> str:
+    """A field path with an index (``profile.segments[1].load_nm``) written unquoted inside
+    ``{...}``: YAML reads its ``[`` as a list. Say to quote it."""
+    if mark is None or "'['" not in (e.problem or "") or "flow mapping" not in (e.context or ""):
+        return ""
+    lines = text.splitlines()
+    line = lines[mark.line] if mark.line < len(lines) else ""
+    m = re.search(r"([A-Za-z_][\w.]*\[\d+\][\w.\[\]]*)", line)
+    if m is None:
+        return ""
+    return f"; quote a field with an index inside {{...}}: '{m.group(1)}'"
+
+
 def read_source(
     path: str, *, what: str = "file", referenced_by: tuple[Source, tuple, Any] | None = None
 ) -> Source:
@@ -306,6 +319,7 @@ def read_source(
             if e.context_mark is not None and e.context_mark is not mark:
                 msg += f" on line {e.context_mark.line + 1}"
             msg += ")"
+        msg += _bracket_hint(src.text, mark, e)
         src.problems.append(
             Problem(
                 path,
