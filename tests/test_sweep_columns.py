@@ -420,10 +420,12 @@ def test_summary_shows_relative_errors_in_percent_as_the_console_does():
     assert "| speed_error_max_rpm | 2 | 1.5 | 2.25 | 1 | 2.25 |" in text
 
 
-def test_ctrl_c_on_a_local_sweep_leaves_only_its_summary(tmp_path):
-    """SIGINT to the whole process group, as a terminal's Ctrl-C, once the sweep is running: the
-    workers ignore it (sweep/worker_setup.py; the cluster closes them), the sweep says it was
-    interrupted and how to resume, exit 130."""
+@pytest.mark.parametrize("when", ["running", "starting"])
+def test_ctrl_c_on_a_local_sweep_leaves_only_its_summary(tmp_path, when):
+    """SIGINT to the whole process group, as a terminal's Ctrl-C, once the sweep is running (the
+    workers ignore it: sweep/worker_setup.py; the cluster closes them) or while its local cluster
+    starts (the workers inherit SIGINT blocked until they ignore it: driver._sigint_held): the
+    sweep says it was interrupted and how to resume, exit 130, no worker's traceback."""
     import os
     import signal
     import time
@@ -444,10 +446,17 @@ def test_ctrl_c_on_a_local_sweep_leaves_only_its_summary(tmp_path):
         start_new_session=True,
     )
     journal = tmp_path / "out" / "results.jsonl"
+    meta = tmp_path / "out" / "sweep.json"  # written just before the cluster starts
     deadline = time.monotonic() + 120.0
-    while not (journal.is_file() and journal.read_text().strip()) and p.poll() is None:
-        assert time.monotonic() < deadline, "no run finished in 120 s"
-        time.sleep(0.2)  # a run has finished: the workers are up (their start is not covered)
+    if when == "starting":
+        while not meta.is_file() and p.poll() is None:
+            assert time.monotonic() < deadline, "the sweep did not start in 120 s"
+            time.sleep(0.02)
+        time.sleep(0.4)  # the cluster's start takes a second or more on this machine
+        assert not journal.is_file() or not journal.read_text().strip(), "too late"
+    while when == "running" and not (journal.is_file() and journal.read_text().strip()):
+        assert p.poll() is None and time.monotonic() < deadline, "no run finished in 120 s"
+        time.sleep(0.2)  # a run has finished: the workers are up
     os.killpg(p.pid, signal.SIGINT)
     out, err = p.communicate(timeout=120)
     assert p.returncode == 130, out + err

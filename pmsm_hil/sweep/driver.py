@@ -7,11 +7,14 @@ interrupted sweep resumes where it stopped.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
+import signal
 import sys
+import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -115,6 +118,31 @@ def write_inputs(out: Path, run: Run) -> Path:
         json.dumps({"seed": run.seed, "values": run.values}, sort_keys=True) + "\n"
     )
     return d
+
+
+@contextlib.contextmanager
+def _sigint_held() -> Iterator[None]:
+    """SIGINT blocked in this thread while the local cluster starts: the threads and worker
+    processes started meanwhile inherit the mask, so a terminal's Ctrl-C in that second stays
+    pending in each worker until its preload (sweep/worker_setup.py) ignores it, instead of
+    printing the worker's KeyboardInterrupt traceback under the summary. Here it is delivered when
+    the mask is restored, once the client and the cluster are assigned (and so closed)."""
+    if not hasattr(signal, "pthread_sigmask") or (
+        threading.current_thread() is not threading.main_thread()
+    ):
+        yield
+        return
+    # multiprocessing's resource tracker, started on demand from the cluster's loop thread,
+    # unblocks SIGINT there after spawning itself (SIG_UNBLOCK, not the mask it found): start it
+    # first, here, so that the thread that spawns the workers keeps the mask
+    from multiprocessing import resource_tracker
+
+    resource_tracker.ensure_running()
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
 def _client(scheduler: str | None, workers: int | None):
@@ -234,7 +262,8 @@ def run_runs(
     )
     try:
         if todo:
-            client, cluster = _client(scheduler, workers)
+            with _sigint_held():
+                client, cluster = _client(scheduler, workers)
             res.workers = len(client.scheduler_info().get("workers", {}))
             futures = []
             for r in todo:
