@@ -32,7 +32,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from .driver import _Bar, _client, _error_of
+from .driver import _Bar, _client, _error_of, _sigint_held
 from .results import Journal
 
 __all__ = ["BLAS_THREADS", "run_tasks", "task_key"]
@@ -112,7 +112,8 @@ def run_tasks(
             file=sys.stderr,
         )
     if todo:
-        client, cluster = _client(scheduler, workers)
+        with _sigint_held():  # a Ctrl-C while the cluster starts: no worker's traceback
+            client, cluster = _client(scheduler, workers)
         t0 = time.perf_counter()
         try:
             futures = [
