@@ -112,10 +112,11 @@ def run_tasks(
             file=sys.stderr,
         )
     if todo:
-        with _sigint_held():  # a Ctrl-C while the cluster starts: no worker's traceback
-            client, cluster = _client(scheduler, workers)
+        client = cluster = None
         t0 = time.perf_counter()
         try:
+            with _sigint_held():  # a Ctrl-C while the cluster starts: no worker's traceback
+                client, cluster = _client(scheduler, workers)
             futures = [
                 client.submit(_in_worker, fn, firmware, t, key=f"pmsm-{name}-{k}", pure=False)
                 for k, t in todo.items()
@@ -137,7 +138,8 @@ def run_tasks(
                         journal.add({"key": k, "status": status, "result": res})
                     bar.advance(status == "ok", time.perf_counter() - t0)
         finally:
-            client.close()
+            if client is not None:
+                client.close()
             if cluster is not None:
                 cluster.close()
     return [results[k] for k in keys]
