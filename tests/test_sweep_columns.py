@@ -338,6 +338,15 @@ def test_a_seed_axis_takes_distinct_whole_seeds(tmp_path, values, says):
             "'two' is not a number (write numbers without quotes)",
         ),
         (
+            "{field: motor.r_s_ohm, values: [1.0, '0.9']}",
+            "axes[0].values[1] = '0.9' makes the motor file invalid: r_s_ohm = '0.9' is not a "
+            "number (write numbers without quotes)",  # strict, as the motor file itself
+        ),
+        (
+            "{field: motor.r_s_ohm, values: [1.0, .nan]}",
+            "axes[0].values[1] = nan is not a finite number",  # once, not per type of the union
+        ),
+        (
             "{field: motor.r_s_ohm, relative: true, values: [1, two]}",
             "axes[0].values[1] = 'two' is not a number (a relative axis takes factors",
         ),
@@ -355,6 +364,7 @@ def test_a_value_the_files_do_not_take_is_named_at_the_sweep_files_line(tmp_path
     with pytest.raises(ProfileError) as e:
         run_sweep(load_sweep(p, defer=True), tmp_path / "out", workers=1, progress=False)
     assert str(e.value).startswith(f"{p}:5: {line_says}"), str(e.value)
+    assert len(e.value.problems) == 1, str(e.value)
     assert not (tmp_path / "out" / "results.csv").exists()
 
 

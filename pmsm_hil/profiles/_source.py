@@ -456,12 +456,23 @@ def error_message(err: Any, info: Any, name: str) -> str:
     return err["msg"][0].lower() + err["msg"][1:]
 
 
+_UNION_TAGS = {"float", "int", "bool", "str"}
+
+
 def validation_problems(
     exc: ValidationError, src: Source, model: type[BaseModel], loc_prefix: tuple = ()
 ) -> list[Problem]:
     out: list[Problem] = []
+    seen_union: set[tuple] = set()
     for err in exc.errors():
         loc = loc_prefix + tuple(p for p in err["loc"] if isinstance(p, (str, int)))
+        if loc and loc[-1] in _UNION_TAGS and isinstance(loc[-2] if len(loc) > 1 else None, int):
+            # a list item of a union type (a sweep axis's values): pydantic reports it once per
+            # member (`values[2].float`, `.int`, `.bool`, `.str`); the first says what is wrong
+            loc = loc[:-1]
+            if loc in seen_union:
+                continue
+            seen_union.add(loc)
         typ = err["type"]
         value = err.get("input")
         name = str(loc[-1]) if loc else ""

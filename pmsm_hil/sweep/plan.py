@@ -20,7 +20,7 @@ from typing import Annotated, Any
 
 import numpy as np
 import yaml
-from pydantic import TypeAdapter, ValidationError
+from pydantic import ConfigDict, TypeAdapter, ValidationError
 
 from pmsm_hil.profiles import ProfileError, load_profile
 from pmsm_hil.profiles._source import (
@@ -249,7 +249,10 @@ def _value_problems(sweep: Sweep, base: _Base, i: int, ax: Axis) -> list[Problem
     if info is None:
         return []
     typ: Any = Annotated[(info.annotation, *info.metadata)] if info.metadata else info.annotation
-    adapter: TypeAdapter[Any] = TypeAdapter(typ)
+    # as the models validate: strict (no "12" for 12), finite numbers only (profiles/_base.py)
+    adapter: TypeAdapter[Any] = TypeAdapter(
+        typ, config=ConfigDict(strict=True, allow_inf_nan=False)
+    )
     base_value = _base_value(base.objects[root], rest)
     for loc, v in _probe_values(ax):
         if ax.relative and (isinstance(v, bool) or not isinstance(v, (int, float))):
