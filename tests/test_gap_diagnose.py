@@ -200,6 +200,54 @@ def test_cli_errors(tmp_path, capsys):
     bad.write_bytes(b"not an mcap")
     assert main(["gap", str(bad), "--motor", MOTOR]) == 2
     assert "Traceback" not in capsys.readouterr().err
+    folder = tmp_path / "adir"
+    folder.mkdir()
+    cases = [  # what a user types, and what it must say (exit 2, no traceback)
+        (["gap", str(folder)], f"{folder}: is a directory, not a log"),
+        (["gap", str(bad), "--holdout", str(tmp_path / "no.mcap")], "--holdout"),
+        (["gap", str(bad), "--report", str(bad)], f"--report {bad}: is a file"),
+        (["gap", str(bad), "--workers", "-2"], "--workers = -2 must be >= 1"),
+        (["gap", "selftest", "--trials", "0"], "--trials = 0 must be >= 1"),
+        (["gap", "record", "diagnose", "-o", str(folder)], f"-o {folder}: is a directory"),
+        (["gap", "augment", str(bad), "-o", str(folder)], f"-o {folder}: is a directory"),
+        (["gap", "verify", str(folder), "--rig", "ideal"], "is a directory, not a log"),
+    ]
+    for argv, says in cases:
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err
+        assert says in err and "Traceback" not in err, (argv, err)
+    assert not (tmp_path / "adir" / "record.mcap").exists()
+
+
+def _log_with(profile_yaml: str | None, truncated: bool = False):
+    from types import SimpleNamespace
+
+    att = SimpleNamespace(data=profile_yaml.encode()) if profile_yaml is not None else None
+    return SimpleNamespace(
+        attachment=lambda name: att if name == "profile.yaml" else None,
+        truncated=truncated,
+        finalised=not truncated,
+    )
+
+
+def test_a_modulator_run_is_refused_and_an_estimated_angle_noted(logs):
+    """A FOC/SVPWM run's record holds switch states sampled once a period, not the voltage over
+    it: refused (a confident diagnosis of nonsense before: a 255 us delay, -80 K). A run on an
+    estimated angle, or a file cut short, is diagnosed with a note."""
+    from pmsm_hil.gap.record import _log_notes, _modulator_problem
+
+    rec = load_record(logs["null"])
+    foc = "control:\n  current_ctrl: foc\n  angle_src: mras\n"
+    why = _modulator_problem(_log_with(foc), "pb.mcap", rec)
+    assert why and why.startswith("pb.mcap: the run used current_ctrl: foc (a PWM modulator)")
+    mixed = foc + "segments:\n  - {name: a, current_ctrl: mpcc}\n"
+    assert _modulator_problem(_log_with(mixed), "x", rec) is None  # some periods are FCS
+    assert _modulator_problem(_log_with("control: {ts_s: 5.0e-5}\n"), "x", rec) is None
+    assert _modulator_problem(_log_with(None), "x", rec) is None  # no profile: a CSV import
+    notes = _log_notes(_log_with(foc, truncated=True), "pb.mcap")
+    assert notes[0].startswith("pb.mcap is not finalised")
+    assert "angle_src: mras" in notes[1] and "encoder offset" in notes[1]
+    assert _log_notes(_log_with(None), "x") == []
 
 
 def test_verify_reruns_the_logs_profile(tmp_path, capsys):

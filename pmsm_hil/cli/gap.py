@@ -18,7 +18,7 @@ import sys
 import tempfile
 import time
 
-from pmsm_hil.cli.errors import fail
+from pmsm_hil.cli.errors import fail, report
 
 ACTIONS = ("augment", "record", "selftest", "verify")
 
@@ -66,6 +66,26 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     )
 
 
+def _log_problem(path: str, what: str = "") -> str | None:
+    """Why ``path`` cannot be read as a log (None: it is a file)."""
+    label = f"{what} {path}" if what else path
+    if not os.path.exists(path):
+        return f"{label}: no such file"
+    if os.path.isdir(path):
+        return f"{label}: is a directory, not a log (give the .mcap file in it)"
+    return None
+
+
+def _out_problem(path: str, what: str) -> str | None:
+    """Why ``path`` cannot be written as the file ``what`` (None: it can)."""
+    if os.path.isdir(path):
+        return f"-o {path}: is a directory; give the {what} file to write (e.g. {path}/{what})"
+    parent = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(parent):
+        return f"-o {path}: its folder {parent} does not exist"
+    return None
+
+
 def _motor(args, log_path):
     from pmsm_hil.gap.model import MotorModel
     from pmsm_hil.log.reader import read_log
@@ -78,7 +98,12 @@ def _motor(args, log_path):
     log = read_log(log_path)
     att = [a for a in log.attachments if a.name == "motor.yaml"]
     if not att:
-        raise ValueError(f"{log_path}: the log carries no motor.yaml; give --motor")
+        cut = (
+            " (the file is cut short: its attachments are in the part that is missing)"
+            if log.truncated or not log.finalised
+            else ""
+        )
+        raise ValueError(f"{log_path}: the log carries no motor.yaml{cut}; give --motor")
     with tempfile.NamedTemporaryFile("wb", suffix=".yaml", delete=False) as f:
         f.write(att[0].data)
     try:
@@ -147,6 +172,12 @@ def main(args: argparse.Namespace) -> int:
     from pmsm_hil.log.reader import LogFormatError
     from pmsm_hil.profiles import ProfileError
 
+    if args.workers is not None and args.workers < 1:
+        return fail("error", f"--workers = {args.workers} must be >= 1", 2)
+    if args.trials < 1:
+        return fail("error", f"--trials = {args.trials} must be >= 1", 2)
+    if args.report and os.path.exists(args.report) and not os.path.isdir(args.report):
+        return fail("error", f"--report {args.report}: is a file; give a folder for the report", 2)
     try:
         if args.target == "selftest":
             from pmsm_hil.gapgen.selftest import print_selftest, run_selftest
@@ -173,6 +204,9 @@ def main(args: argparse.Namespace) -> int:
 
             if not args.rest or not args.out:
                 return fail("error", "gap record PROFILE.yaml [--rig RIG.yaml] -o OUT.mcap", 2)
+            why = _out_problem(args.out, "record.mcap")
+            if why:
+                return fail("error", why, 2)
             from pmsm_hil.profiles.shipped import resolve
 
             cols = record_profile(
@@ -190,8 +224,9 @@ def main(args: argparse.Namespace) -> int:
                 return fail("error", "gap verify LOG.mcap --rig fitted-rig.yaml", 2)
             from pmsm_hil.profiles.shipped import resolve
 
-            if not os.path.exists(args.rest[0]):
-                return fail("error", f"{args.rest[0]}: no such file", 2)
+            why = _log_problem(args.rest[0])
+            if why:
+                return fail("error", why, 2)
             # a rig file, or a shipped rig by its name (`--rig lab-typical`), as for `gap record`
             v = verify(args.rest[0], resolve(args.rig, "rig"), seed=args.seed)
             if args.json:
@@ -218,11 +253,16 @@ def main(args: argparse.Namespace) -> int:
         path = args.rest[0] if args.target == "augment" and args.rest else args.target
         if args.target == "augment" and (not args.rest or not args.out):
             return fail("error", "gap augment LOG.mcap -o fitted-rig.yaml", 2)
-        if not os.path.exists(path):
-            return fail("error", f"{path}: no such file", 2)
+        why = _log_problem(path) or (args.holdout and _log_problem(args.holdout, "--holdout"))
+        if args.target == "augment" and not why:
+            why = _out_problem(args.out, "fitted-rig.yaml")
+        if why:
+            return fail("error", why, 2)
         t0 = time.monotonic()
         res, m, rec = _diagnose(args, path)
         took = time.monotonic() - t0
+        for note in rec.notes:
+            report("note", note)
     except (RecordError, ProfileError, LogFormatError, ValueError, KeyError) as e:
         return fail("error", str(e), 2)
     except DeviceError as e:  # record, verify: the emulator refused the run (e.g. its plant)

@@ -17,9 +17,10 @@ import contextlib
 import itertools
 import os
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import yaml
 
 from pmsm_hil.log.schemas import FieldDef, TopicDef
 
@@ -109,6 +110,7 @@ class ControlRecord:
     temp_magnet_c: np.ndarray | None = None
     source: str = ""
     sensor_spec: dict[str, float] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)  # what the reader of the diagnosis must know
 
     @property
     def n(self) -> int:
@@ -140,6 +142,7 @@ class SteadyRecord:
     torque_nm: np.ndarray | None = None
     temp_winding_c: np.ndarray | None = None
     source: str = ""
+    notes: list[str] = field(default_factory=list)
 
 
 def split_runs(t_s: np.ndarray, ts_s: float, tol: float = 0.25) -> list[tuple[int, int]]:
@@ -286,8 +289,70 @@ def load_record(path: str | os.PathLike) -> ControlRecord | SteadyRecord:
     return record_from_log(read_log(path), path)
 
 
+def _run_control(log: Log) -> dict[str, Any]:
+    """The `control` section of the profile the log's run played (its attachment), with the
+    current control of each segment; empty for a log without one (a CSV import, a rig's own)."""
+    att = log.attachment("profile.yaml")
+    if att is None:
+        return {}
+    try:
+        data = yaml.safe_load(att.data.decode("utf-8", "replace")) or {}
+    except yaml.YAMLError:
+        return {}
+    control = dict(data.get("control") or {}) if isinstance(data, dict) else {}
+    segs = data.get("segments") if isinstance(data, dict) else None
+    control["segment_ctrls"] = [
+        s.get("current_ctrl") for s in (segs or []) if isinstance(s, dict) and s.get("current_ctrl")
+    ]
+    return control
+
+
+def _modulator_problem(log: Log, path: str | os.PathLike, rec: ControlRecord) -> str | None:
+    """A record whose voltage is switch states sampled once a period, of a run whose current
+    control was a modulator (FOC/SVPWM) throughout: the states are not the voltage applied over
+    the period, and a diagnosis on them is meaningless."""
+    control = _run_control(log)
+    ctrls = {control.get("current_ctrl") or "mpcc", *control.get("segment_ctrls", [])}
+    if rec.voltage_kind != "switch" or ctrls != {"foc"}:
+        return None
+    return (
+        f"{path}: the run used current_ctrl: foc (a PWM modulator) and the record holds switch "
+        "states once a period, not the duties or the voltage applied over it: the diagnosis "
+        "would take a wrong voltage for every period. Diagnose an FCS-MPCC run "
+        "(current_ctrl: mpcc, e.g. the shipped `diagnose` profile), or a record with duties "
+        "(d_a, d_b, d_c) or u_alpha_v, u_beta_v (docs/gap.md)"
+    )
+
+
+def _log_notes(log: Log, path: str | os.PathLike) -> list[str]:
+    notes = []
+    if log.truncated or not log.finalised:
+        notes.append(
+            f"{path} is not finalised (the run was killed or the file is cut short): the "
+            "diagnosis uses what could be recovered"
+        )
+    angle = _run_control(log).get("angle_src") or "encoder"
+    if angle != "encoder":
+        notes.append(
+            f"the run's angle came from its estimator (angle_src: {angle}); the diagnosis takes "
+            "the recorded angle as the encoder's, so an estimation error reads as an encoder "
+            "offset or a delay"
+        )
+    return notes
+
+
 def record_from_log(log: Log, path: str | os.PathLike) -> ControlRecord | SteadyRecord:
     """``load_record`` of a log already read (``path`` names it in the messages)."""
+    rec = _record_from_log(log, path)
+    if isinstance(rec, ControlRecord):
+        why = _modulator_problem(log, path, rec)
+        if why:
+            raise RecordError(why)
+    rec.notes.extend(_log_notes(log, path))
+    return rec
+
+
+def _record_from_log(log: Log, path: str | os.PathLike) -> ControlRecord | SteadyRecord:
     spec = sensor_spec_from_metadata(log.metadata)
     ts = None
     run_meta = log.metadata.get("run") or {}
@@ -331,9 +396,14 @@ def record_from_log(log: Log, path: str | os.PathLike) -> ControlRecord | Steady
             )
         }
         return record_from_columns(cols, ts, source=f"{path}: /pmsm/capture", sensor_spec=spec)
+    cut = (
+        " (the file is cut short: the data may have been in the part that is missing)"
+        if log.truncated or not log.finalised
+        else ""
+    )
     raise RecordError(
         f"{path}: no control-rate data ({CONTROL_TOPIC} or /pmsm/capture) and no "
-        f"steady-state data ({STEADY_TOPIC})"
+        f"steady-state data ({STEADY_TOPIC}){cut}"
     )
 
 
