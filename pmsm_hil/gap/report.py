@@ -169,13 +169,27 @@ def _plots(res: dict, out_dir: str | os.PathLike) -> list[str]:
     where = res["where"]
     files = []
     keys = ["speed", "current", "current_angle", "electrical_angle", "current_sign_sector", "time"]
+    xlabels = {
+        "speed": "|ω_e| (rad/s)",
+        "current": "|i| (A)",
+        "current_angle": "current angle (rad)",
+        "electrical_angle": "θ_e (rad)",
+        "current_sign_sector": "sector: the sign pattern of i_a, i_b, i_c",
+        "time": "t (s)",
+    }
     fig, axs = plt.subplots(2, 3, figsize=(12, 6))
     for ax, key in zip(axs.ravel(), keys, strict=False):
         for name, style in (("base", "o-"), ("augmented", "s--")):
             rows = where[name][key]
             x = [(r["lo"] + r["hi"]) / 2 for r in rows]
-            y = [np.hypot(r["rms_d_v"] or 0, r["rms_q_v"] or 0) / np.sqrt(2) for r in rows]
+            y = [  # an empty bin (no sample there, e.g. a sign sector that cannot occur): a gap
+                np.nan
+                if r["rms_d_v"] is None and r["rms_q_v"] is None
+                else np.hypot(r["rms_d_v"] or 0, r["rms_q_v"] or 0) / np.sqrt(2)
+                for r in rows
+            ]
             ax.plot(x, y, style, label=name)
+        ax.set_xlabel(xlabels[key], fontsize=8)
         ax.axhline(
             np.sqrt(max(res["noise_floor_v2"], 0)), color="k", lw=0.8, ls=":", label="noise floor"
         )
@@ -199,7 +213,12 @@ def _plots(res: dict, out_dir: str | os.PathLike) -> list[str]:
                 label=f"|omega_e| {row['speed_lo_rad_s']:.0f}-{row['speed_hi_rad_s']:.0f} rad/s",
             )
         ax.set_xlabel("order of the electrical angle")
-        ax.set_ylabel("residual amplitude, V")
+        ax.set_ylabel("amplitude (d and q harmonics combined), V")
+        ax.set_title(
+            "Base residual (the nominal model, before any effect) by harmonic of θ_e, "
+            "per speed quartile",
+            fontsize=9,
+        )
         ax.legend(fontsize=7)
         fig.tight_layout()
         fig.savefig(os.path.join(out_dir, "order_spectrum.png"), dpi=90)
