@@ -211,6 +211,16 @@ def test_cli_errors(tmp_path, capsys):
         (["gap", "record", "diagnose", "-o", str(folder)], f"-o {folder}: is a directory"),
         (["gap", "augment", str(bad), "-o", str(folder)], f"-o {folder}: is a directory"),
         (["gap", "verify", str(folder), "--rig", "ideal"], "is a directory, not a log"),
+        (["gap", "augmnet", str(bad), "-o", "f.yaml"], "did you mean `gap augment`?"),
+        (["gap", str(bad), "--rig", "lab-typical"], "--rig is for `gap record` and `gap verify`"),
+        (
+            ["gap", str(bad), "--motor", str(ROOT / "profiles/diagnose.yaml")],
+            "diagnose.yaml: is a profile (it has segments), not a motor file",
+        ),
+        (
+            ["gap", str(bad), "--motor", str(ROOT / "profiles/rigs/lab-typical.yaml")],
+            "lab-typical.yaml: is a rig file (it has effects), not a motor file",
+        ),
     ]
     for argv, says in cases:
         assert main(argv) == 2, argv

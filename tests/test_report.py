@@ -154,6 +154,10 @@ def test_bad_input_exits_2_without_traceback(tmp_path, short_log, capsys):
     assert main(["report", str(missing)]) == 2
     err = capsys.readouterr().err
     assert "nope.mcap: no such file" in err and "Traceback" not in err
+    for cmd in (["report"], ["analyze"], ["log", "recover"]):  # a folder is not "no such file"
+        assert main([*cmd, str(tmp_path)]) == 2
+        err = capsys.readouterr().err
+        assert f"{tmp_path}: is a directory, not a log" in err and "Traceback" not in err, cmd
 
     not_mcap = tmp_path / "text.mcap"
     not_mcap.write_text("hello\n")

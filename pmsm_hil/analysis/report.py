@@ -13,7 +13,7 @@ from pathlib import Path
 
 from pmsm_hil.analysis import report_capture, report_params, report_signals
 from pmsm_hil.analysis.report_context import run_context
-from pmsm_hil.log.reader import Log, LogFormatError, read_log
+from pmsm_hil.log.reader import Log, LogFormatError, path_problem, read_log
 
 # key (file name), title, function, caption
 PANELS = (
@@ -99,8 +99,9 @@ def _tables(path: Path, log: Log, notes: list[str]):
 def build_report(log_path: Path | str, out_dir: Path | str | None = None) -> Report:
     """Write the report of the log at `log_path` into `out_dir` (default: LOG-report/ beside it)."""
     path = Path(log_path)
-    if not path.is_file():
-        raise ReportError(f"{path}: no such file")
+    why = path_problem(path)
+    if why:
+        raise ReportError(why)
     try:
         log = read_log(path)
     except LogFormatError as e:

@@ -48,11 +48,12 @@ def print_identification(table: IdentTable) -> None:
 def main(args: argparse.Namespace) -> int:
     from pmsm_hil.analysis.reading import read_for_analysis
     from pmsm_hil.analysis.summary import print_summary, summarize_log
-    from pmsm_hil.log.reader import LogFormatError
+    from pmsm_hil.log.reader import LogFormatError, path_problem
 
     path = Path(args.log)
-    if not path.is_file():
-        return fail("error", f"{path}: no such file", 2)
+    why = path_problem(path)
+    if why:
+        return fail("error", why, 2)
     try:
         log = read_for_analysis(path)
         summary = summarize_log(path, log)

@@ -67,13 +67,9 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
 
 
 def _log_problem(path: str, what: str = "") -> str | None:
-    """Why ``path`` cannot be read as a log (None: it is a file)."""
-    label = f"{what} {path}" if what else path
-    if not os.path.exists(path):
-        return f"{label}: no such file"
-    if os.path.isdir(path):
-        return f"{label}: is a directory, not a log (give the .mcap file in it)"
-    return None
+    from pmsm_hil.log.reader import path_problem
+
+    return path_problem(path, what)
 
 
 def _out_problem(path: str, what: str) -> str | None:
@@ -250,6 +246,28 @@ def main(args: argparse.Namespace) -> int:
                         f"closure {s['closure']:.2f}"
                     )
             return 0
+        if args.rig:
+            return fail(
+                "error",
+                "--rig is for `gap record` and `gap verify`; a diagnosis reads the log (and "
+                "--motor, the nominal model)",
+                2,
+            )
+        if (
+            args.target not in ACTIONS
+            and not os.path.exists(args.target)
+            and not args.target.endswith(".mcap")
+        ):
+            import difflib
+
+            close = difflib.get_close_matches(args.target, ACTIONS, n=1, cutoff=0.6)
+            if close:
+                return fail(
+                    "error",
+                    f"{args.target}: no such file or action; did you mean `gap {close[0]}`? "
+                    f"(actions: {', '.join(ACTIONS)}; or a LOG.mcap to diagnose)",
+                    2,
+                )
         path = args.rest[0] if args.target == "augment" and args.rest else args.target
         if args.target == "augment" and (not args.rest or not args.out):
             return fail("error", "gap augment LOG.mcap -o fitted-rig.yaml", 2)

@@ -31,11 +31,12 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
 
 
 def main(args: argparse.Namespace) -> int:
-    from pmsm_hil.log.reader import LogFormatError, rewrite_log
+    from pmsm_hil.log.reader import LogFormatError, path_problem, rewrite_log
 
     src = Path(args.log)
-    if not src.is_file():
-        return fail("error", f"{src}: no such file", 2)
+    why = path_problem(src)
+    if why:
+        return fail("error", why, 2)
     if src.stat().st_size == 0:
         return fail("error", f"{src}: the file is empty (0 octets): nothing to recover", 2)
     dst = Path(args.out) if args.out else src.with_suffix(".recovered.mcap")

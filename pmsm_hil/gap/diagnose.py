@@ -345,7 +345,8 @@ def _diagnose(
                 "closure": (s["gain"] / excess) if s else None,
                 "evidence": (
                     f"alone: held-out MSE change {s['gain']:.3g} V^2 (± {s['se']:.2g}); "
-                    f"below the threshold"
+                    "at no step of the selection above its threshold (beside the effects "
+                    "chosen before it, if any)"
                 )
                 if s
                 else "not tried",

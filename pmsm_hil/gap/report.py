@@ -123,6 +123,13 @@ def verdict_lines(res: dict) -> list[str]:
     return out
 
 
+def _interval(iv) -> str:
+    """An interval as the console prints it ([lo, hi], 3 significant digits), or nothing."""
+    if not iv or all(v is None for v in iv):
+        return ""
+    return html.escape(f"[{_fmt(iv[0])}, {_fmt(iv[1])}]")
+
+
 def write_report(res: dict, out_dir: str | os.PathLike) -> list[str]:
     """gap.json, residual-map plots and index.html in out_dir; returns the files written. A
     steady-state result (pmsm_hil.gap.steady) has no residual maps and no effects: the page states
@@ -137,7 +144,7 @@ def write_report(res: dict, out_dir: str | os.PathLike) -> list[str]:
     rows = "".join(
         f"<tr><td>{html.escape(e['name'])}</td><td>{'yes' if e.get('selected') else ''}</td>"
         f"<td>{html.escape(str(e.get('quantity')))}</td><td>{_fmt(e.get('magnitude'))}</td>"
-        f"<td>{html.escape(str(e.get('interval')))}</td><td>{_fmt(e.get('closure'))}</td>"
+        f"<td>{_interval(e.get('interval'))}</td><td>{_fmt(e.get('closure'))}</td>"
         f"<td>{html.escape(e.get('evidence', ''))}</td></tr>"
         for e in res.get("effects", [])
     )

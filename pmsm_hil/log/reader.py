@@ -229,6 +229,17 @@ class Log:
         return cols
 
 
+def path_problem(path: str | os.PathLike, what: str = "") -> str | None:
+    """Why ``path`` cannot be opened as a log, in a user's words (None: it is a file).
+    ``what`` names the option that gave it (``--holdout``)."""
+    label = f"{what} {os.fspath(path)}" if what else os.fspath(path)
+    if not os.path.exists(path):
+        return f"{label}: no such file"
+    if os.path.isdir(path):
+        return f"{label}: is a directory, not a log (give the .mcap file in it)"
+    return None
+
+
 def read_log(
     path: str | os.PathLike, topics: Iterable[str] | Wanted | None = None, sink: Sink | None = None
 ) -> Log:

@@ -261,9 +261,22 @@ def motor_checks(src: Source) -> list[Problem]:
     return out
 
 
+_NOT_MOTOR = "is %s, not a motor file"
+
+
 def _load_motor_source(src: Source) -> tuple[Motor | None, list[Problem]]:
     if src.problems:
         return None, list(src.problems)
+    if isinstance(src.data, dict) and "segments" in src.data and "pole_pairs" not in src.data:
+        # a profile (or a sweep file) given where a motor file is asked for: say so, not the
+        # thirty keys a motor file has and it has not
+        return None, [
+            Problem(src.path, None, None, None, _NOT_MOTOR % "a profile (it has segments)")
+        ]
+    if isinstance(src.data, dict) and "effects" in src.data and "pole_pairs" not in src.data:
+        return None, [
+            Problem(src.path, None, None, None, _NOT_MOTOR % "a rig file (it has effects)")
+        ]
     problems: list[Problem] = list(src.soft)
     motor = None
     try:
