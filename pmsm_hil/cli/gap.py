@@ -31,7 +31,7 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("target", help="LOG.mcap, or one of: " + ", ".join(ACTIONS))
-    p.add_argument("rest", nargs="*", help="the log (augment) or profile (record)")
+    p.add_argument("rest", nargs="*", default=[], help="the log (augment) or profile (record)")
     p.add_argument(
         "--motor",
         help="motor file of the nominal model, a path or a shipped name (default: the log's "
@@ -236,6 +236,11 @@ def main(args: argparse.Namespace) -> int:
                         f"  {k:10s} rms error nominal {s['rms_nominal']:.3g}, fitted {s['rms_fitted']:.3g}, "
                         f"closure {s['closure']:.2f}"
                     )
+                print(
+                    "  (closure = 1 - fitted / nominal rms error; where the nominal error is "
+                    "already small it swings from run to run, as the two runs' FCS switching "
+                    "diverges: read the median and the settled means below)"
+                )
                 print(
                     "gap verify: closure of the segments' settled means (median over i_d, i_q, u_d, "
                     f"u_q) {v['plateau_closure_median']:.2f}"
