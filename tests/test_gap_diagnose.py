@@ -90,6 +90,28 @@ def test_null_record_selects_nothing(logs, motor):
     assert not any(e["selected"] for e in res["effects"])
 
 
+def test_the_encoders_half_count_lag_is_the_sensors_not_an_effect(logs, motor, tmp_path):
+    """The firmware reads an encoder count as the angle where the count starts: the angle lags
+    the rotor by half a count on average. The record knows the counts (the rig's encoder, else
+    the default 2500 lines) and the diagnosis takes the lag out; left in, it was fitted as an
+    encoder offset of -pi p / counts on every record of the ideal plant. A sealed record (the
+    self-test's: no device record, no rig) is diagnosed as before."""
+    from pmsm_hil.gapgen.recorder import record_profile
+
+    assert load_record(logs["ideal"]).angle_counts == 0  # sealed
+    path = tmp_path / "ideal-full.mcap"
+    record_profile(PROFILE, path, rig_path=str(ROOT / "profiles/rigs/ideal.yaml"), seed=7)
+    rec = load_record(path)
+    assert rec.angle_counts == 10000  # the ideal rig names no encoder: the default 2500 lines
+    assert rec.angle_lag_e_rad(4) == pytest.approx(np.pi * 4 / 10000)
+    assert diagnose(rec, motor)["verdict"] == "no structural gap found"
+    rec.angle_counts = 0  # as before: the lag in the data, the model without it
+    res = diagnose(rec, motor)
+    assert res["selected"] == ["encoder"]
+    enc = next(e for e in res["effects"] if e["name"] == "encoder")
+    assert enc["magnitude"] == pytest.approx(-np.pi * 4 / 10000, rel=0.2)
+
+
 def test_dead_time_found_with_its_size_and_closure(logs, motor):
     said: list[str] = []
     res = diagnose(load_record(logs["dead_time"]), motor, progress=said.append)

@@ -3,6 +3,7 @@ effects on held-out blocks, closure with block-bootstrap intervals (docs/gap.md)
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable, Sequence
 from typing import TypedDict
 
@@ -86,9 +87,21 @@ def diagnose(
     as it ends, the final fits), for a long diagnosis's status line. ``workers``: processes for the
     fits (the candidates of a forward step side by side; pmsm_hil.gap.pool); the result is the same
     for any number. BLAS runs on one thread throughout, so that it is the same on any machine."""
+    rec = _lag_removed(rec, motor)
+    holdout = _lag_removed(holdout, motor) if holdout is not None else None
     probe = Probe(rec, motor)
     with one_blas_thread(), FitPool(probe, workers) as pool:
         return _diagnose(rec, motor, probe, holdout, seed, candidates, progress, pool)
+
+
+def _lag_removed(rec: ControlRecord, motor: MotorModel) -> ControlRecord:
+    """The record with its angle's known half-count lag taken out (ControlRecord.angle_counts):
+    the lag of an encoder read at the start of each count is part of the sensor, not an effect
+    (left in, it was fitted as an encoder offset of -pi p / counts on every record)."""
+    lag = rec.angle_lag_e_rad(motor.pole_pairs)
+    if lag == 0.0:
+        return rec
+    return dataclasses.replace(rec, theta_e_rad=rec.theta_e_rad + lag)
 
 
 def _take_view(effects: list[dict], seen: list[dict]) -> None:

@@ -111,6 +111,14 @@ class ControlRecord:
     source: str = ""
     sensor_spec: dict[str, float] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)  # what the reader of the diagnosis must know
+    # counts per turn of an incremental encoder read at the start of each count (pmsm-hil's
+    # firmware): its angle lags the rotor by half a count on average, which the diagnosis takes
+    # out (ControlRecord.angle_lag_e_rad); 0: not known (a CSV import) or not an encoder's angle
+    angle_counts: int = 0
+
+    def angle_lag_e_rad(self, pole_pairs: int) -> float:
+        """The recorded angle's mean lag behind the rotor (electrical rad): half a count."""
+        return float(np.pi * pole_pairs / self.angle_counts) if self.angle_counts > 0 else 0.0
 
     @property
     def n(self) -> int:
@@ -324,6 +332,33 @@ def _modulator_problem(log: Log, path: str | os.PathLike, rec: ControlRecord) ->
     )
 
 
+ENCODER_LINES_DEFAULT = 2500  # the firmware's encoder when the rig names none (docs/profiles.md)
+
+
+def _firmware_angle_counts(log: Log) -> int:
+    """Counts per turn of the encoder whose count pmsm-hil's firmware read for the recorded angle
+    (4 x lines: the rig file's `encoder` effect, else the default 2500 lines), or 0 when the log
+    is not one of its runs (no device record) or the angle came from an estimator."""
+    if not (log.metadata.get("device") or {}).get("fw_version"):
+        return 0
+    if (_run_control(log).get("angle_src") or "encoder") != "encoder":
+        return 0
+    lines: Any = ENCODER_LINES_DEFAULT
+    att = log.attachment("rig.yaml")
+    if att is not None:
+        try:
+            rig = yaml.safe_load(att.data.decode("utf-8", "replace")) or {}
+        except yaml.YAMLError:
+            rig = {}
+        enc = (rig.get("effects") or {}).get("encoder") if isinstance(rig, dict) else None
+        if isinstance(enc, dict) and enc.get("enabled", True) is not False:
+            lines = enc.get("lines", ENCODER_LINES_DEFAULT)
+    try:
+        return 4 * int(lines)
+    except (TypeError, ValueError):
+        return 0
+
+
 def _log_notes(log: Log, path: str | os.PathLike) -> list[str]:
     notes = []
     if log.truncated or not log.finalised:
@@ -348,6 +383,7 @@ def record_from_log(log: Log, path: str | os.PathLike) -> ControlRecord | Steady
         why = _modulator_problem(log, path, rec)
         if why:
             raise RecordError(why)
+        rec.angle_counts = _firmware_angle_counts(log)
     rec.notes.extend(_log_notes(log, path))
     return rec
 
