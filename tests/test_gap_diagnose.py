@@ -95,10 +95,11 @@ def test_the_encoders_half_count_lag_is_the_sensors_not_an_effect(logs, motor, t
     the rotor by half a count on average. The record knows the counts (the rig's encoder, else
     the default 2500 lines) and the diagnosis takes the lag out; left in, it was fitted as an
     encoder offset of -pi p / counts on every record of the ideal plant. A sealed record (the
-    self-test's: no device record, no rig) is diagnosed as before."""
+    self-test's: no device record, no rig) takes them from its sensor specification."""
     from pmsm_hil.gapgen.recorder import record_profile
 
-    assert load_record(logs["ideal"]).angle_counts == 0  # sealed
+    assert load_record(logs["ideal"]).angle_counts == 0  # sealed, no specification: unknown
+    assert load_record(logs["null"]).angle_counts == 10000  # sealed, the specification says
     path = tmp_path / "ideal-full.mcap"
     record_profile(PROFILE, path, rig_path=str(ROOT / "profiles/rigs/ideal.yaml"), seed=7)
     rec = load_record(path)

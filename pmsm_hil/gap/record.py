@@ -270,11 +270,12 @@ def record_from_columns(
 
 def sensor_spec_from_metadata(meta: dict[str, dict[str, str]]) -> dict[str, float]:
     """The current-sensor specification a log carries: the `gap_sensors` record (i_noise_a,
-    adc_lsb_a, encoder_lines) or, from a rig's metadata, only its sensor entries (the diagnosis does
+    adc_lsb_a, encoder_lines, and encoder_count_start = 1 for an angle read as the start of each
+    count) or, from a rig's metadata, only its sensor entries (the diagnosis does
     not read the rig's other effects)."""
     out: dict[str, float] = {}
     src = meta.get("gap_sensors") or {}
-    for k in ("i_noise_a", "adc_lsb_a", "encoder_lines"):
+    for k in ("i_noise_a", "adc_lsb_a", "encoder_lines", "encoder_count_start"):
         if k in src and src[k] not in ("", "nan"):
             out[k] = float(src[k])
     rig = meta.get("rig") or meta.get("rig_effects") or {}
@@ -339,6 +340,10 @@ def _firmware_angle_counts(log: Log) -> int:
     """Counts per turn of the encoder whose count pmsm-hil's firmware read for the recorded angle
     (4 x lines: the rig file's `encoder` effect, else the default 2500 lines), or 0 when the log
     is not one of its runs (no device record) or the angle came from an estimator."""
+    spec = sensor_spec_from_metadata(log.metadata)
+    if spec.get("encoder_count_start") and spec.get("encoder_lines"):
+        # the sensor specification says so (a sealed record of `gap selftest`: no device record)
+        return 4 * int(spec["encoder_lines"])
     if not (log.metadata.get("device") or {}).get("fw_version"):
         return 0
     if (_run_control(log).get("angle_src") or "encoder") != "encoder":

@@ -78,6 +78,8 @@ def record_profile(
         meta = {"gap_source": {"kind": "emulator", "ts_s": repr(profile.control.ts_s)}}
         if sensors:
             meta["gap_sensors"] = {k: repr(float(v)) for k, v in sensors.items()}
+            if "encoder_lines" in sensors:  # the firmware reads a count as where it starts
+                meta["gap_sensors"]["encoder_count_start"] = "1.0"
         atts = []
         if full_log:
             meta.update({k: v for k, v in run_log.metadata.items() if k != "log"})
