@@ -235,6 +235,10 @@ def test_cli_errors(tmp_path, capsys):
         (["gap", "augment", str(bad), "-o", str(folder)], f"-o {folder}: is a directory"),
         (["gap", "verify", str(folder), "--rig", "ideal"], "is a directory, not a log"),
         (["gap", "augmnet", str(bad), "-o", "f.yaml"], "did you mean `gap augment`?"),
+        (
+            ["gap", "record", "paper-b", "-o", str(tmp_path / "pb.mcap")],
+            "paper-b: current_ctrl: foc throughout",  # refused before the run, not after it
+        ),
         (["gap", str(bad), "--rig", "lab-typical"], "--rig is for `gap record` and `gap verify`"),
         (
             ["gap", str(bad), "--motor", str(ROOT / "profiles/diagnose.yaml")],
@@ -250,6 +254,7 @@ def test_cli_errors(tmp_path, capsys):
         err = capsys.readouterr().err
         assert says in err and "Traceback" not in err, (argv, err)
     assert not (tmp_path / "adir" / "record.mcap").exists()
+    assert not (tmp_path / "pb.mcap").exists()
 
 
 def _log_with(profile_yaml: str | None, truncated: bool = False):

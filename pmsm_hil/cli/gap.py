@@ -203,7 +203,19 @@ def main(args: argparse.Namespace) -> int:
             why = _out_problem(args.out, "record.mcap")
             if why:
                 return fail("error", why, 2)
+            from pmsm_hil.profiles import load_profile
             from pmsm_hil.profiles.shipped import resolve
+
+            spec = load_profile(resolve(args.rest[0], "profile")).spec
+            ctrls = {spec.control.current_ctrl, *(g.current_ctrl for g in spec.segments)}
+            if ctrls - {None} == {"foc"}:  # the diagnosis would refuse it: say so before the run
+                return fail(
+                    "error",
+                    f"{args.rest[0]}: current_ctrl: foc throughout (a PWM modulator): its record "
+                    "could not be diagnosed, which needs the switching states of FCS-MPCC "
+                    "(docs/gap.md); record an MPCC profile, e.g. the shipped `diagnose`",
+                    2,
+                )
 
             cols = record_profile(
                 resolve(args.rest[0], "profile"),
