@@ -66,12 +66,6 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     )
 
 
-def _log_problem(path: str, what: str = "") -> str | None:
-    from pmsm_hil.log.reader import path_problem
-
-    return path_problem(path, what)
-
-
 def _out_problem(path: str, what: str) -> str | None:
     """Why ``path`` cannot be written as the file ``what`` (None: it can)."""
     if os.path.isdir(path):
@@ -165,7 +159,7 @@ def _status(show: bool, title: str):
 def main(args: argparse.Namespace) -> int:
     from pmsm_hil.errors import DeviceError
     from pmsm_hil.gap.record import RecordError
-    from pmsm_hil.log.reader import LogFormatError
+    from pmsm_hil.log.reader import LogFormatError, path_problem
     from pmsm_hil.profiles import ProfileError
 
     if args.workers is not None and args.workers < 1:
@@ -203,12 +197,14 @@ def main(args: argparse.Namespace) -> int:
             why = _out_problem(args.out, "record.mcap")
             if why:
                 return fail("error", why, 2)
+            from pmsm_hil.gap.record import foc_throughout
             from pmsm_hil.profiles import load_profile
             from pmsm_hil.profiles.shipped import resolve
 
-            spec = load_profile(resolve(args.rest[0], "profile")).spec
-            ctrls = {spec.control.current_ctrl, *(g.current_ctrl for g in spec.segments)}
-            if ctrls - {None} == {"foc"}:  # the diagnosis would refuse it: say so before the run
+            profile_path = resolve(args.rest[0], "profile")
+            spec = load_profile(profile_path).spec
+            # the diagnosis would refuse its record: say so before the run
+            if foc_throughout(spec.control.current_ctrl, (g.current_ctrl for g in spec.segments)):
                 return fail(
                     "error",
                     f"{args.rest[0]}: current_ctrl: foc throughout (a PWM modulator): its record "
@@ -218,7 +214,7 @@ def main(args: argparse.Namespace) -> int:
                 )
 
             cols = record_profile(
-                resolve(args.rest[0], "profile"),
+                profile_path,
                 args.out,
                 rig_path=resolve(args.rig, "rig") if args.rig else None,
                 seed=args.seed,
@@ -232,7 +228,7 @@ def main(args: argparse.Namespace) -> int:
                 return fail("error", "gap verify LOG.mcap --rig fitted-rig.yaml", 2)
             from pmsm_hil.profiles.shipped import resolve
 
-            why = _log_problem(args.rest[0])
+            why = path_problem(args.rest[0])
             if why:
                 return fail("error", why, 2)
             # a rig file, or a shipped rig by its name (`--rig lab-typical`), as for `gap record`
@@ -288,7 +284,7 @@ def main(args: argparse.Namespace) -> int:
         path = args.rest[0] if args.target == "augment" and args.rest else args.target
         if args.target == "augment" and (not args.rest or not args.out):
             return fail("error", "gap augment LOG.mcap -o fitted-rig.yaml", 2)
-        why = _log_problem(path) or (args.holdout and _log_problem(args.holdout, "--holdout"))
+        why = path_problem(path) or (args.holdout and path_problem(args.holdout, "--holdout"))
         if args.target == "augment" and not why:
             why = _out_problem(args.out, "fitted-rig.yaml")
         if why:

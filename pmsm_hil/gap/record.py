@@ -16,6 +16,7 @@ from __future__ import annotations
 import contextlib
 import itertools
 import os
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -316,13 +317,22 @@ def _run_control(log: Log) -> dict[str, Any]:
     return control
 
 
-def _modulator_problem(log: Log, path: str | os.PathLike, rec: ControlRecord) -> str | None:
+def foc_throughout(run_ctrl: str | None, segment_ctrls: Iterable[str | None]) -> bool:
+    """Whether a profile's current control is the PWM modulator (FOC/SVPWM) in every segment:
+    the run's `control.current_ctrl` (default mpcc) unless a segment names its own."""
+    return {run_ctrl or "mpcc", *(c for c in segment_ctrls if c)} == {"foc"}
+
+
+def _modulator_problem(
+    log: Log, path: str | os.PathLike, rec: ControlRecord, control: dict | None = None
+) -> str | None:
     """A record whose voltage is switch states sampled once a period, of a run whose current
     control was a modulator (FOC/SVPWM) throughout: the states are not the voltage applied over
-    the period, and a diagnosis on them is meaningless."""
-    control = _run_control(log)
-    ctrls = {control.get("current_ctrl") or "mpcc", *control.get("segment_ctrls", [])}
-    if rec.voltage_kind != "switch" or ctrls != {"foc"}:
+    the period, and a diagnosis on them is meaningless. ``control``: _run_control(log), if read."""
+    control = _run_control(log) if control is None else control
+    if rec.voltage_kind != "switch" or not foc_throughout(
+        control.get("current_ctrl"), control.get("segment_ctrls", [])
+    ):
         return None
     return (
         f"{path}: the run used current_ctrl: foc (a PWM modulator) and the record holds switch "
@@ -336,17 +346,16 @@ def _modulator_problem(log: Log, path: str | os.PathLike, rec: ControlRecord) ->
 ENCODER_LINES_DEFAULT = 2500  # the firmware's encoder when the rig names none (docs/profiles.md)
 
 
-def _firmware_angle_counts(log: Log) -> int:
+def _firmware_angle_counts(log: Log, control: dict, spec: dict[str, float]) -> int:
     """Counts per turn of the encoder whose count pmsm-hil's firmware read for the recorded angle
     (4 x lines: the rig file's `encoder` effect, else the default 2500 lines), or 0 when the log
     is not one of its runs (no device record) or the angle came from an estimator."""
-    spec = sensor_spec_from_metadata(log.metadata)
     if spec.get("encoder_count_start") and spec.get("encoder_lines"):
         # the sensor specification says so (a sealed record of `gap selftest`: no device record)
         return 4 * int(spec["encoder_lines"])
     if not (log.metadata.get("device") or {}).get("fw_version"):
         return 0
-    if (_run_control(log).get("angle_src") or "encoder") != "encoder":
+    if (control.get("angle_src") or "encoder") != "encoder":
         return 0
     lines: Any = ENCODER_LINES_DEFAULT
     att = log.attachment("rig.yaml")
@@ -364,14 +373,15 @@ def _firmware_angle_counts(log: Log) -> int:
         return 0
 
 
-def _log_notes(log: Log, path: str | os.PathLike) -> list[str]:
+def _log_notes(log: Log, path: str | os.PathLike, control: dict | None = None) -> list[str]:
+    control = _run_control(log) if control is None else control
     notes = []
     if log.truncated or not log.finalised:
         notes.append(
             f"{path} is not finalised (the run was killed or the file is cut short): the "
             "diagnosis uses what could be recovered"
         )
-    angle = _run_control(log).get("angle_src") or "encoder"
+    angle = control.get("angle_src") or "encoder"
     if angle != "encoder":
         notes.append(
             f"the run's angle came from its estimator (angle_src: {angle}); the diagnosis takes "
@@ -384,12 +394,13 @@ def _log_notes(log: Log, path: str | os.PathLike) -> list[str]:
 def record_from_log(log: Log, path: str | os.PathLike) -> ControlRecord | SteadyRecord:
     """``load_record`` of a log already read (``path`` names it in the messages)."""
     rec = _record_from_log(log, path)
+    control = _run_control(log)  # the profile's attachment, read once
     if isinstance(rec, ControlRecord):
-        why = _modulator_problem(log, path, rec)
+        why = _modulator_problem(log, path, rec, control)
         if why:
             raise RecordError(why)
-        rec.angle_counts = _firmware_angle_counts(log)
-    rec.notes.extend(_log_notes(log, path))
+        rec.angle_counts = _firmware_angle_counts(log, control, rec.sensor_spec)
+    rec.notes.extend(_log_notes(log, path, control))
     return rec
 
 

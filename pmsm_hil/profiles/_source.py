@@ -422,37 +422,40 @@ def range_text(info: Any, name: str) -> str:
     return "is out of range"
 
 
+# pydantic error types whose message in the profiles' words does not depend on the error
+_MESSAGES = {
+    **dict.fromkeys(("int_type", "int_parsing", "int_from_float"), "is not a whole number"),
+    **dict.fromkeys(("bool_type", "bool_parsing"), "is not true or false"),
+    "string_type": "is not text (put it in quotes)",
+    "finite_number": "is not a finite number",
+    **dict.fromkeys(
+        ("model_type", "model_attributes_type", "dict_type"),
+        "must be a mapping of `key: value` lines",
+    ),
+    "list_type": "must be a list (lines starting with `- `)",
+    "string_too_short": "must not be empty",
+}
+_RANGE_TYPES = ("greater_than", "greater_than_equal", "less_than", "less_than_equal")
+
+
 def error_message(err: Any, info: Any, name: str) -> str:
     """The message of one pydantic error (not `missing` or `extra_forbidden`), in the profiles'
     words: ``info`` is the field's FieldInfo (for its range), ``name`` its key (for the unit)."""
     typ = err["type"]
-    value = err.get("input")
+    ctx = err.get("ctx", {})
+    if typ in _MESSAGES:
+        return _MESSAGES[typ]
     if typ in ("float_type", "float_parsing"):
-        return "is not a number" + (
-            " (write numbers without quotes)" if isinstance(value, str) else ""
-        )
-    if typ in ("int_type", "int_parsing", "int_from_float"):
-        return "is not a whole number"
-    if typ in ("bool_type", "bool_parsing"):
-        return "is not true or false"
-    if typ == "string_type":
-        return "is not text (put it in quotes)"
-    if typ == "literal_error":
-        return f"is not one of {err.get('ctx', {}).get('expected', '')}"
-    if typ == "finite_number":
-        return "is not a finite number"
-    if typ in ("greater_than", "greater_than_equal", "less_than", "less_than_equal"):
+        quoted = isinstance(err.get("input"), str)
+        return "is not a number" + (" (write numbers without quotes)" if quoted else "")
+    if typ in _RANGE_TYPES:
         return range_text(info, name)
-    if typ in ("model_type", "model_attributes_type", "dict_type"):
-        return "must be a mapping of `key: value` lines"
-    if typ == "list_type":
-        return "must be a list (lines starting with `- `)"
+    if typ == "literal_error":
+        return f"is not one of {ctx.get('expected', '')}"
     if typ == "too_short":
-        return f"must have at least {err.get('ctx', {}).get('min_length')} item(s)"
+        return f"must have at least {ctx.get('min_length')} item(s)"
     if typ == "too_long":
-        return f"must have at most {err.get('ctx', {}).get('max_length')} items"
-    if typ == "string_too_short":
-        return "must not be empty"
+        return f"must have at most {ctx.get('max_length')} items"
     return err["msg"][0].lower() + err["msg"][1:]
 
 
