@@ -236,8 +236,6 @@ def run_runs(
     whose progress bar is labelled ``label``). The table's rows take their index, seed and axis
     columns from ``runs`` (the key is a hash of the inputs, so a journalled row of the same key
     is the same run, whatever an older pmsm-hil named its columns)."""
-    from distributed import as_completed
-
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     axes = list(axes or [])
@@ -248,19 +246,22 @@ def run_runs(
         out=out, planned=len(runs), skipped=len(runs) - len(todo), criteria=_has_criteria(runs)
     )
     by_key = {r.key: r for r in runs}
-    for r in runs:
-        write_inputs(out, r)
     t0 = time.perf_counter()
     client = cluster = None
     missed = sum(1 for r in runs if r.key in done and not passed(_row(journal.rows[r.key], r)))
-    bar = _Bar(
-        len(runs),
-        res.skipped,
-        enabled=progress,
-        label=label,
-        missed=missed if res.criteria else None,
-    )
-    try:
+    try:  # from here on a Ctrl-C ends with the summary and the table (the inputs' writing, the
+        # imports and the cluster's start take a second or more)
+        for r in runs:
+            write_inputs(out, r)
+        from distributed import as_completed
+
+        bar = _Bar(
+            len(runs),
+            res.skipped,
+            enabled=progress,
+            label=label,
+            missed=missed if res.criteria else None,
+        )
         if todo:
             with _sigint_held():
                 client, cluster = _client(scheduler, workers)
