@@ -3,6 +3,7 @@ pass/fail table, JUnit XML, the exit code."""
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
@@ -68,6 +69,33 @@ def with_acceptance(tmp_path, data, text: str, name: str = "p.yaml"):
             "acceptance.run.recovery_max",
             "did you mean 'recovery_max_s'",
         ),
+        # a bound of 0 or below fails every plateau: refused like the other bounds
+        (
+            "acceptance:\n  run:\n    speed_error_max_rpm: -5\n",
+            "acceptance.run.speed_error_max_rpm",
+            "= -5 must be > 0 r/min",
+        ),
+        # a union's members make one message, not one per member (`.float`, `.literal['band']`)
+        (
+            "acceptance:\n  run:\n    speed_error_max_rpm: 5 rpm\n",
+            "acceptance.run.speed_error_max_rpm",
+            "= '5 rpm' is not a number or 'band' (write the number alone",
+        ),
+        (
+            "acceptance:\n  segments:\n    - {segment: 1.5, recovery_max_s: 0.3}\n",
+            "acceptance.segments[0].segment",
+            "is not text or a whole number (the segment's name or index)",
+        ),
+        (
+            "acceptance:\n  run:\n    identification:\n      - {estimator: rls, param: l_q_h, error_max_rel: 0.02}\n",
+            "acceptance.run.identification",
+            "the profile does not identify (control.identify is not true)",
+        ),
+        (
+            "acceptance:\n  run: {complete: false, faults: ignored}\n",
+            "acceptance.run",
+            "checks nothing",
+        ),
     ],
 )
 def test_acceptance_errors_name_file_line_field(tmp_path, data, text, field, message):
@@ -80,6 +108,119 @@ def test_acceptance_errors_name_file_line_field(tmp_path, data, text, field, mes
     line = int(msg.split(":")[1])
     assert line > n_lines  # on a line of the acceptance section
     assert f" {field}" in msg and message in msg, msg
+    assert ".constrained-float" not in msg and ".str" not in msg and ".int" not in msg
+
+
+def test_an_unnamed_segment_is_pointed_to_its_index(tmp_path, data):
+    text = re.sub(r'name: "load off",\s*', "", (data / "short.yaml").read_text())
+    assert '"load off"' not in text
+    text = text.replace("../../profiles/", str(data.parent.parent / "profiles") + "/")
+    p = tmp_path / "p.yaml"
+    p.write_text(
+        text + 'acceptance:\n  segments:\n    - {segment: "segment 2", recovery_max_s: 0.3}\n'
+    )
+    with pytest.raises(ProfileError) as e:
+        load_profile(p)
+    assert "an unnamed segment is given by its index: segment: 2" in str(e.value)
+
+
+def _seg(i, name, setpoint=500.0, mean=0.1, rec=None, judged=True, faults=0):
+    from pmsm_hil.analysis.summary import SegmentStats
+
+    return SegmentStats(
+        index=i,
+        name=name,
+        t_start_s=float(i),
+        t_end_s=i + 1.0,
+        setpoint_rpm=setpoint,
+        load_nm=0.0,
+        load_step_nm=0.0,
+        band_rpm=5.0,
+        mean_error_rpm=mean,
+        mean_ok=True,
+        true_mean_error_rpm=None,
+        recovery_s=rec,
+        recovery_ok=None,
+        ripple_d_a=0.2,
+        ripple_q_a=0.3,
+        faults=faults,
+        plateau_s=1.0 if judged else 0.05,
+        mean_judged=judged,
+    )
+
+
+def _summary(segs, faults=()):
+    from pmsm_hil.analysis.summary import RunSummary
+
+    s = RunSummary(path="x", ended="profile end", expected=[g.name for g in segs])
+    s.segments = list(segs)
+    s.faults = list(faults)
+    return s
+
+
+def _checks(acc: dict, summary):
+    from pmsm_hil.analysis.acceptance import evaluate
+    from pmsm_hil.profiles.acceptance import Acceptance
+
+    return evaluate(Acceptance.model_validate(acc), summary)
+
+
+def test_a_segments_own_bound_replaces_the_run_wide_one_there():
+    """A segment's own bound loosens (or tightens) the run's for that segment: one check, its
+    own; the run-wide bound still judges the other segments; rows ordered by segment."""
+    segs = [_seg(0, "a", mean=0.3), _seg(1, "b", mean=3.0), _seg(2, "c", mean=0.2)]
+    acc = {
+        "run": {"speed_error_max_rpm": 1.0},
+        "segments": [{"segment": "b", "speed_error_max_rpm": 5}],
+    }
+    checks = [c for c in _checks(acc, _summary(segs)) if c.criterion == "speed error"]
+    assert [(c.scope, c.bound, c.passed) for c in checks] == [
+        ("segment 0 'a'", "|.| <= 1 r/min", True),
+        ("segment 1 'b'", "|.| <= 5 r/min", True),
+        ("segment 2 'c'", "|.| <= 1 r/min", True),
+    ]
+    # without its own bound, b fails the run's
+    checks = _checks({"run": {"speed_error_max_rpm": 1.0}}, _summary(segs))
+    assert [c.passed for c in checks if c.scope.startswith("segment 1")] == [False]
+
+
+def test_ramps_and_stops_are_not_judged_run_wide_and_a_segments_own_bound_says_why():
+    segs = [
+        _seg(0, "ramp", mean=-1.05, judged=False),
+        _seg(1, "stop", setpoint=0.0, rec=float("inf")),
+        _seg(2, "hold", rec=float("inf")),
+    ]
+    acc = {"run": {"speed_error_max_rpm": 10, "ripple_q_max_a": 1, "recovery_max_s": 0.3}}
+    checks = _checks(acc, _summary(segs))
+    scopes = {c.scope for c in checks}
+    assert "segment 0 'ramp'" not in scopes and "segment 1 'stop'" not in scopes
+    rec = next(c for c in checks if c.criterion == "recovery")
+    assert rec.scope == "segment 2 'hold'" and rec.measured == "never" and not rec.passed
+    own = _checks({"segments": [{"segment": 0, "speed_error_max_rpm": 10}]}, _summary(segs))
+    speed = next(c for c in own if c.criterion == "speed error")
+    assert not speed.passed and speed.measured.startswith("not judged: a ramp")
+
+
+def test_faults_are_forbidden_by_default_named_and_can_be_ignored():
+    segs = [_seg(0, "a")]
+    faulted = _summary(segs, faults=["1.234 s lost_lock"])
+    for acc in ({}, {"segments": [{"segment": 0, "ripple_q_max_a": 1}]}, {"run": {}}):
+        f = next(c for c in _checks(acc, faulted) if c.criterion == "faults")
+        assert (f.measured, f.bound, f.passed) == ("1 (lost_lock)", "none", False)
+    assert not [
+        c for c in _checks({"run": {"faults": "ignored"}}, faulted) if c.criterion == "faults"
+    ]
+    expected = next(
+        c for c in _checks({"run": {"faults": "expected"}}, faulted) if c.criterion == "faults"
+    )
+    assert expected.passed
+
+
+def test_a_tiny_error_is_shown_with_its_digits():
+    """A 3e-05 r/min error beside a 0.0001 bound was shown as +0.000 (failing 0 against 1e-4)."""
+    checks = _checks({"run": {"speed_error_max_rpm": 1e-4}}, _summary([_seg(0, "a", mean=3e-5)]))
+    c = next(c for c in checks if c.criterion == "speed error")
+    assert c.measured == "+3e-05 r/min" and c.passed
 
 
 def test_shipped_profiles_load_with_their_criteria(root):
@@ -151,8 +292,10 @@ def test_test_fails_with_the_measured_value_beside_the_bound(tmp_path, data):
         timeout=300,
     )
     assert r.returncode == 1, r.stdout + r.stderr
-    assert "FAIL short: 2 of 3 checks passed" in r.stdout
-    assert "PASS short: 2 of 2 checks passed" in r.stdout
+    # without a `run:` section the run-wide defaults hold (complete, no fault); the second
+    # profile of the same name is told apart by its ordinal
+    assert "FAIL short: 3 of 4 checks passed" in r.stdout
+    assert "PASS short (2): 2 of 2 checks passed" in r.stdout
     assert "1 of 2 profiles passed" in r.stdout
     line = next(x for x in r.stdout.splitlines() if "recovery" in x)
     assert "<= 0.001 s" in line and "FAIL" in line
@@ -287,3 +430,51 @@ def test_test_hints_at_commissioning_when_identification_fails_on_an_uncommissio
     assert commission_hint(["speed error"], motor, lab) is None  # not an identification check
     commissioned = motor + "commissioning: {nominal: {}}\n"
     assert commission_hint(failed, commissioned, lab) is None
+
+
+def test_test_junit_for_ci_a_blip_segment_and_a_name_with_brackets(tmp_path, data):
+    """`--junit` into a folder not made yet (made before the run); the report's root carries the
+    totals, each suite its properties first (profile, rig, motor, seed), each failure a type and
+    a body; a 1 ms segment is listed as too short to measure (it vanished from the summary, and
+    the run counted as complete); a profile name with rich markup is printed as it is."""
+    src = (data / "short.yaml").read_text()
+    src = src.replace("../../profiles/", str(data.parent.parent / "profiles") + "/")
+    src = src.replace("name: short", 'name: "rig A [/] B"')
+    src = src.replace(
+        '  - {name: "load off"',
+        '  - {name: "blip", duration_s: 0.001, speed_rpm: 500, ramp_rpm_s: 0, load_nm: 5.0}\n'
+        '  - {name: "load off"',
+    )
+    p = tmp_path / "blip.yaml"
+    p.write_text(src + 'acceptance:\n  segments:\n    - {segment: "blip", ripple_q_max_a: 5}\n')
+    junit = tmp_path / "new" / "sub" / "out.xml"
+    r = subprocess.run(
+        [*CLI, "test", str(p), "--junit", str(junit)], capture_output=True, text=True, timeout=300
+    )
+    assert r.returncode == 1, r.stdout + r.stderr
+    assert "Traceback" not in r.stderr
+    assert "rig A [/] B (" in r.stdout and "FAIL rig A [/] B: 2 of 3 checks passed" in r.stdout
+    assert "not judged: too short to measure" in r.stdout
+    root = ET.parse(junit).getroot()
+    assert (root.get("tests"), root.get("failures"), root.get("errors")) == ("3", "1", "0")
+    suite = root.find("testsuite")
+    assert suite[0].tag == "properties"
+    props = {q.get("name"): q.get("value") for q in suite[0]}
+    assert props["profile"] == str(p) and props["seed"] == "1"
+    assert props["rig"] == "default" and props["motor"]
+    failure = suite.find("testcase/failure")
+    assert failure.get("type") == "acceptance"
+    assert "segment 2 'blip': ripple i_q measured not judged" in failure.text
+    # a folder for the report is refused before anything runs
+    r = subprocess.run(
+        [*CLI, "test", str(p), "--junit", str(tmp_path)], capture_output=True, text=True, timeout=60
+    )
+    assert r.returncode == 2 and "is a folder" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_test_names_every_bad_profile_not_only_the_first(tmp_path, data):
+    a = with_acceptance(tmp_path, data, "acceptance:\n  run: {faults: sometimes}\n", "a.yaml")
+    b = with_acceptance(tmp_path, data, "acceptance:\n  run: {recovery_max_s: -1}\n", "b.yaml")
+    r = subprocess.run([*CLI, "test", str(a), str(b)], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2, r.stdout + r.stderr
+    assert f"{a}:" in r.stderr and f"{b}:" in r.stderr

@@ -4,8 +4,9 @@ the measured value beside the bound (the run summary and the identification tabl
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import asdict, dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from os import PathLike
@@ -35,12 +36,35 @@ def _seg_scope(s) -> str:
     return f"segment {s.index} {s.name!r}"
 
 
-def _segment_checks(bounds, segs, summary, scope_all: bool) -> list[Check]:
+def _num(v: float, unit: str, sign: bool = False) -> str:
+    """A measured value with four significant digits (a speed error of 3e-05 r/min is not shown
+    as +0.000 beside a bound of 0.0001)."""
+    return f"{v:+.4g} {unit}" if sign else f"{v:.4g} {unit}"
+
+
+def _not_judged(s) -> str:
+    if math.isnan(s.mean_error_rpm):
+        return "not judged: too short to measure"
+    return f"not judged: a ramp (at its set-point {s.plateau_s:.3g} s)"
+
+
+BOUND_KEYS = ("speed_error_max_rpm", "ripple_d_max_a", "ripple_q_max_a", "recovery_max_s", "faults")
+
+
+def _segment_checks(bounds, segs, scope_all: bool, skip=frozenset()) -> list[Check]:
+    """The checks of ``bounds`` on ``segs``: run-wide (``scope_all``: the plateaus at a non-zero
+    set-point, the load steps there; the (segment index, bound key) pairs in ``skip`` are left to
+    a segment's own bounds) or one segment's own (every bound it gives is checked, and fails
+    when it cannot be measured)."""
     out: list[Check] = []
     for s in segs:
         scope = _seg_scope(s)
-        plateau = s.setpoint_rpm != 0 or not scope_all
-        b = bounds.speed_error_max_rpm
+        plateau = (s.setpoint_rpm != 0 and s.mean_judged) or not scope_all
+
+        def given(key: str, s=s) -> Any:
+            return None if (s.index, key) in skip else getattr(bounds, key)
+
+        b = given("speed_error_max_rpm")
         if b is not None and plateau:
             lim = s.band_rpm if b == "band" else float(b)
             err = s.mean_error_rpm
@@ -48,55 +72,67 @@ def _segment_checks(bounds, segs, summary, scope_all: bool) -> list[Check]:
                 Check(
                     scope,
                     "speed error",
-                    f"{err:+.3f} r/min",
-                    f"|.| <= {lim:g} r/min" + (" (band)" if b == "band" else ""),
-                    bool(not math.isnan(err) and abs(err) <= lim),
+                    _num(err, "r/min", sign=True) if s.mean_judged else _not_judged(s),
+                    f"|.| <= {lim:.4g} r/min" + (" (band)" if b == "band" else ""),
+                    bool(s.mean_judged and not math.isnan(err) and abs(err) <= lim),
                 )
             )
         for key, name in (("ripple_d_max_a", "ripple i_d"), ("ripple_q_max_a", "ripple i_q")):
-            lim = getattr(bounds, key)
+            lim = given(key)
             if lim is not None and plateau:
                 v = s.ripple_d_a if key == "ripple_d_max_a" else s.ripple_q_a
                 out.append(
                     Check(
                         scope,
                         name,
-                        f"{v:.3f} A",
+                        _num(v, "A") if s.mean_judged else _not_judged(s),
                         f"<= {lim:g} A",
-                        bool(not math.isnan(v) and v <= lim),
+                        bool(s.mean_judged and not math.isnan(v) and v <= lim),
                     )
                 )
-        if bounds.recovery_max_s is not None and (s.recovery_s is not None or not scope_all):
+        lim = given("recovery_max_s")
+        if lim is not None and (not scope_all or (s.recovery_s is not None and plateau)):
             v = s.recovery_s
-            out.append(
-                Check(
-                    scope,
-                    "recovery",
-                    "no load step" if v is None else f"{v:.3f} s",
-                    f"<= {bounds.recovery_max_s:g} s",
-                    v is not None and v <= bounds.recovery_max_s,
-                )
-            )
-        if bounds.faults is not None and not scope_all:
+            shown = "no load step" if v is None else ("never" if math.isinf(v) else _num(v, "s"))
+            out.append(Check(scope, "recovery", shown, f"<= {lim:g} s", v is not None and v <= lim))
+        if given("faults") is not None and not scope_all:
             out.append(_fault_check(scope, s.faults, bounds.faults))
     return out
 
 
-def _fault_check(scope: str, n: int, rule: str) -> Check:
+def _fault_check(scope: str, n: int, rule: str, names: list[str] | None = None) -> Check:
     ok = n == 0 if rule == "forbidden" else n > 0
-    return Check(scope, "faults", str(n), "none" if rule == "forbidden" else ">= 1 (expected)", ok)
+    shown = str(n) + (
+        f" ({'; '.join(names[:3])}{'; ...' if len(names) > 3 else ''})" if names else ""
+    )
+    return Check(scope, "faults", shown, "none" if rule == "forbidden" else ">= 1 (expected)", ok)
+
+
+def _own_bounds(acceptance: Acceptance, summary: RunSummary) -> set[tuple[int, str]]:
+    """(segment index, bound key) of every bound a segment gives itself: it replaces the run-wide
+    one there (a segment's own bound loosens or tightens the run's for that segment)."""
+    by_name = {s.name: s.index for s in summary.segments}
+    out = set()
+    for sa in acceptance.segments:
+        idx = sa.segment if isinstance(sa.segment, int) else by_name.get(sa.segment)
+        if idx is not None:
+            out |= {(idx, k) for k in BOUND_KEYS if getattr(sa, k) is not None}
+    return out
 
 
 def evaluate(
     acceptance: Acceptance | None, summary: RunSummary, ident: IdentTable | None = None
 ) -> list[Check]:
     """The checks of ``acceptance`` (a profile's Acceptance) on a run's RunSummary and, for
-    identification bounds, its IdentTable (None: those checks fail as not measured)."""
+    identification bounds, its IdentTable (None: those checks fail as not measured). Without a
+    `run:` section the run-wide defaults hold (the whole profile played, no fault)."""
+    from pmsm_hil.profiles.acceptance import RunAcceptance
+
     out: list[Check] = []
     if acceptance is None:
         return out
-    run = acceptance.run
-    if run is None:  # a run that did not play the whole profile never passes
+    run = acceptance.run if acceptance.run is not None else RunAcceptance()
+    if run.complete:
         out.append(
             Check(
                 "run",
@@ -106,59 +142,13 @@ def evaluate(
                 summary.complete,
             )
         )
-    else:
-        if run.complete:
-            out.append(
-                Check(
-                    "run",
-                    "complete",
-                    "yes" if summary.complete else f"no ({summary.ended or 'the log ends early'})",
-                    "whole profile",
-                    summary.complete,
-                )
-            )
-        if run.faults is not None:
-            out.append(_fault_check("run", len(summary.faults), run.faults))
-        out += _segment_checks(run, summary.segments, summary, scope_all=True)
-        out += _angle_checks(run, summary)
-        for ib in run.identification:
-            cell = ident.cell(ib.estimator, ib.param) if ident is not None else None
-            what = f"{ib.estimator} {ib.param}"
-            if ib.error_max_rel is not None:
-                if cell is None:
-                    out.append(
-                        Check(
-                            "run",
-                            f"{what} error",
-                            "not measured",
-                            f"<= {100 * ib.error_max_rel:g} %",
-                            False,
-                        )
-                    )
-                else:
-                    e = cell.error_rel
-                    out.append(
-                        Check(
-                            "run",
-                            f"{what} error",
-                            f"{100 * e:+.2f} %",
-                            f"|.| <= {100 * ib.error_max_rel:g} %",
-                            bool(not math.isnan(e) and abs(e) <= ib.error_max_rel),
-                        )
-                    )
-            if ib.conv_max_s is not None:
-                c = None if cell is None else cell.conv_s
-                out.append(
-                    Check(
-                        "run",
-                        f"{what} convergence",
-                        "not measured"
-                        if cell is None
-                        else ("never" if c is None else f"{c:.3f} s"),
-                        f"<= {ib.conv_max_s:g} s",
-                        c is not None and c <= ib.conv_max_s,
-                    )
-                )
+    if run.faults != "ignored":
+        names = [f.split(" s ", 1)[-1] for f in summary.faults]
+        out.append(_fault_check("run", len(summary.faults), run.faults, names))
+    own = _own_bounds(acceptance, summary)
+    out += _segment_checks(run, summary.segments, scope_all=True, skip=own)
+    out += _angle_checks(run, summary)
+    out += _ident_checks(run, ident)
     by_index = {s.index: s for s in summary.segments}
     by_name = {s.name: s for s in summary.segments}
     for sa in acceptance.segments:
@@ -168,7 +158,56 @@ def evaluate(
                 Check(f"segment {sa.segment!r}", "seen", "not seen in the log", "played", False)
             )
             continue
-        out += _segment_checks(sa, [seg], summary, scope_all=False)
+        out += _segment_checks(sa, [seg], scope_all=False)
+    return sorted(out, key=_order)
+
+
+def _order(c: Check) -> tuple[int, int]:
+    """The run's checks first, then each segment's, run-wide and its own bounds together."""
+    if c.scope == "run":
+        return (0, 0)
+    m = re.match(r"segment (\d+) ", c.scope)
+    return (1, int(m.group(1))) if m else (2, 0)
+
+
+def _ident_checks(run, ident: IdentTable | None) -> list[Check]:
+    out: list[Check] = []
+    for ib in run.identification:
+        cell = ident.cell(ib.estimator, ib.param) if ident is not None else None
+        what = f"{ib.estimator} {ib.param}"
+        if ib.error_max_rel is not None:
+            if cell is None:
+                out.append(
+                    Check(
+                        "run",
+                        f"{what} error",
+                        "not measured",
+                        f"<= {100 * ib.error_max_rel:g} %",
+                        False,
+                    )
+                )
+            else:
+                e = cell.error_rel
+                out.append(
+                    Check(
+                        "run",
+                        f"{what} error",
+                        f"{100 * e:+.2f} %",
+                        f"|.| <= {100 * ib.error_max_rel:g} %",
+                        bool(not math.isnan(e) and abs(e) <= ib.error_max_rel),
+                    )
+                )
+        if ib.conv_max_s is not None:
+            c = None if cell is None else cell.conv_s
+            out.append(
+                Check(
+                    "run",
+                    f"{what} convergence",
+                    "not measured" if cell is None else ("never" if c is None else f"{c:.3f} s"),
+                    f"<= {ib.conv_max_s:g} s",
+                    c is not None and c <= ib.conv_max_s,
+                )
+            )
     return out
 
 

@@ -196,7 +196,34 @@ def summarize(
             starts[k + 1][0] if k + 1 < len(starts) else (min(ends) if ends else summary.duration_s)
         )
         sel = (t >= t0) & (t < t1)
-        if sel.sum() < 4:
+        n_faults = sum(1 for ft, _ in fault_events if t0 <= ft < t1)
+        name = names[idx] if names and idx < len(names) else f"segment {idx}"
+        if sel.sum() < 4:  # too short to measure (a blip): listed, not judged
+            setpoint = float(np.interp(t0, t, ref)) if len(t) else float("nan")
+            seg_load = float(np.median(load[sel])) if sel.any() else prev_load
+            summary.segments.append(
+                SegmentStats(
+                    index=idx,
+                    name=name,
+                    t_start_s=t0,
+                    t_end_s=t1,
+                    setpoint_rpm=setpoint,
+                    load_nm=seg_load,
+                    load_step_nm=seg_load - prev_load,
+                    band_rpm=max(0.01 * abs(setpoint), 1.0),
+                    mean_error_rpm=float("nan"),
+                    mean_ok=True,
+                    true_mean_error_rpm=None,
+                    recovery_s=None,
+                    recovery_ok=None,
+                    ripple_d_a=float("nan"),
+                    ripple_q_a=float("nan"),
+                    faults=n_faults,
+                    plateau_s=0.0,
+                    mean_judged=False,
+                )
+            )
+            prev_load = seg_load
             continue
         ts, r, s = t[sel], ref[sel], spd[sel]
         setpoint = float(r[-1])
@@ -231,11 +258,10 @@ def summarize(
         if abs(step) > 1e-6 and not ramped:  # a load step on a plateau (not during a ramp)
             rec = recovery_time(ts, err, band, t0)
             rec_ok = rec <= RECOVERY_LIMIT_S
-        n_faults = sum(1 for ft, _ in fault_events if t0 <= ft < t1)
         summary.segments.append(
             SegmentStats(
                 index=idx,
-                name=(names[idx] if names and idx < len(names) else f"segment {idx}"),
+                name=name,
                 t_start_s=t0,
                 t_end_s=t1,
                 setpoint_rpm=setpoint,
@@ -432,7 +458,7 @@ def _summary_rows(summary: RunSummary) -> list[dict[str, str]]:
                 "setpoint r/min": f"{s.setpoint_rpm:.1f}",
                 "load N·m": f"{s.load_nm:.2f}",
                 "mean err r/min": f"{ok}{_num(s.mean_error_rpm, '+.3f')}"
-                + ("" if s.mean_judged else " ramp"),
+                + ("" if s.mean_judged else " short" if math.isnan(s.mean_error_rpm) else " ramp"),
                 "true err r/min": "" if te is None else f"{te_ok}{te:+.3f}",
                 "band": f"±{s.band_rpm:.2f}",
                 "recovery s": ""

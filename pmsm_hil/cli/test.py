@@ -4,6 +4,7 @@ acceptance criteria; a pass/fail table, JUnit XML, a non-zero exit on any failur
 from __future__ import annotations
 
 import argparse
+import os
 import tempfile
 from pathlib import Path
 
@@ -62,6 +63,12 @@ def main(args: argparse.Namespace) -> int:
             Path(args.junit).write_text(text, encoding="utf-8")
             print(f"JUnit XML {args.junit}")
 
+    if args.workers is not None and args.workers < 1:
+        return fail("error", f"--workers {args.workers}: must be at least 1", 2)
+    if args.junit:  # checked before the suite runs, not after it
+        problem = _junit_problem(Path(args.junit))
+        if problem:
+            return fail("error", f"--junit {args.junit}: {problem}", 2)
     try:
         profiles = [resolve(p, "profile") for p in args.profiles]
         rig = resolve(args.rig, "rig") if args.rig else None
@@ -106,8 +113,10 @@ def _print(cases) -> None:
     if not console.is_terminal:
         console = Console(width=max(console.width, 120))
     for c in cases:
+        for w in c.warnings:
+            console.print(f"[yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
         tab = Table(
-            title=f"{c.name} ({c.profile}, seed {c.run.seed})" if c.run else c.name,
+            title=escape(f"{c.name} ({c.profile}, seed {c.run.seed})" if c.run else c.name),
             title_justify="left",
             header_style="bold",
             box=box.SIMPLE_HEAD,
@@ -117,9 +126,9 @@ def _print(cases) -> None:
         for ch in c.checks:
             tab.add_row(
                 escape(ch["scope"]),
-                ch["criterion"],
-                ch["measured"],
-                ch["bound"],
+                escape(ch["criterion"]),
+                escape(ch["measured"]),
+                escape(ch["bound"]),
                 "[green]pass[/]" if ch["passed"] else "[red]FAIL[/]",
             )
         console.print(tab)
@@ -129,7 +138,7 @@ def _print(cases) -> None:
             )
         if c.status != "ok":
             console.print(f"[red]run failed:[/] {escape(c.error)}")
-        hint = _commission_hint(c)
+        hint = c.hint()
         if hint:
             console.print(f"[yellow]hint:[/] {escape(hint)}", highlight=False, soft_wrap=True)
         n_fail = sum(1 for ch in c.checks if not ch["passed"])
@@ -145,13 +154,14 @@ def _print(cases) -> None:
     console.print(f"{n_pass} of {len(cases)} profiles passed", highlight=False)
 
 
-def _commission_hint(case) -> str | None:
-    """The commissioning hint (analysis.acceptance.commission_hint) for a case of the suite."""
-    from pmsm_hil.analysis.acceptance import commission_hint
-
-    if not case.run:
-        return None
-    failed = [ch["criterion"] for ch in case.checks if not ch["passed"]]
-    return commission_hint(
-        failed, case.run.texts.get("motor.yaml", ""), case.run.texts.get("rig.yaml", "")
-    )
+def _junit_problem(path: Path) -> str | None:
+    """Why the JUnit report could not be written at ``path`` (its folder is made if missing)."""
+    if path.is_dir():
+        return "is a folder; give a file name, e.g. report.xml"
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        return f"cannot make its folder ({e.strerror})"
+    if not os.access(path.parent, os.W_OK):
+        return f"its folder {path.parent} is not writable"
+    return None

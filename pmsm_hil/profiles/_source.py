@@ -449,7 +449,13 @@ def error_message(err: Any, info: Any, name: str) -> str:
         quoted = isinstance(err.get("input"), str)
         return "is not a number" + (" (write numbers without quotes)" if quoted else "")
     if typ in _RANGE_TYPES:
-        return range_text(info, name)
+        text = range_text(info, name)
+        ops = {"gt": ">", "ge": ">=", "lt": "<", "le": "<="}
+        for k, op in ops.items():  # a union member's own bound (the field's info has none)
+            if text == "is out of range" and k in ctx:
+                unit = unit_of(name)
+                text = f"must be {op} {fmt_num(ctx[k])}" + (f" {unit}" if unit else "")
+        return text
     if typ == "literal_error":
         return f"is not one of {ctx.get('expected', '')}"
     if typ == "too_short":
@@ -460,22 +466,73 @@ def error_message(err: Any, info: Any, name: str) -> str:
 
 
 _UNION_TAGS = {"float", "int", "bool", "str"}
+_MEMBER_TAGS = _UNION_TAGS | {"constrained-float", "constrained-int", "constrained-str"}
+# what a union member of each type error asks for (the alternatives of one message)
+_WANTS = {
+    "float_type": "a number",
+    "float_parsing": "a number",
+    "int_type": "a whole number",
+    "int_parsing": "a whole number",
+    "int_from_float": "a whole number",
+    "string_type": "text",
+    "bool_type": "true or false",
+    "bool_parsing": "true or false",
+}
+
+
+def _member_tag(p: object) -> bool:
+    return isinstance(p, str) and (p in _MEMBER_TAGS or p.startswith("literal["))
+
+
+def _merged_unions(errors: Any, loc_prefix: tuple) -> list[tuple[tuple, dict]]:
+    """(loc, error) per problem. Pydantic reports a value that fits no member of a union once per
+    member (`segment.str`, `segment.int`; `speed_error_max_rpm.constrained-float`,
+    `.literal['band']`): such errors become one, at the field — the member's own error when the
+    value has a member's type but breaks its constraint (a bound <= 0), else one `type` error
+    that lists what each member takes ("a number or 'band'"). A list item of a union (a sweep
+    axis's values) keeps its first member's error, as before."""
+    groups: dict[tuple, list[dict]] = {}
+    order: list[tuple[tuple, dict | None]] = []  # (loc, the error itself unless a union's)
+    for err in errors:
+        loc = loc_prefix + tuple(p for p in err["loc"] if isinstance(p, (str, int)))
+        if loc and _member_tag(loc[-1]):
+            key = loc[:-1]
+            if key not in groups:
+                order.append((key, None))
+            groups.setdefault(key, []).append(err)
+        else:
+            order.append((loc, err))
+    out: list[tuple[tuple, dict]] = []
+    for loc, single in order:
+        if single is not None:
+            out.append((loc, single))
+            continue
+        errs = groups[loc]
+        if len(errs) == 1 or isinstance(loc[-1], int):
+            out.append((loc, errs[0]))
+            continue
+        own = [e for e in errs if e["type"] not in _WANTS and e["type"] != "literal_error"]
+        if own:
+            out.append((loc, own[0]))
+            continue
+        wants = []
+        for e in errs:
+            w = (
+                str(e.get("ctx", {}).get("expected", ""))
+                if e["type"] == "literal_error"
+                else _WANTS[e["type"]]
+            )
+            if w not in wants:
+                wants.append(w)
+        out.append((loc, {**errs[0], "type": "union_type", "wants": wants}))
+    return out
 
 
 def validation_problems(
     exc: ValidationError, src: Source, model: type[BaseModel], loc_prefix: tuple = ()
 ) -> list[Problem]:
     out: list[Problem] = []
-    seen_union: set[tuple] = set()
-    for err in exc.errors():
-        loc = loc_prefix + tuple(p for p in err["loc"] if isinstance(p, (str, int)))
-        if loc and loc[-1] in _UNION_TAGS and isinstance(loc[-2] if len(loc) > 1 else None, int):
-            # a list item of a union type (a sweep axis's values): pydantic reports it once per
-            # member (`values[2].float`, `.int`, `.bool`, `.str`); the first says what is wrong
-            loc = loc[:-1]
-            if loc in seen_union:
-                continue
-            seen_union.add(loc)
+    for loc, err in _merged_unions(exc.errors(), loc_prefix):
         typ = err["type"]
         value = err.get("input")
         name = str(loc[-1]) if loc else ""
@@ -499,6 +556,12 @@ def validation_problems(
                 msg = f"is not a field of {section} (known: {', '.join(allowed)})"
             out.append(src.problem(loc, msg, value))
             continue
+        if typ == "union_type":
+            msg = "is not " + " or ".join(err["wants"])
+            if isinstance(value, str) and re.match(r"\s*[-+]?\.?\d", value):
+                msg += " (write the number alone: the unit is in the field's name)"
+            elif info is not None and info.description:
+                msg += f" ({info.description})"
         else:
             msg = error_message(err, info, name)
         out.append(src.problem(loc, msg, value))

@@ -5,7 +5,7 @@ nothing on the device.
     acceptance:
       run:                          # every plateau / load step / the whole run
         complete: true              # the log shows every segment to the profile's end (default)
-        faults: forbidden           # forbidden | expected (default: not checked)
+        faults: forbidden           # forbidden (default) | expected | ignored
         speed_error_max_rpm: band   # |mean speed error| on every plateau; `band` = max(1 %, 1 r/min)
         ripple_q_max_a: 1.5         # RMS of i_q - i_q* on every plateau
         recovery_max_s: 0.3         # every load step on a plateau
@@ -20,7 +20,8 @@ The measured quantities are those of the run summary and the identification tabl
 
 from __future__ import annotations
 
-from typing import Literal
+import re
+from typing import Annotated, Literal
 
 from pydantic import Field
 
@@ -42,7 +43,7 @@ PARAMS = ("l_d_h", "l_q_h", "psi_f_wb", "r_s_ohm")
 
 
 class Bounds(StrictModel):
-    speed_error_max_rpm: float | Literal["band"] | None = Field(
+    speed_error_max_rpm: Annotated[float, Field(gt=0)] | Literal["band"] | None = Field(
         None,
         description="largest |mean speed error| on a plateau, r/min, or `band`: max(1 %, 1 r/min)",
     )
@@ -56,7 +57,7 @@ class Bounds(StrictModel):
         None, gt=0, description="longest recovery after a load step, s"
     )
     faults: Literal["forbidden", "expected"] | None = Field(
-        None, description="forbidden: no fault; expected: at least one fault (default: not checked)"
+        None, description="forbidden: no fault in the segment; expected: at least one"
     )
 
 
@@ -73,6 +74,11 @@ class IdentBound(StrictModel):
 
 class RunAcceptance(Bounds):
     complete: bool = Field(True, description="the log shows the whole profile played to its end")
+    faults: Literal["forbidden", "expected", "ignored"] = Field(  # type: ignore[assignment]
+        "forbidden",
+        description="forbidden (default): no fault in the run; expected: at least one; "
+        "ignored: not checked",
+    )
     identification: list[IdentBound] = Field(
         default_factory=list, description="bounds on the identification table"
     )
@@ -136,14 +142,12 @@ def acceptance_problems(src: Source) -> list[Problem]:
             close = difflib.get_close_matches(
                 ref, [n for n in names if isinstance(n, str)], n=1, cutoff=0.6
             )
-            out.append(
-                src.problem(
-                    loc,
-                    "names no segment of the profile"
-                    + (f"; did you mean {close[0]!r}?" if close else ""),
-                    ref,
-                )
-            )
+            m = re.fullmatch(r"segment (\d+)", ref.strip())
+            if m and int(m.group(1)) < len(segs) and not names[int(m.group(1))]:
+                hint = f"; an unnamed segment is given by its index: segment: {m.group(1)}"
+            else:
+                hint = f"; did you mean {close[0]!r}?" if close else ""
+            out.append(src.problem(loc, "names no segment of the profile" + hint, ref))
         elif isinstance(ref, str) and names.count(ref) > 1:
             out.append(src.problem(loc, "names more than one segment: give its index", ref))
         bounds = [k for k in Bounds.model_fields if item.get(k) is not None]
@@ -154,9 +158,36 @@ def acceptance_problems(src: Source) -> list[Problem]:
                     "gives no bound (known: " + ", ".join(Bounds.model_fields) + ")",
                 )
             )
-    ident = (
-        (acc.get("run") or {}).get("identification") if isinstance(acc.get("run"), dict) else None
-    )
+    raw_run = acc.get("run")
+    run: dict = raw_run if isinstance(raw_run, dict) else {}
+    if (
+        run.get("complete") is False
+        and run.get("faults") == "ignored"
+        and not any(
+            run.get(k) is not None
+            for k in RunAcceptance.model_fields
+            if k not in ("complete", "faults")
+        )
+        and not items
+    ):
+        out.append(
+            src.problem(
+                ("acceptance", "run"),
+                "checks nothing (complete: false, faults: ignored and no bound): a run would pass "
+                "whatever it did",
+            )
+        )
+    ident = run.get("identification")
+    raw_control = d.get("control")
+    control: dict = raw_control if isinstance(raw_control, dict) else {}
+    if isinstance(ident, list) and ident and not control.get("identify"):
+        out.append(
+            src.problem(
+                ("acceptance", "run", "identification"),
+                "bounds the identification, but the profile does not identify "
+                "(control.identify is not true): nothing would be measured",
+            )
+        )
     for i, item in enumerate(ident if isinstance(ident, list) else []):
         if (
             isinstance(item, dict)

@@ -363,8 +363,13 @@ def profile_run(
     seed: int = 1,
     rig_path: str | None = None,
     motor_path: str | None = None,
+    warnings: list[str] | None = None,
 ) -> Run:
     """One run of a profile as it is (with another rig or motor file if given): a sweep of one
-    point. Raises ProfileError for an invalid profile."""
-    texts, seed, _ = materialise(_Base(profile_path, rig_path, motor_path), [], {}, seed)
+    point. Raises ProfileError for an invalid profile. ``warnings`` (a list): the profile's
+    warnings are appended to it."""
+    base = _Base(profile_path, rig_path, motor_path)
+    if warnings is not None:
+        warnings += base.profile.warnings
+    texts, seed, _ = materialise(base, [], {}, seed)
     return Run(index=index, values={}, seed=seed, texts=texts, key=run_key(texts, seed))

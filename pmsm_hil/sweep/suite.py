@@ -17,6 +17,8 @@ from typing import Any
 
 import yaml
 
+from pmsm_hil.profiles import ProfileError
+
 from .execute import execute_run
 from .plan import Run, profile_run, run_key
 
@@ -32,6 +34,7 @@ class SuiteCase:
     name: str = ""  # the profile's name
     run: Run | None = None
     default_criteria: bool = False
+    warnings: list[str] = field(default_factory=list)  # the profile's (as `run` prints them)
     status: str = ""  # ok | failed (the run could not be made)
     error: str = ""
     checks: list[dict[str, Any]] = field(default_factory=list)
@@ -42,22 +45,50 @@ class SuiteCase:
     def passed(self) -> bool:
         return self.status == "ok" and bool(self.checks) and all(c["passed"] for c in self.checks)
 
+    def hint(self) -> str | None:
+        """The commissioning hint (analysis.acceptance.commission_hint) for this case."""
+        from pmsm_hil.analysis.acceptance import commission_hint
+
+        if not self.run:
+            return None
+        failed = [ch["criterion"] for ch in self.checks if not ch["passed"]]
+        return commission_hint(
+            failed, self.run.texts.get("motor.yaml", ""), self.run.texts.get("rig.yaml", "")
+        )
+
 
 def plan_suite(
     profiles: list[str], seed: int = 1, rig: str | None = None, motor: str | None = None
 ) -> list[SuiteCase]:
-    """One case per profile (validated here: raises ProfileError)."""
+    """One case per profile (validated here: raises ProfileError with the problems of every
+    invalid profile). A name given twice gets its ordinal (`paper-a (2)`), so that the JUnit
+    suites and the tables tell them apart."""
     cases = []
+    problems = []
+    seen: dict[str, int] = {}
     for i, p in enumerate(profiles):
-        run = profile_run(p, index=i, seed=seed, rig_path=rig, motor_path=motor)
+        warnings: list[str] = []
+        try:
+            run = profile_run(
+                p, index=i, seed=seed, rig_path=rig, motor_path=motor, warnings=warnings
+            )
+        except ProfileError as e:
+            problems += e.problems
+            continue
         data = yaml.safe_load(run.texts["profile.yaml"])
-        case = SuiteCase(profile=p, name=str(data.get("name", p)), run=run)
+        name = str(data.get("name", p))
+        seen[name] = seen.get(name, 0) + 1
+        if seen[name] > 1:
+            name = f"{name} ({seen[name]})"
+        case = SuiteCase(profile=p, name=name, run=run, warnings=warnings)
         if not data.get("acceptance"):
             data["acceptance"] = DEFAULT_ACCEPTANCE
             run.texts["profile.yaml"] = yaml.safe_dump(data, sort_keys=False, width=1_000_000)
             run.key = run_key(run.texts, run.seed)
             case.default_criteria = True
         cases.append(case)
+    if problems:
+        raise ProfileError(problems)
     return cases
 
 
@@ -107,37 +138,64 @@ def run_suite(
 
 
 def junit_xml(cases: list[SuiteCase]) -> str:
-    """JUnit XML: a test suite per profile, a test case per check (a failed run: one error case)."""
+    """JUnit XML: a test suite per profile (its properties: profile file, rig, motor, seed, the
+    kept log), a test case per check (a failed run: one error case); totals on the root."""
     root = ET.Element("testsuites", name="pmsm-hil test")
+    totals = {"tests": 0, "failures": 0, "errors": 0}
     for c in cases:
         suite = ET.SubElement(root, "testsuite", name=c.name, file=c.profile)
+        props = ET.SubElement(suite, "properties")
+        for name, value in _properties(c):
+            ET.SubElement(props, "property", name=name, value=value)
         n = fails = errors = 0
         if c.status != "ok":
             tc = ET.SubElement(
                 suite, "testcase", classname=c.name, name="run", time=f"{c.wall_s:.3f}"
             )
-            ET.SubElement(tc, "error", message=c.error or "the run failed").text = c.error
+            ET.SubElement(
+                tc, "error", message=c.error or "the run failed", type="run"
+            ).text = c.error
             n, errors = 1, 1
         for ch in c.checks:
             n += 1
             tc = ET.SubElement(
-                suite, "testcase", classname=c.name, name=f"{ch['scope']}: {ch['criterion']}"
+                suite,
+                "testcase",
+                classname=c.name,
+                name=f"{ch['scope']}: {ch['criterion']}",
+                time="0",
             )
-            ET.SubElement(tc, "system-out").text = f"measured {ch['measured']}, bound {ch['bound']}"
+            text = f"measured {ch['measured']}, bound {ch['bound']}"
+            ET.SubElement(tc, "system-out").text = text
             if not ch["passed"]:
                 fails += 1
                 ET.SubElement(
-                    tc, "failure", message=f"measured {ch['measured']}, bound {ch['bound']}"
-                )
-        suite.set("tests", str(n))
-        suite.set("failures", str(fails))
-        suite.set("errors", str(errors))
+                    tc, "failure", message=text, type="acceptance"
+                ).text = f"{c.name}, {ch['scope']}: {ch['criterion']} {text}"
+        hint = c.hint()
+        if hint:
+            ET.SubElement(suite, "system-out").text = f"hint: {hint}"
+        for k, v in (("tests", n), ("failures", fails), ("errors", errors)):
+            suite.set(k, str(v))
+            totals[k] += v
         suite.set("time", f"{c.wall_s:.3f}")
-        if c.log_path:
-            props = ET.SubElement(suite, "properties")
-            ET.SubElement(props, "property", name="log", value=c.log_path)
+    for k, v in totals.items():
+        root.set(k, str(v))
+    root.set("time", f"{sum(c.wall_s for c in cases):.3f}")
     ET.indent(root)
     return ET.tostring(root, encoding="unicode", xml_declaration=True) + "\n"
+
+
+def _properties(c: SuiteCase) -> list[tuple[str, str]]:
+    out = [("profile", c.profile)]
+    if c.run is not None:
+        for f in ("rig", "motor"):
+            data = yaml.safe_load(c.run.texts.get(f"{f}.yaml", "") or "") or {}
+            out.append((f, str(data.get("name", ""))))
+        out.append(("seed", str(c.run.seed)))
+    if c.log_path:
+        out.append(("log", c.log_path))
+    return out
 
 
 def junit_error(what: str, message: str) -> str:
