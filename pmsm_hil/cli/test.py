@@ -99,6 +99,8 @@ def main(args: argparse.Namespace) -> int:
         if tmp is not None:
             tmp.cleanup()
     _print(cases)
+    if args.out is None and not all(c.passed for c in cases):
+        print("the logs were not kept: --out DIR keeps them (and the results table) to look into")
     junit(junit_xml(cases))
     return 0 if all(c.passed for c in cases) else EXIT_FAILED
 
