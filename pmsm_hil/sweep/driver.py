@@ -368,8 +368,17 @@ class _Bar:
             ]
             if missed is not None:
                 columns.append(TextColumn("{task.fields[missed]} missed the criteria"))
+            from rich.console import Console
+
+            console = Console()
+            if not console.is_terminal:  # a CI log: the final line whole, not cut at 80 columns
+                console = Console(width=max(console.width, 160))
             self.progress = Progress(
-                *columns, TextColumn("{task.fields[rate]}"), TimeRemainingColumn(), transient=False
+                *columns,
+                TextColumn("{task.fields[rate]}"),
+                TimeRemainingColumn(),
+                transient=False,
+                console=console,
             )
             self.task = self.progress.add_task(
                 label, total=total, completed=skipped, failed=0, missed=missed or 0, rate=""
