@@ -452,3 +452,49 @@ def test_total_delay_interval_takes_the_parameters_correlation():
     # uncorrelated, the same standard errors: the interval is wide and is cut at zero
     lo, hi = total_delay_interval(1.5119e-6, np.diag(np.diag(cov)), 50e-6)
     assert lo == 0.0 and hi > 3e-6
+
+
+@pytest.mark.parametrize("a", [0.04, 0.2, 0.45, 0.6, 0.8])
+def test_the_probe_inverts_a_sample_delays_blend_exactly(logs, motor, a):
+    """Samples taken a fraction a of a period early blend two boundary currents, meas(k) =
+    (1 - a) i(k) + a i(k - 1); the probe recovers i(k) along each run (forward below a = 1/2,
+    backward above), to rounding: putting meas(k - 1) for i(k - 1) left a^2 / (1 - a) of the
+    previous increment (0.15 A here at a = 0.2), which doubled the residual at the true delay."""
+    probe = Probe(load_record(logs["null"]), motor)
+    rng = np.random.default_rng(3)
+    n = len(probe.rec.i_abc)
+    i = np.cumsum(rng.normal(0.0, 1.0, (n, 2)), axis=0)
+    meas = np.empty_like(i)
+    for r0, r1 in probe.rec.runs:  # a run starts (a < 1/2) or ends (above) on a steady current
+        if a < 0.5:
+            i[r0] = i[r0 + 1] if r1 - r0 > 1 else i[r0]
+            prev = np.vstack([i[r0 : r0 + 1], i[r0 : r1 - 1]])
+        else:
+            i[r1 - 1] = i[r1 - 2] if r1 - r0 > 1 else i[r1 - 1]
+            prev = np.vstack([i[r0 : r0 + 1], i[r0 : r1 - 1]])
+        meas[r0:r1] = (1 - a) * i[r0:r1] + a * prev
+    got = probe._unblended(meas, a)
+    inner = np.concatenate([np.arange(r0 + 1, r1 - 1) for r0, r1 in probe.rec.runs])
+    err = np.max(np.abs(got[inner] - i[inner]))
+    assert err < 1e-6 * np.max(np.abs(i))
+    old = (meas[inner] - a * meas[inner - 1]) / (1 - a)
+    assert np.max(np.abs(old - i[inner])) > 1e3 * err  # what the approximation left
+
+
+def test_a_pwm_delay_is_fitted_in_whole_periods_and_leaves_no_iron_loss(tmp_path, motor):
+    """An 8 us sample delay beside two periods of PWM delay (a self-test trial, seed 61): the
+    continuous fit took it as 0.156 periods of PWM delay, which left a d-voltage even in speed on
+    the settled plateaus (0.24 V rms), and the diagnosis answered `delay, iron_loss` (1450 ohm).
+    With the PWM delay in whole periods and the sample delay's blend inverted exactly, the delay
+    alone, its two parts where they are, and the plateaus flat."""
+    log = _record(
+        tmp_path, "delay8", {"delay": {"sample_delay_s": 8e-6, "pwm_delay_periods": 2}}, seed=11
+    )
+    res = diagnose(load_record(log), motor)
+    assert res["selected"] == ["delay"]
+    e = res["effects"][0]
+    assert e["parameters"]["pwm_delay_periods"] == 2.0
+    assert e["parameters"]["sample_delay_s"] == pytest.approx(8e-6, rel=0.05)
+    assert e["magnitude"] == pytest.approx(108e-6, rel=0.005)
+    assert max(res["plateaus"].get("rms_before_v", [0.0])) < 0.05
+    assert not [x["name"] for x in res["effects"] if x["selected"] and x["name"] != "delay"]

@@ -75,6 +75,8 @@ def test_score_counts_what_it_should():
     assert s["top1_detectable_single"] == (pytest.approx(2 / 3), 3)
     assert s["false_attribution_null"] == (0.5, 2)
     assert s["both_found_two"] == (1.0, 1)
+    # the encoder trial answered with an offset: an effect named beyond the hidden one (1 of 4)
+    assert s["extra_effect_named"] == (0.25, 4)
     assert s["median_magnitude_error"] == pytest.approx(0.3)  # errors 0.1 and 0.5
     assert s["interval_coverage"] == (0.5, 2)
     assert s["confusion"]["encoder"] == {"sensor_offset": 1}

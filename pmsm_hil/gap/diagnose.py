@@ -186,18 +186,30 @@ def _diagnose(
             FitJob((*chosen, c), tr_sub, 12 * (len(EFFECTS[c].params) + 1), warm, test=te_sel)
             for c in todo
         ]
+        if chosen:  # the chosen effects refitted alone with a candidate's effort: the baseline
+            budget = 12 * (max(len(EFFECTS[c].params) for c in todo) + 1)
+            jobs.append(FitJob(tuple(chosen), tr_sub, budget, warm, test=te_sel))
 
-        def ended(j: int, n_done: int, todo: list[str] = todo) -> None:
-            say(
-                f"step {len(chosen) + 1}: {' + '.join([*chosen, todo[j]])} fitted "
-                f"({n_done} of {len(todo)} candidates)"
-            )
+        names = [*todo, ""] if chosen else todo  # "": the refit of the chosen alone
+
+        def ended(j: int, n_done: int, names: list[str] = names) -> None:
+            what = " + ".join([*chosen, names[j]] if names[j] else [*chosen, "no other (refit)"])
+            of = "fits" if chosen else "candidates"
+            say(f"step {len(chosen) + 1}: {what} fitted ({n_done} of {len(names)} {of})")
 
         say(f"step {len(chosen) + 1}: fitting {len(todo)} candidates")
         # the longest fits first (a candidate's time in the step before, or its parameter count)
-        cost = [took.get(c, len(EFFECTS[c].params)) for c in todo]
+        cost = [took.get(c, len(EFFECTS[c].params) if c else 1.0) for c in names]
         fitted = pool.map(jobs, ended, cost)
-        took = dict(zip(todo, pool.seconds, strict=True))
+        took = dict(zip(names, pool.seconds, strict=True))
+        if chosen:
+            # a candidate is credited only with what it adds over the chosen effects refitted
+            # with the same effort from the same start: a joint fit also converges the chosen
+            # effects' parameters further (the delay along its ridge, _whole_pwm_delay), which
+            # was credited to whichever candidate rode along (docs/gap.md, "Which")
+            _, r_ref = fitted.pop()
+            if r_ref is not None and np.mean(r_ref**2) < np.mean(cur_test**2):
+                cur_test = r_ref
         for c, (f, r_te) in zip(todo, fitted, strict=True):
             if r_te is None:  # the fit failed (non-finite residuals)
                 continue

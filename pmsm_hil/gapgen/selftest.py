@@ -243,6 +243,10 @@ def score(trials: list[dict], outs: list[dict]) -> dict:
         "detectable_single": len(det),
         "both_found_two": frac(both),
         "false_attribution_null": frac([bool(o["selected"]) for o in null]),
+        # an effect named beside the hidden ones (a null's are false attribution, above)
+        "extra_effect_named": frac(
+            [bool(set(o["selected"]) - set(t["effects"])) for t, o in single + two]
+        ),
         "outside_flagged": frac(
             [
                 (not o["selected"]) or "unexplained" in o["verdict"] or "parametric" in o["verdict"]
@@ -321,6 +325,7 @@ def print_selftest(res: dict) -> None:
     print(f"  top-1 on all single effects         {f(res['top1_all_single'])}")
     print(f"  both effects found (two-effect)     {f(res['both_found_two'])}")
     print(f"  false attribution (null trials)     {f(res['false_attribution_null'])}")
+    print(f"  an effect named beyond the hidden   {f(res['extra_effect_named'])}")
     print(f"  outside the library: none selected or 'unexplained'  {f(res['outside_flagged'])}")
     for k in (
         "median_closure_test_blocks",
