@@ -1,7 +1,9 @@
 """pytest plugin for HIL tests of your own (loaded by the `pytest11` entry point of pmsm-hil).
 
+    HERE = Path(__file__).parent                   # a relative path is the working directory's
+
     def test_load_step_recovers(hil_device):
-        run = hil_device.run("profiles/my-drive.yaml")
+        run = hil_device.run(HERE / "my-drive.yaml")
         run.assert_accepted()                      # the profile's acceptance criteria
         assert run.summary.segments[2].recovery_s < 0.2
 
@@ -10,8 +12,11 @@
         hil_device.run("paper-a").assert_accepted()
 
 Options: ``--hil-port /dev/ttyUSB0`` (a rig on a serial port), ``--hil-can SPEC`` (a rig on CAN,
-a python-can spec as for `pmsm-hil run --can`), else the in-process emulator; ``--hil-rig`` (the
-emulator's rig file or shipped name, default each profile's), ``--hil-seed`` (default 1).
+a python-can spec as for `pmsm-hil run --can`), else the in-process emulator; ``--hil-rig`` (a rig
+file or shipped name replacing each profile's, as `pmsm-hil run --rig`: on the emulator its plant,
+on a real rig only what the firmware is configured from, the encoder's counts), ``--hil-seed``
+(the emulator's, default 1). They are checked once, when pytest starts (`pytest_configure`): a bad
+one is a usage error naming the option (exit code 4), before any test runs.
 """
 
 from __future__ import annotations
@@ -126,7 +131,9 @@ class HilDevice:
         rig: str | None = None,
     ) -> HilRun:
         """Run a profile (a path or a shipped name) to the end; the log goes to ``out`` (default: a
-        numbered file in the test's log folder)."""
+        numbered file in the session's log folder). A relative path is taken from the working
+        directory pytest runs in, not the test file's folder: give ``Path(__file__).parent /
+        "mine.yaml"`` for a profile beside the test."""
         from pmsm_hil.profiles import load_profile
         from pmsm_hil.profiles.shipped import resolve
         from pmsm_hil.sweep.execute import run_in_process
@@ -177,23 +184,70 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         "--hil-can",
         default=None,
         metavar="SPEC",
-        help="run hil_device on the rig on this CAN interface (python-can spec)",
+        help="run hil_device on the rig on this CAN interface (python-can spec, as pmsm-hil run "
+        "--can; `emulator`: the emulator over CAN)",
     )
     group.addoption(
         "--hil-rig",
         default=None,
         metavar="RIG",
-        help="rig file or shipped name for the emulator (default: each profile's)",
+        help="rig file or shipped name replacing each profile's: the emulator's plant; on a real "
+        "rig only the firmware's encoder counts (4 x its encoder lines) and the log's rig record",
     )
     group.addoption(
-        "--hil-seed", type=int, default=1, metavar="N", help="emulator seed (default 1)"
+        "--hil-seed",
+        type=int,
+        default=1,
+        metavar="N",
+        help="emulator seed (default 1; a real rig has none)",
     )
+
+
+_SEED = pytest.StashKey[int]()
 
 
 def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line(
         "markers", "hil_rig: needs a real rig (--hil-port or --hil-can); skipped on the emulator"
     )
+    config.stash[_SEED] = _checked_options(config)
+
+
+def _checked_options(config: pytest.Config) -> int:
+    """The --hil-* options checked once, before any test: pytest.UsageError naming the option and
+    its value (pytest prints it as one line and exits with code 4); the seed as a number."""
+    port, can, rig = (config.getoption(o) for o in ("--hil-port", "--hil-can", "--hil-rig"))
+    if port and can:
+        raise pytest.UsageError(
+            f"--hil-port {port} and --hil-can {can}: give one of them (a rig on a serial port or "
+            "on CAN), not both"
+        )
+    if port and not os.path.exists(port):
+        raise pytest.UsageError(
+            f"--hil-port {port}: no such serial port (is the adapter plugged in?)"
+        )
+    if can:
+        from pmsm_hil.errors import TransportSpecError
+        from pmsm_hil.transport.can_bus import parse_spec
+
+        try:
+            parse_spec(can, option="--hil-can")
+        except TransportSpecError as e:
+            raise pytest.UsageError(str(e)) from None
+    if rig:
+        from pmsm_hil.profiles import ProfileError, load_rig
+        from pmsm_hil.profiles.shipped import resolve
+
+        try:
+            load_rig(resolve(rig, "rig"))
+        except ProfileError as e:
+            raise pytest.UsageError(f"--hil-rig {rig}: {e}") from None
+    from pmsm_hil.seeds import SEED_MAX
+
+    seed = config.getoption("--hil-seed")
+    if not 0 <= seed <= SEED_MAX:
+        raise pytest.UsageError(f"--hil-seed {seed}: give a whole number 0..{SEED_MAX}")
+    return seed
 
 
 def _has_rig(config) -> bool:
@@ -213,14 +267,13 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 def hil_device(
     request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
 ) -> HilDevice:
-    """The device under test (session-wide): the emulator, or the rig given by --hil-port/--hil-can."""
+    """The device under test (session-wide): the emulator, or the rig given by --hil-port/--hil-can
+    (the options checked in pytest_configure)."""
     cfg = request.config
-    if cfg.getoption("--hil-port") and cfg.getoption("--hil-can"):
-        raise pytest.UsageError("give --hil-port or --hil-can, not both")
     return HilDevice(
         port=cfg.getoption("--hil-port"),
         can=cfg.getoption("--hil-can"),
         rig=cfg.getoption("--hil-rig"),
-        seed=cfg.getoption("--hil-seed"),
+        seed=cfg.stash[_SEED],
         log_dir=tmp_path_factory.mktemp("hil-logs"),
     )

@@ -12,7 +12,8 @@ import pytest
 
 from pmsm_hil.bench import commission, identify_rigs
 from pmsm_hil.bench import identify as bench
-from pmsm_hil.bench.trials import Cluster
+from pmsm_hil.bench.trials import BenchInputError, Cluster, parse_seeds
+from pmsm_hil.cli.main import main as cli_main
 
 
 def _quiet(*_a):
@@ -99,3 +100,85 @@ def test_workers_must_be_a_positive_number(bad):
     )
     assert r.returncode == 2
     assert f"--workers: {bad!r}: give a whole number of workers, at least 1" in r.stderr
+
+
+@pytest.mark.parametrize(
+    ("text", "seeds"),
+    [("1-10", list(range(1, 11))), ("1,2,5", [1, 2, 5]), (" 3 , 0-1 ", [3, 0, 1]), ("7,", [7])],
+)
+def test_seeds_are_numbers_ranges_and_lists_of_them(text, seeds):
+    assert parse_seeds(text) == seeds
+
+
+@pytest.mark.parametrize(
+    ("text", "why"),
+    [
+        ("1-0", "the range 1-0 is empty (give the lower seed first, e.g. 0-1)"),
+        ("a-b", "'a-b' is not a seed or a range of seeds (whole numbers 0..2147483647"),
+        ("-1", "'-1' is not a seed"),
+        ("2147483648", "'2147483648' is not a seed"),
+        ("", "no seeds given"),
+        (" , ", "no seeds given"),
+        ("1-3,2", "seed 2 is given twice"),
+        ("1-100000", "more than 10000 seeds"),
+    ],
+)
+def test_seeds_that_are_no_list_of_seeds_are_refused_saying_why(text, why):
+    with pytest.raises(BenchInputError) as e:
+        parse_seeds(text)
+    assert why in str(e.value)
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["commission", "--rigs", "default", "--seeds", "1-0"], "--seeds 1-0: the range 1-0 is"),
+        (["identify", "--rigs", "default", "--seeds", "3-1"], "--seeds 3-1: the range 3-1 is"),
+        (["sensorless", "--seeds", "a-b"], "--seeds a-b: 'a-b' is not a seed"),
+        (["commission", "--seeds", "1,1"], "--seeds 1,1: seed 1 is given twice"),
+        (["commission", "--rigs", ","], "--rigs ,: no rigs given"),
+        (["commission", "--rigs", "nosuch", "--seeds", "1"], "nosuch: is neither a file nor a "),
+        (["identify", "--seeds", "1-3"], "--seeds 1-3: only with --rigs or --per-effect --commis"),
+        (
+            ["identify", "--profile", "paper-a"],
+            "--profile paper-a: profile paper-a does not identify (its control.identify is false)",
+        ),
+        (
+            ["sensorless", "--only", "paper-b-start", "--seeds", "11", "--rigs", "default"],
+            "--only paper-b-start: no scenario's profile or name contains 'paper-b-start'; the "
+            "scenarios, by profile: paper-b: 'paper B: speed step",
+        ),
+    ],
+)
+def test_bad_bench_input_is_one_error_line_before_anything_runs(argv, message, tmp_path, capsys):
+    """Exit 2 with the option and its value named, nothing run and no output folder made."""
+    out = tmp_path / "out"
+    assert cli_main(["bench", *argv, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and message in " ".join(err.split()), err
+    assert "Traceback" not in err
+    assert not out.exists()
+
+
+def test_the_sensorless_refusal_lists_every_scenario(capsys, tmp_path):
+    from pmsm_hil.bench.sensorless import SCENARIOS
+
+    assert cli_main(["bench", "sensorless", "--only", "nosuch", "--out", str(tmp_path / "o")]) == 2
+    err = " ".join(capsys.readouterr().err.split())
+    assert all(repr(sc.name) in err for sc in SCENARIOS)
+
+
+def test_bench_help_names_the_defaults(capsys, monkeypatch):
+    """Every option of `bench identify` and `bench commission` says what it is and its default;
+    the default profile by its shipped name, not a path in the repository."""
+    monkeypatch.setenv("COLUMNS", "300")  # argparse wraps at the terminal's width: no hyphen split
+    with pytest.raises(SystemExit):
+        cli_main(["bench", "identify", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "(default: the shipped paper-a-identify)" in text
+    assert "profiles/paper-a-identify.yaml" not in text
+    assert "--seed N emulator noise seed" in text
+    with pytest.raises(SystemExit):
+        cli_main(["bench", "commission", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "default default,lab-typical" in text and "seeds (default 1-10)" in text

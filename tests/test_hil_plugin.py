@@ -3,6 +3,8 @@ test, the hil_rig marker and the options, as a user's own test suite meets them.
 
 from __future__ import annotations
 
+import os
+
 import pytest
 
 pytest_plugins = ["pytester"]
@@ -64,7 +66,8 @@ def test_marker_skips_without_a_rig_and_options_reach_the_fixture(pytester):
         "--hil-seed", "5", "--hil-rig", "ideal", "-p", "no:cacheprovider"
     )
     r.assert_outcomes(passed=1, skipped=1)
-    r = pytester.runpytest_subprocess("--hil-port", "/dev/ttyNOPE0", "-k", "needs_rig", "-rs")
+    # a port that exists (the plugin opens it only when a test runs a profile)
+    r = pytester.runpytest_subprocess("--hil-port", os.devnull, "-k", "needs_rig", "-rs")
     r.assert_outcomes(passed=1)
     r = pytester.runpytest_subprocess("--markers")
     r.stdout.fnmatch_lines(["*hil_rig: needs a real rig*"])
@@ -106,3 +109,64 @@ def test_a_failed_acceptance_points_at_the_users_line(pytester, data):
     out = r.stdout.str()
     assert "THE USER'S LINE" in out and "recovery measured" in out and "bound <= 0.0001 s" in out
     assert "def assert_accepted" not in out and "testing.py" not in out
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        (
+            ["--hil-port", "/dev/ttyNOPE0"],
+            "--hil-port /dev/ttyNOPE0: no such serial port (is the adapter plugged in?)",
+        ),
+        (
+            ["--hil-can", "nosuchiface:x"],
+            "--hil-can nosuchiface:x: unknown interface 'nosuchiface' (python-can interfaces: *",
+        ),
+        (["--hil-can", "socketcan:can0,node=99"], "--hil-can socketcan:can0,node=99: node 99 *"),
+        (
+            ["--hil-port", os.devnull, "--hil-can", "emulator"],
+            f"--hil-port {os.devnull} and --hil-can emulator: give one of them *, not both",
+        ),
+        (["--hil-rig", "nosuch"], "--hil-rig nosuch: nosuch: is neither a file nor a shipped rig*"),
+        (["--hil-seed", "-1"], "--hil-seed -1: give a whole number 0..2147483647"),
+    ],
+)
+def test_a_bad_option_is_one_usage_error_before_any_test(pytester, options, message):
+    """A bad --hil-* option is checked once when pytest starts: pytest's usage error (exit code 4)
+    naming the option and its value, once, not a failed or erroring test per test."""
+    pytester.makepyfile(
+        test_user="""
+        def test_one(hil_device):
+            hil_device.run("paper-a")
+
+        def test_two(hil_device):
+            hil_device.run("paper-a")
+    """
+    )
+    r = pytester.runpytest_subprocess(*options, "-p", "no:cacheprovider")
+    assert r.ret == pytest.ExitCode.USAGE_ERROR
+    r.stderr.fnmatch_lines([f"ERROR: {message}"])
+    err = r.stderr.str()
+    assert err.count("ERROR:") == 1 and "Traceback" not in err, err
+    assert "--can nosuchiface" not in err  # the plugin's option, not the CLI's
+    assert "test_one" not in r.stdout.str()  # no test ran
+
+
+def test_a_relative_profile_path_is_the_working_directorys(pytester, data):
+    """`hil_device.run("mine.yaml")` looks in the working directory pytest runs in, not beside the
+    test file; `Path(__file__).parent / "mine.yaml"` (the documented form) finds it from anywhere."""
+    suite = pytester.mkdir("suite")
+    (suite / "mine.yaml").write_text((data / "short.yaml").read_text())
+    (suite / "test_user.py").write_text(
+        "from pathlib import Path\n"
+        "import pytest\n"
+        "from pmsm_hil.profiles import ProfileError\n\n"
+        "def test_beside_the_test(hil_device):\n"
+        "    run = hil_device.run(Path(__file__).parent / 'mine.yaml')\n"
+        "    assert run.profile.name == 'short' and run.result.state == 'done'\n\n"
+        "def test_relative_is_the_working_directorys(hil_device):\n"
+        "    with pytest.raises(ProfileError, match='mine.yaml: is neither a file'):\n"
+        "        hil_device.run('mine.yaml')\n"
+    )
+    r = pytester.runpytest_subprocess("suite", "-p", "no:cacheprovider")  # from the folder above
+    r.assert_outcomes(passed=2)

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from pmsm_hil.bench.trials import Cluster, groups, key_text, run_trials
+from pmsm_hil.bench.trials import BenchInputError, Cluster, groups, key_text, run_trials
 
 if TYPE_CHECKING:
     from pmsm_hil.commission.sequence import CommissionResult
@@ -31,19 +31,6 @@ TARGETS = {
     "l_q_rel": ("L_q at standstill", "%", 100.0, 0.05),
     "psi_f_rel": ("psi_f (spin)", "%", 100.0, 0.01),
 }
-
-
-def parse_seeds(text: str) -> list[int]:
-    """ "1-10" or "1,2,5" -> seeds."""
-    out: list[int] = []
-    for part in text.split(","):
-        part = part.strip()
-        if "-" in part:
-            a, b = part.split("-", 1)
-            out.extend(range(int(a), int(b) + 1))
-        elif part:
-            out.append(int(part))
-    return out
 
 
 def commission_once(
@@ -99,9 +86,14 @@ def bench_commission(
     echo: Callable[[str], None] = print,
     cluster: Cluster | None = None,
 ) -> str:
-    """Runs every (rig, seed) as trials, prints and writes the tables (out/commission.md)."""
+    """Runs every (rig, seed) as trials, prints and writes the tables (out/commission.md). A rig
+    that names no file (ProfileError) or no seeds (BenchInputError) is refused before ``out`` is
+    made."""
     from pmsm_hil.profiles.shipped import resolve
 
+    if not seeds:
+        raise BenchInputError("no seeds given")
+    paths = [resolve(rig, "rig") for rig in rigs]
     out.mkdir(parents=True, exist_ok=True)
     parts = [
         f"# Commissioning on the emulator, seeds {seeds[0]}..{seeds[-1]} ({len(seeds)} seeds)",
@@ -111,7 +103,6 @@ def bench_commission(
         "and L_q against the incremental truth at the test's operating point (d-current bias).",
         "",
     ]
-    paths = [resolve(rig, "rig") for rig in rigs]
     tasks = [
         {
             "rig": str(Path(p).resolve()),

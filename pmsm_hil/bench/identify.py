@@ -14,10 +14,13 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from pmsm_hil.bench.trials import Cluster, key_text, run_trials
+from pmsm_hil.bench.trials import BenchInputError, Cluster, key_text, run_trials
 from pmsm_hil.device import DeviceSpec, open_device
+
+if TYPE_CHECKING:
+    from pmsm_hil.profiles import Profile
 
 
 class BenchError(Exception):
@@ -28,6 +31,27 @@ def default_profile() -> str:
     from pmsm_hil.profiles.shipped import shipped_file
 
     return shipped_file("paper-a-identify.yaml")
+
+
+def identifying(profile: Profile) -> Profile:
+    """``profile``, refused with BenchInputError when it does not identify (control.identify is
+    false): every part of the benchmark reads its estimators' parameters, so it would only give
+    an empty table."""
+    if not profile.control.identify:
+        raise BenchInputError(
+            f"profile {profile.name} does not identify (its control.identify is false), so there "
+            "is nothing to tabulate; give a profile with control.identify: true (the default, "
+            "paper-a-identify, has it)"
+        )
+    return profile
+
+
+def check_profile(path: str, rig: str | None = None, motor: str | None = None) -> Profile:
+    """The benchmark's profile loaded as its runs load it: ProfileError when it is bad,
+    BenchInputError when it does not identify (`identifying`); before anything runs."""
+    from pmsm_hil.profiles import load_profile
+
+    return identifying(load_profile(path, rig_override=rig, motor_override=motor))
 
 
 def identify(
@@ -48,7 +72,7 @@ def identify(
     )
     from pmsm_hil.profiles import load_profile
 
-    profile = load_profile(path, rig_override=rig, motor_override=motor)
+    profile = identifying(load_profile(path, rig_override=rig, motor_override=motor))
     out.mkdir(parents=True, exist_ok=True)
     log = out / "identify.mcap"
     _, result = _run_profile(profile, log, seed)
@@ -192,6 +216,7 @@ def mismatch(
 
     from pmsm_hil.log.reader import read_log
 
+    check_profile(str(path))
     out.mkdir(parents=True, exist_ok=True)
     segs = [
         '{name: "R injection", kind: identify_r, duration_s: 0.5, speed_rpm: 0, inject_a: 12.0}',
@@ -283,6 +308,7 @@ def per_effect(
     from pmsm_hil.analysis.identification import identification_table
     from pmsm_hil.profiles.shipped import shipped_root
 
+    check_profile(str(path))
     rigs_dir = shipped_root() / "rigs"
     out.mkdir(parents=True, exist_ok=True)
     src = yaml.safe_load(Path(path).read_text())

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from pmsm_hil.bench.trials import Cluster, groups, key_text, run_trials
+from pmsm_hil.bench.trials import BenchInputError, Cluster, groups, key_text, run_trials
 
 PARAMS = (("l_d_h", "L_d"), ("l_q_h", "L_q"), ("psi_f_wb", "psi_f"), ("r_s_ohm", "R"))
 ESTIMATORS = ("rls", "nlms_adaline")
@@ -132,8 +132,13 @@ def identify_rigs(
     echo: Callable[[str], None] = print,
     cluster: Cluster | None = None,
 ) -> str:
+    from pmsm_hil.bench.identify import check_profile
     from pmsm_hil.profiles.shipped import resolve
 
+    if not seeds:
+        raise BenchInputError("no seeds given")
+    check_profile(str(path), motor=str(motor) if motor else None)
+    rig_paths = [resolve(rig, "rig") for rig in rigs]  # a name that finds no file: before `out`
     out.mkdir(parents=True, exist_ok=True)
     what = "after commissioning" if commissioned else "with the motor file's values"
     parts = [
@@ -143,7 +148,6 @@ def identify_rigs(
         f"docs/identification.md), median / worst over the seeds; convergence time median / worst",
         "",
     ]
-    rig_paths = [resolve(rig, "rig") for rig in rigs]
     every = _trials(path, rig_paths, seeds, out, commissioned, motor, cluster)
     for rp, part in zip(rig_paths, groups(every, len(seeds)), strict=True):
         results = list(zip(seeds, part, strict=True))
@@ -207,8 +211,12 @@ def per_effect_commissioned(
     """What each rig effect still costs after commissioning: NLMS-Adaline's |error| (median /
     worst over the seeds) on the ideal rig, each effect alone, default and lab-typical, each seed
     commissioned first."""
+    from pmsm_hil.bench.identify import check_profile
     from pmsm_hil.profiles.shipped import shipped_root
 
+    if not seeds:
+        raise BenchInputError("no seeds given")
+    check_profile(str(path))
     rigs_dir = shipped_root() / "rigs"
     rigs = [
         "ideal",

@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from pmsm_hil.bench.identify import BenchError
+from pmsm_hil.bench.trials import BenchInputError
 
 if TYPE_CHECKING:
     from pmsm_hil.profiles import Profile
@@ -138,6 +139,21 @@ SCENARIOS += [
 def register(scenario: Scenario) -> None:
     """Add a scenario (e.g. another estimator's profile) to the benchmark's table."""
     SCENARIOS.append(scenario)
+
+
+def select(only: str | None) -> list[Scenario]:
+    """The scenarios whose profile or name contains ``only`` (all of them without it);
+    BenchInputError listing the scenarios, by profile, when none does."""
+    chosen = [s for s in SCENARIOS if not only or only in s.profile or only in s.name]
+    if not chosen:
+        by_profile: dict[str, list[str]] = {}
+        for s in SCENARIOS:
+            by_profile.setdefault(Path(s.profile).stem, []).append(repr(s.name))
+        listed = "; ".join(f"{p}: {', '.join(names)}" for p, names in by_profile.items())
+        raise BenchInputError(
+            f"no scenario's profile or name contains {only!r}; the scenarios, by profile: {listed}"
+        )
+    return chosen
 
 
 # ----------------------------------------------------------------------------------- metrics

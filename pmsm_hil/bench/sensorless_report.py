@@ -14,14 +14,14 @@ import numpy as np
 from pmsm_hil.bench.sensorless import (
     DEFAULT_RIGS,
     DEFAULT_SEEDS,
-    SCENARIOS,
     RunData,
     Scenario,
     read_run,
     rig_for,
     scenario_figures,
+    select,
 )
-from pmsm_hil.bench.trials import Cluster, groups
+from pmsm_hil.bench.trials import BenchInputError, Cluster, groups
 
 # figure key -> (column title, format, how "worst" is taken)
 STEADY_COLS = (
@@ -167,22 +167,25 @@ def sensorless(
     echo: Callable[[str], None] = print,
     cluster: Cluster | None = None,
 ) -> dict:
-    """Run every scenario (or those whose profile or name contains `only`) on each rig and seed;
-    write out/sensorless.md and the plots; return {(scenario, rig): [figures per seed]}."""
+    """Run every scenario (or those whose profile or name contains `only`; none is a
+    BenchInputError) on each rig and seed; write out/sensorless.md and the plots; return
+    {(scenario, rig): [figures per seed]}."""
     from pmsm_hil.bench.identify import BenchError, _job, run_jobs
     from pmsm_hil.profiles import load_profile
     from pmsm_hil.profiles.shipped import shipped_file
 
-    out.mkdir(parents=True, exist_ok=True)
-    chosen = [s for s in SCENARIOS if not only or only in s.profile or only in s.name]
+    chosen = select(only)  # none: refused before `out` is made
+    if not seeds or not rigs:
+        raise BenchInputError(f"no {'seeds' if not seeds else 'rigs'} given")
     profiles = sorted({s.profile for s in chosen})
     results: dict = {}
     md = ["# Sensorless benchmark", "", f"seeds {', '.join(map(str, seeds))}; median / worst", ""]
     cases = []  # (profile name, its path, rig name, rig path, note), as the table goes
     for prof in profiles:
         ppath = shipped_file(prof)
-        for rig in rigs:
+        for rig in rigs:  # a rig that names no file: ProfileError, before `out` is made
             cases.append((prof, ppath, rig, *rig_for(ppath, rig, out)))
+    out.mkdir(parents=True, exist_ok=True)
     jobs = [
         _job(ppath, out / f"{Path(prof).stem}-{rig}-seed{seed}.mcap", seed, rig=rig_path)
         for prof, ppath, rig, rig_path, _note in cases

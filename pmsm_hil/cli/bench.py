@@ -6,7 +6,13 @@ import argparse
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from pmsm_hil.cli.errors import fail
+from pmsm_hil.cli.errors import SCHEDULER_ERRORS, fail, scheduler_failed
+from pmsm_hil.seeds import SEED_MAX
+
+SEEDS_HELP = (
+    f"N, A-B (A <= B) or a comma-separated list of them, whole numbers 0..{SEED_MAX}, none twice, "
+    "e.g. 1-10 or 1,2,5"
+)
 
 if TYPE_CHECKING:
     from pmsm_hil.bench.trials import Cluster
@@ -23,7 +29,10 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         "identify", help="online identification: RLS, Adaline, NLMS-Adaline vs paper A Table 2"
     )
     b.add_argument(
-        "--profile", default=None, help="profile (default: profiles/paper-a-identify.yaml)"
+        "--profile",
+        default=None,
+        help="profile file or shipped name, one with control.identify: true (default: the shipped "
+        "paper-a-identify)",
     )
     b.add_argument(
         "--out",
@@ -31,7 +40,14 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         default="runs/bench-identify",
         help="directory for the log, the convergence plot (PNG) and the table (markdown)",
     )
-    b.add_argument("--seed", type=int, default=1)
+    b.add_argument(
+        "--seed",
+        type=_seed,
+        default=1,
+        metavar="N",
+        help="emulator noise seed of the Table-2, --mismatch and --per-effect runs (default 1; "
+        "--rigs and --per-effect --commissioned take --seeds)",
+    )
     b.add_argument("--rig", default=None, help="rig file for the emulator (default: the profile's)")
     b.add_argument(
         "--motor",
@@ -65,7 +81,11 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         "--seeds (e.g. default,lab-typical)",
     )
     b.add_argument(
-        "--seeds", default=None, help="seeds for --rigs, e.g. 1-10 or 1,2,3 (default 1-10)"
+        "--seeds",
+        default=None,
+        metavar="SEEDS",
+        help=f"seeds for --rigs (default 1-10) and --per-effect --commissioned (default 1-2): "
+        f"{SEEDS_HELP}",
     )
     b.add_argument(
         "--commissioned",
@@ -85,9 +105,20 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         "commission",
         help="commissioning on the emulator: errors per step over rigs and seeds vs the targets",
     )
-    c.add_argument("--rigs", default="default,lab-typical", help="comma-separated rigs")
-    c.add_argument("--seeds", default="1-10", help="e.g. 1-10 or 1,2,3")
-    c.add_argument("--out", "-o", default="runs/bench-commission", help="directory for logs, table")
+    c.add_argument(
+        "--rigs",
+        default="default,lab-typical",
+        help="comma-separated rigs (shipped names or files; default default,lab-typical)",
+    )
+    c.add_argument(
+        "--seeds", default="1-10", metavar="SEEDS", help=f"seeds (default 1-10): {SEEDS_HELP}"
+    )
+    c.add_argument(
+        "--out",
+        "-o",
+        default="runs/bench-commission",
+        help="directory for logs, table (default runs/bench-commission)",
+    )
     _cluster_args(c, "the rigs' and seeds' runs")
     s = bsub.add_parser(
         "sensorless",
@@ -97,14 +128,22 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     s.add_argument(
         "--out", "-o", default="runs/bench-sensorless", help="directory for logs, table, plots"
     )
-    s.add_argument("--seeds", default="11,12,13", help="comma-separated seeds (default 11,12,13)")
+    s.add_argument(
+        "--seeds",
+        default="11,12,13",
+        metavar="SEEDS",
+        help=f"seeds (default 11,12,13): {SEEDS_HELP}",
+    )
     s.add_argument(
         "--rigs",
         default="default,lab-typical",
         help="comma-separated rigs (shipped names or files; default default,lab-typical)",
     )
     s.add_argument(
-        "--only", default=None, help="only the scenarios whose profile or name contains this"
+        "--only",
+        default=None,
+        metavar="TEXT",
+        help="only the scenarios whose profile or name contains TEXT (none: exit 2 listing them)",
     )
     _cluster_args(s, "the scenarios' runs")
 
@@ -128,6 +167,16 @@ def _cluster_args(p: argparse.ArgumentParser, what: str) -> None:
     )
 
 
+def _seed(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        n = -1
+    if not 0 <= n <= SEED_MAX:
+        raise argparse.ArgumentTypeError(f"{text!r}: give a whole number 0..{SEED_MAX}")
+    return n
+
+
 def _workers(text: str) -> int:
     try:
         n = int(text)
@@ -145,82 +194,102 @@ def _cluster(args: argparse.Namespace) -> Cluster:
 
 
 def main(args: argparse.Namespace) -> int:
-    if args.bench == "sensorless":
-        return _sensorless(args)
-    if args.bench == "commission":
-        from pmsm_hil.bench.commission import bench_commission, parse_seeds
-
-        try:
-            bench_commission(
-                [r.strip() for r in args.rigs.split(",") if r.strip()],
-                parse_seeds(args.seeds),
-                Path(args.out),
-                cluster=_cluster(args),
-            )
-        except ValueError as e:
-            return fail("error", f"--seeds {args.seeds}: {e}", 2)
-        return 0
-    from pmsm_hil.bench.identify import BenchError, default_profile, identify, mismatch, per_effect
+    from pmsm_hil.bench.identify import BenchError
+    from pmsm_hil.bench.trials import BenchInputError, parse_rigs, parse_seeds
     from pmsm_hil.profiles import ProfileError
-    from pmsm_hil.profiles.shipped import resolve
 
+    # --seeds and --rigs of every benchmark, checked once before anything runs
     try:
-        path = resolve(args.profile, "profile") if args.profile else default_profile()
-        rig = resolve(args.rig, "rig") if args.rig else None
-        motor = resolve(args.motor, "motor") if args.motor else None
-        out = Path(args.out)
-        if args.per_effect and args.commissioned:
-            from pmsm_hil.bench.commission import parse_seeds
-            from pmsm_hil.bench.identify_rigs import per_effect_commissioned
+        seeds = parse_seeds(args.seeds) if args.seeds is not None else None
+    except BenchInputError as e:
+        return fail("error", f"--seeds {args.seeds}: {e}", 2)
+    try:
+        rigs = parse_rigs(args.rigs) if args.rigs is not None else None
+    except BenchInputError as e:
+        return fail("error", f"--rigs {args.rigs}: {e}", 2)
+    try:
+        if args.bench == "sensorless":
+            return _sensorless(args, seeds or [], rigs or [])
+        if args.bench == "commission":
+            from pmsm_hil.bench.commission import bench_commission
 
-            per_effect_commissioned(
-                path, parse_seeds(args.seeds or "1-2"), out, cluster=_cluster(args)
-            )
+            bench_commission(rigs or [], seeds or [], Path(args.out), cluster=_cluster(args))
             return 0
-        if args.rigs:
-            from pmsm_hil.bench.commission import parse_seeds
-            from pmsm_hil.bench.identify_rigs import identify_rigs
-
-            identify_rigs(
-                path,
-                [r.strip() for r in args.rigs.split(",") if r.strip()],
-                parse_seeds(args.seeds or "1-10"),
-                out,
-                commissioned=args.commissioned,
-                motor=motor,
-                cluster=_cluster(args),
-            )
-            return 0
-        cluster = _cluster(args)
-        if args.only not in {"per-effect", "mismatch"}:
-            identify(path, out, args.seed, rig, args.until, motor=motor)
-        if args.mismatch or args.only == "mismatch":
-            out.mkdir(parents=True, exist_ok=True)
-            mismatch(path, out, args.seed, cluster=cluster)
-        if args.per_effect or args.only == "per-effect":
-            out.mkdir(parents=True, exist_ok=True)
-            per_effect(path, out, args.seed, cluster=cluster)
-    except ProfileError as e:
+        return _identify(args, seeds, rigs)
+    except (ProfileError, BenchInputError) as e:
         return fail("error", str(e), 2)
     except BenchError as e:
         return fail("error", str(e), 3)
+    except SCHEDULER_ERRORS as e:
+        if not args.scheduler:
+            raise
+        return scheduler_failed(args.scheduler, e)
+
+
+def _identify(args: argparse.Namespace, seeds: list[int] | None, rigs: list[str] | None) -> int:
+    from pmsm_hil.bench.identify import (
+        check_profile,
+        default_profile,
+        identify,
+        mismatch,
+        per_effect,
+    )
+    from pmsm_hil.bench.trials import BenchInputError
+    from pmsm_hil.profiles.shipped import resolve
+
+    if seeds is not None and not rigs and not (args.per_effect and args.commissioned):
+        return fail(
+            "error",
+            f"--seeds {args.seeds}: only with --rigs or --per-effect --commissioned (the Table-2, "
+            "--mismatch and --per-effect runs take one --seed N)",
+            2,
+        )
+    path = resolve(args.profile, "profile") if args.profile else default_profile()
+    rig = resolve(args.rig, "rig") if args.rig else None
+    motor = resolve(args.motor, "motor") if args.motor else None
+    try:
+        check_profile(path, rig, motor)
+    except BenchInputError as e:
+        return fail("error", f"--profile {args.profile or 'paper-a-identify'}: {e}", 2)
+    out = Path(args.out)
+    if args.per_effect and args.commissioned:
+        from pmsm_hil.bench.identify_rigs import per_effect_commissioned
+
+        per_effect_commissioned(path, seeds or [1, 2], out, cluster=_cluster(args))
+        return 0
+    if rigs:
+        from pmsm_hil.bench.identify_rigs import identify_rigs
+
+        identify_rigs(
+            path,
+            rigs,
+            seeds or list(range(1, 11)),
+            out,
+            commissioned=args.commissioned,
+            motor=motor,
+            cluster=_cluster(args),
+        )
+        return 0
+    cluster = _cluster(args)
+    if args.only not in {"per-effect", "mismatch"}:
+        identify(path, out, args.seed, rig, args.until, motor=motor)
+    if args.mismatch or args.only == "mismatch":
+        out.mkdir(parents=True, exist_ok=True)
+        mismatch(path, out, args.seed, cluster=cluster)
+    if args.per_effect or args.only == "per-effect":
+        out.mkdir(parents=True, exist_ok=True)
+        per_effect(path, out, args.seed, cluster=cluster)
     return 0
 
 
-def _sensorless(args: argparse.Namespace) -> int:
-    from pmsm_hil.bench.identify import BenchError
+def _sensorless(args: argparse.Namespace, seeds: list[int], rigs: list[str]) -> int:
+    from pmsm_hil.bench.sensorless import select
     from pmsm_hil.bench.sensorless_report import sensorless
-    from pmsm_hil.profiles import ProfileError
+    from pmsm_hil.bench.trials import BenchInputError
 
     try:
-        seeds = tuple(int(x) for x in args.seeds.split(",") if x.strip())
-    except ValueError:
-        return fail("error", f"--seeds: not a list of integers: {args.seeds!r}", 2)
-    rigs = tuple(x.strip() for x in args.rigs.split(",") if x.strip())
-    try:
-        sensorless(Path(args.out), seeds, rigs, args.only, cluster=_cluster(args))
-    except ProfileError as e:
-        return fail("error", str(e), 2)
-    except BenchError as e:
-        return fail("error", str(e), 3)
+        select(args.only)
+    except BenchInputError as e:
+        return fail("error", f"--only {args.only}: {e}", 2)
+    sensorless(Path(args.out), tuple(seeds), tuple(rigs), args.only, cluster=_cluster(args))
     return 0

@@ -32,6 +32,7 @@ from pmsm_hil.profiles._source import (
     read_source,
     resolve_ref,
 )
+from pmsm_hil.seeds import SEED_MAX
 
 from .spec import Axis, Sweep
 
@@ -156,9 +157,6 @@ class _Base:
                 )
         self.data["profile"]["motor"] = "motor.yaml"
         self.data["profile"]["rig"] = "rig.yaml"
-
-
-SEED_MAX = 2**31 - 1  # as the sweep file's and the profile's own seed
 
 
 def _seed_problems(sweep: Sweep, i: int, ax: Axis) -> list[Problem]:

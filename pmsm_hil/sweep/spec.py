@@ -34,6 +34,7 @@ from pmsm_hil.profiles._source import (
     resolve_ref,
     validation_problems,
 )
+from pmsm_hil.seeds import SEED_MAX
 
 __all__ = ["FIELD_RE", "METRICS", "Axis", "Sweep", "SweepFile", "factor_column", "load_sweep"]
 
@@ -153,7 +154,7 @@ class SweepFile(StrictModel):
         None, description="motor file or shipped name instead of the profile's"
     )
     rig: str | None = Field(None, description="rig file or shipped name instead of the profile's")
-    seed: int = Field(1, ge=0, le=2**31 - 1, description="emulator seed when no axis sets it")
+    seed: int = Field(1, ge=0, le=SEED_MAX, description="emulator seed when no axis sets it")
     axes: list[Axis] = Field(default_factory=list, description="the fields varied")
     draws: int | None = Field(None, ge=1, le=MAX_RUNS, description="number of random draws")
     draw_seed: int = Field(1, ge=0, description="seed of the random draws (not of the emulator)")

@@ -85,46 +85,48 @@ class CanSpec:
         return f"{self.interface}:{where}{opts}"
 
 
-def _number(key: str, value: str, spec: str) -> int:
+def _number(key: str, value: str, where: str) -> int:
     try:
         return int(float(value)) if key == "bitrate" else int(value, 0)
     except ValueError:
-        raise TransportSpecError(f"--can {spec}: {key}={value} is not a number") from None
+        raise TransportSpecError(f"{where}: {key}={value} is not a number") from None
 
 
-def parse_spec(spec: str | None) -> CanSpec:
-    """A SPEC string -> CanSpec; TransportError that names the problem and the format."""
+def parse_spec(spec: str | None, option: str = "--can") -> CanSpec:
+    """A SPEC string -> CanSpec; TransportSpecError that names the problem, the format and the
+    option the SPEC was given to (``option``: `--can` of the CLI, `--hil-can` of the pytest
+    plugin)."""
     text = (spec or "").strip()
+    where = f"{option} {text}"
     parts = [p.strip() for p in text.split(",")] if text else ["emulator"]
     head, opts = parts[0] or "emulator", parts[1:]
     if head == "emulator":
         iface, channel = "emulator", ""
     elif ":" not in head:
-        raise TransportSpecError(f"--can {text}: expected {SPEC_HELP}")
+        raise TransportSpecError(f"{where}: expected {SPEC_HELP}")
     else:
         iface, channel = head.split(":", 1)
     iface = iface.strip().lower()
     if iface != "emulator" and iface not in INTERFACES:
         raise TransportSpecError(
-            f"--can {text}: unknown interface {iface!r} (python-can interfaces: "
+            f"{where}: unknown interface {iface!r} (python-can interfaces: "
             f"{', '.join(INTERFACES[:8])}, ...)"
         )
     out = CanSpec(iface, channel)
     for opt in opts:
         if "=" not in opt:
-            raise TransportSpecError(f"--can {text}: option {opt!r} is not key=value")
+            raise TransportSpecError(f"{where}: option {opt!r} is not key=value")
         k, v = (s.strip() for s in opt.split("=", 1))
         if k == "bitrate":
-            out.bitrate = _number(k, v, text)
+            out.bitrate = _number(k, v, where)
             if not 10_000 <= out.bitrate <= 1_000_000:
                 raise TransportSpecError(
-                    f"--can {text}: bitrate {out.bitrate} is outside classic CAN's "
-                    f"10 kbit/s .. 1 Mbit/s"
+                    f"{where}: bitrate {out.bitrate} is outside classic CAN's 10 kbit/s .. 1 Mbit/s"
                 )
         elif k == "node":
-            out.node = _number(k, v, text)
+            out.node = _number(k, v, where)
             if not 0 <= out.node <= 15:
-                raise TransportSpecError(f"--can {text}: node {out.node} must be 0..15")
+                raise TransportSpecError(f"{where}: node {out.node} must be 0..15")
         else:
             out.extra[k] = v
     if iface == "socketcand":
@@ -134,11 +136,10 @@ def parse_spec(spec: str | None) -> CanSpec:
             out.channel, out.host, out.port = ch, host, int(port)
         except ValueError:
             raise TransportSpecError(
-                f"--can {text}: socketcand needs CHANNEL@HOST:PORT, "
-                f"e.g. socketcand:emu0@127.0.0.1:29536"
+                f"{where}: socketcand needs CHANNEL@HOST:PORT, e.g. socketcand:emu0@127.0.0.1:29536"
             ) from None
     elif iface != "emulator" and not channel:
-        raise TransportSpecError(f"--can {text}: no channel given ({SPEC_HELP})")
+        raise TransportSpecError(f"{where}: no channel given ({SPEC_HELP})")
     return out
 
 
