@@ -1,4 +1,5 @@
-/* The angle slot (angle_slot.h): dispatch to the occupant, the encoder or the MRAS. */
+/* The angle slot (angle_slot.h): dispatch to the occupant: the encoder, the MRAS, the ripple PLL
+ * or the hybrid of both estimators. */
 #include "angle_slot.h"
 #include "fw_types.h"
 

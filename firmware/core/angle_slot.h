@@ -5,9 +5,10 @@
  * prediction of this period's current). Out: the electrical angle and speed of the occupant,
  * whether they are valid, and for an estimator its lock, confidence and error signal.
  *
- * Occupants: the encoder (enc_angle.h) and the MRAS (mras.h); ANGLE_SRC_RIPPLE_PLL and
- * ANGLE_SRC_HYBRID are reserved on the wire and refused until an occupant fills them. A new
- * occupant adds a member of the union in angle_t and a case in angle_slot.c. Selected by
+ * Occupants: the encoder (enc_angle.h), the MRAS (mras.h), the current-ripple PLL
+ * (est_ripple_pll.h, with the polarity test at start) and the hybrid of the ripple PLL and the
+ * MRAS (hybrid.h). A new occupant adds a member of the union in angle_t and a case in
+ * angle_slot.c. Selected by
  * config_ctrl angle_src; an estimator's angle closes the loop unless the running segment asks for
  * the encoder (segment flag angle_encoder), in which case it runs beside it. */
 #ifndef ANGLE_SLOT_H
