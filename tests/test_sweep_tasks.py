@@ -181,3 +181,33 @@ def test_a_batch_taken_whole_from_the_journal_says_so(tmp_path, capsys):
     assert [r["square"] for r in again] == [1, 4] and len(os.listdir(calls)) == 2
     err = capsys.readouterr().err
     assert f"sq: all 2 trials taken from {out / 'sq.jsonl'}" in err
+
+
+def test_an_interrupted_batch_says_what_is_kept_and_how_to_resume(tmp_path, capsys, monkeypatch):
+    """Ctrl-C after the first trial: the journal holds it, the message says so and that the same
+    command resumes; without a journal it says that nothing is kept and how to keep it."""
+    import distributed
+    import pytest
+
+    real = distributed.as_completed
+
+    def one_then_ctrl_c(futures):
+        for n, fut in enumerate(real(futures)):
+            if n == 1:
+                raise KeyboardInterrupt
+            yield fut
+
+    monkeypatch.setattr(distributed, "as_completed", one_then_ctrl_c)
+    calls = tmp_path / "calls"
+    calls.mkdir()
+    tasks = [{"x": x, "calls": str(calls)} for x in (3, 1, 2)]
+    out = tmp_path / "out"
+    with pytest.raises(KeyboardInterrupt):
+        run_tasks(_square, tasks, out, name="sq", workers=1, progress=False)
+    err = capsys.readouterr().err
+    assert f"sq: interrupted with 1 of 3 trials done; kept in {out / 'sq.jsonl'}" in err
+    assert "the same command resumes there" in err
+    assert len((out / "sq.jsonl").read_text().splitlines()) == 1
+    with pytest.raises(KeyboardInterrupt):
+        run_tasks(_square, tasks, None, name="sq", workers=1, progress=False)
+    assert "not kept (with an output folder, --out DIR" in capsys.readouterr().err

@@ -137,6 +137,19 @@ def run_tasks(
                     if journal is not None:
                         journal.add({"key": k, "status": status, "result": res})
                     bar.advance(status == "ok", time.perf_counter() - t0)
+        except KeyboardInterrupt:
+            n = len(set(keys))
+            kept = (
+                f"kept in {Path(out, name + '.jsonl')}: the same command resumes there"
+                if journal is not None
+                else "not kept (with an output folder, --out DIR, an interrupted run resumes)"
+            )
+            print(
+                f"{name}: interrupted with {sum(k in results for k in set(keys))} of {n} trials "
+                f"done; {kept}",
+                file=sys.stderr,
+            )
+            raise
         finally:
             if client is not None:
                 client.close()
