@@ -395,7 +395,7 @@ def test_a_missed_plateau_bound_is_named_in_the_verdict():
     v = verdict_text(s)
     assert "bounds missed" in v and "segment 0" not in v
     assert "segment 1 'b' mean speed error +2.50 r/min beyond ±1" in v
-    assert "segment 2 'c' recovery 1.50 s > 0.3 s" in v
+    assert "segment 2 'c' recovery 1.50 s (bound 0.3 s)" in v
 
 
 def test_test_hints_at_commissioning_when_identification_fails_on_an_uncommissioned_rig():

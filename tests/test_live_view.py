@@ -66,7 +66,10 @@ def test_plain_progress_prints_a_line_per_period():
     p.update(sample_state())
     p.message("uploading capture")
     lines = out.getvalue().splitlines()
-    assert lines[0].startswith("t=  12.50/32.50 s") and "speed   240.0/  239.7 r/min" in lines[0]
+    assert (
+        lines[0].startswith("t=  12.50/32.50 s")
+        and "speed ref/meas   240.0/  239.7 r/min" in lines[0]
+    )
     assert lines[1] == "uploading capture"
 
 

@@ -337,7 +337,7 @@ def test_wrong_types(ws):
     msgs = problems_of(path)
     assert msgs == [
         "x.yaml:4: control.ts_s = '50e-6' is not a number (write numbers without quotes)",
-        "x.yaml:5: control.rho = 'fast' is not a number (write numbers without quotes)",
+        "x.yaml:5: control.rho = 'fast' is not a number",  # no quotes to remove: no hint
         "x.yaml:10: segments[1].capture = 1 is not true or false",
     ]
     path = write("y.yaml", GOOD.replace("  rho: 1.0", "  current_ref: mtp"))
@@ -562,3 +562,17 @@ def test_segment_limit_matches_the_firmware(ws):
     assert problems_of(path) == [
         f"x.yaml:3: segments = [{MAX_SEGMENTS + 1} items] must have at most {MAX_SEGMENTS} items"
     ]
+
+
+def test_a_unit_after_a_number_and_yaml11_booleans_are_pointed_out(ws):
+    """`ts_s: 50us` is not quoted: the hint is the unit, not the quotes; `capture: yes` is true to
+    this reader (YAML 1.1) and text to YAML 1.2, so it is refused; a misspelt shipped motor name
+    gets the name it was likely meant to be."""
+    path = write(
+        "x.yaml", GOOD.replace("ts_s: 50e-6", "ts_s: 50us").replace("capture: true", "capture: yes")
+    )
+    msgs = "\n".join(problems_of(path))
+    assert "control.ts_s = '50us' is not a number (write the number alone: the unit is in" in msgs
+    assert "capture = 'yes' is true to this reader (YAML 1.1) and text to YAML 1.2" in msgs
+    typo = write("y.yaml", "name: y\nmotor: paper-a-ipmsn\nsegments:\n  - {duration_s: 1}\n")
+    assert "did you mean the shipped motor 'paper-a-ipmsm'?" in "\n".join(problems_of(typo))

@@ -172,8 +172,33 @@ def test_bad_input_exits_2_without_traceback(tmp_path, short_log, capsys):
 
     empty = tmp_path / "empty.mcap"
     LogWriter(empty, {}).close()
-    assert main(["report", str(empty)]) == 2
-    assert "no telemetry" in capsys.readouterr().err
+    for cmd in ("report", "analyze"):  # the two say the same of a log with nothing to judge
+        assert main([cmd, str(empty)]) == 2
+        assert "no telemetry in the log" in capsys.readouterr().err
+        zero = tmp_path / "zero.mcap"
+        zero.write_bytes(b"")
+        assert main([cmd, str(zero)]) == 2
+        assert "zero.mcap: the file is empty (0 octets)" in capsys.readouterr().err
+
+
+def test_an_imported_record_or_a_commissioning_run_is_sent_where_it_is_read(tmp_path, capsys):
+    """analyze and report judge profile runs: an imported control-rate record goes to `gap`, a
+    commissioning run to its motor file (both once passed as an incomplete run of 0 segments)."""
+    for topic, what in (
+        ("/pmsm/control_rate", "diagnose it with `pmsm-hil gap LOG`"),
+        ("/pmsm/commission", "its results are in the commissioned motor file"),
+    ):
+        from pmsm_hil.gap.record import GAP_TOPICS
+
+        log = tmp_path / f"{topic.rsplit('/', 1)[-1]}.mcap"
+        w = LogWriter(log, {}, topics=GAP_TOPICS)
+        w.write(topic, 0.0, {})
+        if topic == "/pmsm/commission":  # a commissioning run has telemetry too
+            w.write("/pmsm/telemetry", 0.0, {})
+        w.close()
+        for cmd in ("analyze", "report"):
+            assert main([cmd, str(log)]) == 2
+            assert what in capsys.readouterr().err, cmd
 
 
 def test_default_directory_is_beside_the_log(short_log, tmp_path):
@@ -194,6 +219,17 @@ def test_truncated_log_is_reported_as_such(short_log, tmp_path):
     html = rep.html.read_text()
     assert "not finalised" in html
     assert "speed" in rep.pngs  # what was recovered is plotted
+
+
+def test_analyze_points_to_the_journal_beside_a_cut_log(short_log, tmp_path, capsys):
+    data = short_log.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: len(data) * 6 // 10])
+    main(["analyze", str(cut)])
+    assert "log recover" not in capsys.readouterr().out  # no journal: nothing to point to
+    (tmp_path / "cut.mcap.journal").write_bytes(b"")
+    main(["analyze", str(cut)])
+    assert f"cut.mcap.journal is beside it: `pmsm-hil log recover {cut}`" in capsys.readouterr().out
 
 
 def test_a_stopped_run_says_it_did_not_reach_the_end(data, tmp_path):

@@ -92,6 +92,55 @@ def test_the_summary_names_what_ran():
         "device": {"board": "emulator"},
     }
     assert run_tag(emu) == "profile paper-a, rig lab-typical, seed 4"
+    emu["run"]["motor"] = "paper-a-ipmsm-commissioned"  # another motor file: it is said
+    assert (
+        run_tag(emu) == "profile paper-a, motor paper-a-ipmsm-commissioned, rig lab-typical, seed 4"
+    )
     rig = {"run": {"profile": "paper-a", "rig": "", "seed": ""}, "device": {"board": "f28335"}}
     assert run_tag(rig) == "profile paper-a, board f28335"
     assert run_tag({}) == ""
+
+
+def test_a_fault_that_ends_the_run_is_counted_and_named_in_every_verdict(tmp_path):
+    """An over-speed trip at the instant the log's last segment ends (the run stops there): the
+    segment counts it, and the verdict names it instead of "segments seen are within bounds";
+    the report's page says what the console says."""
+    from pmsm_hil.analysis.report_html import summary_html
+
+    def ref(t):
+        return np.full_like(t, 1500.0)
+
+    tel, events, truth = _log(ref, ref, 1.0, [0.0])
+    events = {  # the trip and the stop at the end, no profile_done
+        "t_s": np.array([0.0, 0.9995, 0.9995]),
+        "kind": ["segment_start", "fault", "stopped"],
+        "arg": np.arange(3),
+        "text": ["", "fault: over_speed", "fault"],
+    }
+    s = summarize(tel, events, ["step up", "hold"], truth=truth)
+    assert s.segments[-1].faults == 1
+    v = verdict_text(s)
+    assert "INCOMPLETE" in v and "1 fault: 1.000 s fault: over_speed" in v
+    assert "within bounds" not in v.split("):")[0]
+    page = summary_html(s)
+    assert "1 fault: 1.000 s fault: over_speed" in page and "plateau bounds missed" not in page
+    assert "1 segment," in page
+
+
+def test_a_recovery_that_never_comes_is_never_and_the_json_is_valid():
+    import json
+    import subprocess
+    import sys
+
+    from pmsm_hil.cli.analyze import _finite
+
+    d = {"segments": [{"recovery_s": float("inf"), "mean_error_rpm": float("nan")}], "n": 1}
+    text = json.dumps(_finite(d), allow_nan=False)
+    assert json.loads(text) == {"segments": [{"recovery_s": None, "mean_error_rpm": None}], "n": 1}
+    r = subprocess.run(
+        [sys.executable, "-m", "pmsm_hil.cli.main", "run", "paper-a", "--seed", "4294967297"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert r.returncode == 2 and "give a whole number 0..2147483647" in r.stderr

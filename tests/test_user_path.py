@@ -94,6 +94,7 @@ def test_a_shipped_profile_copied_elsewhere_finds_the_shipped_motor_rig_and_maps
         tmp_path / "m.mcap",
     )
     assert r.returncode == 0, r.stderr
+    assert "stopped after 0.05 s of device time, as --stop-after asked" in r.stdout
 
 
 def test_an_unknown_name_lists_what_is_shipped(tmp_path):
@@ -199,6 +200,16 @@ def test_unwritable_out_is_bad_input(tmp_path, data):
     assert r.returncode == 2
     assert "cannot write the log" in r.stderr and str(blocker) in r.stderr
     assert "Traceback" not in r.stderr
+
+
+def test_an_existing_log_is_kept_and_a_folder_is_named_as_one(tmp_path, data):
+    old = tmp_path / "old.mcap"
+    old.write_bytes(b"the log of an earlier run")
+    r = cli("run", data / "short.yaml", "--out", old, "--no-live")
+    assert r.returncode == 2 and "a log is there already; --overwrite replaces it" in r.stderr
+    assert old.read_bytes() == b"the log of an earlier run"
+    r = cli("run", data / "short.yaml", "--out", tmp_path, "--no-live")
+    assert r.returncode == 2 and "is a directory; give the log's file name" in r.stderr
 
 
 @pytest.mark.parametrize("spec", ["bogus", "nosuchbus:can0", "socketcand:x"])

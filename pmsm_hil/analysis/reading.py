@@ -19,3 +19,21 @@ def read_for_analysis(path: str | os.PathLike) -> Log:
     if Path(path).stat().st_size == 0:
         raise ValueError(f"{path}: the file is empty (0 octets): no run was recorded")
     return read_log(path, topics=ANALYSIS_TOPICS)
+
+
+def other_kind(log: Log) -> str | None:
+    """Why ``log`` is not a profile run that `analyze` and `report` judge (None when it is): an
+    imported record (control-rate data only, `pmsm-hil import`) or a commissioning run (its
+    results are the commissioned motor file's)."""
+    topics = set(log.topics)
+    if "/pmsm/control_rate" in topics and "/pmsm/telemetry" not in topics:
+        return (
+            "an imported control-rate record (pmsm-hil import), not a profile run: diagnose it "
+            "with `pmsm-hil gap LOG` (docs/gap.md)"
+        )
+    if "/pmsm/commission" in topics:
+        return (
+            "a commissioning run (pmsm-hil commission), not a profile run: its results are in the "
+            "commissioned motor file's `commissioning:` section (docs/commissioning.md)"
+        )
+    return None

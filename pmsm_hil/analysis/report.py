@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from pmsm_hil.analysis import report_capture, report_params, report_signals
+from pmsm_hil.analysis.reading import other_kind
 from pmsm_hil.analysis.report_context import run_context
 from pmsm_hil.log.reader import Log, LogFormatError, path_problem, read_log
 
@@ -108,6 +109,9 @@ def build_report(log_path: Path | str, out_dir: Path | str | None = None) -> Rep
         raise ReportError(str(e)) from None
     except OSError as e:
         raise ReportError(f"{path}: cannot read ({e.strerror or e})") from None
+    kind = other_kind(log)
+    if kind:
+        raise ReportError(f"{path}: {kind}")
     ctx = run_context(log, path)
     if not ctx.has("/pmsm/telemetry") and not ctx.has("/pmsm/capture"):
         raise ReportError(

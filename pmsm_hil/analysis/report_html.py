@@ -77,16 +77,27 @@ def summary_html(summary: RunSummary | None) -> str:
             row.append("–" if te is None else _mark(abs(te) <= s.band_rpm, f"{te:+.3f}"))
         row += [
             f"±{s.band_rpm:.2f}",
-            _mark(s.recovery_ok, _num(s.recovery_s, ".3f")),
+            _mark(
+                s.recovery_ok,
+                "never"
+                if s.recovery_s is not None and math.isinf(s.recovery_s)
+                else _num(s.recovery_s, ".3f"),
+            ),
             _num(s.ripple_d_a, ".3f"),
             _num(s.ripple_q_a, ".3f"),
             str(s.faults),
         ]
         rows.append(row)
-    verdict = "all plateaus within bounds" if summary.ok else "generic plateau bounds missed"
+    from rich.text import Text
+
+    from pmsm_hil.analysis.summary import verdict_text
+
+    # the console's verdict (an incomplete run says so, a fault is named), without its markup
+    verdict = Text.from_markup(verdict_text(summary)).plain
+    n = len(summary.segments)
     out = [
         _table(head, rows),
-        f"<p>{len(summary.segments)} segments, {summary.duration_s:.2f} s: "
+        f"<p>{n} segment{'' if n == 1 else 's'}, {summary.duration_s:.2f} s: "
         f"{_mark(summary.ok, verdict)} (definitions: docs/analysis.md)</p>",
     ]
     out += [f'<p class="bad">fault {escape(f)}</p>' for f in summary.faults]

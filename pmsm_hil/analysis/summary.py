@@ -196,7 +196,8 @@ def summarize(
             starts[k + 1][0] if k + 1 < len(starts) else (min(ends) if ends else summary.duration_s)
         )
         sel = (t >= t0) & (t < t1)
-        n_faults = sum(1 for ft, _ in fault_events if t0 <= ft < t1)
+        last = k + 1 == len(starts)  # the last segment seen holds the faults that ended the run
+        n_faults = sum(1 for ft, _ in fault_events if t0 <= ft and (ft < t1 or last))
         name = names[idx] if names and idx < len(names) else f"segment {idx}"
         if sel.sum() < 4:  # too short to measure (a blip): listed, not judged
             setpoint = float(np.interp(t0, t, ref)) if len(t) else float("nan")
@@ -371,11 +372,14 @@ def rig_name(meta: dict) -> str:
 
 
 def run_tag(meta: dict) -> str:
-    """What ran, from a log's metadata: "profile paper-a, rig lab-typical, seed 4" (a rig's run,
+    """What ran, from a log's metadata: "profile paper-a, motor paper-a-ipmsm, rig lab-typical,
+    seed 4" (a rig's run,
     which has no seed, names its board)."""
     run = meta.get("run", {})
     rig = rig_name(meta)
     parts = [f"profile {run['profile']}"] if run.get("profile") else []
+    if run.get("motor"):  # two runs with other motor files (a commissioned one) tell apart
+        parts.append(f"motor {run['motor']}")
     if rig:
         parts.append(f"rig {rig}")
     if run.get("seed"):
@@ -432,7 +436,7 @@ _COLUMNS = (
     ("band", "band", 3),
     ("recovery s", "rec s", 6),
     ("ripple d/q A", "ripple d/q A", 1),
-    ("faults", "flt", 4),
+    ("faults", "flt", 10),  # a fault is never hidden by a narrow terminal
 )
 
 
@@ -463,7 +467,8 @@ def _summary_rows(summary: RunSummary) -> list[dict[str, str]]:
                 "band": f"±{s.band_rpm:.2f}",
                 "recovery s": ""
                 if s.recovery_s is None
-                else ("[green]" if s.recovery_ok else "[red]") + f"{s.recovery_s:.3f}",
+                else ("[green]" if s.recovery_ok else "[red]")
+                + ("never" if math.isinf(s.recovery_s) else f"{s.recovery_s:.3f}"),
                 "ripple d/q A": f"{_num(s.ripple_d_a, '.3f')}/{_num(s.ripple_q_a, '.3f')}",
                 "faults": str(s.faults),
             }
@@ -525,8 +530,9 @@ def print_summary(
         console.print(f"[yellow]log[/] {p}")
     if summary.estimator:
         console.print(estimator_text(summary.estimator), highlight=False)
+    n = len(summary.segments)
     console.print(
-        f"{len(summary.segments)} segments, {summary.duration_s:.2f} s: "
+        f"{n} segment{'' if n == 1 else 's'}, {summary.duration_s:.2f} s: "
         f"{verdict_text(summary, interrupted)}",
         highlight=False,
     )
@@ -541,11 +547,13 @@ def missed_text(summary: RunSummary, most: int = 4) -> str:
         if not s.mean_ok:
             what.append(f"mean speed error {s.mean_error_rpm:+.2f} r/min beyond ±{s.band_rpm:g}")
         if s.recovery_ok is False and s.recovery_s is not None:
-            what.append(f"recovery {s.recovery_s:.2f} s > {RECOVERY_LIMIT_S:g} s")
+            rec = "never" if math.isinf(s.recovery_s) else f"{s.recovery_s:.2f} s"
+            what.append(f"recovery {rec} (bound {RECOVERY_LIMIT_S:g} s)")
         if what:
             out.append(f"segment {s.index} {s.name!r} {', '.join(what)}")
     if summary.faults:
-        out.append(f"{len(summary.faults)} fault(s)")
+        n = len(summary.faults)
+        out.append(f"{n} fault{'s' if n > 1 else ''} ({'; '.join(summary.faults[:3])})")
     if len(out) > most:
         out = [*out[:most], f"and {len(out) - most} more"]
     return "; ".join(out)
@@ -586,6 +594,11 @@ def verdict_text(summary: RunSummary, interrupted: bool = False) -> str:
     if summary.problems and not summary.partial and not summary.missing:
         parts.append("the file is damaged")
     missed = [s.index for s in summary.segments if not (s.mean_ok and s.recovery_ok is not False)]
+    if summary.faults:  # what tripped, with when (a fault ends a run: it is never "within bounds")
+        parts.append(
+            f"{len(summary.faults)} fault{'s' if len(summary.faults) > 1 else ''}: "
+            + "; ".join(summary.faults[:3])
+        )
     if not summary.segments:
         return f"[red]INCOMPLETE[/] ({'; '.join(parts)}): no segment can be checked"
     seen = "bounds missed in the segments seen" if missed else "segments seen are within bounds"

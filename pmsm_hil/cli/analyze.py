@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -46,7 +47,7 @@ def print_identification(table: IdentTable) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from pmsm_hil.analysis.reading import read_for_analysis
+    from pmsm_hil.analysis.reading import other_kind, read_for_analysis
     from pmsm_hil.analysis.summary import print_summary, summarize_log
     from pmsm_hil.log.reader import LogFormatError, path_problem
 
@@ -56,6 +57,26 @@ def main(args: argparse.Namespace) -> int:
         return fail("error", why, 2)
     try:
         log = read_for_analysis(path)
+    except (LogFormatError, ValueError, OSError) as e:
+        return fail("error", f"{path}: not a readable pmsm-hil log ({e})", 2)
+    kind = other_kind(log)
+    if kind:
+        return fail("error", f"{path}: {kind}", 2)
+    journal = Path(f"{path}.journal")
+    recover = (
+        f"; {journal.name} is beside it: `pmsm-hil log recover {path}` adds what the host "
+        "received after the last chunk"
+        if journal.is_file()
+        else ""
+    )
+    if not log.counts.get("/pmsm/telemetry"):
+        return fail(
+            "error",
+            f"{path}: no telemetry in the log (empty, or cut off before the first chunk): "
+            f"nothing to analyze{recover}",
+            2,
+        )
+    try:
         summary = summarize_log(path, log)
     except (LogFormatError, ValueError, OSError) as e:
         return fail("error", f"{path}: not a readable pmsm-hil log ({e})", 2)
@@ -64,9 +85,23 @@ def main(args: argparse.Namespace) -> int:
         d = summary.as_dict()
         if ident is not None:
             d["identification"] = ident.as_dict()
-        print(json.dumps(d, indent=2))
+        print(json.dumps(_finite(d), indent=2, allow_nan=False))
     else:
         print_summary(summary)
         if ident is not None:
             print_identification(ident)
+        if recover and not log.finalised:
+            print(f"note: the log was not finished{recover}")
     return 0 if summary.ok else 1
+
+
+def _finite(x: object) -> object:
+    """JSON has no NaN or infinity: a value not measured (NaN) and a recovery that never came
+    (inf; its recovery_ok is false) are null."""
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    if isinstance(x, dict):
+        return {k: _finite(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_finite(v) for v in x]
+    return x

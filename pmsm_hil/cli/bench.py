@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from pmsm_hil.cli.errors import SCHEDULER_ERRORS, fail, scheduler_failed
-from pmsm_hil.seeds import SEED_MAX
+from pmsm_hil.seeds import SEED_MAX, seed_arg
 
 SEEDS_HELP = (
     f"N, A-B (A <= B) or a comma-separated list of them, whole numbers 0..{SEED_MAX}, none twice, "
@@ -42,7 +42,7 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     )
     b.add_argument(
         "--seed",
-        type=_seed,
+        type=seed_arg,
         default=1,
         metavar="N",
         help="emulator noise seed of the Table-2, --mismatch and --per-effect runs (default 1; "
@@ -165,16 +165,6 @@ def _cluster_args(p: argparse.ArgumentParser, what: str) -> None:
         help=f"{what} on this Dask scheduler, e.g. tcp://HOST:8786 (the output folder must be on "
         "a filesystem the workers share)",
     )
-
-
-def _seed(text: str) -> int:
-    try:
-        n = int(text)
-    except ValueError:
-        n = -1
-    if not 0 <= n <= SEED_MAX:
-        raise argparse.ArgumentTypeError(f"{text!r}: give a whole number 0..{SEED_MAX}")
-    return n
 
 
 def _workers(text: str) -> int:

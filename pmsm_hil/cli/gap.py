@@ -19,6 +19,7 @@ import tempfile
 import time
 
 from pmsm_hil.cli.errors import fail, report
+from pmsm_hil.seeds import seed_arg
 
 ACTIONS = ("augment", "record", "selftest", "verify")
 
@@ -50,7 +51,7 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     )
     p.add_argument("--rig", help="record, verify: the rig file (or shipped name)")
     p.add_argument("--trials", type=int, default=20, help="selftest: number of trials")
-    p.add_argument("--seed", type=int, default=1, help="selftest / record: seed")
+    p.add_argument("--seed", type=seed_arg, default=1, help="selftest / record: seed")
     p.add_argument(
         "--workers",
         type=int,

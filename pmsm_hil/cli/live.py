@@ -258,7 +258,7 @@ class PlainProgress:
         t = live.telemetry
         print(
             f"t={live.t_s:7.2f}/{live.total_s:.2f} s  seg {live.segment:2d}  {live.state:8s} "
-            f"speed {t.get('speed_ref_rpm', 0):7.1f}/{t.get('speed_rpm', 0):7.1f} r/min  "
+            f"speed ref/meas {t.get('speed_ref_rpm', 0):7.1f}/{t.get('speed_rpm', 0):7.1f} r/min  "
             f"i_d {t.get('i_d_a', 0):6.2f} A  i_q {t.get('i_q_a', 0):6.2f} A  "
             f"frames {live.frames}  bad {live.bad_frames}  {live.realtime_factor:.1f}x"
             + (f"\n    {estimator_text(live.estimator, markup=False)}" if live.estimator else ""),

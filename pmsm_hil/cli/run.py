@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from pmsm_hil.cli.errors import fail, report
+from pmsm_hil.seeds import seed_arg
 
 if TYPE_CHECKING:
     from pmsm_hil.device import DeviceSpec
@@ -36,7 +37,11 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         "--out",
         "-o",
         default=None,
-        help="MCAP log to write (default: runs/PROFILE-YYYYmmdd-HHMMSS.mcap)",
+        help="MCAP log to write (default: runs/PROFILE-YYYYmmdd-HHMMSS.mcap); an existing one is "
+        "kept unless --overwrite",
+    )
+    p.add_argument(
+        "--overwrite", action="store_true", help="replace the log at --out if there is one"
     )
     p.add_argument("--port", default=None, help="serial port of a rig, e.g. /dev/ttyUSB0")
     p.add_argument(
@@ -62,7 +67,7 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         default=None,
         help="rig file (or shipped name) for the emulator (default: the profile's)",
     )
-    p.add_argument("--seed", type=int, default=1, help="emulator noise seed (default 1)")
+    p.add_argument("--seed", type=seed_arg, default=1, help="emulator noise seed (default 1)")
     p.add_argument(
         "--pace",
         type=float,
@@ -180,9 +185,17 @@ def check_link_budget(args: argparse.Namespace, profile: Profile) -> int | None:
     return None
 
 
-def _check_out(out: Path) -> int | None:
+def _check_out(out: Path, overwrite: bool = False) -> int | None:
+    if out.is_dir():
+        return fail("error", f"--out {out}: is a directory; give the log's file name (*.mcap)", 2)
     if out.suffix != ".mcap":
         return fail("error", f"--out {out}: the log is MCAP, name it *.mcap", 2)
+    if out.exists() and not overwrite:
+        return fail(
+            "error",
+            f"--out {out}: a log is there already; --overwrite replaces it (or give another name)",
+            2,
+        )
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         with open(out, "ab"):
@@ -295,7 +308,7 @@ def _run(args: argparse.Namespace, collecting: bool) -> int:
     if args.out:
         out = Path(args.out)
         existed = out.exists()
-        code = _check_out(out)
+        code = _check_out(out, args.overwrite)
         if code is not None:
             return code
     else:
@@ -366,10 +379,10 @@ def _run(args: argparse.Namespace, collecting: bool) -> int:
         link.close()
         for s in sinks:
             s.close()
-    return _finish(result, print_summary, summarize_log, profile)
+    return _finish(result, print_summary, summarize_log, profile, args.stop_after)
 
 
-def _finish(result, print_summary, summarize_log, profile=None) -> int:
+def _finish(result, print_summary, summarize_log, profile=None, stop_after_s=None) -> int:
     try:
         print(f"log: {result.log_path}")
         from pmsm_hil.analysis.reading import read_for_analysis
@@ -381,6 +394,12 @@ def _finish(result, print_summary, summarize_log, profile=None) -> int:
         ident = identification(result.log_path, log)
         if ident is not None:
             print_identification(ident)
+        if stop_after_s is not None and not summary.complete and not result.error:
+            print(
+                f"stopped after {stop_after_s:g} s of device time, as --stop-after asked: the "
+                "rest of the profile was not played (exit 0; `analyze` judges the log as "
+                "incomplete, exit 1)"
+            )
         if profile is not None and summary.complete:
             from pmsm_hil.analysis.acceptance import (
                 acceptance_line,

@@ -9,6 +9,7 @@ import tempfile
 from pathlib import Path
 
 from pmsm_hil.cli.errors import SCHEDULER_ERRORS, fail, scheduler_failed
+from pmsm_hil.seeds import seed_arg
 
 EXIT_FAILED = 1
 
@@ -33,7 +34,7 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         default=None,
         help="motor file (or shipped name) instead of each profile's, e.g. a commissioned one",
     )
-    p.add_argument("--seed", type=int, default=1, help="emulator noise seed (default 1)")
+    p.add_argument("--seed", type=seed_arg, default=1, help="emulator noise seed (default 1)")
     p.add_argument("--junit", default=None, metavar="OUT.xml", help="also write JUnit XML here")
     p.add_argument(
         "--out",

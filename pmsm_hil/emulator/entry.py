@@ -14,6 +14,8 @@ import json
 import os
 import sys
 
+from pmsm_hil.seeds import seed_arg
+
 EXIT_USER_ERROR = 2
 
 
@@ -35,7 +37,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         default=None,
         help="take the motor and rig from this profile (a path or a shipped name)",
     )
-    p.add_argument("--seed", type=int, default=1, help="seed of the plant's noise (default 1)")
+    p.add_argument("--seed", type=seed_arg, default=1, help="seed of the plant's noise (default 1)")
     p.add_argument("--baud", type=int, default=921600, help="emulated UART bit rate")
     p.add_argument(
         "--pace",

@@ -237,6 +237,8 @@ def path_problem(path: str | os.PathLike, what: str = "") -> str | None:
         return f"{label}: no such file"
     if os.path.isdir(path):
         return f"{label}: is a directory, not a log (give the .mcap file in it)"
+    if os.path.getsize(path) == 0:
+        return f"{label}: the file is empty (0 octets): no run was recorded"
     return None
 
 

@@ -240,13 +240,52 @@ def _walk(node: yaml.Node, path: tuple, src: Source) -> None:
             seen[key] = key_line
             if isinstance(val_node, yaml.ScalarNode):
                 src.lines[(*path, key)] = val_node.start_mark.line + 1
+                _yaml11_bool(val_node, (*path, key), src)
             else:
                 src.lines[(*path, key)] = key_line
             _walk(val_node, (*path, key), src)
     elif isinstance(node, yaml.SequenceNode):
         for i, item in enumerate(node.value):
             src.lines[(*path, i)] = item.start_mark.line + 1
+            if isinstance(item, yaml.ScalarNode):
+                _yaml11_bool(item, (*path, i), src)
             _walk(item, (*path, i), src)
+
+
+def _shipped_hint(what: str, value: Any) -> str:
+    """For a motor or rig name that finds no file: the shipped one it was likely meant to be, or
+    the shipped names."""
+    kind = what.split(maxsplit=1)[0]
+    if kind not in ("motor", "rig") or not isinstance(value, str):
+        return ""
+    from pmsm_hil.profiles.shipped import shipped
+
+    names = [p.stem for p in shipped(kind)]
+    stem = os.path.basename(value).removesuffix(".yaml")
+    close = difflib.get_close_matches(stem, names, n=1, cutoff=0.6)
+    if close:
+        return f"; did you mean the shipped {kind} '{close[0]}'?"
+    return f" (shipped {kind}s: {', '.join(names)})"
+
+
+_BOOL_TAG = "tag:yaml.org,2002:bool"
+
+
+def _yaml11_bool(node: yaml.ScalarNode, path: tuple, src: Source) -> None:
+    """`yes`, `no`, `on`, `off` are true and false to YAML 1.1 (the loader's) and text to YAML
+    1.2 (what most editors and other tools read): refused, so that a file means one thing."""
+    if node.tag == _BOOL_TAG and node.value.lower() not in ("true", "false"):
+        src.soft.append(
+            Problem(
+                src.path,
+                node.start_mark.line + 1,
+                loc_str(path),
+                node.value,
+                f"is {'true' if node.value.lower() in ('yes', 'on', 'y') else 'false'} to this "
+                "reader (YAML 1.1) and text "
+                "to YAML 1.2: write true or false",
+            )
+        )
 
 
 def _bracket_hint(text: str, mark: Any, e: yaml.MarkedYAMLError) -> str:
@@ -279,7 +318,12 @@ def read_source(
         if referenced_by is not None:
             ref, loc, value = referenced_by
             src.problems.append(
-                ref.problem(loc, f"names a {what} that cannot be read: {path}: {reason}", value)
+                ref.problem(
+                    loc,
+                    f"names a {what} that cannot be read: {path}: {reason}"
+                    + _shipped_hint(what, value),
+                    value,
+                )
             )
         else:
             src.problems.append(
@@ -446,8 +490,7 @@ def error_message(err: Any, info: Any, name: str) -> str:
     if typ in _MESSAGES:
         return _MESSAGES[typ]
     if typ in ("float_type", "float_parsing"):
-        quoted = isinstance(err.get("input"), str)
-        return "is not a number" + (" (write numbers without quotes)" if quoted else "")
+        return "is not a number" + _number_hint(err.get("input"))
     if typ in _RANGE_TYPES:
         text = range_text(info, name)
         ops = {"gt": ">", "ge": ">=", "lt": "<", "le": "<="}
@@ -463,6 +506,21 @@ def error_message(err: Any, info: Any, name: str) -> str:
     if typ == "too_long":
         return f"must have at most {ctx.get('max_length')} items"
     return err["msg"][0].lower() + err["msg"][1:]
+
+
+def _number_hint(value: Any) -> str:
+    """What to change in a text where a number belongs: the quotes around a number, or the unit
+    after one (the unit is in the field's name)."""
+    if not isinstance(value, str):
+        return ""
+    try:
+        float(value)
+        return " (write numbers without quotes)"
+    except ValueError:
+        pass
+    if re.match(r"\s*[-+]?(\d|\.\d)", value):
+        return " (write the number alone: the unit is in the field's name)"
+    return ""
 
 
 _UNION_TAGS = {"float", "int", "bool", "str"}
@@ -558,8 +616,9 @@ def validation_problems(
             continue
         if typ == "union_type":
             msg = "is not " + " or ".join(err["wants"])
-            if isinstance(value, str) and re.match(r"\s*[-+]?\.?\d", value):
-                msg += " (write the number alone: the unit is in the field's name)"
+            hint = _number_hint(value)
+            if hint:
+                msg += hint
             elif info is not None and info.description:
                 msg += f" ({info.description})"
         else:

@@ -493,7 +493,7 @@ def load_profile(
     elif rig_ref is None:
         base = os.path.dirname(os.path.dirname(motor_path)) if motor_path else os.path.dirname(path)
         rig_path, note = in_file(
-            os.path.normpath(os.path.join(base, "rigs", "default.yaml")), "default", "rig"
+            os.path.normpath(os.path.join(base, "rigs", "default.yaml")), "rigs/default.yaml", "rig"
         )
         if note:
             notes.append(f"{path}: no rig given, and {note}")

@@ -115,6 +115,8 @@ def in_file(path: str, ref: str, kind: str) -> tuple[str, str | None]:
         return path, None
     candidate = _shipped_named(os.path.basename(ref), kind)
     if candidate is not None:
+        if os.sep not in ref and "/" not in ref and not ref.endswith(KINDS[kind][1]):
+            return str(candidate), None  # a bare shipped name, as the docs write them: no note
         return str(candidate), f"nothing at {path}: the shipped {kind} {candidate.stem!r} is used"
     return path, None
 

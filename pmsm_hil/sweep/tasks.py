@@ -141,7 +141,7 @@ def run_tasks(
             n = len(set(keys))
             kept = (
                 f"kept in {Path(out, name + '.jsonl')}: the same command resumes there"
-                if journal is not None
+                if out is not None
                 else "not kept (with an output folder, --out DIR, an interrupted run resumes)"
             )
             print(
