@@ -282,3 +282,100 @@ def test_a_quantity_shows_its_spread_only_when_the_step_measured_one():
     assert Measured(0.971189, 0.0, "").text() == "0.971189"
     assert Measured(-0.02105, 0.02496, "rad").text() == "-1.206 deg (-0.02105 rad) +- 1.430 deg"
     assert Measured(-0.00476, 0.0, "rad").text() == "-0.273 deg (-0.00476 rad)"
+
+
+def _never_open(*_a, **_k):
+    raise AssertionError("the device was opened for a request that should have been refused")
+
+
+@pytest.mark.parametrize(
+    "args,needle",
+    [
+        (["--i-test", "0"], "--i-test 0: the test current must be in (0, 15] A"),
+        (["--i-test", "-3"], "--i-test -3: the test current must be in (0, 15] A"),
+        (["--i-test", "100"], "--i-test 100: the test current must be in (0, 15] A"),
+        (["--i-test", "nan"], "--i-test nan: the test current must be in (0, 15] A"),
+        (["--spin-rpm", "5000"], "--spin-rpm 5000: the spin speed must be in (0, 1500] r/min"),
+        (["--spin-rpm", "0"], "to skip the spin, leave psi_f out of the steps"),
+        (["--steps", "psi_f"], "step psi_f needs step inverter"),
+        (["--steps", "encoder,psi_f"], "step psi_f needs step inverter"),
+        (["--steps", "offsets,encoder,psi_f"], "step psi_f needs step inverter"),
+        (["--steps", "offsets,r_s"], "step r_s needs step inverter"),
+        (["--steps", "encoder,spin"], "unknown commissioning step(s) spin"),
+        (["--log", "c.txt"], "--log c.txt: the log is MCAP, name it *.mcap"),
+        (["--log", "blocker/c.mcap"], "--log blocker/c.mcap: cannot write there"),
+        (["-o", "blocker/m.yaml"], "-o blocker/m.yaml: cannot write there"),
+        (["-o", "m.txt"], "-o m.txt: the result is a motor file, name it *.yaml"),
+    ],
+)
+def test_a_bad_request_is_refused_before_anything_runs(tmp_path, monkeypatch, capsys, args, needle):
+    """What the firmware would refuse (bad_value, exit 3 after the device was opened), a step
+    without the step whose result it needs (a misleading not_repeatable after the spin) and an
+    output that cannot be written (a traceback after the sequence): exit 2, the device never
+    opened, no log or motor file left behind."""
+    import pmsm_hil.device
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(pmsm_hil.device, "open_device", _never_open)
+    (tmp_path / "blocker").write_text("a file where a folder is wanted")
+    argv = ["commission", "--in-process", "-o", "m.yaml", *args]
+    assert cli_main(argv) == 2
+    err = capsys.readouterr().err
+    assert needle in " ".join(err.split()) and "Traceback" not in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["blocker"]
+
+
+def test_the_request_checks_match_the_firmware(tmp_path):
+    """The host's bounds are the firmware's (fw_cmd.c): at the edges the device takes the request
+    (a v_dc step, which drives no current), just beyond them it answers bad_value; and a step
+    with its prerequisite runs."""
+    from pmsm_hil.commission.sequence import RequestError, commission_request
+    from pmsm_hil.protocol.session import DeviceError
+    from pmsm_hil.runner import run_profile
+
+    profile = commission_profile()
+    m = profile.motor
+
+    def send(req):
+        link = open_device(DeviceSpec(in_process=True, seed=1), profile)
+        try:
+            opts = RunOptions(seed=1, requests=[("config_commission", req)])
+            return run_profile(profile, Session(link), tmp_path / "edge.mcap", opts)
+        finally:
+            link.close()
+
+    _, req = commission_request(profile, ["v_dc"], m.i_max_a, m.speed_max_rpm)
+    assert send(req).stop_reason == "profile end"
+    for field, beyond in (("i_test_a", m.i_max_a * 1.001), ("spin_rpm", m.speed_max_rpm + 1)):
+        with pytest.raises(RequestError) as e:
+            commission_request(profile, ["v_dc"], **{field: beyond})
+        assert e.value.field == field
+        with pytest.raises(DeviceError, match="bad_value"):
+            send({**req, field: beyond})
+    profile, res, _log = commission(tmp_path, None, SEEDS[0], steps=["inverter", "psi_f"])
+    assert res.ok, res.failure or res.run.stop_reason
+    assert [r["step"] for r in res.rows] == ["inverter", "psi_f"]
+    assert abs(res.quantities["psi_f_wb"].value / profile.motor.psi_f_wb - 1) < 0.02
+
+
+def test_two_commissionings_in_one_second_keep_both_logs(tmp_path, monkeypatch, capsys):
+    """The default log is made exclusively, as `run` makes its own: the second gets -2, and
+    each motor file names its own run's log."""
+    import time
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(time, "strftime", lambda *_a: "20261129-040232")
+    for name in ("a.yaml", "b.yaml"):
+        assert cli_main(["commission", "--in-process", "--steps", "l_dq", "-o", name]) == 0
+    out = capsys.readouterr()
+    logs = sorted(p.name for p in (tmp_path / "runs").iterdir())
+    assert logs == ["commission-20261129-040232-2.mcap", "commission-20261129-040232.mcap"]
+    assert load_motor(tmp_path / "a.yaml").commissioning["log"].endswith("040232.mcap")
+    assert load_motor(tmp_path / "b.yaml").commissioning["log"].endswith("040232-2.mcap")
+    for log in logs:
+        assert read_log(str(tmp_path / "runs" / log)).counts["/pmsm/commission"] == 1
+    # l_dq drives the motor in the rotor frame: without the encoder step on a motor file whose
+    # offset commissioning has not measured, the command says what angle it takes
+    assert "without the encoder step, the steps l_dq take the rotor angle" in " ".join(
+        out.err.split()
+    )

@@ -224,3 +224,104 @@ def test_import_and_gap_take_a_shipped_motor_by_name(lab_log, tmp_path, capsys):
     assert '"effects"' in capsys.readouterr().out
     assert main(["gap", str(out), "--motor", "no-such-motor"]) == 2
     assert "no-such-motor" in capsys.readouterr().err
+
+
+def test_csv_with_a_byte_order_mark_imports(tmp_path):
+    """Excel's "CSV UTF-8" starts with a byte-order mark: it is not part of the first column's
+    name."""
+    p = tmp_path / "excel.csv"
+    _write_csv(p, _ok_cols())
+    p.write_text(p.read_text(), encoding="utf-8-sig")
+    assert p.read_bytes().startswith(b"\xef\xbb\xbf")
+    kind, cols = read_csv(p)
+    assert kind == "control" and next(iter(cols)) == "t_s"
+    assert main(["import", str(p), "--motor", MOTOR, "-o", str(tmp_path / "x.mcap")]) == 0
+    # another encoding (Excel's plain "CSV" on Windows: cp1252) is named, not a traceback
+    p.write_bytes(
+        p.read_text(encoding="utf-8-sig").replace("t_s", "t_s # \u00b5s", 1).encode("cp1252")
+    )
+    with pytest.raises(ImportError_, match=r"excel.csv: not UTF-8 text \(octet 6: "):
+        read_csv(p)
+
+
+@pytest.mark.parametrize(
+    "change,needle",
+    [
+        (
+            lambda c: c["t_s"].__setitem__(3, c["t_s"][2]),
+            "line 5: t_s = 0.0002 does not increase (previous 0.0002)",
+        ),
+        (
+            lambda c: c.update(
+                s_a=np.zeros(6),
+                s_b=np.zeros(6),
+                s_c=np.array([0, 0, 0, 0, 2.0, 1]),
+                v_dc_v=np.full(6, 540.0),
+            ),
+            "line 6: s_c = 2.0 is not 0 or 1",
+        ),
+        (
+            lambda c: c["t_s"].__imul__(1000),
+            "t_s = 0.1: the sample time from t_s is 0.1 s, not a "
+            "control period (1e-06 .. 0.001 s: one row per PWM period); t_s is in seconds — is it "
+            "written in milliseconds (100 us a period)?",
+        ),
+        (lambda c: c["t_s"].__imul__(1e6), "is it written in microseconds (100 us a period)?"),
+        (
+            lambda c: c["t_s"].__imul__(1e-3),
+            "sample time from t_s is 1e-07 s, not a control period",
+        ),
+    ],
+)
+def test_csv_errors_quote_the_values_as_written(tmp_path, capsys, change, needle):
+    """Plain numbers as the file writes them (no numpy reprs), and a sample time that is no
+    control period (t_s written in milliseconds: a 100 us period reads 0.1 s) refused."""
+    c = _ok_cols()
+    change(c)
+    if "u_alpha_v" in c and "s_a" in c:
+        del c["u_alpha_v"], c["u_beta_v"]
+    p = tmp_path / "bad.csv"
+    _write_csv(p, c)
+    assert main(["import", str(p), "--motor", MOTOR, "-o", str(tmp_path / "x.mcap")]) == 2
+    err = " ".join(capsys.readouterr().err.split())
+    assert needle in err and "np.float64" not in err and "bad.csv" in err
+    assert not (tmp_path / "x.mcap").exists()
+
+
+def test_import_output_is_checked_first(tmp_path, capsys):
+    """-o must be a writable *.mcap (as `run -o`), checked before the CSV is read: no traceback
+    from the log writer, nothing left behind."""
+    p = tmp_path / "ok.csv"
+    _write_csv(p, _ok_cols())
+    (tmp_path / "blocker").write_text("a file where a folder is wanted")
+    for out, needle in (
+        ("g.txt", "-o g.txt: the log is MCAP, name it *.mcap"),
+        ("blocker/g.mcap", "-o blocker/g.mcap: cannot write there"),
+    ):
+        assert main(["import", str(p), "--motor", MOTOR, "-o", str(tmp_path / out)]) == 2
+        err = capsys.readouterr().err
+        assert needle.replace("-o ", f"-o {tmp_path}/") in " ".join(err.split())
+        assert "Traceback" not in err
+    assert sorted(x.name for x in tmp_path.iterdir()) == ["blocker", "ok.csv"]
+
+
+def test_import_help_lists_the_columns(capsys):
+    from pmsm_hil.cli import import_csv as cli_import
+    from pmsm_hil.gap import csv_import
+
+    with pytest.raises(SystemExit):
+        main(["import", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    names = (
+        csv_import.CONTROL_REQUIRED
+        + tuple(c for g in csv_import.CONTROL_VOLTAGE for c in g)
+        + csv_import.CONTROL_OPTIONAL
+        + csv_import.STEADY_REQUIRED
+        + csv_import.STEADY_SPEED
+        + csv_import.STEADY_OPTIONAL
+    )
+    assert [n for n in names if n not in text] == []
+    assert "docs/gap.md" in text
+    # the sample-time bounds the help quotes are the importer's
+    assert cli_import.TS_MIN_US * 1e-6 == csv_import.TS_MIN_S
+    assert cli_import.TS_MAX_MS * 1e-3 == csv_import.TS_MAX_S

@@ -82,3 +82,59 @@ def test_a_kill_between_the_chunk_and_the_journals_restart_counts_nothing_twice(
     rewrite_log(killed, tmp_path / "fixed.mcap")
     assert len(_times(tmp_path / "fixed.mcap")) == 30
     w.close()
+
+
+def _journal_log(tmp_path: Path) -> Path:
+    """A finalised log written with a journal (its journal removed at the close), 40 chunks."""
+    path = tmp_path / "run.mcap"
+    w = LogWriter(path, chunk_size=3000, chunk_span_s=0.01, journal=True)
+    for k in range(2000):
+        w.write("/pmsm/telemetry", k * TS_S, _row(k))
+        if k % 50 == 49:
+            w.flush_batch()
+    w.close()
+    return path
+
+
+def test_recover_of_a_cut_copy_without_its_journal_says_what_is_lost(tmp_path, capsys):
+    """A log copied without its journal (cut with `head -c`): everything after its last complete
+    chunk is gone, and the recovery says so with the device time it covers; "none lost" would
+    be wrong."""
+    from pmsm_hil.cli.main import main
+
+    src = _journal_log(tmp_path)
+    half = tmp_path / "half.mcap"
+    half.write_bytes(src.read_bytes()[: src.stat().st_size // 2])
+    assert main(["log", "recover", str(half)]) == 0
+    out = " ".join(capsys.readouterr().out.split())
+    t = _times(tmp_path / "half.recovered.mcap")
+    assert 0 < len(t) < 2000
+    assert (
+        f"lost: everything after the last complete chunk (t = {t[-1] / 1e9:.4f} s): the log was "
+        "written with a journal" in out
+    )
+    assert f"{journal_path(half)} is not beside it" in out
+    assert f"the recovered part covers t = 0.0000 .. {t[-1] / 1e9:.4f} s of device time" in out
+    assert "none of the device's messages" not in out
+
+
+def test_recover_of_a_log_without_a_complete_chunk_is_an_error(tmp_path, capsys):
+    """300 octets of a log: nothing to recover is an error (exit 2), not an empty "finalised"
+    file; one message is "1 message"."""
+    from pmsm_hil.cli.main import main
+
+    src = _journal_log(tmp_path)
+    tiny = tmp_path / "tiny.mcap"
+    tiny.write_bytes(src.read_bytes()[:300])
+    assert main(["log", "recover", str(tiny)]) == 2
+    err = " ".join(capsys.readouterr().err.split())
+    assert f"{tiny}: nothing to recover: not one complete chunk of messages (300 octets" in err
+    assert "nothing written" in err and "Traceback" not in err
+    assert not (tmp_path / "tiny.recovered.mcap").exists()
+    one = tmp_path / "one.mcap"
+    with LogWriter(one) as w:
+        w.write("/pmsm/telemetry", 0.0, _row(0))
+    assert main(["log", "recover", str(one), "-o", str(tmp_path / "one-r.mcap")]) == 0
+    out = capsys.readouterr().out
+    assert "1 message in 1 topic recovered" in out and "/pmsm/telemetry: 1 message," in out
+    assert "1 messages" not in out

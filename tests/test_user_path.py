@@ -198,7 +198,7 @@ def test_unwritable_out_is_bad_input(tmp_path, data):
     blocker.write_text("x")
     r = cli("run", data / "short.yaml", "--out", blocker / "run.mcap", "--no-live")
     assert r.returncode == 2
-    assert "cannot write the log" in r.stderr and str(blocker) in r.stderr
+    assert "cannot write there" in r.stderr and str(blocker) in r.stderr
     assert "Traceback" not in r.stderr
 
 

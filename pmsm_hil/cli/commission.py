@@ -6,11 +6,11 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal, TextIO
 
 from pmsm_hil.cli.errors import fail, report
+from pmsm_hil.seeds import seed_arg
 
 if TYPE_CHECKING:
     from pmsm_hil.recorder import LiveState
@@ -40,17 +40,31 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         help="use CAN (a python-can SPEC, or bare for the emulator on CAN; docs/can.md)",
     )
     p.add_argument("--baud", type=int, default=None, help="serial bit rate")
-    p.add_argument("--seed", type=int, default=1, help="emulator noise seed (default 1)")
-    p.add_argument("--log", default=None, help="MCAP log (default runs/commission-DATE.mcap)")
+    p.add_argument("--seed", type=seed_arg, default=1, help="emulator noise seed (default 1)")
+    p.add_argument(
+        "--log",
+        default=None,
+        help="MCAP log, *.mcap (default runs/commission-DATE.mcap, -2, -3 ... when that exists)",
+    )
     p.add_argument(
         "--steps",
         default=None,
         help="comma-separated subset of offsets,v_dc,encoder,inverter,r_s,l_dq,psi_f "
-        "(default: all)",
+        "(default: all); r_s and psi_f need inverter (its measured distortion); without encoder "
+        "the motor file's enc_offset_e_rad is taken as the rotor angle",
     )
-    p.add_argument("--i-test", type=float, default=None, help="test current, A (default i_max/2)")
     p.add_argument(
-        "--spin-rpm", type=float, default=None, help="psi_f spin speed (default speed_max/2)"
+        "--i-test",
+        type=float,
+        default=None,
+        help="test current, A, in (0, the motor's i_max_a] (default i_max_a/2)",
+    )
+    p.add_argument(
+        "--spin-rpm",
+        type=float,
+        default=None,
+        help="psi_f spin speed, r/min, in (0, the motor's speed_max_rpm] (default "
+        "speed_max_rpm/2; to skip the spin leave psi_f out of --steps)",
     )
     p.add_argument(
         "--flux-map",
@@ -66,6 +80,10 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         "motor's speed limit)",
     )
     p.add_argument("--in-process", action="store_true", help=argparse.SUPPRESS)
+
+
+# the command's option for each field of the commissioning request (RequestError.field)
+OPTIONS = {"steps": "--steps", "i_test_a": "--i-test", "spin_rpm": "--spin-rpm"}
 
 
 class StepPrinter:
@@ -107,8 +125,16 @@ class StepPrinter:
 
 
 def main(args: argparse.Namespace) -> int:
+    from pmsm_hil.cli.paths import check_output
+    from pmsm_hil.cli.run import default_log_path
     from pmsm_hil.commission.motor_file import commissioned_motor_yaml
-    from pmsm_hil.commission.sequence import commission_profile, run_commission
+    from pmsm_hil.commission.sequence import (
+        RequestError,
+        angle_warning,
+        commission_profile,
+        commission_request,
+        run_commission,
+    )
     from pmsm_hil.device import DeviceSpec, open_device
     from pmsm_hil.errors import TransportError, TransportSpecError
     from pmsm_hil.profiles import ProfileError
@@ -127,8 +153,11 @@ def main(args: argparse.Namespace) -> int:
             return fail(
                 "error", f"--map-rpm {args.map_rpm!r}: give two speeds, e.g. --map-rpm=-750,750", 2
             )
-    if out.suffix not in (".yaml", ".yml"):
-        return fail("error", f"-o {out}: the result is a motor file, name it *.yaml", 2)
+    code = check_output(out, "-o", (".yaml", ".yml"), "the result is a motor file")
+    if code is None and args.log:
+        code = check_output(Path(args.log), "--log", (".mcap",), "the log is MCAP")
+    if code is not None:
+        return code
     try:
         rig = resolve(args.rig, "rig") if args.rig else None
         motor = resolve(args.motor, "motor") if args.motor else None
@@ -143,8 +172,23 @@ def main(args: argparse.Namespace) -> int:
         except ValueError as e:
             return fail("error", f"--map-rpm: {e}", 2)
     steps = [s.strip() for s in args.steps.split(",")] if args.steps else None
-    log = Path(args.log or f"runs/commission-{time.strftime('%Y%m%d-%H%M%S')}.mcap")
-    log.parent.mkdir(parents=True, exist_ok=True)
+    try:  # what the firmware would refuse (or could not run), before the motor is energised
+        commission_request(profile, steps, args.i_test, args.spin_rpm)
+    except RequestError as e:
+        option = OPTIONS[e.field]
+        given = getattr(args, option[2:].replace("-", "_"))
+        shown = f"{given:g}" if isinstance(given, float) else given
+        return fail("error", f"{option} {shown}: {e}", 2)
+    warning = angle_warning(profile, steps)
+    if warning:
+        report("warning", warning)
+    if args.log:
+        log, made = Path(args.log), False
+    else:
+        try:  # made here, exclusively: two commissionings in one second get -2, -3 ...
+            log, made = default_log_path("commission"), True
+        except OSError as e:
+            return fail("error", f"runs/: cannot write the log there ({e.strerror or e})", 2)
     spec = DeviceSpec(
         port=args.port,
         can=args.can,
@@ -156,6 +200,8 @@ def main(args: argparse.Namespace) -> int:
     try:
         link = open_device(spec, profile)
     except TransportError as e:
+        if made:
+            log.unlink(missing_ok=True)
         return fail("error", str(e), 2 if isinstance(e, TransportSpecError) else 3)
     device = link.name if spec.is_rig else f"emulator, rig {profile.rig.name}, seed {args.seed}"
     print(f"commissioning {profile.motor.name} on {device}", flush=True)
@@ -203,8 +249,11 @@ def main(args: argparse.Namespace) -> int:
         str(log),
         out_dir=str(out.parent),
     )
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(text)
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(text)
+    except OSError as e:  # writable when checked above; something changed meanwhile
+        return fail("error", f"-o {out}: cannot write ({e.strerror or e}); the results: {log}", 3)
     if args.flux_map:
         from pmsm_hil.cli.commission_map import measure_map
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -30,8 +31,13 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     )
 
 
+def plural(n: int, word: str) -> str:
+    return f"{n} {word}" + ("" if n == 1 else "s")
+
+
 def main(args: argparse.Namespace) -> int:
-    from pmsm_hil.log.reader import LogFormatError, path_problem, rewrite_log
+    from pmsm_hil.log.journal import journal_path, read_journal
+    from pmsm_hil.log.reader import LogFormatError, path_problem, read_log, rewrite_log
 
     src = Path(args.log)
     why = path_problem(src)
@@ -42,6 +48,20 @@ def main(args: argparse.Namespace) -> int:
     dst = Path(args.out) if args.out else src.with_suffix(".recovered.mcap")
     if dst.resolve() == src.resolve():
         return fail("error", f"-o {dst}: give another file than the one being recovered", 2)
+    try:  # what there is to recover, before anything is written (the counts: nothing decoded)
+        head = read_log(src, topics=[])
+    except LogFormatError as e:
+        return fail("error", str(e), 2)
+    held = sum(head.counts.values())
+    if held + len(read_journal(src, held)) == 0:
+        cut = ", it ends inside a record" if head.truncated else ""
+        return fail(
+            "error",
+            f"{src}: nothing to recover: not one complete chunk of messages "
+            f"({src.stat().st_size} octets{cut}) and no messages in a journal "
+            f"{journal_path(src)} beside it; nothing written",
+            2,
+        )
     try:
         dst.parent.mkdir(parents=True, exist_ok=True)
         log = rewrite_log(src, dst)
@@ -51,7 +71,10 @@ def main(args: argparse.Namespace) -> int:
         return fail("error", f"-o {dst}: cannot write ({e.strerror or e})", 2)
     state = "finalised" if log.finalised else ("truncated" if log.truncated else "not finalised")
     total = sum(log.counts.values())
-    print(f"{src} ({state}): {total} messages in {len(log.topics)} topics recovered -> {dst}")
+    print(
+        f"{src} ({state}): {plural(total, 'message')} in {plural(len(log.topics), 'topic')} "
+        f"recovered -> {dst}"
+    )
     for line in recovered_lines(log, dst):
         print(f"  {line}")
     return 0
@@ -63,14 +86,16 @@ def recovered_lines(log: Log, dst: Path) -> list[str]:
     from pmsm_hil.log.reader import read_log
 
     out = []
-    t_end = 0.0
+    t_end, t_start = 0.0, float("inf")
     for topic in sorted(log.topics):
         t = log.topic(topic)["t_s"]
         if len(t):
             t_end = max(t_end, float(t[-1]))
-            out.append(f"{topic}: {len(t)} messages, t = {t[0]:.4f} .. {t[-1]:.4f} s")
+            t_start = min(t_start, float(t[0]))
+            out.append(f"{topic}: {plural(len(t), 'message')}, t = {t[0]:.4f} .. {t[-1]:.4f} s")
         else:
             out.append(f"{topic}: 0 messages")
+    span = f"t = {t_start:.4f} .. {t_end:.4f} s" if t_start <= t_end else "no device time"
     out += [str(p) for p in log.problems]
     journal = read_journal(log.path, sum(log.counts.values()))
     want = dict(log.counts)
@@ -80,19 +105,26 @@ def recovered_lines(log: Log, dst: Path) -> list[str]:
         t_j = max((m.log_time for m in journal), default=0)
         off = int(log.metadata.get("log", {}).get("log_time_offset_ns", "0") or 0)
         out.append(
-            f"{journal_path(log.path)}: {len(journal)} more messages, received after the last "
-            f"chunk, up to t = {(t_j - off) / 1e9:.4f} s"
+            f"{journal_path(log.path)}: {plural(len(journal), 'more message')}, received after "
+            f"the last chunk, up to t = {(t_j - off) / 1e9:.4f} s"
         )
     written = read_log(dst, topics=[]).counts  # from the message indexes: nothing decoded
     missing = {k: v - written.get(k, 0) for k, v in want.items() if written.get(k, 0) != v}
     if missing:
         out.append(f"not rewritten: {missing}")
     else:
-        out.append(f"{dst}: all {sum(written.values())} messages rewritten, finalised")
+        out.append(f"{dst}: all {plural(sum(written.values()), 'message')} rewritten, finalised")
     meta = log.metadata.get("log", {})
     if not log.finalised:
-        wall, span = meta.get("flush_wall_s"), meta.get("chunk_span_s", "1.0")
-        if wall and meta.get("journal") == "true":
+        wall, chunk_s = meta.get("flush_wall_s"), meta.get("chunk_span_s", "1.0")
+        if meta.get("journal") == "true" and not os.path.isfile(journal_path(log.path)):
+            out.append(
+                f"lost: everything after the last complete chunk (t = {t_end:.4f} s): the log "
+                f"was written with a journal, which held what the host received after that "
+                f"chunk, but {journal_path(log.path)} is not beside it; the recovered part "
+                f"covers {span} of device time"
+            )
+        elif wall and meta.get("journal") == "true":
             out.append(
                 "lost: none of the device's messages the host had received (each receive batch "
                 "went to the journal at its end); of the host's own messages (events) at most "
@@ -106,11 +138,18 @@ def recovered_lines(log: Log, dst: Path) -> list[str]:
         elif wall:
             out.append(
                 f"lost: at most what the host received in the last {float(wall):g} s of wall time "
-                f"before it was killed (never more than {float(span):g} s of device time) after "
+                f"before it was killed (never more than {float(chunk_s):g} s of device time) after "
                 f"t = {t_end:.4f} s"
             )
         else:
             out.append(
-                f"lost: at most the last {float(span):g} s of device time after t = {t_end:.4f} s"
+                f"lost: at most the last {float(chunk_s):g} s of device time after t = "
+                f"{t_end:.4f} s"
+            )
+        if log.truncated and meta.get("journal") != "true":  # (the journal's case: above)
+            out.append(
+                "the file ends inside a record: if it was cut short (a partial copy) rather than "
+                f"its writer killed, everything after t = {t_end:.4f} s is lost; the recovered "
+                f"part covers {span} of device time"
             )
     return out

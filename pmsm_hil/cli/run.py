@@ -186,23 +186,17 @@ def check_link_budget(args: argparse.Namespace, profile: Profile) -> int | None:
 
 
 def _check_out(out: Path, overwrite: bool = False) -> int | None:
+    from pmsm_hil.cli.paths import check_output
+
     if out.is_dir():
         return fail("error", f"--out {out}: is a directory; give the log's file name (*.mcap)", 2)
-    if out.suffix != ".mcap":
-        return fail("error", f"--out {out}: the log is MCAP, name it *.mcap", 2)
-    if out.exists() and not overwrite:
+    if out.exists() and not overwrite and out.suffix == ".mcap":
         return fail(
             "error",
             f"--out {out}: a log is there already; --overwrite replaces it (or give another name)",
             2,
         )
-    try:
-        out.parent.mkdir(parents=True, exist_ok=True)
-        with open(out, "ab"):
-            pass
-    except OSError as e:
-        return fail("error", f"--out {out}: cannot write the log there ({e.strerror or e})", 2)
-    return None
+    return check_output(out, "--out", (".mcap",), "the log is MCAP")
 
 
 def _load(args):

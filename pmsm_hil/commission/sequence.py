@@ -53,6 +53,25 @@ def commission_profile(
     )
 
 
+# A step that needs another's result in the same sequence (firmware/core/comm_*.c): r_s and psi_f
+# add the measured inverter distortion to the applied voltage (comm_inv_dist); without the
+# inverter step there is none (no nominal model to fall back on), and the unmodelled distortion
+# (tens of volts at standstill) biases R and, unequally at the two spin speeds, psi_f.
+STEP_NEEDS = {"r_s": ("inverter",), "psi_f": ("inverter",)}
+# steps that drive the motor in the rotor frame: without `encoder` they take the rotor angle from
+# the motor file's enc_offset_e_rad
+ANGLE_STEPS = ("inverter", "r_s", "l_dq", "psi_f")
+
+
+class RequestError(ValueError):
+    """A commissioning request the firmware would refuse or could not run; ``field`` names the
+    request's parameter (steps, i_test_a, spin_rpm)."""
+
+    def __init__(self, field: str, message: str):
+        super().__init__(message)
+        self.field = field
+
+
 def commission_request(
     profile: Profile,
     steps: Iterable[str] | None = None,
@@ -60,12 +79,38 @@ def commission_request(
     spin_rpm: float | None = None,
 ) -> tuple[str, dict[str, float | int]]:
     """The config_commission message: which steps (names, default all), the test current and the
-    spin speed (defaults: half the motor's current and speed limits)."""
+    spin speed (defaults: half the motor's current and speed limits). Raises RequestError for what
+    the firmware refuses (fw_cmd.c: a test current outside (0, i_max_a], a spin speed outside
+    (0, speed_max_rpm]; 0 would mean the default there, so it is refused here) and for a step
+    without the step whose result it needs (STEP_NEEDS)."""
     m = profile.motor
     names = list(steps) if steps else list(STEPS)
     unknown = [s for s in names if s not in STEPS]
     if unknown:
-        raise ValueError(f"unknown commissioning step(s) {', '.join(unknown)}: {', '.join(STEPS)}")
+        raise RequestError(
+            "steps", f"unknown commissioning step(s) {', '.join(unknown)}: {', '.join(STEPS)}"
+        )
+    for s in names:
+        missing = [n for n in STEP_NEEDS.get(s, ()) if n not in names]
+        if missing:
+            raise RequestError(
+                "steps",
+                f"step {s} needs step {', '.join(missing)} in the same sequence (it uses the "
+                f"measured inverter distortion; docs/commissioning.md): add {', '.join(missing)}",
+            )
+    if i_test_a is not None and not 0.0 < i_test_a <= m.i_max_a:
+        raise RequestError(
+            "i_test_a",
+            f"the test current must be in (0, {m.i_max_a:g}] A (the motor file's i_max_a, "
+            f"{m.name}); default {0.5 * m.i_max_a:g} A",
+        )
+    if spin_rpm is not None and not 0.0 < spin_rpm <= m.speed_max_rpm:
+        raise RequestError(
+            "spin_rpm",
+            f"the spin speed must be in (0, {m.speed_max_rpm:g}] r/min (the motor file's "
+            f"speed_max_rpm, {m.name}); default {0.5 * m.speed_max_rpm:g} r/min (to skip the "
+            "spin, leave psi_f out of the steps)",
+        )
     mask = 0
     for s in names:
         mask |= 1 << gen.ENUMS["commission_step"][s]
@@ -73,6 +118,21 @@ def commission_request(
         steps=mask,
         i_test_a=float(i_test_a if i_test_a is not None else 0.5 * m.i_max_a),
         spin_rpm=float(spin_rpm if spin_rpm is not None else 0.5 * m.speed_max_rpm),
+    )
+
+
+def angle_warning(profile: Profile, steps: Iterable[str] | None) -> str | None:
+    """What to tell before a sequence without the encoder step whose other steps need the rotor
+    angle, when the motor file's encoder offset was not measured by commissioning."""
+    names = list(steps) if steps else list(STEPS)
+    using = [s for s in names if s in ANGLE_STEPS]
+    if "encoder" in names or not using or profile.motor.commissioning:
+        return None
+    return (
+        f"without the encoder step, the steps {', '.join(using)} take the rotor angle from the "
+        f"motor file's enc_offset_e_rad = {profile.motor.enc_offset_e_rad:g} rad, which "
+        "commissioning has not measured: if the encoder's zero is off it, they fail "
+        "(implausible); add encoder"
     )
 
 

@@ -1,10 +1,11 @@
 """`pmsm-hil import FILE.csv --motor M.yaml -o OUT.mcap`: external data into a log the gap diagnosis
 reads (DESIGN.md, "External data (CSV import)"; docs/gap.md).
 
-A header row, SI units, the project's column names. Control-rate data becomes `/pmsm/control_rate`,
-steady-state dq data `/pmsm/steady_dq`. Nothing is guessed: unknown or missing columns, a value that
-is not a number, time that does not increase, or (control rate) a sampling gap is an error that names
-the file, line and column.
+A header row, SI units, the project's column names; UTF-8 with or without a byte-order mark (Excel's
+"CSV UTF-8"). Control-rate data becomes `/pmsm/control_rate`, steady-state dq data `/pmsm/steady_dq`.
+Nothing is guessed: unknown or missing columns, a value that is not a number, time that does not
+increase, or (control rate) a sampling gap or a sample time that is no control period is an error
+that names the file, line and column, with the value as the file writes it.
 """
 
 from __future__ import annotations
@@ -31,6 +32,10 @@ CONTROL_OPTIONAL = (
 STEADY_REQUIRED = ("t_s", "u_d_v", "u_q_v", "i_d_a", "i_q_a")
 STEADY_SPEED = ("omega_e_rad_s", "speed_rpm")
 STEADY_OPTIONAL = ("temp_winding_c", "temp_magnet_c", "torque_nm")
+# a control-rate record has one row per control period: PWM at 1 kHz .. 1 MHz. A step of t_s
+# outside is a unit mistake (t_s in ms or us) or not control-rate data (pmsm_hil/cli/import_csv.py
+# quotes these in its --help)
+TS_MIN_S, TS_MAX_S = 1e-6, 1e-3
 
 
 class ImportError_(ValueError):
@@ -76,15 +81,21 @@ def read_csv(path: str | os.PathLike) -> tuple[str, dict[str, np.ndarray]]:
     """(kind, columns) with kind "control" or "steady"; raises ImportError_."""
     path = os.fspath(path)
     try:
-        f = open(path, newline="", encoding="utf-8")  # noqa: SIM115  (closed by `with f:` below)
+        # utf-8-sig: a leading byte-order mark (Excel's "CSV UTF-8") is not part of the header
+        f = open(path, newline="", encoding="utf-8-sig")  # noqa: SIM115  (closed by `with f:`)
     except OSError as e:
         raise ImportError_(f"{path}: cannot read ({e.strerror})") from None
     with f:
-        rows = [
-            (n, r)
-            for n, r in enumerate(csv.reader(f), start=1)
-            if r and not r[0].lstrip().startswith("#")
-        ]
+        try:
+            rows = [
+                (n, r)
+                for n, r in enumerate(csv.reader(f), start=1)
+                if r and not r[0].lstrip().startswith("#")
+            ]
+        except UnicodeDecodeError as e:
+            raise ImportError_(
+                f"{path}: not UTF-8 text (octet {e.start}: {e.reason}); save it as CSV UTF-8"
+            ) from None
     if not rows:
         raise ImportError_(f"{path}: empty file (a header row and data rows are needed)")
     _hline, header = rows[0]
@@ -111,34 +122,52 @@ def read_csv(path: str | os.PathLike) -> tuple[str, dict[str, np.ndarray]]:
             vals[i, j] = x
     cols = {h: vals[:, j] for j, h in enumerate(header)}
     lines = [ln for ln, _ in data]
+
+    def cell(k: int, name: str) -> str:  # the value as the file writes it
+        return data[k][1][header.index(name)].strip()
+
     t = cols["t_s"]
     dt = np.diff(t)
     bad = np.nonzero(dt <= 0)[0]
     if len(bad):
         k = int(bad[0]) + 1
         raise ImportError_(
-            f"{path}: line {lines[k]}: t_s = {t[k]!r} does not increase (previous {t[k - 1]!r})"
+            f"{path}: line {lines[k]}: t_s = {cell(k, 't_s')} does not increase (previous "
+            f"{cell(k - 1, 't_s')})"
         )
     if kind == "control":
         ts = float(np.median(dt))
+        if not TS_MIN_S <= ts <= TS_MAX_S:
+            units = (("milliseconds", 1e-3), ("microseconds", 1e-6))
+            hint = next(
+                (
+                    f" — is it written in {unit} ({ts * f * 1e6:.6g} us a period)?"
+                    for unit, f in units
+                    if TS_MIN_S <= ts * f <= TS_MAX_S
+                ),
+                "",
+            )
+            raise ImportError_(
+                f"{path}: line {lines[1]}: t_s = {cell(1, 't_s')}: the sample time from t_s is "
+                f"{ts:.6g} s, not a control period ({TS_MIN_S:g} .. {TS_MAX_S:g} s: one row per "
+                f"PWM period); t_s is in seconds{hint}"
+            )
         gap = np.nonzero(np.abs(dt - ts) > 0.01 * ts)[0]
         if len(gap):
             k = int(gap[0]) + 1
             raise ImportError_(
-                f"{path}: line {lines[k]}: t_s = {t[k]!r} leaves a gap of {dt[k - 1]:.6g} s "
-                f"after {t[k - 1]!r}; the sample time from t_s is {ts:.6g} s (±1 %) "
-                f"({len(gap)} such step(s); split the file at the gaps)"
+                f"{path}: line {lines[k]}: t_s = {cell(k, 't_s')} leaves a gap of "
+                f"{dt[k - 1]:.6g} s after {cell(k - 1, 't_s')}; the sample time from t_s is "
+                f"{ts:.6g} s (±1 %) ({len(gap)} such step(s); split the file at the gaps)"
             )
         for c in ("s_a", "s_b", "s_c"):
             if c in cols and np.any((cols[c] != 0) & (cols[c] != 1)):
                 k = int(np.nonzero((cols[c] != 0) & (cols[c] != 1))[0][0])
-                raise ImportError_(f"{path}: line {lines[k]}: {c} = {cols[c][k]!r} is not 0 or 1")
+                raise ImportError_(f"{path}: line {lines[k]}: {c} = {cell(k, c)} is not 0 or 1")
         for c in ("d_a", "d_b", "d_c"):
             if c in cols and np.any((cols[c] < 0) | (cols[c] > 1)):
                 k = int(np.nonzero((cols[c] < 0) | (cols[c] > 1))[0][0])
-                raise ImportError_(
-                    f"{path}: line {lines[k]}: {c} = {cols[c][k]!r} is not in [0, 1]"
-                )
+                raise ImportError_(f"{path}: line {lines[k]}: {c} = {cell(k, c)} is not in [0, 1]")
     return kind, cols
 
 
