@@ -335,7 +335,7 @@ def test_a_seed_axis_takes_distinct_whole_seeds(tmp_path, values, says):
         (
             "{field: rig.effects.dead_time.v_drop_v, values: [1.0, two]}",
             "axes[0].values[1] = 'two' makes the rig file invalid: effects.dead_time.v_drop_v = "
-            "'two' is not a number (write numbers without quotes)",
+            "'two' is not a number",
         ),
         (
             "{field: motor.r_s_ohm, values: [1.0, '0.9']}",
