@@ -217,10 +217,11 @@ def test_faults_are_forbidden_by_default_named_and_can_be_ignored():
 
 
 def test_a_tiny_error_is_shown_with_its_digits():
-    """A 3e-05 r/min error beside a 0.0001 bound was shown as +0.000 (failing 0 against 1e-4)."""
+    """A 3e-05 r/min error beside a 0.0001 bound was shown as +0.000 (failing 0 against 1e-4):
+    the bound's resolution and two digits more."""
     checks = _checks({"run": {"speed_error_max_rpm": 1e-4}}, _summary([_seg(0, "a", mean=3e-5)]))
     c = next(c for c in checks if c.criterion == "speed error")
-    assert c.measured == "+3e-05 r/min" and c.passed
+    assert c.measured == "+0.000030 r/min" and c.passed
 
 
 def test_shipped_profiles_load_with_their_criteria(root):

@@ -36,10 +36,11 @@ def _seg_scope(s) -> str:
     return f"segment {s.index} {s.name!r}"
 
 
-def _num(v: float, unit: str, sign: bool = False) -> str:
-    """A measured value with four significant digits (a speed error of 3e-05 r/min is not shown
-    as +0.000 beside a bound of 0.0001)."""
-    return f"{v:+.4g} {unit}" if sign else f"{v:.4g} {unit}"
+def _num(v: float, unit: str, bound: float, sign: bool = False) -> str:
+    """A measured value to the bound's resolution and two digits finer (at least 3 decimals): a
+    speed error of 3e-05 r/min beside a bound of 0.0001 reads +0.000030, not +0.000."""
+    d = max(3, 2 - math.floor(math.log10(bound))) if bound > 0 else 3
+    return f"{v:+.{d}f} {unit}" if sign else f"{v:.{d}f} {unit}"
 
 
 def _not_judged(s) -> str:
@@ -72,7 +73,7 @@ def _segment_checks(bounds, segs, scope_all: bool, skip=frozenset()) -> list[Che
                 Check(
                     scope,
                     "speed error",
-                    _num(err, "r/min", sign=True) if s.mean_judged else _not_judged(s),
+                    _num(err, "r/min", lim, sign=True) if s.mean_judged else _not_judged(s),
                     f"|.| <= {lim:.4g} r/min" + (" (band)" if b == "band" else ""),
                     bool(s.mean_judged and not math.isnan(err) and abs(err) <= lim),
                 )
@@ -85,7 +86,7 @@ def _segment_checks(bounds, segs, scope_all: bool, skip=frozenset()) -> list[Che
                     Check(
                         scope,
                         name,
-                        _num(v, "A") if s.mean_judged else _not_judged(s),
+                        _num(v, "A", lim) if s.mean_judged else _not_judged(s),
                         f"<= {lim:g} A",
                         bool(s.mean_judged and not math.isnan(v) and v <= lim),
                     )
@@ -93,7 +94,9 @@ def _segment_checks(bounds, segs, scope_all: bool, skip=frozenset()) -> list[Che
         lim = given("recovery_max_s")
         if lim is not None and (not scope_all or (s.recovery_s is not None and plateau)):
             v = s.recovery_s
-            shown = "no load step" if v is None else ("never" if math.isinf(v) else _num(v, "s"))
+            shown = (
+                "no load step" if v is None else ("never" if math.isinf(v) else _num(v, "s", lim))
+            )
             out.append(Check(scope, "recovery", shown, f"<= {lim:g} s", v is not None and v <= lim))
         if given("faults") is not None and not scope_all:
             out.append(_fault_check(scope, s.faults, bounds.faults))
