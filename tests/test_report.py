@@ -197,8 +197,22 @@ def test_an_imported_record_or_a_commissioning_run_is_sent_where_it_is_read(tmp_
             w.write("/pmsm/telemetry", 0.0, {})
         w.close()
         for cmd in ("analyze", "report"):
+            if cmd == "analyze" and topic == "/pmsm/commission":
+                continue  # analyze shows a commissioning run's steps (below)
             assert main([cmd, str(log)]) == 2
             assert what in capsys.readouterr().err, cmd
+    # analyze of a commissioning run: its steps and results, as `commission` printed them
+    w = LogWriter(tmp_path / "comm.mcap", {})
+    w.write("/pmsm/telemetry", 0.0, {})
+    row = {"step": "r_s", "status": "ok", "value_0": 0.9, "spread_0": 1e-4}
+    w.write("/pmsm/commission", 1.0, row)
+    w.write("/pmsm/commission", 2.0, {"step": "psi_f", "status": "not_repeatable"})
+    w.close()
+    assert main(["analyze", str(tmp_path / "comm.mcap")]) == 1  # a step failed
+    out = capsys.readouterr().out
+    assert "a commissioning run (pmsm-hil commission), 2 steps logged" in out
+    assert "stator resistance by injection: ok" in out and "r_s_ohm" in out and "0.9 ohm" in out
+    assert "psi_f by a short spin: not_repeatable" in out
 
 
 def test_default_directory_is_beside_the_log(short_log, tmp_path):

@@ -60,6 +60,8 @@ def main(args: argparse.Namespace) -> int:
     except (LogFormatError, ValueError, OSError) as e:
         return fail("error", f"{path}: not a readable pmsm-hil log ({e})", 2)
     kind = other_kind(log)
+    if kind and "/pmsm/commission" in log.topics:
+        return _commissioning(path)
     if kind:
         return fail("error", f"{path}: {kind}", 2)
     journal = Path(f"{path}.journal")
@@ -105,3 +107,19 @@ def _finite(x: object) -> object:
     if isinstance(x, (list, tuple)):
         return [_finite(v) for v in x]
     return x
+
+
+def _commissioning(path: Path) -> int:
+    """A commissioning run's log: each step's status and results, as `commission` printed them
+    (exit 0 when every step passed, 1 otherwise)."""
+    from pmsm_hil.commission.steps import STEP_TITLES, logged_steps
+    from pmsm_hil.log.reader import read_log
+
+    steps = logged_steps(read_log(path, topics=["/pmsm/commission"]))
+    print(f"{path}: a commissioning run (pmsm-hil commission), {len(steps)} steps logged")
+    for step, status, q in steps:
+        print(f"  {STEP_TITLES.get(step, step)}: {status}")
+        for name, m in q.items():
+            print(f"      {name:<26} {m.text()}")
+    print("its motor file's `commissioning:` section holds the results (docs/commissioning.md)")
+    return 0 if steps and all(status == "ok" for _, status, _ in steps) else 1

@@ -5,6 +5,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from pmsm_hil.log.reader import Log
 
 STEP_TITLES = {
     "offsets": "current-sensor offsets (PWM off)",
@@ -123,3 +127,17 @@ def step_quantities(row: dict) -> dict[str, Measured]:
             "psi_f_low_speed_wb": Measured(v[1], 0.0, "Wb"),
         }
     return {}
+
+
+def logged_steps(log: Log) -> list[tuple[str, str, dict[str, Measured]]]:
+    """(step, status, its named quantities when ok) of each /pmsm/commission row of a log (a
+    pmsm_hil.log.reader.Log), in order: what `pmsm-hil analyze` shows of a commissioning run."""
+    if "/pmsm/commission" not in log.topics:
+        return []
+    cols = log.topic("/pmsm/commission")
+    out = []
+    for i in range(len(cols["step"])):
+        row = {k: (v[i].item() if hasattr(v[i], "item") else v[i]) for k, v in cols.items()}
+        step, status = str(row["step"]), str(row["status"])
+        out.append((step, status, step_quantities(row) if status == "ok" else {}))
+    return out
