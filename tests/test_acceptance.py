@@ -369,7 +369,8 @@ def test_run_ends_with_the_profiles_acceptance_and_names_what_it_missed(tmp_path
 
 
 def test_a_missed_plateau_bound_is_named_in_the_verdict():
-    from pmsm_hil.analysis.summary import RunSummary, SegmentStats, verdict_text
+    from pmsm_hil.analysis.summary import RunSummary, SegmentStats
+    from pmsm_hil.analysis.summary_text import verdict_text
 
     def seg(i, name, mean, band, rec):
         return SegmentStats(

@@ -7,7 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from pmsm_hil.analysis.summary import MIN_PLATEAU_S, run_tag, summarize, verdict_text
+from pmsm_hil.analysis.summary import MIN_PLATEAU_S, run_tag, summarize
+from pmsm_hil.analysis.summary_text import verdict_text
 
 TS = 5e-4  # telemetry at 2 kHz
 
@@ -132,10 +133,10 @@ def test_a_recovery_that_never_comes_is_never_and_the_json_is_valid():
     import subprocess
     import sys
 
-    from pmsm_hil.cli.analyze import _finite
+    from pmsm_hil.gap.report import jsonable
 
     d = {"segments": [{"recovery_s": float("inf"), "mean_error_rpm": float("nan")}], "n": 1}
-    text = json.dumps(_finite(d), allow_nan=False)
+    text = json.dumps(jsonable(d), allow_nan=False)
     assert json.loads(text) == {"segments": [{"recovery_s": None, "mean_error_rpm": None}], "n": 1}
     r = subprocess.run(
         [sys.executable, "-m", "pmsm_hil.cli.main", "run", "paper-a", "--seed", "4294967297"],

@@ -368,7 +368,8 @@ def test_can_run_keeps_python_can_chatter_off_the_terminal(data, tmp_path):
 def test_summary_fits_80_columns_by_leaving_out_columns(short_log):
     from rich.console import Console
 
-    from pmsm_hil.analysis.summary import print_summary, summarize_log
+    from pmsm_hil.analysis.summary import summarize_log
+    from pmsm_hil.analysis.summary_text import print_summary
 
     console = Console(width=80, record=True, force_terminal=False)
     print_summary(summarize_log(short_log), console)

@@ -111,16 +111,14 @@ def _fault_check(scope: str, n: int, rule: str, names: list[str] | None = None) 
     return Check(scope, "faults", shown, "none" if rule == "forbidden" else ">= 1 (expected)", ok)
 
 
-def _own_bounds(acceptance: Acceptance, summary: RunSummary) -> set[tuple[int, str]]:
-    """(segment index, bound key) of every bound a segment gives itself: it replaces the run-wide
-    one there (a segment's own bound loosens or tightens the run's for that segment)."""
-    by_name = {s.name: s.index for s in summary.segments}
-    out = set()
-    for sa in acceptance.segments:
-        idx = sa.segment if isinstance(sa.segment, int) else by_name.get(sa.segment)
-        if idx is not None:
-            out |= {(idx, k) for k in BOUND_KEYS if getattr(sa, k) is not None}
-    return out
+def _segments_bounded(acceptance: Acceptance, summary: RunSummary) -> list[tuple[Any, Any]]:
+    """(a segment's own bounds, the segment's stats, or None when the log never shows it)."""
+    by_index = {s.index: s for s in summary.segments}
+    by_name = {s.name: s for s in summary.segments}
+    return [
+        (sa, by_index.get(sa.segment) if isinstance(sa.segment, int) else by_name.get(sa.segment))
+        for sa in acceptance.segments
+    ]
 
 
 def evaluate(
@@ -148,14 +146,19 @@ def evaluate(
     if run.faults != "ignored":
         names = [f.split(" s ", 1)[-1] for f in summary.faults]
         out.append(_fault_check("run", len(summary.faults), run.faults, names))
-    own = _own_bounds(acceptance, summary)
+    bounded = _segments_bounded(acceptance, summary)
+    # a segment's own bound replaces the run-wide one there (it loosens or tightens it)
+    own = {
+        (seg.index, k)
+        for sa, seg in bounded
+        if seg is not None
+        for k in BOUND_KEYS
+        if getattr(sa, k) is not None
+    }
     out += _segment_checks(run, summary.segments, scope_all=True, skip=own)
     out += _angle_checks(run, summary)
     out += _ident_checks(run, ident)
-    by_index = {s.index: s for s in summary.segments}
-    by_name = {s.name: s for s in summary.segments}
-    for sa in acceptance.segments:
-        seg = by_index.get(sa.segment) if isinstance(sa.segment, int) else by_name.get(sa.segment)
+    for sa, seg in bounded:
         if seg is None:
             out.append(
                 Check(f"segment {sa.segment!r}", "seen", "not seen in the log", "played", False)

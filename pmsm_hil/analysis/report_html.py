@@ -90,7 +90,7 @@ def summary_html(summary: RunSummary | None) -> str:
         rows.append(row)
     from rich.text import Text
 
-    from pmsm_hil.analysis.summary import verdict_text
+    from pmsm_hil.analysis.summary_text import verdict_text
 
     # the console's verdict (an incomplete run says so, a fault is named), without its markup
     verdict = Text.from_markup(verdict_text(summary)).plain

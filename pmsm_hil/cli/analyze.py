@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -48,7 +47,8 @@ def print_identification(table: IdentTable) -> None:
 
 def main(args: argparse.Namespace) -> int:
     from pmsm_hil.analysis.reading import other_kind, read_for_analysis
-    from pmsm_hil.analysis.summary import print_summary, summarize_log
+    from pmsm_hil.analysis.summary import summarize_log
+    from pmsm_hil.analysis.summary_text import print_summary
     from pmsm_hil.log.reader import LogFormatError, path_problem
 
     path = Path(args.log)
@@ -87,7 +87,9 @@ def main(args: argparse.Namespace) -> int:
         d = summary.as_dict()
         if ident is not None:
             d["identification"] = ident.as_dict()
-        print(json.dumps(_finite(d), indent=2, allow_nan=False))
+        from pmsm_hil.gap.report import jsonable  # NaN and infinity as null: JSON has neither
+
+        print(json.dumps(jsonable(d), indent=2, allow_nan=False))
     else:
         print_summary(summary)
         if ident is not None:
@@ -95,18 +97,6 @@ def main(args: argparse.Namespace) -> int:
         if recover and not log.finalised:
             print(f"note: the log was not finished{recover}")
     return 0 if summary.ok else 1
-
-
-def _finite(x: object) -> object:
-    """JSON has no NaN or infinity: a value not measured (NaN) and a recovery that never came
-    (inf; its recovery_ok is false) are null."""
-    if isinstance(x, float) and not math.isfinite(x):
-        return None
-    if isinstance(x, dict):
-        return {k: _finite(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_finite(v) for v in x]
-    return x
 
 
 def _commissioning(path: Path) -> int:

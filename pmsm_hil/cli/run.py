@@ -334,7 +334,8 @@ def _run(args: argparse.Namespace, collecting: bool) -> int:
             out.unlink(missing_ok=True)
         return fail("error", str(e), 2 if isinstance(e, TransportSpecError) else 3)
     later.join()
-    from pmsm_hil.analysis.summary import print_summary, summarize_log
+    from pmsm_hil.analysis.summary import summarize_log
+    from pmsm_hil.analysis.summary_text import print_summary
     from pmsm_hil.cli.live import make_observer
     from pmsm_hil.log.writer import LogWriteError
     from pmsm_hil.protocol.session import DeviceError, Session

@@ -55,6 +55,9 @@ class Probe:
         # correlated with the current, which would read as a resistance error)
         self.omega = speed_from_angle(rec.theta_e_rad, rec.omega_e_rad_s, rec.runs, rec.ts_s)
         self._u_cache: list = []  # u_at's last results
+        # the last sample-delay inversion: (a, the currents it was made of, the result); the
+        # Jacobian's columns of the other parameters ask for the same one again
+        self._unblend_cache: tuple[float, np.ndarray, np.ndarray] | None = None
         self._last_i_abc: np.ndarray | None = None  # the last evaluation's currents (work)
 
     # ------------------------------------------------------------------ evaluation
@@ -200,7 +203,11 @@ class Probe:
         a = w.sample_frac
         i_ab = self._iab if w.i_abc is self.rec.i_abc else None
         if a != 0:  # the true currents at the period boundaries, from the late samples
-            i0_ab = self._unblended(abc_to_ab(w.i_abc) if i_ab is None else i_ab, a)[k]
+            c = self._unblend_cache
+            if c is None or c[0] != a or c[1] is not w.i_abc:
+                full = self._unblended(abc_to_ab(w.i_abc) if i_ab is None else i_ab, a)
+                c = self._unblend_cache = (a, w.i_abc, full)
+            i0_ab = c[2][k]
             ab_1 = abc_to_ab(w.i_abc[k + 1]) if i_ab is None else i_ab[k + 1]
         elif i_ab is None:
             sub = abc_to_ab(w.i_abc[np.concatenate([k, k + 1])])

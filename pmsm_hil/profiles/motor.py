@@ -9,7 +9,8 @@ from typing import TYPE_CHECKING, Any
 from pydantic import Field, ValidationError
 
 from ._base import FileModel, StrictModel, default_file, meta_value, num
-from ._source import Problem, ProfileError, Source, fmt_num, read_source, validation_problems
+from ._source import Problem, ProfileError, Source, fmt_num, read_source
+from ._validation import validation_problems
 from .shipped import in_file
 
 if TYPE_CHECKING:

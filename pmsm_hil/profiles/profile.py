@@ -12,19 +12,12 @@ import numpy as np
 from pydantic import ValidationError
 
 from ._base import meta_value, num
-from ._source import (
-    Problem,
-    ProfileError,
-    Source,
-    fmt_num,
-    read_source,
-    resolve_ref,
-    validation_problems,
-)
+from ._source import Problem, ProfileError, Source, fmt_num, read_source, resolve_ref
+from ._validation import validation_problems
 from .acceptance import Acceptance, acceptance_problems
 from .motor import Motor, _load_motor_source
 from .rig import Rig, _load_rig_source, plant_problems
-from .shipped import in_file
+from .shipped import in_file, near_name
 
 __all__ = [
     "FRAME_OVERHEAD_OCTETS",
@@ -476,7 +469,10 @@ def load_profile(
         if note:
             notes.append(f"{path}:{src.line(('motor',))}: motor = {d['motor']!r}: {note}")
         msrc = read_source(
-            motor_path, what="motor file", referenced_by=(src, ("motor",), d["motor"])
+            motor_path,
+            what="motor file",
+            referenced_by=(src, ("motor",), d["motor"]),
+            hint="" if os.path.exists(motor_path) else near_name(d["motor"], "motor"),
         )
         motor, mprobs = _load_motor_source(msrc)
         problems += mprobs
@@ -489,7 +485,12 @@ def load_profile(
         rig_path, note = in_file(resolve_ref(path, rig_ref), rig_ref, "rig")
         if note:
             notes.append(f"{path}:{src.line(('rig',))}: rig = {rig_ref!r}: {note}")
-        rsrc = read_source(rig_path, what="rig file", referenced_by=(src, ("rig",), rig_ref))
+        rsrc = read_source(
+            rig_path,
+            what="rig file",
+            referenced_by=(src, ("rig",), rig_ref),
+            hint="" if os.path.exists(rig_path) else near_name(rig_ref, "rig"),
+        )
     elif rig_ref is None:
         base = os.path.dirname(os.path.dirname(motor_path)) if motor_path else os.path.dirname(path)
         rig_path, note = in_file(

@@ -16,7 +16,8 @@ from typing import TYPE_CHECKING, Any, Literal
 from pydantic import Field, ValidationError
 
 from ._base import FileModel, StrictModel, default_file, meta_value
-from ._source import Problem, ProfileError, Source, read_source, validation_problems
+from ._source import Problem, ProfileError, Source, read_source
+from ._validation import validation_problems
 from .shipped import in_file
 
 if TYPE_CHECKING:

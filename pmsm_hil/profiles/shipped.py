@@ -17,6 +17,7 @@ paper-a-ipmsm` works as on the command line.
 
 from __future__ import annotations
 
+import difflib
 import importlib.util
 import os
 from pathlib import Path
@@ -119,6 +120,17 @@ def in_file(path: str, ref: str, kind: str) -> tuple[str, str | None]:
             return str(candidate), None  # a bare shipped name, as the docs write them: no note
         return str(candidate), f"nothing at {path}: the shipped {kind} {candidate.stem!r} is used"
     return path, None
+
+
+def near_name(ref: str, kind: str) -> str:
+    """For a motor or rig name in a file that finds nothing: the shipped one it was likely meant
+    to be, or the shipped names (appended to the file's "cannot be read")."""
+    names = [p.stem for p in shipped(kind)]
+    stem = os.path.basename(ref).removesuffix(KINDS[kind][1])
+    close = difflib.get_close_matches(stem, names, n=1, cutoff=0.6)
+    if close:
+        return f"; did you mean the shipped {kind} '{close[0]}'?"
+    return f" (shipped {kind}s: {', '.join(names)})"
 
 
 def _shipped_named(name: str, kind: str) -> Path | None:

@@ -23,15 +23,8 @@ import yaml
 from pydantic import ConfigDict, TypeAdapter, ValidationError
 
 from pmsm_hil.profiles import ProfileError, load_profile
-from pmsm_hil.profiles._source import (
-    Problem,
-    _resolve,
-    error_message,
-    fmt_value,
-    loc_str,
-    read_source,
-    resolve_ref,
-)
+from pmsm_hil.profiles._source import Problem, fmt_value, loc_str, read_source, resolve_ref
+from pmsm_hil.profiles._validation import error_message, resolve_field
 from pmsm_hil.seeds import SEED_MAX
 
 from .spec import Axis, Sweep
@@ -243,7 +236,7 @@ def _value_problems(sweep: Sweep, base: _Base, i: int, ax: Axis) -> list[Problem
     other axes may change them. One problem per axis (its first bad value)."""
     parts = _parts(ax.field)
     root, rest = str(parts[0]), parts[1:]
-    _, info = _resolve(type(base.objects[root]), tuple(rest))
+    _, info = resolve_field(type(base.objects[root]), tuple(rest))
     if info is None:
         return []
     typ: Any = Annotated[(info.annotation, *info.metadata)] if info.metadata else info.annotation

@@ -26,14 +26,8 @@ from typing import Literal
 from pydantic import Field, ValidationError, model_validator
 
 from pmsm_hil.profiles._base import StrictModel
-from pmsm_hil.profiles._source import (
-    Problem,
-    ProfileError,
-    Source,
-    read_source,
-    resolve_ref,
-    validation_problems,
-)
+from pmsm_hil.profiles._source import Problem, ProfileError, Source, read_source, resolve_ref
+from pmsm_hil.profiles._validation import validation_problems
 from pmsm_hil.seeds import SEED_MAX
 
 __all__ = ["FIELD_RE", "METRICS", "Axis", "Sweep", "SweepFile", "factor_column", "load_sweep"]
