@@ -128,7 +128,11 @@ def bench_run(repeat: int, base: str | None = None) -> None:
             "run",
             repeat,
             base,
-            lambda i: ["run", paper_a, "--seed", "1", "--no-live", "--out", f"{d}/a{i}.mcap"],
+            # --overwrite: the base tree's run writes the same file after this tree's
+            lambda i: [
+                *("run", paper_a, "--seed", "1", "--no-live", "--overwrite"),
+                *("--out", f"{d}/a{i}.mcap"),
+            ],
         )
     for label, rs in runs.items():
         walls = [r["wall_s"] for r in rs]

@@ -210,7 +210,8 @@ class Recorder:
 
         The DIRECT messages go to the log without their handlers: each one's frames in the batch
         encoded at once (``block_encoder``), then written run by run, in the order received,
-        between the other frames' messages (LogWriter.write_block)."""
+        between the other frames' messages (LogWriter.write_runs: the runs up to the next frame
+        that needs its handler, at once)."""
         frames = frames if isinstance(frames, list) else list(frames)
         live = self.live
         n = len(frames)
@@ -225,7 +226,19 @@ class Recorder:
         ]
         blocks: dict[int, MessageBlock] = {}  # id -> its frames in this batch, as log records
         last: dict[int, Frame] = {}  # the last frame written directly, per message
-        i = 0
+        # runs of directly written frames, written at once before the next handler's frame and
+        # at the batch's end: (block, stop), and the last frame of each block queued so far
+        runs: list[tuple[MessageBlock, int]] = []
+        queued: dict[int, int] = {}
+        queued_last: dict[int, Frame] = {}
+        i = done = 0  # frames looked at / written
+
+        def write_queued() -> None:
+            self.w.write_runs(runs)
+            runs.clear()
+            last.update(queued_last)
+            queued_last.clear()
+
         try:
             while i < n:
                 key = keys[i]
@@ -234,8 +247,13 @@ class Recorder:
                     j += 1
                 entry = self._direct.get(key)
                 if entry is None and key >= 0 and self._direct_ids and key not in self._not_direct:
+                    if runs:  # it may open a channel: after the runs before it
+                        write_queued()
                     entry = self._make_direct(key)
                 if entry is None:
+                    if runs:
+                        write_queued()
+                    done = i
                     for fr in frames[i:j]:
                         handler = getattr(self, "_on_" + fr.name, None)
                         if handler is not None:
@@ -243,17 +261,25 @@ class Recorder:
                 else:
                     block = blocks.get(key)
                     if block is None:
+                        if runs:  # its channel may open now: after the runs before it
+                            write_queued()
                         payloads = b"".join(
                             [f.payload for f, k in zip(frames, keys, strict=True) if k == key]
                         )
                         t, data = entry[1](payloads)
                         block = blocks[key] = self.w.message_block(entry[0], t, data)
-                    self.w.write_block(block, block.pos + (j - i))
-                    last[key] = frames[j - 1]
+                    stop = queued[key] = queued.get(key, 0) + (j - i)
+                    runs.append((block, stop))
+                    queued_last[key] = frames[j - 1]
                 i = j
+                if not runs:
+                    done = i
+            if runs:
+                write_queued()
+            done = i
         finally:
-            live.frames += i
-            self._count_gaps(frames[:i])
+            live.frames += done
+            self._count_gaps(frames[:done])
             for fr in last.values():  # the live state as the handlers would leave it
                 if fr.name == "telem_fast":
                     live.t_s = self._t(fr.fields["tick"])

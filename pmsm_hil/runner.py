@@ -8,7 +8,7 @@ import math
 import signal
 import threading
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import FrameType
@@ -324,6 +324,10 @@ class _NoLog(LogWriter):
     def write_block(self, block: MessageBlock, stop: int | None = None) -> None:
         block.pos = len(block) if stop is None else max(block.pos, stop)
 
+    def write_runs(self, runs: Iterable[tuple[MessageBlock, int]]) -> None:
+        for block, stop in runs:
+            block.pos = max(block.pos, stop)
+
     def write_many(self, topic: str, rows: Any) -> int:
         return 0
 
@@ -398,6 +402,13 @@ def _stream(
             return True
         frames = session.poll(0.02)
         now = time.monotonic()
+        silent = options.silent_after_s is not None and live.t_s >= options.silent_after_s
+        if not silent and (
+            live.t_s - last_hb_dev >= options.heartbeat_period_s or now - last_hb_wall >= 0.05
+        ):
+            session.send("heartbeat", counter=hb_counter)
+            hb_counter = (hb_counter + 1) & 0xFFFFFFFF
+            last_hb_dev, last_hb_wall = live.t_s, now
         if frames:
             last_data_wall = now
             rec.frames(frames)  # "batch": on disk (the journal) before the link is read again
@@ -436,13 +447,6 @@ def _stream(
                 f"{live.t_s:.3f} s; its stopped event did not arrive",
             )
             return False
-        silent = options.silent_after_s is not None and live.t_s >= options.silent_after_s
-        if not silent and (
-            live.t_s - last_hb_dev >= options.heartbeat_period_s or now - last_hb_wall >= 0.05
-        ):
-            session.send("heartbeat", counter=hb_counter)
-            hb_counter = (hb_counter + 1) & 0xFFFFFFFF
-            last_hb_dev, last_hb_wall = live.t_s, now
         if now - last_data_wall > options.device_timeout_s:
             raise DeviceError(
                 f"device fell silent for {options.device_timeout_s:.1f} s on "

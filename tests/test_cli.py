@@ -232,3 +232,52 @@ def test_port_that_is_busy(data):
     assert r.returncode == 3
     assert f"serial port {path} is busy" in r.stderr
     assert "Traceback" not in r.stderr
+
+
+def test_only_a_command_that_ends_clean_skips_the_interpreters_teardown(
+    data, tmp_path, monkeypatch
+):
+    """entry(): `run` returns with its log closed and its emulator child waited for, so the
+    process ends at once (os._exit with run's code, stdout flushed first); a command without
+    ENDS_CLEAN (here `profiles`) keeps the ordinary exit."""
+    from pmsm_hil.cli import main as cli_main
+
+    ended: list[int] = []
+
+    class Ended(Exception):
+        pass
+
+    def fake_exit(code: int) -> None:
+        ended.append(code)
+        raise Ended
+
+    monkeypatch.setattr(cli_main.os, "_exit", fake_exit)
+    monkeypatch.setattr(cli_main, "_returned", [])
+    out = tmp_path / "short.mcap"
+    monkeypatch.setattr(
+        sys,
+        "argv",
+        [
+            "pmsm-hil",
+            "run",
+            str(data / "short.yaml"),
+            "--no-live",
+            "--stop-after",
+            "0.2",
+            "--out",
+            str(out),
+        ],
+    )
+    with pytest.raises(Ended):
+        cli_main.entry()
+    assert ended == [0]
+    assert read_log(out).counts["/pmsm/telemetry"] > 100  # closed: read as a finished log
+    assert threading.active_count() == 1
+
+    monkeypatch.setattr(sys, "argv", ["pmsm-hil", "profiles"])
+    assert cli_main.entry() == 0 and ended == [0]  # returned: no os._exit
+
+    monkeypatch.setattr(sys, "argv", ["pmsm-hil", "run", str(tmp_path / "missing.yaml")])
+    with pytest.raises(Ended):  # a run refused before it started: as clean, with its code
+        cli_main.entry()
+    assert ended == [0, 2]

@@ -97,6 +97,52 @@ def test_blocks_write_the_octets_of_single_writes(
     assert a.read_bytes() == b.read_bytes()
 
 
+@settings(max_examples=30, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    chunk_size=st.sampled_from([700, 5000, 1 << 20]),
+    span_s=st.sampled_from([0.003, 0.05, 1.0]),
+)
+def test_runs_of_several_blocks_at_once_are_the_octets_of_single_writes(
+    tmp_path_factory, seed, chunk_size, span_s
+):
+    """A receive batch's runs (the recorder's path): two blocks of the telemetry topic, their
+    runs interleaved, written by one ``write_runs`` call per group of runs, give the file (and
+    the journal) of the same messages written one ``write`` at a time in the same order."""
+    rnd = random.Random(seed)
+    n = rnd.randint(2, 300)
+    times = [round(k * 5e-4, 9) for k in range(n)]
+    cols = _columns(times, rnd)
+    rows = [{k: float(v[i]) for k, v in cols.items() if k != "t_s"} for i in range(n)]
+    owner = [rnd.random() < 0.7 for _ in range(n)]  # message i in block 0 (else block 1)
+    order = [[i for i in range(n) if owner[i] == flag] for flag in (True, False)]
+    tmp = tmp_path_factory.mktemp("runs")
+    kw = {"chunk_size": chunk_size, "chunk_span_s": span_s, "journal": True}
+    with LogWriter(tmp / "a.mcap", {"run": {"x": "1"}}, **kw) as w:
+        for i in range(n):
+            w.write(TEL, times[i], rows[i])
+    with LogWriter(tmp / "b.mcap", {"run": {"x": "1"}}, **kw) as w:
+        blocks = []
+        for idx in order:
+            sub = {k: v[idx] for k, v in cols.items()}
+            data = cdr_from_columns(TEL, codec_for(TOPICS[TEL]), sub, len(idx))
+            blocks.append(w.message_block(TEL, sub["t_s"], data))
+        runs, done, i = [], [0, 0], 0
+        while i < n:  # the runs of consecutive messages of one block, in message order
+            j = i
+            while j < n and owner[j] == owner[i]:
+                j += 1
+            b = 0 if owner[i] else 1
+            done[b] += j - i
+            runs.append((blocks[b], done[b]))
+            i = j
+            if rnd.random() < 0.3:  # a group ends (a frame that needs its handler came)
+                w.write_runs(runs)
+                runs = []
+        w.write_runs(runs)
+    assert (tmp / "a.mcap").read_bytes() == (tmp / "b.mcap").read_bytes()
+
+
 def test_a_killed_writer_leaves_the_same_log_and_journal(tmp_path):
     times = [k * 1e-3 for k in range(3000)]
     runs = [7, 1, 300, 2000, 692]

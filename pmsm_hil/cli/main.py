@@ -12,6 +12,10 @@ import sys
 # the project's machine, docs/sweep.md). Read by numpy when it is imported, so set before that;
 # a value in the environment wins.
 os.environ.setdefault("NUMPY_MADVISE_HUGEPAGE", "0")
+# pydantic looks for plugins among every installed package's entry points when it builds its first
+# validator (some 10 ms at each start in a venv of this project's size); the CLI uses none. A value
+# in the environment wins, as above.
+os.environ.setdefault("PYDANTIC_DISABLE_PLUGINS", "__all__")
 
 from pmsm_hil import __version__
 from pmsm_hil.cli import (
@@ -73,7 +77,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     _quiet_libraries()
     try:
-        return COMMANDS[args.command].main(args)
+        code = COMMANDS[args.command].main(args)
     except KeyboardInterrupt:
         # Ctrl-C in a command without its own handling (run, sweep and commission stop the motor
         # or keep the journal and say so themselves): one line, not a traceback
@@ -83,20 +87,42 @@ def main(argv: list[str] | None = None) -> int:
         # the reader of our output went away (`| head`): the work itself has ended cleanly
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
+    _returned.append(args.command)
+    return code
+
+
+_returned: list[str] = []  # the commands whose main returned (not raised): for entry
 
 
 def entry() -> int:
     """The `pmsm-hil` program: ``main``, then the process ends. Before it does, the objects alive
     are moved out of the garbage collector's reach (``gc.freeze``): the interpreter's last
     collections then skip them — a third of a second's run spent some 50 ms there walking the
-    libraries' objects (pydantic's schemas, numpy) only to free them as the process ends. Files and
-    the log are closed by ``main`` itself; atexit handlers and module teardown still run."""
+    libraries' objects (pydantic's schemas, numpy) only to free them as the process ends.
+
+    A command whose module sets ``ENDS_CLEAN`` closes its files, waits for its child processes
+    and stops its threads itself: when it has returned and no other thread is left, the process
+    ends at once (``os._exit``, after stdout and stderr are flushed) instead of tearing the
+    interpreter down object by object: `run` of paper-a spent some 55 ms there, a tenth of what
+    60x real time allows it (docs/sweep.md). Other commands (Dask clusters, temporary
+    directories) keep the interpreter's ordinary exit, atexit handlers and all."""
     try:
-        return main()
+        code = main()
     finally:
         import gc
 
         gc.freeze()
+    if _returned and getattr(COMMANDS[_returned[-1]], "ENDS_CLEAN", False):
+        import threading
+
+        if threading.active_count() == 1:
+            try:
+                sys.stdout.flush()
+                sys.stderr.flush()
+            except (OSError, ValueError):  # a reader gone: the ordinary exit reports as before
+                return code
+            os._exit(code)
+    return code
 
 
 if __name__ == "__main__":

@@ -20,6 +20,11 @@ if TYPE_CHECKING:
     from pmsm_hil.device import DeviceSpec
     from pmsm_hil.profiles import Profile
 
+# main returns with the log closed, the device's link and the emulator child (stopped and waited
+# for) closed, and its threads ended: the process may end without the interpreter's teardown
+# (pmsm_hil.cli.main.entry)
+ENDS_CLEAN = True
+
 
 def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(

@@ -8,7 +8,6 @@ import math
 import os
 from typing import Any
 
-import numpy as np
 from pydantic import ValidationError
 
 from ._base import meta_value, num
@@ -130,6 +129,8 @@ class Profile:
         steps to speed_rpm (ramp_rpm_s = 0) or ramps towards it and holds it; the load steps to
         load_nm at the segment start.
         """
+        import numpy as np  # not at import: a profile is loaded before the run needs numpy
+
         t = np.asarray(t_s, dtype=float)
         starts = np.array(self._starts)
         k = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(self.segments) - 1)
