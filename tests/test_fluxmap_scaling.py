@@ -74,3 +74,39 @@ def test_paper_b_on_lab_typical_runs_its_own_motor_saturating(tmp_path):
     rig = meta["rig_effects"]
     assert "saturation" in rig["effects"].split(",")
     assert float(rig["saturation.scaled_s_d"]) > 1.2
+
+
+_MAP = "# measured\ni_d_a,i_q_a,psi_d_wb,psi_q_wb\n" + "".join(
+    f"{d},{q},{0.18 + 0.005 * d:.4f},{0.012 * q:.4f}\n" for q in (-1, 0, 1) for d in (-1, 0)
+)
+
+
+@pytest.mark.parametrize(
+    "edit,needle",
+    [  # the file's own line numbers (the comment line counted), the column and the value
+        (
+            lambda t: t.replace("0.1750,-0.0120", "0.1750,nan"),
+            "line 3: psi_q_wb = 'nan' is not finite",
+        ),
+        (
+            lambda t: t.replace("0.1800,0.0000", "0.1800,x"),
+            "line 6: psi_q_wb = 'x' is not a number",
+        ),
+        (lambda t: t.replace("0,1,0.1800", "0,1,"), "line 8: psi_d_wb = '' is not a number"),
+        (
+            lambda t: t + "-1,0,0.1750,0.0000\n",
+            "line 9: the node i_d_a = -1, i_q_a = 0 is given twice (first on line 5)",
+        ),
+        (lambda t: t.replace("psi_q_wb", "psi_q"), "line 2: missing column(s) psi_q_wb"),
+    ],
+)
+def test_flux_map_errors_name_line_column_and_value(tmp_path, edit, needle):
+    from pmsm_hil.profiles.fluxmap import FluxMapError
+
+    p = tmp_path / "map.csv"
+    p.write_text(_MAP)
+    assert load_flux_map(str(p)).shape == (2, 3)  # the file as it is loads
+    p.write_text(edit(_MAP))
+    with pytest.raises(FluxMapError) as e:
+        load_flux_map(str(p))
+    assert needle in str(e.value)

@@ -3,6 +3,7 @@ logs, and `pmsm-hil import` of control-rate and steady-state CSV files."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -201,6 +202,17 @@ def test_gap_runs_on_the_triggered_capture_alone(lab_log, tmp_path, capsys):
 
     res = json.loads(capsys.readouterr().out)
     assert res["transitions"] == 1022 and res["effects"]
+    # 51 ms hold no six settled plateaus: said once, not "settled plateaus: 0 settled plateaus"
+    assert main(["gap", str(out)]) == 0
+    line = next(ln for ln in capsys.readouterr().out.splitlines() if "plateaus" in ln)
+    n = res["plateaus"]["plateaus"]
+    assert line == f"  settled plateaus: {n} found, the view needs 6: not used"
+    # every figure of the evidence with its unit: "± 4.8 V^2, threshold 14 V^2", not "± 4.8, 14"
+    ev = [e["evidence"] for e in res["effects"] if "MSE" in e["evidence"]]
+    assert ev and all(re.search(r"± [-+.e\d]+ V\^2[,)]", x) for x in ev)
+    assert all(
+        re.search(r"threshold [-+.e\d]+ V\^2\)", x) for x in ev if re.search(r"threshold \d", x)
+    )
 
 
 def test_import_and_gap_take_a_shipped_motor_by_name(lab_log, tmp_path, capsys):
@@ -271,6 +283,25 @@ def test_csv_with_a_byte_order_mark_imports(tmp_path):
             lambda c: c["t_s"].__imul__(1e-3),
             "sample time from t_s is 1e-07 s, not a control period",
         ),
+        (
+            lambda c: c.update(pwm_on=np.array([1, 1, 1, 5.0, 1, 1])),
+            "line 5: pwm_on = 5.0 is not 0 or 1",
+        ),
+        (  # a wrapped angle in degrees: 359 -> 3 is no step of one row in radians
+            lambda c: c.update(theta_e_rad=np.array([350, 355, 359, 3.0, 8, 13])),
+            "line 5: theta_e_rad = 3.0 after 359.0: a step of more than one turn (2 pi rad) in "
+            "one row; theta_e_rad is in radians — is it written in degrees?",
+        ),
+        (  # paper-a-ipmsm trips at 25 A: 1.5 A written in mA
+            lambda c: c["i_a_a"].__setitem__(2, 1500.0),
+            "line 4: i_a_a = 1500.0 is more than 10 times the motor file's i_trip_a (25 A): "
+            "i_a_a is in A — is it written in mA?",
+        ),
+        (
+            lambda c: c["u_beta_v"].__setitem__(1, 12000.0),
+            "line 3: u_beta_v = 12000.0 is more than 10 times the motor file's v_dc_max_v "
+            "(750 V): u_beta_v is in V — is it written in mV?",
+        ),
     ],
 )
 def test_csv_errors_quote_the_values_as_written(tmp_path, capsys, change, needle):
@@ -286,6 +317,37 @@ def test_csv_errors_quote_the_values_as_written(tmp_path, capsys, change, needle
     err = " ".join(capsys.readouterr().err.split())
     assert needle in err and "np.float64" not in err and "bad.csv" in err
     assert not (tmp_path / "x.mcap").exists()
+
+
+@pytest.mark.parametrize(
+    "text,needle",
+    [
+        (  # the header after comment lines: its own line is named, not line 1
+            "# scope export\n# channel 1: phase a\nt_s,i_a_a,i_b_a,theta_e_rad,u_alpha_v\n",
+            "bad.csv: line 3: control-rate data: missing column(s) the applied voltage",
+        ),
+        (
+            "t_s,i_a_a,i_b_a,theta_e_rad,u_alpha_v,u_beta_v,\n",
+            "bad.csv: line 1: column 7 of the header has no name",
+        ),
+        (
+            "# exported\nt_s;i_a_a;i_b_a;theta_e_rad;u_alpha_v;u_beta_v\n",
+            "bad.csv: line 2: the header 't_s;i_a_a;i_b_a;theta_e_rad;u_alpha_v;u_beta_v' is one "
+            "column: the separator is a comma, not ';'",
+        ),
+        (
+            "i_d_a,i_q_a,psi_d_wb,psi_q_wb\n",
+            "bad.csv: line 1: a flux map (i_d_a, i_q_a, psi_d_wb, psi_q_wb), not control-rate or "
+            "steady-state data",
+        ),
+    ],
+)
+def test_csv_header_problems_name_the_header_line(tmp_path, capsys, text, needle):
+    p = tmp_path / "bad.csv"
+    p.write_text(text + "".join(f"{k * 1e-4},0,0,0,0,0\n" for k in range(5)))
+    assert main(["import", str(p), "--motor", MOTOR, "-o", str(tmp_path / "x.mcap")]) == 2
+    err = " ".join(capsys.readouterr().err.split())
+    assert needle in err and "Traceback" not in err
 
 
 def test_import_output_is_checked_first(tmp_path, capsys):

@@ -9,7 +9,7 @@ from pmsm_hil.gap.model import MotorModel
 from pmsm_hil.gap.record import SteadyRecord
 from pmsm_hil.gap.steady import diagnose_steady
 from pmsm_hil.gapgen.draw import LIBRARY, draw_effect, draw_trial, true_primary
-from pmsm_hil.gapgen.selftest import score
+from pmsm_hil.gapgen.selftest import print_selftest, score
 
 M = MotorModel(0.9, 0.005, 0.012, 0.18, 4, 0.0036, 1e-3, 0.0, 15.0, 540.0)
 
@@ -83,6 +83,25 @@ def test_score_counts_what_it_should():
     assert true_primary("delay", {"sample_delay_s": 5e-6, "pwm_delay_periods": 1}) == pytest.approx(
         55e-6
     )
+
+
+def test_selftest_summary_prints_closures_and_errors_readably(capsys):
+    """A trial whose gap is within the noise floor's error once printed a median closure of
+    2625746647.64: the summary bounds it as the diagnosis does, and says that the magnitude
+    errors are relative (in percent)."""
+    trials = [{"kind": "one", "effects": {"thermal": {"temp_winding_c": 45.0}}}] * 3
+    outs = [
+        _out(["thermal"], {"thermal": [v, [v - 5, v + 5]]}, closure=c)
+        for v, c in ((20.2, 2.6e9), (21.0, 3.0e9), (24.0, 1.1))
+    ]
+    res = score(trials, outs) | {"seed": 1, "labels_sha256": "0" * 64}
+    print_selftest(res)
+    out = capsys.readouterr().out
+    lines = {ln[:38].strip(): ln[38:].strip() for ln in out.splitlines() if ln.startswith("  ")}
+    assert lines["median closure test blocks"] == "> 10"
+    assert lines["median magnitude error (relative)"] == "5 %"  # errors 1, 5 and 20 %
+    assert lines["worst magnitude error (relative)"] == "20 %"
+    assert "2625746647" not in out and "e+09" not in out
 
 
 def test_steady_state_parametric_gap():

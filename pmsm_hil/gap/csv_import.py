@@ -13,10 +13,14 @@ from __future__ import annotations
 import csv
 import math
 import os
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from pmsm_hil.gap.record import CONTROL_TOPIC, GAP_TOPICS, STEADY_TOPIC
+
+if TYPE_CHECKING:
+    from pmsm_hil.profiles import Motor
 
 CONTROL_REQUIRED = ("t_s", "i_a_a", "i_b_a", "theta_e_rad")
 CONTROL_VOLTAGE = (("s_a", "s_b", "s_c"), ("d_a", "d_b", "d_c"), ("u_alpha_v", "u_beta_v"))
@@ -36,17 +40,42 @@ STEADY_OPTIONAL = ("temp_winding_c", "temp_magnet_c", "torque_nm")
 # outside is a unit mistake (t_s in ms or us) or not control-rate data (pmsm_hil/cli/import_csv.py
 # quotes these in its --help)
 TS_MIN_S, TS_MAX_S = 1e-6, 1e-3
+# a flux map's columns (pmsm_hil/profiles/fluxmap.py): such a file is not imported but named
+FLUX_MAP_COLUMNS = ("i_d_a", "i_q_a", "psi_d_wb", "psi_q_wb")
+# a current or voltage this many times the motor file's trip current or over-voltage trip is a
+# unit mistake (mA, mV), not a measurement
+UNIT_FACTOR = 10.0
 
 
 class ImportError_(ValueError):
     """A CSV that cannot be imported; the message names file, line and column."""
 
 
-def _kind(path: str, header: list[str]) -> str:
+def _kind(path: str, header: list[str], hline: int = 1) -> str:
+    """ "control" or "steady" from the header row (line ``hline`` of the file)."""
     cols = set(header)
+    if len(header) == 1 and (sep := next((c for c in ";\t|" if c in header[0]), None)):
+        raise ImportError_(
+            f"{path}: line {hline}: the header {header[0]!r} is one column: the separator is a "
+            f"comma, not {sep!r}"
+        )
+    empty = [j + 1 for j, c in enumerate(header) if not c]
+    if empty:
+        raise ImportError_(
+            f"{path}: line {hline}: column {', '.join(map(str, empty))} of the header has no name "
+            "(a trailing or doubled separator?)"
+        )
     dup = sorted({c for c in header if header.count(c) > 1})
     if dup:
-        raise ImportError_(f"{path}: line 1: column(s) {', '.join(dup)} appear more than once")
+        raise ImportError_(
+            f"{path}: line {hline}: column(s) {', '.join(dup)} appear more than once"
+        )
+    if set(FLUX_MAP_COLUMNS) <= cols:
+        raise ImportError_(
+            f"{path}: line {hline}: a flux map ({', '.join(FLUX_MAP_COLUMNS)}), not control-rate "
+            "or steady-state data: a motor file's flux_map or a rig's saturation map takes it "
+            "(docs/profiles.md, docs/rigs.md)"
+        )
     if {"u_d_v", "u_q_v", "i_d_a", "i_q_a"} & cols and not {"i_a_a", "i_b_a"} & cols:
         missing = [c for c in STEADY_REQUIRED if c not in cols]
         if not any(c in cols for c in STEADY_SPEED):
@@ -72,13 +101,17 @@ def _kind(path: str, header: list[str]) -> str:
         problems.append(f"missing column(s) {', '.join(missing)}")
     if problems:
         raise ImportError_(
-            f"{path}: line 1: {kind} data: {'; '.join(problems)} (columns and units: docs/gap.md)"
+            f"{path}: line {hline}: {kind} data: {'; '.join(problems)} (columns and units: "
+            "docs/gap.md)"
         )
     return "steady" if kind.startswith("steady") else "control"
 
 
-def read_csv(path: str | os.PathLike) -> tuple[str, dict[str, np.ndarray]]:
-    """(kind, columns) with kind "control" or "steady"; raises ImportError_."""
+def read_csv(
+    path: str | os.PathLike, motor: Motor | None = None
+) -> tuple[str, dict[str, np.ndarray]]:
+    """(kind, columns) with kind "control" or "steady"; raises ImportError_. With the motor file
+    the data belongs to, values its drive cannot have (a unit mistake) are errors too."""
     path = os.fspath(path)
     try:
         # utf-8-sig: a leading byte-order mark (Excel's "CSV UTF-8") is not part of the header
@@ -98,9 +131,9 @@ def read_csv(path: str | os.PathLike) -> tuple[str, dict[str, np.ndarray]]:
             ) from None
     if not rows:
         raise ImportError_(f"{path}: empty file (a header row and data rows are needed)")
-    _hline, header = rows[0]
+    hline, header = rows[0]
     header = [h.strip() for h in header]
-    kind = _kind(path, header)
+    kind = _kind(path, header, hline)
     data = rows[1:]
     if len(data) < 3:
         raise ImportError_(f"{path}: only {len(data)} data row(s); at least 3 are needed")
@@ -160,7 +193,7 @@ def read_csv(path: str | os.PathLike) -> tuple[str, dict[str, np.ndarray]]:
                 f"{dt[k - 1]:.6g} s after {cell(k - 1, 't_s')}; the sample time from t_s is "
                 f"{ts:.6g} s (±1 %) ({len(gap)} such step(s); split the file at the gaps)"
             )
-        for c in ("s_a", "s_b", "s_c"):
+        for c in ("s_a", "s_b", "s_c", "pwm_on"):
             if c in cols and np.any((cols[c] != 0) & (cols[c] != 1)):
                 k = int(np.nonzero((cols[c] != 0) & (cols[c] != 1))[0][0])
                 raise ImportError_(f"{path}: line {lines[k]}: {c} = {cell(k, c)} is not 0 or 1")
@@ -168,7 +201,42 @@ def read_csv(path: str | os.PathLike) -> tuple[str, dict[str, np.ndarray]]:
             if c in cols and np.any((cols[c] < 0) | (cols[c] > 1)):
                 k = int(np.nonzero((cols[c] < 0) | (cols[c] > 1))[0][0])
                 raise ImportError_(f"{path}: line {lines[k]}: {c} = {cell(k, c)} is not in [0, 1]")
+        if "theta_e_rad" in cols:  # a wrapped angle steps by at most one turn between two rows
+            step = np.abs(np.diff(cols["theta_e_rad"]))
+            far = np.nonzero(step > 2 * np.pi * 1.01)[0]
+            if len(far):
+                k = int(far[0]) + 1
+                raise ImportError_(
+                    f"{path}: line {lines[k]}: theta_e_rad = {cell(k, 'theta_e_rad')} after "
+                    f"{cell(k - 1, 'theta_e_rad')}: a step of more than one turn (2 pi rad) in "
+                    "one row; theta_e_rad is in radians — is it written in degrees?"
+                )
+    if motor is not None:
+        _check_units(path, cols, lines, cell, motor)
     return kind, cols
+
+
+def _check_units(path, cols, lines, cell, motor: Motor) -> None:
+    """A current or voltage beyond UNIT_FACTOR times what the motor file's drive trips at."""
+    v_max = motor.v_dc_max_v
+    limits = [
+        (c, motor.i_trip_a, "i_trip_a", "A", "mA")
+        for c in ("i_a_a", "i_b_a", "i_c_a", "i_d_a", "i_q_a")
+    ] + [
+        (c, v_max, "v_dc_max_v", "V", "mV")
+        for c in ("v_dc_v", "u_alpha_v", "u_beta_v", "u_d_v", "u_q_v")
+    ]
+    for c, lim, field, unit, small in limits:
+        if c not in cols:
+            continue
+        over = np.nonzero(np.abs(cols[c]) > UNIT_FACTOR * lim)[0]
+        if len(over):
+            k = int(over[0])
+            raise ImportError_(
+                f"{path}: line {lines[k]}: {c} = {cell(k, c)} is more than {UNIT_FACTOR:g} times "
+                f"the motor file's {field} ({lim:g} {unit}): {c} is in {unit} — is it written in "
+                f"{small}?"
+            )
 
 
 def import_csv(
@@ -179,7 +247,7 @@ def import_csv(
     from pmsm_hil.profiles import load_motor
 
     motor = load_motor(motor_path)
-    kind, cols = read_csv(path)
+    kind, cols = read_csv(path, motor)
     n = len(cols["t_s"])
     meta = {
         "gap_source": {

@@ -350,7 +350,7 @@ def _diagnose(
                 "parameters_se": {p: float(s) for p, s in zip(e.params, se, strict=False)},
                 "closure": step["gain_v2"] / excess,
                 "evidence": f"held-out MSE down {step['gain_v2']:.3g} V^2 "
-                f"(± {step['gain_se_v2']:.2g}, threshold {step['threshold_v2']:.2g})",
+                f"(± {step['gain_se_v2']:.2g} V^2, threshold {step['threshold_v2']:.2g} V^2)",
             }
         )
     rest = sorted(
@@ -369,7 +369,7 @@ def _diagnose(
                 "interval": None,
                 "closure": (s["gain"] / excess) if s else None,
                 "evidence": (
-                    f"alone: held-out MSE change {s['gain']:.3g} V^2 (± {s['se']:.2g}); "
+                    f"alone: held-out MSE change {s['gain']:.3g} V^2 (± {s['se']:.2g} V^2); "
                     "at no step of the selection above its threshold (beside the effects "
                     "chosen before it, if any)"
                 )

@@ -159,7 +159,11 @@ def plateau_view(
     summary: dict = {"plateaus": n}
     cands = tuple(c for c in CANDIDATES if c not in exclude)
     if n < MIN_PLATEAUS or not cands:
-        summary["note"] = f"{n} settled plateaus (the view needs {MIN_PLATEAUS})"
+        summary["note"] = (  # the console prints it after "settled plateaus: "
+            f"{n} found, the view needs {MIN_PLATEAUS}: not used"
+            if n < MIN_PLATEAUS
+            else f"{n} found; no candidate left for the view (the one-step residual took them)"
+        )
         return [], summary
     sel, lab = _rows(probe, plateaus)
     # held-out plateaus: random halves (fixed seed), each half judged by a fit on the other (a
@@ -242,7 +246,8 @@ def plateau_view(
                 "closure": None,
                 "evidence": f"settled plateaus ({n}), fitted with {' + '.join(names)}: the "
                 f"held-out plateaus' mean residual down {gain:.3g} of {sse0:.3g} V^2 "
-                f"(threshold {thr:.2g})" + ("" if inside else "; a fit at a bound of its range"),
+                f"(threshold {thr:.2g} V^2)"
+                + ("" if inside else "; a fit at a bound of its range"),
             }
         )
     for c in cands:

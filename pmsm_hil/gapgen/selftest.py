@@ -309,6 +309,11 @@ def run_selftest(
     return res
 
 
+def _pct(v: float | None) -> str:
+    """A relative error in percent, two significant digits (0.009 -> 0.9 %)."""
+    return "-" if v is None else f"{100 * v:.2g} %"
+
+
 def print_selftest(res: dict) -> None:
     def f(v):
         return "-" if v[0] is None else f"{v[0]:.0%} of {v[1]}"
@@ -327,14 +332,19 @@ def print_selftest(res: dict) -> None:
     print(f"  false attribution (null trials)     {f(res['false_attribution_null'])}")
     print(f"  an effect named beyond the hidden   {f(res['extra_effect_named'])}")
     print(f"  outside the library: none selected or 'unexplained'  {f(res['outside_flagged'])}")
-    for k in (
-        "median_closure_test_blocks",
-        "median_closure_heldout_record",
-        "median_magnitude_error",
-        "worst_magnitude_error",
+    from pmsm_hil.gap.report import _clo
+
+    # a closure as the diagnosis prints it (beyond [-1, 10]: the gap is within the floor's error);
+    # a magnitude error is relative to the true magnitude: in percent
+    for k, text in (
+        ("median_closure_test_blocks", _clo),
+        ("median_closure_heldout_record", _clo),
+        ("median_magnitude_error", _pct),
+        ("worst_magnitude_error", _pct),
     ):
         v = res[k]
-        print(f"  {k.replace('_', ' '):36s} {'-' if v is None else f'{v:.2f}'}")
+        name = k.replace("_", " ") + (" (relative)" if "magnitude" in k else "")
+        print(f"  {name:36s} {text(v)}")
     print(
         "  (closure: the share of the gap above the noise floor that the found effects remove; "
         "above 1 when they take the residual below the floor's estimate)"

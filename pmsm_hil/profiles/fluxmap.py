@@ -12,6 +12,7 @@ extends it linearly beyond its edges.
 from __future__ import annotations
 
 import hashlib
+import math
 import os
 from dataclasses import dataclass
 
@@ -186,27 +187,51 @@ def fill_missing(f: np.ndarray, known: np.ndarray) -> np.ndarray:
 
 
 def read_csv(path: str) -> np.ndarray:
-    """Rows of (i_d_a, i_q_a, psi_d_wb, psi_q_wb) from a flux-map CSV."""
+    """Rows of (i_d_a, i_q_a, psi_d_wb, psi_q_wb) from a flux-map CSV. An error names the file's
+    line (comment and blank lines counted), the column and the value as the file writes it."""
     with open(path, encoding="utf-8") as fh:
-        lines = [ln.strip() for ln in fh if ln.strip() and not ln.lstrip().startswith("#")]
+        lines = [
+            (n, ln.strip())
+            for n, ln in enumerate(fh, start=1)
+            if ln.strip() and not ln.lstrip().startswith("#")
+        ]
     if not lines:
         raise FluxMapError("empty file")
-    head = [h.strip() for h in lines[0].split(",")]
+    hline, head_text = lines[0]
+    head = [h.strip() for h in head_text.split(",")]
     missing = [c for c in COLUMNS if c not in head]
     if missing:
-        raise FluxMapError(f"missing column(s) {', '.join(missing)} (need {', '.join(COLUMNS)})")
+        raise FluxMapError(
+            f"line {hline}: missing column(s) {', '.join(missing)} (need {', '.join(COLUMNS)})"
+        )
     idx = [head.index(c) for c in COLUMNS]
     rows = []
-    for n, ln in enumerate(lines[1:], start=2):
+    first: dict[tuple[float, float], int] = {}
+    for n, ln in lines[1:]:
         parts = ln.split(",")
-        try:
-            rows.append([float(parts[i]) for i in idx])
-        except (ValueError, IndexError):
-            raise FluxMapError(f"data row {n}: not four numbers: {ln!r}") from None
-    data = np.array(rows, dtype=float)
-    if data.ndim != 2 or len(data) < 4 or not np.all(np.isfinite(data)):
-        raise FluxMapError("needs at least 4 finite rows")
-    return data
+        if len(parts) != len(head):
+            raise FluxMapError(f"line {n}: {len(parts)} values for {len(head)} columns: {ln!r}")
+        row = []
+        for c, i in zip(COLUMNS, idx, strict=True):
+            v = parts[i].strip()
+            try:
+                x = float(v)
+            except ValueError:
+                raise FluxMapError(f"line {n}: {c} = {v!r} is not a number") from None
+            if not math.isfinite(x):
+                raise FluxMapError(f"line {n}: {c} = {v!r} is not finite")
+            row.append(x)
+        node = (row[0], row[1])
+        if node in first:
+            raise FluxMapError(
+                f"line {n}: the node i_d_a = {parts[idx[0]].strip()}, i_q_a = "
+                f"{parts[idx[1]].strip()} is given twice (first on line {first[node]})"
+            )
+        first[node] = n
+        rows.append(row)
+    if len(rows) < 4:
+        raise FluxMapError(f"only {len(rows)} data row(s); at least 4 are needed")
+    return np.array(rows, dtype=float)
 
 
 def from_points(data: np.ndarray, path: str = "", sha256: str = "") -> FluxMap:
