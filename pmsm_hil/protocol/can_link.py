@@ -269,6 +269,10 @@ class CanBus(Protocol):
 class CanLink:
     """Protocol messages over a python-can bus (any interface), as a link for the session."""
 
+    # capture chunks asked for at once (Session.read_capture): a chunk is a transfer of 17 frames
+    # (docs/can.md); two leave room in the firmware's 64-frame transmit queue for its status
+    capture_window = 2
+
     def __init__(
         self,
         bus: CanBus,

@@ -130,62 +130,108 @@ class Session:
         return self.identity
 
     def read_capture(
-        self, count: int, timeout_s: float = 0.5, retries: int = 3, give_up_after: int = 4
+        self,
+        count: int,
+        timeout_s: float = 0.5,
+        retries: int = 3,
+        give_up_after: int = 4,
+        window: int | None = None,
     ) -> list[dict]:
         """Upload the capture buffer chunk by chunk, retrying lost chunks.
 
-        A chunk that does not arrive after `retries` tries is skipped (its offset is listed in
-        `capture_missing`) and the upload goes on: what arrived is kept. After `give_up_after`
-        chunks in a row have not arrived the link is not carrying the upload: the rest is listed
-        as missing too and the upload ends (`capture_abandoned`), rather than waiting out every
-        chunk. A chunk whose `n_valid` exceeds its capacity or what is left of the buffer is
-        refused as corrupt (counted in `capture_rejected`) and asked for again.
+        Up to ``window`` chunks are asked for before the first answer is waited for (default
+        ``capture_window``: what the device's transmit buffer holds twice over), so that an upload
+        costs one round trip per window rather than per chunk: on a USB-UART with a millisecond's
+        latency, or a CAN link, that is most of its time. A chunk that does not arrive after
+        `retries` tries is skipped (its offset is listed in `capture_missing`) and the upload goes
+        on: what arrived is kept. After `give_up_after` chunks in a row have not arrived the link
+        is not carrying the upload: the rest is listed as missing too and the upload ends
+        (`capture_abandoned`), rather than waiting out every chunk. A chunk whose `n_valid`
+        exceeds its capacity or what is left of the buffer is refused as corrupt (counted in
+        `capture_rejected`) and asked for again. A chunk of no samples ends the buffer there.
 
         The wait for a chunk adapts to the link: `timeout_s` until two chunks have arrived, then
         four times the slowest of the last eight round trips (at least 50 ms, at most
         `timeout_s`), so a lossy link costs retries, not half-second waits."""
-        chunks = []
         self.capture_missing = []
         self.capture_rejected = 0
         self.capture_abandoned = False
         per_chunk = next(f.count for f in gen.BY_NAME["capture_chunk"].fields if f.name == "i_a_a")
-        offset = 0
+        window = max(1, window if window is not None else self.capture_window())
+        todo = deque(range(0, count, per_chunk))  # offsets not asked for yet
+        asked: dict[int, tuple[float, int]] = {}  # offset -> (when last asked, tries)
+        got: dict[int, dict] = {}
         missed_in_a_row = 0
         rtts: deque[float] = deque(maxlen=8)
-        while offset < count:
-            if missed_in_a_row >= give_up_after:
-                self.capture_missing.extend(range(offset, count, per_chunk))
-                self.capture_abandoned = True
-                break
-            fr = None
-            for _attempt in range(retries):
-                wait_s = min(timeout_s, max(0.05, 4.0 * max(rtts))) if len(rtts) >= 2 else timeout_s
-                t0 = time.monotonic()
-                self.send("capture_read", offset=offset)
-                fr = self._wait_for(
-                    lambda f, o=offset: f.name == "capture_chunk" and f.fields["offset"] == o,
-                    wait_s,
-                )
-                if fr is not None:
-                    rtts.append(time.monotonic() - t0)
-                if fr is not None and fr.fields["n_valid"] > min(per_chunk, count - offset):
-                    self.capture_rejected += 1
-                    fr = None
-                    continue
-                if fr is not None:
+        end = count  # a chunk of no samples moves the end there
+        held: list = []
+
+        def ask(offset: int, tries: int) -> None:
+            asked[offset] = (time.monotonic(), tries)
+            self.send("capture_read", offset=offset)
+
+        try:
+            while todo or asked:
+                if missed_in_a_row >= give_up_after:
+                    rest = sorted([*asked, *todo])
+                    self.capture_missing.extend(o for o in rest if o < end)
+                    self.capture_abandoned = True
                     break
-            if fr is None:
-                self.capture_missing.append(offset)
-                missed_in_a_row += 1
-                offset += per_chunk
-                continue
-            missed_in_a_row = 0
-            n = fr.fields["n_valid"]
-            if n == 0:
-                break
-            chunks.append(fr.fields)
-            offset += n
-        return chunks
+                while todo and len(asked) < window:
+                    ask(todo.popleft(), 1)
+                wait_s = min(timeout_s, max(0.05, 4.0 * max(rtts))) if len(rtts) >= 2 else timeout_s
+                now = time.monotonic()
+                first = min(t for t, _ in asked.values()) if asked else now
+                for fr in self.link.poll(max(0.0, min(first + wait_s - now, 0.05))):
+                    off = fr.fields.get("offset") if fr.name == "capture_chunk" else None
+                    if off not in asked:
+                        held.append(fr)  # kept, in order, for the caller's next poll()
+                        continue
+                    sent, tries = asked.pop(off)
+                    rtts.append(time.monotonic() - sent)
+                    n = fr.fields["n_valid"]
+                    if n > min(per_chunk, count - off):
+                        self.capture_rejected += 1
+                        self._retry_or_miss(off, tries, retries, ask)
+                        continue
+                    missed_in_a_row = 0
+                    if n == 0:  # nothing from here on
+                        end = min(end, off)
+                        continue
+                    got[off] = fr.fields
+                now = time.monotonic()
+                for off, (sent, tries) in sorted(asked.items()):
+                    if now - sent >= wait_s:
+                        del asked[off]
+                        if not self._retry_or_miss(off, tries, retries, ask):
+                            missed_in_a_row += 1
+                todo = deque(o for o in todo if o < end)
+                for off in [o for o in asked if o >= end]:
+                    del asked[off]
+        finally:
+            self.inbox.extend(held)
+        self.capture_missing = sorted(o for o in self.capture_missing if o < end)
+        return [got[o] for o in sorted(got) if o < end]
+
+    def _retry_or_miss(self, offset: int, tries: int, retries: int, ask) -> bool:
+        """Ask for the chunk at ``offset`` again (True), or list it as missing after ``retries``."""
+        if tries < retries:
+            ask(offset, tries + 1)
+            return True
+        self.capture_missing.append(offset)
+        return False
+
+    def capture_window(self) -> int:
+        """Chunks asked for at once: the link's own figure (CAN: its transmit queue's frames), else
+        as many as half the device's transmit buffer holds (`identify`'s tx_buf_octets), else 1."""
+        own = getattr(self.link, "capture_window", None)
+        if isinstance(own, int):
+            return own
+        if self.identity is None:
+            return 1
+        raw = gen.BY_NAME["capture_chunk"].length + 4  # id, seq, payload, CRC
+        encoded = raw + raw // 254 + 2  # COBS and the delimiter
+        return max(1, min(8, (self.identity.tx_buf_octets // 2) // encoded))
 
 
 __all__ = ["DeviceError", "Identity", "Session", "TransportError"]
