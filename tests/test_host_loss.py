@@ -279,3 +279,59 @@ def test_a_killed_emulator_ends_the_run_with_a_clear_error_and_a_finalised_log(d
         ts = [m.log_time for _s, _c, m in reader.iter_messages(topics=["/pmsm/telemetry"])]
     offset_s = (ts[-1] - ts[0]) * 1e-9
     assert offset_s >= t_line - 0.1  # telemetry up to (at least) the last progress line
+
+
+def test_the_run_after_a_killed_host_logs_only_its_own_session(data, tmp_path):
+    """A host killed with -9 leaves its run's output in the port's buffer (the device streamed on
+    until its heartbeat timeout): the next `run --port` on the same port logs none of it (before,
+    the killed run's heartbeat-lost fault landed in the new log, exit 4, and its torn frame and
+    sequence counted as frames lost on the link)."""
+    from pmsm_hil.log.reader import read_log
+
+    profile = load_profile(str(data / "long.yaml"))
+    settings = emulator_settings(
+        profile.motor, profile.rig, seed=1, baud=profile.link.baud, ts_s=profile.control.ts_s
+    )
+    dev = EmulatedDevice(settings)
+    server = PtyServer(dev)
+    thread = threading.Thread(target=server.serve, daemon=True)
+    thread.start()
+    run = [sys.executable, "-m", "pmsm_hil.cli.main", "run", "--port", server.path, "--no-live"]
+    host = subprocess.Popen(
+        [*run, str(data / "long.yaml"), "--out", str(tmp_path / "killed.mcap")],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and not (
+            dev.state == STATE["running"] and dev.isr_count * profile.control.ts_s > 1.0
+        ):
+            time.sleep(0.01)
+        host.kill()
+        host.wait(timeout=10)
+        deadline = time.monotonic() + 20
+        while time.monotonic() < deadline and dev.state != STATE["idle"]:
+            time.sleep(0.01)
+        assert dev.state == STATE["idle"], "the killed host's motor was not brought to rest"
+        out = tmp_path / "next.mcap"
+        r = subprocess.run(
+            [*run, str(data / "short.yaml"), "--out", str(out)],
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            host.kill()
+        server.stop()
+        thread.join(timeout=5)
+        server.close()
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "all plateaus within bounds" in r.stdout and "lost frames" not in r.stdout
+    log = read_log(out)
+    kinds = [str(k) for k in log.topic("/pmsm/events")["kind"]]
+    assert "heartbeat_lost" not in kinds and kinds.count("stopped") == 1
+    link = log.topic("/host/link")
+    assert int(link["seq_gaps"][-1]) == 0
+    assert int(link["crc_errors"][-1]) + int(link["cobs_errors"][-1]) == 0

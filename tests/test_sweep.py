@@ -116,16 +116,24 @@ def test_the_files_mistakes_come_in_one_report(tmp_path):
 
 
 def test_an_axis_naming_no_field_is_reported_at_its_line(tmp_path):
+    """With what is there instead: the nearest name, the list's length, the value it is."""
     p = write_sweep(
         tmp_path,
         "name: t\nprofile: paper-a\naxes:\n  - {field: seed, values: [1]}\n"
-        "  - {field: rig.effects.dead_time.dead_tme_s, values: [1e-6]}\n",
+        "  - {field: rig.effects.dead_time.dead_tme_s, values: [1e-6]}\n"
+        "  - {field: 'profile.segments[13].load_nm', values: [1.0]}\n"
+        "  - {field: motor.r_s_ohm.x, values: [1.0]}\n",
     )
     with pytest.raises(ProfileError) as e:
         plan_runs(load_sweep(p))
-    assert str(e.value).startswith(
-        f"{p}:5: axes[1].field = 'rig.effects.dead_time.dead_tme_s' names no field"
-    )
+    assert str(e.value).splitlines() == [
+        f"{p}:5: axes[1].field = 'rig.effects.dead_time.dead_tme_s' names no field of the rig "
+        "('dead_tme_s' is unknown; did you mean 'dead_time_s'?)",
+        f"{p}:6: axes[2].field = 'profile.segments[13].load_nm' names no field of the profile "
+        "(segments has 13 items: 0..12)",
+        f"{p}:7: axes[3].field = 'motor.r_s_ohm.x' names no field of the motor "
+        "(r_s_ohm is a value, it has no 'x')",
+    ]
 
 
 def test_cli_reports_a_bad_sweep_file_without_traceback(tmp_path):

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -106,6 +107,33 @@ def test_the_progress_bar_counts_failed_to_run_and_missed_criteria_apart():
     console = Console(record=True, width=200)
     console.print(plain.progress.make_tasks_table(plain.progress.tasks))
     assert "missed" not in console.export_text() and plain.missed is None
+
+
+def test_the_progress_bar_keeps_its_numbers_whole_at_80_columns(monkeypatch):
+    """A terminal of 80 columns cannot hold the bar, the counts, the rate and the time left on one
+    line: the counts go on a second line (before, rich cut them short: "12…", "0:0…")."""
+    monkeypatch.setenv("FORCE_COLOR", "1")  # a terminal, as rich sees it
+    monkeypatch.setenv("NO_COLOR", "1")
+
+    def shown(width: int, total: int) -> list[str]:
+        monkeypatch.setenv("COLUMNS", str(width))
+        bar = _Bar(total, 0, enabled=True, missed=0)
+        for i in range(12):
+            bar.advance(i != 3, 6.0, met=i % 5 != 0)
+        console = bar.progress.console
+        assert console.is_terminal and console.width == width
+        with console.capture() as cap:
+            console.print(*bar.progress.get_renderables())
+        return [re.sub(r"\x1b\[[0-9;]*m", "", line) for line in cap.get().splitlines()]
+
+    for total in (40, 1000):
+        lines = shown(80, total)
+        assert all(len(line) <= 80 and "…" not in line for line in lines), lines
+        text = "\n".join(lines)
+        assert f"12/{total} runs done" in text and "120.0 runs/min" in text
+        assert "1 failed to run, 3 missed the criteria" in text
+        assert len(lines) == 2
+    assert len(shown(160, 40)) == 1  # room enough: one line, as before
 
 
 def test_pmsm_hil_test_labels_its_progress_test(monkeypatch, tmp_path):
@@ -304,9 +332,9 @@ def test_report_counts_the_runs_that_never_converged():
 @pytest.mark.parametrize(
     "values, says",
     [
-        ("[1, 1.5]", "values = 1.5 is not a whole number"),
-        ("[1, two]", "values = 'two' is not a whole number"),
-        ("[1, -2]", "values = -2 is not a whole number in 0..2147483647"),
+        ("[1, 1.5]", "values[1] = 1.5 is not a whole number"),
+        ("[1, two]", "values[1] = 'two' is not a whole number"),
+        ("[1, -2]", "values[1] = -2 is not a whole number in 0..2147483647"),
         ("[3, 3.0]", "repeats a seed"),
     ],
 )
@@ -317,6 +345,29 @@ def test_a_seed_axis_takes_distinct_whole_seeds(tmp_path, values, says):
     assert r.returncode == 2, r.stdout + r.stderr
     assert f"{p}:4: axes[0]." in r.stderr and says in r.stderr
     assert "Traceback" not in r.stderr
+
+
+@pytest.mark.parametrize(
+    "axis, says",
+    [
+        (
+            "{field: motor.r_s_ohm, uniform: {low: 2, high: 1}}",
+            "axes[0].uniform = {high: 1, low: 2} high 1 is below low 2",
+        ),
+        (
+            "{field: motor.r_s_ohm}",
+            "axes[0] = {field: motor.r_s_ohm} give exactly one of values, linspace, uniform, "
+            "normal, log_uniform",
+        ),
+    ],
+)
+def test_an_axis_the_file_schema_refuses_is_said_in_the_sweeps_words(tmp_path, axis, says):
+    """No pydantic "value error, " before the message (it was there)."""
+    p = tmp_path / "s.yaml"
+    p.write_text(f"name: s\nprofile: paper-a\ndraws: 2\naxes:\n  - {axis}\n")
+    with pytest.raises(ProfileError) as e:
+        load_sweep(p)
+    assert f"{p}:5: {says}" in str(e.value) and "value error" not in str(e.value).lower()
 
 
 @pytest.mark.parametrize(
@@ -401,6 +452,28 @@ def test_a_scheduler_address_dask_does_not_know_is_said(tmp_path):
     assert r.returncode == 3 and "Traceback" not in r.stderr, r.stderr
     assert "cannot reach the scheduler http://127.0.0.1:1" in r.stderr
     assert "tcp://HOST:8786" in r.stderr
+
+
+def test_a_server_that_takes_the_connection_and_says_nothing_is_not_waited_on_forever(tmp_path):
+    """The scheduler's dashboard (tcp://HOST:8787) given for its address: a server that accepts the
+    connection and never speaks. Dask's client waited for its handshake without end; the sweep
+    says within its 10 s that no scheduler answered there (exit 3)."""
+    import socket
+    import time
+
+    with socket.create_server(("127.0.0.1", 0)) as silent:  # connections queue, nothing is said
+        addr = f"tcp://127.0.0.1:{silent.getsockname()[1]}"
+        t0 = time.monotonic()
+        r = subprocess.run(
+            [*CLI, "sweep", "tolerance", "--out", str(tmp_path / "o"), "--scheduler", addr],
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+    assert r.returncode == 3 and "Traceback" not in r.stderr, r.stderr
+    assert f"cannot reach the scheduler {addr}: " in r.stderr
+    assert "did not answer as a Dask scheduler in 11 s" in r.stderr
+    assert time.monotonic() - t0 < 40
 
 
 def test_report_summary_names_the_runs_that_failed():

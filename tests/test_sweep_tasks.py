@@ -211,3 +211,47 @@ def test_an_interrupted_batch_says_what_is_kept_and_how_to_resume(tmp_path, caps
     with pytest.raises(KeyboardInterrupt):
         run_tasks(_square, tasks, None, name="sq", workers=1, progress=False)
     assert "not kept (with an output folder, --out DIR" in capsys.readouterr().err
+
+
+def _row_of(task):
+    """A run's row without running it."""
+    return {"key": task["key"], "status": "ok", "complete": True, "faults": 0}
+
+
+def test_a_sweep_whose_workers_joined_after_its_start_counts_them_in_its_end_line(tmp_path):
+    """A cluster's scheduler without workers at the start: the runs wait for one, and the end line
+    names the workers that ran them (it said "on 0 workers", the count at the start)."""
+    import threading
+
+    from distributed import LocalCluster
+
+    from pmsm_hil.sweep.driver import run_runs
+    from pmsm_hil.sweep.plan import FILES, Run
+
+    runs = [
+        Run(index=i, values={}, seed=i, texts=dict.fromkeys(FILES, "name: x\n"), key=f"k{i}")
+        for i in range(2)
+    ]
+    with LocalCluster(
+        n_workers=0,
+        processes=True,
+        host="127.0.0.1",
+        dashboard_address=None,
+        scheduler_kwargs={"dashboard": False},
+    ) as cluster:
+        timer = threading.Timer(2.0, lambda: cluster.scale(1))
+        timer.start()
+        try:
+            res = run_runs(
+                runs,
+                tmp_path / "out",
+                ["faults"],
+                scheduler=cluster.scheduler_address,
+                progress=False,
+                task_fn=_row_of,
+            )
+        finally:
+            timer.cancel()
+    assert res.ok == 2 and res.workers == 1
+    assert res.end_lines()[0].startswith("runs: 2 completed, 0 failed to run, 0 done before; ")
+    assert res.end_lines()[0].endswith(" runs/min on 1 worker")

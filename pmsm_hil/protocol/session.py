@@ -18,6 +18,16 @@ if TYPE_CHECKING:
 
 ACK_TEXT = {v: k for k, v in gen.ENUMS["ack_status"].items()}
 BOARD_NAMES = {v: k for k, v in gen.ENUMS["board"].items()}
+# the link decoders' (serial and CAN) counts of damaged or missing frames
+_ERROR_COUNTERS = (
+    "crc_errors",
+    "cobs_errors",
+    "len_errors",
+    "short_errors",
+    "unknown_id",
+    "order_errors",
+    "seq_gaps",
+)
 
 
 @dataclass
@@ -58,7 +68,10 @@ class Session:
         frames.extend(self.link.poll(0.0 if frames else timeout_s))
         return frames
 
-    def _wait_for(self, match, timeout_s: float):
+    def _wait_for(self, match, timeout_s: float, drop_before: bool = False):
+        """The first frame that ``match``es, or None after ``timeout_s``; the others are kept, in
+        order, for the caller's next poll(). ``drop_before``: the frames before the match (and
+        those held from before) are dropped instead."""
         deadline = time.monotonic() + timeout_s
         held: list = []
         found = None
@@ -69,8 +82,11 @@ class Session:
             for fr in self.link.poll(min(left, 0.05)):
                 if found is None and match(fr):
                     found = fr
+                    if drop_before:
+                        self.inbox.clear()
+                        held.clear()
                 else:
-                    held.append(fr)  # kept, in order, for the caller's next poll()
+                    held.append(fr)
         self.inbox.extend(held)
         return found
 
@@ -100,10 +116,16 @@ class Session:
         )
 
     def hello(self, timeout_s: float = 2.0) -> Identity:
-        """Identify the device; refuse a protocol version or schema mismatch, naming both."""
+        """Identify the device; refuse a protocol version or schema mismatch, naming both.
+
+        What arrived before the device's identify belongs to no session of this host: the output
+        of a run whose host was killed, left in the port's buffer (telemetry, its heartbeat-lost
+        fault, acks of its commands) and the torn frame at its start. Those frames are dropped
+        and the link's error counts start again from the identify, so that the run's log, summary
+        and link statistics hold only its own session."""
         for _attempt in range(2):
             self.send("hello", host_proto_version=gen.PROTOCOL_VERSION)
-            fr = self._wait_for(lambda f: f.name == "identify", timeout_s / 2)
+            fr = self._wait_for(lambda f: f.name == "identify", timeout_s / 2, drop_before=True)
             if fr is not None:
                 break
         else:
@@ -119,6 +141,9 @@ class Session:
                 f"{gen.SCHEMA_HASH:08x}; flash the firmware built from this tree or use the host "
                 f"that matches the firmware"
             )
+        for counter in _ERROR_COUNTERS:
+            if hasattr(self.decoder, counter):
+                setattr(self.decoder, counter, 0)
         self.identity = Identity(
             proto_version=f["proto_version"],
             schema_hash=f["schema_hash"],

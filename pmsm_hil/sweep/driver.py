@@ -37,6 +37,7 @@ ALLOWED_FAILURES = 1  # a task is re-run once after its worker died, then report
 # and a worker holds only the run it executes (no queued second run that its death would also
 # count against): the scheduler's settings for a local cluster, and what a cluster's scheduler
 # should be started with (docs/sweep.md)
+SCHEDULER_TIMEOUT_S = 10.0  # to reach a scheduler given by address
 SCHEDULER_CONFIG = {
     "distributed.scheduler.allowed-failures": ALLOWED_FAILURES,
     "distributed.scheduler.worker-saturation": 1.0,
@@ -152,7 +153,8 @@ def _client(scheduler: str | None, workers: int | None):
     from distributed import Client, LocalCluster
 
     if scheduler:
-        client = Client(scheduler, timeout="10s")
+        _probe(scheduler)
+        client = Client(scheduler, timeout=f"{SCHEDULER_TIMEOUT_S:g}s")
         if not client.scheduler_info().get("workers"):
             # dask waits for one silently: say why nothing moves
             print(
@@ -175,6 +177,30 @@ def _client(scheduler: str | None, workers: int | None):
         preload=["pmsm_hil.sweep.worker_setup"],  # the workers ignore the terminal's Ctrl-C
     )
     return Client(cluster), cluster
+
+
+def _probe(address: str, timeout_s: float = SCHEDULER_TIMEOUT_S) -> None:
+    """Connect to ``address`` and take its Dask handshake, else OSError: Dask's own when nothing
+    takes the connection within ``timeout_s``, ours when a server takes it and says nothing for a
+    second longer (the scheduler's HTTP dashboard, tcp://HOST:8787, given for the scheduler: Dask's
+    client waits for its handshake without end)."""
+    import asyncio
+
+    from distributed.comm import connect
+    from distributed.security import Security
+
+    async def handshake() -> None:
+        args = Security().get_connection_args("client")
+        comm = await asyncio.wait_for(connect(address, timeout=timeout_s, **args), timeout_s + 1)
+        await comm.close()
+
+    try:
+        asyncio.run(handshake())
+    except TimeoutError:  # asyncio's, from wait_for: the connection was taken, nothing answered
+        raise OSError(
+            f"something took the connection but did not answer as a Dask scheduler in "
+            f"{timeout_s + 1:g} s"
+        ) from None
 
 
 def _error_of(exc: BaseException) -> str:
@@ -299,6 +325,9 @@ def run_runs(
     finally:
         res.wall_s = time.perf_counter() - t0
         if client is not None:
+            # a cluster's workers may join after the start (none yet: the runs waited for one)
+            with contextlib.suppress(Exception):
+                res.workers = max(res.workers, len(client.scheduler_info().get("workers", {})))
             client.close()
         if cluster is not None:
             cluster.close()
@@ -334,7 +363,9 @@ def _has_criteria(runs: list[Run]) -> bool:
 class _Bar:
     """rich progress: runs done (and skipped), failed to run, runs per minute, time left; with
     ``missed`` (the count so far: the profile has acceptance criteria) the completed runs that
-    missed them, so that a run done is not read as a run passed."""
+    missed them, so that a run done is not read as a run passed. On a terminal too narrow for all
+    of it on one line (80 columns) the counts go on a second line, rather than rich cutting the
+    numbers short ("12…")."""
 
     def __init__(
         self,
@@ -351,6 +382,7 @@ class _Bar:
         self.missed = missed
         self.new = 0
         if enabled:
+            from rich.console import Console
             from rich.progress import (
                 BarColumn,
                 MofNCompleteColumn,
@@ -358,23 +390,41 @@ class _Bar:
                 TextColumn,
                 TimeRemainingColumn,
             )
+            from rich.text import Text
 
-            columns = [
+            counts = [("failed", "failed to run")]  # task field, its words
+            if missed is not None:
+                counts.append(("missed", "missed the criteria"))
+            console = Console()
+            if not console.is_terminal:  # a CI log: the final line whole, not cut at 80 columns
+                console = Console(width=max(console.width, 160))
+            # the widest the one line gets (every count as large as the total), with a bar of 10
+            n = "9" * len(str(total))
+            widest = " ".join(
+                [label, f"{n}/{n} {unit} done"]
+                + [f"{n} {words}" for _, words in counts]
+                + [f"9999.9 {unit}/min", "0:00:00"]
+            )
+            one_line = console.width >= len(widest) + 11
+
+            class _Progress(Progress):
+                def get_renderables(self):
+                    yield self.make_tasks_table(self.tasks)
+                    if not one_line:  # the counts on a line of their own
+                        for task in self.tasks:
+                            said = [f"{task.fields[k]} {words}" for k, words in counts]
+                            yield Text("  " + ", ".join(said))
+
+            self.progress = _Progress(
                 TextColumn(label),
                 BarColumn(),
                 MofNCompleteColumn(),
                 TextColumn(f"{unit} done"),
-                TextColumn("{task.fields[failed]} failed to run"),
-            ]
-            if missed is not None:
-                columns.append(TextColumn("{task.fields[missed]} missed the criteria"))
-            from rich.console import Console
-
-            console = Console()
-            if not console.is_terminal:  # a CI log: the final line whole, not cut at 80 columns
-                console = Console(width=max(console.width, 160))
-            self.progress = Progress(
-                *columns,
+                *(
+                    [TextColumn(f"{{task.fields[{k}]}} {words}") for k, words in counts]
+                    if one_line
+                    else []
+                ),
                 TextColumn("{task.fields[rate]}"),
                 TimeRemainingColumn(),
                 transient=False,

@@ -89,6 +89,33 @@ def _base_value(obj: Any, parts: list[str | int]) -> Any:
     return obj
 
 
+def _unknown(obj: Any, parts: list[str | int], root: str) -> str:
+    """Why ``parts`` names nothing in ``obj`` (``_base_value`` raised KeyError): the index beyond
+    its list's length, or the name with the nearest known one (or the known ones)."""
+    import difflib
+
+    where = ""
+    for p in parts:
+        if isinstance(p, int) and isinstance(obj, (list, tuple)) and p < len(obj):
+            obj, where = obj[p], f"{where}[{p}]"
+        elif isinstance(p, str) and hasattr(type(obj), "model_fields") and p in type(obj).model_fields:
+            obj, where = getattr(obj, p), f"{where}.{p}".lstrip(".")
+        else:
+            break
+    if isinstance(p, int):
+        if not isinstance(obj, (list, tuple)):
+            return f"{where} is not a list"
+        n = len(obj)
+        return f"{where} has {n} item{'s' if n != 1 else ''}" + (f": 0..{n - 1}" if n else "")
+    known = list(type(obj).model_fields) if hasattr(type(obj), "model_fields") else []
+    if not known:
+        return f"{where} is a value, it has no {p!r}"
+    close = difflib.get_close_matches(p, known, n=1, cutoff=0.6)
+    if close:
+        return f"{p!r} is unknown; did you mean {close[0]!r}?"
+    return f"{p!r} is unknown; {where or 'the ' + root} has {', '.join(known)}"
+
+
 def _set(data: dict, parts: list[str | int], value: Any) -> None:
     obj: Any = data
     for p, nxt in itertools.pairwise(parts):
@@ -158,13 +185,13 @@ def _seed_problems(sweep: Sweep, i: int, ax: Axis) -> list[Problem]:
     if ax.values is None and ax.linspace is None:
         return [sweep.src.problem(("axes", i, ax.kind), "a seed axis takes values: [...]", ax.kind)]
     vals = axis_values(ax)
-    for v in vals:
+    for j, v in enumerate(vals):
         ok = isinstance(v, (int, float)) and not isinstance(v, bool) and float(v).is_integer()
         if not ok or not 0 <= v <= SEED_MAX:
-            key = "values" if ax.values is not None else "linspace"
+            where = ("values", j) if ax.values is not None else ("linspace",)
             return [
                 sweep.src.problem(
-                    ("axes", i, key), f"is not a whole number in 0..{SEED_MAX} (a seed)", v
+                    ("axes", i, *where), f"is not a whole number in 0..{SEED_MAX} (a seed)", v
                 )
             ]
     if len({int(v) for v in vals}) < len(vals):
@@ -184,11 +211,11 @@ def _check_axes(sweep: Sweep, base: _Base) -> None:
         root, rest = str(parts[0]), parts[1:]
         try:
             value = _base_value(base.objects[root], rest)
-        except KeyError as e:
+        except KeyError:
             problems.append(
                 sweep.src.problem(
                     ("axes", i, "field"),
-                    f"names no field of the {root} ({e.args[0]!r} is unknown)",
+                    f"names no field of the {root} ({_unknown(base.objects[root], rest, root)})",
                     ax.field,
                 )
             )

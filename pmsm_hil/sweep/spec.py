@@ -24,6 +24,7 @@ import re
 from typing import Literal
 
 from pydantic import Field, ValidationError, model_validator
+from pydantic_core import PydanticCustomError
 
 from pmsm_hil.profiles._base import StrictModel
 from pmsm_hil.profiles._source import Problem, ProfileError, Source, read_source, resolve_ref
@@ -49,8 +50,10 @@ class Range(StrictModel):
 
     @model_validator(mode="after")
     def _ordered(self):
-        if self.high < self.low:
-            raise ValueError(f"high {self.high:g} is below low {self.low:g}")
+        if self.high < self.low:  # a custom error: its message as it is ("value error, " not)
+            raise PydanticCustomError(
+                "sweep_range", f"high {self.high:g} is below low {self.low:g}"
+            )
         return self
 
 
@@ -87,9 +90,10 @@ class Axis(StrictModel):
             if getattr(self, k) is not None
         ]
         if len(given) != 1:
-            raise ValueError(
+            raise PydanticCustomError(
+                "sweep_axis_kind",
                 "give exactly one of values, linspace, uniform, normal, log_uniform"
-                + (f" (given: {', '.join(given)})" if given else "")
+                + (f" (given: {', '.join(given)})" if given else ""),
             )
         return self
 
