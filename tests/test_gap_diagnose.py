@@ -498,3 +498,34 @@ def test_a_pwm_delay_is_fitted_in_whole_periods_and_leaves_no_iron_loss(tmp_path
     assert e["magnitude"] == pytest.approx(108e-6, rel=0.005)
     assert max(res["plateaus"].get("rms_before_v", [0.0])) < 0.05
     assert not [x["name"] for x in res["effects"] if x["selected"] and x["name"] != "delay"]
+
+
+def test_a_floor_the_data_cannot_give_is_said_to_be_none_not_zero():
+    """The lag-1 estimate of the noise floor is clipped at zero when the residual left is
+    correlated from period to period (an effect outside the library): the verdict says the floor
+    could not be estimated instead of quoting 0 V rms as a floor."""
+    from pmsm_hil.gap.report import verdict_lines
+
+    res = {
+        "verdict": "unexplained residual",
+        "base_gap": {"rms_v": 12.0},
+        "discretisation_gap": {"excess_v2": 3.0},
+        "noise_floor_v2": 0.0,
+        "noise_floor_source": "estimated from the data (lag-1 autocovariance of the residual)",
+        "selected": [],
+        "closure": {},
+        "effects": [],
+        "parametric_gap": {
+            "r_s_ohm": 1.0,
+            "l_d_h": 5e-3,
+            "l_q_h": 12e-3,
+            "psi_f_wb": 0.18,
+            "closure": 0.1,
+        },
+    }
+    text = "\n".join(verdict_lines(res))
+    assert "noise floor not estimable from the data" in text and "0 V rms" not in text
+    res["noise_floor_v2"] = 40.0
+    assert "noise floor 6.32 V rms (estimated from the data" in "\n".join(verdict_lines(res))
+    res.update(noise_floor_v2=0.0, noise_floor_source="sensor specification")
+    assert "noise floor 0 V rms (sensor specification)" in "\n".join(verdict_lines(res))

@@ -68,14 +68,28 @@ def steady_lines(res: dict) -> list[str]:
     return out
 
 
+def _floor_text(res: dict) -> str:
+    """The noise floor and where it came from; a floor estimated from the data as zero is said to
+    be no estimate: what is left of the residual is correlated from one period to the next (as
+    an unmodelled effect leaves it), which the lag-1 estimate cannot tell from sensor noise."""
+    fl = float(res["noise_floor_v2"])
+    if fl <= 0.0 and not str(res["noise_floor_source"]).startswith("sensor"):
+        return (
+            "noise floor not estimable from the data (the residual left is correlated from one "
+            "period to the next, not sensor noise: an effect outside the library, or a record "
+            "too short); the closures are against a floor of zero"
+        )
+    return f"noise floor {np.sqrt(fl):.3g} V rms ({res['noise_floor_source']})"
+
+
 def verdict_lines(res: dict) -> list[str]:
     if "discretisation_gap" not in res:  # steady-state dq data
         return steady_lines(res)
     b, d = res["base_gap"], res["discretisation_gap"]
     out = [
         f"gap: {res['verdict']}",
-        f"  base gap {b['rms_v']:.3g} V rms one-step residual; noise floor {np.sqrt(max(res['noise_floor_v2'], 0)):.3g} V rms "
-        f"({res['noise_floor_source']}); discretisation gap (Euler vs RK4) {d['excess_v2']:.3g} V^2",
+        f"  base gap {b['rms_v']:.3g} V rms one-step residual; {_floor_text(res)}; "
+        f"discretisation gap (Euler vs RK4) {d['excess_v2']:.3g} V^2",
     ]
     c = res["closure"]
     if res["selected"]:
