@@ -266,12 +266,14 @@ def test_a_killed_emulator_ends_the_run_with_a_clear_error_and_a_finalised_log(d
         children = emulator_children(host.pid)
         assert t_line and len(children) == 1
         os.kill(children[0], signal.SIGKILL)
-        _, err = host.communicate(timeout=30)
+        rest, err = host.communicate(timeout=30)
     finally:
         if host.poll() is None:
             host.kill()
     assert host.returncode == 3, err
     assert "dropped" in err and str(out) in err, err
+    # the summary says an error ended the run (printed below it), not that the user stopped it
+    assert "the run ended on an error (below)" in rest and "run interrupted" not in rest, rest
     with open(out, "rb") as f:
         reader = make_reader(f)
         summary = reader.get_summary()

@@ -83,7 +83,10 @@ def _summary_rows(summary: RunSummary) -> list[dict[str, str]]:
 
 
 def print_summary(
-    summary: RunSummary, console: Console | None = None, interrupted: bool = False
+    summary: RunSummary,
+    console: Console | None = None,
+    interrupted: bool = False,
+    error: bool = False,
 ) -> None:
     """The per-segment table, fitted to the terminal: on a narrow one the least important columns
     are left out (and named) rather than cut short."""
@@ -139,7 +142,7 @@ def print_summary(
     n = len(summary.segments)
     console.print(
         f"{n} segment{'' if n == 1 else 's'}, {summary.duration_s:.2f} s: "
-        f"{verdict_text(summary, interrupted)}",
+        f"{verdict_text(summary, interrupted, error)}",
         highlight=False,
     )
 
@@ -165,8 +168,10 @@ def missed_text(summary: RunSummary, most: int = 4) -> str:
     return "; ".join(out)
 
 
-def verdict_text(summary: RunSummary, interrupted: bool = False) -> str:
-    """One line: whether every plateau the run was to play was seen and within its bounds."""
+def verdict_text(summary: RunSummary, interrupted: bool = False, error: bool = False) -> str:
+    """One line: whether every plateau the run was to play was seen and within its bounds;
+    ``interrupted``: the user stopped the run (Ctrl-C), ``error``: a link or host error ended it
+    (the error is printed after the summary)."""
     names = summary.expected
 
     def seg_list(idx: list[int]) -> str:
@@ -189,6 +194,8 @@ def verdict_text(summary: RunSummary, interrupted: bool = False) -> str:
     parts = []
     if interrupted:
         parts.append("run interrupted")
+    elif error:
+        parts.append("the run ended on an error (below)")
     if summary.ended and summary.ended != "profile end":
         parts.append(summary.ended)
     elif not summary.ended:

@@ -390,7 +390,7 @@ def _finish(result, print_summary, summarize_log, profile=None, stop_after_s=Non
 
         log = read_for_analysis(result.log_path)
         summary = summarize_log(result.log_path, log)
-        print_summary(summary, interrupted=result.interrupted or bool(result.error))
+        print_summary(summary, interrupted=result.interrupted, error=bool(result.error))
         ident = identification(result.log_path, log)
         if ident is not None:
             print_identification(ident)

@@ -98,7 +98,11 @@ def _unknown(obj: Any, parts: list[str | int], root: str) -> str:
     for p in parts:
         if isinstance(p, int) and isinstance(obj, (list, tuple)) and p < len(obj):
             obj, where = obj[p], f"{where}[{p}]"
-        elif isinstance(p, str) and hasattr(type(obj), "model_fields") and p in type(obj).model_fields:
+        elif (
+            isinstance(p, str)
+            and hasattr(type(obj), "model_fields")
+            and p in type(obj).model_fields
+        ):
             obj, where = getattr(obj, p), f"{where}.{p}".lstrip(".")
         else:
             break
