@@ -105,6 +105,27 @@ def test_an_unknown_name_lists_what_is_shipped(tmp_path):
     assert r.returncode == 2 and "paper-z" in r.stderr and "Traceback" not in r.stderr
 
 
+@pytest.mark.parametrize(
+    ("name", "kind", "hint"),
+    [
+        ("Paper-A", "profile", "did you mean 'paper-a'?"),
+        ("paper_a_identify", "profile", "did you mean 'paper-a-identify'?"),
+        ("labtypical", "rig", "did you mean 'lab-typical'?"),
+        ("sew", "rig", "did you mean 'sew-cm3c80s'?"),
+        ("paper-b-", "profile", "did you mean 'paper-b'?"),
+        ("paper-a-s", "profile", "did you mean 'paper-a-sensorless'?"),
+        ("paper", "profile", "did you mean one of 'paper-a-identify', 'paper-a-sensorless'"),
+        ("tolerance", "profile", "'tolerance' is a sweep: `pmsm-hil sweep tolerance`"),
+        ("paper-a", "sweep", "'paper-a' is a profile: `pmsm-hil run paper-a`"),
+        ("lab-typical", "motor", "'lab-typical' is a rig: `--rig lab-typical`"),
+    ],
+)
+def test_a_name_written_otherwise_or_of_another_kind_gets_a_hint(name, kind, hint):
+    with pytest.raises(ProfileError) as e:
+        resolve(name, kind)
+    assert hint in str(e.value)
+
+
 def test_a_path_to_nothing_with_a_shipped_name_gives_the_bare_name(tmp_path):
     """The README's `profiles/paper-a.yaml` from another directory: the error says what to type."""
     r = cli("run", "profiles/paper-a.yaml", "--no-live", cwd=tmp_path)

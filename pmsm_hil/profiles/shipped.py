@@ -87,10 +87,11 @@ def resolve(name: str | os.PathLike, kind: str) -> str:
         candidate = _shipped_named(text, kind)
         if candidate is not None:
             return str(candidate)
-        names = ", ".join(p.stem for p in shipped(kind))
+        stems = [p.stem for p in shipped(kind)]
+        hint = _other_kind(text, kind) or _close(text, stems, kind)
         raise _not_found(
             text,
-            f"is neither a file nor a shipped {kind} (shipped: {names}; "
+            f"is neither a file nor a shipped {kind}{hint} (shipped: {', '.join(stems)}; "
             "`pmsm-hil profiles` lists them)",
         )
     shipped_one = _shipped_named(os.path.basename(text), kind)
@@ -101,6 +102,41 @@ def resolve(name: str | os.PathLike, kind: str) -> str:
             f"bare name: {shipped_one.stem}",
         )
     return text
+
+
+# where a shipped file of each kind is given (for a name given where another kind is wanted)
+_USE = {
+    "profile": "a profile: `pmsm-hil run {n}`",
+    "motor": "a motor: `--motor {n}`",
+    "rig": "a rig: `--rig {n}`",
+    "map": "a flux map: a motor file's `flux_map` or a rig's saturation `map`",
+    "sweep": "a sweep: `pmsm-hil sweep {n}`",
+}
+
+
+def _other_kind(name: str, kind: str) -> str:
+    """'; NAME is a shipped sweep: ...' when a shipped file of another kind has that name."""
+    for other, use in _USE.items():
+        if other != kind and _shipped_named(name, other) is not None:
+            stem = Path(name).stem if name.endswith(KINDS[other][1]) else name
+            return f"; {stem!r} is {use.format(n=stem)}"
+    return ""
+
+
+def _close(name: str, stems: list[str], kind: str) -> str:
+    """'; did you mean ...?' for a shipped name written with other case or separators
+    (``Paper-A``, ``labtypical``, ``paper_a``) or misspelt."""
+
+    def key(x: str) -> str:
+        return "".join(c for c in x.lower() if c.isalnum())
+
+    want = key(name.removesuffix(KINDS[kind][1]))
+    same = [n for n in stems if key(n) == want]
+    begun = [n for n in stems if want and key(n).startswith(want)]  # "sew": sew-cm3c80s
+    if not same and len(begun) > 1:  # "paper": several; none is more likely than another
+        return f"; did you mean one of {', '.join(map(repr, begun))}?"
+    close = same or begun or difflib.get_close_matches(name.lower(), stems, n=1, cutoff=0.6)
+    return f"; did you mean {close[0]!r}?" if close else ""
 
 
 def _not_found(text: str, why: str) -> ProfileError:
