@@ -234,50 +234,43 @@ def test_port_that_is_busy(data):
     assert "Traceback" not in r.stderr
 
 
-def test_only_a_command_that_ends_clean_skips_the_interpreters_teardown(
-    data, tmp_path, monkeypatch
-):
+def test_only_a_command_that_ends_clean_skips_the_interpreters_teardown(data, tmp_path):
     """entry(): `run` returns with its log closed and its emulator child waited for, so the
     process ends at once (os._exit with run's code, stdout flushed first); a command without
-    ENDS_CLEAN (here `profiles`) keeps the ordinary exit."""
-    from pmsm_hil.cli import main as cli_main
-
-    ended: list[int] = []
-
-    class Ended(Exception):
-        pass
-
-    def fake_exit(code: int) -> None:
-        ended.append(code)
-        raise Ended
-
-    monkeypatch.setattr(cli_main.os, "_exit", fake_exit)
-    monkeypatch.setattr(cli_main, "_returned", [])
+    ENDS_CLEAN (here `profiles`) keeps the ordinary exit, and so does a run beside a non-daemon
+    thread (the interpreter waits for it). In a fresh interpreter each: other tests' threads are
+    not this process's."""
     out = tmp_path / "short.mcap"
-    monkeypatch.setattr(
-        sys,
-        "argv",
-        [
-            "pmsm-hil",
-            "run",
-            str(data / "short.yaml"),
-            "--no-live",
-            "--stop-after",
-            "0.2",
-            "--out",
-            str(out),
-        ],
+    script = (
+        "import os, sys, threading, time\n"
+        "from pmsm_hil.cli import main as m\n"
+        "def fake(code):\n"
+        "    print(f'os._exit {code}', flush=True)\n"
+        "    raise SystemExit(code)\n"
+        "m.os._exit = fake\n"
+        "sys.argv = ['pmsm-hil', *sys.argv[1:]]\n"
+        "if os.environ.get('KEEP_THREAD'):\n"
+        "    threading.Thread(target=time.sleep, args=(1.0,)).start()  # not a daemon\n"
+        "print('returned', m.entry(), flush=True)\n"
     )
-    with pytest.raises(Ended):
-        cli_main.entry()
-    assert ended == [0]
+
+    def entry(*args, **env):
+        return subprocess.run(
+            [sys.executable, "-c", script, *map(str, args)],
+            capture_output=True,
+            text=True,
+            timeout=120,
+            env={**os.environ, **env},
+        )
+
+    short = ("run", data / "short.yaml", "--no-live", "--overwrite", "--out", out)
+    r = entry(*short, "--stop-after", "0.2")
+    assert r.returncode == 0 and "os._exit 0" in r.stdout and "returned" not in r.stdout, r.stderr
+    assert "log: " in r.stdout  # the summary was flushed before the process ended
     assert read_log(out).counts["/pmsm/telemetry"] > 100  # closed: read as a finished log
-    assert threading.active_count() == 1
-
-    monkeypatch.setattr(sys, "argv", ["pmsm-hil", "profiles"])
-    assert cli_main.entry() == 0 and ended == [0]  # returned: no os._exit
-
-    monkeypatch.setattr(sys, "argv", ["pmsm-hil", "run", str(tmp_path / "missing.yaml")])
-    with pytest.raises(Ended):  # a run refused before it started: as clean, with its code
-        cli_main.entry()
-    assert ended == [0, 2]
+    r = entry("run", tmp_path / "missing.yaml")  # refused before it started: as clean
+    assert r.returncode == 2 and "os._exit 2" in r.stdout
+    r = entry("profiles")
+    assert "returned 0" in r.stdout and "os._exit" not in r.stdout
+    r = entry(*short, "--stop-after", "0.1", KEEP_THREAD="1")
+    assert "returned 0" in r.stdout and "os._exit" not in r.stdout, r.stdout
