@@ -509,7 +509,7 @@ def test_a_floor_the_data_cannot_give_is_said_to_be_none_not_zero():
     res = {
         "verdict": "unexplained residual",
         "base_gap": {"rms_v": 12.0},
-        "discretisation_gap": {"excess_v2": 3.0},
+        "discretisation_gap": {"excess_v2": 25.0, "mse_euler_v2": 169.0, "mse_rk4_v2": 144.0},
         "noise_floor_v2": 0.0,
         "noise_floor_source": "estimated from the data (lag-1 autocovariance of the residual)",
         "selected": [],
@@ -525,6 +525,7 @@ def test_a_floor_the_data_cannot_give_is_said_to_be_none_not_zero():
     }
     text = "\n".join(verdict_lines(res))
     assert "noise floor not estimable from the data" in text and "0 V rms" not in text
+    assert "discretisation gap (Euler vs RK4) +1 V rms (25 V^2)" in text  # 13 against 12 V rms
     res["noise_floor_v2"] = 40.0
     assert "noise floor 6.32 V rms (estimated from the data" in "\n".join(verdict_lines(res))
     res.update(noise_floor_v2=0.0, noise_floor_source="sensor specification")

@@ -68,6 +68,14 @@ def steady_lines(res: dict) -> list[str]:
     return out
 
 
+def _rms_step(d: dict) -> str:
+    """How much larger the Euler predictor's residual is than RK4's, in V rms (signed)."""
+    if "mse_euler_v2" not in d or "mse_rk4_v2" not in d:
+        return "?"
+    e, r = float(d["mse_euler_v2"]), float(d["mse_rk4_v2"])
+    return f"{np.sqrt(max(e, 0.0)) - np.sqrt(max(r, 0.0)):+.3g}"
+
+
 def _floor_text(res: dict) -> str:
     """The noise floor and where it came from; a floor estimated from the data as zero is said to
     be no estimate: what is left of the residual is correlated from one period to the next (as
@@ -89,7 +97,7 @@ def verdict_lines(res: dict) -> list[str]:
     out = [
         f"gap: {res['verdict']}",
         f"  base gap {b['rms_v']:.3g} V rms one-step residual; {_floor_text(res)}; "
-        f"discretisation gap (Euler vs RK4) {d['excess_v2']:.3g} V^2",
+        f"discretisation gap (Euler vs RK4) {_rms_step(d)} V rms ({d['excess_v2']:.3g} V^2)",
     ]
     c = res["closure"]
     if res["selected"]:
