@@ -32,13 +32,21 @@ from pmsm_hil.sensorless_design import estimator_frames
 # Recorder.frames); what the host writes on its own (events) goes out at least this often (wall
 # time; docs/log-format.md).
 LOG_FLUSH_WALL_S = 0.25
+# a receive batch is recorded in slices of this many frames at most, with a heartbeat between them
+# when one is due: a batch of 64 KiB (some 1800 frames) took 30 ms and more with a Foxglove sink,
+# longer than a device paced at 20x real time waits for a heartbeat (25 ms)
+_SLICE_FRAMES = 256
 
 
 @dataclass
 class RunOptions:
     heartbeat_period_s: float = (
-        0.02  # device time between heartbeats (also at least every 50 ms wall)
+        0.02  # device time between heartbeats (also at least every heartbeat_wall_s)
     )
+    # wall time between heartbeats at most, also within a long receive batch (its frames are
+    # recorded in slices, a heartbeat between them when due): a device paced at X times real
+    # time times out after its heartbeat timeout / X of wall time (`run --pace`: cli/run.py)
+    heartbeat_wall_s: float = 0.05
     silent_after_s: float | None = None  # testing: stop sending heartbeats after this device time
     stop_after_s: float | None = None  # ask the device to stop after this device time
     device_timeout_s: float = 3.0  # no data for this long while running: the device is lost
@@ -397,21 +405,33 @@ def _stream(
     last_update = 0.0
     hb_counter = 0
     stop_sent = False
+
+    def heartbeat(now: float) -> None:
+        """Sent as a batch arrives, before it is recorded (the device runs on meanwhile), and
+        between the slices of a long one."""
+        nonlocal hb_counter, last_hb_dev, last_hb_wall
+        silent = options.silent_after_s is not None and live.t_s >= options.silent_after_s
+        if not silent and (
+            live.t_s - last_hb_dev >= options.heartbeat_period_s
+            or now - last_hb_wall >= options.heartbeat_wall_s
+        ):
+            session.send("heartbeat", counter=hb_counter)
+            hb_counter = (hb_counter + 1) & 0xFFFFFFFF
+            last_hb_dev, last_hb_wall = live.t_s, now
+
     while True:
         if sig.count:
             return True
         frames = session.poll(0.02)
         now = time.monotonic()
-        silent = options.silent_after_s is not None and live.t_s >= options.silent_after_s
-        if not silent and (
-            live.t_s - last_hb_dev >= options.heartbeat_period_s or now - last_hb_wall >= 0.05
-        ):
-            session.send("heartbeat", counter=hb_counter)
-            hb_counter = (hb_counter + 1) & 0xFFFFFFFF
-            last_hb_dev, last_hb_wall = live.t_s, now
+        heartbeat(now)
         if frames:
             last_data_wall = now
-            rec.frames(frames)  # "batch": on disk (the journal) before the link is read again
+            # "batch": on disk (the journal) before the link is read again
+            for at in range(0, len(frames), _SLICE_FRAMES):
+                if at:
+                    heartbeat(time.monotonic())
+                rec.frames(frames[at : at + _SLICE_FRAMES])
             if not plant_checked and motor is not None and live.truth:
                 plant_checked = True
                 why = plant_mismatch(motor, live.truth)

@@ -358,6 +358,8 @@ def _run(args: argparse.Namespace, collecting: bool) -> int:
         # every received message on disk (the log's journal) before the next read: a killed
         # host loses nothing it received (docs/faults.md)
         log_sync="batch",
+        # an emulator paced at X times real time waits 1/X of the heartbeat timeout of wall time
+        heartbeat_wall_s=min(0.05, profile.control.heartbeat_timeout_s / (4 * (args.pace or 1))),
     )
     try:
         with observer:
