@@ -32,9 +32,12 @@ from pmsm_hil.sensorless_design import estimator_frames
 # Recorder.frames); what the host writes on its own (events) goes out at least this often (wall
 # time; docs/log-format.md).
 LOG_FLUSH_WALL_S = 0.25
-# a receive batch is recorded in slices of this many frames at most, with a heartbeat between them
-# when one is due: a batch of 64 KiB (some 1800 frames) took 30 ms and more with a Foxglove sink,
-# longer than a device paced at 20x real time waits for a heartbeat (25 ms)
+# wall time between heartbeats at most (a rig, or an emulator that waits for the host)
+HEARTBEAT_WALL_S = 0.05
+# with less (a paced emulator), a receive batch is recorded in slices of this many frames at most,
+# a heartbeat between them when one is due: a batch of 64 KiB (some 1800 frames) took 30 ms and
+# more with a Foxglove sink, longer than a device paced at 20x real time waits for one (25 ms);
+# slices cost the host a fifth more CPU, so a batch is sliced only then
 _SLICE_FRAMES = 256
 
 
@@ -46,7 +49,7 @@ class RunOptions:
     # wall time between heartbeats at most, also within a long receive batch (its frames are
     # recorded in slices, a heartbeat between them when due): a device paced at X times real
     # time times out after its heartbeat timeout / X of wall time (`run --pace`: cli/run.py)
-    heartbeat_wall_s: float = 0.05
+    heartbeat_wall_s: float = HEARTBEAT_WALL_S
     silent_after_s: float | None = None  # testing: stop sending heartbeats after this device time
     stop_after_s: float | None = None  # ask the device to stop after this device time
     device_timeout_s: float = 3.0  # no data for this long while running: the device is lost
@@ -427,11 +430,13 @@ def _stream(
         heartbeat(now)
         if frames:
             last_data_wall = now
-            # "batch": on disk (the journal) before the link is read again
-            for at in range(0, len(frames), _SLICE_FRAMES):
+            # "batch": on disk (the journal) before the link is read again; in slices when a
+            # paced device waits less for its heartbeat than a whole batch may take
+            step = _SLICE_FRAMES if options.heartbeat_wall_s < HEARTBEAT_WALL_S else len(frames)
+            for at in range(0, len(frames), step):
                 if at:
                     heartbeat(time.monotonic())
-                rec.frames(frames[at : at + _SLICE_FRAMES])
+                rec.frames(frames[at : at + step])
             if not plant_checked and motor is not None and live.truth:
                 plant_checked = True
                 why = plant_mismatch(motor, live.truth)

@@ -535,9 +535,10 @@ def test_a_host_slower_than_a_paced_device_still_keeps_its_heartbeat(data, tmp_p
     """`run --pace 20 --foxglove`: the device times out after 25 ms of wall time without a
     heartbeat, and a receive batch (up to 64 KiB, some 1800 frames) through a Foxglove sink took
     longer than that to record, so the run faulted with "heartbeat lost" though the host was
-    there. The batch is recorded in slices with a heartbeat between them: a sink costing 20 us a
-    message (a slice of 256 takes 5 ms) no longer stops the motor; what the host cannot keep up
-    with is lost on the link, as on a rig."""
+    there. The batch is recorded in slices with a heartbeat between them. Here at --pace 5 (the
+    device waits 100 ms) with a sink of 100 us a message: a whole batch took some 200 ms, a slice
+    of 256 takes 30 ms; the motor is no longer stopped, and what the host cannot keep up with is
+    lost on the link, as on a rig."""
     from pmsm_hil.cli.main import main
     from pmsm_hil.live import foxglove
 
@@ -548,7 +549,7 @@ def test_a_host_slower_than_a_paced_device_still_keeps_its_heartbeat(data, tmp_p
             pass
 
         def publish(self, topic, t_s, fields):
-            end = time.perf_counter() + 20e-6
+            end = time.perf_counter() + 100e-6
             while time.perf_counter() < end:
                 pass
 
@@ -557,7 +558,7 @@ def test_a_host_slower_than_a_paced_device_still_keeps_its_heartbeat(data, tmp_p
 
     monkeypatch.setattr(foxglove, "FoxgloveSink", SlowSink)
     out = tmp_path / "slow-host.mcap"
-    args = ["run", str(data / "short.yaml"), "--no-live", "--pace", "20", "--out", str(out)]
+    args = ["run", str(data / "short.yaml"), "--no-live", "--pace", "5", "--out", str(out)]
     code = main([*args, "--stop-after", "1.5", "--foxglove", "1"])
     texts = [str(t) for t in read_log(out).topic("/pmsm/events")["text"]]
     assert not any("heartbeat" in t for t in texts), texts

@@ -344,7 +344,7 @@ def _run(args: argparse.Namespace, collecting: bool) -> int:
     from pmsm_hil.cli.live import make_observer
     from pmsm_hil.log.writer import LogWriteError
     from pmsm_hil.protocol.session import DeviceError, Session
-    from pmsm_hil.runner import HostError, PlantMismatch, RunOptions, run_profile
+    from pmsm_hil.runner import HEARTBEAT_WALL_S, HostError, PlantMismatch, RunOptions, run_profile
 
     _settle(collecting)
 
@@ -359,7 +359,9 @@ def _run(args: argparse.Namespace, collecting: bool) -> int:
         # host loses nothing it received (docs/faults.md)
         log_sync="batch",
         # an emulator paced at X times real time waits 1/X of the heartbeat timeout of wall time
-        heartbeat_wall_s=min(0.05, profile.control.heartbeat_timeout_s / (4 * (args.pace or 1))),
+        heartbeat_wall_s=min(
+            HEARTBEAT_WALL_S, profile.control.heartbeat_timeout_s / (4 * (args.pace or 1))
+        ),
     )
     try:
         with observer:
