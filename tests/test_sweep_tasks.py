@@ -181,6 +181,11 @@ def test_a_batch_taken_whole_from_the_journal_says_so(tmp_path, capsys):
     assert [r["square"] for r in again] == [1, 4] and len(os.listdir(calls)) == 2
     err = capsys.readouterr().err
     assert f"sq: all 2 trials taken from {out / 'sq.jsonl'}" in err
+    more = [*tasks, {"x": 3, "calls": str(calls)}]  # one more: the two are taken, one runs
+    assert [r["square"] for r in run_tasks(_square, more, out, name="sq", workers=1)] == [1, 4, 9]
+    assert len(os.listdir(calls)) == 3
+    err = capsys.readouterr().err
+    assert f"sq: resuming: 2 of 3 trials taken from {out / 'sq.jsonl'}, 1 to run" in err
 
 
 def test_an_interrupted_batch_says_what_is_kept_and_how_to_resume(tmp_path, capsys, monkeypatch):

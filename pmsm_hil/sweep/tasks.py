@@ -111,6 +111,12 @@ def run_tasks(
             "firmware build, the same inputs; remove it to run them again)",
             file=sys.stderr,
         )
+    elif progress and out is not None and results:
+        print(
+            f"{name}: resuming: {len(results)} of {len(set(keys))} trials taken from "
+            f"{Path(out, name + '.jsonl')}, {len(todo)} to run",
+            file=sys.stderr,
+        )
     if todo:
         client = cluster = None
         t0 = time.perf_counter()
