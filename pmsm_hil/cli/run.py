@@ -220,6 +220,7 @@ _LATER = (
     "pmsm_hil.runner",
     "pmsm_hil.cli.live",
     "pmsm_hil.analysis.summary",
+    "pmsm_hil.analysis.summary_text",
     "pmsm_hil.analysis.reading",
     "pmsm_hil.analysis.acceptance",
     "pmsm_hil.cli.analyze",
