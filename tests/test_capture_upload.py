@@ -18,8 +18,9 @@ PER_CHUNK = next(f.count for f in gen.BY_NAME["capture_chunk"].fields if f.name 
 class ChunkLink:
     """Answers capture_read with a chunk after `delay_s`, unless `lose(offset, attempt)`."""
 
-    def __init__(self, count: int, lose, delay_s: float = 0.001):
+    def __init__(self, count: int, lose, delay_s: float = 0.001, corrupt=None):
         self.count, self.lose, self.delay_s = count, lose, delay_s
+        self.corrupt = corrupt or (lambda off: False)  # answers with an impossible n_valid
         self.decoder = SimpleNamespace()
         self.pending: list[tuple[float, int]] = []
         self.asked: dict[int, int] = {}
@@ -48,7 +49,12 @@ class ChunkLink:
         return [
             SimpleNamespace(
                 name="capture_chunk",
-                fields={"offset": off, "n_valid": max(0, min(PER_CHUNK, self.count - off))},
+                fields={
+                    "offset": off,
+                    "n_valid": PER_CHUNK + 1
+                    if self.corrupt(off)
+                    else max(0, min(PER_CHUNK, self.count - off)),
+                },
             )
             for _t, off in due
         ]
@@ -124,3 +130,16 @@ def test_the_window_follows_the_device_and_the_link():
     s.identity = Identity(1, 0, "1.0.0", "sim", tx_buf_octets=100, capture_len=1024)
     assert s.capture_window() == 1
     assert CanLink.capture_window == 2
+
+
+@pytest.mark.parametrize("window", [1, 4])
+def test_chunks_that_keep_coming_back_corrupt_count_as_missed_in_a_row(window):
+    """A chunk refused as corrupt on every try is missing, and such chunks in a row give the
+    upload up as lost ones do."""
+    count = 12 * PER_CHUNK
+    link = ChunkLink(count, lambda off, n: False, corrupt=lambda off: off >= 2 * PER_CHUNK)
+    s = Session(link)
+    chunks = s.read_capture(count, window=window, give_up_after=4)
+    assert [c["offset"] for c in chunks] == [0, PER_CHUNK]
+    assert s.capture_abandoned and s.capture_rejected >= 4 * 3
+    assert s.capture_missing == [k * PER_CHUNK for k in range(2, 12)]

@@ -217,7 +217,8 @@ class Session:
                     n = fr.fields["n_valid"]
                     if n > min(per_chunk, count - off):
                         self.capture_rejected += 1
-                        self._retry_or_miss(off, tries, retries, ask)
+                        if not self._retry_or_miss(off, tries, retries, ask):
+                            missed_in_a_row += 1
                         continue
                     missed_in_a_row = 0
                     if n == 0:  # nothing from here on
