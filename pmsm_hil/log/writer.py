@@ -394,29 +394,23 @@ class LogWriter:
         self.write_runs(((block, len(block) if stop is None else stop),))
 
     def write_runs(self, runs: Iterable[tuple[MessageBlock, int]]) -> None:
-        """``write_block(block, stop)`` for each run in turn, under one taking of the lock: a
-        receive batch's telemetry, truth and parameter frames interleave in runs of a few
-        messages each (paper-a: 13 000 runs of 72 000 frames)."""
+        """``write_block(block, stop)`` for each run, the lock taken once (paper-a: 13 000 runs)."""
         with self._lock:
             if self._failed is not None or self._closed or self._closing:
                 self._check_open()
             w, span, limit = self._w, self._span_ns, self._chunk_size
             pending = self._journal.pending if self._journal is not None else None
-            channels = self._channels
             for block, stop in runs:
-                ch = channels[block.topic]
+                ch = self._channels[block.topic]
                 if (block.seq0 + block.pos) & 0xFFFFFFFF != ch.seq:  # others came between
                     block.renumber(ch.seq)
-                times, raw, size = block.times, block.raw, block.size
-                i = block.pos
+                i, times, raw, size = block.pos, block.times, block.raw, block.size
                 while i < stop:
                     lt = times[i]
                     if w.n and (lt - self._t0 >= span or self._wall_due()):
                         self._flush_chunk()
                     if not w.n:
-                        self._t0 = lt
-                        if self._flush_wall_s:
-                            self._wall0 = time.monotonic()
+                        self._t0, self._wall0 = lt, time.monotonic()
                     j = min(stop, i + max(1, -(-(limit - w.size) // size)))
                     if not block.increasing or times[j - 1] - self._t0 >= span:
                         j = self._span_end(block, i, j)  # the chunk's span ends within the run
