@@ -571,3 +571,23 @@ def test_a_local_cluster_does_not_warn_when_dasks_default_port_is_taken():
         assert not [w for w in seen if "already in use" in str(w.message)]
     finally:
         held.close()
+
+
+def test_the_scheduler_check_works_from_inside_an_event_loop():
+    """run_runs/run_tasks are library calls, and a notebook runs them inside its event loop:
+    the handshake check with a deadline must not need the calling thread's loop."""
+    import asyncio
+    import socket
+
+    from pmsm_hil.sweep.driver import _probe
+
+    async def inside() -> str:
+        with socket.create_server(("127.0.0.1", 0)) as silent:
+            addr = f"tcp://127.0.0.1:{silent.getsockname()[1]}"
+            try:
+                _probe(addr, timeout_s=0.5)
+            except OSError as e:
+                return str(e)
+        return ""
+
+    assert "did not answer as a Dask scheduler in 1.5 s" in asyncio.run(inside())

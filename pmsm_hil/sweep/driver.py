@@ -185,6 +185,7 @@ def _probe(address: str, timeout_s: float = SCHEDULER_TIMEOUT_S) -> None:
     second longer (the scheduler's HTTP dashboard, tcp://HOST:8787, given for the scheduler: Dask's
     client waits for its handshake without end)."""
     import asyncio
+    from concurrent.futures import ThreadPoolExecutor
 
     from distributed.comm import connect
     from distributed.security import Security
@@ -194,8 +195,9 @@ def _probe(address: str, timeout_s: float = SCHEDULER_TIMEOUT_S) -> None:
         comm = await asyncio.wait_for(connect(address, timeout=timeout_s, **args), timeout_s + 1)
         await comm.close()
 
-    try:
-        asyncio.run(handshake())
+    try:  # in a thread of its own: a caller may be inside an event loop (a notebook)
+        with ThreadPoolExecutor(1) as pool:
+            pool.submit(asyncio.run, handshake()).result()
     except TimeoutError:  # asyncio's, from wait_for: the connection was taken, nothing answered
         raise OSError(
             f"something took the connection but did not answer as a Dask scheduler in "
