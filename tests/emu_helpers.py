@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
+import threading
 
 from mcap.reader import make_reader
 
@@ -12,6 +14,29 @@ from pmsm_hil.protocol.session import Session
 from pmsm_hil.runner import RunOptions, run_profile
 
 DEVICE_TOPICS = ("/pmsm/telemetry", "/pmsm/params", "/pmsm/events", "/pmsm/capture", "/sim/truth")
+
+
+@contextlib.contextmanager
+def served_on_pty(profile):
+    """The emulator for ``profile`` served on a pty in this process (its state readable here):
+    (device, server); stopped and closed on the way out."""
+    from pmsm_hil.emulator.fwlib import EmulatedDevice
+    from pmsm_hil.emulator.server import PtyServer
+    from pmsm_hil.emulator.settings import emulator_settings
+
+    settings = emulator_settings(
+        profile.motor, profile.rig, seed=1, baud=profile.link.baud, ts_s=profile.control.ts_s
+    )
+    dev = EmulatedDevice(settings)
+    server = PtyServer(dev)
+    thread = threading.Thread(target=server.serve, daemon=True)
+    thread.start()
+    try:
+        yield dev, server
+    finally:
+        server.stop()
+        thread.join(timeout=5)
+        server.close()
 
 
 def run_inproc(profile_path, out, seed=1, rig=None, **opts):

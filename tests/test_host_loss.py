@@ -10,75 +10,58 @@ import re
 import signal
 import subprocess
 import sys
-import threading
 import time
 
 import numpy as np
 import pytest
-from emu_helpers import emulator_children
+from emu_helpers import emulator_children, served_on_pty
 
-from pmsm_hil.emulator.fwlib import EmulatedDevice
-from pmsm_hil.emulator.server import PtyServer
-from pmsm_hil.emulator.settings import emulator_settings
 from pmsm_hil.profiles import load_profile
 from pmsm_hil.protocol import generated as gen
 from pmsm_hil.runner import LOG_FLUSH_WALL_S
 
 STATE = gen.ENUMS["state"]
+_RUN = [sys.executable, "-m", "pmsm_hil.cli.main", "run", "--no-live"]
+
+
+def _wait_running(dev, profile, after_s: float = 1.0) -> None:
+    """Until the served device has run ``after_s`` of device time (at most 60 s of wall time)."""
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and not (
+        dev.state == STATE["running"] and dev.isr_count * profile.control.ts_s > after_s
+    ):
+        time.sleep(0.01)
 
 
 @pytest.mark.parametrize("how", [signal.SIGKILL, signal.SIGSTOP])
 def test_lost_host_on_serial_stops_the_motor_within_the_heartbeat_time(data, tmp_path, how):
     profile = load_profile(str(data / "long.yaml"))
-    settings = emulator_settings(
-        profile.motor, profile.rig, seed=1, baud=profile.link.baud, ts_s=profile.control.ts_s
-    )
-    dev = EmulatedDevice(settings)
-    server = PtyServer(dev)
-    thread = threading.Thread(target=server.serve, daemon=True)
-    thread.start()
-    host = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "pmsm_hil.cli.main",
-            "run",
-            str(data / "long.yaml"),
-            "--port",
-            server.path,
-            "--out",
-            str(tmp_path / "lost.mcap"),
-            "--no-live",
-        ],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
-    try:
-        deadline = time.monotonic() + 60
-        while time.monotonic() < deadline and not (
-            dev.state == STATE["running"] and dev.isr_count * profile.control.ts_s > 1.0
-        ):
-            time.sleep(0.01)
-        assert dev.state == STATE["running"], "the run never started"
-        os.kill(host.pid, how)
-        deadline = time.monotonic() + 20
-        while time.monotonic() < deadline and dev.state == STATE["running"]:
-            time.sleep(0.002)
-        assert dev.state != STATE["running"], "the motor kept running without its host"
-        ts = profile.control.ts_s
-        silent_s = (dev.isr_count - dev.heartbeat_isr) * ts  # device time since the last heartbeat
-        assert silent_s <= profile.control.heartbeat_timeout_s + 0.01  # + the sampling of this loop
-        deadline = time.monotonic() + 20
-        while time.monotonic() < deadline and dev.active:
-            time.sleep(0.01)
-        assert dev.state == STATE["idle"]  # brought to rest, PWM off
-    finally:
-        if how == signal.SIGSTOP:
-            os.kill(host.pid, signal.SIGKILL)
-        host.wait(timeout=10)
-        server.stop()
-        thread.join(timeout=5)
-        server.close()
+    lost = tmp_path / "lost.mcap"
+    with served_on_pty(profile) as (dev, server):
+        host = subprocess.Popen(
+            [*_RUN, "--port", server.path, str(data / "long.yaml"), "--out", str(lost)],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
+        try:
+            _wait_running(dev, profile)
+            assert dev.state == STATE["running"], "the run never started"
+            os.kill(host.pid, how)
+            deadline = time.monotonic() + 20
+            while time.monotonic() < deadline and dev.state == STATE["running"]:
+                time.sleep(0.002)
+            assert dev.state != STATE["running"], "the motor kept running without its host"
+            ts = profile.control.ts_s
+            silent_s = (dev.isr_count - dev.heartbeat_isr) * ts  # device time since the heartbeat
+            assert silent_s <= profile.control.heartbeat_timeout_s + 0.01  # + this loop's sampling
+            deadline = time.monotonic() + 20
+            while time.monotonic() < deadline and dev.active:
+                time.sleep(0.01)
+            assert dev.state == STATE["idle"]  # brought to rest, PWM off
+        finally:
+            if how == signal.SIGSTOP:
+                os.kill(host.pid, signal.SIGKILL)
+            host.wait(timeout=10)
 
 
 def test_a_killed_hosts_log_holds_every_message_it_had_received(data, tmp_path):
@@ -291,44 +274,31 @@ def test_the_run_after_a_killed_host_logs_only_its_own_session(data, tmp_path):
     from pmsm_hil.log.reader import read_log
 
     profile = load_profile(str(data / "long.yaml"))
-    settings = emulator_settings(
-        profile.motor, profile.rig, seed=1, baud=profile.link.baud, ts_s=profile.control.ts_s
-    )
-    dev = EmulatedDevice(settings)
-    server = PtyServer(dev)
-    thread = threading.Thread(target=server.serve, daemon=True)
-    thread.start()
-    run = [sys.executable, "-m", "pmsm_hil.cli.main", "run", "--port", server.path, "--no-live"]
-    host = subprocess.Popen(
-        [*run, str(data / "long.yaml"), "--out", str(tmp_path / "killed.mcap")],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
-    try:
-        deadline = time.monotonic() + 60
-        while time.monotonic() < deadline and not (
-            dev.state == STATE["running"] and dev.isr_count * profile.control.ts_s > 1.0
-        ):
-            time.sleep(0.01)
-        host.kill()
-        host.wait(timeout=10)
-        deadline = time.monotonic() + 20
-        while time.monotonic() < deadline and dev.state != STATE["idle"]:
-            time.sleep(0.01)
-        assert dev.state == STATE["idle"], "the killed host's motor was not brought to rest"
-        out = tmp_path / "next.mcap"
-        r = subprocess.run(
-            [*run, str(data / "short.yaml"), "--out", str(out)],
-            capture_output=True,
-            text=True,
-            timeout=120,
+    out = tmp_path / "next.mcap"
+    with served_on_pty(profile) as (dev, server):
+        run = [*_RUN, "--port", server.path]
+        host = subprocess.Popen(
+            [*run, str(data / "long.yaml"), "--out", str(tmp_path / "killed.mcap")],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
         )
-    finally:
-        with contextlib.suppress(ProcessLookupError):
+        try:
+            _wait_running(dev, profile)
             host.kill()
-        server.stop()
-        thread.join(timeout=5)
-        server.close()
+            host.wait(timeout=10)
+            deadline = time.monotonic() + 20
+            while time.monotonic() < deadline and dev.state != STATE["idle"]:
+                time.sleep(0.01)
+            assert dev.state == STATE["idle"], "the killed host's motor was not brought to rest"
+            r = subprocess.run(
+                [*run, str(data / "short.yaml"), "--out", str(out)],
+                capture_output=True,
+                text=True,
+                timeout=120,
+            )
+        finally:
+            with contextlib.suppress(ProcessLookupError):
+                host.kill()
     assert r.returncode == 0, r.stdout + r.stderr
     assert "all plateaus within bounds" in r.stdout and "lost frames" not in r.stdout
     log = read_log(out)

@@ -7,13 +7,12 @@ from __future__ import annotations
 import resource
 import subprocess
 import sys
-import threading
 import time
 
 import pytest
+from emu_helpers import served_on_pty
 
 from pmsm_hil.emulator.fwlib import EmulatedDevice
-from pmsm_hil.emulator.server import PtyServer
 from pmsm_hil.emulator.settings import emulator_settings
 from pmsm_hil.log.reader import read_log
 from pmsm_hil.profiles import load_profile
@@ -29,15 +28,8 @@ def _limit_file_size() -> None:
 
 def test_a_full_disk_mid_run_stops_the_motor_and_leaves_a_readable_log(data, tmp_path):
     profile = load_profile(str(data / "long.yaml"))  # 600 s: only the fault ends it
-    settings = emulator_settings(
-        profile.motor, profile.rig, seed=1, baud=profile.link.baud, ts_s=profile.control.ts_s
-    )
-    dev = EmulatedDevice(settings)
-    server = PtyServer(dev)
-    thread = threading.Thread(target=server.serve, daemon=True)
-    thread.start()
     out = tmp_path / "full.mcap"
-    try:
+    with served_on_pty(profile) as (dev, server):
         r = subprocess.run(
             [
                 sys.executable,
@@ -66,10 +58,6 @@ def test_a_full_disk_mid_run_stops_the_motor_and_leaves_a_readable_log(data, tmp
         while dev.active and time.monotonic() - t_exit < 10:
             time.sleep(0.01)
         assert dev.state == STATE["idle"]
-    finally:
-        server.stop()
-        thread.join(timeout=5)
-        server.close()
     assert out.stat().st_size <= LIMIT_OCTETS
     log = read_log(out)  # everything up to the last chunk that fit
     assert not log.finalised

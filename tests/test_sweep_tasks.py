@@ -4,10 +4,12 @@ reported; `gap selftest` on it gives the figures of its trials run one by one in
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import subprocess
 import sys
+import threading
 from pathlib import Path
 
 from pmsm_hil.sweep.tasks import BLAS_THREADS, run_tasks, task_key
@@ -139,11 +141,9 @@ def test_a_run_carries_its_motors_flux_map_wherever_it_executes(tmp_path):
     assert prof.motor.load_flux_map() is not None
 
 
-def test_a_scheduler_without_workers_is_said_and_a_joining_worker_runs_the_trials(tmp_path, capsys):
-    """Dask waits silently for a worker: the user is told why nothing moves, and the trials run
-    once one joins."""
-    import threading
-
+@contextlib.contextmanager
+def _worker_joins_later(after_s: float = 2.0):
+    """A local scheduler without workers, one worker added ``after_s`` later: its address."""
     from distributed import LocalCluster
 
     with LocalCluster(
@@ -153,18 +153,25 @@ def test_a_scheduler_without_workers_is_said_and_a_joining_worker_runs_the_trial
         dashboard_address=None,
         scheduler_kwargs={"dashboard": False},
     ) as cluster:
-        timer = threading.Timer(2.0, lambda: cluster.scale(1))
+        timer = threading.Timer(after_s, lambda: cluster.scale(1))
         timer.start()
         try:
-            res = run_tasks(
-                _square,
-                [{"x": 3, "calls": str(tmp_path)}],
-                name="sq",
-                scheduler=cluster.scheduler_address,
-                progress=False,
-            )
+            yield cluster.scheduler_address
         finally:
             timer.cancel()
+
+
+def test_a_scheduler_without_workers_is_said_and_a_joining_worker_runs_the_trials(tmp_path, capsys):
+    """Dask waits silently for a worker: the user is told why nothing moves, and the trials run
+    once one joins."""
+    with _worker_joins_later() as address:
+        res = run_tasks(
+            _square,
+            [{"x": 3, "calls": str(tmp_path)}],
+            name="sq",
+            scheduler=address,
+            progress=False,
+        )
     assert res == [{"x": 3, "square": 9, "third": 1.0}]
     err = capsys.readouterr().err
     assert "the scheduler has no workers yet" in err and "dask worker tcp://127.0.0.1:" in err
@@ -226,10 +233,6 @@ def _row_of(task):
 def test_a_sweep_whose_workers_joined_after_its_start_counts_them_in_its_end_line(tmp_path):
     """A cluster's scheduler without workers at the start: the runs wait for one, and the end line
     names the workers that ran them (it said "on 0 workers", the count at the start)."""
-    import threading
-
-    from distributed import LocalCluster
-
     from pmsm_hil.sweep.driver import run_runs
     from pmsm_hil.sweep.plan import FILES, Run
 
@@ -237,26 +240,10 @@ def test_a_sweep_whose_workers_joined_after_its_start_counts_them_in_its_end_lin
         Run(index=i, values={}, seed=i, texts=dict.fromkeys(FILES, "name: x\n"), key=f"k{i}")
         for i in range(2)
     ]
-    with LocalCluster(
-        n_workers=0,
-        processes=True,
-        host="127.0.0.1",
-        dashboard_address=None,
-        scheduler_kwargs={"dashboard": False},
-    ) as cluster:
-        timer = threading.Timer(2.0, lambda: cluster.scale(1))
-        timer.start()
-        try:
-            res = run_runs(
-                runs,
-                tmp_path / "out",
-                ["faults"],
-                scheduler=cluster.scheduler_address,
-                progress=False,
-                task_fn=_row_of,
-            )
-        finally:
-            timer.cancel()
+    with _worker_joins_later() as address:
+        res = run_runs(
+            runs, tmp_path / "out", ["faults"], scheduler=address, progress=False, task_fn=_row_of
+        )
     assert res.ok == 2 and res.workers == 1
     assert res.end_lines()[0].startswith("runs: 2 completed, 0 failed to run, 0 done before; ")
     assert res.end_lines()[0].endswith(" runs/min on 1 worker")
