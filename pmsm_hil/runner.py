@@ -332,9 +332,6 @@ class _NoLog(LogWriter):
     def message_block(self, topic: str, t_s: Any, data: Any) -> MessageBlock:
         return MessageBlock(topic, 0, 0, np.zeros(len(data), dtype=np.int64), data)
 
-    def write_block(self, block: MessageBlock, stop: int | None = None) -> None:
-        block.pos = len(block) if stop is None else max(block.pos, stop)
-
     def write_runs(self, runs: Iterable[tuple[MessageBlock, int]]) -> None:
         for block, stop in runs:
             block.pos = max(block.pos, stop)

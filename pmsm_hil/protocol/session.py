@@ -221,8 +221,12 @@ class Session:
                             missed_in_a_row += 1
                         continue
                     missed_in_a_row = 0
-                    if n == 0:  # nothing from here on
-                        end = min(end, off)
+                    if n == 0:  # nothing from here on: nor ask for it
+                        if off < end:
+                            end = off
+                            todo = deque(o for o in todo if o < end)
+                            for o in [o for o in asked if o >= end]:
+                                del asked[o]
                         continue
                     got[off] = fr.fields
                 now = time.monotonic()
@@ -231,9 +235,6 @@ class Session:
                         del asked[off]
                         if not self._retry_or_miss(off, tries, retries, ask):
                             missed_in_a_row += 1
-                todo = deque(o for o in todo if o < end)
-                for off in [o for o in asked if o >= end]:
-                    del asked[off]
         finally:
             self.inbox.extend(held)
         self.capture_missing = sorted(o for o in self.capture_missing if o < end)

@@ -72,40 +72,36 @@ def _parts(path: str) -> list[str | int]:
     return out
 
 
+class _NoField(KeyError):
+    """``parts`` names nothing: ``part`` is not in ``obj``, reached by ``where`` (for _unknown)."""
+
+    def __init__(self, obj: Any, where: str, part: str | int):
+        super().__init__(part)
+        self.obj, self.where, self.part = obj, where, part
+
+
 def _base_value(obj: Any, parts: list[str | int]) -> Any:
-    """The value at ``parts`` in the loaded (validated, defaults filled) objects; KeyError if the
-    path names nothing there."""
+    """The value at ``parts`` in the loaded (validated, defaults filled) objects; _NoField (a
+    KeyError) if the path names nothing there."""
+    where = ""
     for p in parts:
         if isinstance(p, int):
             if not isinstance(obj, (list, tuple)) or p >= len(obj):
-                raise KeyError(p)
-            obj = obj[p]
-        elif hasattr(type(obj), "model_fields"):
-            if p not in type(obj).model_fields:
-                raise KeyError(p)
-            obj = getattr(obj, p)
+                raise _NoField(obj, where, p)
+            obj, where = obj[p], f"{where}[{p}]"
+        elif hasattr(type(obj), "model_fields") and p in type(obj).model_fields:
+            obj, where = getattr(obj, p), f"{where}.{p}".lstrip(".")
         else:
-            raise KeyError(p)
+            raise _NoField(obj, where, p)
     return obj
 
 
-def _unknown(obj: Any, parts: list[str | int], root: str) -> str:
-    """Why ``parts`` names nothing in ``obj`` (``_base_value`` raised KeyError): the index beyond
-    its list's length, or the name with the nearest known one (or the known ones)."""
+def _unknown(e: _NoField, root: str) -> str:
+    """Why a path names nothing: the index beyond its list's length, or the name with the nearest
+    known one (or the known ones)."""
     import difflib
 
-    where = ""
-    for p in parts:
-        if isinstance(p, int) and isinstance(obj, (list, tuple)) and p < len(obj):
-            obj, where = obj[p], f"{where}[{p}]"
-        elif (
-            isinstance(p, str)
-            and hasattr(type(obj), "model_fields")
-            and p in type(obj).model_fields
-        ):
-            obj, where = getattr(obj, p), f"{where}.{p}".lstrip(".")
-        else:
-            break
+    obj, where, p = e.obj, e.where, e.part
     if isinstance(p, int):
         if not isinstance(obj, (list, tuple)):
             return f"{where} is not a list"
@@ -215,11 +211,11 @@ def _check_axes(sweep: Sweep, base: _Base) -> None:
         root, rest = str(parts[0]), parts[1:]
         try:
             value = _base_value(base.objects[root], rest)
-        except KeyError:
+        except _NoField as e:
             problems.append(
                 sweep.src.problem(
                     ("axes", i, "field"),
-                    f"names no field of the {root} ({_unknown(base.objects[root], rest, root)})",
+                    f"names no field of the {root} ({_unknown(e, root)})",
                     ax.field,
                 )
             )
