@@ -292,6 +292,58 @@ def test_a_long_series_is_drawn_from_each_slices_extremes_in_time_order():
     np.testing.assert_array_equal(ys, y[:150])
 
 
+def test_a_long_band_covers_every_samples_band_without_crossing_itself():
+    from pmsm_hil.analysis.report_style import band
+
+    rng = np.random.default_rng(7)
+    t = np.arange(10_037) * 1e-2
+    v = 2.0 + 0.3 * np.sin(t) + rng.normal(scale=0.05, size=len(t))
+    lo, hi = v * 0.98, v * 1.02
+    lo[4000:4100] = hi[4000:4100] = np.nan  # slice 40 entirely: a gap
+    slices, k = 100, len(t) // 100
+    bt, blo, bhi = band(t, lo, hi, slices=slices)
+    assert len(bt) == 2 * slices + (len(t) - slices * k)
+    assert np.all(np.diff(bt) >= 0)
+    assert bt[0] == t[0] and bt[-1] == t[-1]
+    # the band at each sample's time (the step it falls in) holds that sample's band
+    step = np.minimum(np.arange(len(t)) // k, slices)
+    at_lo = np.where(step < slices, blo[2 * np.minimum(step, slices - 1)], np.nan)
+    at_hi = np.where(step < slices, bhi[2 * np.minimum(step, slices - 1)], np.nan)
+    body = (step < slices) & np.isfinite(lo)
+    assert np.all(at_lo[body] <= lo[body]) and np.all(at_hi[body] >= hi[body])
+    for i in (0, 17, 99):  # as tight as the samples: each step is its run's extremes
+        assert blo[2 * i] == np.nanmin(lo[i * k : (i + 1) * k])
+        assert bhi[2 * i + 1] == np.nanmax(hi[i * k : (i + 1) * k])
+    assert np.isnan(blo[80]) and np.isnan(bhi[81])
+    np.testing.assert_array_equal(blo[2 * slices :], lo[slices * k :])  # the remainder as is
+    short = band(t[:150], lo[:150], hi[:150], slices=slices)
+    for got, want in zip(short, (t[:150], lo[:150], hi[:150]), strict=True):
+        np.testing.assert_array_equal(got, want)
+
+
+def test_the_voltage_panels_mean_and_the_angle_errors_wrap():
+    """The 20 ms mean is np.convolve's centred window (zeros beyond the ends) for odd and even
+    windows; the angle error is brought into [-pi, pi] by whole turns."""
+    from pmsm_hil.analysis.report_signals import _mean, _wrap
+
+    rng = np.random.default_rng(5)
+    x = rng.normal(80.0, 40.0, 5003)
+    for step_s in (5e-4, 4.9e-4, 1e-3, 2e-3):  # windows of 40, 41, 20 and 10 samples
+        t = np.arange(len(x)) * step_s
+        n = max(1, round(0.02 / step_s))
+        np.testing.assert_allclose(
+            _mean(t, x, 0.02), np.convolve(x, np.ones(n) / n, mode="same"), atol=1e-9
+        )
+    t = np.arange(len(x)) * 0.05  # a window of one sample: the series as it is
+    np.testing.assert_array_equal(_mean(t, x, 0.02), x)
+    a = rng.uniform(-40.0, 40.0, 10_000)
+    w = _wrap(a)
+    assert np.all(np.abs(w) <= np.pi)
+    turns = (a - w) / (2.0 * np.pi)
+    np.testing.assert_allclose(turns, np.round(turns), atol=1e-9)
+    np.testing.assert_allclose(np.cos(w), np.cos(a), atol=1e-9)
+
+
 def test_report_reads_the_log_once_and_draws_long_series_from_their_envelope(
     short_log, tmp_path, monkeypatch
 ):
