@@ -538,6 +538,34 @@ def test_link_budget_overload_warns(ws):
     assert any("link overloaded" in w for w in p.warnings)
 
 
+def test_a_file_with_problems_is_also_warned_of_its_overloaded_link(ws):
+    """One pass over a broken file finds the link budget too: the overload is listed after the
+    problems (a warning, as for a valid file), computed from its own valid sections."""
+    text = GOOD.replace("fast_hz: 2000", "fast_hz: 2500")
+    broken = text.replace("duration_s: 1.0", "duration_s: 0")
+    assert broken != text
+    with pytest.raises(ProfileError) as ei:
+        load_profile(write("x.yaml", broken))
+    e = ei.value
+    assert [p.field for p in e.problems] == ["segments[0].duration_s"]
+    valid = load_profile(write("y.yaml", text))
+    line = next(w for w in valid.warnings if "link overloaded" in w).split(":")[1]
+    assert e.warnings == [f"x.yaml:{line}: {link_budget(valid)['warning']}"]
+    assert str(e).splitlines()[-1] == "warning: " + e.warnings[0]
+    # a problem in the sections the budget reads: no budget of values that are wrong
+    for bad in (
+        broken.replace("rho: 1.0", "rho: -1"),
+        broken.replace("fast_hz: 2500", "fast_hz: 3000\n  params_hz: 30000"),
+    ):
+        with pytest.raises(ProfileError) as ei:
+            load_profile(write("z.yaml", bad))
+        assert ei.value.warnings == [] and "warning" not in str(ei.value)
+    # nor a file whose link fits
+    with pytest.raises(ProfileError) as ei:
+        load_profile(write("w.yaml", GOOD.replace("duration_s: 1.0", "duration_s: 0")))
+    assert ei.value.warnings == []
+
+
 def test_payload_sizes_match_the_protocol_source():
     proto = ROOT / "firmware" / "proto" / "pmsm_proto.yaml"
     if not proto.exists():

@@ -58,12 +58,15 @@ class ProfileError(Exception):
     of them and ``str()`` lists them one per line.
     """
 
-    def __init__(self, problems: list[Problem] | Problem):
+    def __init__(self, problems: list[Problem] | Problem, warnings: list[str] | None = None):
         if isinstance(problems, Problem):
             problems = [problems]
         if not problems:
             raise ValueError("ProfileError needs at least one problem")
         self.problems: list[Problem] = list(problems)
+        # what the file would be warned of once valid (e.g. an overloaded link), listed after the
+        # problems so that one pass over the file finds both
+        self.warnings: list[str] = list(warnings or [])
         first = self.problems[0]
         self.file: str = first.file
         self.line: int | None = first.line
@@ -72,7 +75,9 @@ class ProfileError(Exception):
         super().__init__(str(self))
 
     def __str__(self) -> str:
-        return "\n".join(str(p) for p in self.problems)
+        return "\n".join(
+            [*(str(p) for p in self.problems), *(f"warning: {w}" for w in self.warnings)]
+        )
 
 
 # ----------------------------------------------------------------------------------- formatting

@@ -6,7 +6,7 @@ from __future__ import annotations
 import bisect
 import math
 import os
-from typing import Any
+from typing import Any, NamedTuple
 
 from pydantic import ValidationError
 
@@ -199,8 +199,16 @@ class Profile:
 # ----------------------------------------------------------------------------------- link budget
 
 
+class Sections(NamedTuple):
+    """The sections of a profile that its link budget reads (of a file that has other problems)."""
+
+    control: Control
+    telemetry: Telemetry
+    link: Link
+
+
 def link_budget(
-    profile: Profile, *, emulator: bool = True, n_estimators: int | None = None
+    profile: Profile | Sections, *, emulator: bool = True, n_estimators: int | None = None
 ) -> dict:
     """Octets/s that each telemetry stream needs against the serial link's capacity (baud / 10).
 
@@ -240,7 +248,7 @@ def link_budget(
     others = total - streams["telem_fast"]["octets_s"]
     frame = streams["telem_fast"]["frame_octets"]
     fit = max((capacity - others) / frame, 0.0)
-    ctrl = profile.control_hz
+    ctrl = 1.0 / profile.control.ts_s
     n = math.ceil(ctrl / fit) if fit > 0 else 0
     fast_hz_fit = min(tel.fast_hz, round(ctrl / n, 6)) if n else 0.0
     if load > 1.0:
@@ -519,13 +527,36 @@ def load_profile(
     checks, warnings = _profile_checks(src, motor)
     problems += checks + acceptance_problems(src)
     if problems:
-        raise ProfileError(_ordered(problems))
+        raise ProfileError(_ordered(problems), _budget_warnings(src, path, problems))
     assert spec is not None and motor is not None and rig is not None
     profile = Profile(spec, path, src.text, motor, rig, notes + warnings)
     budget = link_budget(profile)
     if budget["warning"]:
         profile.warnings.append(f"{path}:{src.line(('telemetry',))}: {budget['warning']}")
     return profile
+
+
+def _budget_warnings(src: Source, path: str, problems: list[Problem]) -> list[str]:
+    """The link-budget warning of a file with other problems, when its control, telemetry and
+    link sections have none: with the problems, not after they are fixed."""
+    if any(
+        p.file == path and (p.field or "").startswith(("control", "telemetry", "link"))
+        for p in problems
+    ):
+        return []
+    d = src.data if isinstance(src.data, dict) else {}
+    try:
+        budget = link_budget(
+            Sections(
+                Control.model_validate(d.get("control") or {}),
+                Telemetry.model_validate(d.get("telemetry") or {}),
+                Link.model_validate(d.get("link") or {}),
+            )
+        )
+    except (ValidationError, TypeError, ValueError):
+        return []
+    warning = budget["warning"]
+    return [f"{path}:{src.line(('telemetry',))}: {warning}"] if warning else []
 
 
 def _ordered(problems: list[Problem]) -> list[Problem]:
