@@ -13,6 +13,7 @@ PKG = Path(__file__).resolve().parents[1] / "pmsm_hil"
 # package -> packages of pmsm_hil it must never import (directly or inside a function)
 FORBIDDEN = {
     "errors": {"*"},
+    "names": {"*"},
     "profiles": {
         "protocol",
         "transport",

@@ -272,13 +272,14 @@ def main(args: argparse.Namespace) -> int:
             and not os.path.exists(args.target)
             and not args.target.endswith(".mcap")
         ):
-            import difflib
+            from pmsm_hil.names import closest
 
-            close = difflib.get_close_matches(args.target, ACTIONS, n=1, cutoff=0.6)
+            close = closest(args.target, ACTIONS)
             if close:
                 return fail(
                     "error",
-                    f"{args.target}: no such file or action; did you mean `gap {close[0]}`? "
+                    f"{args.target}: no such file or action; did you mean "
+                    f"{' or '.join(f'`gap {c}`' for c in close)}? "
                     f"(actions: {', '.join(ACTIONS)}; or a LOG.mcap to diagnose)",
                     2,
                 )

@@ -4,7 +4,6 @@ loader is pmsm_hil.profiles._source)."""
 
 from __future__ import annotations
 
-import difflib
 import re
 import types
 import typing
@@ -12,6 +11,8 @@ from typing import Any
 
 import annotated_types
 from pydantic import BaseModel, ValidationError
+
+from pmsm_hil.names import did_you_mean
 
 from ._source import Problem, Source, fmt_num, loc_str, unit_of
 
@@ -216,10 +217,10 @@ def validation_problems(
             continue
         if typ == "extra_forbidden":
             allowed = list(owner.model_fields) if owner is not None else []
-            close = difflib.get_close_matches(name, allowed, n=1, cutoff=0.6)
+            hint = did_you_mean(str(name), allowed)
             section = loc_str(loc[:-1]) or "the file"
-            if close:
-                msg = f"is not a field of {section}; did you mean '{close[0]}'?"
+            if hint:
+                msg = f"is not a field of {section}{hint}"
             else:
                 msg = f"is not a field of {section} (known: {', '.join(allowed)})"
             out.append(src.problem(loc, msg, value))

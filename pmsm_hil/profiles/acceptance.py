@@ -25,6 +25,8 @@ from typing import Annotated, Literal
 
 from pydantic import Field
 
+from pmsm_hil.names import did_you_mean
+
 from ._base import StrictModel
 from ._source import Problem, Source
 
@@ -137,16 +139,11 @@ def acceptance_problems(src: Source) -> list[Problem]:
                 )
             )
         elif isinstance(ref, str) and ref not in names:
-            import difflib
-
-            close = difflib.get_close_matches(
-                ref, [n for n in names if isinstance(n, str)], n=1, cutoff=0.6
-            )
             m = re.fullmatch(r"segment (\d+)", ref.strip())
             if m and int(m.group(1)) < len(segs) and not names[int(m.group(1))]:
                 hint = f"; an unnamed segment is given by its index: segment: {m.group(1)}"
             else:
-                hint = f"; did you mean {close[0]!r}?" if close else ""
+                hint = did_you_mean(ref, [n for n in names if isinstance(n, str)])
             out.append(src.problem(loc, "names no segment of the profile" + hint, ref))
         elif isinstance(ref, str) and names.count(ref) > 1:
             out.append(src.problem(loc, "names more than one segment: give its index", ref))

@@ -17,10 +17,11 @@ paper-a-ipmsm` works as on the command line.
 
 from __future__ import annotations
 
-import difflib
 import importlib.util
 import os
 from pathlib import Path
+
+from pmsm_hil.names import did_you_mean
 
 from ._source import Problem, ProfileError
 
@@ -127,16 +128,7 @@ def _close(name: str, stems: list[str], kind: str) -> str:
     """'; did you mean ...?' for a shipped name written with other case or separators
     (``Paper-A``, ``labtypical``, ``paper_a``) or misspelt."""
 
-    def key(x: str) -> str:
-        return "".join(c for c in x.lower() if c.isalnum())
-
-    want = key(name.removesuffix(KINDS[kind][1]))
-    same = [n for n in stems if key(n) == want]
-    begun = [n for n in stems if want and key(n).startswith(want)]  # "sew": sew-cm3c80s
-    if not same and len(begun) > 1:  # "paper": several; none is more likely than another
-        return f"; did you mean one of {', '.join(map(repr, begun))}?"
-    close = same or begun or difflib.get_close_matches(name.lower(), stems, n=1, cutoff=0.6)
-    return f"; did you mean {close[0]!r}?" if close else ""
+    return did_you_mean(name.removesuffix(KINDS[kind][1]), stems)
 
 
 def _not_found(text: str, why: str) -> ProfileError:
@@ -163,10 +155,9 @@ def near_name(ref: str, kind: str) -> str:
     to be, or the shipped names (appended to the file's "cannot be read")."""
     names = [p.stem for p in shipped(kind)]
     stem = os.path.basename(ref).removesuffix(KINDS[kind][1])
-    close = difflib.get_close_matches(stem, names, n=1, cutoff=0.6)
-    if close:
-        return f"; did you mean the shipped {kind} '{close[0]}'?"
-    return f" (shipped {kind}s: {', '.join(names)})"
+    return did_you_mean(stem, names, f"the shipped {kind} ") or (
+        f" (shipped {kind}s: {', '.join(names)})"
+    )
 
 
 def _shipped_named(name: str, kind: str) -> Path | None:

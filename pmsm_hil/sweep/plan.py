@@ -22,6 +22,7 @@ import numpy as np
 import yaml
 from pydantic import ConfigDict, TypeAdapter, ValidationError
 
+from pmsm_hil.names import did_you_mean
 from pmsm_hil.profiles import ProfileError, load_profile
 from pmsm_hil.profiles._source import Problem, fmt_value, loc_str, read_source, resolve_ref
 from pmsm_hil.profiles._validation import error_message, resolve_field
@@ -99,8 +100,6 @@ def _base_value(obj: Any, parts: list[str | int]) -> Any:
 def _unknown(e: _NoField, root: str) -> str:
     """Why a path names nothing: the index beyond its list's length, or the name with the nearest
     known one (or the known ones)."""
-    import difflib
-
     obj, where, p = e.obj, e.where, e.part
     if isinstance(p, int):
         if not isinstance(obj, (list, tuple)):
@@ -110,9 +109,9 @@ def _unknown(e: _NoField, root: str) -> str:
     known = list(type(obj).model_fields) if hasattr(type(obj), "model_fields") else []
     if not known:
         return f"{where} is a value, it has no {p!r}"
-    close = difflib.get_close_matches(p, known, n=1, cutoff=0.6)
-    if close:
-        return f"{p!r} is unknown; did you mean {close[0]!r}?"
+    hint = did_you_mean(p, known)
+    if hint:
+        return f"{p!r} is unknown{hint}"
     return f"{p!r} is unknown; {where or 'the ' + root} has {', '.join(known)}"
 
 
