@@ -31,7 +31,7 @@ def _fmt(v):
     return f"{v:.3g}"
 
 
-def _clo(v):
+def closure_text(v: float | None) -> str:
     """A closure for the console: beyond [-1, 10] it only says that the gap above the noise floor
     is within the floor's own error (the ratio's denominator near zero: it once printed 3.6e10)."""
     if v is None:
@@ -102,14 +102,14 @@ def verdict_lines(res: dict) -> list[str]:
     c = res["closure"]
     if res["selected"]:
         out.append(
-            f"  held-out closure {_clo(c['closure'])} [{_clo(c['closure_interval'][0])}, {_clo(c['closure_interval'][1])}] (test blocks)"
+            f"  held-out closure {closure_text(c['closure'])} [{closure_text(c['closure_interval'][0])}, {closure_text(c['closure_interval'][1])}] (test blocks)"
             + (
-                f", {_clo(res['closure_region']['closure'])} (held-out speed region)"
+                f", {closure_text(res['closure_region']['closure'])} (held-out speed region)"
                 if "closure_region" in res
                 else ""
             )
             + (
-                f", {_clo(res['closure_record']['closure'])} (held-out record)"
+                f", {closure_text(res['closure_record']['closure'])} (held-out record)"
                 if "closure_record" in res
                 else ""
             )

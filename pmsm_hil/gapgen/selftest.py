@@ -332,13 +332,13 @@ def print_selftest(res: dict) -> None:
     print(f"  false attribution (null trials)     {f(res['false_attribution_null'])}")
     print(f"  an effect named beyond the hidden   {f(res['extra_effect_named'])}")
     print(f"  outside the library: none selected or 'unexplained'  {f(res['outside_flagged'])}")
-    from pmsm_hil.gap.report import _clo
+    from pmsm_hil.gap.report import closure_text
 
     # a closure as the diagnosis prints it (beyond [-1, 10]: the gap is within the floor's error);
     # a magnitude error is relative to the true magnitude: in percent
     for k, text in (
-        ("median_closure_test_blocks", _clo),
-        ("median_closure_heldout_record", _clo),
+        ("median_closure_test_blocks", closure_text),
+        ("median_closure_heldout_record", closure_text),
         ("median_magnitude_error", _pct),
         ("worst_magnitude_error", _pct),
     ):
