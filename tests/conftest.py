@@ -18,6 +18,20 @@ def data() -> Path:
     return DATA
 
 
+@pytest.fixture()
+def ws(tmp_path, monkeypatch):
+    """A work directory laid out like profiles/ (motors/, rigs/) with paper A's motor and the
+    default rig, as the working directory, so that messages carry short relative paths."""
+    import shutil
+
+    (tmp_path / "motors").mkdir()
+    (tmp_path / "rigs").mkdir()
+    shutil.copy(ROOT / "profiles" / "motors" / "paper-a-ipmsm.yaml", tmp_path / "motors")
+    shutil.copy(ROOT / "profiles" / "rigs" / "default.yaml", tmp_path / "rigs")
+    monkeypatch.chdir(tmp_path)
+    return tmp_path
+
+
 @pytest.fixture(autouse=True)
 def _chdir_tmp(tmp_path, monkeypatch):
     """Tests run in a temporary folder so that default log paths do not litter the tree."""
