@@ -11,16 +11,19 @@
     def test_on_the_bench(hil_device):
         hil_device.run("paper-a").assert_accepted()
 
-Options: ``--hil-port /dev/ttyUSB0`` (a rig on a serial port), ``--hil-can SPEC`` (a rig on CAN,
-a python-can spec as for `pmsm-hil run --can`), else the in-process emulator; ``--hil-rig`` (a rig
-file or shipped name replacing each profile's, as `pmsm-hil run --rig`: on the emulator its plant,
-on a real rig only what the firmware is configured from, the encoder's counts), ``--hil-seed``
-(the emulator's, default 1). They are checked once, when pytest starts (`pytest_configure`): a bad
-one is a usage error naming the option (exit code 4), before any test runs.
+Options: ``--hil-port=/dev/ttyUSB0`` (a rig on a serial port; one word, else pytest takes the
+port for a test path when it looks for its ini file, and the plugin warns), ``--hil-can SPEC`` (a
+rig on CAN, a python-can spec as for `pmsm-hil run --can`), else the in-process emulator;
+``--hil-rig`` (a rig file or shipped name replacing each profile's, as `pmsm-hil run --rig`: on
+the emulator its plant, on a real rig only what the firmware is configured from, the encoder's
+counts), ``--hil-seed`` (the emulator's, default 1). They are checked once, when pytest starts
+(`pytest_configure`): a bad one is a usage error naming the option (exit code 4), before any test
+runs.
 """
 
 from __future__ import annotations
 
+import itertools
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -133,7 +136,28 @@ class HilDevice:
         """Run a profile (a path or a shipped name) to the end; the log goes to ``out`` (default: a
         numbered file in the session's log folder). A relative path is taken from the working
         directory pytest runs in, not the test file's folder: give ``Path(__file__).parent /
-        "mine.yaml"`` for a profile beside the test."""
+        "mine.yaml"`` for a profile beside the test.
+
+        A bad profile (ProfileError), a link that cannot be opened or drops (TransportError) or a
+        device that does not answer (DeviceError) is raised as itself, its message saying what
+        and where, shown at the test's line without the frames of pmsm-hil and pyserial under it
+        (hundreds of lines for a port that is not a serial port)."""
+        from pmsm_hil.errors import DeviceError, TransportError
+        from pmsm_hil.profiles import ProfileError
+
+        __tracebackhide__ = True
+        try:
+            return self._run(profile, out, seed, rig)
+        except (ProfileError, TransportError, DeviceError) as e:
+            raise e.with_traceback(None) from None
+
+    def _run(
+        self,
+        profile: str | os.PathLike,
+        out: str | os.PathLike | None,
+        seed: int | None,
+        rig: str | None,
+    ) -> HilRun:
         from pmsm_hil.profiles import load_profile
         from pmsm_hil.profiles.shipped import resolve
         from pmsm_hil.sweep.execute import run_in_process
@@ -211,6 +235,32 @@ def pytest_configure(config: pytest.Config) -> None:
         "markers", "hil_rig: needs a real rig (--hil-port or --hil-can); skipped on the emulator"
     )
     config.stash[_SEED] = _checked_options(config)
+    taken = _option_taken_for_a_test_path(config)
+    if taken:
+        config.issue_config_time_warning(pytest.PytestConfigWarning(taken), stacklevel=2)
+
+
+def _option_taken_for_a_test_path(config: pytest.Config) -> str | None:
+    """pytest finds its rootdir and ini file before it knows a plugin's options: in `pytest
+    --hil-port /dev/ttyUSB0` it takes the port for a test path, roots at /dev and reads no ini
+    file of the folder it runs in (its markers, addopts, testpaths). What to write instead, when
+    that happened; `--hil-port=/dev/ttyUSB0` (one word) is not taken for a path."""
+    here, root = config.invocation_params.dir, config.rootpath
+    if here.is_relative_to(root):
+        return None
+    for option, value in itertools.pairwise(config.invocation_params.args):
+        if (
+            option in ("--hil-port", "--hil-rig")
+            and os.path.exists(value)
+            and Path(value).absolute().is_relative_to(root)
+        ):
+            return (
+                f"pytest took {value} (the value of {option}) for a test path when it looked "
+                f"for its configuration: rootdir {root}, and an ini file of {here} "
+                "(pytest.ini, pyproject.toml ...) is not read. "
+                f"Write {option}={value} (one word), or name the tests' folder too"
+            )
+    return None
 
 
 def _checked_options(config: pytest.Config) -> int:

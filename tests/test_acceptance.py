@@ -96,6 +96,13 @@ def with_acceptance(tmp_path, data, text: str, name: str = "p.yaml"):
             "acceptance.run",
             "checks nothing",
         ),
+        # one segment's bound twice, by index and by name: which would judge it is a guess
+        (
+            "acceptance:\n  segments:\n    - {segment: 1, recovery_max_s: 0.2}\n"
+            '    - {segment: "load on", recovery_max_s: 0.3}\n',
+            "acceptance.segments[1].recovery_max_s",
+            "= 0.3 bounds segment 1 again (acceptance.segments[0] bounds it already)",
+        ),
     ],
 )
 def test_acceptance_errors_name_file_line_field(tmp_path, data, text, field, message):
@@ -109,6 +116,45 @@ def test_acceptance_errors_name_file_line_field(tmp_path, data, text, field, mes
     assert line > n_lines  # on a line of the acceptance section
     assert f" {field}" in msg and message in msg, msg
     assert ".constrained-float" not in msg and ".str" not in msg and ".int" not in msg
+
+
+def test_an_identification_bound_given_twice_is_refused(tmp_path, data):
+    """Two bounds on one estimator's parameter: refused on the second one's line (which would judge
+    is a guess); the same parameter's other bound, or another estimator's, is not a repeat."""
+    p = with_acceptance(
+        tmp_path,
+        data,
+        "acceptance:\n  run:\n    identification:\n"
+        "      - {estimator: nlms_adaline, param: l_q_h, error_max_rel: 0.02}\n"
+        "      - {estimator: rls, param: l_q_h, error_max_rel: 0.02}\n"
+        "      - {estimator: nlms_adaline, param: l_q_h, conv_max_s: 0.5}\n"
+        "      - {estimator: nlms_adaline, param: l_q_h, error_max_rel: 0.5}\n",
+    )
+    p.write_text(p.read_text().replace("segments:", "control: {identify: true}\nsegments:", 1))
+    with pytest.raises(ProfileError) as e:
+        load_profile(p)
+    assert len(e.value.problems) == 1, str(e.value)
+    line = (
+        p.read_text()
+        .splitlines()
+        .index("      - {estimator: nlms_adaline, param: l_q_h, error_max_rel: 0.5}")
+    )
+    assert str(e.value) == (
+        f"{p}:{line + 1}: acceptance.run.identification[3].error_max_rel = 0.5 bounds nlms_adaline "
+        "l_q_h again (acceptance.run.identification[0] bounds it already): give each bound once"
+    )
+
+
+def test_one_segment_may_take_its_bounds_in_several_items(tmp_path, data):
+    """Two items on one segment are fine while they bound different quantities."""
+    p = with_acceptance(
+        tmp_path,
+        data,
+        "acceptance:\n  segments:\n    - {segment: 1, recovery_max_s: 0.2}\n"
+        '    - {segment: "load on", ripple_q_max_a: 2.0}\n',
+    )
+    acc = load_profile(p).acceptance
+    assert acc is not None and len(acc.segments) == 2
 
 
 def test_an_unnamed_segment_is_pointed_to_its_index(tmp_path, data):

@@ -182,3 +182,24 @@ def test_bench_help_names_the_defaults(capsys, monkeypatch):
         cli_main(["bench", "commission", "--help"])
     text = " ".join(capsys.readouterr().out.split())
     assert "default default,lab-typical" in text and "seeds (default 1-10)" in text
+
+
+def test_bench_help_says_what_each_benchmark_runs_and_where_it_writes(capsys, monkeypatch):
+    """`bench identify|commission|sensorless --help` open with what the benchmark runs (how long,
+    how to make it smaller) and name the default output folder: before, only the options."""
+    monkeypatch.setenv("COLUMNS", "300")
+    for which, says, out in (
+        (
+            "identify",
+            "Runs paper-a-identify on the emulator (a few seconds)",
+            "runs/bench-identify",
+        ),
+        ("commission", "Commissions the emulated drive on every rig and seed", None),
+        ("sensorless", "--only paper-b --rigs default --seeds 11", "runs/bench-sensorless"),
+    ):
+        with pytest.raises(SystemExit):
+            cli_main(["bench", which, "--help"])
+        text = " ".join(capsys.readouterr().out.split())
+        assert says in text, which
+        if out:
+            assert f"default {out})" in text, which

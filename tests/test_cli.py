@@ -40,6 +40,28 @@ def test_run_on_the_emulator_writes_a_log_and_a_summary(data, tmp_path):
     assert a.returncode == 0 and "load on" in a.stdout
 
 
+def test_an_mcap_file_of_another_program_is_named_as_such(tmp_path):
+    """analyze and report of a valid MCAP file with none of pmsm-hil's topics (a ROS bag, another
+    logger) say so and list its topics, rather than "no telemetry ... cut off"."""
+    from mcap.writer import Writer
+
+    other = tmp_path / "other.mcap"
+    with open(other, "wb") as f:
+        w = Writer(f)
+        w.start()
+        schema = w.register_schema("Pose", "jsonschema", b"{}")
+        for i, topic in enumerate(("/tf", "/odom")):
+            w.add_message(w.register_channel(topic, "json", schema), i, b"{}", i)
+        w.finish()
+    for cmd in ("analyze", "report"):
+        r = cli(cmd, other, timeout=60)
+        assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+        assert "an MCAP file of another program (topics: /odom, /tf), not a pmsm-hil log" in (
+            r.stderr
+        ), cmd
+        assert "no telemetry" not in r.stderr
+
+
 def test_bad_profile_names_file_line_field(tmp_path, root):
     bad = tmp_path / "bad.yaml"
     bad.write_text(

@@ -379,3 +379,25 @@ def test_two_commissionings_in_one_second_keep_both_logs(tmp_path, monkeypatch, 
     assert "without the encoder step, the steps l_dq take the rotor angle" in " ".join(
         out.err.split()
     )
+
+
+@pytest.mark.parametrize(
+    "there,args",
+    [("kept.mcap", []), ("kept-flux-map.mcap", ["--flux-map"]), ("kept.mcap", ["--flux-map"])],
+)
+def test_a_log_that_is_there_is_kept_as_run_keeps_one(tmp_path, monkeypatch, capsys, there, args):
+    """`--log` naming a log that is there (or, with --flux-map, its flux map's log) is refused
+    before the device is opened, as `run --out` refuses one: before, it was written over."""
+    import pmsm_hil.device
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(pmsm_hil.device, "open_device", _never_open)
+    (tmp_path / there).write_bytes(b"an earlier run")
+    argv = ["commission", "--in-process", "-o", "m.yaml", "--log", "kept.mcap", *args]
+    assert cli_main(argv) == 2
+    err = " ".join(capsys.readouterr().err.split())
+    assert "--log kept.mcap: " in err and "--overwrite replaces it" in err, err
+    assert (tmp_path / there).read_bytes() == b"an earlier run"
+    assert not (tmp_path / "m.yaml").exists()
+    with pytest.raises(AssertionError, match="the device was opened"):  # --overwrite goes on
+        cli_main([*argv, "--overwrite"])

@@ -5,6 +5,10 @@ the flux-map CSV format and named in it, and bad requests are refused with the r
 
 from __future__ import annotations
 
+import signal
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 import yaml
@@ -119,3 +123,26 @@ def test_bad_requests_name_the_problem(tmp_path, capsys):
     code = cli_main(["commission", "--flux-map", "--map-rpm", "100", "--in-process", "-o", out])
     assert code == 2
     assert "needs two speeds" in capsys.readouterr().err
+
+
+def test_an_interrupted_flux_map_names_the_motor_file_the_sequence_wrote(tmp_path):
+    """Ctrl-C during the map: exit 130, the motor was stopped, and the motor file the sequence
+    wrote before the map is named (usable, without a map) rather than left unmentioned."""
+    out = tmp_path / "m.yaml"
+    cmd = [sys.executable, "-m", "pmsm_hil.cli.main", "commission", "--flux-map", "--steps"]
+    cmd += ["offsets,v_dc", "-o", str(out), "--log", str(tmp_path / "c.mcap")]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert proc.stdout is not None
+    lines = []
+    for line in proc.stdout:
+        lines.append(line)
+        if "flux map: segment 3 of" in line:
+            proc.send_signal(signal.SIGINT)
+            break
+    rest, err = proc.communicate(timeout=120)
+    text = "".join(lines) + rest
+    assert proc.returncode == 130, text + err
+    assert "flux map interrupted; the motor was stopped" in err
+    assert f"motor file: {out}, without a flux map" in text
+    m = load_motor(out)
+    assert m.commissioning is not None and "flux_map" not in m.commissioning

@@ -170,3 +170,50 @@ def test_a_relative_profile_path_is_the_working_directorys(pytester, data):
     )
     r = pytester.runpytest_subprocess("suite", "-p", "no:cacheprovider")  # from the folder above
     r.assert_outcomes(passed=2)
+
+
+def test_a_port_given_as_two_words_is_not_taken_for_the_rootdir_silently(pytester):
+    """pytest looks for its ini file before it knows the plugin's options: `--hil-port /dev/X`
+    roots it at /dev and the project's ini file goes unread. The plugin says so and names the
+    form that avoids it (`--hil-port=/dev/X`), which finds the ini file."""
+    pytester.makeini("[pytest]\naddopts = -p no:cacheprovider\n")
+    pytester.makepyfile(test_user="def test_one():\n    pass\n")
+    r = pytester.runpytest_subprocess("--hil-port", os.devnull, "--co")
+    out = r.stdout.str()
+    assert f"pytest took {os.devnull} (the value of --hil-port) for a test path" in out, out
+    assert f"Write --hil-port={os.devnull} (one word)" in out
+    r = pytester.runpytest_subprocess(f"--hil-port={os.devnull}", "--co")
+    out = r.stdout.str()
+    assert "configfile: tox.ini" in out, out  # makeini writes tox.ini
+    assert "for a test path" not in out
+
+
+def test_a_bad_profile_or_port_fails_at_the_users_line_without_the_library_frames(pytester):
+    """`hil_device.run` raises a ProfileError, TransportError or DeviceError as itself (a test may
+    expect it), shown at the test's line with its message: not pyserial's frames and pmsm-hil's
+    (some 130 lines per test for a port that is not a serial port)."""
+    pytester.makepyfile(
+        test_user="""
+        import pytest
+        from pmsm_hil.errors import TransportError
+        from pmsm_hil.profiles import ProfileError
+
+        def test_name(hil_device):
+            hil_device.run("paper-aa")  # THE NAME LINE
+
+        def test_port(hil_device):
+            hil_device.run("paper-a")  # THE PORT LINE
+
+        def test_expected(hil_device):
+            with pytest.raises((ProfileError, TransportError)):
+                hil_device.run("paper-aa")
+    """
+    )
+    r = pytester.runpytest_subprocess(f"--hil-port={os.devnull}", "-p", "no:cacheprovider")
+    r.assert_outcomes(failed=2, passed=1)
+    out = r.stdout.str()
+    assert "THE NAME LINE" in out and "THE PORT LINE" in out
+    assert "ProfileError: paper-aa: is neither a file nor a shipped profile" in out
+    assert f"TransportError: serial port {os.devnull} cannot be opened" in out
+    assert "serialposix.py" not in out and "shipped.py" not in out and "testing.py" not in out
+    assert len(out.splitlines()) < 60, out

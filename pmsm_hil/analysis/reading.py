@@ -22,10 +22,17 @@ def read_for_analysis(path: str | os.PathLike) -> Log:
 
 
 def other_kind(log: Log) -> str | None:
-    """Why ``log`` is not a profile run that `analyze` and `report` judge (None when it is): an
-    imported record (control-rate data only, `pmsm-hil import`) or a commissioning run (its
-    results are the commissioned motor file's)."""
+    """Why ``log`` is not a profile run that `analyze` and `report` judge (None when it is):
+    another program's MCAP file (no topic of pmsm-hil's), an imported record (control-rate data
+    only, `pmsm-hil import`) or a commissioning run (its results are the commissioned motor
+    file's)."""
     topics = set(log.topics)
+    if topics and not any(t.startswith(("/pmsm/", "/sim/")) for t in topics):
+        shown = ", ".join(sorted(topics)[:5]) + (", ..." if len(topics) > 5 else "")
+        return (
+            f"an MCAP file of another program (topics: {shown}), not a pmsm-hil log: "
+            "`pmsm-hil run` writes /pmsm/telemetry, /pmsm/events ... (docs/log-format.md)"
+        )
     if "/pmsm/control_rate" in topics and "/pmsm/telemetry" not in topics:
         return (
             "an imported control-rate record (pmsm-hil import), not a profile run: diagnose it "

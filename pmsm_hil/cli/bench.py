@@ -26,7 +26,13 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     )
     bsub = p.add_subparsers(dest="bench", required=True, metavar="BENCH")
     b = bsub.add_parser(
-        "identify", help="online identification: RLS, Adaline, NLMS-Adaline vs paper A Table 2"
+        "identify",
+        help="online identification: RLS, Adaline, NLMS-Adaline vs paper A Table 2",
+        description="Runs paper-a-identify on the emulator (a few seconds) and prints the final "
+        "estimates and convergence times of RLS, Adaline and NLMS-Adaline beside paper A's Table "
+        "2; writes the log, the convergence plot and the table into --out. --mismatch, "
+        "--per-effect and --rigs add runs on a local Dask cluster, with a progress bar "
+        "(docs/identification.md).",
     )
     b.add_argument(
         "--profile",
@@ -38,7 +44,8 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         "--out",
         "-o",
         default="runs/bench-identify",
-        help="directory for the log, the convergence plot (PNG) and the table (markdown)",
+        help="directory for the log, the convergence plot (PNG) and the table (markdown; default "
+        "runs/bench-identify)",
     )
     b.add_argument(
         "--seed",
@@ -104,6 +111,10 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     c = bsub.add_parser(
         "commission",
         help="commissioning on the emulator: errors per step over rigs and seeds vs the targets",
+        description="Commissions the emulated drive on every rig and seed (one trial each, on a "
+        "local Dask cluster: docs/sweep.md) and tables each step's errors against the plant, "
+        "median and worst over the seeds, beside the targets (docs/commissioning.md). --rigs and "
+        "--seeds make it smaller.",
     )
     c.add_argument(
         "--rigs",
@@ -124,9 +135,17 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         "sensorless",
         help="sensorless estimators closing the loop: angle and speed errors per scenario and rig "
         "(median and worst over seeds) beside the papers' figures, with plots",
+        description="Runs the sensorless scenarios (paper-b, paper-a-sensorless) on every rig and "
+        "seed (12 runs by default, on a local Dask cluster, with a progress bar) and writes the "
+        "angle and speed errors per scenario and rig, median and worst over the seeds, beside the "
+        "papers' figures, with plots (docs/sensorless-bench.md). --only, --rigs and --seeds make "
+        "it smaller, e.g. --only paper-b --rigs default --seeds 11.",
     )
     s.add_argument(
-        "--out", "-o", default="runs/bench-sensorless", help="directory for logs, table, plots"
+        "--out",
+        "-o",
+        default="runs/bench-sensorless",
+        help="directory for logs, table, plots (default runs/bench-sensorless)",
     )
     s.add_argument(
         "--seeds",

@@ -44,7 +44,13 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     p.add_argument(
         "--log",
         default=None,
-        help="MCAP log, *.mcap (default runs/commission-DATE.mcap, -2, -3 ... when that exists)",
+        help="MCAP log, *.mcap (default runs/commission-DATE.mcap, -2, -3 ... when that exists); "
+        "an existing one is kept unless --overwrite",
+    )
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace the log at --log (and with --flux-map its LOG-flux-map.mcap) if there is one",
     )
     p.add_argument(
         "--steps",
@@ -155,6 +161,8 @@ def main(args: argparse.Namespace) -> int:
             )
     code = check_output(out, "-o", (".yaml", ".yml"), "the result is a motor file")
     if code is None and args.log:
+        code = _kept_log(Path(args.log), args.flux_map, args.overwrite)
+    if code is None and args.log:
         code = check_output(Path(args.log), "--log", (".mcap",), "the log is MCAP")
     if code is not None:
         return code
@@ -258,7 +266,24 @@ def main(args: argparse.Namespace) -> int:
         from pmsm_hil.cli.commission_map import measure_map
 
         code = measure_map(out, profile, spec, log, device, map_rpm)
-        if code:
+        if code:  # the commissioning's own file stays usable: say where it is
+            print(
+                f"motor file: {out}, without a flux map (use: pmsm-hil run PROFILE --motor {out})"
+            )
             return code
     print(f"motor file: {out}  (use: pmsm-hil run PROFILE --motor {out})")
     return 0
+
+
+def _kept_log(log: Path, flux_map: bool, overwrite: bool) -> int | None:
+    """A log that is there already is kept, as `run --out` keeps one: the error, or None."""
+    logs = [log, log.with_name(log.stem + "-flux-map.mcap")] if flux_map else [log]
+    for path in logs if log.suffix == ".mcap" and not overwrite else ():
+        if path.exists():
+            what = (
+                "a log is there already" if path == log else f"the flux map's log {path} is there"
+            )
+            return fail(
+                "error", f"--log {log}: {what}; --overwrite replaces it (or give another name)", 2
+            )
+    return None

@@ -8,10 +8,11 @@ import os
 import tempfile
 from pathlib import Path
 
-from pmsm_hil.cli.errors import SCHEDULER_ERRORS, fail, scheduler_failed
+from pmsm_hil.cli.errors import SCHEDULER_ERRORS, fail, report, scheduler_failed
 from pmsm_hil.seeds import seed_arg
 
 EXIT_FAILED = 1
+EXIT_INTERRUPTED = 130  # as `run`: Ctrl-C, SIGTERM or SIGHUP; the motor was stopped
 
 
 def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -59,10 +60,17 @@ def main(args: argparse.Namespace) -> int:
     from pmsm_hil.profiles.shipped import resolve
     from pmsm_hil.sweep.suite import junit_error, junit_xml, plan_suite, run_suite
 
-    def junit(text: str) -> None:
-        if args.junit:
+    def junit(text: str) -> bool:
+        """Write the report if asked; False (the error printed) when it cannot be written."""
+        if not args.junit:
+            return True
+        try:
             Path(args.junit).write_text(text, encoding="utf-8")
-            print(f"JUnit XML {args.junit}")
+        except OSError as e:  # checked before the run, but a disk fills or a folder goes
+            fail("error", f"--junit {args.junit}: cannot be written ({e.strerror or e})", 2)
+            return False
+        print(f"JUnit XML {args.junit}")
+        return True
 
     if args.workers is not None and args.workers < 1:
         return fail("error", f"--workers {args.workers}: must be at least 1", 2)
@@ -71,13 +79,27 @@ def main(args: argparse.Namespace) -> int:
         if problem:
             return fail("error", f"--junit {args.junit}: {problem}", 2)
     try:
-        profiles = [resolve(p, "profile") for p in args.profiles]
+        profiles, problems = [], []
+        for name in args.profiles:  # every name that finds no file is named, with the bad files
+            try:
+                profiles.append(resolve(name, "profile"))
+            except ProfileError as e:
+                problems += e.problems
         rig = resolve(args.rig, "rig") if args.rig else None
         motor = resolve(args.motor, "motor") if args.motor else None
-        cases = plan_suite(profiles, seed=args.seed, rig=rig, motor=motor)
+        try:
+            cases = plan_suite(profiles, seed=args.seed, rig=rig, motor=motor)
+        except ProfileError as e:
+            problems += e.problems
+        if problems:
+            raise ProfileError(problems)
     except ProfileError as e:
         junit(junit_error("inputs", str(e)))
         return fail("error", str(e), 2)
+    problem = _out_problem(Path(args.out)) if args.out is not None else None
+    if problem:  # before the run, and not taken for a scheduler that cannot be reached
+        junit(junit_error("inputs", f"--out {args.out}: {problem}"))
+        return fail("error", f"--out {args.out}: {problem}", 2)
     tmp = None
     if args.out is None:
         tmp = tempfile.TemporaryDirectory(prefix="pmsm-hil-test-")
@@ -100,9 +122,14 @@ def main(args: argparse.Namespace) -> int:
         if tmp is not None:
             tmp.cleanup()
     _print(cases)
-    if args.out is None and not all(c.passed for c in cases):
+    interrupted = sum(c.status == "interrupted" for c in cases)
+    if args.out is None and not all(c.passed for c in cases) and not interrupted:
         print("the logs were not kept: --out DIR keeps them (and the results table) to look into")
-    junit(junit_xml(cases))
+    if not junit(junit_xml(cases)):
+        return 2  # CI would find no report: not a pass, whatever the checks said
+    if interrupted:
+        report("stopped", f"interrupted: {interrupted} of {len(cases)} profiles not judged")
+        return EXIT_INTERRUPTED
     return 0 if all(c.passed for c in cases) else EXIT_FAILED
 
 
@@ -134,18 +161,24 @@ def _print(cases) -> None:
                 escape(ch["bound"]),
                 "[green]pass[/]" if ch["passed"] else "[red]FAIL[/]",
             )
-        console.print(tab)
+        console.print(tab if c.checks else tab.title)  # no checks: the title, no empty table
         if c.default_criteria:
             console.print(
                 "[dim]no acceptance criteria in the profile: the default (whole profile, no fault)[/]"
             )
-        if c.status != "ok":
+        if c.status == "interrupted":
+            console.print(f"[yellow]{escape(c.error)}[/]", highlight=False, soft_wrap=True)
+        elif c.status != "ok":
             console.print(f"[red]run failed:[/] {escape(c.error)}")
         hint = c.hint()
         if hint:
             console.print(f"[yellow]hint:[/] {escape(hint)}", highlight=False, soft_wrap=True)
         n_fail = sum(1 for ch in c.checks if not ch["passed"])
         verdict = "[green]PASS[/]" if c.passed else "[red]FAIL[/]"
+        if c.status == "interrupted":
+            console.print(f"[yellow]NOT JUDGED[/] {escape(c.name)}: interrupted", highlight=False)
+            console.print()
+            continue
         console.print(
             f"{verdict} {escape(c.name)}: {len(c.checks) - n_fail} of {len(c.checks)} checks passed"
             + (f"; log {c.log_path}" if c.log_path else ""),
@@ -155,6 +188,19 @@ def _print(cases) -> None:
         console.print()
     n_pass = sum(c.passed for c in cases)
     console.print(f"{n_pass} of {len(cases)} profiles passed", highlight=False)
+
+
+def _out_problem(path: Path) -> str | None:
+    """Why ``path`` cannot take the logs and the results table (the folder is made if missing)."""
+    if path.exists() and not path.is_dir():
+        return "is a file; give a folder for the logs and the results table"
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        return f"cannot make the folder ({e.strerror or e})"
+    if not os.access(path, os.W_OK):
+        return "the folder is not writable"
+    return None
 
 
 def _junit_problem(path: Path) -> str | None:

@@ -112,8 +112,8 @@ class Acceptance(StrictModel):
 
 
 def acceptance_problems(src: Source) -> list[Problem]:
-    """Cross-checks on the raw data: each `segment:` names a segment of the profile, and a bound
-    is given at all."""
+    """Cross-checks on the raw data: each `segment:` names a segment of the profile, a bound is
+    given at all, and no segment's bound twice (by its name and its index, say)."""
     d = src.data
     acc = d.get("acceptance")
     if not isinstance(acc, dict):
@@ -123,6 +123,7 @@ def acceptance_problems(src: Source) -> list[Problem]:
     out: list[Problem] = []
     raw_items = acc.get("segments")
     items: list = raw_items if isinstance(raw_items, list) else []
+    given: dict[tuple[int, str], int] = {}  # (segment index, bound) -> the item that gave it
     for i, item in enumerate(items):
         if not isinstance(item, dict):
             continue
@@ -130,6 +131,22 @@ def acceptance_problems(src: Source) -> list[Problem]:
         loc = ("acceptance", "segments", i, "segment")
         if isinstance(ref, bool):
             continue
+        one = isinstance(ref, str) and names.count(ref) == 1
+        index = ref if isinstance(ref, int) else (names.index(ref) if one else -1)
+        for k in Bounds.model_fields if 0 <= index < len(segs) else ():
+            if item.get(k) is None:
+                continue
+            if (index, k) in given:  # two bounds on one quantity: which one judges is a guess
+                first = f"acceptance.segments[{given[index, k]}]"
+                out.append(
+                    src.problem(
+                        ("acceptance", "segments", i, k),
+                        f"bounds segment {index} again ({first} bounds it already): give each "
+                        "bound of a segment once",
+                        item[k],
+                    )
+                )
+            given.setdefault((index, k), i)
         if isinstance(ref, int) and not 0 <= ref < len(segs):
             out.append(
                 src.problem(
@@ -185,7 +202,23 @@ def acceptance_problems(src: Source) -> list[Problem]:
                 "(control.identify is not true): nothing would be measured",
             )
         )
+    bounded: dict[tuple, int] = {}  # (estimator, param, bound) -> the item that gave it
     for i, item in enumerate(ident if isinstance(ident, list) else []):
+        for k in ("error_max_rel", "conv_max_s"):
+            if not isinstance(item, dict) or item.get(k) is None:
+                continue
+            key = (str(item.get("estimator")), str(item.get("param")), k)
+            if key in bounded:
+                first = f"acceptance.run.identification[{bounded[key]}]"
+                out.append(
+                    src.problem(
+                        ("acceptance", "run", "identification", i, k),
+                        f"bounds {key[0]} {key[1]} again ({first} bounds it already): give each "
+                        "bound once",
+                        item[k],
+                    )
+                )
+            bounded.setdefault(key, i)
         if (
             isinstance(item, dict)
             and item.get("error_max_rel") is None

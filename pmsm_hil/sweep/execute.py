@@ -78,6 +78,8 @@ def execute_run(task: dict[str, Any]) -> dict[str, Any]:
         row.update(run_metrics(log, profile, task["metrics"]))
         row["state"] = result.state
         row["stop_reason"] = result.stop_reason
+        if result.interrupted:  # Ctrl-C, SIGTERM or SIGHUP stopped it: not a result to judge
+            row["interrupted"] = True
         if task.get("log_path"):
             dest = Path(task["log_path"])
             dest.parent.mkdir(parents=True, exist_ok=True)

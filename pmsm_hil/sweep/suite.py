@@ -9,6 +9,7 @@ fault.
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
@@ -35,7 +36,7 @@ class SuiteCase:
     run: Run | None = None
     default_criteria: bool = False
     warnings: list[str] = field(default_factory=list)  # the profile's (as `run` prints them)
-    status: str = ""  # ok | failed (the run could not be made)
+    status: str = ""  # ok | failed (the run could not be made) | interrupted (Ctrl-C)
     error: str = ""
     checks: list[dict[str, Any]] = field(default_factory=list)
     log_path: str = ""
@@ -102,7 +103,8 @@ def run_suite(
     progress: bool = False,
 ) -> list[SuiteCase]:
     """Run every case into ``out`` (fresh: no resume; a firmware change is what is being tested)."""
-    from .driver import run_runs, write_inputs
+    from .driver import _row, run_runs, write_inputs
+    from .results import Journal, write_table
 
     out = Path(out)
     for stale in ("results.jsonl", "results.parquet", "results.csv"):
@@ -115,6 +117,9 @@ def run_suite(
         write_inputs(out, runs[0])
         log = str((out / "logs" / f"{runs[0].key}.mcap").resolve()) if keep_logs else None
         rows = [execute_run(runs[0].task(METRICS, log))]
+        if keep_logs:  # the results table that --out keeps, as the runs on Dask leave it
+            Journal(out).add(_row(rows[0], runs[0]))
+            write_table(out, [_row(rows[0], runs[0])], [])
     else:
         res = run_runs(
             runs,
@@ -127,6 +132,9 @@ def run_suite(
             label="test",
         )
         rows = res.rows
+        if res.interrupted:  # the runs that had not ended: interrupted, not failed
+            ended = {r["key"] for r in rows}
+            rows += [{"key": r.key, "interrupted": True} for r in runs if r.key not in ended]
     by_key = {r["key"]: r for r in rows}
     for c in cases:
         assert c.run is not None  # cases are made with their run (make_cases)
@@ -134,6 +142,9 @@ def run_suite(
         c.status, c.error = row.get("status", "failed"), row.get("error", "")
         c.log_path, c.wall_s = row.get("log_path", ""), float(row.get("wall_s", 0.0) or 0.0)
         c.checks = json.loads(row["acceptance_checks"]) if row.get("acceptance_checks") else []
+        if row.get("interrupted"):  # judged on a run stopped short, every check would mislead
+            c.status, c.checks = "interrupted", []
+            c.error = "interrupted (Ctrl-C, SIGTERM or SIGHUP): the run was stopped before its end"
     return cases
 
 
@@ -152,8 +163,9 @@ def junit_xml(cases: list[SuiteCase]) -> str:
             tc = ET.SubElement(
                 suite, "testcase", classname=c.name, name="run", time=f"{c.wall_s:.3f}"
             )
+            kind = "interrupted" if c.status == "interrupted" else "run"
             ET.SubElement(
-                tc, "error", message=c.error or "the run failed", type="run"
+                tc, "error", message=c.error or "the run failed", type=kind
             ).text = c.error
             n, errors = 1, 1
         for ch in c.checks:
@@ -182,8 +194,7 @@ def junit_xml(cases: list[SuiteCase]) -> str:
     for k, v in totals.items():
         root.set(k, str(v))
     root.set("time", f"{sum(c.wall_s for c in cases):.3f}")
-    ET.indent(root)
-    return ET.tostring(root, encoding="unicode", xml_declaration=True) + "\n"
+    return _serialised(root)
 
 
 def _properties(c: SuiteCase) -> list[tuple[str, str]]:
@@ -201,10 +212,28 @@ def _properties(c: SuiteCase) -> list[tuple[str, str]]:
 def junit_error(what: str, message: str) -> str:
     """JUnit XML for a suite that could not run (invalid inputs, no scheduler): one test case
     ``what`` in error with ``message``, so that CI shows why instead of finding no report."""
-    root = ET.Element("testsuites", name="pmsm-hil test")
+    root = ET.Element("testsuites", name="pmsm-hil test", tests="1", failures="0", errors="1")
     suite = ET.SubElement(root, "testsuite", name="pmsm-hil test", tests="1", failures="0")
     suite.set("errors", "1")
     tc = ET.SubElement(suite, "testcase", classname="pmsm-hil test", name=what)
     ET.SubElement(tc, "error", message=message.splitlines()[0] if message else what).text = message
+    return _serialised(root)
+
+
+# what XML 1.0 cannot hold at all, not even escaped (ElementTree writes it as it is: the file is
+# then not XML, and CI finds no report): a control character in a profile's name, say
+_NOT_XML = re.compile(r"[\x00-\x08\x0b\x0c\x0e-\x1f\ud800-\udfff\ufffe\uffff]")
+
+
+def _xml_text(text: str) -> str:
+    return _NOT_XML.sub(lambda m: f"\\x{ord(m.group()):02x}", text)
+
+
+def _serialised(root: ET.Element) -> str:
+    """The report as XML text: characters XML cannot hold are written as ``\\xNN``."""
+    for el in root.iter():
+        el.text = _xml_text(el.text) if el.text else el.text
+        for k, v in list(el.attrib.items()):
+            el.set(k, _xml_text(v))
     ET.indent(root)
     return ET.tostring(root, encoding="unicode", xml_declaration=True) + "\n"

@@ -1,0 +1,127 @@
+"""`pmsm-hil test` as a CI job meets it: every bad input named at once, a JUnit report that is
+XML whatever the names hold and says so when it cannot be written, the results table of `--out`."""
+
+from __future__ import annotations
+
+import subprocess
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import pytest
+from test_acceptance import CLI, with_acceptance
+
+
+def test_test_out_keeps_the_results_table_of_one_profile_and_refuses_a_file(tmp_path, data):
+    """`--out DIR` keeps the results table with one profile too (run in this process, not on
+    Dask); an `--out` that is a file is bad input named as such before the run, not a scheduler
+    that cannot be reached (exit 3)."""
+    import pyarrow.parquet as pq
+
+    p = with_acceptance(tmp_path, data, "")
+    r = subprocess.run(
+        [*CLI, "test", str(p), "--out", str(tmp_path / "o")],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert r.returncode == 0, r.stdout + r.stderr
+    rows = pq.read_table(tmp_path / "o" / "results.parquet").to_pylist()
+    assert [(row["index"], row["status"]) for row in rows] == [(0, "ok")]
+    assert (tmp_path / "o" / "results.csv").is_file()
+    assert rows[0]["log_path"] and Path(rows[0]["log_path"]).is_file()
+    blocker = tmp_path / "afile"
+    blocker.write_text("")
+    junit = tmp_path / "j.xml"
+    r = subprocess.run(
+        [*CLI, "test", str(p), "--out", str(blocker), "--junit", str(junit)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert r.returncode == 2, r.stdout + r.stderr
+    assert f"--out {blocker}: is a file; give a folder" in r.stderr
+    assert "scheduler" not in r.stderr and "Traceback" not in r.stderr
+    assert ET.parse(junit).getroot().find("testsuite/testcase").get("name") == "inputs"
+
+
+def test_test_names_a_missing_profile_beside_the_bad_files(tmp_path, data):
+    """A name that finds no profile does not hide the problems of the files given with it."""
+    a = with_acceptance(tmp_path, data, "acceptance:\n  run: {faults: sometimes}\n", "a.yaml")
+    b = with_acceptance(tmp_path, data, "acceptance:\n  run: {recovery_max_s: -1}\n", "b.yaml")
+    junit = tmp_path / "out.xml"
+    r = subprocess.run(
+        [*CLI, "test", str(a), "no-such-profile", str(b), "--junit", str(junit)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert r.returncode == 2, r.stdout + r.stderr
+    assert "Traceback" not in r.stderr
+    for named in (f"{a}:", "no-such-profile: is neither a file", f"{b}:"):
+        assert named in r.stderr
+    root = ET.parse(junit).getroot()  # the totals on the root, as for a suite that ran
+    assert (root.get("tests"), root.get("failures"), root.get("errors")) == ("1", "0", "1")
+    error = root.find("testsuite/testcase/error")
+    assert f"{a}:" in error.text and "no-such-profile" in error.text and f"{b}:" in error.text
+
+
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full (a full disk)")
+def test_test_says_so_when_the_junit_report_cannot_be_written(tmp_path, data):
+    """A report that cannot be written after the run (a full disk) is one error line and exit 2,
+    not a traceback and not the suite's pass: CI would find no report."""
+    p = with_acceptance(tmp_path, data, "")
+    r = subprocess.run(
+        [*CLI, "test", str(p), "--junit", "/dev/full"], capture_output=True, text=True, timeout=300
+    )
+    assert r.returncode == 2, r.stdout + r.stderr
+    assert "Traceback" not in r.stderr
+    assert "--junit /dev/full: cannot be written (No space left on device)" in r.stderr
+    assert "PASS" in r.stdout  # the table was shown before
+
+
+def test_junit_holds_characters_xml_cannot_as_escapes():
+    """A control character in a profile's name or a run's error (a YAML "\\a", a device's bytes
+    in a message) is written as \\xNN: before, the report was not XML and CI found none."""
+    from pmsm_hil.sweep.suite import SuiteCase, junit_error, junit_xml
+
+    case = SuiteCase(
+        profile="p.yaml", name="bell\a \x1b[31mred", status="failed", error="got \x00\x1b"
+    )
+    root = ET.fromstring(junit_xml([case]))
+    suite = root.find("testsuite")
+    assert suite.get("name") == "bell\\x07 \\x1b[31mred"
+    assert suite.find("testcase/error").get("message") == "got \\x00\\x1b"
+    assert root.get("errors") == "1"
+    error = ET.fromstring(junit_error("inputs", "x.yaml:2: name = '\x1b' ...")).find(".//error")
+    assert error.text == "x.yaml:2: name = '\\x1b' ..."
+
+
+def test_an_interrupted_test_is_not_judged_and_exits_130(tmp_path, data):
+    """Ctrl-C during the run: the motor stopped, the profile NOT JUDGED (before: FAIL, "complete:
+    no (stopped: host stop)", exit 1, as if the drive had stopped on its own), exit 130 as for
+    `run`, and the JUnit report says so (an error case of type `interrupted`)."""
+    import os
+    import signal
+    import time
+
+    tmp = tmp_path / "tmp"  # where the run writes its log: it runs once that file grows
+    tmp.mkdir()
+    junit = tmp_path / "j.xml"
+    proc = subprocess.Popen(
+        [*CLI, "test", str(data / "long.yaml"), "--junit", str(junit)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "TMPDIR": str(tmp)},
+    )
+    deadline = time.monotonic() + 60
+    while not any(p.stat().st_size > 50_000 for p in tmp.rglob("run.mcap")):
+        assert time.monotonic() < deadline and proc.poll() is None, "the run did not start"
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, out + err
+    assert "NOT JUDGED long: interrupted" in out and "FAIL" not in out
+    assert "interrupted: 1 of 1 profiles not judged" in err and "Traceback" not in err
+    error = ET.parse(junit).getroot().find("testsuite/testcase/error")
+    assert error.get("type") == "interrupted"
