@@ -148,6 +148,23 @@ def test_cli_reports_a_bad_sweep_file_without_traceback(tmp_path):
     assert "Traceback" not in r.stderr
 
 
+def test_cli_refuses_an_out_that_is_a_file_before_any_cluster(tmp_path):
+    """--out at a file is bad input (exit 2) named as such; it used to surface from the cluster
+    as 'cannot reach the scheduler None: File exists' (exit 3)."""
+    blocker = tmp_path / "afile"
+    blocker.write_text("")
+    r = subprocess.run(
+        [*CLI, "sweep", "tolerance", "--out", str(blocker), "--limit", "1"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert r.returncode == 2, r.stdout + r.stderr
+    assert f"--out {blocker}: is a file; give a folder" in r.stderr
+    assert "scheduler" not in r.stderr and "Traceback" not in r.stderr
+    assert blocker.read_text() == ""
+
+
 def test_cli_sweep_limit_runs_the_first_runs(tmp_path, data):
     p = short_sweep(
         tmp_path, data, "  - {field: seed, values: [1, 2, 3]}\n", extra="metrics: [faults]\n"

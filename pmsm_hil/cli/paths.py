@@ -3,6 +3,7 @@ be written is an error naming the option (exit 2), not a traceback after the wor
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 from pmsm_hil.cli.errors import fail
@@ -25,4 +26,19 @@ def check_output(path: Path, option: str, suffixes: tuple[str, ...], kind: str) 
         return fail("error", f"{option} {path}: cannot write there ({e.strerror or e})", 2)
     if not existed:
         path.unlink(missing_ok=True)
+    return None
+
+
+def folder_problem(path: Path) -> str | None:
+    """Why ``path`` cannot be an output folder (logs, a results table), or None; the folder is made
+    if missing. A file there is not taken for a scheduler that cannot be reached (Dask starts
+    before the folder is written)."""
+    if path.exists() and not path.is_dir():
+        return "is a file; give a folder"
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        return f"cannot make the folder ({e.strerror or e})"
+    if not os.access(path, os.W_OK):
+        return "the folder is not writable"
     return None

@@ -74,6 +74,11 @@ def main(args: argparse.Namespace) -> int:
     except ProfileError as e:
         return fail("error", str(e), 2)
     out = Path(args.out or Path("sweeps-out") / sweep.name)
+    from pmsm_hil.cli.paths import folder_problem
+
+    problem = folder_problem(out)
+    if problem:  # before the cluster starts, and not taken for a scheduler that cannot be reached
+        return fail("error", f"--out {out}: {problem}", 2)
     print(
         f"sweep {sweep.name}: {len(runs)} runs of {Path(sweep.profile_path).name}"
         + (f", the first {min(args.limit, len(runs))}" if args.limit else "")

@@ -9,6 +9,7 @@ import tempfile
 from pathlib import Path
 
 from pmsm_hil.cli.errors import SCHEDULER_ERRORS, fail, report, scheduler_failed
+from pmsm_hil.cli.paths import folder_problem
 from pmsm_hil.seeds import seed_arg
 
 EXIT_FAILED = 1
@@ -96,7 +97,7 @@ def main(args: argparse.Namespace) -> int:
     except ProfileError as e:
         junit(junit_error("inputs", str(e)))
         return fail("error", str(e), 2)
-    problem = _out_problem(Path(args.out)) if args.out is not None else None
+    problem = folder_problem(Path(args.out)) if args.out is not None else None
     if problem:  # before the run, and not taken for a scheduler that cannot be reached
         junit(junit_error("inputs", f"--out {args.out}: {problem}"))
         return fail("error", f"--out {args.out}: {problem}", 2)
@@ -188,19 +189,6 @@ def _print(cases) -> None:
         console.print()
     n_pass = sum(c.passed for c in cases)
     console.print(f"{n_pass} of {len(cases)} profiles passed", highlight=False)
-
-
-def _out_problem(path: Path) -> str | None:
-    """Why ``path`` cannot take the logs and the results table (the folder is made if missing)."""
-    if path.exists() and not path.is_dir():
-        return "is a file; give a folder for the logs and the results table"
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        return f"cannot make the folder ({e.strerror or e})"
-    if not os.access(path, os.W_OK):
-        return "the folder is not writable"
-    return None
 
 
 def _junit_problem(path: Path) -> str | None:
