@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from emu_helpers import run_inproc
 
-from pmsm_hil.analysis.report import PANELS, build_report
+from pmsm_hil.analysis.report import PANELS, ReportError, build_report
 from pmsm_hil.cli.main import main
 from pmsm_hil.log.writer import LogWriter
 
@@ -233,6 +233,15 @@ def test_truncated_log_is_reported_as_such(short_log, tmp_path):
     html = rep.html.read_text()
     assert "not finalised" in html
     assert "speed" in rep.pngs  # what was recovered is plotted
+    assert "log recover" not in html  # no journal beside it: nothing to point to
+    (tmp_path / "cut.mcap.journal").write_bytes(b"")
+    html = build_report(cut, tmp_path / "out").html.read_text()
+    assert f"cut.mcap.journal is beside it: `pmsm-hil log recover {cut}`" in html
+    empty = tmp_path / "empty-cut.mcap"  # cut before its first chunk: the error points there too
+    empty.write_bytes(data[:200])
+    (tmp_path / "empty-cut.mcap.journal").write_bytes(b"")
+    with pytest.raises(ReportError, match="log recover"):
+        build_report(empty, tmp_path / "out2")
 
 
 def test_analyze_points_to_the_journal_beside_a_cut_log(short_log, tmp_path, capsys):

@@ -21,6 +21,19 @@ def read_for_analysis(path: str | os.PathLike) -> Log:
     return read_log(path, topics=ANALYSIS_TOPICS)
 
 
+def recover_hint(path: str | os.PathLike) -> str:
+    """``"; LOG.journal is beside it: `pmsm-hil log recover LOG` adds ..."`` when the log of a
+    killed run has its journal beside it (docs/faults.md), else ``""``: for the messages of
+    `analyze` and `report` about a log cut short."""
+    journal = Path(f"{os.fspath(path)}.journal")
+    if not journal.is_file():
+        return ""
+    return (
+        f"; {journal.name} is beside it: `pmsm-hil log recover {os.fspath(path)}` adds what the "
+        "host received after the last chunk"
+    )
+
+
 def other_kind(log: Log) -> str | None:
     """Why ``log`` is not a profile run that `analyze` and `report` judge (None when it is):
     another program's MCAP file (no topic of pmsm-hil's), an imported record (control-rate data

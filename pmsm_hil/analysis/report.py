@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from pmsm_hil.analysis import report_capture, report_params, report_signals
-from pmsm_hil.analysis.reading import other_kind
+from pmsm_hil.analysis.reading import other_kind, recover_hint
 from pmsm_hil.analysis.report_context import run_context
 from pmsm_hil.log.reader import Log, LogFormatError, path_problem, read_log
 
@@ -116,7 +116,7 @@ def build_report(log_path: Path | str, out_dir: Path | str | None = None) -> Rep
     if not ctx.has("/pmsm/telemetry") and not ctx.has("/pmsm/capture"):
         raise ReportError(
             f"{path}: no telemetry in the log (empty, or cut off before the first "
-            f"chunk): nothing to plot"
+            f"chunk): nothing to plot{recover_hint(path)}"
         )
     out = Path(out_dir) if out_dir is not None else path.with_name(path.stem + "-report")
     try:

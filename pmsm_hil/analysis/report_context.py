@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pmsm_hil.analysis.reading import recover_hint
 from pmsm_hil.analysis.summary import rig_name
 from pmsm_hil.log.reader import Log
 
@@ -81,7 +82,7 @@ def run_context(log: Log, path: Path) -> RunContext:
     if log.truncated or not log.finalised:
         ctx.notes.append(
             "The log is not finalised (the run was killed or the file is truncated): "
-            "the report shows what could be recovered."
+            f"the report shows what could be recovered{recover_hint(path)}."
         )
     for p in log.problems:
         ctx.notes.append(f"Log problem: {p}")

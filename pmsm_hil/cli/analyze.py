@@ -46,7 +46,7 @@ def print_identification(table: IdentTable) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from pmsm_hil.analysis.reading import other_kind, read_for_analysis
+    from pmsm_hil.analysis.reading import other_kind, read_for_analysis, recover_hint
     from pmsm_hil.analysis.summary import summarize_log
     from pmsm_hil.analysis.summary_text import print_summary
     from pmsm_hil.log.reader import LogFormatError, path_problem
@@ -64,13 +64,7 @@ def main(args: argparse.Namespace) -> int:
         return _commissioning(path)
     if kind:
         return fail("error", f"{path}: {kind}", 2)
-    journal = Path(f"{path}.journal")
-    recover = (
-        f"; {journal.name} is beside it: `pmsm-hil log recover {path}` adds what the host "
-        "received after the last chunk"
-        if journal.is_file()
-        else ""
-    )
+    recover = recover_hint(path)
     if not log.counts.get("/pmsm/telemetry"):
         return fail(
             "error",
