@@ -7,7 +7,7 @@
         run.assert_accepted()                      # the profile's acceptance criteria
         assert run.summary.segments[2].recovery_s < 0.2
 
-    @pytest.mark.hil_rig                           # only with a real rig: skipped on the emulator
+    @pytest.mark.hil_rig                           # a rig's path: skipped on the in-process emulator
     def test_on_the_bench(hil_device):
         hil_device.run("paper-a").assert_accepted()
 
@@ -232,7 +232,9 @@ _SEED = pytest.StashKey[int]()
 
 def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line(
-        "markers", "hil_rig: needs a real rig (--hil-port or --hil-can); skipped on the emulator"
+        "markers",
+        "hil_rig: needs a rig's path (--hil-port, or --hil-can: `--hil-can emulator` is the "
+        "emulator on CAN through that path); skipped on the in-process emulator",
     )
     config.stash[_SEED] = _checked_options(config)
     taken = _option_taken_for_a_test_path(config)

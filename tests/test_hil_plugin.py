@@ -70,7 +70,7 @@ def test_marker_skips_without_a_rig_and_options_reach_the_fixture(pytester):
     r = pytester.runpytest_subprocess("--hil-port", os.devnull, "-k", "needs_rig", "-rs")
     r.assert_outcomes(passed=1)
     r = pytester.runpytest_subprocess("--markers")
-    r.stdout.fnmatch_lines(["*hil_rig: needs a real rig*"])
+    r.stdout.fnmatch_lines(["*hil_rig: needs a rig's path*in-process emulator*"])
 
 
 def test_the_rig_path_runs_a_profile_over_can(pytester, data):
@@ -79,6 +79,12 @@ def test_the_rig_path_runs_a_profile_over_can(pytester, data):
     short = data / "short.yaml"
     pytester.makepyfile(
         test_user=f"""
+        import pytest
+
+        @pytest.mark.hil_rig  # the rig's path: runs with the emulator on CAN too
+        def test_needs_rig(hil_device):
+            assert hil_device.is_rig
+
         def test_on_can(hil_device):
             assert hil_device.kind == "can" and hil_device.is_rig
             run = hil_device.run({str(short)!r}, seed=3)
@@ -88,7 +94,7 @@ def test_the_rig_path_runs_a_profile_over_can(pytester, data):
     """
     )
     r = pytester.runpytest_subprocess("--hil-can", "emulator", "-p", "no:cacheprovider")
-    r.assert_outcomes(passed=1)
+    r.assert_outcomes(passed=2)
 
 
 def test_a_failed_acceptance_points_at_the_users_line(pytester, data):
