@@ -14,6 +14,7 @@ PKG = Path(__file__).resolve().parents[1] / "pmsm_hil"
 FORBIDDEN = {
     "errors": {"*"},
     "names": {"*"},
+    "files": {"*"},
     "profiles": {
         "protocol",
         "transport",

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Literal, TextIO
 
 from pmsm_hil.cli.errors import fail, report
+from pmsm_hil.files import write_text_whole
 from pmsm_hil.seeds import seed_arg
 
 if TYPE_CHECKING:
@@ -259,7 +260,7 @@ def main(args: argparse.Namespace) -> int:
     )
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
-        out.write_text(text)
+        write_text_whole(out, text)
     except OSError as e:  # writable when checked above; something changed meanwhile
         return fail("error", f"-o {out}: cannot write ({e.strerror or e}); the results: {log}", 3)
     if args.flux_map:

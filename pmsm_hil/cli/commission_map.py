@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from pmsm_hil.cli.errors import fail, report
+from pmsm_hil.files import write_text_whole
 
 if TYPE_CHECKING:
     from pmsm_hil.device import DeviceSpec
@@ -108,14 +109,14 @@ def measure_map(
             4,
         )
     csv_path = motor_out.with_name(motor_out.stem + "-flux-map.csv")
-    csv_path.write_text(csv_text(points, device))
+    write_text_whole(csv_path, csv_text(points, device))
     record = {
         "file": csv_path.name,
         "log": str(log_map),
         "speeds_rpm": [float(lo), float(hi)],
         "points": len(points),
     }
-    motor_out.write_text(with_flux_map(motor_out.read_text(), csv_path.name, record))
+    write_text_whole(motor_out, with_flux_map(motor_out.read_text(), csv_path.name, record))
     print(f"flux map: {csv_path} ({len(points)} points)")
     if not spec.is_rig:  # the emulator knows the truth: say how close the map came
         tr = mlog.topic("/sim/truth")

@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from pmsm_hil.commission.steps import Measured, failure_text, step_quantities
+from pmsm_hil.files import write_text_whole
 from pmsm_hil.profiles import Profile, load_profile
 from pmsm_hil.profiles._base import default_file
 from pmsm_hil.protocol import generated as gen
@@ -191,5 +192,5 @@ def commission_in_process(
             str(log),
             out_dir=str(Path(motor_out).parent),
         )
-        Path(motor_out).write_text(text, encoding="utf-8")
+        write_text_whole(motor_out, text)
     return profile, res
