@@ -7,6 +7,7 @@ import os
 import numpy as np
 import yaml
 
+from pmsm_hil.files import write_text_whole
 from pmsm_hil.gap.model import MotorModel
 
 
@@ -18,15 +19,15 @@ def _flux_map_csv(path: str, m: MotorModel, k: dict) -> None:
     step = max(0.5, round(1.2 * i_max / 7 * 2) / 2)  # a grid the rig loader sees as regular
     g = np.arange(-7, 8) * step
     pt = PlantTerms(sat=(k["k_d"], k["i_sd_a"], k["k_q"], k["i_sq_a"], k["k_x"], k["k_c"]))
-    with open(path, "w") as f:
-        f.write(
-            "# flux map fitted by pmsm-hil gap augment (docs/gap.md): the probe's saturation model\n"
-        )
-        f.write("i_d_a,i_q_a,psi_d_wb,psi_q_wb\n")
-        for iq in g:
-            for id_ in g:
-                (pd, pq), _ = _flux(m, np.array([id_, iq]), pt, m.psi_f_wb)
-                f.write(f"{float(id_)!r},{float(iq)!r},{float(pd):.10g},{float(pq):.10g}\n")
+    lines = [
+        "# flux map fitted by pmsm-hil gap augment (docs/gap.md): the probe's saturation model",
+        "i_d_a,i_q_a,psi_d_wb,psi_q_wb",
+    ]
+    for iq in g:
+        for id_ in g:
+            (pd, pq), _ = _flux(m, np.array([id_, iq]), pt, m.psi_f_wb)
+            lines.append(f"{float(id_)!r},{float(iq)!r},{float(pd):.10g},{float(pq):.10g}")
+    write_text_whole(path, "\n".join(lines) + "\n")
 
 
 def rig_delay(p: dict, ts_s: float) -> tuple[dict[str, float | int], str]:
@@ -118,9 +119,7 @@ def fitted_rig(
         "v_dc_v": None,
         "effects": eff,
     }
-    with open(out_path, "w") as f:
-        f.write("# Written by `pmsm-hil gap augment` (docs/gap.md). Format: docs/rigs.md.\n")
-        for n in notes:
-            f.write(f"# {n}\n")
-        yaml.safe_dump(rig, f, sort_keys=False)
+    head = "# Written by `pmsm-hil gap augment` (docs/gap.md). Format: docs/rigs.md.\n"
+    head += "".join(f"# {n}\n" for n in notes)
+    write_text_whole(out_path, head + yaml.safe_dump(rig, sort_keys=False))
     return rig
