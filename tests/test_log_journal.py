@@ -118,6 +118,23 @@ def test_recover_of_a_cut_copy_without_its_journal_says_what_is_lost(tmp_path, c
     assert "none of the device's messages" not in out
 
 
+def test_recover_of_a_finalised_log_says_nothing_was_missing(tmp_path, capsys):
+    from pmsm_hil.cli.main import main
+
+    done = tmp_path / "done.mcap"
+    with LogWriter(done) as w:
+        w.write("/pmsm/telemetry", 0.0, _row(0))
+    assert main(["log", "recover", str(done)]) == 0
+    out = " ".join(capsys.readouterr().out.split())
+    assert f"note: {done} was finalised (its run ended and closed it)" in out
+    assert "nothing was missing" in out
+    src = _journal_log(tmp_path)
+    half = tmp_path / "half.mcap"  # a killed run's log, cut: no such note
+    half.write_bytes(src.read_bytes()[: src.stat().st_size // 2])
+    assert main(["log", "recover", str(half)]) == 0
+    assert "nothing was missing" not in capsys.readouterr().out
+
+
 def test_recover_of_a_log_without_a_complete_chunk_is_an_error(tmp_path, capsys):
     """300 octets of a log: nothing to recover is an error (exit 2), not an empty "finalised"
     file; one message is "1 message"."""

@@ -4,6 +4,7 @@ bad input refused with exit 2."""
 from __future__ import annotations
 
 import base64
+import os
 import re
 import struct
 
@@ -163,6 +164,18 @@ def test_bad_input_exits_2_without_traceback(tmp_path, short_log, capsys):
     not_mcap.write_text("hello\n")
     assert main(["report", str(not_mcap)]) == 2
     assert "not an MCAP file" in capsys.readouterr().err
+    cut = tmp_path / "cut-in-magic.mcap"  # killed before the first record: not "not MCAP"
+    cut.write_bytes(short_log.read_bytes()[:5])
+    fifo = tmp_path / "pipe.mcap"
+    os.mkfifo(fifo)
+    for cmd in (["report"], ["analyze"], ["log", "recover"]):
+        assert main([*cmd, str(cut)]) == 2
+        err = capsys.readouterr().err
+        assert "cut off after 5 octets, inside the MCAP magic" in err, cmd
+        assert main([*cmd, ""]) == 2  # not taken for the working directory
+        assert "'': an empty name; give the log's path" in capsys.readouterr().err, cmd
+        assert main([*cmd, str(fifo)]) == 2  # neither "empty" nor a read that waits for ever
+        assert f"{fifo}: not a regular file (a pipe or a device)" in capsys.readouterr().err, cmd
 
     blocker = tmp_path / "file"
     blocker.write_text("")

@@ -100,7 +100,7 @@ def _tables(path: Path, log: Log, notes: list[str]):
 def build_report(log_path: Path | str, out_dir: Path | str | None = None) -> Report:
     """Write the report of the log at `log_path` into `out_dir` (default: LOG-report/ beside it)."""
     path = Path(log_path)
-    why = path_problem(path)
+    why = path_problem(log_path)
     if why:
         raise ReportError(why)
     try:

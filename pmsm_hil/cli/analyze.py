@@ -52,7 +52,7 @@ def main(args: argparse.Namespace) -> int:
     from pmsm_hil.log.reader import LogFormatError, path_problem
 
     path = Path(args.log)
-    why = path_problem(path)
+    why = path_problem(args.log)
     if why:
         return fail("error", why, 2)
     try:

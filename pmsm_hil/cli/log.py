@@ -40,7 +40,7 @@ def main(args: argparse.Namespace) -> int:
     from pmsm_hil.log.reader import LogFormatError, path_problem, read_log, rewrite_log
 
     src = Path(args.log)
-    why = path_problem(src)
+    why = path_problem(args.log)
     if why:
         return fail("error", why, 2)
     if src.stat().st_size == 0:
@@ -53,7 +53,8 @@ def main(args: argparse.Namespace) -> int:
     except LogFormatError as e:
         return fail("error", str(e), 2)
     held = sum(head.counts.values())
-    if held + len(read_journal(src, held)) == 0:
+    late = len(read_journal(src, held))  # received after the last chunk: in the journal only
+    if held + late == 0:
         cut = ", it ends inside a record" if head.truncated else ""
         return fail(
             "error",
@@ -77,6 +78,11 @@ def main(args: argparse.Namespace) -> int:
     )
     for line in recovered_lines(log, dst):
         print(f"  {line}")
+    if head.finalised and not late:
+        print(
+            f"note: {src} was finalised (its run ended and closed it) and no journal adds to it: "
+            "nothing was missing; the copy holds the same messages"
+        )
     return 0
 
 

@@ -196,7 +196,13 @@ class _Parser:
 
     def _walk(self) -> None:
         log, size = self.log, self.size
-        if self._at(0, len(MCAP_MAGIC)) != MCAP_MAGIC:
+        head = self._at(0, len(MCAP_MAGIC))
+        if head != MCAP_MAGIC:
+            if 0 < len(head) < len(MCAP_MAGIC) and MCAP_MAGIC.startswith(head):
+                raise LogFormatError(
+                    f"{log.path}: cut off after {len(head)} octets, inside the MCAP magic: "
+                    "nothing was recorded"
+                )
             raise LogFormatError(f"{log.path}: not an MCAP file (bad magic)")
         self._summary_channels()
         p = len(MCAP_MAGIC)

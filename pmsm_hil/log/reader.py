@@ -233,10 +233,14 @@ def path_problem(path: str | os.PathLike, what: str = "") -> str | None:
     """Why ``path`` cannot be opened as a log, in a user's words (None: it is a file).
     ``what`` names the option that gave it (``--holdout``)."""
     label = f"{what} {os.fspath(path)}" if what else os.fspath(path)
+    if not os.fspath(path):
+        return f"{what + ' ' if what else ''}'': an empty name; give the log's path"
     if not os.path.exists(path):
         return f"{label}: no such file"
     if os.path.isdir(path):
         return f"{label}: is a directory, not a log (give the .mcap file in it)"
+    if not os.path.isfile(path):  # a FIFO, a device: no size to read, no place to seek
+        return f"{label}: not a regular file (a pipe or a device); give the .mcap file"
     if os.path.getsize(path) == 0:
         return f"{label}: the file is empty (0 octets): no run was recorded"
     return None
