@@ -194,6 +194,38 @@ def test_emulator_child_ignores_a_source_tree_in_the_working_directory(tmp_path,
         tr.close()
 
 
+def test_an_emulator_the_os_will_not_start_is_a_link_error_and_leaves_no_child(
+    data, tmp_path, monkeypatch, capsys
+):
+    """An OSError while the child starts (fork refused, EFAULT once seen under load) is the
+    link's error (exit 3, one line), not a traceback; a child already started is stopped."""
+    from pmsm_hil.cli.main import main
+    from pmsm_hil.emulator import process as emu_process
+    from pmsm_hil.errors import TransportError
+    from pmsm_hil.transport.emulator import EmulatorTransport
+
+    def refused(args):
+        raise OSError(14, "Bad address")
+
+    monkeypatch.setattr(emu_process, "start", refused)
+    assert main(["run", str(data / "short.yaml"), "--no-live", "--out", "x.mcap"]) == 3
+    err = capsys.readouterr().err
+    assert "the emulator could not be started: Bad address (errno 14)" in err
+    assert "Traceback" not in err
+    monkeypatch.undo()
+    started = []
+
+    def lost(proc, prefix, timeout_s):
+        started.append(proc)
+        raise OSError(5, "Input/output error")
+
+    monkeypatch.setattr(emu_process, "wait_for_announcement", lost)
+    profile = load_profile(str(data / "short.yaml"))
+    with pytest.raises(TransportError, match="Input/output error"):
+        EmulatorTransport(str(profile.motor.path), str(profile.rig.path), seed=1, baud=921600)
+    assert len(started) == 1 and started[0].poll() is not None  # stopped, not left running
+
+
 def test_emulate_takes_the_plant_from_a_profile():
     p = subprocess.Popen(
         [*CLI, "emulate", "--profile", "sew-cm3c80s"],
