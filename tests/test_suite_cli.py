@@ -125,3 +125,26 @@ def test_an_interrupted_test_is_not_judged_and_exits_130(tmp_path, data):
     assert "interrupted: 1 of 1 profiles not judged" in err and "Traceback" not in err
     error = ET.parse(junit).getroot().find("testsuite/testcase/error")
     assert error.get("type") == "interrupted"
+
+
+def test_an_interrupt_before_the_suite_ran_replaces_an_earlier_report(
+    tmp_path, monkeypatch, capsys
+):
+    """Ctrl-C while the profiles load or the cluster starts: exit 130 and a JUnit report that says
+    so, not an earlier suite's report left at --junit for CI to read as this one's."""
+    from pmsm_hil.cli.main import main
+    from pmsm_hil.sweep import suite
+
+    junit = tmp_path / "j.xml"
+    junit.write_text('<testsuites tests="1" failures="0" errors="0"/>')  # yesterday's pass
+
+    def interrupted(*args, **kw):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(suite, "plan_suite", interrupted)
+    assert main(["test", "paper-a", "--junit", str(junit)]) == 130
+    err = capsys.readouterr().err
+    assert "interrupted before the suite's results were written" in err
+    case = ET.parse(junit).getroot().find("testsuite/testcase")
+    assert case is not None and case.get("name") == "interrupted"
+    assert "no profile judged" in case.find("error").get("message")

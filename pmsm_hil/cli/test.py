@@ -4,6 +4,7 @@ acceptance criteria; a pass/fail table, JUnit XML, a non-zero exit on any failur
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 import os
 import tempfile
 from pathlib import Path
@@ -57,9 +58,7 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
 
 
 def main(args: argparse.Namespace) -> int:
-    from pmsm_hil.profiles import ProfileError
-    from pmsm_hil.profiles.shipped import resolve
-    from pmsm_hil.sweep.suite import junit_error, junit_xml, plan_suite, run_suite
+    from pmsm_hil.sweep.suite import junit_error
 
     def junit(text: str) -> bool:
         """Write the report if asked; False (the error printed) when it cannot be written."""
@@ -79,6 +78,21 @@ def main(args: argparse.Namespace) -> int:
         problem = _junit_problem(Path(args.junit))
         if problem:
             return fail("error", f"--junit {args.junit}: {problem}", 2)
+    try:
+        return _suite(args, junit)
+    except KeyboardInterrupt:  # before the runs could say so themselves (loading, a cluster)
+        # a report from an earlier suite must not stand for this one in CI
+        why = "interrupted before the suite's results were written: no profile judged"
+        junit(junit_error("interrupted", why))
+        report("stopped", why)
+        return EXIT_INTERRUPTED
+
+
+def _suite(args: argparse.Namespace, junit: Callable[[str], bool]) -> int:
+    from pmsm_hil.profiles import ProfileError
+    from pmsm_hil.profiles.shipped import resolve
+    from pmsm_hil.sweep.suite import junit_error, junit_xml, plan_suite, run_suite
+
     try:
         profiles, problems = [], []
         for name in args.profiles:  # every name that finds no file is named, with the bad files
