@@ -115,9 +115,9 @@ def test_verify_is_offered_only_for_a_log_whose_profile_it_can_rerun(scope, data
 
 
 def test_a_closure_far_outside_its_range_is_not_printed_as_a_number():
-    from pmsm_hil.gap.report import _clo
+    from pmsm_hil.gap.report import closure_text
 
-    assert [_clo(v) for v in (0.874, 1.0, -3.0, 3.6e10, None)] == [
+    assert [closure_text(v) for v in (0.874, 1.0, -3.0, 3.6e10, None)] == [
         "0.87",
         "1.00",
         "< -1",
