@@ -4,9 +4,9 @@ acceptance criteria; a pass/fail table, JUnit XML, a non-zero exit on any failur
 from __future__ import annotations
 
 import argparse
-from collections.abc import Callable
 import os
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 
 from pmsm_hil.cli.errors import SCHEDULER_ERRORS, fail, report, scheduler_failed
