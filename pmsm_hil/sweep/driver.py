@@ -276,7 +276,9 @@ def run_runs(
     by_key = {r.key: r for r in runs}
     t0 = time.perf_counter()
     client = cluster = None
-    missed = sum(1 for r in runs if r.key in done and not passed(_row(journal.rows[r.key], r)))
+    missed = sum(
+        1 for r in runs if r.key in done and not passed(result_row(journal.rows[r.key], r))
+    )
     try:  # from here on a Ctrl-C ends with the summary and the table (the inputs' writing, the
         # imports and the cluster's start take a second or more)
         for r in runs:
@@ -315,7 +317,7 @@ def run_runs(
                             "log_path": "",
                         }
                     fut.release()
-                    row = _row(row, run)
+                    row = result_row(row, run)
                     journal.add(row)
                     if row["status"] == "ok":
                         res.ok += 1
@@ -333,7 +335,7 @@ def run_runs(
             client.close()
         if cluster is not None:
             cluster.close()
-        res.rows = [_row(journal.rows[r.key], r) for r in runs if r.key in journal.rows]
+        res.rows = [result_row(journal.rows[r.key], r) for r in runs if r.key in journal.rows]
         res.parquet, res.csv = write_table(out, res.rows, axes)
     return res
 
@@ -341,7 +343,7 @@ def run_runs(
 _PLAN_COLUMNS = ("index", "key", "seed")
 
 
-def _row(result: dict[str, Any], run: Run) -> dict[str, Any]:
+def result_row(result: dict[str, Any], run: Run) -> dict[str, Any]:
     """A run's row: its index, key, seed and axis columns (from the plan), then its results."""
     return {
         "index": run.index,

@@ -103,7 +103,7 @@ def run_suite(
     progress: bool = False,
 ) -> list[SuiteCase]:
     """Run every case into ``out`` (fresh: no resume; a firmware change is what is being tested)."""
-    from .driver import _row, run_runs, write_inputs
+    from .driver import result_row, run_runs, write_inputs
     from .results import Journal, write_table
 
     out = Path(out)
@@ -118,8 +118,9 @@ def run_suite(
         log = str((out / "logs" / f"{runs[0].key}.mcap").resolve()) if keep_logs else None
         rows = [execute_run(runs[0].task(METRICS, log))]
         if keep_logs:  # the results table that --out keeps, as the runs on Dask leave it
-            Journal(out).add(_row(rows[0], runs[0]))
-            write_table(out, [_row(rows[0], runs[0])], [])
+            row = result_row(rows[0], runs[0])
+            Journal(out).add(row)
+            write_table(out, [row], [])
     else:
         res = run_runs(
             runs,
