@@ -54,6 +54,9 @@ PAPER_A_TABLE2 = {
         "psi_f_wb": (0.182, 0.002, 0.37),
     },
 }
+# paper A's motor: the shipped files' names (paper-a-ipmsm, -measured) and what `commission`
+# names its files of it (paper-a-ipmsm-commissioned)
+PAPER_A_MOTOR = "paper-a-ipmsm"
 PAPER_A_TRUE = {"l_d_h": 5e-3, "l_q_h": 12e-3, "psi_f_wb": 0.18, "r_s_ohm": 0.9}
 
 
@@ -87,6 +90,7 @@ class IdentTable:
     t0_s: float
     t1_s: float
     cells: list[Cell] = field(default_factory=list)
+    motor: str = ""  # the log's motor name ("": no motor metadata)
 
     def cell(self, estimator: str, param: str) -> Cell | None:
         for c in self.cells:
@@ -184,7 +188,7 @@ def identification_table(
     names = np.asarray(par["estimator"]).astype(str)
     t0 = float(t_all.min()) if t0_s is None and len(t_all) else (t0_s or 0.0)
     t1 = _last_change(par, t_all, names) if t1_s is None and len(t_all) else (t1_s or 0.0)
-    table = IdentTable(str(path), "", t0, t1)
+    table = IdentTable(str(path), "", t0, t1, motor=log.metadata.get("run", {}).get("motor", ""))
     for est in ESTIMATORS:
         sel = (names == est) & (t_all >= t0) & (t_all <= t1)
         if not np.any(sel):
@@ -268,8 +272,12 @@ def markdown_table(table: IdentTable, with_paper: bool = True) -> str:
     return "\n".join(lines)
 
 
-def text_table(table: IdentTable, with_paper: bool = True) -> str:
-    """Plain-text version for the console: one block per estimator."""
+def text_table(table: IdentTable, with_paper: bool | None = None) -> str:
+    """Plain-text version for the console: one block per estimator. ``with_paper`` None: paper A's
+    Table 2 beside it only for paper A's motor, also as commissioned (or a log without motor
+    metadata)."""
+    if with_paper is None:
+        with_paper = table.motor == "" or table.motor.startswith(PAPER_A_MOTOR)
     out = [
         f"identification ({table.path}, truth: {table.truth_source}, "
         f"t = {table.t0_s:.3f} .. {table.t1_s:.3f} s; convergence: stays within +-{100 * TOL:.0f} %)"
@@ -300,6 +308,22 @@ def text_table(table: IdentTable, with_paper: bool = True) -> str:
                 v, err, ts = PAPER_A_TABLE2[e][p]
                 line += f"   |{_fmt(p, v):>9}{100 * err / PAPER_A_TRUE[p]:>8.2f}%{ts:>7.2f}"
             out.append(line)
+    frozen = [
+        f"{e} " + ", ".join(names)
+        for e in ESTIMATORS
+        if (
+            names := [
+                UNITS[c.param][0] for c in table.cells if c.estimator == e and c.t_first_s is None
+            ]
+        )
+    ]
+    if frozen:
+        out.append(
+            f"never updated (0, never): {'; '.join(frozen)}. The estimators' guards "
+            f"(docs/identification.md): L_d only with |mean i_d| >= 1 A (with i_d = 0 or a "
+            f"surface motor: a run segment's inject_a), L_q with |mean i_q| >= 0.5 A, none below "
+            f"|w_e| 40 rad/s or in segments with estimate: false"
+        )
     return "\n".join(out)
 
 

@@ -16,7 +16,30 @@ from .shipped import in_file
 if TYPE_CHECKING:
     from .fluxmap import FluxMap
 
-__all__ = ["CurrentSensors", "Motor", "load_motor", "mtpa_currents", "mtpa_torque_nm"]
+__all__ = [
+    "TELEMETRY_RANGE",
+    "TELEMETRY_SPEED_MAX_RPM",
+    "CurrentSensors",
+    "Motor",
+    "load_motor",
+    "mtpa_currents",
+    "mtpa_torque_nm",
+]
+
+# The fast telemetry carries speeds, currents and the load as i16 (telem_fast in
+# firmware/proto/pmsm_proto.yaml: 0.1 r/min, 2 mA, 1 mN m; tests/test_motor_reach.py checks them
+# against it): beyond these the log shows the limit itself. The motor's limits must stay within.
+TELEMETRY_SPEED_MAX_RPM = 3276.7
+TELEMETRY_RANGE = {
+    "speed_max_rpm": (TELEMETRY_SPEED_MAX_RPM, "r/min", "speeds in 0.1 r/min"),
+    "i_max_a": (65.534, "A", "currents in 2 mA"),
+    "torque_max_nm": (32.767, "N m", "the load in 1 mN m"),
+}
+# How to get psi_f_wb from a datasheet's back-EMF constant (docs/profiles.md, Motor).
+PSI_F_HINT = (
+    "psi_f_wb is the peak phase flux linkage, Ke [V/krpm, line-line rms] x sqrt(2/3) / "
+    "(104.72 x pole_pairs); pole_pairs is half the poles"
+)
 
 
 def mtpa_currents(i_s_a: float, psi_f_wb: float, l_d_h: float, l_q_h: float) -> tuple[float, float]:
@@ -188,6 +211,26 @@ class Motor(FileModel):
 
         return load_flux_map(path)
 
+    def voltage_needed_v(self, speed_rpm: float, load_nm: float, mtpa: bool = True) -> float:
+        """|u| (peak phase, amplitude-invariant dq) in steady state at ``speed_rpm`` while the
+        motor drives ``load_nm`` plus its nominal friction, on the MTPA trajectory (``mtpa``
+        False: i_d = 0), from u_d = R i_d - w L_q i_q, u_q = R i_q + w (L_d i_d + psi_f)."""
+        w_m = speed_rpm * math.pi / 30.0
+        torque = load_nm + self.b_visc_nms * w_m + math.copysign(self.t_coulomb_nm, w_m)
+        k_t = 1.5 * self.pole_pairs * self.psi_f_wb
+        i_d, i_q = 0.0, abs(torque) / k_t
+        if mtpa and abs(torque) > 0:
+            lo, hi = 0.0, abs(torque) / k_t  # MTPA torque per ampere is at least k_t
+            for _ in range(60):
+                mid = 0.5 * (lo + hi)
+                lo, hi = (mid, hi) if self.torque_mtpa_nm(mid) < abs(torque) else (lo, mid)
+            i_d, i_q = self.mtpa_currents(hi)
+        i_q = math.copysign(i_q, torque)
+        w_e = self.pole_pairs * w_m
+        u_d = self.r_s_ohm * i_d - w_e * self.l_q_h * i_q
+        u_q = self.r_s_ohm * i_q + w_e * (self.l_d_h * i_d + self.psi_f_wb)
+        return math.hypot(u_d, u_q)
+
     @property
     def speed_max_rad_s(self) -> float:
         """Mechanical speed limit in rad/s."""
@@ -220,6 +263,18 @@ def motor_checks(src: Source) -> list[Problem]:
                 ("speed_trip_rpm",), f"must be above speed_max_rpm {fmt_num(s_max)} r/min", s_trip
             )
         )
+    for key, (top, unit, how) in TELEMETRY_RANGE.items():
+        value = num(d, key)
+        if value is not None and value > top:
+            out.append(
+                src.problem(
+                    (key,),
+                    f"is beyond the {fmt_num(top)} {unit} that the telemetry carries ({how} on "
+                    f"16 bits): the log would show {fmt_num(top)} and the run summary judge "
+                    f"that; write {fmt_num(top)} or less",
+                    value,
+                )
+            )
     v, v_min, v_max = num(d, "v_dc_v"), num(d, "v_dc_min_v"), num(d, "v_dc_max_v")
     if v is not None and v_min is not None and v_min >= v:
         out.append(src.problem(("v_dc_min_v",), f"must be below v_dc_v {fmt_num(v)} V", v_min))
@@ -228,6 +283,8 @@ def motor_checks(src: Source) -> list[Problem]:
     p, psi, l_d, l_q, t_max = (
         num(d, k) for k in ("pole_pairs", "psi_f_wb", "l_d_h", "l_q_h", "torque_max_nm")
     )
+    if all(x is not None and x > 0 for x in (p, psi, s_max, v)) and isinstance(p, int):
+        out += _back_emf_problems(src, p, psi, s_max, v)
     pll_on, mras_on = num(d, "hybrid_pll_on_rpm"), num(d, "hybrid_mras_on_rpm")
     if pll_on is not None and mras_on is not None and mras_on <= pll_on:
         out.append(
@@ -260,6 +317,29 @@ def motor_checks(src: Source) -> list[Problem]:
                 )
             )
     return out
+
+
+def _back_emf_problems(
+    src: Source, pole_pairs: int, psi_f_wb: float, speed_max_rpm: float, v_dc_v: float
+) -> list[Problem]:
+    """speed_max_rpm must be reachable without load: the back-EMF psi_f w_e within the linear
+    modulation limit v_dc / sqrt 3 (the firmware does not weaken the field)."""
+    w_e = pole_pairs * speed_max_rpm * math.pi / 30.0
+    emf_v, reach_v = psi_f_wb * w_e, v_dc_v / math.sqrt(3.0)
+    if emf_v <= reach_v * 1.001:
+        return []
+    reach_rpm = reach_v / (pole_pairs * psi_f_wb) * 30.0 / math.pi
+    return [
+        src.problem(
+            ("speed_max_rpm",),
+            f"needs a back-EMF of {emf_v:.4g} V peak phase (psi_f_wb {fmt_num(psi_f_wb)} "
+            f"Wb x pole_pairs {pole_pairs} x {speed_max_rpm * math.pi / 30.0:.4g} rad/s) but v_dc_v "
+            f"{fmt_num(v_dc_v)} V gives at most {reach_v:.4g} V (v_dc_v / sqrt 3; the firmware "
+            f"does not weaken the field): write {math.floor(reach_rpm):d} r/min or less, or "
+            f"check the motor constants ({PSI_F_HINT})",
+            speed_max_rpm,
+        )
+    ]
 
 
 _NOT_MOTOR = "is %s, not a motor file"

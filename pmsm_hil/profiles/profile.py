@@ -15,6 +15,7 @@ from ._source import Problem, ProfileError, Source, fmt_num, read_source, resolv
 from ._validation import validation_problems
 from .acceptance import Acceptance, acceptance_problems
 from .motor import Motor, _load_motor_source
+from .reach import reach_checks
 from .rig import Rig, _load_rig_source, plant_problems
 from .shipped import in_file, near_name
 
@@ -526,6 +527,10 @@ def load_profile(
 
     checks, warnings = _profile_checks(src, motor)
     problems += checks + acceptance_problems(src)
+    if motor is not None and rig is not None:
+        reach_problems, reach_warnings = reach_checks(src, motor, rig)
+        problems += reach_problems
+        warnings += reach_warnings
     if problems:
         raise ProfileError(_ordered(problems), _budget_warnings(src, path, problems))
     assert spec is not None and motor is not None and rig is not None
