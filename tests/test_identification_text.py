@@ -45,3 +45,13 @@ def test_never_updated_estimates_are_named_with_their_guard():
     (line,) = [ln for ln in text.splitlines() if ln.startswith("never updated")]
     assert "rls L_d; nlms_adaline L_d." in line
     assert "inject_a" in line and "docs/identification.md" in line
+
+
+def test_an_estimate_run_to_zero_after_updating_is_named_as_diverged():
+    table = _table("lv400")
+    table.cells.append(Cell("adaline", "l_q_h", 0.0, 0.00065, -0.00065, -1.0, 0.4, None, False))
+    text = text_table(table)
+    (line,) = [ln for ln in text.splitlines() if ln.startswith("at 0 after updating")]
+    assert "adaline L_q." in line and "L_d" not in line.split(".")[0]  # never updated: not here
+    assert "NLMS-Adaline normalises its step" in line
+    assert not any(ln.startswith("at 0") for ln in text_table(_table("lv400")).splitlines())

@@ -324,6 +324,19 @@ def text_table(table: IdentTable, with_paper: bool | None = None) -> str:
             f"surface motor: a run segment's inject_a), L_q with |mean i_q| >= 0.5 A, none below "
             f"|w_e| 40 rad/s or in segments with estimate: false"
         )
+    floored = [
+        f"{c.estimator} {UNITS[c.param][0]}"
+        for c in table.cells
+        if c.t_first_s is not None and c.final == 0.0 and c.truth != 0.0
+    ]
+    if floored:
+        out.append(
+            f"at 0 after updating (run to the lower bound): {', '.join(floored)}. A step too large "
+            "for this operating point overshoots: Adaline's fixed step is set at 1000 r/min, 5 A "
+            "of i_q and 2 A of i_d (docs/identification.md), and LMS diverges once mu |x|^2 / "
+            "|x_ref|^2 passes 2, a regressor (w_e i_q on L_q) some 4.5 times the tuning point's; "
+            "NLMS-Adaline normalises its step and does not"
+        )
     return "\n".join(out)
 
 
