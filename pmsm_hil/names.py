@@ -21,6 +21,13 @@ def _key(name: str) -> str:
     return "".join(c for c in name.lower() if c.isalnum())
 
 
+def same_name(name: str, known: Iterable[str]) -> str | None:
+    """The known name written like ``name`` but for case and separators (``labtypical``:
+    ``lab-typical``), or None."""
+    want = _key(name)
+    return next((n for n in known if isinstance(n, str) and want and _key(n) == want), None)
+
+
 def closest(name: str, known: Iterable[str]) -> list[str]:
     """The known names that ``name`` was likely meant to be, in ``known``'s order: one written
     alike but for case and separators; else the names it begins (up to MAX_SHOWN); else the
@@ -55,4 +62,4 @@ def did_you_mean(name: str, known: Iterable[str], what: str = "") -> str:
     return f"; did you mean one of {', '.join(map(repr, close))}?"
 
 
-__all__ = ["closest", "did_you_mean"]
+__all__ = ["closest", "did_you_mean", "same_name"]

@@ -6,7 +6,7 @@ import textwrap
 
 import pytest
 
-from pmsm_hil.names import closest, did_you_mean
+from pmsm_hil.names import closest, did_you_mean, same_name
 from pmsm_hil.profiles import ProfileError, load_profile
 
 FIELDS = ["name", "duration_s", "speed_rpm", "ramp_rpm_s", "load_nm", "capture", "speed_ref_rpm"]
@@ -37,6 +37,13 @@ def test_a_short_beginning_or_one_of_many_suggests_nothing_by_itself():
     assert closest("sp", ["speed_rpm", "speed_ref_rpm"]) == []  # 2 characters: not a beginning
     assert closest("seg", many) == []  # ten begin so: too short to say which
     assert closest("seg_7", many) == ["seg_7"]
+
+
+def test_same_name_is_case_and_separators_only():
+    assert same_name("labtypical", ["default", "lab-typical"]) == "lab-typical"
+    assert same_name("Lab_Typical", ["lab-typical"]) == "lab-typical"
+    assert same_name("lab", ["lab-typical"]) is None  # a beginning is not the same name
+    assert same_name("", ["lab-typical"]) is None
 
 
 def test_did_you_mean_wording():

@@ -118,6 +118,10 @@ def test_an_unknown_name_lists_what_is_shipped(tmp_path):
         ("tolerance", "profile", "'tolerance' is a sweep: `pmsm-hil sweep tolerance`"),
         ("paper-a", "sweep", "'paper-a' is a profile: `pmsm-hil run paper-a`"),
         ("lab-typical", "motor", "'lab-typical' is a rig: `--rig lab-typical`"),
+        # another kind written otherwise, and this kind before another of the same name
+        ("labtypical", "profile", "'lab-typical' is a rig: `--rig lab-typical`"),
+        ("Tolerance", "profile", "'tolerance' is a sweep: `pmsm-hil sweep tolerance`"),
+        ("SEW-cm3c80s", "profile", "did you mean 'sew-cm3c80s'?"),
     ],
 )
 def test_a_name_written_otherwise_or_of_another_kind_gets_a_hint(name, kind, hint):

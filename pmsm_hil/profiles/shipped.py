@@ -21,7 +21,7 @@ import importlib.util
 import os
 from pathlib import Path
 
-from pmsm_hil.names import did_you_mean
+from pmsm_hil.names import did_you_mean, same_name
 
 from ._source import Problem, ProfileError
 
@@ -89,7 +89,13 @@ def resolve(name: str | os.PathLike, kind: str) -> str:
         if candidate is not None:
             return str(candidate)
         stems = [p.stem for p in shipped(kind)]
-        hint = _other_kind(text, kind) or _close(text, stems, kind)
+        bare = text.removesuffix(KINDS[kind][1])
+        # one of this kind written otherwise, then one of another kind, then a near one
+        hint = (
+            (f"; did you mean {alike!r}?" if (alike := same_name(bare, stems)) else "")
+            or _other_kind(text, kind)
+            or _close(text, stems, kind)
+        )
         raise _not_found(
             text,
             f"is neither a file nor a shipped {kind}{hint} (shipped: {', '.join(stems)}; "
@@ -121,6 +127,10 @@ def _other_kind(name: str, kind: str) -> str:
         if other != kind and _shipped_named(name, other) is not None:
             stem = Path(name).stem if name.endswith(KINDS[other][1]) else name
             return f"; {stem!r} is {use.format(n=stem)}"
+    for other, use in _USE.items():  # written otherwise: `labtypical` for the rig lab-typical
+        alike = same_name(name.removesuffix(KINDS[other][1]), [p.stem for p in shipped(other)])
+        if other != kind and alike:
+            return f"; {alike!r} is {use.format(n=alike)}"
     return ""
 
 
