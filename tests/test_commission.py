@@ -379,6 +379,10 @@ def test_two_commissionings_in_one_second_keep_both_logs(tmp_path, monkeypatch, 
     assert "without the encoder step, the steps l_dq take the rotor angle" in " ".join(
         out.err.split()
     )
+    assert "replaced" not in out.out  # new files
+    assert cli_main(["commission", "--in-process", "--steps", "l_dq", "-o", "b.yaml"]) == 0
+    assert "motor file: b.yaml" in (text := capsys.readouterr().out)
+    assert "it replaced the file that was there" in text  # said, not refused (README: twice)
 
 
 @pytest.mark.parametrize(

@@ -258,6 +258,7 @@ def main(args: argparse.Namespace) -> int:
         str(log),
         out_dir=str(out.parent),
     )
+    replaced = out.is_file()  # said, not refused: the README commissions into one file twice
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         write_text_whole(out, text)
@@ -272,7 +273,10 @@ def main(args: argparse.Namespace) -> int:
                 f"motor file: {out}, without a flux map (use: pmsm-hil run PROFILE --motor {out})"
             )
             return code
-    print(f"motor file: {out}  (use: pmsm-hil run PROFILE --motor {out})")
+    print(
+        f"motor file: {out}  (use: pmsm-hil run PROFILE --motor {out})"
+        + ("; it replaced the file that was there" if replaced else "")
+    )
     return 0
 
 
