@@ -5,15 +5,13 @@ from __future__ import annotations
 
 import re
 import subprocess
-import sys
 import xml.etree.ElementTree as ET
 
 import pytest
+from cli_helpers import CLI
 from emu_helpers import DEVICE_TOPICS, raw_messages, run_inproc
 
 from pmsm_hil.profiles import ProfileError, load_profile
-
-CLI = [sys.executable, "-m", "pmsm_hil.cli.main"]
 
 
 def with_acceptance(tmp_path, data, text: str, name: str = "p.yaml"):

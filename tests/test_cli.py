@@ -12,13 +12,12 @@ import tty
 from pathlib import Path
 
 import pytest
+from cli_helpers import CLI
 from emu_helpers import emulator_children
 
 from pmsm_hil.log.reader import read_log
 from pmsm_hil.protocol import codec
 from pmsm_hil.protocol import generated as gen
-
-CLI = [sys.executable, "-m", "pmsm_hil.cli.main"]
 
 
 def cli(*args, timeout=180, **kw):

@@ -8,7 +8,7 @@ import os
 from pathlib import Path
 
 import pytest
-from test_user_path import cli
+from cli_helpers import cli
 
 from pmsm_hil.profiles import ProfileError, load_profile
 from pmsm_hil.profiles.shipped import resolve, shipped, shipped_root

@@ -8,7 +8,8 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import pytest
-from test_acceptance import CLI, with_acceptance
+from cli_helpers import CLI, cli
+from test_acceptance import with_acceptance
 
 
 def test_test_out_keeps_the_results_table_of_one_profile_and_refuses_a_file(tmp_path, data):
@@ -18,12 +19,7 @@ def test_test_out_keeps_the_results_table_of_one_profile_and_refuses_a_file(tmp_
     import pyarrow.parquet as pq
 
     p = with_acceptance(tmp_path, data, "")
-    r = subprocess.run(
-        [*CLI, "test", str(p), "--out", str(tmp_path / "o")],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
+    r = cli("test", str(p), "--out", str(tmp_path / "o"), timeout=300)
     assert r.returncode == 0, r.stdout + r.stderr
     rows = pq.read_table(tmp_path / "o" / "results.parquet").to_pylist()
     assert [(row["index"], row["status"]) for row in rows] == [(0, "ok")]
@@ -32,12 +28,7 @@ def test_test_out_keeps_the_results_table_of_one_profile_and_refuses_a_file(tmp_
     blocker = tmp_path / "afile"
     blocker.write_text("")
     junit = tmp_path / "j.xml"
-    r = subprocess.run(
-        [*CLI, "test", str(p), "--out", str(blocker), "--junit", str(junit)],
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
+    r = cli("test", str(p), "--out", str(blocker), "--junit", str(junit), timeout=60)
     assert r.returncode == 2, r.stdout + r.stderr
     assert f"--out {blocker}: is a file; give a folder" in r.stderr
     assert "scheduler" not in r.stderr and "Traceback" not in r.stderr
@@ -49,12 +40,7 @@ def test_test_names_a_missing_profile_beside_the_bad_files(tmp_path, data):
     a = with_acceptance(tmp_path, data, "acceptance:\n  run: {faults: sometimes}\n", "a.yaml")
     b = with_acceptance(tmp_path, data, "acceptance:\n  run: {recovery_max_s: -1}\n", "b.yaml")
     junit = tmp_path / "out.xml"
-    r = subprocess.run(
-        [*CLI, "test", str(a), "no-such-profile", str(b), "--junit", str(junit)],
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
+    r = cli("test", str(a), "no-such-profile", str(b), "--junit", str(junit), timeout=60)
     assert r.returncode == 2, r.stdout + r.stderr
     assert "Traceback" not in r.stderr
     for named in (f"{a}:", "no-such-profile: is neither a file", f"{b}:"):
@@ -70,9 +56,7 @@ def test_test_says_so_when_the_junit_report_cannot_be_written(tmp_path, data):
     """A report that cannot be written after the run (a full disk) is one error line and exit 2,
     not a traceback and not the suite's pass: CI would find no report."""
     p = with_acceptance(tmp_path, data, "")
-    r = subprocess.run(
-        [*CLI, "test", str(p), "--junit", "/dev/full"], capture_output=True, text=True, timeout=300
-    )
+    r = cli("test", str(p), "--junit", "/dev/full", timeout=300)
     assert r.returncode == 2, r.stdout + r.stderr
     assert "Traceback" not in r.stderr
     assert "--junit /dev/full: cannot be written (No space left on device)" in r.stderr

@@ -10,12 +10,11 @@ import sys
 from pathlib import Path
 
 import pytest
+from cli_helpers import CLI, cli
 from emu_helpers import DEVICE_TOPICS, raw_messages
 
 from pmsm_hil.profiles import ProfileError
 from pmsm_hil.sweep import load_sweep, plan_runs, read_table, run_sweep
-
-CLI = [sys.executable, "-m", "pmsm_hil.cli.main"]
 
 
 def device_messages(path) -> list:
@@ -153,12 +152,7 @@ def test_cli_refuses_an_out_that_is_a_file_before_any_cluster(tmp_path):
     as 'cannot reach the scheduler None: File exists' (exit 3)."""
     blocker = tmp_path / "afile"
     blocker.write_text("")
-    r = subprocess.run(
-        [*CLI, "sweep", "tolerance", "--out", str(blocker), "--limit", "1"],
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
+    r = cli("sweep", "tolerance", "--out", blocker, "--limit", 1, timeout=120)
     assert r.returncode == 2, r.stdout + r.stderr
     assert f"--out {blocker}: is a file; give a folder" in r.stderr
     assert "scheduler" not in r.stderr and "Traceback" not in r.stderr

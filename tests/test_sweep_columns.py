@@ -13,6 +13,7 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
+from cli_helpers import CLI
 
 from pmsm_hil.profiles import ProfileError
 from pmsm_hil.sweep import load_sweep, read_table, run_sweep, write_table
@@ -21,8 +22,6 @@ from pmsm_hil.sweep.metrics import summary_metrics
 from pmsm_hil.sweep.report import write_report
 from pmsm_hil.sweep.results import ResultsFormatError
 from pmsm_hil.sweep.spec import factor_column
-
-CLI = [sys.executable, "-m", "pmsm_hil.cli.main"]
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess:

@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 
 import pytest
+from cli_helpers import CLI, cli
 from emu_helpers import run_inproc
 from mcap.reader import make_reader
 
@@ -18,14 +19,6 @@ from pmsm_hil.log.reader import read_log
 from pmsm_hil.profiles import load_profile
 from pmsm_hil.profiles.shipped import resolve
 from pmsm_hil.protocol import generated as gen
-
-CLI = [sys.executable, "-m", "pmsm_hil.cli.main"]
-
-
-def cli(*args, timeout=180, **kw):
-    return subprocess.run(
-        [*CLI, *map(str, args)], capture_output=True, text=True, timeout=timeout, **kw
-    )
 
 
 def test_two_runs_started_in_the_same_second_keep_their_own_logs(tmp_path, monkeypatch):
