@@ -90,12 +90,9 @@ def resolve(name: str | os.PathLike, kind: str) -> str:
             return str(candidate)
         stems = [p.stem for p in shipped(kind)]
         bare = text.removesuffix(KINDS[kind][1])
-        # one of this kind written otherwise, then one of another kind, then a near one
-        hint = (
-            (f"; did you mean {alike!r}?" if (alike := same_name(bare, stems)) else "")
-            or _other_kind(text, kind)
-            or _close(text, stems, kind)
-        )
+        near = did_you_mean(bare, stems)  # written otherwise, a beginning, or misspelt
+        # one of this kind written otherwise comes before one of another kind of that name
+        hint = near if same_name(bare, stems) else (_other_kind(text, kind) or near)
         raise _not_found(
             text,
             f"is neither a file nor a shipped {kind}{hint} (shipped: {', '.join(stems)}; "
@@ -122,23 +119,15 @@ _USE = {
 
 
 def _other_kind(name: str, kind: str) -> str:
-    """'; NAME is a shipped sweep: ...' when a shipped file of another kind has that name."""
+    """'; NAME is a shipped sweep: ...' when a shipped file of another kind has that name, also
+    written otherwise (`labtypical` for the rig lab-typical)."""
     for other, use in _USE.items():
-        if other != kind and _shipped_named(name, other) is not None:
-            stem = Path(name).stem if name.endswith(KINDS[other][1]) else name
-            return f"; {stem!r} is {use.format(n=stem)}"
-    for other, use in _USE.items():  # written otherwise: `labtypical` for the rig lab-typical
+        if other == kind:
+            continue
         alike = same_name(name.removesuffix(KINDS[other][1]), [p.stem for p in shipped(other)])
-        if other != kind and alike:
+        if alike:
             return f"; {alike!r} is {use.format(n=alike)}"
     return ""
-
-
-def _close(name: str, stems: list[str], kind: str) -> str:
-    """'; did you mean ...?' for a shipped name written with other case or separators
-    (``Paper-A``, ``labtypical``, ``paper_a``) or misspelt."""
-
-    return did_you_mean(name.removesuffix(KINDS[kind][1]), stems)
 
 
 def _not_found(text: str, why: str) -> ProfileError:
