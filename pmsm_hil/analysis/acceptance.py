@@ -16,8 +16,9 @@ if TYPE_CHECKING:
     from pmsm_hil.log.reader import Log
     from pmsm_hil.profiles import Profile
     from pmsm_hil.profiles.acceptance import Acceptance
+    from pmsm_hil.profiles.current_step import CurrentStep
 
-__all__ = ["Check", "acceptance_line", "checks_failed", "evaluate", "profile_checks"]
+__all__ = ["Check", "acceptance_line", "checks_failed", "evaluate", "profile_checks", "ripple_hint"]
 
 
 @dataclass
@@ -327,4 +328,39 @@ def commission_hint(failed: list[str], motor_yaml: str, rig_yaml: str) -> str | 
         f"the firmware is not told ({', '.join(unknown)}); the identification is judged against "
         f"the plant. Commission first (pmsm-hil commission --rig {name} -o commissioned.yaml) "
         "and run with --motor commissioned.yaml"
+    )
+
+
+# the criteria that the MPCC's current ripple can make a plateau miss
+_RIPPLE_MISSES = ("speed error", "recovery", "ripple i_d", "ripple i_q")
+_SCOPE_INDEX = re.compile(r"segment (\d+) ")
+
+
+def ripple_hint(checks: list[Check], step: CurrentStep) -> str | None:
+    """When speed, recovery or current-ripple criteria missed on segments that run the MPCC and
+    its current step over one control period is a large share of i_max_a (a motor of low
+    inductance for the control period): the step and what suits such a motor."""
+    from pmsm_hil.profiles.current_step import STEP_SHARE_HINT
+
+    missed = sorted(
+        {
+            int(m.group(1))
+            for c in checks
+            if not c.passed
+            and c.criterion in _RIPPLE_MISSES
+            and (m := _SCOPE_INDEX.match(c.scope)) is not None
+            and int(m.group(1)) in step.mpcc_segments
+        }
+    )
+    if not missed or step.share < STEP_SHARE_HINT:
+        return None
+    which = ", ".join(str(i) for i in missed)
+    return (
+        f"segment{'s' if len(missed) > 1 else ''} {which} ran the MPCC, whose current step over "
+        f"one control period (2/3 v_dc ts_s / min(L_d, L_q) = 2/3 x {step.v_dc_v:g} V x "
+        f"{step.ts_s * 1e6:g} us / {step.l_min_h * 1e3:.4g} mH) is {step.step_a:.3g} A, "
+        f"{100 * step.share:.0f} % of i_max_a {step.i_max_a:g} A: its current ripple shakes the "
+        "speed, most at low speed. A motor of such low inductance for this period wants FOC "
+        "(control.current_ctrl: foc); a shorter control.ts_s helps less (docs/control.md, "
+        '"A motor of low inductance")'
     )

@@ -185,8 +185,7 @@ def _print(cases) -> None:
             console.print(f"[yellow]{escape(c.error)}[/]", highlight=False, soft_wrap=True)
         elif c.status != "ok":
             console.print(f"[red]run failed:[/] {escape(c.error)}")
-        hint = c.hint()
-        if hint:
+        for hint in c.hints():
             console.print(f"[yellow]hint:[/] {escape(hint)}", highlight=False, soft_wrap=True)
         n_fail = sum(1 for ch in c.checks if not ch["passed"])
         verdict = "[green]PASS[/]" if c.passed else "[red]FAIL[/]"

@@ -23,7 +23,7 @@ import yaml
 from pydantic import ConfigDict, TypeAdapter, ValidationError
 
 from pmsm_hil.names import did_you_mean
-from pmsm_hil.profiles import ProfileError, load_profile
+from pmsm_hil.profiles import Profile, ProfileError, load_profile
 from pmsm_hil.profiles._source import Problem, fmt_value, loc_str, read_source, resolve_ref
 from pmsm_hil.profiles._validation import error_message, resolve_field
 from pmsm_hil.seeds import SEED_MAX
@@ -381,12 +381,15 @@ def profile_run(
     rig_path: str | None = None,
     motor_path: str | None = None,
     warnings: list[str] | None = None,
+    loaded: list[Profile] | None = None,
 ) -> Run:
     """One run of a profile as it is (with another rig or motor file if given): a sweep of one
     point. Raises ProfileError for an invalid profile. ``warnings`` (a list): the profile's
-    warnings are appended to it."""
+    warnings are appended to it; ``loaded`` (a list): the profile as loaded."""
     base = _Base(profile_path, rig_path, motor_path)
     if warnings is not None:
         warnings += base.profile.warnings
+    if loaded is not None:
+        loaded.append(base.profile)
     texts, seed, _ = materialise(base, [], {}, seed)
     return Run(index=index, values={}, seed=seed, texts=texts, key=run_key(texts, seed))

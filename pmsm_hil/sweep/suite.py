@@ -18,7 +18,8 @@ from typing import Any
 
 import yaml
 
-from pmsm_hil.profiles import ProfileError
+from pmsm_hil.profiles import Profile, ProfileError
+from pmsm_hil.profiles.current_step import CurrentStep, current_step
 
 from .execute import execute_run
 from .plan import Run, profile_run, run_key
@@ -36,6 +37,7 @@ class SuiteCase:
     run: Run | None = None
     default_criteria: bool = False
     warnings: list[str] = field(default_factory=list)  # the profile's (as `run` prints them)
+    step: CurrentStep | None = None  # the MPCC's current step (a hint when speeds miss)
     status: str = ""  # ok | failed (the run could not be made) | interrupted (Ctrl-C)
     error: str = ""
     checks: list[dict[str, Any]] = field(default_factory=list)
@@ -46,16 +48,22 @@ class SuiteCase:
     def passed(self) -> bool:
         return self.status == "ok" and bool(self.checks) and all(c["passed"] for c in self.checks)
 
-    def hint(self) -> str | None:
-        """The commissioning hint (analysis.acceptance.commission_hint) for this case."""
-        from pmsm_hil.analysis.acceptance import commission_hint
+    def hints(self) -> list[str]:
+        """The hints for this case's missed criteria (analysis.acceptance: commission_hint,
+        ripple_hint)."""
+        from pmsm_hil.analysis.acceptance import Check, commission_hint, ripple_hint
 
         if not self.run:
-            return None
+            return []
         failed = [ch["criterion"] for ch in self.checks if not ch["passed"]]
-        return commission_hint(
-            failed, self.run.texts.get("motor.yaml", ""), self.run.texts.get("rig.yaml", "")
-        )
+        hints = [
+            commission_hint(
+                failed, self.run.texts.get("motor.yaml", ""), self.run.texts.get("rig.yaml", "")
+            )
+        ]
+        if self.step is not None:
+            hints.append(ripple_hint([Check(**ch) for ch in self.checks], self.step))
+        return [h for h in hints if h]
 
 
 def plan_suite(
@@ -69,9 +77,16 @@ def plan_suite(
     seen: dict[str, int] = {}
     for i, p in enumerate(profiles):
         warnings: list[str] = []
+        loaded: list[Profile] = []
         try:
             run = profile_run(
-                p, index=i, seed=seed, rig_path=rig, motor_path=motor, warnings=warnings
+                p,
+                index=i,
+                seed=seed,
+                rig_path=rig,
+                motor_path=motor,
+                warnings=warnings,
+                loaded=loaded,
             )
         except ProfileError as e:
             problems += e.problems
@@ -81,7 +96,9 @@ def plan_suite(
         seen[name] = seen.get(name, 0) + 1
         if seen[name] > 1:
             name = f"{name} ({seen[name]})"
-        case = SuiteCase(profile=p, name=name, run=run, warnings=warnings)
+        case = SuiteCase(
+            profile=p, name=name, run=run, warnings=warnings, step=current_step(loaded[0])
+        )
         if not data.get("acceptance"):
             data["acceptance"] = DEFAULT_ACCEPTANCE
             run.texts["profile.yaml"] = yaml.safe_dump(data, sort_keys=False, width=1_000_000)
@@ -185,9 +202,9 @@ def junit_xml(cases: list[SuiteCase]) -> str:
                 ET.SubElement(
                     tc, "failure", message=text, type="acceptance"
                 ).text = f"{c.name}, {ch['scope']}: {ch['criterion']} {text}"
-        hint = c.hint()
-        if hint:
-            ET.SubElement(suite, "system-out").text = f"hint: {hint}"
+        hints = c.hints()
+        if hints:
+            ET.SubElement(suite, "system-out").text = "\n".join(f"hint: {h}" for h in hints)
         for k, v in (("tests", n), ("failures", fails), ("errors", errors)):
             suite.set(k, str(v))
             totals[k] += v
