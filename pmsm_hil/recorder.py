@@ -34,6 +34,16 @@ STOP_REASONS = {v: k.replace("_", " ") for k, v in gen.ENUMS["stop_reason"].item
 COMMISSION_STEPS = {v: k for k, v in gen.ENUMS["commission_step"].items()}
 COMMISSION_FAILS = {v: k for k, v in gen.ENUMS["commission_fail"].items()}
 PARAMS_FLAGS = gen.ENUMS["params_flag"]
+# the polarity event's arg: enum polarity_result (docs/sensorless.md, "Polarity")
+_POLARITY_TEXT = {
+    "kept": "kept (the estimate was on the magnet's axis)",
+    "flipped": "flipped (the estimate was half a turn off and has been turned)",
+    "unresolved": "not resolved (the d-axis asymmetry is too small: the motor stops)",
+    "no_lock": "no lock at rest (the PLL did not lock before the pulses: the motor stops)",
+}
+POLARITY_RESULTS = {
+    v: _POLARITY_TEXT.get(k, k.replace("_", " ")) for k, v in gen.ENUMS["polarity_result"].items()
+}
 
 TELEMETRY_FIELDS = (
     "speed_ref_rpm",
@@ -367,6 +377,16 @@ class Recorder:
             text = f"commissioning failed in {step}: {COMMISSION_FAILS.get(why, why)}"
         elif kind == "capture_triggered":
             text = "capture triggered by " + ("a fault" if arg < 0 else f"segment {arg}")
+        elif kind == "r_identified":
+            text = f"R identified: {arg / 1000:.3f} ohm"
+        elif kind == "polarity":
+            text = f"polarity: {POLARITY_RESULTS.get(arg, f'result {arg}')}"
+        elif kind == "polarity_asym":
+            text = f"polarity test: d-axis asymmetry {arg / 10000:+.4f}"
+        elif kind == "if_handover":
+            text = f"I/f start: the estimator takes the angle over at {arg / 10:.1f} r/min"
+        elif kind == "if_failed":
+            text = "I/f start failed: the rotor does not follow (pulled out or stalled)"
         else:
             text = kind.replace("_", " ")
         self.event(t, kind, code, arg, text)

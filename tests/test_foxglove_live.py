@@ -218,7 +218,7 @@ def test_layout_file_is_generated(root):
     assert r.returncode == 0, r.stderr
 
 
-def test_run_with_a_taken_port_is_bad_input(data, capsys):
+def test_run_with_a_taken_port_is_bad_input(data, capsys, tmp_path):
     from pmsm_hil.cli.main import main
 
     with socket.socket() as s:
@@ -228,6 +228,17 @@ def test_run_with_a_taken_port_is_bad_input(data, capsys):
         assert main(["run", str(data / "short.yaml"), "--no-live", "--foxglove", str(port)]) == 2
     err = capsys.readouterr().err
     assert f"--foxglove {port}: cannot listen on 127.0.0.1:{port}" in err and "Traceback" not in err
+    assert main(["run", str(data / "short.yaml"), "--no-live", "--foxglove", "99999"]) == 2
+    assert "--foxglove 99999: not a TCP port (0..65535" in capsys.readouterr().err
+    for text in ("abc", "8765.5"):
+        with pytest.raises(SystemExit) as ei:
+            main(["run", str(data / "short.yaml"), "--no-live", "--foxglove", text])
+        assert ei.value.code == 2
+        assert f"--foxglove: '{text}' is not a TCP port (a whole number 0..65535" in (
+            capsys.readouterr().err
+        )
+    # nothing was run: no empty log is left in runs/ (the working directory is tmp_path)
+    assert list((tmp_path / "runs").glob("*.mcap")) == []
 
 
 def test_on_the_emulator_the_stream_goes_in_real_time_unless_paced(data, tmp_path, monkeypatch):

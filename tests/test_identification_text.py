@@ -55,3 +55,12 @@ def test_an_estimate_run_to_zero_after_updating_is_named_as_diverged():
     assert "adaline L_q." in line and "L_d" not in line.split(".")[0]  # never updated: not here
     assert "NLMS-Adaline normalises its step" in line
     assert not any(ln.startswith("at 0") for ln in text_table(_table("lv400")).splitlines())
+
+
+def test_the_table_fits_an_80_column_terminal():
+    # run and analyze print it after the run: rows wider than 80 columns wrap every line there
+    text = text_table(_table("paper-a-ipmsm"))
+    rows = [ln for ln in text.splitlines() if ln.startswith("  ") and "paper: " not in ln]
+    assert len(rows) == 2 * 5  # a header and four parameters per estimator
+    assert max(len(ln) for ln in rows) <= 80
+    assert all("|" in ln for ln in rows)  # paper A's columns beside ours

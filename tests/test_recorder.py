@@ -108,3 +108,44 @@ def test_frames_decode_their_fields_when_asked():
     assert fr.fields == {"tick": 10, "code": 1, "arg": -3}
     msg_id, seq, name, fields = fr
     assert fr == codec.Frame(msg_id, seq, name, fields)
+
+
+def _event_texts(tmp_path, events: list[tuple[str, int]]) -> list[str]:
+    """The text the recorder gives each device event (code by name, arg), in the log and live."""
+    data = b"".join(
+        codec.encode("event", k, tick=10 * k, code=gen.ENUMS["event"][name], arg=arg)
+        for k, (name, arg) in enumerate(events)
+    )
+    with LogWriter(tmp_path / "ev.mcap", {"run": {}}) as w:
+        rec = Recorder(w, TS_S, ["a"])
+        rec.frames(codec.FrameDecoder().feed(data))
+    logged = list(read_log(tmp_path / "ev.mcap").topic("/pmsm/events")["text"])
+    assert logged == [e[3] for e in rec.live.events]
+    return logged
+
+
+def test_sensorless_and_identification_events_say_their_result(tmp_path):
+    # the arg carries the result (firmware/proto/pmsm_proto.yaml): the text names it, so that the
+    # live view and the log say which pole the polarity test found, at what speed the I/f start
+    # handed over, what R the injection found
+    texts = _event_texts(
+        tmp_path,
+        [
+            ("polarity", 1),
+            ("polarity", 2),
+            ("polarity", 3),
+            ("polarity", 4),
+            ("polarity_asym", -2716),
+            ("if_handover", 3124),
+            ("if_failed", 0),
+            ("r_identified", 1170),
+        ],
+    )
+    assert texts[0].startswith("polarity: kept")
+    assert texts[1].startswith("polarity: flipped")
+    assert texts[2].startswith("polarity: not resolved")
+    assert texts[3].startswith("polarity: no lock at rest")
+    assert "-0.2716" in texts[4]
+    assert "312.4 r/min" in texts[5]
+    assert texts[6].startswith("I/f start failed")
+    assert "1.170 ohm" in texts[7]

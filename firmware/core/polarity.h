@@ -15,11 +15,14 @@
 #include <stdint.h>
 #include <stdbool.h>
 
-#define POL_RUNNING    0u
-#define POL_KEPT       1u /* the estimate was on the magnet's d axis */
-#define POL_FLIPPED    2u /* it was half a turn off and has been turned */
-#define POL_UNRESOLVED 3u /* |asymmetry| below asym_min: polarity not resolved */
-#define POL_NO_LOCK    4u /* the PLL did not lock before the pulses */
+#include "proto_gen.h"
+
+/* the results, as the polarity event reports them (enum polarity_result of the protocol) */
+#define POL_RUNNING    PROTO_POLARITY_RESULT_RUNNING
+#define POL_KEPT       PROTO_POLARITY_RESULT_KEPT       /* the estimate was on the magnet's d axis */
+#define POL_FLIPPED    PROTO_POLARITY_RESULT_FLIPPED    /* half a turn off, and turned */
+#define POL_UNRESOLVED PROTO_POLARITY_RESULT_UNRESOLVED /* |asymmetry| below asym_min */
+#define POL_NO_LOCK    PROTO_POLARITY_RESULT_NO_LOCK    /* no PLL lock before the pulses */
 
 #define POL_SETTLE_EXCITE 0.33f /* d-axis square wave while settling, fraction of the pulse */
 /* A PLL not yet confident at the end of the settling gets up to this many settling times more

@@ -10,7 +10,7 @@
 #include <stdbool.h>
 
 #define PROTO_VERSION 2u
-#define PROTO_SCHEMA_HASH 0xF9094F1DUL  /* CRC-32 of the canonical yaml */
+#define PROTO_SCHEMA_HASH 0x099A6583UL  /* CRC-32 of the canonical yaml */
 #define PROTO_MAX_PAYLOAD 111u  /* octets */
 #define PROTO_MSG_COUNT 26u
 
@@ -101,6 +101,13 @@
 #define PROTO_EVENT_POLARITY_ASYM 13u
 #define PROTO_EVENT_IF_HANDOVER 14u
 #define PROTO_EVENT_IF_FAILED 15u
+
+/* enum polarity_result */
+#define PROTO_POLARITY_RESULT_RUNNING 0u
+#define PROTO_POLARITY_RESULT_KEPT 1u
+#define PROTO_POLARITY_RESULT_FLIPPED 2u
+#define PROTO_POLARITY_RESULT_UNRESOLVED 3u
+#define PROTO_POLARITY_RESULT_NO_LOCK 4u
 
 /* enum commission_step */
 #define PROTO_COMMISSION_STEP_OFFSETS 0u

@@ -287,9 +287,10 @@ def text_table(table: IdentTable, with_paper: bool | None = None) -> str:
             "  paper: paper A's Table 2 as published (its estimates, their errors against its own "
             "nominal motor, its times)"
         )
-    hdr = f"  {'param':<10}{'truth':>10}{'ours':>11}{'error':>10}{'t_conv s':>10}"
+    # rows of 79 characters with paper A's columns: an 80-column terminal does not wrap them
+    hdr = f"  {'param':<10}{'truth':>10}{'ours':>10}{'error':>10}{'t_conv s':>10}"
     if with_paper:
-        hdr += f"   |{'paper':>9}{'error':>9}{'t s':>7}"
+        hdr += f"  |{'paper':>9}{'error':>9}{'t s':>6}"
     for e in ESTIMATORS:
         if table.cell(e, "l_d_h") is None:
             continue
@@ -301,12 +302,12 @@ def text_table(table: IdentTable, with_paper: bool | None = None) -> str:
             name, unit, _ = UNITS[p]
             conv = c.conv_text()
             line = (
-                f"  {name + ' ' + unit:<10}{_fmt(p, c.truth):>10}{_fmt(p, c.final):>11}"
+                f"  {name + ' ' + unit:<10}{_fmt(p, c.truth):>10}{_fmt(p, c.final):>10}"
                 f"{100 * c.error_rel:>+9.2f}%{conv:>10}"
             )
             if with_paper:
                 v, err, ts = PAPER_A_TABLE2[e][p]
-                line += f"   |{_fmt(p, v):>9}{100 * err / PAPER_A_TRUE[p]:>8.2f}%{ts:>7.2f}"
+                line += f"  |{_fmt(p, v):>9}{100 * err / PAPER_A_TRUE[p]:>8.2f}%{ts:>6.2f}"
             out.append(line)
     frozen = [
         f"{e} " + ", ".join(names)

@@ -3,6 +3,7 @@ output is not a terminal (a pipe, a file, CI)."""
 
 from __future__ import annotations
 
+import contextlib
 import sys
 import time
 from typing import Any, TextIO
@@ -41,21 +42,41 @@ def _flags(name: str, p: dict) -> str:
     return name + mark
 
 
-def _signals(t: dict) -> Table:
-    sig = Table(title="signals", box=None, show_header=True, header_style="bold", pad_edge=False)
-    for col in ("", "ref", "measured"):
+def _signals(t: dict, estimate: bool = False, title: bool = True) -> Table:
+    """estimate: a column with the angle estimator's speed and angle beside the encoder's."""
+    sig = Table(
+        title="signals" if title else None,
+        box=None,
+        show_header=True,
+        header_style="bold",
+        pad_edge=False,
+    )
+    for col in ("", "ref", "measured") + (("estimate",) if estimate else ()):
         sig.add_column(col, justify="right", no_wrap=True)
-    sig.add_row("speed r/min", f"{t.get('speed_ref_rpm', 0):8.1f}", f"{t.get('speed_rpm', 0):8.1f}")
-    sig.add_row("i_d A", f"{t.get('i_d_ref_a', 0):8.2f}", f"{t.get('i_d_a', 0):8.2f}")
-    sig.add_row("i_q A", f"{t.get('i_q_ref_a', 0):8.2f}", f"{t.get('i_q_a', 0):8.2f}")
-    sig.add_row("load N·m", f"{t.get('load_nm', 0):8.2f}", "")
-    sig.add_row("θe rad", "", f"{t.get('theta_e_rad', 0):8.3f}")
+    rows = [
+        (
+            "speed r/min",
+            f"{t.get('speed_ref_rpm', 0):8.1f}",
+            f"{t.get('speed_rpm', 0):8.1f}",
+            f"{t.get('speed_est_rpm', 0):8.1f}",
+        ),
+        ("i_d A", f"{t.get('i_d_ref_a', 0):8.2f}", f"{t.get('i_d_a', 0):8.2f}", ""),
+        ("i_q A", f"{t.get('i_q_ref_a', 0):8.2f}", f"{t.get('i_q_a', 0):8.2f}", ""),
+        ("load N·m", f"{t.get('load_nm', 0):8.2f}", "", ""),
+        ("θe rad", "", f"{t.get('theta_e_rad', 0):8.3f}", f"{t.get('theta_e_est_rad', 0):8.3f}"),
+    ]
+    for row in rows:
+        sig.add_row(*row[: 4 if estimate else 3])
     return sig
 
 
-def _parameters(live: LiveState, errors: bool = True, fold: bool = False) -> Table:
+def _parameters(
+    live: LiveState, errors: bool = True, fold: bool = False, title: bool = True
+) -> Table:
     """errors: the % error against the truth beside each value; fold: wrap cells, never `…`."""
-    par = Table(title="parameters", box=None, header_style="bold", pad_edge=False)
+    par = Table(
+        title="parameters" if title else None, box=None, header_style="bold", pad_edge=False
+    )
     par.add_column("estimator", no_wrap=not fold, overflow="fold")
     for col in ("L_d mH", "L_q mH", "ψf mWb", "R Ω"):
         par.add_column(col, justify="right", no_wrap=not fold, overflow="fold")
@@ -102,6 +123,14 @@ def _link(live: LiveState, bit_rate: float, wide: bool) -> Table:
         f"{live.tx_dropped}", "dropped by the device (TX full)" if wide else "dropped (TX full)"
     )
     return link
+
+
+def _link_line(live: LiveState, bit_rate: float) -> Text:
+    """The link's figures on one line (a narrow terminal: the table would take six)."""
+    return Text(
+        f"link {live.frames} frames, {_link_use(live, bit_rate) * 100:.1f} % used, "
+        f"{live.bad_frames} bad, {live.seq_gaps} gaps, {live.tx_dropped} dropped"
+    )
 
 
 def _width(console, options, renderable) -> int:
@@ -152,27 +181,30 @@ class _Screen:
             counts,
         )
         rows.append(prog)
-        sig, par = _signals(t), _parameters(live)
+        estimate = bool(live.estimator)
+        sig, par = _signals(t, estimate), _parameters(live)
         wide_link = _link(live, self.bit_rate, True)
         ws, wp, wl = (_width(console, options, x) for x in (sig, par, wide_link))
-        gap = 4
-        if ws + wp + wl + 2 * gap <= inner:
+        gap = next((g for g in (4, 2) if ws + wp + wl + 2 * g <= inner), 0)
+        if gap:
             body = Table.grid(padding=(0, gap))
             body.add_row(sig, par, wide_link)
             rows.append(body)
         else:
             link = _link(live, self.bit_rate, False)
             wl = _width(console, options, link)
-            if ws + wl + gap <= inner:
-                top = Table.grid(padding=(0, gap))
+            titled = ws + wl + 4 <= inner
+            if titled:
+                top = Table.grid(padding=(0, 4))
                 top.add_row(sig, link)
                 rows.append(top)
-            else:
-                rows += [sig, link]
+            else:  # stacked: the link on one line, no table titles (the headers say enough)
+                rows += [_signals(t, estimate, title=False), _link_line(live, self.bit_rate)]
+            par = _parameters(live, title=titled)
             if _width(console, options, par) > inner:
-                par = _parameters(live, errors=False)
+                par = _parameters(live, errors=False, title=titled)
                 if _width(console, options, par) > inner:
-                    par = _parameters(live, errors=False, fold=True)
+                    par = _parameters(live, errors=False, fold=True, title=titled)
             rows.append(par)
         if live.estimator:
             rows.append(Text.from_markup(estimator_text(live.estimator)))
@@ -238,23 +270,36 @@ class LiveView:
 
 
 class PlainProgress:
-    """Observer for --no-live: a line per second of wall time."""
+    """Observer for --no-live: a line per second of wall time, after the device's events since
+    the last line (segments, the polarity test's result, faults ...; the host prints its own)."""
 
     def __init__(self, stream: TextIO = sys.stdout, period_s: float = 1.0):
         self.stream, self.period_s = stream, period_s
         self._last = 0.0
+        self._live: LiveState | None = None
+        self._events = 0  # events of self._live printed so far
 
     def __enter__(self) -> PlainProgress:
         return self
 
     def __exit__(self, *exc: object) -> None:
-        pass
+        with contextlib.suppress(OSError, ValueError):  # a closed pipe (`| head`) ends nothing
+            self._print_events()
+
+    def _print_events(self) -> None:
+        events = self._live.events if self._live is not None else []
+        for t_s, kind, _arg, text in events[self._events :]:
+            if kind not in ("host", "link"):
+                print(f"{t_s:8.3f} s  {text}", file=self.stream)
+        self._events = len(events)
 
     def update(self, live: LiveState) -> None:
+        self._live = live
         now = time.monotonic()
         if now - self._last < self.period_s:
             return
         self._last = now
+        self._print_events()
         t = live.telemetry
         print(
             f"t={live.t_s:7.2f}/{live.total_s:.2f} s  seg {live.segment:2d}  {live.state:8s} "
@@ -267,6 +312,7 @@ class PlainProgress:
         )
 
     def message(self, text: str) -> None:
+        self._print_events()  # in the order they came
         print(text, file=self.stream, flush=True)
 
 

@@ -26,6 +26,16 @@ if TYPE_CHECKING:
 ENDS_CLEAN = True
 
 
+def _port_arg(text: str) -> int:
+    """--foxglove PORT: a whole number (its range is checked where the server opens)."""
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not a TCP port (a whole number 0..65535; 0 picks a free one)"
+        ) from None
+
+
 def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "run",
@@ -93,7 +103,7 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     p.add_argument(
         "--foxglove",
         nargs="?",
-        type=int,
+        type=_port_arg,
         const=8765,
         default=None,
         metavar="PORT",
@@ -325,6 +335,8 @@ def _run(args: argparse.Namespace, collecting: bool) -> int:
         try:
             sinks.append(FoxgloveSink(args.foxglove))
         except FoxgloveError as e:
+            if not existed:  # the log made for this run: nothing was run
+                out.unlink(missing_ok=True)
             return fail("error", str(e), 2)
         print(f"foxglove: {sinks[0].url} (layout: {layout_path()})", flush=True)
     for name in _DEVICE:

@@ -17,6 +17,7 @@ from .acceptance import Acceptance, acceptance_problems
 from .motor import Motor, _load_motor_source
 from .reach import reach_checks
 from .rig import Rig, _load_rig_source, plant_problems
+from .sensorless_checks import sensorless_checks
 from .shipped import in_file, near_name
 
 __all__ = [
@@ -468,6 +469,7 @@ def load_profile(
     d = src.data
     motor: Motor | None = None
     motor_path = None
+    msrc: Source | None = None
     notes: list[str] = []  # files taken from the shipped ones (shipped.in_file)
     if motor_override is not None:
         motor_path = os.fspath(motor_override)
@@ -531,6 +533,10 @@ def load_profile(
         reach_problems, reach_warnings = reach_checks(src, motor, rig)
         problems += reach_problems
         warnings += reach_warnings
+    if motor is not None and msrc is not None:
+        snl_problems, snl_warnings = sensorless_checks(src, motor, msrc)
+        problems += snl_problems
+        warnings += snl_warnings
     if problems:
         raise ProfileError(_ordered(problems), _budget_warnings(src, path, problems))
     assert spec is not None and motor is not None and rig is not None

@@ -6,7 +6,7 @@ import struct
 from typing import NamedTuple
 
 PROTOCOL_VERSION = 2
-SCHEMA_HASH = 0xF9094F1D
+SCHEMA_HASH = 0x099A6583
 MAX_PAYLOAD = 111  # octets
 
 # wire type: (struct code, octets, min, max); min/max are None for f32
@@ -130,6 +130,13 @@ ENUMS = {
         'polarity_asym': 13,
         'if_handover': 14,
         'if_failed': 15,
+    },
+    'polarity_result': {
+        'running': 0,
+        'kept': 1,
+        'flipped': 2,
+        'unresolved': 3,
+        'no_lock': 4,
     },
     'commission_step': {
         'offsets': 0,
