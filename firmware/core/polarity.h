@@ -19,8 +19,8 @@
 
 /* the results, as the polarity event reports them (enum polarity_result of the protocol) */
 #define POL_RUNNING    PROTO_POLARITY_RESULT_RUNNING
-#define POL_KEPT       PROTO_POLARITY_RESULT_KEPT       /* the estimate was on the magnet's d axis */
-#define POL_FLIPPED    PROTO_POLARITY_RESULT_FLIPPED    /* half a turn off, and turned */
+#define POL_KEPT       PROTO_POLARITY_RESULT_KEPT    /* the estimate was on the magnet's d axis */
+#define POL_FLIPPED    PROTO_POLARITY_RESULT_FLIPPED /* half a turn off, and turned */
 #define POL_UNRESOLVED PROTO_POLARITY_RESULT_UNRESOLVED /* |asymmetry| below asym_min */
 #define POL_NO_LOCK    PROTO_POLARITY_RESULT_NO_LOCK    /* no PLL lock before the pulses */
 
