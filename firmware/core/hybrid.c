@@ -33,19 +33,28 @@ void hyb_init(hyb_t *h, const hyb_cfg_t *cfg)
 
 void hyb_step(hyb_t *h, const hyb_in_t *in, hyb_out_t *out)
 {
-    const float diff = tf_wrap_pi(in->theta_mras_rad - in->theta_pll_rad);
+    const float raw = tf_wrap_pi(in->theta_mras_rad - in->theta_pll_rad);
+    /* the MRAS's angle enters the output only while it reports lock, agrees with the PLL within
+     * disagree_rad and has not jumped since the last period (an MRAS losing its track jumps by up
+     * to pi, sometimes a period before it reports the loss) */
+    const float lim = h->cfg.disagree_rad;
+    const bool trusted =
+        in->mras_locked && fabsf(raw) < lim && fabsf(tf_wrap_pi(raw - h->raw_prev_rad)) < lim;
+    const float diff = trusted ? raw : h->diff_held_rad;
     const float omega = in->omega_pll_rad_s;
     const float rpm = fabsf(omega) * h->rpm_per_rad_s;
     const bool both = rpm > h->cfg.pll_on_rpm && in->mras_locked;
     memset(out, 0, sizeof(*out));
-    if (rpm > h->cfg.mras_on_rpm && in->mras_locked) {
+    h->diff_held_rad = diff;
+    h->raw_prev_rad = raw;
+    if (rpm > h->cfg.mras_on_rpm && trusted) {
         h->to_mras = true;
-    } else if (rpm < h->cfg.pll_on_rpm || !in->mras_locked) {
+    } else if (rpm < h->cfg.pll_on_rpm || !trusted) {
         h->to_mras = false;
     }
     h->w += h->to_mras ? h->dw : -h->dw;
     h->w = h->w > 1.0f ? 1.0f : (h->w < 0.0f ? 0.0f : h->w);
-    if (both && fabsf(diff) > h->cfg.disagree_rad) {
+    if (both && fabsf(raw) > h->cfg.disagree_rad) {
         h->n_dis++;
     } else {
         h->n_dis = 0u;
@@ -62,7 +71,7 @@ void hyb_step(hyb_t *h, const hyb_in_t *in, hyb_out_t *out)
             h->lock = HYB_LOCK_LOW_CONF;
         }
     }
-    out->diff_rad = diff;
+    out->diff_rad = raw;
     out->w_mras = h->w;
     out->theta_e_rad = tf_wrap_2pi(in->theta_pll_rad + h->w * diff);
     out->omega_e_rad_s = in->omega_pll_rad_s;

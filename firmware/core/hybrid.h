@@ -11,7 +11,11 @@
  * Supervision (loss of lock): above pll_on_rpm both estimators are valid, and a difference of
  * more than disagree_rad for longer than disagree_s is a loss of lock; the PLL's confidence
  * below conf_min for longer than lost_s while it carries the output (w < 1) is another. The MRAS
- * counts only while it reports lock: until then the output stays the PLL's. The PLL's pole comes
+ * counts only while it reports lock, agrees with the PLL within disagree_rad and has not jumped
+ * against it since the last period (by disagree_rad or more): until then the output stays the
+ * PLL's, and when it stops counting while it has weight, w heads for 0 with the difference held
+ * at its last counted value (an MRAS losing its track jumps by up to pi, sometimes a period
+ * before it reports the loss). The PLL's pole comes
  * from the start-up polarity test; a difference near pi is a disagreement like any other (turning
  * the PLL on the MRAS's word would trust the less robust estimator with the pole). */
 #ifndef HYBRID_H
@@ -49,6 +53,8 @@ typedef struct {
 typedef struct {
     hyb_cfg_t cfg;
     float w, dw, rpm_per_rad_s;
+    float diff_held_rad; /* wrap(theta_mras - theta_pll) when the MRAS last counted */
+    float raw_prev_rad;  /* wrap(theta_mras - theta_pll) of the last period */
     bool to_mras;
     uint32_t n_dis, n_conf, n_dis_max, n_conf_max;
     uint16_t lock;

@@ -201,6 +201,73 @@ static void test_hybrid_bumpless(void)
     CHECK(o.lock == HYB_LOCK_DISAGREE, "hybrid: disagreement is a loss of lock");
 }
 
+/* Hybrid: the MRAS carries the angle (w = 1, 0.1 rad ahead of the PLL), then drops lock and its
+ * angle jumps by about pi every few periods (an unlocked MRAS): the output heads for the PLL's
+ * angle from the last locked difference and never follows the unlocked one. */
+static void test_hybrid_mras_drops_lock(void)
+{
+    hyb_cfg_t c;
+    hyb_t h;
+    hyb_in_t in;
+    hyb_out_t o;
+    int k;
+    double max_off = 0.0, prev_w = 1.0;
+    bool falling = true;
+    c.ts_s = 50e-6f;
+    c.pole_pairs = 4u;
+    c.pll_on_rpm = 150.0f;
+    c.mras_on_rpm = 250.0f;
+    c.blend_s = 0.02f;
+    c.disagree_rad = 0.3f;
+    c.disagree_s = 0.02f;
+    c.conf_min = 0.5f;
+    c.lost_s = 0.05f;
+    hyb_init(&h, &c);
+    in.theta_pll_rad = 1.0f;
+    in.omega_pll_rad_s = 400.0f * 4.0f * 3.14159265f / 30.0f; /* 400 r/min */
+    in.conf_pll = 0.95f;
+    in.omega_mras_rad_s = in.omega_pll_rad_s;
+    in.theta_mras_rad = 1.1f;
+    in.mras_locked = true;
+    for (k = 0; k < 1000; k++) { /* 50 ms: the MRAS takes over */
+        hyb_step(&h, &in, &o);
+    }
+    CHECK(o.w_mras >= 1.0f, "hybrid: the locked MRAS carries the angle above the band");
+    CHECK_NEAR(o.theta_e_rad, 1.1, 1e-5, "hybrid: the MRAS's angle");
+    in.mras_locked = false;
+    for (k = 0; k < 1000; k++) { /* unlocked: its angle alternates between 1.1 and 1.1 + 3 */
+        in.theta_mras_rad = (k / 3) % 2 ? 4.1f : 1.1f;
+        hyb_step(&h, &in, &o);
+        max_off = fabs((double)o.theta_e_rad - 1.0) > max_off ? fabs((double)o.theta_e_rad - 1.0)
+                                                              : max_off;
+        falling = falling && o.w_mras <= prev_w;
+        prev_w = o.w_mras;
+    }
+    CHECK(falling && o.w_mras <= 0.0f, "hybrid: w heads for 0 once the MRAS drops lock");
+    CHECK(max_off <= 0.1 + 1e-5, "hybrid: the output never follows the unlocked MRAS");
+    CHECK_NEAR(o.theta_e_rad, 1.0, 1e-6, "hybrid: the PLL's angle once w is 0");
+    CHECK(o.lock == HYB_LOCK_OK, "hybrid: an unlocked MRAS is no disagreement");
+    /* the MRAS back in lock and carrying again; then its angle jumps by 3 rad while it still
+     * reports lock (for 10 periods, less than disagree_s): the output keeps the last difference */
+    in.theta_mras_rad = 1.1f;
+    in.mras_locked = true;
+    for (k = 0; k < 1000; k++) {
+        hyb_step(&h, &in, &o);
+    }
+    CHECK(o.w_mras >= 1.0f, "hybrid: the MRAS carries again once back in lock");
+    max_off = 0.0;
+    for (k = 0; k < 500; k++) { /* a handover takes 400 periods */
+        in.theta_mras_rad = 4.1f;
+        in.mras_locked = k < 10;
+        hyb_step(&h, &in, &o);
+        max_off = fabs((double)o.theta_e_rad - 1.0) > max_off ? fabs((double)o.theta_e_rad - 1.0)
+                                                              : max_off;
+    }
+    CHECK(max_off <= 0.1 + 1e-5, "hybrid: a jump of the still-locked MRAS is not followed");
+    CHECK(o.w_mras <= 0.0f, "hybrid: and the PLL takes the angle back");
+    CHECK(o.lock == HYB_LOCK_OK, "hybrid: a jump shorter than disagree_s is no loss of lock");
+}
+
 int main(void)
 {
     build_map();
@@ -208,5 +275,6 @@ int main(void)
     test_polarity_found();
     test_polarity_linear_plant();
     test_hybrid_bumpless();
+    test_hybrid_mras_drops_lock();
     return CHECK_DONE();
 }
