@@ -33,9 +33,12 @@ def _div(rate_hz: float, ts_s: float) -> int:
 
 
 def encoder_counts(rig: Rig) -> int:
-    """Counts per revolution of the rig's encoder (the model's default when the effect is off)."""
+    """Counts per revolution the firmware is told: the rig's encoder (its `lines_told` when it
+    misstates them; the model's default when the effect is off)."""
     enc = rig.effects.encoder
-    return int(4 * (enc.lines if enc.enabled else type(enc).model_fields["lines"].default))
+    if not enc.enabled:
+        return int(4 * type(enc).model_fields["lines"].default)
+    return int(4 * (enc.lines_told or enc.lines))
 
 
 def device_config(profile: Profile) -> tuple[dict, dict]:

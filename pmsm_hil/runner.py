@@ -99,13 +99,17 @@ class PlantMismatch(DeviceError):
     """The emulator serves another motor than the profile's (it was started with other files)."""
 
 
-def plant_mismatch(motor: Motor, truth: dict[str, Any]) -> str | None:
+def plant_mismatch(
+    motor: Motor, truth: dict[str, Any], deviation: dict[str, float] | None = None
+) -> str | None:
     """What differs between the emulator's plant (its first truth frame) and the profile's motor
-    file, beyond what rig effects explain (temperature, saturation); None when they match."""
+    file, beyond what rig effects explain (temperature, saturation, and ``deviation``: the rig's
+    motor_deviation factors, e.g. {"psi_f_wb": 2.0}); None when they match."""
     out = []
     temp = float(truth.get("temp_winding_c", 0.0) or 0.0)
     for key, unit, tol in (("psi_f_wb", "Wb", 0.2), ("r_s_ohm", "ohm", 0.6)):
         nominal, plant = float(getattr(motor, key)), float(truth.get(key, 0.0) or 0.0)
+        nominal *= (deviation or {}).get(key, 1.0)
         if key == "r_s_ohm" and temp > 0.0 and math.isfinite(temp):
             # a winding the rig heats (a thermal effect, a fitted one up to 200 degC) is the
             # same motor: compare its resistance at the reference temperature
@@ -276,7 +280,8 @@ def run_profile(
             try:
                 session.request("start")
                 rec.event(0.0, "host", 0, 0, f"started {profile.name} on {session.t.name}")
-                interrupted = _stream(session, rec, options, safe, sig, profile.motor)
+                dev = profile.rig.plant_factors()
+                interrupted = _stream(session, rec, options, safe, sig, profile.motor, dev)
                 if interrupted:
                     _stop_device(session, rec, safe, sig)
             except KeyboardInterrupt:  # raised outside the handlers (not the main thread)
@@ -395,6 +400,7 @@ def _stream(
     observer: Observer | None,
     sig: _Interrupts,
     motor: Motor | None = None,
+    deviation: dict[str, float] | None = None,
 ) -> bool:
     """Stream until the device stops (False) or a signal asks the host to stop (True)."""
     live = rec.live
@@ -436,7 +442,7 @@ def _stream(
                 rec.frames(frames[at : at + step])
             if not plant_checked and motor is not None and live.truth:
                 plant_checked = True
-                why = plant_mismatch(motor, live.truth)
+                why = plant_mismatch(motor, live.truth, deviation)
                 if why:
                     rec.event(live.t_s, "host", 0, 0, why)
                     raise PlantMismatch(why)

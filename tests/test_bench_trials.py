@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -14,6 +15,8 @@ from pmsm_hil.bench import commission, identify_rigs
 from pmsm_hil.bench import identify as bench
 from pmsm_hil.bench.trials import BenchInputError, Cluster, parse_seeds
 from pmsm_hil.cli.main import main as cli_main
+
+DATA = Path(__file__).parent / "data"
 
 
 def _quiet(*_a):
@@ -203,3 +206,18 @@ def test_bench_help_says_what_each_benchmark_runs_and_where_it_writes(capsys, mo
         assert says in text, which
         if out:
             assert f"default {out})" in text, which
+
+
+def test_bench_commission_takes_the_users_motor(tmp_path, capsys):
+    """`bench commission --motor` commissions the user's own motor on the user's rig (a 48 V rig
+    would not suit paper A's 540 V motor) and scores each step against that plant."""
+    motor, rig = DATA / "servo-48v.yaml", DATA / "servo-48v-rig.yaml"
+    out = tmp_path / "out"
+    args = ["bench", "commission", "--motor", str(motor), "--rigs", str(rig), "--seeds", "1"]
+    assert cli_main([*args, "-o", str(out)]) == 0
+    md = (out / "commission.md").read_text()
+    assert "motor servo-48v" in md
+    assert "1 of 1 seeds completed" in md
+    rows = [line for line in md.splitlines() if line.startswith("| ") and "/1 |" in line]
+    assert len(rows) >= 9, md
+    assert all(line.endswith("1/1 |") for line in rows), md

@@ -49,7 +49,7 @@ def commission_once(
 
 def commission_trial(task: dict[str, Any]) -> dict[str, Any]:
     """One rig and seed (a Dask task): whether it completed, why not, its errors."""
-    _p, res, errs = commission_once(task["rig"], task["seed"], Path(task["log"]))
+    _p, res, errs = commission_once(task["rig"], task["seed"], Path(task["log"]), task.get("motor"))
     return {"ok": bool(res.ok), "failure": str(res.failure or res.run.stop_reason), "errors": errs}
 
 
@@ -85,18 +85,22 @@ def bench_commission(
     out: Path,
     echo: Callable[[str], None] = print,
     cluster: Cluster | None = None,
+    motor: str | None = None,
 ) -> str:
-    """Runs every (rig, seed) as trials, prints and writes the tables (out/commission.md). A rig
-    that names no file (ProfileError) or no seeds (BenchInputError) is refused before ``out`` is
-    made."""
+    """Runs every (rig, seed) as trials, prints and writes the tables (out/commission.md), on
+    ``motor`` (a file or shipped name; None: paper A's motor, as `pmsm-hil commission`). A rig or
+    motor that names no file (ProfileError) or no seeds (BenchInputError) is refused before
+    ``out`` is made."""
     from pmsm_hil.profiles.shipped import resolve
 
     if not seeds:
         raise BenchInputError("no seeds given")
     paths = [resolve(rig, "rig") for rig in rigs]
+    motor_path = str(Path(resolve(motor, "motor")).resolve()) if motor else None
     out.mkdir(parents=True, exist_ok=True)
     parts = [
-        f"# Commissioning on the emulator, seeds {seeds[0]}..{seeds[-1]} ({len(seeds)} seeds)",
+        f"# Commissioning on the emulator, seeds {seeds[0]}..{seeds[-1]} ({len(seeds)} seeds), "
+        f"motor {Path(motor_path).stem if motor_path else 'paper-a-ipmsm'}",
         "",
         "Errors against the plant: sensor offsets and the encoder offset absolute, the rest "
         "relative; R against the winding's temperature-dependent truth during the R step, L_d "
@@ -107,8 +111,10 @@ def bench_commission(
         {
             "rig": str(Path(p).resolve()),
             "seed": int(s),
+            "motor": motor_path,
             "log": str((out / f"commission-{Path(p).stem}-{s}.mcap").resolve()),
             "text": key_text(p),  # in the key only
+            "motor_text": key_text(motor_path),
         }
         for p in paths
         for s in seeds

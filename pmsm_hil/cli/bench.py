@@ -122,6 +122,12 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         help="comma-separated rigs (shipped names or files; default default,lab-typical)",
     )
     c.add_argument(
+        "--motor",
+        default=None,
+        help="nominal motor file or shipped name, as `pmsm-hil commission --motor` (default: "
+        "paper-a-ipmsm); every rig must suit it (its v_dc_v, effects)",
+    )
+    c.add_argument(
         "--seeds", default="1-10", metavar="SEEDS", help=f"seeds (default 1-10): {SEEDS_HELP}"
     )
     c.add_argument(
@@ -222,7 +228,9 @@ def main(args: argparse.Namespace) -> int:
         if args.bench == "commission":
             from pmsm_hil.bench.commission import bench_commission
 
-            bench_commission(rigs or [], seeds or [], Path(args.out), cluster=_cluster(args))
+            bench_commission(
+                rigs or [], seeds or [], Path(args.out), cluster=_cluster(args), motor=args.motor
+            )
             return 0
         return _identify(args, seeds, rigs)
     except (ProfileError, BenchInputError) as e:

@@ -142,6 +142,7 @@ def main(args: argparse.Namespace) -> int:
         commission_request,
         run_commission,
     )
+    from pmsm_hil.commission.steps import r_knee_warning
     from pmsm_hil.device import DeviceSpec, open_device
     from pmsm_hil.errors import TransportError, TransportSpecError
     from pmsm_hil.profiles import ProfileError
@@ -250,6 +251,9 @@ def main(args: argparse.Namespace) -> int:
     if not res.ok:
         why = res.run.error or res.run.stop_reason or "the sequence did not complete"
         return fail("failed", f"commissioning did not complete: {why} (log: {log})", 4)
+    warning = r_knee_warning(res.rows, res.quantities)
+    if warning:
+        report("warning", warning)
     text = commissioned_motor_yaml(
         profile.motor,
         res.quantities,

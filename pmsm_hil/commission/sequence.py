@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from pmsm_hil.commission.steps import Measured, failure_text, step_quantities
+from pmsm_hil.control_design import encoder_counts
 from pmsm_hil.files import write_text_whole
 from pmsm_hil.profiles import Profile, load_profile
 from pmsm_hil.profiles._base import default_file
@@ -158,7 +159,13 @@ def run_commission(
             out.quantities.update(step_quantities(row))
         else:
             out.failed_step, out.failed_why = row["step"], row["status"]
-            out.failure = failure_text(row["step"], row["status"])
+            out.failure = failure_text(
+                row["step"],
+                row["status"],
+                row,
+                profile.motor.pole_pairs,
+                encoder_counts(profile.rig) // 4,
+            )
     if not out.failure and run.stop_reason == "commission failed":
         out.failure = "commissioning stopped (its result frame was lost; see the log's events)"
     return out

@@ -44,9 +44,68 @@ FAILURE_HINTS = {
 }
 
 
-def failure_text(step: str, why: str) -> str:
+def failure_text(
+    step: str, why: str, row: dict | None = None, pole_pairs: int = 0, enc_lines: int = 0
+) -> str:
+    """What stopped the sequence and what to check; with the failed step's result ``row`` (its
+    values as measured), the motor file's ``pole_pairs`` and the rig's encoder lines, what the
+    measurement says about the cause (failure_detail)."""
     hint = FAILURE_HINTS.get((step, why)) or FAILURE_HINTS.get((None, why)) or why
-    return f"commissioning stopped in step {step} ({STEP_TITLES.get(step, step)}): {why.replace('_', ' ')}: {hint}"
+    detail = failure_detail(step, why, row, pole_pairs, enc_lines) if row else ""
+    return f"commissioning stopped in step {step} ({STEP_TITLES.get(step, step)}): {why.replace('_', ' ')}: {hint}{detail}"
+
+
+def failure_detail(step: str, why: str, row: dict, pole_pairs: int, enc_lines: int) -> str:
+    """The failed encoder step's numbers, for the two failures whose cause they tell: the field
+    turn seen as other than one encoder turn (which pole_pairs or line count would fit), and
+    offset samples that scatter (a test current too weak against friction and cogging lags the
+    rotor behind the field); "" otherwise."""
+    if step != "encoder":
+        return ""
+    q = step_quantities(row)
+    turns = q["turns_per_field_turn"].value
+    if why == "pole_pairs" and abs(turns) > 1e-6:
+        p_fit, lines_fit = pole_pairs / turns, enc_lines * turns
+        return (
+            f" (the encoder turned {turns:.3g} electrical turns per field turn: with the rig's "
+            f"{enc_lines}-line encoder the motor has pole_pairs {p_fit:.3g}, not the motor file's "
+            f"{pole_pairs}; with {pole_pairs} pole pairs the encoder has {lines_fit:.4g} lines, "
+            f"not the rig's encoder.lines {enc_lines})"
+        )
+    if why == "not_repeatable":
+        std_deg = math.degrees(q["enc_offset_delta_e_rad"].spread)
+        lag_deg = math.degrees(abs(q["friction_lag_e_rad"].value))
+        return (
+            f" (the offset samples scatter by {std_deg:.2g} deg electrical, more than the step "
+            f"accepts; the rotor lags the field by {lag_deg:.2g} deg: "
+            "a test current too weak against friction and cogging leaves the rotor where they "
+            "hold it; a larger --i-test, up to the motor file's i_max_a, pulls it harder)"
+        )
+    return ""
+
+
+# below 6 i_dt the phase currents are not all past the inverter's knee and its distortion stays
+# in R (the firmware's R step aims its lower level there, within its test current)
+R_KNEE_MULT = 6.0
+
+
+def r_knee_warning(rows: list[dict], quantities: dict[str, Measured]) -> str:
+    """A warning when the R step ran its lower level under 6 i_dt (a test current too small
+    against the inverter's knee: R came out +0.5 % at 4.5 i_dt and +2 % at 3.6 i_dt on a 48 V
+    servo, docs/commissioning.md); "" otherwise."""
+    r_row = next((r for r in rows if r["step"] == "r_s" and r["status"] == "ok"), None)
+    if r_row is None or "i_dt_a" not in quantities:
+        return ""
+    i_dt = quantities["i_dt_a"].value
+    i_lo, i_hi = abs(r_row["ref_0"]), abs(r_row["ref_1"])
+    if i_lo >= R_KNEE_MULT * i_dt * 0.999:
+        return ""
+    return (
+        f"R was measured at {i_lo:.3g} A and {i_hi:.3g} A, the lower under 6 x the inverter's "
+        f"current band i_dt {i_dt:.3g} A = {R_KNEE_MULT * i_dt:.3g} A: the inverter's distortion "
+        f"is not all past its knee there and R may be a few % high; commission with --i-test "
+        f"{i_hi * R_KNEE_MULT * i_dt / i_lo:.3g} A or more if the motor allows (its i_max_a)"
+    )
 
 
 @dataclass

@@ -17,6 +17,13 @@ def _eff(rig, name: str):
     return e
 
 
+def _plant_pole_pairs(motor, rig) -> int:
+    """The emulated motor's pole pairs: motor_deviation's when it gives them (a motor file with
+    a wrong pole_pairs), else the motor file's."""
+    dev = _eff(rig, "motor_deviation")
+    return int(getattr(dev, "pole_pairs", None) or motor.pole_pairs)
+
+
 def emulator_settings(
     motor: Motor,
     rig: Rig,
@@ -31,12 +38,14 @@ def emulator_settings(
     from pmsm_hil.profiles.motor import nominal_machine
 
     motor = nominal_machine(motor)
+    dev = _eff(rig, "motor_deviation")
+    pole_pairs = _plant_pole_pairs(motor, rig)
     s: dict[str, float] = {
         "r_s_ohm": motor.r_s_ohm,
         "l_d_h": motor.l_d_h,
         "l_q_h": motor.l_q_h,
         "psi_f_wb": motor.psi_f_wb,
-        "pole_pairs": motor.pole_pairs,
+        "pole_pairs": pole_pairs,
         "j_kgm2": motor.j_kgm2,
         "b_visc_nms": getattr(motor, "b_visc_nms", 0.0) or 0.0,
         "t_coulomb_nm": getattr(motor, "t_coulomb_nm", 0.0) or 0.0,
@@ -57,8 +66,7 @@ def emulator_settings(
     enc = _eff(rig, "encoder")
     s["enc_counts"] = 4 * int(getattr(enc, "lines", 2500)) if enc else 10000
     # the rig gives the offset as an electrical angle; the plant's encoder adds it to theta_m
-    s["enc_offset_m_rad"] = getattr(enc, "offset_e_rad", 0.0) / motor.pole_pairs if enc else 0.0
-    dev = _eff(rig, "motor_deviation")
+    s["enc_offset_m_rad"] = getattr(enc, "offset_e_rad", 0.0) / pole_pairs if enc else 0.0
     if dev is not None:  # the plant's motor departs from the file (a flux map: effect_settings)
         s["r_s_ohm"] *= dev.r_s_factor
         s["l_d_h"] *= dev.l_d_factor
@@ -151,7 +159,7 @@ def effect_settings(motor: Motor, rig: Rig) -> dict:
     if cg is not None:
         # periods_per_rev is a multiple of pole_pairs (checked when the profile is loaded:
         # pmsm_hil.profiles.rig.plant_problems)
-        s["cog_order_e"] = cg.periods_per_rev // motor.pole_pairs
+        s["cog_order_e"] = cg.periods_per_rev // _plant_pole_pairs(motor, rig)
         s["cog_phase_rad"] = cg.phase_rad
     so = _eff(rig, "sensor_offset")
     for ch in "abc":

@@ -441,7 +441,7 @@ def _rig_checks(rig_src: Source, rig: Rig, motor: Motor, src: Source) -> list[Pr
     ts = num(control, "ts_s", Control.model_fields["ts_s"].default)
     if ts is None or not TS_MIN_S <= ts <= TS_MAX_S:
         ts = None
-    return problems + plant_problems(rig_src, rig, motor.pole_pairs, ts)
+    return problems + plant_problems(rig_src, rig, rig.plant_pole_pairs(motor.pole_pairs), ts)
 
 
 def load_profile(

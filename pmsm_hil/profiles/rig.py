@@ -97,6 +97,13 @@ class Encoder(Effect):
     offset_e_rad: float = Field(
         0.0, ge=-math.pi, le=math.pi, description="electrical angle error of the encoder zero, rad"
     )
+    lines_told: int | None = Field(
+        None,
+        ge=1,
+        le=1_000_000,
+        description="lines the firmware is told (enc_counts = 4 lines_told; null: lines): a rig "
+        "file that misstates its encoder, to rehearse that mistake on the emulator",
+    )
 
     @property
     def counts(self) -> int:
@@ -259,6 +266,13 @@ class MotorDeviation(Effect):
     l_d_factor: float = Field(1.0, ge=0.5, le=2.0, description="plant L_d / the motor file's")
     l_q_factor: float = Field(1.0, ge=0.5, le=2.0, description="plant L_q / the motor file's")
     psi_f_factor: float = Field(1.0, ge=0.5, le=2.0, description="plant psi_f / the motor file's")
+    pole_pairs: int | None = Field(
+        None,
+        ge=1,
+        le=100,
+        description="plant pole pairs (null: the motor file's): a motor file with a wrong "
+        "pole_pairs, to rehearse that mistake on the emulator",
+    )
 
 
 # bit of each effect in /sim/truth.effects and the emulator's effect mask
@@ -356,6 +370,18 @@ class Rig(FileModel):
             if eff.enabled:
                 mask |= 1 << EFFECT_BITS[name]
         return mask
+
+    def plant_pole_pairs(self, motor_pole_pairs: int) -> int:
+        """The emulated motor's pole pairs: the motor file's unless motor_deviation says
+        otherwise."""
+        dev = self.effects.motor_deviation
+        return dev.pole_pairs if dev.enabled and dev.pole_pairs else motor_pole_pairs
+
+    def plant_factors(self) -> dict[str, float]:
+        """motor_deviation's factors on psi_f and R, keyed as /sim/truth's fields ({} when off):
+        the emulator's plant is the motor file's times them."""
+        dev = self.effects.motor_deviation
+        return {"psi_f_wb": dev.psi_f_factor, "r_s_ohm": dev.r_s_factor} if dev.enabled else {}
 
     def map_path(self) -> str | None:
         """The saturation flux map's path (relative to the rig file's directory; where nothing is
