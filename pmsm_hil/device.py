@@ -96,7 +96,14 @@ def _child_settings(spec: DeviceSpec, profile, baud: int) -> tuple[dict[str, flo
     motor = load_motor(str(profile.motor.path))
     rig_path = _rig_path(spec, profile)
     rig = load_rig(rig_path) if rig_path else load_rig(None)
-    settings = emulator_settings(motor, rig, seed=spec.seed, baud=baud)
+    settings = emulator_settings(
+        motor,
+        rig,
+        seed=spec.seed,
+        baud=baud,
+        truth_hz=profile.telemetry.truth_hz,
+        ts_s=profile.control.ts_s,
+    )
     return settings, f"motor: {motor.name}  rig: {rig.name or 'default'}"
 
 
@@ -112,6 +119,7 @@ def emulator_settings_for(profile: Profile, spec: DeviceSpec | None = None) -> d
         rig,
         seed=spec.seed,
         baud=spec.baud or profile.link.baud,
+        truth_hz=profile.telemetry.truth_hz,
         ts_s=profile.control.ts_s,
     )
     if spec.theta_e0_rad:
@@ -200,6 +208,7 @@ def open_can_for_run(spec: DeviceSpec, profile: Profile) -> CanLink:
             bus_spec.bitrate,
             bus_spec.node,
             pace=spec.pace,
+            extra_args=["--truth-hz", repr(float(profile.telemetry.truth_hz))],
         )
         try:
             return open_can(emu.spec, on_close=emu.close, name=f"emulator CAN {emu.spec_text}")

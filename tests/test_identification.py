@@ -27,9 +27,7 @@ def test_identify_run_completes_and_streams_every_estimator(ident_run):
     names = set(np.asarray(par["estimator"]).astype(str))
     assert names == {"nominal", "rls", "adaline", "nlms_adaline"}
     ev = read_log(out).topic("/pmsm/events")
-    r_mohm = [
-        int(a) for t, a in zip(ev["text"], ev["arg"], strict=False) if "r identified" in str(t)
-    ]
+    r_mohm = [int(a) for k, a in zip(ev["kind"], ev["arg"], strict=True) if k == "r_identified"]
     # the standstill injection (trapezoidal window means, residual L di/dt removed): within 2 %
     assert len(r_mohm) == 1 and abs(r_mohm[0] / 900.0 - 1.0) < 0.02, r_mohm
 

@@ -20,7 +20,8 @@ struct emu {
     uint16_t can_node;
     can_sim_t can;
     double octet_budget;
-    uint32_t truth_div;
+    double truth_hz;    /* sim_truth frames per second of device time (0: none) */
+    uint32_t truth_div; /* ... as control periods, set at a run's start from the firmware's ts */
     uint32_t truth_count;
     int was_active;
     uint16_t payload[PROTO_MAX_PAYLOAD + 4u];
@@ -96,7 +97,7 @@ void emu_init(emu_t *e)
     e->baud = 921600.0;
     e->can_bitrate = (double)PROTO_CAN_BITRATE;
     e->can_node = PROTO_CAN_NODE_DEFAULT;
-    e->truth_div = 200u;
+    e->truth_hz = 100.0;
     emu_reset(e);
 }
 
@@ -158,6 +159,17 @@ int emu_get(const emu_t *e, const char *key, double *value)
     return -1;
 }
 
+/* Control periods between sim_truth frames for truth_hz at ts_s (0: no frames). */
+static uint32_t truth_periods(double truth_hz, double ts_s)
+{
+    double n;
+    if (!(truth_hz > 0.0) || !(ts_s > 0.0)) {
+        return 0u;
+    }
+    n = 1.0 / (truth_hz * ts_s) + 0.5;
+    return n < 1.0 ? 1u : (n > 4.0e9 ? 4000000000u : (uint32_t)n);
+}
+
 void emu_reset(emu_t *e)
 {
     fw_cfg_t cfg;
@@ -180,6 +192,7 @@ void emu_reset(emu_t *e)
     memset(&e->prev_cmd, 0, sizeof(e->prev_cmd));
     e->octet_budget = 0.0;
     e->truth_count = 0u;
+    e->truth_div = truth_periods(e->truth_hz, e->pcfg.ts_s);
     e->was_active = 0;
 }
 
@@ -284,6 +297,7 @@ uint32_t emu_run(emu_t *e, uint32_t max_ticks, uint8_t *out, uint32_t cap, uint3
          * PWM period the firmware configured (as the F28335 board sets its PWM timer) */
         e->pcfg.ts_s = (double)fw_ctrl(&e->fw)->ts_s;
         per_tick = e->baud / 10.0 * e->pcfg.ts_s;
+        e->truth_div = truth_periods(e->truth_hz, e->pcfg.ts_s);
         margin = (uint32_t)per_tick + 2u;
         plant_init(&e->plant, &e->pcfg);
         if (e->theta_e0_rad != 0.0) {

@@ -72,7 +72,7 @@
     X(baud, baud, double)                                                                          \
     X(can_bitrate, can_bitrate, double)                                                            \
     X(can_node, can_node, uint16_t)                                                                \
-    X(truth_div, truth_div, uint32_t)
+    X(truth_hz, truth_hz, double)
 
 #define EMU_TRUTH(X)                                                                               \
     X(t_s, t.t_s)                                                                                  \

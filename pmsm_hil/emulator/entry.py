@@ -38,6 +38,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="take the motor and rig from this profile (a path or a shipped name)",
     )
     p.add_argument("--seed", type=seed_arg, default=1, help="seed of the plant's noise (default 1)")
+    p.add_argument(
+        "--truth-hz",
+        type=float,
+        default=None,
+        metavar="HZ",
+        help="sim_truth frames per second of device time (default: the profile's "
+        "telemetry.truth_hz, else 100; 0: none)",
+    )
     p.add_argument("--baud", type=int, default=921600, help="emulated UART bit rate")
     p.add_argument(
         "--pace",
@@ -118,10 +126,10 @@ def _motor_and_rig(args: argparse.Namespace):
             rig_override=resolve(args.rig, "rig") if args.rig else None,
         )
         motor = load_motor(resolve(args.motor, "motor")) if args.motor else profile.motor
-        return motor, profile.rig
+        return motor, profile.rig, profile.telemetry.truth_hz
     motor = load_motor(resolve(args.motor, "motor") if args.motor else None)
     rig = load_rig(resolve(args.rig, "rig") if args.rig else None)
-    return motor, rig
+    return motor, rig, 100.0
 
 
 def serve(args: argparse.Namespace) -> int:
@@ -139,10 +147,14 @@ def serve(args: argparse.Namespace) -> int:
         from pmsm_hil.profiles import ProfileError
 
         try:
-            motor, rig = _motor_and_rig(args)
+            motor, rig, truth_hz = _motor_and_rig(args)
         except ProfileError as e:
             return _error(str(e))
-        settings = emulator_settings(motor, rig, seed=args.seed, baud=args.baud)
+        if args.truth_hz is not None:
+            if not 0 <= args.truth_hz <= 50_000:
+                return _error(f"--truth-hz {args.truth_hz:g}: must be 0..50000 Hz (0: no frames)")
+            truth_hz = args.truth_hz
+        settings = emulator_settings(motor, rig, seed=args.seed, baud=args.baud, truth_hz=truth_hz)
         plant = f"motor: {motor.name}  rig: {rig.name or 'default'}"
     if args.baud <= 0:
         return _error(f"--baud {args.baud}: must be a positive bit rate")

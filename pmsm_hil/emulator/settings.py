@@ -53,7 +53,7 @@ def emulator_settings(
         "seed": seed,
         "baud": baud,
         "ts_s": ts_s,
-        "truth_div": max(1, round(1.0 / (truth_hz * ts_s))) if truth_hz else 0,
+        "truth_hz": truth_hz,  # the sim board counts it in the firmware's periods
     }
     dt = _eff(rig, "dead_time")
     s["dead_time_s"] = dt.dead_time_s if dt else 0.0

@@ -10,8 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
+from pmsm_hil.device import DeviceSpec, emulator_settings_for
 from pmsm_hil.emulator.fwlib import EmulatedDevice
-from pmsm_hil.emulator.settings import emulator_settings
 from pmsm_hil.gap.record import CONTROL_TOPIC, GAP_TOPICS
 from pmsm_hil.log.reader import read_log
 from pmsm_hil.log.writer import LogWriter
@@ -57,10 +57,9 @@ def record_profile(
     otherwise only the control-rate record, the motor attachment and `gap_sensors` (a sealed
     self-test log: nothing of the rig). Returns the recorded columns."""
     profile = load_profile(str(profile_path), rig_override=rig_path)
-    settings = emulator_settings(
-        profile.motor, profile.rig, seed=seed, baud=profile.link.baud, ts_s=profile.control.ts_s
-    )
-    settings["truth_div"] = 0 if not full_log else settings.get("truth_div", 200)
+    settings = emulator_settings_for(profile, DeviceSpec(seed=seed))
+    if not full_log:
+        settings["truth_hz"] = 0.0
     dev = EmulatedDevice(settings)
     lib = _bind(dev)
     n_max = round(profile.total_duration_s / profile.control.ts_s) + 16

@@ -24,14 +24,12 @@ __all__ = ["execute_run", "run_in_process"]
 def run_in_process(profile: Profile, log_path: str | os.PathLike, seed: int) -> RunResult:
     """Run ``profile`` on the in-process emulator with ``seed``, logging to ``log_path``: the same
     device data as `pmsm-hil run PROFILE --seed SEED` on the emulator."""
-    from pmsm_hil.emulator.settings import emulator_settings
+    from pmsm_hil.device import DeviceSpec, emulator_settings_for
     from pmsm_hil.protocol.session import Session
     from pmsm_hil.runner import RunOptions, run_profile
     from pmsm_hil.transport.inproc import InProcessTransport
 
-    settings = emulator_settings(
-        profile.motor, profile.rig, seed=seed, baud=profile.link.baud, ts_s=profile.control.ts_s
-    )
+    settings = emulator_settings_for(profile, DeviceSpec(seed=seed))
     return run_profile(
         profile,
         Session(InProcessTransport(settings)),
