@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from pmsm_hil.analysis.true_speed import true_speed_correction_rpm
 from pmsm_hil.log.reader import Log, read_log
 
 if TYPE_CHECKING:
@@ -142,7 +143,10 @@ def summarize(
     names: list[str] | None = None,
     path: str = "",
     truth: dict | None = None,
+    pole_pairs: int = 0,
 ) -> RunSummary:
+    """``pole_pairs``: the motor's (the log's motor file), for the plant's mean speed from the
+    truth's angle (analysis.true_speed); 0: from the truth's speed samples."""
     t = np.asarray(tel["t_s"], dtype=float)
     ref = np.asarray(tel["speed_ref_rpm"], dtype=float)
     spd = np.asarray(tel["speed_rpm"], dtype=float)
@@ -235,11 +239,23 @@ def summarize(
         true_err = None
         if truth is not None and len(truth.get("t_s", [])) and n_win:
             # the plant's own speed error: the mean error corrected by the speed measurement's
-            # error at the truth's instants (the truth, at truth_hz, is too sparse to average a
-            # window that holds a transient on its own)
+            # mean error, from the truth's angle travelled (analysis.true_speed); without the
+            # truth's angle or the pole pairs, from the truth's speed at its instants (biased by
+            # a ripple at a multiple of truth_hz)
             tt = np.asarray(truth["t_s"], float)
             tw = (tt >= w0) & (tt < t1)
-            if tw.sum():
+            corr = None
+            if pole_pairs and "theta_e_rad" in truth and tw.sum() >= 2:
+                tsel = np.flatnonzero(tw)
+                corr = true_speed_correction_rpm(
+                    t[win], spd[win], tt[tsel], np.asarray(truth["theta_e_rad"])[tsel], pole_pairs
+                )
+                if corr is not None:  # against the measured mean over the truth's span
+                    span = win & (t >= tt[tsel[0]]) & (t <= tt[tsel[-1]])
+                    corr += float(np.mean(spd[span] - ref[span])) - mean_err if span.any() else 0
+            if corr is not None:
+                true_err = mean_err + corr
+            elif tw.sum():
                 meas = np.interp(tt[tw], t, spd)
                 true_err = mean_err + float(
                     np.mean(np.asarray(truth["speed_rpm"], float)[tw] - meas)
@@ -327,7 +343,7 @@ SUMMARY_TOPICS = {
         "i_q_ref_a",
     ),
     "/pmsm/events": None,
-    "/sim/truth": ("t_s", "speed_rpm"),
+    "/sim/truth": ("t_s", "speed_rpm", "theta_e_rad"),
     "/pmsm/status": ("t_s", "tx_dropped"),
     "/host/link": ("t_s", "seq_gaps", "crc_errors", "cobs_errors", "len_errors"),
 }
@@ -345,13 +361,30 @@ def summarize_log(path: Path, log: Log | None = None) -> RunSummary:
         names = meta["segment_names"].split("|")
     truth = log.topic("/sim/truth") if "/sim/truth" in log.topics else None
     summary = summarize(
-        log.topic("/pmsm/telemetry"), log.topic("/pmsm/events"), names, str(path), truth
+        log.topic("/pmsm/telemetry"),
+        log.topic("/pmsm/events"),
+        names,
+        str(path),
+        truth,
+        _pole_pairs(log) if truth is not None else 0,
     )
     summary.problems = log_problems(log)
     summary.run = run_tag(log.metadata)
     if "/pmsm/estimator" in log.topics:
         summary.estimator = estimator_stats(log.topic("/pmsm/estimator"))
     return summary
+
+
+def _pole_pairs(log: Log) -> int:
+    """The pole pairs of the log's motor file (its attachment), 0 when it does not say."""
+    import yaml
+
+    att = log.attachment("motor.yaml")
+    try:
+        data = yaml.safe_load(att.text) if att is not None else None
+        return int(data.get("pole_pairs", 0)) if isinstance(data, dict) else 0
+    except (yaml.YAMLError, TypeError, ValueError):
+        return 0
 
 
 def rig_name(meta: dict) -> str:
