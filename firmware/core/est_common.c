@@ -53,6 +53,7 @@ void est_cfg_default(est_cfg_t *c, float r_s_ohm, float l_d_h, float l_q_h, floa
     c->x_ref_d2 = i_d_ref * i_d_ref + w_ref * w_ref * i_q_ref * i_q_ref;
     c->x_ref_q2 = w_ref * w_ref * (1.0f + i_d_ref * i_d_ref);
     c->x_ref_r2 = i_d_ref * i_d_ref;
+    c->i_d_exc_ref_a = i_d_ref;
     c->conv_tol = 0.01f;
     c->conv_min_updates = 50u;
 }

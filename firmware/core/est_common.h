@@ -40,6 +40,7 @@ typedef struct {
     float p0;                 /* RLS initial covariance, in per-unit of the nominal values */
     float x_ref_d2, x_ref_q2; /* LMS: squared norm of the regressors at the tuning point */
     float x_ref_r2;           /* LMS: squared i_d at the tuning point (online R) */
+    float i_d_exc_ref_a;      /* NLMS: the i_d excitation's amplitude the q step was tuned at, A */
     float conv_tol; /* converged: L_d, L_q, psi_f within this fraction of their slow averages */
     uint16_t conv_min_updates; /* ... and at least this many updates */
 } est_cfg_t;

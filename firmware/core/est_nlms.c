@@ -39,6 +39,17 @@ void est_nlms_init(est_nlms_t *e, const est_cfg_t *cfg)
     e->g_r = 0.0f;
     e->g_r2 = 0.0f;
     e->r_adapt_n = 0u;
+    e->k_ld2 = 1.0f;
+}
+
+void est_nlms_set_excitation(est_nlms_t *e, float inject_a)
+{
+    const float a = fabsf(inject_a);
+    e->k_ld2 = 1.0f;
+    if (a > 0.0f && e->core.cfg.i_d_exc_ref_a > 0.0f) {
+        const float k = e->core.cfg.i_d_exc_ref_a / a;
+        e->k_ld2 = k * k;
+    }
 }
 
 static float vss_r_step(est_nlms_t *e, float g)
@@ -117,13 +128,18 @@ void est_nlms_step(est_nlms_t *e, const id_sample_t *s, est_out_t *out)
             c->w[EST_R] += vss_r_step(e, g) * g;
         }
         e_q = y_q - (c->w[EST_LD] * s->w_i_d_a_rad_s + c->w[EST_PSI] * x_psi);
-        { /* update along the decorrelated inputs (est_common.h): x1 = w (i_d - mean), x2 = w */
+        /* update along the decorrelated inputs (est_common.h): x1 = w (i_d - mean), x2 = w, with
+         * x1 weighted by k_ld2 = (i_d_exc_ref_a / inject_a)^2 in the norm and the L_d step (a
+         * diagonal preconditioner; 1 at the tuning amplitude, paper (15)): x1^2 grows with the
+         * excitation's amplitude squared in A^2 against w^2, so without it psi_f's share of the
+         * step was 1 / (1 + 16) at +-4 A against 1 / (1 + 4) at +-2 A */
+        {
             const float xc = est_core_x_ld_centered(c, s);
             const float x1 = x.ld ? xc : 0.0f;
             float d_ld, d_th;
             const float mu = vss_step(e, e_q);
-            n2 = EST_NLMS_DELTA + x1 * x1 + x_psi * x_psi;
-            d_ld = mu * e_q * x1 / n2;
+            n2 = EST_NLMS_DELTA + e->k_ld2 * x1 * x1 + x_psi * x_psi;
+            d_ld = mu * e_q * e->k_ld2 * x1 / n2;
             d_th = mu * e_q * x_psi / n2;
             c->w[EST_LD] += d_ld;
             c->w[EST_PSI] += d_th - c->i_d_mean * d_ld;
