@@ -216,11 +216,11 @@ void ident_step(ident_t *id, const ident_seg_t *seg, const ident_in_t *in, ident
         wi.u_q_v = in->u_q_avg_v - dl * in->u_d_avg_v;
         wi.omega_e_rad_s = in->omega_e_rad_s;
         wi.theta_e_rad = in->theta_e_rad;
-        est_nlms_set_excitation(&id->nlms, seg->inject_hz > 0.0f ? seg->inject_a : 0.0f);
         if (idw_step(&id->idw, &wi, &smp)) {
             /* (6) is a steady-state equation: a window with a step of the i_d reference (the
              * excitation's edges) carries the current controller's transient and is skipped */
             if (!id->idw_step_seen && !seg->hold) {
+                est_nlms_set_excitation(&id->nlms, seg->inject_hz > 0.0f ? seg->inject_a : 0.0f);
                 for (k = 0u; k < IDENT_N_EST; k++) {
                     id->ops[k]->step(id->est[k], &smp, &id->out[k]);
                 }

@@ -145,6 +145,22 @@ static void test_decide(void)
     CHECK(pol_decide(&c, 177.0f, 320.0f, &a) == POL_KEPT, "decide: the map's own signature");
 }
 
+/* The hybrid of the tests: 50 us periods, 4 pole pairs, the band pll_on_rpm .. mras_on_rpm, a
+ * 20 ms blend, 0.3 rad for 20 ms of disagreement, a confidence of 0.5 for 50 ms. */
+static void hyb_test_init(hyb_t *h, hyb_cfg_t *c, float pll_on_rpm, float mras_on_rpm)
+{
+    c->ts_s = 50e-6f;
+    c->pole_pairs = 4u;
+    c->pll_on_rpm = pll_on_rpm;
+    c->mras_on_rpm = mras_on_rpm;
+    c->blend_s = 0.02f;
+    c->disagree_rad = 0.3f;
+    c->disagree_s = 0.02f;
+    c->conf_min = 0.5f;
+    c->lost_s = 0.05f;
+    hyb_init(h, c);
+}
+
 /* Hybrid: a slow speed ramp through the band with a constant offset between the estimators;
  * the output moves by at most the offset times ts/blend per period. */
 static void test_hybrid_bumpless(void)
@@ -156,16 +172,7 @@ static void test_hybrid_bumpless(void)
     int k;
     double th = 0.0, prev = 0.0, max_step = 0.0;
     bool reached = false, back = false;
-    c.ts_s = 50e-6f;
-    c.pole_pairs = 4u;
-    c.pll_on_rpm = 200.0f;
-    c.mras_on_rpm = 300.0f;
-    c.blend_s = 0.02f;
-    c.disagree_rad = 0.3f;
-    c.disagree_s = 0.02f;
-    c.conf_min = 0.5f;
-    c.lost_s = 0.05f;
-    hyb_init(&h, &c);
+    hyb_test_init(&h, &c, 200.0f, 300.0f);
     for (k = 0; k < 60000; k++) { /* 0 -> 600 -> 0 r/min over 3 s */
         const double rpm = k < 30000 ? 600.0 * k / 30000.0 : 600.0 * (60000 - k) / 30000.0;
         const double w = rpm * 4.0 * 3.14159265358979 / 30.0;
@@ -213,16 +220,7 @@ static void test_hybrid_mras_drops_lock(void)
     int k;
     double max_off = 0.0, prev_w = 1.0;
     bool falling = true;
-    c.ts_s = 50e-6f;
-    c.pole_pairs = 4u;
-    c.pll_on_rpm = 150.0f;
-    c.mras_on_rpm = 250.0f;
-    c.blend_s = 0.02f;
-    c.disagree_rad = 0.3f;
-    c.disagree_s = 0.02f;
-    c.conf_min = 0.5f;
-    c.lost_s = 0.05f;
-    hyb_init(&h, &c);
+    hyb_test_init(&h, &c, 150.0f, 250.0f);
     in.theta_pll_rad = 1.0f;
     in.omega_pll_rad_s = 400.0f * 4.0f * 3.14159265f / 30.0f; /* 400 r/min */
     in.conf_pll = 0.95f;

@@ -18,7 +18,15 @@ if TYPE_CHECKING:
     from pmsm_hil.profiles.acceptance import Acceptance
     from pmsm_hil.profiles.current_step import CurrentStep
 
-__all__ = ["Check", "acceptance_line", "checks_failed", "evaluate", "profile_checks", "ripple_hint"]
+__all__ = [
+    "Check",
+    "acceptance_line",
+    "checks_failed",
+    "evaluate",
+    "hints",
+    "profile_checks",
+    "ripple_hint",
+]
 
 
 @dataclass
@@ -364,3 +372,15 @@ def ripple_hint(checks: list[Check], step: CurrentStep) -> str | None:
         "(control.current_ctrl: foc); a shorter control.ts_s helps less (docs/control.md, "
         '"A motor of low inductance")'
     )
+
+
+def hints(
+    checks: list[Check], motor_yaml: str, rig_yaml: str, step: CurrentStep | None
+) -> list[str]:
+    """What a run's missed criteria point to (commission_hint, ripple_hint), as `run` and `test`
+    print them under their verdicts."""
+    failed = [c.criterion for c in checks if not c.passed]
+    out = [commission_hint(failed, motor_yaml, rig_yaml)]
+    if step is not None:
+        out.append(ripple_hint(checks, step))
+    return [h for h in out if h]

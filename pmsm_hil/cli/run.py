@@ -418,28 +418,16 @@ def _finish(result, print_summary, summarize_log, profile=None, stop_after_s=Non
                 "incomplete, exit 1)"
             )
         if profile is not None and summary.complete:
-            from pmsm_hil.analysis.acceptance import (
-                acceptance_line,
-                commission_hint,
-                profile_checks,
-                ripple_hint,
-            )
+            from pmsm_hil.analysis.acceptance import acceptance_line, hints, profile_checks
             from pmsm_hil.profiles.current_step import current_step
 
             checks = profile_checks(profile, result.log_path, summary, log)
             if checks:
                 print(acceptance_line(checks))
-                hints = (
-                    commission_hint(
-                        [c.criterion for c in checks if not c.passed],
-                        profile.motor.yaml_text,
-                        profile.rig.yaml_text,
-                    ),
-                    ripple_hint(checks, current_step(profile)),
-                )
-                for hint in hints:
-                    if hint:
-                        print(f"hint: {hint}")
+                for hint in hints(
+                    checks, profile.motor.yaml_text, profile.rig.yaml_text, current_step(profile)
+                ):
+                    print(f"hint: {hint}")
     except (
         BrokenPipeError
     ):  # `| head`: the reader left; the exit code still tells how the run ended

@@ -17,13 +17,6 @@ def _eff(rig, name: str):
     return e
 
 
-def _plant_pole_pairs(motor, rig) -> int:
-    """The emulated motor's pole pairs: motor_deviation's when it gives them (a motor file with
-    a wrong pole_pairs), else the motor file's."""
-    dev = _eff(rig, "motor_deviation")
-    return int(getattr(dev, "pole_pairs", None) or motor.pole_pairs)
-
-
 def emulator_settings(
     motor: Motor,
     rig: Rig,
@@ -39,7 +32,7 @@ def emulator_settings(
 
     motor = nominal_machine(motor)
     dev = _eff(rig, "motor_deviation")
-    pole_pairs = _plant_pole_pairs(motor, rig)
+    pole_pairs = rig.plant_pole_pairs(motor.pole_pairs)
     s: dict[str, float] = {
         "r_s_ohm": motor.r_s_ohm,
         "l_d_h": motor.l_d_h,
@@ -159,7 +152,7 @@ def effect_settings(motor: Motor, rig: Rig) -> dict:
     if cg is not None:
         # periods_per_rev is a multiple of pole_pairs (checked when the profile is loaded:
         # pmsm_hil.profiles.rig.plant_problems)
-        s["cog_order_e"] = cg.periods_per_rev // _plant_pole_pairs(motor, rig)
+        s["cog_order_e"] = cg.periods_per_rev // rig.plant_pole_pairs(motor.pole_pairs)
         s["cog_phase_rad"] = cg.phase_rad
     so = _eff(rig, "sensor_offset")
     for ch in "abc":

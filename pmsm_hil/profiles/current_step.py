@@ -37,8 +37,7 @@ class CurrentStep:
 def current_step(profile: Profile) -> CurrentStep:
     """The MPCC's current step on the run's DC link and the segments that run the MPCC (a
     segment's ``current_ctrl``, else the previous segment's, else ``control.current_ctrl``)."""
-    motor, rig = profile.motor, profile.rig
-    v_dc = rig.v_dc_v if rig.v_dc_v is not None else motor.v_dc_v
+    motor, v_dc = profile.motor, profile.v_dc_v
     l_min = min(motor.l_d_h, motor.l_q_h)
     ctrl = profile.control.current_ctrl
     mpcc = []

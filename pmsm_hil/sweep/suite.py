@@ -51,19 +51,16 @@ class SuiteCase:
     def hints(self) -> list[str]:
         """The hints for this case's missed criteria (analysis.acceptance: commission_hint,
         ripple_hint)."""
-        from pmsm_hil.analysis.acceptance import Check, commission_hint, ripple_hint
+        from pmsm_hil.analysis.acceptance import Check, hints
 
         if not self.run:
             return []
-        failed = [ch["criterion"] for ch in self.checks if not ch["passed"]]
-        hints = [
-            commission_hint(
-                failed, self.run.texts.get("motor.yaml", ""), self.run.texts.get("rig.yaml", "")
-            )
-        ]
-        if self.step is not None:
-            hints.append(ripple_hint([Check(**ch) for ch in self.checks], self.step))
-        return [h for h in hints if h]
+        return hints(
+            [Check(**ch) for ch in self.checks],
+            self.run.texts.get("motor.yaml", ""),
+            self.run.texts.get("rig.yaml", ""),
+            self.step,
+        )
 
 
 def plan_suite(
