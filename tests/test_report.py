@@ -400,3 +400,51 @@ def test_report_reads_the_log_once_and_draws_long_series_from_their_envelope(
     assert len(x) <= 3 * slices
     assert y.min() == tel["i_d_a"].min() and y.max() == tel["i_d_a"].max()
     report_style.close(fig)
+
+
+def test_the_reports_read_draws_what_a_read_of_everything_draws(short_log, tmp_path):
+    """The report decodes only the fields its panels, context and tables declare (REPORT_TOPICS):
+    every panel, drawn from that read, is the same image as drawn from the whole log, on a run
+    with capture and truth and on a synthetic log with estimators and an angle estimator."""
+    from pmsm_hil.analysis.report import REPORT_TOPICS, _png
+    from pmsm_hil.analysis.report_context import run_context
+    from pmsm_hil.log.reader import read_log
+
+    synthetic = tmp_path / "est.mcap"
+    t = np.arange(0.0, 1.0, 5e-4)
+    n = len(t)
+    with LogWriter(synthetic, {"run": {"profile": "est", "segment_names": "a"}}) as w:
+        theta = (t * 2 * np.pi * 30) % (2 * np.pi)
+        cols = {k: np.sin(t * (i + 1)) for i, k in enumerate(REPORT_TOPICS["/pmsm/telemetry"])}
+        cols.update(t_s=t, theta_e_rad=theta, theta_e_est_rad=(theta + 0.05) % (2 * np.pi))
+        w.write_many("/pmsm/telemetry", cols)
+        w.write_many("/sim/truth", {"t_s": t[::50], "speed_rpm": np.full(n // 50, 450.0)})
+        for i, ti in enumerate(t[::20]):
+            w.write(
+                "/pmsm/estimator",
+                float(ti),
+                {"estimator": "ripple_pll", "locked": i % 7 != 0, "in_loop": True},
+            )
+            w.write(
+                "/pmsm/params",
+                float(ti),
+                {"estimator": "rls", "l_d_h": 5e-3, "l_q_h": 1e-2, "psi_f_wb": 0.2, "r_s_ohm": 1.0},
+            )
+        w.write("/pmsm/events", 0.0, {"kind": "segment_start", "arg": 0, "text": ""})
+    drawn = 0
+    for path in (short_log, synthetic):
+        whole, part = read_log(path), read_log(path, topics=REPORT_TOPICS)
+        # something is left out (the truth's other fields), and the context is the same
+        assert set(part.topic("/sim/truth")) < set(whole.topic("/sim/truth"))
+        a, b = run_context(whole, path), run_context(part, path)
+        assert (a.tag, a.segments, a.notes) == (b.tag, b.segments, b.notes)
+        for key, _, fn, _ in PANELS:
+            fa, fb = fn(a), fn(b)
+            assert isinstance(fa, str) == isinstance(fb, str), key
+            if isinstance(fa, str):
+                assert fa == fb, key
+            else:
+                assert _png(fa) == _png(fb), (path.name, key)
+                drawn += 1
+    assert drawn == 10  # five each: the capture on the run, the estimation error (and the
+    # parameters against a truth that has none of them) on the synthetic log

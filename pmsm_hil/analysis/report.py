@@ -12,9 +12,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from pmsm_hil.analysis import report_capture, report_params, report_signals
-from pmsm_hil.analysis.reading import other_kind, recover_hint
+from pmsm_hil.analysis.reading import ANALYSIS_TOPICS, other_kind, recover_hint
+from pmsm_hil.analysis.report_context import READS as CONTEXT_READS
 from pmsm_hil.analysis.report_context import run_context
-from pmsm_hil.log.reader import Log, LogFormatError, path_problem, read_log
+from pmsm_hil.log.reader import Log, LogFormatError, merge_topics, path_problem, read_log
 
 # key (file name), title, function, caption
 PANELS = (
@@ -57,6 +58,13 @@ PANELS = (
         "At the control rate: phase currents; each leg's duty (its switch state averaged over 20 "
         "control periods); the DC-link voltage; the switch states of the first 60 periods.",
     ),
+)
+
+# what the report reads of a log: the panels' fields, the run's context, the summary's and the
+# identification table's; nothing else is decoded (tests/test_report.py: the same panels as from
+# the whole log)
+REPORT_TOPICS = merge_topics(
+    ANALYSIS_TOPICS, CONTEXT_READS, report_signals.READS, report_params.READS, report_capture.READS
 )
 
 
@@ -104,7 +112,7 @@ def build_report(log_path: Path | str, out_dir: Path | str | None = None) -> Rep
     if why:
         raise ReportError(why)
     try:
-        log = read_log(path)
+        log = read_log(path, topics=REPORT_TOPICS)
     except LogFormatError as e:
         raise ReportError(str(e)) from None
     except OSError as e:

@@ -18,6 +18,8 @@ CAP = "/pmsm/capture"
 DUTY_PERIODS = 20  # 1 ms at 20 kHz
 ZOOM_PERIODS = 60  # 3 ms at 20 kHz
 LEGS = (("a", "C0"), ("b", "C1"), ("c", "C2"))
+# what the panel reads of a log (read_log(path, topics=...))
+READS = {CAP: ("t_s", "i_a_a", "i_b_a", "i_c_a", "s_a", "s_b", "s_c", "v_dc_v")}
 
 
 def _duty(s: np.ndarray, n: int) -> np.ndarray:

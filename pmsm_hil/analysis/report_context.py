@@ -12,6 +12,9 @@ from pmsm_hil.analysis.reading import recover_hint
 from pmsm_hil.analysis.summary import rig_name
 from pmsm_hil.log.reader import Log
 
+# what the context reads of a log (read_log(path, topics=...)); the metadata come with any read
+READS = {"/pmsm/events": ("t_s", "kind", "arg", "text")}
+
 
 @dataclass
 class Segment:

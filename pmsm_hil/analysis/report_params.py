@@ -35,6 +35,8 @@ SCALE = {
     "r_s_ohm": (1.0, "Ω"),
 }
 LABEL = {"l_d_h": "L_d", "l_q_h": "L_q", "psi_f_wb": "ψ_f", "r_s_ohm": "R_s"}
+# what the panel reads of a log (read_log(path, topics=...))
+READS = {"/pmsm/params": ("t_s", "estimator", *ORDER), "/sim/truth": ("t_s", *ORDER)}
 ZOOM = 0.25  # y range: the truth ± 25 %, so that the start-up transients do not flatten the rest
 
 
@@ -67,7 +69,8 @@ def parameters(ctx: RunContext) -> Figure | str:
             label=f"truth ±{100 * TOL:.0f} %",
         )
         ax.plot(tt, tv, color="k", lw=1.0, ls="--", label="truth (plant)", zorder=2)
-        lo, hi = float(np.nanmin(tv)), float(np.nanmax(tv))
+        known = tv[np.isfinite(tv)]  # a truth without this parameter: the estimates' own range
+        lo, hi = (float(known.min()), float(known.max())) if len(known) else (-np.inf, np.inf)
         y0, y1 = lo * (1 - ZOOM), hi * (1 + ZOOM)
         for e, sel in rows.items():
             v = np.asarray(par[p], float)[sel] * k
@@ -77,7 +80,8 @@ def parameters(ctx: RunContext) -> Figure | str:
                 **STYLE[e],
             )
             clipped = clipped or bool(np.any((v < y0) | (v > y1)))
-        ax.set_ylim(y0, y1)
+        if len(known):
+            ax.set_ylim(y0, y1)
         segment_markers(ax, ctx, label=p == ORDER[0])
         ax.set_ylabel(f"{LABEL[p]} ({unit})")
     legend(axes[0])
