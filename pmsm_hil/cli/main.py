@@ -9,7 +9,7 @@ import sys
 # A command's large arrays (a log's columns) are filled once and soon freed: numpy's default
 # madvise(MADV_HUGEPAGE) makes the kernel compact memory for huge pages at their first touch,
 # which costs more than the pages save (`analyze` of a one-hour log: 0.7 s more system time on
-# the project's machine, docs/sweep.md). Read by numpy when it is imported, so set before that;
+# the project's machine, docs/performance.md). Read by numpy when it is imported, so set before that;
 # a value in the environment wins.
 os.environ.setdefault("NUMPY_MADVISE_HUGEPAGE", "0")
 # pydantic looks for plugins among every installed package's entry points when it builds its first
@@ -105,7 +105,7 @@ def entry() -> int:
     interpreter would wait for (only daemon threads), the process
     ends at once (``os._exit``, after stdout and stderr are flushed) instead of tearing the
     interpreter down object by object (`run` of paper-a: 6-10 ms from its return to the
-    process's end instead of 24-26 ms, docs/sweep.md). Other commands (Dask clusters, temporary
+    process's end instead of 24-26 ms, docs/performance.md). Other commands (Dask clusters, temporary
     directories) keep the interpreter's ordinary exit, atexit handlers and all."""
     try:
         code = main()
