@@ -195,6 +195,39 @@ def test_ctrl_c_stops_the_motor_and_keeps_the_log(data, tmp_path):
         )
 
 
+@pytest.mark.parametrize("signame", ["SIGTERM", "SIGHUP"])
+def test_a_kill_before_the_stream_is_an_interrupt(data, tmp_path, monkeypatch, capsys, signame):
+    """SIGTERM or SIGHUP before the stream (the emulator child started and answering, the run's
+    modules loading) is a Ctrl-C: exit 130 with one line, the child ended with the link, no log
+    begun, and the caller's handler back afterwards (the default action used to end the process
+    with -15 and nothing said, the child left to notice on its own)."""
+    from pmsm_hil import device
+    from pmsm_hil.cli import run
+    from pmsm_hil.cli.main import main
+
+    sig = getattr(signal, signame)
+    opened = []
+    real = device.open_device
+
+    def open_device(spec, profile):
+        opened.append(real(spec, profile))
+        return opened[-1]
+
+    def killed(collecting):  # where the run's modules are in: before its own handlers
+        os.kill(os.getpid(), sig)
+
+    monkeypatch.setattr(device, "open_device", open_device)
+    monkeypatch.setattr(run, "_settle", killed)
+    before = signal.getsignal(sig)
+    out = tmp_path / "k.mcap"
+    assert main(["run", str(data / "short.yaml"), "--out", str(out), "--no-live"]) == 130
+    assert "pmsm-hil run: interrupted" in capsys.readouterr().err
+    assert signal.getsignal(sig) is before
+    assert not out.exists()
+    (link,) = opened
+    assert link.transport.proc.poll() is not None  # the emulator child, ended with the link
+
+
 def test_emulate_serves_a_pty_that_run_uses_like_a_rig(data, tmp_path):
     emu = subprocess.Popen(
         [*CLI, "emulate", "--seed", "3"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True

@@ -128,3 +128,33 @@ def test_over_speed_trips(data, tmp_path, root):
     _, result = run_with_plant(prof, out, j_kgm2=0.0036 / 100.0)
     assert result.state == "fault"
     assert result.faults & FAULT_BITS["over_speed"], result.faults
+
+
+def test_report_state_times_a_change_the_host_commands(data):
+    """`emulate --report-state`: a change a command makes between control periods (the host's
+    stop on Ctrl-C, its start) is printed at the device time it was made, not at the time of the
+    change before it (a stop 0.5 s into the run read t_s=0.000050)."""
+    import io
+
+    from pmsm_hil.emulator.server import StateReporter
+    from pmsm_hil.runner import configure
+
+    profile = load_profile(str(data / "short.yaml"))
+    settings = emulator_settings(profile.motor, profile.rig, seed=1, baud=profile.link.baud)
+    link = InProcessTransport(settings)
+    out = io.StringIO()
+    reporter = StateReporter(link.dev, out)
+    session = Session(link)
+    session.hello()
+    configure(session, profile)
+    session.request("start")
+    while link.dev.isr_count < 10000:  # 0.5 s of device time
+        link.read(0.0)
+        reporter.poll()
+    isr, hb = link.dev.isr_count, link.dev.heartbeat_isr
+    session.send("stop")  # taken by the firmware at once, before the next control period
+    reporter.poll()
+    ts = profile.control.ts_s
+    assert out.getvalue().splitlines()[-1] == (
+        f"state: stopping t_s={isr * ts:.6f} since_heartbeat_s={(isr - hb) * ts:.6f}"
+    )

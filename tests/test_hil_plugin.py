@@ -223,3 +223,23 @@ def test_a_bad_profile_or_port_fails_at_the_users_line_without_the_library_frame
     assert f"TransportError: serial port {os.devnull} cannot be opened" in out
     assert "serialposix.py" not in out and "shipped.py" not in out and "testing.py" not in out
     assert len(out.splitlines()) < 60, out
+
+
+def test_a_failed_test_over_can_shows_no_partial_read_warnings(pytester, data):
+    """python-can's socketcand client logs every partial TCP read as a warning; pytest captures
+    them, and a failed test over `--hil-can` showed them by the thousand under its report (the
+    CLI silences them; so does the plugin)."""
+    strict = pytester.path / "strict.yaml"
+    text = (data / "short.yaml").read_text()
+    strict.write_text(text + "\nacceptance:\n  run:\n    recovery_max_s: 0.0001\n")
+    pytester.makepyfile(
+        test_user=f"""
+        def test_strict(hil_device):
+            hil_device.run({str(strict)!r}).assert_accepted()
+    """
+    )
+    r = pytester.runpytest_subprocess("--hil-can", "emulator", "-p", "no:cacheprovider")
+    r.assert_outcomes(failed=1)
+    out = r.stdout.str()
+    assert "recovery measured" in out
+    assert "Got incomplete message" not in out and "socketcand" not in out

@@ -155,3 +155,47 @@ def test_recover_of_a_log_without_a_complete_chunk_is_an_error(tmp_path, capsys)
     out = capsys.readouterr().out
     assert "1 message in 1 topic recovered" in out and "/pmsm/telemetry: 1 message," in out
     assert "1 messages" not in out
+
+
+def test_recover_does_not_write_over_the_logs_own_journal(tmp_path, capsys):
+    """`-o LOG.journal` would read the journal while writing over it: the messages received after
+    the last chunk would be lost. Refused (exit 2), like `-o LOG`; both files stay as they were."""
+    from pmsm_hil.cli.main import main
+
+    path = tmp_path / "run.mcap"
+    w = LogWriter(path, chunk_span_s=1.0, journal=True)
+    for k in range(30):
+        w.write("/pmsm/telemetry", k * 0.01, _row(k))
+    w.flush_batch()
+    killed = _snapshot(path, tmp_path / "killed.mcap")
+    w.close()
+    journal = Path(journal_path(killed))
+    before = journal.read_bytes(), killed.read_bytes()
+    assert main(["log", "recover", str(killed), "-o", str(journal)]) == 2
+    err = " ".join(capsys.readouterr().err.split())
+    assert f"-o {journal}: " in err and "journal" in err
+    assert (journal.read_bytes(), killed.read_bytes()) == before
+    assert main(["log", "recover", str(killed)]) == 0
+    assert len(_times(tmp_path / "killed.recovered.mcap")) == 30
+
+
+def test_recover_keeps_a_file_already_at_its_output_unless_told(tmp_path, capsys):
+    """`-o` naming another run's log (or an earlier recovery at the default path) is refused
+    with what to do, the file untouched; `--overwrite` replaces it."""
+    from pmsm_hil.cli.main import main
+
+    path = tmp_path / "run.mcap"
+    w = LogWriter(path, chunk_span_s=1.0, journal=True)
+    for k in range(30):
+        w.write("/pmsm/telemetry", k * 0.01, _row(k))
+    w.flush_batch()
+    killed = _snapshot(path, tmp_path / "killed.mcap")
+    w.close()
+    other = tmp_path / "other.mcap"
+    other.write_bytes(b"another run's log")
+    assert main(["log", "recover", str(killed), "-o", str(other)]) == 2
+    err = " ".join(capsys.readouterr().err.split())
+    assert f"-o {other}: a file is there already; --overwrite replaces it" in err
+    assert other.read_bytes() == b"another run's log"
+    assert main(["log", "recover", str(killed), "-o", str(other), "--overwrite"]) == 0
+    assert len(_times(other)) == 30

@@ -132,3 +132,37 @@ def test_an_interrupt_before_the_suite_ran_replaces_an_earlier_report(
     case = ET.parse(junit).getroot().find("testsuite/testcase")
     assert case is not None and case.get("name") == "interrupted"
     assert "no profile judged" in case.find("error").get("message")
+
+
+def test_an_interrupt_while_the_suite_module_loads_replaces_an_earlier_report(
+    tmp_path, monkeypatch, capsys
+):
+    """Ctrl-C in the first third of a second, while `test` imports its suite module (numpy,
+    the sweep's machinery): the same report of an interrupted suite, not yesterday's pass left
+    at --junit (it was raised before the handler that writes it)."""
+    import os
+    import signal
+    import sys
+
+    import pmsm_hil.sweep
+    from pmsm_hil.cli.main import main
+    from pmsm_hil.sweep import suite
+
+    class CtrlCOnce:  # a Ctrl-C (SIGINT to this process) as the suite module starts to load
+        raised = False
+
+        def find_spec(self, name, path=None, target=None):
+            if name == "pmsm_hil.sweep.suite" and not self.raised:
+                CtrlCOnce.raised = True
+                os.kill(os.getpid(), signal.SIGINT)
+
+    monkeypatch.setattr(pmsm_hil.sweep, "suite", suite)  # as it was, after the test
+    monkeypatch.delitem(sys.modules, "pmsm_hil.sweep.suite")
+    monkeypatch.setattr(sys, "meta_path", [CtrlCOnce(), *sys.meta_path])
+    junit = tmp_path / "j.xml"
+    junit.write_text('<testsuites tests="1" failures="0" errors="0"/>')  # yesterday's pass
+    assert main(["test", "paper-a", "--junit", str(junit)]) == 130
+    assert CtrlCOnce.raised
+    assert "interrupted before the suite's results were written" in capsys.readouterr().err
+    case = ET.parse(junit).getroot().find("testsuite/testcase")
+    assert case is not None and case.get("name") == "interrupted"

@@ -502,12 +502,16 @@ def test_summary_shows_relative_errors_in_percent_as_the_console_does():
     assert "| speed_error_max_rpm | 2 | 1.5 | 2.25 | 1 | 2.25 |" in text
 
 
-@pytest.mark.parametrize("when", ["running", "starting"])
-def test_ctrl_c_on_a_local_sweep_leaves_only_its_summary(tmp_path, when):
+@pytest.mark.parametrize(
+    ("when", "signame"), [("running", "SIGINT"), ("starting", "SIGINT"), ("running", "SIGTERM")]
+)
+def test_ctrl_c_on_a_local_sweep_leaves_only_its_summary(tmp_path, when, signame):
     """SIGINT to the whole process group, as a terminal's Ctrl-C, once the sweep is running (the
     workers ignore it: sweep/worker_setup.py; the cluster closes them) or while its local cluster
-    starts (the workers inherit SIGINT blocked until they ignore it: driver._sigint_held): the
-    sweep says it was interrupted and how to resume, exit 130, no worker's traceback."""
+    starts (the workers inherit SIGINT blocked until they ignore it: driver._interrupts_held): the
+    sweep says it was interrupted and how to resume, exit 130, no worker's traceback. SIGTERM to
+    the sweep's process (a `kill`, a job's time limit) is taken alike (it used to end the process
+    with -15, the table unwritten)."""
     import os
     import signal
     import time
@@ -539,7 +543,10 @@ def test_ctrl_c_on_a_local_sweep_leaves_only_its_summary(tmp_path, when):
     while when == "running" and not (journal.is_file() and journal.read_text().strip()):
         assert p.poll() is None and time.monotonic() < deadline, "no run finished in 120 s"
         time.sleep(0.2)  # a run has finished: the workers are up
-    os.killpg(p.pid, signal.SIGINT)
+    if signame == "SIGINT":
+        os.killpg(p.pid, signal.SIGINT)
+    else:
+        os.kill(p.pid, getattr(signal, signame))
     out, err = p.communicate(timeout=120)
     assert p.returncode == 130, out + err
     assert "Traceback" not in err and "KeyboardInterrupt" not in err, err

@@ -29,6 +29,11 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     r.add_argument(
         "-o", "--out", default=None, help="the recovered log (default: LOG with .recovered.mcap)"
     )
+    r.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace a file already at the recovered log's path",
+    )
 
 
 def plural(n: int, word: str) -> str:
@@ -48,6 +53,14 @@ def main(args: argparse.Namespace) -> int:
     dst = Path(args.out) if args.out else src.with_suffix(".recovered.mcap")
     if dst.resolve() == src.resolve():
         return fail("error", f"-o {dst}: give another file than the one being recovered", 2)
+    if dst.resolve() == Path(journal_path(src)).resolve():  # read while written over: lost
+        return fail("error", f"-o {dst}: give another file than the journal being recovered", 2)
+    if dst.exists() and not args.overwrite:  # another run's log, an earlier recovery
+        return fail(
+            "error",
+            f"-o {dst}: a file is there already; --overwrite replaces it (or give another name)",
+            2,
+        )
     try:  # what there is to recover, before anything is written (the counts: nothing decoded)
         head = read_log(src, topics=[])
     except LogFormatError as e:

@@ -73,9 +73,28 @@ def _quiet_libraries() -> None:
     logging.getLogger("can").setLevel(logging.ERROR)
 
 
+def _terms_as_interrupts() -> dict[int, object]:
+    """SIGTERM and SIGHUP (a `kill`, a job's time limit, a closed terminal) raise
+    KeyboardInterrupt as a Ctrl-C does, from the command's first line: every command then stops
+    the motor, keeps its log or its sweep's table and exits 130 alike, where the default action
+    ended the process with nothing written (`run`'s device opening, a whole `sweep`). `run`
+    counts them itself while it streams (runner._Interrupts). Returns the handlers replaced."""
+    import signal
+    import threading
+
+    old: dict[int, object] = {}
+    if threading.current_thread() is threading.main_thread():
+        for name in ("SIGTERM", "SIGHUP"):
+            sig = getattr(signal, name, None)
+            if sig is not None and signal.getsignal(sig) is signal.SIG_DFL:
+                old[sig] = signal.signal(sig, signal.default_int_handler)
+    return old
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     _quiet_libraries()
+    replaced = _terms_as_interrupts()
     try:
         code = COMMANDS[args.command].main(args)
     except KeyboardInterrupt:
@@ -87,6 +106,11 @@ def main(argv: list[str] | None = None) -> int:
         # the reader of our output went away (`| head`): the work itself has ended cleanly
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
+    finally:  # an in-process caller gets its handlers back
+        import signal
+
+        for sig, handler in replaced.items():
+            signal.signal(sig, handler)  # type: ignore[arg-type]
     _returned.append(args.command)
     return code
 

@@ -351,31 +351,45 @@ def _run(args: argparse.Namespace, collecting: bool) -> int:
         if not existed:
             out.unlink(missing_ok=True)
         return fail("error", str(e), 2 if isinstance(e, TransportSpecError) else 3)
-    later.join()
-    from pmsm_hil.analysis.summary import summarize_log
-    from pmsm_hil.analysis.summary_text import print_summary
-    from pmsm_hil.cli.live import make_observer
-    from pmsm_hil.log.writer import LogWriteError
-    from pmsm_hil.protocol.session import DeviceError, Session
-    from pmsm_hil.runner import HEARTBEAT_WALL_S, HostError, PlantMismatch, RunOptions, run_profile
+    try:  # a Ctrl-C (or SIGTERM) before the stream: the device closed (the emulator ended)
+        later.join()
+        from pmsm_hil.analysis.summary import summarize_log
+        from pmsm_hil.analysis.summary_text import print_summary
+        from pmsm_hil.cli.live import make_observer
+        from pmsm_hil.log.writer import LogWriteError
+        from pmsm_hil.protocol.session import DeviceError, Session
+        from pmsm_hil.runner import (
+            HEARTBEAT_WALL_S,
+            HostError,
+            PlantMismatch,
+            RunOptions,
+            run_profile,
+        )
 
-    _settle(collecting)
+        _settle(collecting)
 
-    names = [s.name or f"segment {i}" for i, s in enumerate(profile.segments)]
-    observer = make_observer(args.no_live, f"{profile.name} on {link.name}", link.bit_rate, names)
-    options = RunOptions(
-        seed=None if dev.is_rig else args.seed,
-        rig_name=args.rig or str(profile.rig.path or ""),
-        stop_after_s=args.stop_after,
-        sinks=sinks,
-        # every received message on disk (the log's journal) before the next read: a killed
-        # host loses nothing it received (docs/faults.md)
-        log_sync="batch",
-        # an emulator paced at X times real time waits 1/X of the heartbeat timeout of wall time
-        heartbeat_wall_s=min(
-            HEARTBEAT_WALL_S, profile.control.heartbeat_timeout_s / (4 * (args.pace or 1))
-        ),
-    )
+        names = [s.name or f"segment {i}" for i, s in enumerate(profile.segments)]
+        observer = make_observer(
+            args.no_live, f"{profile.name} on {link.name}", link.bit_rate, names
+        )
+        options = RunOptions(
+            seed=None if dev.is_rig else args.seed,
+            rig_name=args.rig or str(profile.rig.path or ""),
+            stop_after_s=args.stop_after,
+            sinks=sinks,
+            # every received message on disk (the log's journal) before the next read: a killed
+            # host loses nothing it received (docs/faults.md)
+            log_sync="batch",
+            # an emulator paced at X times real time waits 1/X of the heartbeat timeout of wall time
+            heartbeat_wall_s=min(
+                HEARTBEAT_WALL_S, profile.control.heartbeat_timeout_s / (4 * (args.pace or 1))
+            ),
+        )
+    except BaseException:
+        link.close()
+        for s in sinks:
+            s.close()
+        raise
     try:
         with observer:
             result = run_profile(profile, Session(link), out, options, observer)

@@ -58,7 +58,7 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
 
 
 def main(args: argparse.Namespace) -> int:
-    from pmsm_hil.sweep.suite import junit_error
+    from pmsm_hil.log.write_support import signals_held
 
     def junit(text: str) -> bool:
         """Write the report if asked; False (the error printed) when it cannot be written."""
@@ -79,8 +79,12 @@ def main(args: argparse.Namespace) -> int:
         if problem:
             return fail("error", f"--junit {args.junit}: {problem}", 2)
     try:
+        with signals_held():  # Ctrl-C while the suite module imports (0.3 s) is raised after it
+            import pmsm_hil.sweep.suite  # noqa: F401  (a second import of numpy would fail)
         return _suite(args, junit)
     except KeyboardInterrupt:  # before the runs could say so themselves (loading, a cluster)
+        from pmsm_hil.sweep.suite import junit_error
+
         # a report from an earlier suite must not stand for this one in CI
         why = "interrupted before the suite's results were written: no profile judged"
         junit(junit_error("interrupted", why))

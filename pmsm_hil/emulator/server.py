@@ -98,13 +98,18 @@ class StateReporter:
         self.names = {v: k for k, v in gen.ENUMS["state"].items()}
         self.ts_s = device.get("ts_s")
         self.last = device.state
+        self.seen_isr = device.isr_count  # the control periods run when `last` was last seen
 
     def poll(self) -> None:
         state = self.dev.state
         if state == self.last:
+            self.seen_isr = self.dev.isr_count
             return
         self.last = state
-        isr, hb = self.dev.state_change()
+        isr, hb = self.dev.state_change()  # the last change a control period saw
+        if isr <= self.seen_isr:  # none saw this one yet: a command made it (start, stop, abort)
+            isr, hb = self.dev.isr_count, self.dev.heartbeat_isr
+        self.seen_isr = self.dev.isr_count
         print(
             f"state: {self.names.get(state, state)} t_s={isr * self.ts_s:.6f} "
             f"since_heartbeat_s={(isr - hb) * self.ts_s:.6f}",

@@ -20,6 +20,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from pmsm_hil.log.write_support import HELD_SIGNALS
+
 from .execute import execute_run
 from .plan import FILES, Run, plan_runs
 from .results import Journal, check_resumable, check_same_sweep, passed, write_meta, write_table
@@ -134,10 +136,11 @@ class SyncCancelRace(logging.Filter):
 
 
 @contextlib.contextmanager
-def _sigint_held() -> Iterator[None]:
-    """SIGINT blocked in this thread while the local cluster starts: the threads and worker
-    processes started meanwhile inherit the mask, so a terminal's Ctrl-C in that second stays
-    pending in each worker until its preload (sweep/worker_setup.py) ignores it, instead of
+def _interrupts_held() -> Iterator[None]:
+    """SIGINT (and SIGTERM, SIGHUP, which the CLI takes as a Ctrl-C) blocked in this thread while
+    the local cluster starts: the threads and worker processes started meanwhile inherit the mask,
+    so a terminal's Ctrl-C in that second stays pending in each worker until its preload
+    (sweep/worker_setup.py) ignores it, instead of
     printing the worker's KeyboardInterrupt traceback under the summary. Here it is delivered when
     the mask is restored, once the client and the cluster are assigned (and so closed)."""
     if not hasattr(signal, "pthread_sigmask") or (
@@ -151,7 +154,7 @@ def _sigint_held() -> Iterator[None]:
     from multiprocessing import resource_tracker
 
     resource_tracker.ensure_running()
-    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, HELD_SIGNALS)
     try:
         yield
     finally:
@@ -304,7 +307,7 @@ def run_runs(
             missed=missed if res.criteria else None,
         )
         if todo:
-            with _sigint_held():
+            with _interrupts_held():
                 client, cluster = _client(scheduler, workers)
             res.workers = len(client.scheduler_info().get("workers", {}))
             futures = []

@@ -32,7 +32,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from .driver import _Bar, _client, _error_of, _sigint_held
+from .driver import _Bar, _client, _error_of, _interrupts_held
 from .results import Journal
 
 __all__ = ["BLAS_THREADS", "run_tasks", "task_key"]
@@ -121,7 +121,7 @@ def run_tasks(
         client = cluster = None
         t0 = time.perf_counter()
         try:
-            with _sigint_held():  # a Ctrl-C while the cluster starts: no worker's traceback
+            with _interrupts_held():  # a Ctrl-C while the cluster starts: no worker's traceback
                 client, cluster = _client(scheduler, workers)
             futures = [
                 client.submit(_in_worker, fn, firmware, t, key=f"pmsm-{name}-{k}", pure=False)

@@ -3,8 +3,9 @@ and say nothing when the scheduler has gone.
 A Ctrl-C in the terminal reaches the whole process group; the sweep's own process handles it
 (summary, exit 130) and closes the cluster, which stops the workers. Without this each worker
 printed its KeyboardInterrupt traceback under the sweep's summary. A worker started while the
-sweep held SIGINT blocked (driver._sigint_held) inherited the mask: a Ctrl-C of that moment waits
-pending, and is discarded here when SIGINT becomes ignored, before it is unblocked.
+sweep held SIGINT, SIGTERM and SIGHUP blocked (driver._interrupts_held) inherited the mask: a
+Ctrl-C of that moment waits pending, and is discarded here when SIGINT becomes ignored, before it
+is unblocked; SIGTERM and SIGHUP are unblocked at their default (a worker is stopped with them).
 
 The local cluster's scheduler lives in the sweep's own process: when a worker finds it gone, the
 sweep is closing (a Ctrl-C while the worker was busy with a run closes the scheduler before the
@@ -18,6 +19,8 @@ import logging
 import signal
 import threading
 from typing import Any
+
+from pmsm_hil.log.write_support import HELD_SIGNALS
 
 
 class SchedulerGone(logging.Filter):
@@ -33,4 +36,4 @@ def dask_setup(worker: Any) -> None:
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGINT, signal.SIG_IGN)
         if hasattr(signal, "pthread_sigmask"):
-            signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, HELD_SIGNALS)
