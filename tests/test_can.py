@@ -298,8 +298,17 @@ def test_cli_emulate_can_prints_a_spec_that_run_connects_to(data, tmp_path):
 
 
 def test_a_second_can_client_cannot_take_over_a_running_motor(data, tmp_path):
+    # the emulator in real time and 9 s of profile: the second client is refused while the first
+    # runs, and the first still runs to its end (long.yaml's 601 s took 86 s over CAN)
+    held = tmp_path / "held.yaml"
+    held.write_text(
+        (data / "long.yaml")
+        .read_text()
+        .replace("../../profiles", str(data.parents[1] / "profiles"))
+        .replace("duration_s: 600.0", "duration_s: 8.0")
+    )
     emu = subprocess.Popen(
-        [sys.executable, "-m", "pmsm_hil.emulator", "--can"],
+        [sys.executable, "-m", "pmsm_hil.emulator", "--can", "--pace", "1"],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -312,7 +321,7 @@ def test_a_second_can_client_cannot_take_over_a_running_motor(data, tmp_path):
                 "-m",
                 "pmsm_hil.cli.main",
                 "run",
-                str(data / "long.yaml"),
+                str(held),
                 "--can",
                 spec,
                 "--no-live",
