@@ -252,8 +252,22 @@ def test_csv_with_a_byte_order_mark_imports(tmp_path):
     p.write_bytes(
         p.read_text(encoding="utf-8-sig").replace("t_s", "t_s # \u00b5s", 1).encode("cp1252")
     )
-    with pytest.raises(ImportError_, match=r"excel.csv: not UTF-8 text \(octet 6: "):
+    with pytest.raises(ImportError_, match=r"excel.csv: line 1: not UTF-8 text \(octet 6 = 0xb5: "):
         read_csv(p)
+
+
+def test_csv_not_utf8_names_the_line_and_the_octet_in_the_file(tmp_path, capsys):
+    """A byte that is not UTF-8 far into the file (past the reader's first chunk) is named by its
+    line and its offset in the file, not in the chunk the decoder was reading."""
+    p = tmp_path / "scope.csv"
+    _write_csv(p, _ok_cols(2000))
+    text = p.read_bytes()
+    p.write_bytes(text + "# Temperatur 25 \u00b0C\n".encode("latin-1"))
+    octet = len(text) + len(b"# Temperatur 25 ")
+    with pytest.raises(ImportError_, match=rf"line 2002: not UTF-8 text \(octet {octet} = 0xb0: "):
+        read_csv(p)
+    assert main(["import", str(p), "--motor", MOTOR, "-o", str(tmp_path / "x.mcap")]) == 2
+    assert "line 2002" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize(
@@ -387,3 +401,22 @@ def test_import_help_lists_the_columns(capsys):
     # the sample-time bounds the help quotes are the importer's
     assert cli_import.TS_MIN_US * 1e-6 == csv_import.TS_MIN_S
     assert cli_import.TS_MAX_MS * 1e-3 == csv_import.TS_MAX_S
+
+
+def test_import_and_record_keep_a_log_already_at_their_output(tmp_path, capsys):
+    """`import -o` and `gap record -o` naming a file that is there (another run's log) refuse,
+    as `run --out` does, and leave it as it was; `--overwrite` replaces it."""
+    csv_path = tmp_path / "scope.csv"
+    _write_csv(csv_path, _ok_cols(200))
+    there = tmp_path / "there.mcap"
+    there.write_bytes(b"another run's log")
+    for argv in (
+        ["import", str(csv_path), "--motor", MOTOR, "-o", str(there)],
+        ["gap", "record", "diagnose", "--rig", "lab-typical", "-o", str(there)],
+    ):
+        assert main(argv) == 2, argv
+        err = " ".join(capsys.readouterr().err.split())
+        assert f"-o {there}: a file is there already; --overwrite replaces it" in err, argv
+        assert there.read_bytes() == b"another run's log"
+    assert main(["import", str(csv_path), "--motor", MOTOR, "-o", str(there), "--overwrite"]) == 0
+    assert load_record(there).n == 200

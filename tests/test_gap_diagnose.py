@@ -4,6 +4,7 @@ the noise floor, selection, magnitudes, closure, the CLI, and the generator/diag
 from __future__ import annotations
 
 import json
+import os
 import re
 import subprocess
 import sys
@@ -257,6 +258,37 @@ def test_cli_errors(tmp_path, capsys):
     assert not (tmp_path / "pb.mcap").exists()
 
 
+def test_outputs_that_cannot_be_written_are_refused_before_the_work(logs, tmp_path, capsys):
+    """-o and --report of every gap command are checked before a record, a diagnosis or a
+    self-test runs: exit 2 naming the option, not a traceback after the work."""
+    log = str(logs["ideal"])
+    afile = tmp_path / "afile"
+    afile.write_text("x")
+    cases = [
+        (
+            ["gap", "record", "diagnose", "-o", f"{afile}/x.mcap"],
+            f"{afile} is a file, not a folder",
+        ),
+        (["gap", "augment", log, "-o", f"{afile}/x.yaml"], f"{afile} is a file, not a folder"),
+        (["gap", log, "--report", f"{afile}/rep"], f"--report {afile}/rep: cannot make the folder"),
+        (["gap", "selftest", "--trials", "1", "-o", str(afile)], f"-o {afile}: is a file"),
+    ]
+    if os.path.isdir("/proc/self"):  # a folder nobody can make files in, not even root
+        cases += [
+            (["gap", "record", "diagnose", "-o", "/proc/x.mcap"], "-o /proc/x.mcap: cannot write"),
+            (["gap", "augment", log, "-o", "/proc/x.yaml"], "-o /proc/x.yaml: cannot write"),
+            (["gap", log, "--report", "/proc/gap"], "--report /proc/gap: cannot make the folder"),
+            (["gap", "selftest", "--trials", "1", "-o", "/proc/j"], "-o /proc/j: cannot make"),
+        ]
+    for argv, says in cases:
+        assert main(argv) == 2, argv
+        out = capsys.readouterr()
+        assert says in out.err and "Traceback" not in out.err, (argv, out.err)
+        assert "gap:" not in out.out and "labels sealed" not in out.out, argv  # nothing ran
+    ok = tmp_path / "ok.yaml"  # a writable -o is left as it was: no file made by the check
+    assert main(["gap", "augment", log, "-o", str(ok)]) == 0 and ok.exists()
+
+
 def _log_with(profile_yaml: str | None, truncated: bool = False):
     from types import SimpleNamespace
 
@@ -305,7 +337,8 @@ def test_verify_reruns_the_logs_profile(tmp_path, capsys):
     assert nominal["plateau"]["u_q_v"]["rms_nominal"] > 0.2
     assert nominal["signals"]["u_q_v"]["rms_nominal"] > 0.5
     assert main(["gap", "verify", str(real), "--rig", str(rig), "--seed", "4"]) == 0
-    assert "closure" in capsys.readouterr().out
+    # the closure printed is 1 - MSE_fitted / MSE_nominal, and the note says so
+    assert "closure = 1 - (fitted / nominal rms error)^2" in capsys.readouterr().out
     # a shipped rig by its name, as `gap record --rig` takes it: the true rig, closure 1
     assert main(["gap", "verify", str(real), "--rig", "effect-dead-time", "--seed", "4"]) == 0
     assert "free-run closure (median over i_d, i_q, u_d, u_q) 1.00" in capsys.readouterr().out

@@ -17,6 +17,7 @@ import os
 import sys
 import tempfile
 import time
+from pathlib import Path
 
 from pmsm_hil.cli.errors import fail, report
 from pmsm_hil.seeds import seed_arg
@@ -49,9 +50,16 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         help="output file (augment: rig yaml; record: log); selftest: a folder for the "
         "trials' journal (resumable)",
     )
+    p.add_argument("--overwrite", action="store_true", help="record: replace a log already at -o")
     p.add_argument("--rig", help="record, verify: the rig file (or shipped name)")
     p.add_argument("--trials", type=int, default=20, help="selftest: number of trials")
-    p.add_argument("--seed", type=seed_arg, default=1, help="selftest / record: seed")
+    p.add_argument(
+        "--seed",
+        type=seed_arg,
+        default=1,
+        help="selftest / record: seed; verify: the re-runs' noise seed (take one other than "
+        "the record's)",
+    )
     p.add_argument(
         "--workers",
         type=int,
@@ -67,14 +75,18 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     )
 
 
-def _out_problem(path: str, what: str) -> str | None:
+def _out_problem(path: str, what: str, overwrite: bool = True) -> str | None:
     """Why ``path`` cannot be written as the file ``what`` (None: it can)."""
     if os.path.isdir(path):
         return f"-o {path}: is a directory; give the {what} file to write (e.g. {path}/{what})"
     parent = os.path.dirname(os.path.abspath(path))
+    if os.path.exists(parent) and not os.path.isdir(parent):
+        return f"-o {path}: {parent} is a file, not a folder"
     if not os.path.isdir(parent):
         return f"-o {path}: its folder {parent} does not exist"
-    return None
+    from pmsm_hil.cli.paths import write_problem  # as `run --out`
+
+    return write_problem(Path(path), "-o", overwrite)
 
 
 def _motor(args, log_path):
@@ -171,7 +183,12 @@ def main(args: argparse.Namespace) -> int:
         return fail("error", f"--report {args.report}: is a file; give a folder for the report", 2)
     try:
         if args.target == "selftest":
+            from pmsm_hil.cli.paths import folder_problem
             from pmsm_hil.gapgen.selftest import print_selftest, run_selftest
+
+            why = folder_problem(Path(args.out)) if args.out else None
+            if why:
+                return fail("error", f"-o {args.out}: {why}", 2)
 
             res = run_selftest(
                 args.trials,
@@ -195,7 +212,7 @@ def main(args: argparse.Namespace) -> int:
 
             if not args.rest or not args.out:
                 return fail("error", "gap record PROFILE.yaml [--rig RIG.yaml] -o OUT.mcap", 2)
-            why = _out_problem(args.out, "record.mcap")
+            why = _out_problem(args.out, "record.mcap", overwrite=args.overwrite)
             if why:
                 return fail("error", why, 2)
             from pmsm_hil.gap.record import foc_throughout
@@ -246,7 +263,7 @@ def main(args: argparse.Namespace) -> int:
                         f"closure {s['closure']:.2f}"
                     )
                 print(
-                    "  (closure = 1 - fitted / nominal rms error; where the nominal error is "
+                    "  (closure = 1 - (fitted / nominal rms error)^2; where the nominal error is "
                     "already small it swings from run to run, as the two runs' FCS switching "
                     "diverges: read the median and the settled means below)"
                 )
@@ -289,6 +306,11 @@ def main(args: argparse.Namespace) -> int:
         why = path_problem(path) or (args.holdout and path_problem(args.holdout, "--holdout"))
         if args.target == "augment" and not why:
             why = _out_problem(args.out, "fitted-rig.yaml")
+        if not why and args.report and args.target != "augment":
+            from pmsm_hil.cli.paths import folder_problem
+
+            report_why = folder_problem(Path(args.report))  # before the diagnosis, not after it
+            why = report_why and f"--report {args.report}: {report_why}"
         if why:
             return fail("error", why, 2)
         t0 = time.monotonic()

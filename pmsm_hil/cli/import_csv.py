@@ -31,6 +31,7 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         help="motor file the data belongs to (a path, or a shipped motor by its name)",
     )
     p.add_argument("-o", "--out", required=True, help="MCAP log to write, *.mcap")
+    p.add_argument("--overwrite", action="store_true", help="replace a log already at -o")
 
 
 def main(args: argparse.Namespace) -> int:
@@ -38,7 +39,9 @@ def main(args: argparse.Namespace) -> int:
 
     from pmsm_hil.cli.paths import check_output
 
-    code = check_output(Path(args.out), "-o", (".mcap",), "the log is MCAP")
+    code = check_output(
+        Path(args.out), "-o", (".mcap",), "the log is MCAP", overwrite=args.overwrite
+    )
     if code is not None:
         return code
     from pmsm_hil.gap.csv_import import ImportError_, import_csv

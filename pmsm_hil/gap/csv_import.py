@@ -125,10 +125,20 @@ def read_csv(
                 for n, r in enumerate(csv.reader(f), start=1)
                 if r and not r[0].lstrip().startswith("#")
             ]
-        except UnicodeDecodeError as e:
-            raise ImportError_(
-                f"{path}: not UTF-8 text (octet {e.start}: {e.reason}); save it as CSV UTF-8"
-            ) from None
+        except UnicodeDecodeError:
+            # the decoder's offset counts from the chunk it was reading: find the file's own
+            # (a byte-order mark is valid UTF-8, so plain utf-8 gives the offset in the file)
+            with open(path, "rb") as b:
+                raw = b.read()
+            try:
+                raw.decode("utf-8")
+            except UnicodeDecodeError as e:
+                line = raw.count(b"\n", 0, e.start) + 1
+                raise ImportError_(
+                    f"{path}: line {line}: not UTF-8 text (octet {e.start} = "
+                    f"0x{raw[e.start]:02x}: {e.reason}); save it as CSV UTF-8"
+                ) from None
+            raise ImportError_(f"{path}: not UTF-8 text; save it as CSV UTF-8") from None
     if not rows:
         raise ImportError_(f"{path}: empty file (a header row and data rows are needed)")
     hline, header = rows[0]
