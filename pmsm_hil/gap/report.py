@@ -124,6 +124,15 @@ def verdict_lines(res: dict) -> list[str]:
         out.append(
             f"  ? {a['effects'][0]} and {a['effects'][1]} cannot be told apart on this data: {a['experiment']}"
         )
+    nb = res.get("below_threshold")
+    if nb:
+        z = nb["gain_v2"] / nb["gain_se_v2"]
+        out.append(
+            f"  ~ {nb['effect']}: held-out MSE down {nb['gain_v2']:.3g} V^2 ({z:.0f} standard "
+            f"errors), under the practical threshold {nb['threshold_v2']:.3g} V^2: not named; the "
+            "data may hold it, partly carried by an effect named above"
+            + (f" ({nb['experiment']})" if nb["experiment"] else "")
+        )
     pl = res.get("plateaus") or {}
     if "rms_before_v" in pl:
         b4, af = pl["rms_before_v"], pl["rms_after_v"]
