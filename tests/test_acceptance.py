@@ -155,6 +155,24 @@ def test_one_segment_may_take_its_bounds_in_several_items(tmp_path, data):
     assert acc is not None and len(acc.segments) == 2
 
 
+def test_an_empty_acceptance_section_is_warned_of_at_its_line(tmp_path, data):
+    """`acceptance:` with nothing under it (criteria not indented, say) is the defaults only: the
+    profile loads, with a warning naming the line; a section that is not there says nothing."""
+    p = with_acceptance(tmp_path, data, "acceptance:\nrun:\n  speed_error_max_rpm: 2\n")
+    with pytest.raises(ProfileError):  # the criteria at the top level: an unknown field
+        load_profile(p)
+    p = with_acceptance(tmp_path, data, "acceptance:\n")
+    line = p.read_text().splitlines().index("acceptance:") + 1
+    prof = load_profile(p)
+    assert prof.acceptance is None
+    said = [w for w in prof.warnings if "acceptance: is empty" in w]
+    assert said == [
+        f"{p}:{line}: acceptance: is empty (its criteria not indented under it?): a run is "
+        "judged on the defaults only, complete and no fault"
+    ]
+    assert not [w for w in load_profile(data / "short.yaml").warnings if "acceptance" in w]
+
+
 def test_an_unnamed_segment_is_pointed_to_its_index(tmp_path, data):
     text = re.sub(r'name: "load off",\s*', "", (data / "short.yaml").read_text())
     assert '"load off"' not in text

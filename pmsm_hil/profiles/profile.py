@@ -413,6 +413,11 @@ def _profile_checks(src: Source, motor: Motor | None) -> tuple[list[Problem], li
                 speed = end
                 continue
         speed = v
+    if "acceptance" in d and d["acceptance"] is None:
+        warnings.append(
+            f"{src.path}:{src.line(('acceptance',))}: acceptance: is empty (its criteria not "
+            "indented under it?): a run is judged on the defaults only, complete and no fault"
+        )
     if total > MAX_TOTAL_DURATION_S * (1 + 1e-12):
         problems.append(
             src.problem(
