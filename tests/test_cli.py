@@ -218,11 +218,16 @@ def test_a_kill_before_the_stream_is_an_interrupt(data, tmp_path, monkeypatch, c
 
     monkeypatch.setattr(device, "open_device", open_device)
     monkeypatch.setattr(run, "_settle", killed)
-    before = signal.getsignal(sig)
+    # as in a terminal: the signal at its default action (a suite run under nohup inherits
+    # SIGHUP ignored, which the command then keeps)
+    inherited = signal.signal(sig, signal.SIG_DFL)
     out = tmp_path / "k.mcap"
-    assert main(["run", str(data / "short.yaml"), "--out", str(out), "--no-live"]) == 130
+    try:
+        assert main(["run", str(data / "short.yaml"), "--out", str(out), "--no-live"]) == 130
+        assert signal.getsignal(sig) is signal.SIG_DFL  # the caller's handler back
+    finally:
+        signal.signal(sig, inherited)
     assert "pmsm-hil run: interrupted" in capsys.readouterr().err
-    assert signal.getsignal(sig) is before
     assert not out.exists()
     (link,) = opened
     assert link.transport.proc.poll() is not None  # the emulator child, ended with the link

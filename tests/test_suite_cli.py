@@ -156,12 +156,18 @@ def test_an_interrupt_while_the_suite_module_loads_replaces_an_earlier_report(
                 CtrlCOnce.raised = True
                 os.kill(os.getpid(), signal.SIGINT)
 
+    # as from a terminal: a suite started in the background of a non-interactive shell (CI)
+    # inherits SIGINT ignored, and Python then installs no KeyboardInterrupt handler
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     monkeypatch.setattr(pmsm_hil.sweep, "suite", suite)  # as it was, after the test
     monkeypatch.delitem(sys.modules, "pmsm_hil.sweep.suite")
     monkeypatch.setattr(sys, "meta_path", [CtrlCOnce(), *sys.meta_path])
     junit = tmp_path / "j.xml"
     junit.write_text('<testsuites tests="1" failures="0" errors="0"/>')  # yesterday's pass
-    assert main(["test", "paper-a", "--junit", str(junit)]) == 130
+    try:
+        assert main(["test", "paper-a", "--junit", str(junit)]) == 130
+    finally:
+        signal.signal(signal.SIGINT, previous)
     assert CtrlCOnce.raised
     assert "interrupted before the suite's results were written" in capsys.readouterr().err
     case = ET.parse(junit).getroot().find("testsuite/testcase")
