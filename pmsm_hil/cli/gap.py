@@ -2,7 +2,7 @@
 
 pmsm-hil gap LOG.mcap --motor M.yaml [--json] [--report DIR] [--holdout LOG2.mcap] [--workers W]
 pmsm-hil gap augment LOG.mcap [--motor M.yaml] -o fitted-rig.yaml
-pmsm-hil gap record PROFILE.yaml --rig RIG.yaml -o real.mcap [--seed N]   (emulator, continuous)
+pmsm-hil gap record PROFILE.yaml --rig RIG.yaml -o real.mcap [--seed N] [--overwrite]  (emulator)
 pmsm-hil gap selftest --trials N --seed S [--workers W] [--scheduler ADDR] [-o DIR] [--json]
     (trials on Dask, docs/sweep.md; -o DIR keeps a journal there, so an interrupted run resumes)
 pmsm-hil gap verify LOG.mcap --rig fitted-rig.yaml [--json]        (re-runs the log's profile)
