@@ -420,3 +420,26 @@ def test_import_and_record_keep_a_log_already_at_their_output(tmp_path, capsys):
         assert there.read_bytes() == b"another run's log"
     assert main(["import", str(csv_path), "--motor", MOTOR, "-o", str(there), "--overwrite"]) == 0
     assert load_record(there).n == 200
+
+
+@pytest.mark.parametrize(
+    ("written", "refused"),
+    [(1.0, False), (1.03, False), (60 / (2 * np.pi * 4), True), (1 / 4, True), (-1.0, True)],
+)
+def test_csv_speed_must_be_the_angles_rate(tmp_path, written, refused):
+    """omega_e_rad_s beside theta_e_rad: their means over the file agree (a filtered speed's
+    3 % is fine); the speed in r/min, the mechanical speed or the other sign is refused at the
+    header's line, with what it averages against the angle's rate."""
+    c = _ok_cols(400)
+    w = 300.0  # rad/s electrical: 0.12 s in 400 rows of 100 us, over five turns
+    c["theta_e_rad"] = np.mod(w * c["t_s"], 2 * np.pi)
+    c["omega_e_rad_s"] = np.full(400, w * written)
+    p = tmp_path / "speed.csv"
+    _write_csv(p, c)
+    if not refused:
+        assert read_csv(p)[0] == "control"
+        return
+    with pytest.raises(
+        ImportError_, match=r"line 1: column omega_e_rad_s averages .* turns at 300 "
+    ):
+        read_csv(p)

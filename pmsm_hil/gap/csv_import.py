@@ -45,6 +45,10 @@ FLUX_MAP_COLUMNS = ("i_d_a", "i_q_a", "psi_d_wb", "psi_q_wb")
 # a current or voltage this many times the motor file's trip current or over-voltage trip is a
 # unit mistake (mA, mV), not a measurement
 UNIT_FACTOR = 10.0
+# omega_e_rad_s against theta_e_rad's rate over the file (_check_speed): a speed in r/min or the
+# mechanical one is off by 60/(2 pi p) or 1/p, far beyond a filtered or estimated speed's mean
+SPEED_REL = 0.1
+SPEED_FLOOR_RAD_S = 5.0
 
 
 class ImportError_(ValueError):
@@ -221,9 +225,27 @@ def read_csv(
                     f"{cell(k - 1, 'theta_e_rad')}: a step of more than one turn (2 pi rad) in "
                     "one row; theta_e_rad is in radians — is it written in degrees?"
                 )
+            if "omega_e_rad_s" in cols:
+                _check_speed(path, hline, t, cols["theta_e_rad"], cols["omega_e_rad_s"])
     if motor is not None:
         _check_units(path, cols, lines, cell, motor)
     return kind, cols
+
+
+def _check_speed(path, hline: int, t, theta, omega) -> None:
+    """omega_e_rad_s is the rate at which theta_e_rad turns: their means over the file agree
+    within SPEED_REL (or SPEED_FLOOR_RAD_S near standstill), else a unit mistake is named (r/min,
+    or the mechanical speed: 60/(2 pi p) or 1/p of it)."""
+    turned = np.unwrap(theta)
+    rate = float(turned[-1] - turned[0]) / float(t[-1] - t[0])
+    mean = float(np.mean(omega))
+    if abs(mean - rate) <= max(SPEED_REL * max(abs(rate), abs(mean)), SPEED_FLOOR_RAD_S):
+        return
+    raise ImportError_(
+        f"{path}: line {hline}: column omega_e_rad_s averages {mean:.5g} where theta_e_rad "
+        f"turns at {rate:.5g} rad/s over the file; omega_e_rad_s is the electrical speed in "
+        "rad/s — is it written in r/min, or is it the mechanical speed?"
+    )
 
 
 def _check_units(path, cols, lines, cell, motor: Motor) -> None:
