@@ -597,3 +597,20 @@ def test_the_scheduler_check_works_from_inside_an_event_loop():
         return ""
 
     assert "did not answer as a Dask scheduler in 1.5 s" in asyncio.run(inside())
+
+
+def test_the_report_of_a_sweep_interrupted_before_its_first_run_says_how_to_resume(
+    tmp_path, capsys
+):
+    """A Ctrl-C before any run finished leaves an empty table: `sweep report` says so and that
+    the same sweep command resumes it (exit 2, no traceback)."""
+    from pmsm_hil.cli.main import main
+    from pmsm_hil.sweep.results import write_table
+
+    out = tmp_path / "tol"
+    out.mkdir()
+    write_table(out, [], [])
+    assert main(["sweep", "report", str(out)]) == 2
+    err = " ".join(capsys.readouterr().err.split())
+    assert "the table is empty: no run finished" in err
+    assert f"`pmsm-hil sweep SWEEP --out {out}` again resumes it" in err

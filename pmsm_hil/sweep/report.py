@@ -170,7 +170,10 @@ def write_report(out: Path) -> SweepReport:
         )
     rows = read_table(out)
     if not rows:
-        raise ReportError(f"{out}/results.parquet: the table is empty")
+        raise ReportError(
+            f"{out}/results.parquet: the table is empty: no run finished (interrupted before the "
+            f"first? `pmsm-hil sweep SWEEP --out {out}` again resumes it)"
+        )
     try:
         meta, notes = read_meta(out, rows)
     except ResultsFormatError as e:
