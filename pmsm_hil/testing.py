@@ -24,7 +24,6 @@ runs.
 from __future__ import annotations
 
 import itertools
-import logging
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -239,10 +238,9 @@ def pytest_configure(config: pytest.Config) -> None:
     )
     config.stash[_SEED] = _checked_options(config)
     if config.getoption("--hil-can"):
-        # python-can's socketcand client logs every partial TCP read as a warning ("Got
-        # incomplete message"): normal on a stream, and pytest showed them by the thousand under
-        # a failed test. Its real errors are raised, not logged (the CLI quiets them too)
-        logging.getLogger("can.interfaces.socketcand").setLevel(logging.ERROR)
+        from pmsm_hil.transport import quiet_python_can  # as the CLI does
+
+        quiet_python_can()
     taken = _option_taken_for_a_test_path(config)
     if taken:
         config.issue_config_time_warning(pytest.PytestConfigWarning(taken), stacklevel=2)

@@ -97,12 +97,18 @@ def test_the_rig_path_runs_a_profile_over_can(pytester, data):
     r.assert_outcomes(passed=2)
 
 
-def test_a_failed_acceptance_points_at_the_users_line(pytester, data):
-    """A failing `assert_accepted()` shows the user's test line and the failed bounds, not the
-    plugin's own code."""
+def _strict_profile(pytester, data):
+    """short.yaml with a load-step recovery bound no run meets, in the test's folder."""
     strict = pytester.path / "strict.yaml"
     text = (data / "short.yaml").read_text()
     strict.write_text(text + "\nacceptance:\n  run:\n    recovery_max_s: 0.0001\n")
+    return strict
+
+
+def test_a_failed_acceptance_points_at_the_users_line(pytester, data):
+    """A failing `assert_accepted()` shows the user's test line and the failed bounds, not the
+    plugin's own code."""
+    strict = _strict_profile(pytester, data)
     pytester.makepyfile(
         test_user=f"""
         def test_strict(hil_device):
@@ -229,9 +235,7 @@ def test_a_failed_test_over_can_shows_no_partial_read_warnings(pytester, data):
     """python-can's socketcand client logs every partial TCP read as a warning; pytest captures
     them, and a failed test over `--hil-can` showed them by the thousand under its report (the
     CLI silences them; so does the plugin)."""
-    strict = pytester.path / "strict.yaml"
-    text = (data / "short.yaml").read_text()
-    strict.write_text(text + "\nacceptance:\n  run:\n    recovery_max_s: 0.0001\n")
+    strict = _strict_profile(pytester, data)
     pytester.makepyfile(
         test_user=f"""
         def test_strict(hil_device):

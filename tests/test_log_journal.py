@@ -157,11 +157,9 @@ def test_recover_of_a_log_without_a_complete_chunk_is_an_error(tmp_path, capsys)
     assert "1 messages" not in out
 
 
-def test_recover_does_not_write_over_the_logs_own_journal(tmp_path, capsys):
-    """`-o LOG.journal` would read the journal while writing over it: the messages received after
-    the last chunk would be lost. Refused (exit 2), like `-o LOG`; both files stay as they were."""
-    from pmsm_hil.cli.main import main
-
+def _killed_run(tmp_path: Path) -> Path:
+    """A log of 30 telemetry messages as a killed writer left it (the last of them in the journal
+    only): tmp_path/killed.mcap beside its journal."""
     path = tmp_path / "run.mcap"
     w = LogWriter(path, chunk_span_s=1.0, journal=True)
     for k in range(30):
@@ -169,6 +167,15 @@ def test_recover_does_not_write_over_the_logs_own_journal(tmp_path, capsys):
     w.flush_batch()
     killed = _snapshot(path, tmp_path / "killed.mcap")
     w.close()
+    return killed
+
+
+def test_recover_does_not_write_over_the_logs_own_journal(tmp_path, capsys):
+    """`-o LOG.journal` would read the journal while writing over it: the messages received after
+    the last chunk would be lost. Refused (exit 2), like `-o LOG`; both files stay as they were."""
+    from pmsm_hil.cli.main import main
+
+    killed = _killed_run(tmp_path)
     journal = Path(journal_path(killed))
     before = journal.read_bytes(), killed.read_bytes()
     assert main(["log", "recover", str(killed), "-o", str(journal)]) == 2
@@ -184,13 +191,7 @@ def test_recover_keeps_a_file_already_at_its_output_unless_told(tmp_path, capsys
     with what to do, the file untouched; `--overwrite` replaces it."""
     from pmsm_hil.cli.main import main
 
-    path = tmp_path / "run.mcap"
-    w = LogWriter(path, chunk_span_s=1.0, journal=True)
-    for k in range(30):
-        w.write("/pmsm/telemetry", k * 0.01, _row(k))
-    w.flush_batch()
-    killed = _snapshot(path, tmp_path / "killed.mcap")
-    w.close()
+    killed = _killed_run(tmp_path)
     other = tmp_path / "other.mcap"
     other.write_bytes(b"another run's log")
     assert main(["log", "recover", str(killed), "-o", str(other)]) == 2

@@ -409,13 +409,14 @@ def test_the_reports_read_draws_what_a_read_of_everything_draws(short_log, tmp_p
     from pmsm_hil.analysis.report import REPORT_TOPICS, _png
     from pmsm_hil.analysis.report_context import run_context
     from pmsm_hil.log.reader import read_log
+    from pmsm_hil.recorder import TELEMETRY_FIELDS
 
     synthetic = tmp_path / "est.mcap"
     t = np.arange(0.0, 1.0, 5e-4)
     n = len(t)
     with LogWriter(synthetic, {"run": {"profile": "est", "segment_names": "a"}}) as w:
         theta = (t * 2 * np.pi * 30) % (2 * np.pi)
-        cols = {k: np.sin(t * (i + 1)) for i, k in enumerate(REPORT_TOPICS["/pmsm/telemetry"])}
+        cols = {k: np.sin(t * (i + 1)) for i, k in enumerate(TELEMETRY_FIELDS)}
         cols.update(t_s=t, theta_e_rad=theta, theta_e_est_rad=(theta + 0.05) % (2 * np.pi))
         w.write_many("/pmsm/telemetry", cols)
         w.write_many("/sim/truth", {"t_s": t[::50], "speed_rpm": np.full(n // 50, 450.0)})

@@ -15,22 +15,10 @@ if TYPE_CHECKING:
 
 TEL = "/pmsm/telemetry"
 
-# what these panels read of a log (read_log(path, topics=...)): nothing else is decoded
+# what these panels read of a log (read_log(path, topics=...)): nothing else is decoded; of the
+# fast telemetry every field (they draw all of them but load_nm, which the summary reads)
 READS = {
-    TEL: (
-        "t_s",
-        "speed_rpm",
-        "speed_est_rpm",
-        "speed_ref_rpm",
-        "i_d_a",
-        "i_q_a",
-        "i_d_ref_a",
-        "i_q_ref_a",
-        "u_d_v",
-        "u_q_v",
-        "theta_e_rad",
-        "theta_e_est_rad",
-    ),
+    TEL: None,
     "/sim/truth": ("t_s", "speed_rpm"),
     "/pmsm/status": ("t_s", "v_dc_v"),
     "/pmsm/estimator": ("t_s", "estimator", "locked", "in_loop"),

@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from pmsm_hil.cli.errors import fail
+from pmsm_hil.cli.paths import write_problem
 
 if TYPE_CHECKING:  # the reader (numpy, mcap) is imported when a command runs
     from pmsm_hil.log.reader import Log
@@ -55,12 +56,9 @@ def main(args: argparse.Namespace) -> int:
         return fail("error", f"-o {dst}: give another file than the one being recovered", 2)
     if dst.resolve() == Path(journal_path(src)).resolve():  # read while written over: lost
         return fail("error", f"-o {dst}: give another file than the journal being recovered", 2)
-    if dst.exists() and not args.overwrite:  # another run's log, an earlier recovery
-        return fail(
-            "error",
-            f"-o {dst}: a file is there already; --overwrite replaces it (or give another name)",
-            2,
-        )
+    why = write_problem(dst, "-o", args.overwrite)  # another run's log, an earlier recovery
+    if why:
+        return fail("error", why, 2)
     try:  # what there is to recover, before anything is written (the counts: nothing decoded)
         head = read_log(src, topics=[])
     except LogFormatError as e:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
 
 # A command's large arrays (a log's columns) are filled once and soon freed: numpy's default
@@ -32,6 +33,7 @@ from pmsm_hil.cli import (
     sweep,
     test,
 )
+from pmsm_hil.transport import quiet_python_can
 
 COMMANDS = {
     "run": run,
@@ -65,21 +67,12 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def _quiet_libraries() -> None:
-    """python-can's socketcand client logs every partial TCP read as a warning ("Got incomplete
-    message"): normal on a stream, noise on a terminal. Its real errors are raised, not logged."""
-    import logging
-
-    logging.getLogger("can").setLevel(logging.ERROR)
-
-
 def _terms_as_interrupts() -> dict[int, object]:
     """SIGTERM and SIGHUP (a `kill`, a job's time limit, a closed terminal) raise
     KeyboardInterrupt as a Ctrl-C does, from the command's first line: every command then stops
     the motor, keeps its log or its sweep's table and exits 130 alike, where the default action
     ended the process with nothing written (`run`'s device opening, a whole `sweep`). `run`
     counts them itself while it streams (runner._Interrupts). Returns the handlers replaced."""
-    import signal
     import threading
 
     old: dict[int, object] = {}
@@ -93,7 +86,7 @@ def _terms_as_interrupts() -> dict[int, object]:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    _quiet_libraries()
+    quiet_python_can()
     replaced = _terms_as_interrupts()
     try:
         code = COMMANDS[args.command].main(args)
@@ -107,8 +100,6 @@ def main(argv: list[str] | None = None) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
     finally:  # an in-process caller gets its handlers back
-        import signal
-
         for sig, handler in replaced.items():
             signal.signal(sig, handler)  # type: ignore[arg-type]
     _returned.append(args.command)
