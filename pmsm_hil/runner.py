@@ -5,13 +5,10 @@ from __future__ import annotations
 
 import contextlib
 import math
-import signal
-import threading
 import time
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from types import FrameType
 from typing import Any, Protocol
 
 import numpy as np
@@ -19,6 +16,7 @@ import numpy as np
 from pmsm_hil import __version__
 from pmsm_hil.control_design import calibration_config, device_config
 from pmsm_hil.errors import DeviceError, TransportError
+from pmsm_hil.interrupts import Interrupts as _Interrupts
 from pmsm_hil.log.blocks import MessageBlock
 from pmsm_hil.log.writer import LogWriteError, LogWriter
 from pmsm_hil.profiles import Motor, Profile
@@ -65,6 +63,9 @@ class RunOptions:
     # in the log's journal (a killed host loses nothing it received; about 5 % of the host's CPU
     # time); "wall" with the chunks only, at least every LOG_FLUSH_WALL_S of wall time
     log_sync: str = "batch"
+    # asked while the run streams (at most every interrupts.STOP_POLL_S of wall time): a
+    # non-empty answer, why, stops the motor as a Ctrl-C would (a sweep's runs in Dask workers)
+    stop_requested: Callable[[], str] | None = None
 
 
 @dataclass
@@ -128,37 +129,6 @@ def plant_mismatch(
 
 class HostError(Exception):
     """The host failed during a run (e.g. the log could not be written); the motor was stopped."""
-
-
-class _Interrupts:
-    """SIGINT/SIGTERM/SIGHUP during a run: counted, never raised in the middle of a log write.
-
-    The first asks for a controlled stop, the second for an abort. Handlers are installed only in
-    the main thread (Python's rule) and restored afterwards.
-    """
-
-    SIGNALS = tuple(
-        s for s in (getattr(signal, n, None) for n in ("SIGINT", "SIGTERM", "SIGHUP")) if s
-    )
-
-    def __init__(self) -> None:
-        self.count = 0
-        self.signal_name = ""
-        self._old: dict[signal.Signals, Any] = {}
-
-    def _handler(self, signum: int, _frame: FrameType | None) -> None:
-        self.count += 1
-        self.signal_name = signal.Signals(signum).name
-
-    def __enter__(self) -> _Interrupts:
-        if threading.current_thread() is threading.main_thread():
-            for s in self.SIGNALS:
-                self._old[s] = signal.signal(s, self._handler)
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        for s, old in self._old.items():
-            signal.signal(s, old)
 
 
 def _identity(session: Session) -> Identity:
@@ -276,7 +246,7 @@ def run_profile(
     rec.live.total_s = profile.total_duration_s
     safe = _SafeObserver(observer)
     try:
-        with _Interrupts() as sig:
+        with _Interrupts(options.stop_requested) as sig:
             try:
                 session.request("start")
                 rec.event(0.0, "host", 0, 0, f"started {profile.name} on {session.t.name}")
@@ -426,7 +396,7 @@ def _stream(
             last_hb_dev, last_hb_wall = live.t_s, now
 
     while True:
-        if sig.count:
+        if sig.poll():
             return True
         frames = session.poll(0.02)
         now = time.monotonic()

@@ -72,7 +72,7 @@ def _terms_as_interrupts() -> dict[int, object]:
     KeyboardInterrupt as a Ctrl-C does, from the command's first line: every command then stops
     the motor, keeps its log or its sweep's table and exits 130 alike, where the default action
     ended the process with nothing written (`run`'s device opening, a whole `sweep`). `run`
-    counts them itself while it streams (runner._Interrupts). Returns the handlers replaced."""
+    counts them itself while it streams (pmsm_hil.interrupts). Returns the handlers replaced."""
     import threading
 
     old: dict[int, object] = {}

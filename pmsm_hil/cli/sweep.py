@@ -102,7 +102,10 @@ def main(args: argparse.Namespace) -> int:
     ran, *judged = res.end_lines()
     print(ran)
     for r in res.rows:
-        if r.get("status") != "ok":
+        if r.get("status") == "interrupted":
+            kept = f"its log {r['log_path']} holds" if r.get("log_path") else "no log kept of"
+            print(f"  run {r['index']} ({r['key']}) stopped: {kept} what it ran")
+        elif r.get("status") != "ok":
             print(f"  run {r['index']} ({r['key']}) failed to run: {r.get('error', '')}")
     for line in judged:
         print(line)

@@ -194,7 +194,12 @@ def _print(cases) -> None:
         n_fail = sum(1 for ch in c.checks if not ch["passed"])
         verdict = "[green]PASS[/]" if c.passed else "[red]FAIL[/]"
         if c.status == "interrupted":
-            console.print(f"[yellow]NOT JUDGED[/] {escape(c.name)}: interrupted", highlight=False)
+            console.print(
+                f"[yellow]NOT JUDGED[/] {escape(c.name)}: interrupted"
+                + (f"; its log so far {c.log_path}" if c.log_path else ""),
+                highlight=False,
+                soft_wrap=True,
+            )
             console.print()
             continue
         console.print(

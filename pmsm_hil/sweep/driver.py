@@ -26,6 +26,7 @@ from .execute import execute_run
 from .plan import FILES, Run, plan_runs
 from .results import Journal, check_resumable, check_same_sweep, passed, write_meta, write_table
 from .spec import Sweep
+from .wind_down import NOT_STARTED, event_name, wind_down
 
 __all__ = [
     "ALLOWED_FAILURES",
@@ -57,6 +58,7 @@ class SweepOutcome:
     skipped: int = 0  # done in an earlier, interrupted sweep
     ok: int = 0
     failed: int = 0
+    stopped: int = 0  # runs in progress when the sweep was interrupted: stopped, logs kept
     interrupted: bool = False
     wall_s: float = 0.0
     rows: list[dict[str, Any]] = field(default_factory=list)
@@ -86,6 +88,7 @@ class SweepOutcome:
         n = self.ok + self.failed
         lines = [
             f"runs: {self.ok} completed, {self.failed} failed to run, {self.skipped} done before"
+            + (f", {self.stopped} stopped by the interrupt" if self.stopped else "")
             + (
                 f"; {self.runs_per_min:.1f} runs/min on {self.workers} "
                 f"worker{'s' if self.workers != 1 else ''}"
@@ -290,6 +293,32 @@ def run_runs(
     t0 = time.perf_counter()
     client = cluster = None
     quiet = SyncCancelRace()
+    futures: list[Any] = []
+    taken: set[str] = set()  # the futures whose row is in the journal
+    stop_event = event_name()
+
+    def take(fut: Any) -> dict[str, Any]:
+        """A finished run's row, into the journal (a run that never began: not kept) and the
+        counts."""
+        run = by_key[fut.key[len("pmsm-run-") :]]
+        try:
+            row = fut.result()
+        except Exception as e:
+            row = {"key": run.key, "status": "failed", "error": _error_of(e), "log_path": ""}
+        fut.release()
+        row = result_row(row, run)
+        taken.add(fut.key)
+        if row.get("error") == NOT_STARTED:
+            return row
+        journal.add(row)
+        if row["status"] == "ok":
+            res.ok += 1
+        elif row["status"] == "interrupted":
+            res.stopped += 1
+        else:
+            res.failed += 1
+        return row
+
     missed = sum(
         1 for r in runs if r.key in done and not passed(result_row(journal.rows[r.key], r))
     )
@@ -310,37 +339,23 @@ def run_runs(
             with _interrupts_held():
                 client, cluster = _client(scheduler, workers)
             res.workers = len(client.scheduler_info().get("workers", {}))
-            futures = []
             for r in todo:
                 log = str((out / "logs" / f"{r.key}.mcap").resolve()) if keep_logs else None
-                futures.append(
-                    client.submit(
-                        task_fn, r.task(metrics, log), key=f"pmsm-run-{r.key}", pure=False
-                    )
-                )
+                task = {**r.task(metrics, log), "stop_event": stop_event}
+                futures.append(client.submit(task_fn, task, key=f"pmsm-run-{r.key}", pure=False))
             with bar:
                 for fut in as_completed(futures):
-                    run = by_key[fut.key[len("pmsm-run-") :]]
-                    try:
-                        row = fut.result()
-                    except Exception as e:
-                        row = {
-                            "key": run.key,
-                            "status": "failed",
-                            "error": _error_of(e),
-                            "log_path": "",
-                        }
-                    fut.release()
-                    row = result_row(row, run)
-                    journal.add(row)
-                    if row["status"] == "ok":
-                        res.ok += 1
-                    else:
-                        res.failed += 1
+                    row = take(fut)
                     bar.advance(row["status"] == "ok", time.perf_counter() - t0, met=passed(row))
     except KeyboardInterrupt:
         res.interrupted = True
         logging.getLogger("tornado.application").addFilter(quiet)  # until both are closed
+        if client is not None and futures:  # the runs in progress stop their motor, keep their log
+            with contextlib.suppress(KeyboardInterrupt):  # a second interrupt: close at once
+                for fut in wind_down(
+                    client, [f for f in futures if f.key not in taken], stop_event
+                ):
+                    take(fut)
     finally:
         res.wall_s = time.perf_counter() - t0
         if client is not None:
