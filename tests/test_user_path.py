@@ -91,9 +91,27 @@ def test_an_emulator_the_os_will_not_start_is_a_link_error_and_leaves_no_child(
 
     monkeypatch.setattr(emu_process, "wait_for_announcement", lost)
     profile = load_profile(str(data / "short.yaml"))
-    with pytest.raises(TransportError, match="Input/output error"):
+    with pytest.raises(TransportError, match="could not be started: Input/output error"):
         EmulatorTransport(str(profile.motor.path), str(profile.rig.path), seed=1, baud=921600)
     assert len(started) == 1 and started[0].poll() is not None  # stopped, not left running
+    monkeypatch.undo()
+    # the child serves, its pty cannot be opened: the error says which stage failed
+    from pmsm_hil.transport import serial_port
+
+    def unopenable(self, port, baud):
+        raise OSError(14, "Bad address")
+
+    start = emu_process.start
+    monkeypatch.setattr(
+        emu_process, "start", lambda args: started.append(start(args)) or started[-1]
+    )
+    monkeypatch.setattr(serial_port.SerialTransport, "__init__", unopenable)
+    with pytest.raises(
+        TransportError, match=r"emulator's pty /dev/\S+ could not be opened: Bad"
+    ) as e:
+        EmulatorTransport(str(profile.motor.path), str(profile.rig.path), seed=1, baud=921600)
+    assert "(errno 14)" in str(e.value)
+    assert len(started) == 2 and started[1].poll() is not None  # the child stopped
 
 
 def test_emulate_takes_the_plant_from_a_profile():

@@ -35,14 +35,14 @@ class EmulatorTransport(SerialTransport):
         if rig_path:
             args += ["--rig", str(rig_path)]
         self.proc: subprocess.Popen | None = None
+        path = ""
         try:
             path = self._start(args, settings, plant, start_timeout_s)
             super().__init__(path, baud)
         except OSError as e:  # the OS refused a process, a pipe or a file: a link that cannot open
             self._stop_child()
-            raise TransportError(
-                f"the emulator could not be started: {e.strerror or e} (errno {e.errno})"
-            ) from e
+            what = f"'s pty {path} could not be opened" if path else " could not be started"
+            raise TransportError(f"the emulator{what}: {e.strerror or e} (errno {e.errno})") from e
         except BaseException:  # its pty could not be opened, Ctrl-C: no child left behind
             self._stop_child()
             raise
