@@ -163,6 +163,31 @@ def test_bad_bench_input_is_one_error_line_before_anything_runs(argv, message, t
     assert not out.exists()
 
 
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--commissioned"], "--commissioned: only with --rigs or --per-effect"),
+        (["--rigs", "default", "--mismatch"], "--mismatch: not with --rigs"),
+        (["--rigs", "default", "--rig", "lab-typical"], "--rig: not with --rigs"),
+        (["--rigs", "default", "--until", "2"], "--until: not with --rigs"),
+        (["--rigs", "default", "--seed", "3"], "--seed: not with --rigs"),
+        (["--rigs", "default", "--only", "mismatch"], "--only: not with --rigs"),
+        (["--per-effect", "--commissioned", "--rigs", "default"], "--rigs: not with --per-effect"),
+        (["--per-effect", "--commissioned", "--motor", "paper-a-ipmsm"], "--motor: not with --per"),
+        (["--only", "mismatch", "--motor", "paper-a-ipmsm"], "--motor: not with --only mismatch"),
+    ],
+)
+def test_bench_identify_refuses_an_option_it_would_not_use(argv, message, tmp_path, capsys):
+    """An option that the chosen part of `bench identify` does not use is refused before anything
+    runs, not ignored: `--commissioned` alone had run the nominal motor, `--rigs ... --mismatch`
+    had left the mismatch out, both with exit 0."""
+    out = tmp_path / "out"
+    assert cli_main(["bench", "identify", *argv, "--out", str(out)]) == 2
+    err = " ".join(capsys.readouterr().err.split())
+    assert err.startswith("error: ") and message in err, err
+    assert not out.exists()
+
+
 def test_the_sensorless_refusal_lists_every_scenario(capsys, tmp_path):
     from pmsm_hil.bench.sensorless import SCENARIOS
 

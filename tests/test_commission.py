@@ -195,6 +195,26 @@ def test_cli_writes_a_motor_file_that_runs(tmp_path, capsys):
     assert tr["psi_f_wb"][0] == pytest.approx(0.18 * (1 - 0.001 * 20), rel=1e-3)
 
 
+def test_a_file_commissioned_on_another_rig_is_warned_of(tmp_path, capsys):
+    """A motor file commissioned on the emulator's default rig, run on lab-typical: its encoder
+    offset and sensor calibration are the default rig's, and the run says so before it starts."""
+    out = tmp_path / "c.yaml"
+    args = ["commission", "--in-process", "-o", str(out), "--log", str(tmp_path / "c.mcap")]
+    assert cli_main(args) == 0
+    capsys.readouterr()
+
+    def run(rig):
+        run_args = ["run", "paper-a", "--motor", str(out), "--rig", rig, "--no-live"]
+        extra = ["--stop-after", "0.05", "--out", str(tmp_path / f"{rig}.mcap")]
+        assert cli_main([*run_args, *extra]) in (0, 130)
+        return " ".join(capsys.readouterr().err.split())
+
+    err = run("lab-typical")
+    assert "warning: " in err and "this run's rig is lab-typical, not default" in err, err
+    assert "enc_offset_e_rad, current_sensors" in err and str(out) in err
+    assert "commissioning.device" not in run("default")
+
+
 @pytest.mark.parametrize("stop_s", [2.0, 8.6])  # during the alignment, during the spin
 def test_a_host_stop_brakes_and_switches_off(tmp_path, stop_s):
     profile = commission_profile(rig_path=resolve("lab-typical", "rig"))

@@ -136,3 +136,20 @@ def test_profiles_command_lists_the_shipped_files():
     assert "identification (4)" in row["paper-a-identify"]
     assert "speed_error, recovery" in row["paper-a"]
     assert row["paper-b"].rstrip().endswith(" -")  # none: complete, no fault
+
+
+def test_profiles_paths_are_whole_from_a_deep_install(tmp_path, monkeypatch, capsys):
+    """`pmsm-hil profiles --paths` piped: every path whole on its line, ready to copy (a user
+    venv's site-packages made them longer than the table and they were cut with an ellipsis)."""
+    from pmsm_hil.cli.main import main as cli_main
+    from pmsm_hil.profiles import shipped as shipped_mod
+
+    deep = tmp_path / ("x" * 40) / "lib" / "python3.11" / "site-packages" / "pmsm_hil" / "shipped"
+    (deep / "rigs").mkdir(parents=True)
+    rig = deep / "rigs" / "effect-adc-quantisation.yaml"
+    rig.write_text("name: q\n")
+    monkeypatch.setattr(shipped_mod, "_root", lambda kind: deep)
+    assert cli_main(["profiles", "--paths"]) == 0
+    out = capsys.readouterr().out
+    line = next(x for x in out.splitlines() if x.split()[:1] == [rig.stem])
+    assert str(rig) in line, out

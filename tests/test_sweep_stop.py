@@ -59,6 +59,7 @@ def test_an_interrupted_suite_keeps_the_log_of_the_run_it_stopped(tmp_path, data
     )
     assert code == 130, stdout + err
     assert "Traceback" not in err, err
+    assert "interrupted: stopping the runs in progress, their logs kept" in err
     line = next(s for s in stdout.splitlines() if s.startswith("NOT JUDGED long"))
     assert "interrupted; its log so far " in line, stdout
     log = Path(line.split("its log so far ", 1)[1].strip())

@@ -50,7 +50,7 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     b.add_argument(
         "--seed",
         type=seed_arg,
-        default=1,
+        default=None,
         metavar="N",
         help="emulator noise seed of the Table-2, --mismatch and --per-effect runs (default 1; "
         "--rigs and --per-effect --commissioned take --seeds)",
@@ -254,13 +254,18 @@ def _identify(args: argparse.Namespace, seeds: list[int] | None, rigs: list[str]
     from pmsm_hil.bench.trials import BenchInputError
     from pmsm_hil.profiles.shipped import resolve
 
-    if seeds is not None and not rigs and not (args.per_effect and args.commissioned):
+    effects = args.per_effect or args.only == "per-effect"
+    if seeds is not None and not rigs and not (effects and args.commissioned):
         return fail(
             "error",
             f"--seeds {args.seeds}: only with --rigs or --per-effect --commissioned (the Table-2, "
             "--mismatch and --per-effect runs take one --seed N)",
             2,
         )
+    unused = _unused_option(args, effects)
+    if unused:
+        return fail("error", unused, 2)
+    seed = 1 if args.seed is None else args.seed
     path = resolve(args.profile, "profile") if args.profile else default_profile()
     rig = resolve(args.rig, "rig") if args.rig else None
     motor = resolve(args.motor, "motor") if args.motor else None
@@ -269,7 +274,7 @@ def _identify(args: argparse.Namespace, seeds: list[int] | None, rigs: list[str]
     except BenchInputError as e:
         return fail("error", f"--profile {args.profile or 'paper-a-identify'}: {e}", 2)
     out = Path(args.out)
-    if args.per_effect and args.commissioned:
+    if effects and args.commissioned:
         from pmsm_hil.bench.identify_rigs import per_effect_commissioned
 
         per_effect_commissioned(path, seeds or [1, 2], out, cluster=_cluster(args))
@@ -289,13 +294,13 @@ def _identify(args: argparse.Namespace, seeds: list[int] | None, rigs: list[str]
         return 0
     cluster = _cluster(args)
     if args.only not in {"per-effect", "mismatch"}:
-        identify(path, out, args.seed, rig, args.until, motor=motor)
+        identify(path, out, seed, rig, args.until, motor=motor)
     if args.mismatch or args.only == "mismatch":
         out.mkdir(parents=True, exist_ok=True)
-        mismatch(path, out, args.seed, cluster=cluster)
+        mismatch(path, out, seed, cluster=cluster)
     if args.per_effect or args.only == "per-effect":
         out.mkdir(parents=True, exist_ok=True)
-        per_effect(path, out, args.seed, cluster=cluster)
+        per_effect(path, out, seed, cluster=cluster)
     return 0
 
 
@@ -310,3 +315,40 @@ def _sensorless(args: argparse.Namespace, seeds: list[int], rigs: list[str]) -> 
         return fail("error", f"--only {args.only}: {e}", 2)
     sensorless(Path(args.out), tuple(seeds), tuple(rigs), args.only, cluster=_cluster(args))
     return 0
+
+
+def _unused_option(args: argparse.Namespace, effects: bool) -> str | None:
+    """The first option given that the chosen part of `bench identify` would not use: refused
+    rather than ignored (a walk found `--commissioned` alone running the nominal motor file and
+    `--rigs R --mismatch` leaving the mismatch out, both with exit 0)."""
+    given = {
+        "--rig": args.rig is not None,
+        "--motor": args.motor is not None,
+        "--until": args.until is not None,
+        "--seed": args.seed is not None,
+        "--mismatch": args.mismatch,
+        "--per-effect": args.per_effect,
+        "--only": args.only is not None,
+        "--rigs": args.rigs is not None,
+    }
+    if effects and args.commissioned:
+        mode, takes = "--per-effect --commissioned", "--seeds and --profile"
+        unused = ["--rigs", "--rig", "--motor", "--until", "--seed", "--mismatch"]
+        given["--mismatch"] = args.mismatch or args.only == "mismatch"
+    elif args.rigs is not None:
+        mode, takes = "--rigs", "--seeds, --commissioned, --motor and --profile"
+        unused = ["--rig", "--until", "--seed", "--mismatch", "--per-effect", "--only"]
+    elif args.commissioned:
+        return (
+            "--commissioned: only with --rigs or --per-effect (each rig and seed is commissioned "
+            "first); for the Table-2 run give --motor a file of `pmsm-hil commission`"
+        )
+    elif args.only is not None:
+        mode, takes = f"--only {args.only}", "--seed and --profile (no Table-2 run)"
+        unused = ["--rig", "--motor", "--until"]
+    else:
+        return None
+    for opt in unused:
+        if given[opt]:
+            return f"{opt}: not with {mode}, which takes {takes}; leave it out or run it apart"
+    return None

@@ -86,12 +86,15 @@ def main(args: argparse.Namespace) -> int:
 
     console = Console()
     if not console.is_terminal:
-        console = Console(width=max(console.width, 120))
+        # --paths: every path whole on its line, to be copied (a deep install cut them with '...')
+        longest = max((len(p.stem) + len(str(p)) for k in KINDS for p in shipped(k)), default=0)
+        console = Console(width=max(console.width, 120, longest + 8 if args.paths else 0))
     for kind in KINDS:
         files = shipped(kind)
         tab = Table(title=f"{kind}s", title_justify="left", header_style="bold", box=None)
         tab.add_column("name", no_wrap=True)
-        tab.add_column("path" if args.paths else "description")
+        # on a narrow terminal a path is folded onto the next lines, never cut
+        tab.add_column("path", overflow="fold") if args.paths else tab.add_column("description")
         criteria = kind == "profile" and not args.paths
         if criteria:  # what `pmsm-hil test` judges it on
             tab.add_column("acceptance criteria")

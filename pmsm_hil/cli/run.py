@@ -312,6 +312,12 @@ def _run(args: argparse.Namespace, collecting: bool) -> int:
         report("note", "--foxglove: the emulator runs in real time (--pace 1; --pace N for N x)")
     for w in profile.warnings:
         report("warning", w)
+    if emulator:
+        from pmsm_hil.commission.motor_file import other_rig_warning
+
+        w = other_rig_warning(profile.motor, profile.rig.name)
+        if w:
+            report("warning", w)
     code = check_link_budget(args, profile)
     if code is not None:
         return code

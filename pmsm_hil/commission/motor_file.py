@@ -8,6 +8,7 @@ from __future__ import annotations
 import datetime as _dt
 import math
 import os
+import re
 from typing import Any
 
 import yaml
@@ -130,3 +131,20 @@ def with_flux_map(text: str, csv_name: str, record: dict[str, Any]) -> str:
     data["flux_map"] = csv_name
     comm["flux_map"] = record
     return head + yaml.safe_dump(data, sort_keys=False, width=100)
+
+
+def other_rig_warning(motor: Motor, rig_name: str) -> str | None:
+    """A warning when a motor file commissioned on the emulator with one rig runs on another: its
+    encoder offset, sensor calibration and inverter model are the other rig's (a walk's file
+    commissioned on a rig with its encoder 1 rad off ran on lab-typical into over_speed within
+    0.09 s, with nothing to say why). None when the rigs' names agree or the device was no
+    emulator (a rig's port names nothing to compare)."""
+    device = str((motor.commissioning or {}).get("device", ""))
+    m = re.fullmatch(r"emulator, rig (.+), seed \d+", device)
+    if not m or m.group(1) == rig_name:
+        return None
+    return (
+        f"{motor.path}: commissioning.device = '{device}': this run's rig is {rig_name}, not "
+        f"{m.group(1)}; the file's enc_offset_e_rad, current_sensors and inverter model are "
+        f"{m.group(1)}'s (commission on {rig_name}: pmsm-hil commission --rig {rig_name} -o FILE)"
+    )

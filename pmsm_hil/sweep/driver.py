@@ -351,7 +351,15 @@ def run_runs(
         res.interrupted = True
         logging.getLogger("tornado.application").addFilter(quiet)  # until both are closed
         if client is not None and futures:  # the runs in progress stop their motor, keep their log
-            with contextlib.suppress(KeyboardInterrupt):  # a second interrupt: close at once
+            if progress:
+                print(
+                    "interrupted: stopping the runs in progress, their logs kept "
+                    "(Ctrl-C again to close at once)",
+                    file=sys.stderr,
+                    flush=True,
+                )
+            # a second interrupt, or a scheduler that has gone: close at once
+            with contextlib.suppress(KeyboardInterrupt, Exception):
                 for fut in wind_down(
                     client, [f for f in futures if f.key not in taken], stop_event
                 ):
