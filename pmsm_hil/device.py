@@ -41,7 +41,26 @@ class DeviceSpec:
 
     @property
     def is_rig(self) -> bool:
-        return bool(self.port) or (self.can is not None and self.can not in ("", "emulator"))
+        # `emulator,bitrate=N` is the emulator too: its interface is what comes before the options
+        interface = None if self.can is None else self.can.split(",", 1)[0].strip()
+        return bool(self.port) or (interface is not None and interface not in ("", "emulator"))
+
+
+def link_options_problem(port: str | None, can: str | None, baud: int | None) -> str | None:
+    """What is wrong with a command's --port, --can and --baud taken together, or None: a device
+    is reached on one link, and --baud is the serial bit rate (CAN's is SPEC's ``bitrate=``).
+    Without this, ``--port /dev/ttyUSB0 --can`` ran the emulator on CAN, the rig never opened."""
+    if port and can is not None:
+        return (
+            f"--port {port} and --can {can or 'emulator'}: give one link, a serial port or a "
+            "CAN SPEC (--can alone starts the emulator on CAN)"
+        )
+    if can is not None and baud is not None:
+        return (
+            f"--baud {baud} is the serial bit rate; over CAN give it in the SPEC: "
+            f"--can {can or 'emulator'},bitrate=N (docs/can.md)"
+        )
+    return None
 
 
 def _rig_path(spec: DeviceSpec, profile) -> str | None:
@@ -199,6 +218,12 @@ def open_can_for_run(spec: DeviceSpec, profile: Profile) -> CanLink:
         bus_spec.bitrate = profile.link.can.bitrate
     if bus_spec.node is None:
         bus_spec.node = profile.link.can.node
+    # the rates fit the bus in use: SPEC's bit rate, not the profile's (a 500 kbit/s bus given
+    # the 1 Mbit/s plan dropped a third of the telemetry in the device)
+    can_cfg = profile.link.can.model_copy(
+        update={"bitrate": bus_spec.bitrate, "node": bus_spec.node}
+    )
+    profile.link = profile.link.model_copy(update={"can": can_cfg})
     apply_can_rates(profile)
     if bus_spec.is_emulator:
         emu = CanEmulator(

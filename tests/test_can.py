@@ -261,6 +261,53 @@ def test_unreachable_or_missing_interface_is_a_clear_error():
         open_can(parse_spec("socketcan:nosuchcan7"))
 
 
+def test_the_telemetry_rates_fit_the_bit_rate_that_spec_gives(data):
+    """`--can SPEC,bitrate=500000`: the fast-frame rate is fitted to 500 kbit/s. It was fitted to
+    the profile's 1 Mbit/s, and the device dropped a third of the telemetry."""
+    from pmsm_hil.device import DeviceSpec, open_can_for_run
+    from pmsm_hil.protocol.can_link import can_fast_hz_max
+
+    profile = load_profile(str(data / "short.yaml"))  # no link.can: the rate is fitted
+    tel = profile.telemetry
+    others = {"params": tel.params_hz, "status": tel.status_hz, "sim_truth": tel.truth_hz}
+    link = open_can_for_run(DeviceSpec(can="virtual:fit500,bitrate=500000,node=3"), profile)
+    link.close()
+    assert (profile.link.can.bitrate, profile.link.can.node) == (500_000, 3)
+    fit = can_fast_hz_max(others, profile.control.ts_s, 500_000)
+    assert profile.telemetry.fast_hz == fit < can_fast_hz_max(others, profile.control.ts_s, 1e6)
+    # the emulator with a bit rate is still the emulator: its run keeps its seed
+    assert not DeviceSpec(can="emulator,bitrate=500000").is_rig
+    assert DeviceSpec(can="virtual:ch0,bitrate=500000").is_rig
+
+
+@pytest.mark.parametrize(
+    "command, link_args, words",
+    [
+        ("run", ["--port", "/dev/ttyUSB0", "--can"], "give one link"),
+        ("run", ["--port", "/dev/ttyUSB0", "--can", "socketcan:can0"], "give one link"),
+        ("run", ["--can", "--baud", "115200"], "bitrate=N"),
+        ("commission", ["--port", "/dev/ttyUSB0", "--can"], "give one link"),
+    ],
+)
+def test_a_serial_port_and_can_together_are_refused_before_anything_runs(
+    data, tmp_path, command, link_args, words
+):
+    """--port and --can name two links: the run used to go to the emulator on CAN, the rig's port
+    never opened (and --baud over CAN was ignored)."""
+    out = tmp_path / ("x.mcap" if command == "run" else "m.yaml")
+    target = [str(data / "short.yaml")] if command == "run" else []
+    r = subprocess.run(
+        [sys.executable, "-m", "pmsm_hil.cli.main", command, *target, *link_args, "-o", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=tmp_path,
+    )
+    assert r.returncode == 2, r.stdout[-2000:] + r.stderr[-2000:]
+    assert words in r.stderr and "Traceback" not in r.stderr
+    assert not out.exists() and not (tmp_path / "runs").exists()
+
+
 def test_cli_emulate_can_prints_a_spec_that_run_connects_to(data, tmp_path):
     emu = subprocess.Popen(
         [sys.executable, "-m", "pmsm_hil.emulator", "--can"],

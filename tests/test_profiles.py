@@ -276,6 +276,23 @@ def test_malformed_yaml_gives_line_and_column(ws):
     assert msg.startswith("y.yaml:2:8: invalid YAML: mapping values are not allowed here")
 
 
+def test_a_file_not_in_utf8_is_named_at_the_line_and_column_of_its_octet(ws):
+    """A profile or motor file saved as Latin-1 (a degree sign in a comment): its line and column,
+    the octet and what comes before it, as for every other problem (it was the file alone)."""
+    text = textwrap.dedent(GOOD).lstrip("\n").replace("  rho: 1.0", "  rho: 1.0   # 20 \u00b0C")
+    Path("x.yaml").write_bytes(text.encode("latin-1"))
+    (msg,) = problems_of("x.yaml")
+    assert msg == (
+        "x.yaml:5:19: is not UTF-8 text: octet 0xb0 after '  rho: 1.0   # 20 ' (invalid start "
+        "byte); save the file as UTF-8"
+    )
+    motor = Path(MOTOR).read_bytes().replace(b"# Interior", b"# \xb5 Interior", 1)
+    Path("motors/paper-a-ipmsm.yaml").write_bytes(motor)
+    write("y.yaml", GOOD)
+    (msg,) = problems_of("y.yaml")
+    assert msg.startswith("motors/paper-a-ipmsm.yaml:1:3: is not UTF-8 text: octet 0xb5 after '# '")
+
+
 def test_unknown_field_did_you_mean(ws):
     path = write("x.yaml", GOOD.replace("  rho: 1.0", "  rhoo: 1.0"))
     (msg,) = problems_of(path)

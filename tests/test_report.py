@@ -276,6 +276,24 @@ def test_a_stopped_run_says_it_did_not_reach_the_end(data, tmp_path):
     assert "not finalised" not in html
 
 
+def test_the_capture_panel_says_what_triggered_it(short_log, data, tmp_path):
+    """The buffer records from the start: a run without a `capture: true` segment or a fault
+    still uploads one, its last moments; the panel says so instead of passing it off as chosen."""
+    from pmsm_hil.analysis.report_capture import capture
+    from pmsm_hil.analysis.report_context import run_context
+    from pmsm_hil.log.reader import read_log
+
+    def title(path) -> str:
+        return capture(run_context(read_log(path), path)).get_suptitle()
+
+    assert title(short_log).endswith("\ntriggered at segment 1 'load on'")
+    out = tmp_path / "untriggered.mcap"
+    run_inproc(data / "long.yaml", out, stop_after_s=0.3)
+    assert title(out).endswith(
+        "\nnot triggered: the run's last 51.2 ms (no segment has capture: true)"
+    )
+
+
 def test_a_long_series_is_drawn_from_each_slices_extremes_in_time_order():
     from pmsm_hil.analysis.report_style import envelope
 

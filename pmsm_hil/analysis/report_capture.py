@@ -28,14 +28,36 @@ def _duty(s: np.ndarray, n: int) -> np.ndarray:
     return np.convolve(s.astype(float), np.ones(n) / n, mode="same")
 
 
+def trigger_text(ctx: RunContext, span_ms: float) -> str:
+    """What the capture shows: from the first `capture_triggered` event (segment index, -1 for
+    a fault). The buffer records from the start, so a run without a trigger (no segment flagged
+    `capture: true`, no fault) still uploads one: the run's last moments, up to the stop."""
+    if ctx.has("/pmsm/events"):
+        ev = ctx.topic("/pmsm/events")
+        for kind, arg in zip(ev["kind"], ev["arg"], strict=False):
+            if str(kind) == "capture_triggered":
+                i = int(arg)
+                if i < 0:
+                    return "triggered by a fault"
+                name = {s.index: s.name for s in ctx.segments}.get(i)
+                return f"triggered at segment {i}" + (f" {name!r}" if name else "")
+    return f"not triggered: the run's last {span_ms:.1f} ms (no segment has capture: true)"
+
+
 def capture(ctx: RunContext) -> Figure | str:
     if not ctx.has(CAP):
-        return "no /pmsm/capture samples in the log (no segment asked for a capture, or the upload failed)"
+        return (
+            "no /pmsm/capture samples in the log (the upload failed, or the log ends before it: "
+            "a run killed or cut off)"
+        )
     cap = ctx.topic(CAP)
     t = np.asarray(cap["t_s"], float)
     t_ms = (t - t[0]) * 1e3
     ts_ms = float(np.median(np.diff(t_ms))) if len(t) > 1 else 0.05
-    fig, axes = figure(ctx, f"Capture at the control rate, from t = {t[0]:.4f} s", 4, sharex=False)
+    why = trigger_text(ctx, t_ms[-1] + ts_ms)
+    fig, axes = figure(
+        ctx, f"Capture at the control rate, from t = {t[0]:.4f} s", 4, sharex=False, note=why
+    )
     ax = axes[0]
     for ph, c in LEGS:
         ax.plot(t_ms, cap[f"i_{ph}_a"], lw=0.8, color=c, label=f"i_{ph}")

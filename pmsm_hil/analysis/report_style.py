@@ -87,8 +87,11 @@ def band(
     )
 
 
-def figure(ctx: RunContext, what: str, rows: int, sharex: bool = True) -> tuple[Figure, list]:
-    """A figure of `rows` stacked axes, titled `what — profile · rig · seed`."""
+def figure(
+    ctx: RunContext, what: str, rows: int, sharex: bool = True, note: str = ""
+) -> tuple[Figure, list]:
+    """A figure of `rows` stacked axes, titled `what — profile · rig · seed`, and `note` on a
+    second line of the title when given."""
     fig, axes = plt.subplots(
         rows,
         1,
@@ -97,7 +100,7 @@ def figure(ctx: RunContext, what: str, rows: int, sharex: bool = True) -> tuple[
         squeeze=False,
         layout="constrained",
     )
-    fig.suptitle(f"{what} — {ctx.tag}", fontsize=11)
+    fig.suptitle(f"{what} — {ctx.tag}" + (f"\n{note}" if note else ""), fontsize=11)
     column = list(axes[:, 0])
     for ax in column:
         ax.grid(alpha=0.3)

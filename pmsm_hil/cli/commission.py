@@ -143,13 +143,16 @@ def main(args: argparse.Namespace) -> int:
         run_commission,
     )
     from pmsm_hil.commission.steps import r_knee_warning
-    from pmsm_hil.device import DeviceSpec, open_device
+    from pmsm_hil.device import DeviceSpec, link_options_problem, open_device
     from pmsm_hil.errors import TransportError, TransportSpecError
     from pmsm_hil.profiles import ProfileError
     from pmsm_hil.profiles.shipped import resolve
     from pmsm_hil.protocol.session import DeviceError, Session
     from pmsm_hil.runner import HostError, PlantMismatch, RunOptions
 
+    problem = link_options_problem(args.port, args.can, args.baud)
+    if problem:
+        return fail("error", problem, 2)
     out = Path(args.out)
     map_rpm = None
     if args.map_rpm is not None:

@@ -286,10 +286,13 @@ def _settle(collecting: bool) -> None:
 
 
 def _run(args: argparse.Namespace, collecting: bool) -> int:
-    from pmsm_hil.device import open_device
+    from pmsm_hil.device import link_options_problem, open_device
     from pmsm_hil.errors import TransportError, TransportSpecError
     from pmsm_hil.profiles import ProfileError
 
+    problem = link_options_problem(args.port, args.can, args.baud)
+    if problem:
+        return fail("error", problem, 2)
     try:
         profile = _load(args)
     except ProfileError as e:

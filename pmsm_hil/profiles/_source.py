@@ -285,6 +285,24 @@ def _bracket_hint(text: str, mark: Any, e: yaml.MarkedYAMLError) -> str:
     return f"; quote a field with an index inside {{...}}: '{m.group(1)}'"
 
 
+def _not_utf8(path: str, raw: bytes, e: UnicodeDecodeError) -> Problem:
+    """The octet that is not UTF-8, at its line and column (a file saved as Latin-1 or
+    Windows-1252: a degree sign, a mu, an umlaut in a comment or a name)."""
+    line = raw.count(b"\n", 0, e.start) + 1
+    column = e.start - (raw.rfind(b"\n", 0, e.start) + 1) + 1
+    text = raw[: e.start].rsplit(b"\n", 1)[-1].decode("utf-8", "replace")
+    return Problem(
+        path,
+        line,
+        None,
+        None,
+        f"is not UTF-8 text: octet 0x{raw[e.start]:02x} after {text[-20:]!r} ({e.reason}); "
+        "save the file as UTF-8",
+        column=column,
+        has_value=False,
+    )
+
+
 def read_source(
     path: str,
     *,
@@ -299,8 +317,9 @@ def read_source(
     """
     src = Source(path=path)
     try:
-        with open(path, encoding="utf-8") as f:
-            src.text = f.read()
+        with open(path, "rb") as f:
+            raw = f.read()
+        src.text = raw.decode("utf-8")
     except OSError as e:
         reason = e.strerror or str(e)
         if referenced_by is not None:
@@ -318,9 +337,7 @@ def read_source(
             )
         return src
     except UnicodeDecodeError as e:
-        src.problems.append(
-            Problem(path, None, None, None, f"is not UTF-8 text: {e}", has_value=False)
-        )
+        src.problems.append(_not_utf8(path, raw, e))
         return src
 
     loader = _Loader(src.text)
