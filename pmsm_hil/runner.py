@@ -477,7 +477,8 @@ def _stop_device(
         observer.message(f"{reason}: stopping the motor (Ctrl-C to abort)")
     else:
         rec.event(live.t_s, "host", 0, 0, f"interrupted by {why}: stop sent")
-        observer.message("interrupted: stopping the motor (Ctrl-C again to abort)")
+        by = "" if why == "SIGINT" else f" by {why}"  # a kill (SIGTERM), a closed terminal
+        observer.message(f"interrupted{by}: stopping the motor (Ctrl-C again to abort)")
     first = sig.count
     try:
         session.send("stop")

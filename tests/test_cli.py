@@ -86,6 +86,18 @@ def test_port_that_does_not_exist(data):
     assert "Traceback" not in r.stderr
 
 
+def test_a_port_that_is_no_serial_port(data, tmp_path):
+    """A device or file that is no terminal (`/dev/null`, a log given by mistake): said as such,
+    not as pyserial's "Could not configure port: (25, 'Inappropriate ioctl for device')"."""
+    a_file = tmp_path / "not-a-port"
+    a_file.write_text("")
+    for port in ("/dev/null", str(a_file)):
+        r = cli("run", data / "short.yaml", "--port", port, "--no-live", "--out", "x.mcap")
+        assert r.returncode == 3, r.stderr
+        assert f"{port} is not a serial port" in r.stderr and "ioctl" not in r.stderr
+        assert "Traceback" not in r.stderr
+
+
 def _pty():
     master, slave = os.openpty()
     tty.setraw(slave)
@@ -147,8 +159,10 @@ def test_protocol_mismatch_is_refused_naming_both_versions(data):
     assert f"version {gen.PROTOCOL_VERSION}" in r.stderr and f"{gen.SCHEMA_HASH:08x}" in r.stderr
 
 
-def test_ctrl_c_stops_the_motor_and_keeps_the_log(data, tmp_path):
-    """Ctrl-C typed in a terminal: SIGINT goes to the whole foreground process group."""
+@pytest.mark.parametrize("signame", ["SIGINT", "SIGTERM"])
+def test_ctrl_c_stops_the_motor_and_keeps_the_log(data, tmp_path, signame):
+    """Ctrl-C typed in a terminal: SIGINT goes to the whole foreground process group; a `kill`
+    sends SIGTERM to the process alone, and the run says which it was."""
     out = tmp_path / "int.mcap"
     p = subprocess.Popen(
         [*CLI, "run", str(data / "long.yaml"), "--out", str(out), "--no-live"],
@@ -168,9 +182,14 @@ def test_ctrl_c_stops_the_motor_and_keeps_the_log(data, tmp_path):
     time.sleep(0.5)
     children = emulator_children(p.pid)
     assert children, "the run should have started an emulator process"
-    os.killpg(p.pid, signal.SIGINT)  # the group: what the terminal does
+    if signame == "SIGINT":
+        os.killpg(p.pid, signal.SIGINT)  # the group: what the terminal does
+    else:
+        os.kill(p.pid, signal.SIGTERM)
     stdout, stderr = p.communicate(timeout=60)
     assert p.returncode == 130, stderr
+    by = "" if signame == "SIGINT" else " by SIGTERM"
+    assert f"interrupted{by}: stopping the motor (Ctrl-C again to abort)" in stdout + stderr
     assert "Traceback" not in stderr and "link" not in stderr
     assert "INCOMPLETE" in stdout and "run interrupted" in stdout
     assert "all plateaus within bounds" not in stdout
@@ -185,7 +204,7 @@ def test_ctrl_c_stops_the_motor_and_keeps_the_log(data, tmp_path):
     texts = list(log.topic("/pmsm/events")["text"])
     assert "stopped" in kinds
     assert any("host stop" in t for t in texts)
-    assert any("interrupted by SIGINT" in t for t in texts)
+    assert any(f"interrupted by {signame}" in t for t in texts)
     tel = log.topic("/pmsm/telemetry")
     assert abs(tel["speed_rpm"][-1]) < 5.0
     for c in children:  # the host ended its emulator

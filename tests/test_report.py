@@ -181,7 +181,11 @@ def test_bad_input_exits_2_without_traceback(tmp_path, short_log, capsys):
     blocker.write_text("")
     assert main(["report", str(short_log), "-o", str(blocker / "sub")]) == 2
     err = capsys.readouterr().err
-    assert f"-o {blocker / 'sub'}" in err and "Traceback" not in err
+    assert f"-o {blocker / 'sub'}: {blocker} is a file, not a folder" in err
+    assert "Traceback" not in err
+    assert main(["report", str(short_log), "-o", str(blocker)]) == 2  # said as such, not EEXIST
+    err = " ".join(capsys.readouterr().err.split())
+    assert f"-o {blocker}: is a file; give a folder for the PNGs and report.html" in err
 
     empty = tmp_path / "empty.mcap"
     LogWriter(empty, {}).close()

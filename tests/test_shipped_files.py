@@ -153,3 +153,19 @@ def test_profiles_paths_are_whole_from_a_deep_install(tmp_path, monkeypatch, cap
     out = capsys.readouterr().out
     line = next(x for x in out.splitlines() if x.split()[:1] == [rig.stem])
     assert str(rig) in line, out
+
+
+def test_every_motor_field_has_its_row_in_docs_profiles(root):
+    """docs/profiles.md's motor table names every field the motor file takes, and no other (a
+    walk found four sensorless fields that the unknown-field error listed but the table did not)."""
+    import re
+
+    from pmsm_hil.profiles.motor import Motor
+
+    doc = (root / "docs" / "profiles.md").read_text(encoding="utf-8")
+    section = doc[doc.index("\n## Motor") :]
+    section = section[: section.index("\n## ", 5)]
+    first_cells = [line.split("|")[1] for line in section.splitlines() if line.startswith("| `")]
+    named = {n for cell in first_cells for n in re.findall(r"`([a-z_0-9]+)`", cell)}
+    assert sorted(set(Motor.model_fields) - named) == []
+    assert sorted(named - set(Motor.model_fields)) == []

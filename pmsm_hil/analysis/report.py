@@ -8,6 +8,7 @@ estimation error, capture waveforms. A panel without data is skipped, with the r
 from __future__ import annotations
 
 import io
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -105,10 +106,30 @@ def _tables(path: Path, log: Log, notes: list[str]):
     return summary, ident
 
 
+def _out_problem(out: Path) -> str | None:
+    """Why the report cannot go to the folder ``out``, or None (a file of that name; a folder
+    without write permission; an ancestor that is a file)."""
+    if out.exists() and not out.is_dir():
+        return f"-o {out}: is a file; give a folder for the PNGs and report.html"
+    for parent in out.parents:
+        if parent.exists():
+            if not parent.is_dir():
+                return f"-o {out}: {parent} is a file, not a folder"
+            break
+    probe = out if out.is_dir() else next((p for p in out.parents if p.exists()), None)
+    if probe is not None and not os.access(probe, os.W_OK | os.X_OK):
+        return f"-o {out}: cannot write in {probe} (permission denied)"
+    return None
+
+
 def build_report(log_path: Path | str, out_dir: Path | str | None = None) -> Report:
     """Write the report of the log at `log_path` into `out_dir` (default: LOG-report/ beside it)."""
     path = Path(log_path)
     why = path_problem(log_path)
+    if why:
+        raise ReportError(why)
+    out = Path(out_dir) if out_dir is not None else path.with_name(path.stem + "-report")
+    why = _out_problem(out)  # before the log is read: an hour's log takes half a minute
     if why:
         raise ReportError(why)
     try:
@@ -126,7 +147,6 @@ def build_report(log_path: Path | str, out_dir: Path | str | None = None) -> Rep
             f"{path}: no telemetry in the log (empty, or cut off before the first "
             f"chunk): nothing to plot{recover_hint(path)}"
         )
-    out = Path(out_dir) if out_dir is not None else path.with_name(path.stem + "-report")
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as e:

@@ -351,6 +351,7 @@ def _run(args: argparse.Namespace, collecting: bool) -> int:
     for name in _DEVICE:
         importlib.import_module(name)
     later = _import_meanwhile(_LATER)
+    fast_hz = profile.telemetry.fast_hz
     try:
         dev = device_spec(args)
         link = open_device(dev, profile)
@@ -360,6 +361,13 @@ def _run(args: argparse.Namespace, collecting: bool) -> int:
         if not existed:
             out.unlink(missing_ok=True)
         return fail("error", str(e), 2 if isinstance(e, TransportSpecError) else 3)
+    if profile.telemetry.fast_hz < fast_hz:  # over CAN: fitted to the bus (device.apply_can_rates)
+        report(
+            "note",
+            f"telemetry.fast_hz {profile.telemetry.fast_hz:g} Hz over CAN at "
+            f"{profile.link.can.bitrate / 1e3:g} kbit/s, not the profile's {fast_hz:g} Hz: what "
+            "fits 95 % of the bus beside the other streams (link.can.fast_hz sets it; docs/can.md)",
+        )
     try:  # a Ctrl-C (or SIGTERM) before the stream: the device closed (the emulator ended)
         later.join()
         from pmsm_hil.analysis.summary import summarize_log

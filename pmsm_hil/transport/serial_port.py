@@ -37,6 +37,11 @@ class SerialTransport:
                 raise TransportError(
                     f"serial port {port} is busy: another program has it open"
                 ) from e
+            if "Inappropriate ioctl" in text or "(25," in text or "Errno 25" in text:
+                raise TransportError(
+                    f"{port} is not a serial port: the OS says it is no terminal device "
+                    "(give the adapter's port, e.g. /dev/ttyUSB0 or /dev/ttyACM0)"
+                ) from e
             if "Permission denied" in text or "Errno 13" in text:
                 raise TransportError(
                     f"serial port {port}: permission denied (add yourself to the 'dialout' group)"
