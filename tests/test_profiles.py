@@ -274,6 +274,10 @@ def test_malformed_yaml_gives_line_and_column(ws):
     path = write("y.yaml", "name: x\n  motor: m.yaml\n")
     (msg,) = problems_of(path)
     assert msg.startswith("y.yaml:2:8: invalid YAML: mapping values are not allowed here")
+    Path("t.yaml").write_text("name: x\nsegments:\n\t- {duration_s: 1, speed_rpm: 10}\n")
+    (msg,) = problems_of("t.yaml")  # a tab where YAML reads indentation: said how to mend it
+    assert msg.startswith("t.yaml:3:1: invalid YAML: found character '\\t'")
+    assert msg.endswith("; YAML takes no tab there: replace it with spaces")
 
 
 def test_a_file_not_in_utf8_is_named_at_the_line_and_column_of_its_octet(ws):

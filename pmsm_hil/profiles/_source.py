@@ -366,6 +366,8 @@ def read_source(
                 msg += f" on line {e.context_mark.line + 1}"
             msg += ")"
         msg += _bracket_hint(src.text, mark, e)
+        if "'\\t'" in (e.problem or ""):  # YAML takes no tab where it reads indentation
+            msg += "; YAML takes no tab there: replace it with spaces"
         src.problems.append(
             Problem(
                 path,
