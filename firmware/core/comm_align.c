@@ -85,7 +85,9 @@ static void finish(comm_t *c)
     comm_finish_step(c);
 }
 
-/* At the end of the forward turn: the encoder must have turned by one electrical turn. */
+/* At the end of the forward turn's last hold (the rotor settled on the field, as at the first
+ * point's: checked as the move ended, the rotor still lagged and one turn read 0.97): the encoder
+ * must have turned by one electrical turn. */
 static bool check_turn(comm_t *c)
 {
     const float turns = (c->theta_unwrap - c->acc[0]) / FW_TWO_PI_F;
@@ -184,6 +186,9 @@ void comm_align_step(comm_t *c, const comm_in_t *in, comm_out_t *out)
             const float u = ((float)c->t - hold) / comm_dt(c, AL_MOVE_S);
             /* after the first step: the rotor must have followed the field forward (swapped
              * phases turn it backward, and the damper would then push instead of brake) */
+            if (j == AL_POINTS && (float)c->t < hold + 1.0f && !check_turn(c)) {
+                return;
+            }
             if (j == 1u && (float)c->t < hold + 1.0f &&
                 c->theta_unwrap - c->acc[0] < -0.25f * (FW_TWO_PI_F / (float)AL_POINTS)) {
                 c->blk[3][0] = c->theta_unwrap - c->acc[0];
@@ -200,9 +205,6 @@ void comm_align_step(comm_t *c, const comm_in_t *in, comm_out_t *out)
             if (u >= 1.0f) {
                 c->n_blk = (uint16_t)(c->n_blk + 1u);
                 c->t = 0u;
-                if (c->n_blk == AL_POINTS && !check_turn(c)) {
-                    return;
-                }
                 target = next;
             } else {
                 target += step * 0.5f * (1.0f - cosf(FW_PI_F * u));
