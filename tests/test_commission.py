@@ -55,6 +55,7 @@ def check_bounds(profile, res, log):
     err = commission_errors(log, res.quantities, profile.rig, profile.control.ts_s)
     for ph in "abc":
         assert abs(err[f"offset_{ph}_a"]) <= 0.005, err
+        assert abs(err[f"gain_{ph}"]) <= 0.005, err  # against the gain over the three's mean
     assert abs(err["enc_offset_deg"]) <= 0.2, err
     assert abs(err["plateau_rel"]) <= 0.05, err
     # the plateau split by the clamped-PWM staircase: the dead time's part and the device drop

@@ -22,6 +22,9 @@ TARGETS = {
     "offset_a_a": ("sensor offset a", "mA", 1e3, 0.005),
     "offset_b_a": ("sensor offset b", "mA", 1e3, 0.005),
     "offset_c_a": ("sensor offset c", "mA", 1e3, 0.005),
+    "gain_a": ("sensor gain error a", "%", 100.0, 0.005),
+    "gain_b": ("sensor gain error b", "%", 100.0, 0.005),
+    "gain_c": ("sensor gain error c", "%", 100.0, 0.005),
     "enc_offset_deg": ("encoder offset", "deg el.", 1.0, 0.2),
     "plateau_rel": ("dead-time plateau", "%", 100.0, 0.05),
     "dead_time_rel": ("dead time alone", "%", 100.0, 0.05),
@@ -102,7 +105,8 @@ def bench_commission(
         f"# Commissioning on the emulator, seeds {seeds[0]}..{seeds[-1]} ({len(seeds)} seeds), "
         f"motor {Path(motor_path).stem if motor_path else 'paper-a-ipmsm'}",
         "",
-        "Errors against the plant: sensor offsets and the encoder offset absolute, the rest "
+        "Errors against the plant: sensor offsets, gain errors (against each channel's gain over "
+        "the three's mean) and the encoder offset absolute, the rest "
         "relative; R against the winding's temperature-dependent truth during the R step, L_d "
         "and L_q against the incremental truth at the test's operating point (d-current bias).",
         "",

@@ -43,7 +43,9 @@ def commission_errors(
     log_path: Path | str, q: dict[str, Measured], rig: Rig, ts_s: float
 ) -> dict[str, float]:
     """Error of each commissioned quantity against the plant: absolute for the sensor offsets
-    (A) and the encoder offset (degrees electrical), relative for the rest."""
+    (A), the sensors' gain errors (against each channel's gain over the three's mean: the
+    absolute gain is not observable) and the encoder offset (degrees electrical), relative for
+    the rest."""
     win = step_windows(log_path)
     out: dict[str, float] = {}
     so = rig.effects.sensor_offset
@@ -52,6 +54,13 @@ def commission_errors(
         key = f"i_{ph}_offset_a"
         if key in q:
             out[f"offset_{ph}_a"] = q[key].value - p
+    sg = rig.effects.sensor_gain
+    gains = (sg.i_a_gain, sg.i_b_gain, sg.i_c_gain) if sg.enabled else (1.0, 1.0, 1.0)
+    mean_gain = sum(gains) / 3.0  # the absolute gain is not observable: the mismatch is
+    for ph, g in zip("abc", gains, strict=False):
+        key = f"i_{ph}_gain_err"
+        if key in q:
+            out[f"gain_{ph}"] = q[key].value - (g / mean_gain - 1.0)
     if "enc_offset_delta_e_rad" in q:
         enc = rig.effects.encoder
         true_fw = -(enc.offset_e_rad if enc.enabled else 0.0)  # what the firmware must add
