@@ -1,7 +1,7 @@
 """An independent toy simulator for the CSV interface of the gap diagnosis (not the emulator): a
 surface-PM motor under dq PI current control with carrier PWM (duties, min-max injection), a hard-
 sign averaged dead time, forward Euler with 20 sub-steps, Gaussian current noise. Writes
-DESIGN.md's control-rate CSV columns."""
+the control-rate CSV columns of docs/gap.md, "CSV import"."""
 
 from __future__ import annotations
 

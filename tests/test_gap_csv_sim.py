@@ -1,4 +1,4 @@
-"""The gap diagnosis through DESIGN.md's CSV interface on data from an independent toy simulator
+"""The gap diagnosis through its CSV interface (docs/gap.md, "CSV import") on data from an independent toy simulator
 (tests/gap_toy_sim.py: PI current control, carrier PWM duties, hard-sign dead time, Euler
 sub-steps): no sensor specification, so the noise floor comes from the data."""
 

@@ -33,7 +33,7 @@ NO_CRC = 0xFF  # crc_frame of a single-frame message (and of a transfer: its CRC
 FUNC_MAX = 0x7E  # CAN 2.0A: the 7 most significant identifier bits must not all be recessive
 NODE_BITS = 4
 
-# unit of a field from its name's suffix (longest first); DESIGN.md: names carry units
+# unit of a field from its name's suffix (longest first); names carry units (docs/protocol.md)
 UNITS = (
     ("_a_per_rad_s", "A/(rad/s)"),
     ("_a_per_rad", "A/rad"),

@@ -1,5 +1,5 @@
 """`pmsm-hil import FILE.csv --motor M.yaml -o OUT.mcap`: external data into a log the gap diagnosis
-reads (DESIGN.md, "External data (CSV import)"; docs/gap.md).
+reads (docs/gap.md, "CSV import").
 
 A header row, SI units, the project's column names; UTF-8 with or without a byte-order mark (Excel's
 "CSV UTF-8"). Control-rate data becomes `/pmsm/control_rate`, steady-state dq data `/pmsm/steady_dq`.
