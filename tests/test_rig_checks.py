@@ -121,3 +121,23 @@ def test_plant_limits_match_the_firmware_header(root):
     assert re.search(
         rf"#define PLANT_MAP_MAX_N\s+{MAX_NODES}\b", h
     )  # flux-map grid, checked by the loader
+
+
+@pytest.mark.parametrize("saturation", ["  saturation: {}\n", "  saturation: {map: nope.csv}\n"])
+def test_a_flux_map_problem_and_the_checks_against_the_motor_are_said_together(
+    tmp_path, root, saturation
+):
+    """A saturation effect whose map is missing or unusable beside a cogging period that the
+    motor's pole pairs do not divide: both in one pass (the map's problem used to hide the checks
+    against the motor until it was mended)."""
+    from pmsm_hil.profiles import ProfileError
+
+    effects = "  cogging: {amplitude_nm: 0.1, periods_per_rev: 30}\n" + saturation
+    profile, rig = _write(tmp_path, root, effects, None)
+    with pytest.raises(ProfileError) as e:
+        load_profile(profile, rig_override=rig)
+    text = str(e.value)
+    assert "effects.saturation" in text
+    assert "effects.cogging.periods_per_rev" in text and "pole_pairs 4" in text, text
+    with pytest.raises(ProfileError, match=r"effects\.saturation"):  # the rig alone: refused too
+        load_rig(rig)

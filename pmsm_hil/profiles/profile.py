@@ -531,6 +531,8 @@ def load_profile(
         problems += rprobs
         if rig is not None and motor is not None:
             problems += _rig_checks(rsrc, rig, motor, src)
+        if rprobs:  # a rig whose flux map cannot be used: checked above, not reached below
+            rig = None
 
     checks, warnings = _profile_checks(src, motor)
     problems += checks + acceptance_problems(src)

@@ -445,6 +445,8 @@ class Rig(FileModel):
 
 
 def _load_rig_source(src: Source) -> tuple[Rig | None, list[Problem]]:
+    """The rig and its problems: no rig when a field is invalid; the rig with its flux map's
+    problem when only the map cannot be used (not to be run: the caller checks the problems)."""
     if src.problems:
         return None, list(src.problems)
     try:
@@ -457,8 +459,10 @@ def _load_rig_source(src: Source) -> tuple[Rig | None, list[Problem]]:
     sat = rig.effects.saturation
     if sat.enabled:
         loc = ("effects", "saturation", "map")
+        # a map problem comes with the rig, whose other fields are valid: the checks against the
+        # motor (plant_problems) then report in the same pass (only the map is not loaded)
         if not sat.map:
-            return None, [
+            return rig, [
                 src.problem(
                     ("effects", "saturation"),
                     "has no map: give map: FILE.csv (a flux map, docs/rigs.md)",
@@ -471,7 +475,7 @@ def _load_rig_source(src: Source) -> tuple[Rig | None, list[Problem]]:
         try:
             load_flux_map(map_path)
         except (OSError, FluxMapError) as e:
-            return None, [src.problem(loc, f"names a flux map that cannot be used: {e}", sat.map)]
+            return rig, [src.problem(loc, f"names a flux map that cannot be used: {e}", sat.map)]
     return rig, []
 
 
@@ -552,6 +556,6 @@ def load_rig(path: str | os.PathLike | None = None) -> Rig:
     raises ProfileError."""
     path = default_file("rigs/default.yaml") if path is None else os.fspath(path)
     rig, problems = _load_rig_source(read_source(path, what="rig file"))
-    if rig is None:
+    if rig is None or problems:
         raise ProfileError(problems)
     return rig
