@@ -272,6 +272,7 @@ def run_profile(
                 raise HostError(
                     f"{type(e).__name__}: {e}; stop and abort were sent to the device"
                 ) from e
+            safe.update(rec.live)  # the last state: a run over before the first update too
             n_cap = 0
             if options.capture and not error and not sig.count > 1:
                 n_cap = _upload_capture(session, rec, safe)

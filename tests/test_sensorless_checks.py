@@ -109,3 +109,67 @@ def test_an_estimator_minimum_speed_above_the_motors_top_speed_is_bad_input(tmp_
             f"p.yaml:{_line(path, 'min_speed_rpm')}: control.estimator.min_speed_rpm = {value} is "
             "not below the motor's speed_max_rpm 1500 r/min"
         ) in str(ei.value)
+
+
+@pytest.mark.parametrize("angle_src", ["ripple_pll", "hybrid"])
+def test_the_ripple_pll_on_a_motor_without_a_flux_map_is_warned_about(tmp_path, angle_src):
+    # paper A's motor without its map: the polarity test has only the textbook sign, which the
+    # default rig cannot show (lost_lock at 0.11 s) and lab-typical's map contradicts (the wrong
+    # pole, over_speed at 0.14 s), also when the first segment runs on the encoder
+    for first in (
+        "{name: a, duration_s: 0.1, speed_rpm: 100}",
+        "{name: a, duration_s: 0.1, speed_rpm: 100, angle_encoder: true}",
+    ):
+        path = _profile(tmp_path, MOTORS / "paper-a-ipmsm.yaml", angle_src, first)
+        (warning,) = [w for w in load_profile(str(path)).warnings if "polarity" in w]
+        assert warning.startswith(f"{path}:{_line(path, 'angle_src')}: control.angle_src")
+        assert "paper-a-ipmsm.yaml has no flux_map" in warning and "flux_map" in warning
+    # with the motor's map: no warning
+    path = _profile(tmp_path, MOTORS / "paper-a-ipmsm-measured.yaml", angle_src, first)
+    assert not [w for w in load_profile(str(path)).warnings if "polarity" in w]
+
+
+def test_a_segment_on_the_mras_below_its_minimum_speed_is_warned_about(tmp_path):
+    # a reversal and a stop to standstill on the MRAS trip lost_lock (paper B's motor, seed 1)
+    path = _profile(
+        tmp_path,
+        MOTORS / "paper-b-spmsm.yaml",
+        "mras",
+        "{name: a, duration_s: 0.3, speed_rpm: 600}",
+    )
+    text = path.read_text()
+    path.write_text(
+        text
+        + "  - {name: rev, duration_s: 1.0, speed_rpm: -600, ramp_rpm_s: 2000}\n"
+        + "  - {name: stop, duration_s: 0.5, speed_rpm: 0, ramp_rpm_s: 2000}\n"
+    )
+    below = [w for w in load_profile(str(path)).warnings if "minimum speed" in w]
+    assert len(below) == 2
+    assert below[0].startswith(f"{path}:{_line(path, 'name: rev')}: segments[2] reverses through 0")
+    assert below[1].startswith(f"{path}:{_line(path, 'name: stop')}: segments[3] goes to 0 r/min")
+    assert "75 r/min" in below[0] and "angle_encoder: true" in below[0]
+    # the same segments on the encoder, and a stop that stays above the range: no warning
+    path.write_text(
+        text
+        + "  - {name: rev, duration_s: 1.0, speed_rpm: -600, ramp_rpm_s: 2000, angle_encoder: true}\n"
+        + "  - {name: slow, duration_s: 0.5, speed_rpm: -300, ramp_rpm_s: 2000}\n"
+    )
+    assert [w for w in load_profile(str(path)).warnings if "minimum speed" in w] == []
+
+
+@pytest.mark.parametrize(
+    ("key", "value", "text"),
+    [
+        ("if_start_current_a", "30", "is beyond i_max_a 10 A"),
+        ("if_handover_rpm", "2000", "is beyond speed_max_rpm 1500 r/min"),
+    ],
+)
+def test_an_if_start_the_firmware_would_refuse_is_bad_input(tmp_path, key, value, text):
+    # was accepted, then "device refused config_sensorless (bad_value)" with the message's fields
+    motor = tmp_path / "m.yaml"
+    lines = (MOTORS / "paper-b-spmsm.yaml").read_text().splitlines(True)
+    motor.write_text("".join(f"{key}: {value}\n" if x.startswith(key) else x for x in lines))
+    path = _profile(tmp_path, motor, "mras", "{name: a, duration_s: 0.1, speed_rpm: 600}")
+    with pytest.raises(ProfileError) as ei:
+        load_profile(str(path))
+    assert f"m.yaml:{_line(motor, key)}: {key} = {value} {text}" in str(ei.value)

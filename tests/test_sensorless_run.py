@@ -187,3 +187,24 @@ def test_hybrid_never_follows_an_mras_losing_its_track(tmp_path):
     assert np.all(est["in_loop"][est["t_s"] > 1.0])  # the hybrid closed the loop throughout
     t, err = _angle_err(log)
     assert np.max(np.abs(err[t > 0.5])) < 0.5
+
+
+def test_a_run_over_before_the_first_update_still_prints_its_events(tmp_path):
+    """--no-live printed the device's events only with a progress line (one a second) or after
+    one: a start that failed within the first update printed neither its polarity result nor
+    its fault. The observer now sees the run's last state whatever its length."""
+    import io
+
+    from pmsm_hil.cli.live import PlainProgress
+
+    profile = _profile(tmp_path, "paper-a-ipmsm.yaml", "ripple_pll", START)
+    link = open_device(DeviceSpec(in_process=True, seed=32, theta_e0_rad=1.7), profile)
+    out = io.StringIO()
+    with PlainProgress(stream=out, period_s=1e9) as observer:
+        # no update during the run: as for a run over within the first poll
+        options = RunOptions(seed=32, on_update_s=float("inf"))
+        result = run_profile(profile, Session(link), tmp_path / "run.mcap", options, observer)
+    assert result.state == "fault"
+    text = out.getvalue()
+    assert "polarity: not resolved" in text and "fault: lost_lock" in text, text
+    assert text.index("polarity: not resolved") < text.index("uploading capture")

@@ -303,6 +303,25 @@ def motor_checks(src: Source) -> list[Problem]:
                 excite,
             )
         )
+    if_i = num(d, "if_start_current_a")
+    if if_i is not None and i_max is not None and if_i > i_max:
+        out.append(
+            src.problem(
+                ("if_start_current_a",),
+                f"is beyond i_max_a {fmt_num(i_max)} A (the firmware refuses an I/f start "
+                "above the current limit)",
+                if_i,
+            )
+        )
+    handover = num(d, "if_handover_rpm")
+    if handover is not None and s_max is not None and handover > s_max:
+        out.append(
+            src.problem(
+                ("if_handover_rpm",),
+                f"is beyond speed_max_rpm {fmt_num(s_max)} r/min (the firmware refuses it)",
+                handover,
+            )
+        )
     if all(x is not None and x > 0 for x in (p, psi, l_d, l_q, i_max, t_max)) and isinstance(
         p, int
     ):

@@ -56,6 +56,19 @@ def sensorless_checks(
         problems.append(motor_src.problem((key,), text, motor.hybrid_mras_on_rpm))
     segments = d.get("segments") if isinstance(d.get("segments"), list) else []
     first = segments[0] if segments and isinstance(segments[0], dict) else None
+    if angle_src in ("ripple_pll", "hybrid") and salient and not motor.flux_map and segments:
+        warnings.append(
+            f"{src.path}:{src.line(('control', 'angle_src'))}: control.angle_src {angle_src} "
+            "starts with the polarity test, which compares the d axis's saturation with the "
+            f"motor's own signature, and {motor.path} has no flux_map: the firmware assumes "
+            "that positive i_d saturates first. On the emulator that start fails whatever the "
+            "first segment (the test runs beside the encoder too): a rig without the saturation "
+            "effect (default) does not saturate (polarity not resolved, lost_lock), and "
+            "lab-typical's saturation (paper A's map) is larger on the negative side (the wrong "
+            "pole: the drive runs away); on a rig it holds only if its iron saturates that way. Give "
+            "the motor file its flux_map (pmsm-hil commission --flux-map measures one; "
+            "docs/sensorless.md, 'Polarity at start-up')"
+        )
     if (
         angle_src == "mras"
         and first is not None
@@ -65,9 +78,44 @@ def sensorless_checks(
         warnings.append(
             f"{src.path}:{src.line(('segments', 0))}: segments[0] starts at standstill on the "
             f"MRAS (control.angle_src mras), which sees no back-EMF at rest, and {motor.path} "
-            "has no if_start_current_a (an I/f start): on the emulator it starts because the "
-            "rotor rests at electrical angle 0, the estimator's default initial angle; on a rig "
-            "it depends on where the rotor rests. Start on the encoder (angle_encoder: true) or "
+            "has no if_start_current_a (an I/f start): on the emulator it may start, as the "
+            "rotor rests at electrical angle 0, the estimator's default initial angle, if the "
+            "speed passes min_speed_rpm within estimator.lock_timeout_s; on a rig it also "
+            "depends on where the rotor rests. Start on the encoder (angle_encoder: true) or "
             "give the motor file if_start_current_a (docs/sensorless.md)"
         )
+    if angle_src == "mras":
+        warnings += _mras_below_range(src, segments, min_rpm, motor)
     return problems, warnings
+
+
+def _mras_below_range(
+    src: Source, segments: list, min_rpm: float | None, motor: Motor
+) -> list[str]:
+    """Warnings for segments on the MRAS whose speed reference goes below the estimator's
+    minimum speed or through zero after the start (the MRAS loses lock there: lost_lock)."""
+    w_min = min_rpm if min_rpm is not None else 0.05 * motor.speed_max_rpm
+    out: list[str] = []
+    speed = 0.0
+    for i, seg in enumerate(segments):
+        if not isinstance(seg, dict):
+            return out
+        v, dur, ramp = num(seg, "speed_rpm"), num(seg, "duration_s"), num(seg, "ramp_rpm_s")
+        if v is None or dur is None or dur <= 0:
+            return out
+        end = v
+        if ramp is not None and ramp > 0 and abs(v - speed) > ramp * dur:
+            end = speed + math.copysign(ramp * dur, v - speed)
+        low = min(abs(end), abs(speed) if i else abs(end))
+        through = i > 0 and speed * end < 0
+        if not seg.get("angle_encoder") and (low < w_min or through):
+            what = "reverses through 0" if through else f"goes to {end:.4g}"
+            out.append(
+                f"{src.path}:{src.line(('segments', i))}: segments[{i}] {what} r/min on the "
+                f"MRAS (control.angle_src mras), below its minimum speed {fmt_num(w_min)} "
+                "r/min (estimator.min_speed_rpm; null: 5 % of speed_max_rpm), where it sees "
+                "too little back-EMF: it loses lock there and the drive trips lost_lock. Run "
+                "that segment on the encoder (angle_encoder: true) (docs/sensorless.md)"
+            )
+        speed = end
+    return out
