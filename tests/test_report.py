@@ -133,8 +133,28 @@ def test_estimators_give_the_identification_table_and_the_error_panel(tmp_path):
         )
         for i, ti in enumerate((0.0, 1.0)):
             w.write("/pmsm/events", ti, {"kind": "segment_start", "code": 1, "arg": i, "text": ""})
+        w.write("/pmsm/events", 0.3, {"kind": "polarity", "code": 0, "arg": 0, "text": "kept"})
+        w.write("/pmsm/events", 1.5, {"kind": "fault", "code": 0, "arg": 0, "text": "lost_lock"})
     rep = build_report(log, tmp_path / "out")
     assert set(rep.pngs) == {"speed", "currents", "voltages", "parameters", "estimation_error"}
+    # the angle error's RMS in rad beside the degrees, the polarity result and the fault marked
+    from pmsm_hil.analysis.report_context import run_context
+    from pmsm_hil.analysis.report_signals import estimation_error
+    from pmsm_hil.log.reader import read_log
+
+    fig = estimation_error(run_context(read_log(log), log))
+    ax = fig.axes[0]
+    labels = ax.get_legend_handles_labels()[1]
+    assert "θe,est − θe\n(RMS 0.0500 rad = 2.86°)" in labels, labels
+    assert labels.count("polarity test") == 1 and labels.count("fault") == 1
+    xs = sorted(
+        float(ln.get_xdata()[0])
+        for ln in ax.get_lines()
+        if ln.get_linestyle() in ("-", "--")
+        and len(ln.get_xdata()) == 2
+        and ln.get_xdata()[0] == ln.get_xdata()[1]
+    )
+    assert 0.3 in xs and 1.5 in xs, xs
     assert set(rep.skipped) == {"capture"}
     html = rep.html.read_text()
     assert "synthetic · rig bench-x · seed 9" in html

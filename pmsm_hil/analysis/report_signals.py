@@ -11,6 +11,7 @@ from pmsm_hil.analysis.report_context import RunContext
 from pmsm_hil.analysis.report_style import envelope, figure, legend, segment_markers, time_axis
 
 if TYPE_CHECKING:
+    from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
 TEL = "/pmsm/telemetry"
@@ -164,7 +165,14 @@ def estimation_error(ctx: RunContext) -> Figure | str:
         bad = ~np.asarray(est["locked"], bool) & np.asarray(est["in_loop"], bool)
         unlocked = te[bad]
     fig, axes = figure(ctx, f"Angle and speed estimation error (estimate − encoder){name}", 2)
-    axes[0].plot(*envelope(t, np.degrees(d_theta)), lw=0.6, color="C4", label="θe,est − θe")
+    rms = float(np.sqrt(np.mean(d_theta**2))) if len(d_theta) else 0.0
+    axes[0].plot(
+        *envelope(t, np.degrees(d_theta)),
+        lw=0.6,
+        color="C4",
+        # in rad too: the summaries and the acceptance criteria (angle_error_rms_max_rad) use rad
+        label=f"θe,est − θe\n(RMS {rms:.4f} rad = {np.degrees(rms):.2f}°)",
+    )
     axes[0].set_ylabel("angle error (° electrical)")
     axes[1].plot(*envelope(t, d_speed), lw=0.6, color="C2", label="n_est − n")
     axes[1].set_ylabel("speed error (r/min)")
@@ -180,6 +188,29 @@ def estimation_error(ctx: RunContext) -> Figure | str:
                 label="closing the loop out of lock" if i == 0 else None,
             )
         segment_markers(ax, ctx, label=i == 0)
+        _estimator_events(ax, ctx, label=i == 0)
         legend(ax)
     time_axis(axes[-1])
     return fig
+
+
+# the device's events an estimation error is read against: the start-up polarity test's result
+# and the faults (lost_lock, over_speed, ...)
+_MARKED = {"polarity": ("C1", "--", "polarity test"), "fault": ("C3", "-", "fault")}
+
+
+def _estimator_events(ax: Axes, ctx: RunContext, label: bool) -> None:
+    """A vertical line at each polarity result and fault, labelled once in the legend."""
+    if not ctx.has("/pmsm/events"):
+        return
+    ev = ctx.topic("/pmsm/events")
+    seen: set[str] = set()
+    for t, kind in zip(ev["t_s"], ev["kind"], strict=False):
+        style = _MARKED.get(str(kind))
+        if style is None:
+            continue
+        color, ls, what = style
+        ax.axvline(
+            float(t), color=color, ls=ls, lw=0.9, label=what if label and what not in seen else None
+        )
+        seen.add(what)
