@@ -35,6 +35,8 @@ setup(
         "pmsm_hil.shipped": SHIPPED,
         "pmsm_hil.shipped.sweeps": ["*.yaml"],
         "pmsm_hil.live": ["foxglove-layout.json"],  # run --foxglove prints its installed path
+        # PEP 561: a user's type checker reads the package's annotations (scripts, notebooks)
+        "pmsm_hil": ["py.typed"],
     },
     ext_modules=[
         Extension(

@@ -443,3 +443,51 @@ def test_csv_speed_must_be_the_angles_rate(tmp_path, written, refused):
         ImportError_, match=r"line 1: column omega_e_rad_s averages .* turns at 300 "
     ):
         read_csv(p)
+
+
+@pytest.mark.parametrize("no_value", ["", "nan"])
+def test_a_csv_of_a_whole_control_rate_topic_imports(lab_log, tmp_path, no_value):
+    """Every column of /pmsm/control_rate exported as it is (pandas' to_csv writes its NaN, "not
+    given", as empty cells; numpy as nan): the columns with no value in any row are not given, as
+    in the log, and the import gives the record the log gives. A column with some values and some
+    not stays an error."""
+    log = read_log(lab_log)
+    cr = log.topic("/pmsm/control_rate")
+    sl = slice(1000, 1600)
+    names = list(cr)
+    assert np.all(np.isnan(cr["d_a"][sl])) and np.all(np.isnan(cr["u_alpha_v"][sl]))
+    p = tmp_path / "export.csv"
+    with open(p, "w") as f:
+        f.write(",".join(names) + "\n")
+        for i in range(sl.start, sl.stop):
+            f.write(
+                ",".join(no_value if np.isnan(cr[c][i]) else repr(float(cr[c][i])) for c in names)
+                + "\n"
+            )
+    out = tmp_path / "export.mcap"
+    assert main(["import", str(p), "--motor", MOTOR, "-o", str(out)]) == 0
+    back = read_log(out).topic("/pmsm/control_rate")
+    for c in names:
+        np.testing.assert_array_equal(back[c], cr[c][sl], err_msg=c)
+    rec = load_record(out)
+    assert rec.voltage_kind == "switch" and rec.n == 600
+    lines = p.read_text().splitlines()
+    first = lines[1].split(",")
+    first[names.index("d_a")] = "0.5"
+    lines[1] = ",".join(first)
+    p.write_text("\n".join(lines) + "\n")
+    with pytest.raises(ImportError_, match=r"line 3: d_a = '(nan)?' is not (a number|finite)"):
+        read_csv(p)
+
+
+def test_a_voltage_group_without_values_is_named_as_not_given(tmp_path):
+    c = _ok_cols()
+    _write_csv(tmp_path / "v.csv", c)
+    text = (tmp_path / "v.csv").read_text().splitlines()
+    # the u group's cells emptied: no applied voltage is given
+    rows = [text[0]] + [",".join([*r.split(",")[:3], "", "", *r.split(",")[5:]]) for r in text[1:]]
+    (tmp_path / "v.csv").write_text("\n".join(rows) + "\n")
+    with pytest.raises(ImportError_) as e:
+        read_csv(tmp_path / "v.csv")
+    assert "the applied voltage" in str(e.value)
+    assert "without a value in any row, so not given: u_alpha_v, u_beta_v" in str(e.value)

@@ -230,3 +230,16 @@ def test_rewrite_streams_the_log_chunk_by_chunk(mixed_log, tmp_path):
         np.testing.assert_array_equal(fixed.log_times_ns(t), src.log_times_ns(t))
         assert list(got.topic(t)) == ["t_s"]
         np.testing.assert_array_equal(got.topic(t)["t_s"], src.topic(t)["t_s"])
+
+
+def test_a_field_the_topic_does_not_have_is_named_not_left_out(mixed_log):
+    """`topics={topic: fields}` with a misspelt field: a KeyError that names it and the likely
+    field, instead of columns without it (and a bare KeyError later, in the user's code)."""
+    log = read_log(mixed_log, topics={"/pmsm/telemetry": ("t_s", "speed_rmp")})
+    with pytest.raises(KeyError) as e:
+        log.topic("/pmsm/telemetry")
+    msg = str(e.value)
+    assert "/pmsm/telemetry has no field 'speed_rmp'; did you mean 'speed_rpm'?" in msg
+    assert "i_q_ref_a" in msg  # the fields there are
+    ok = read_log(mixed_log, topics={"/pmsm/telemetry": ("t_s", "speed_rpm")})
+    assert list(ok.topic("/pmsm/telemetry")) == ["t_s", "speed_rpm"]

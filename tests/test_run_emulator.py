@@ -140,3 +140,21 @@ def test_a_hot_winding_is_the_same_motor_another_motor_is_not():
     assert plant_mismatch(motor, {"r_s_ohm": hot, "psi_f_wb": 0.18, "temp_winding_c": 25.0})
     sew = plant_mismatch(motor, {"r_s_ohm": 0.9, "psi_f_wb": 0.0922})
     assert sew is not None and "psi_f_wb 0.0922 Wb" in sew
+
+
+def test_the_python_page_runs_a_profile_from_a_script_elsewhere(root, tmp_path):
+    """docs/python.md's first example, as a user's script in a folder of their own: a shipped
+    profile on the in-process emulator, its log read back, a metric of one's own."""
+    import re
+    import subprocess
+    import sys
+
+    page = (root / "docs" / "python.md").read_text()
+    code = re.findall(r"```python\n(.*?)```", page, re.S)[0]
+    (tmp_path / "example.py").write_text(code)
+    r = subprocess.run(
+        [sys.executable, "example.py"], cwd=tmp_path, capture_output=True, text=True, timeout=300
+    )
+    assert r.returncode == 0, r.stderr
+    assert re.search(r"RMS speed error \d+\.\d{3} r/min", r.stdout), r.stdout
+    assert (tmp_path / "paper-a.mcap").is_file()

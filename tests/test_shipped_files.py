@@ -169,3 +169,45 @@ def test_every_motor_field_has_its_row_in_docs_profiles(root):
     named = {n for cell in first_cells for n in re.findall(r"`([a-z_0-9]+)`", cell)}
     assert sorted(set(Motor.model_fields) - named) == []
     assert sorted(named - set(Motor.model_fields)) == []
+
+
+def test_the_installed_package_is_marked_typed(tmp_path, root):
+    """PEP 561's py.typed is installed with the package, so that mypy or pyright in a user's
+    script reads pmsm_hil's annotations instead of skipping it (`module is installed, but missing
+    library stubs or py.typed marker`)."""
+    import subprocess
+    import sys
+
+    lib = tmp_path / "lib"
+    r = subprocess.run(
+        [sys.executable, "setup.py", "-q", "build_py", "--build-lib", str(lib)],
+        cwd=root,
+        capture_output=True,
+        text=True,
+    )
+    assert r.returncode == 0, r.stderr
+    assert (lib / "pmsm_hil" / "py.typed").is_file()
+
+
+def test_a_loader_given_a_shipped_name_says_how_to_get_its_path(tmp_path, monkeypatch):
+    """In a script, `load_profile("paper-a")` (the CLI's bare name) finds no file: the error says
+    that it is a shipped profile and which call gives its path."""
+    from pmsm_hil.profiles import load_motor, load_rig
+    from pmsm_hil.sweep import load_sweep
+
+    monkeypatch.chdir(tmp_path)
+    for load, name, kind in (
+        (load_profile, "paper-a", "profile"),
+        (load_motor, "paper-a-ipmsm.yaml", "motor"),
+        (load_rig, "lab-typical", "rig"),
+        (load_sweep, "tolerance", "sweep"),
+    ):
+        with pytest.raises(ProfileError) as e:
+            load(name)
+        stem = name.removesuffix(".yaml")
+        assert f"is a shipped {kind}: its path is " in str(e.value)
+        assert f"pmsm_hil.profiles.shipped.resolve({stem!r}, {kind!r})" in str(e.value)
+        load(resolve(stem, kind))
+    with pytest.raises(ProfileError) as e:
+        load_profile("no-such-profile")
+    assert "shipped" not in str(e.value)

@@ -36,6 +36,15 @@ CONTROL_OPTIONAL = (
 STEADY_REQUIRED = ("t_s", "u_d_v", "u_q_v", "i_d_a", "i_q_a")
 STEADY_SPEED = ("omega_e_rad_s", "speed_rpm")
 STEADY_OPTIONAL = ("temp_winding_c", "temp_magnet_c", "torque_nm")
+# columns that may be left out: one with no value in any row (empty cells or nan, as a log's
+# "NaN = not given" columns export, e.g. pandas' to_csv of /pmsm/control_rate) is taken as absent
+NOT_GIVEN_OK = (
+    {c for g in CONTROL_VOLTAGE for c in g}
+    | set(CONTROL_OPTIONAL)
+    | set(STEADY_SPEED)
+    | set(STEADY_OPTIONAL)
+)
+NOT_GIVEN_TEXT = ("", "nan")  # a cell that holds no value (compared without case)
 # a control-rate record has one row per control period: PWM at 1 kHz .. 1 MHz. A step of t_s
 # outside is a unit mistake (t_s in ms or us) or not control-rate data (pmsm_hil/cli/import_csv.py
 # quotes these in its --help)
@@ -55,8 +64,9 @@ class ImportError_(ValueError):
     """A CSV that cannot be imported; the message names file, line and column."""
 
 
-def _kind(path: str, header: list[str], hline: int = 1) -> str:
-    """ "control" or "steady" from the header row (line ``hline`` of the file)."""
+def _kind(path: str, header: list[str], hline: int = 1, blank: list[str] | None = None) -> str:
+    """ "control" or "steady" from the header row (line ``hline`` of the file); ``blank``: the
+    columns left out because no row gives them a value (named in a missing-column error)."""
     cols = set(header)
     if len(header) == 1 and (sep := next((c for c in ";\t|" if c in header[0]), None)):
         raise ImportError_(
@@ -103,6 +113,8 @@ def _kind(path: str, header: list[str], hline: int = 1) -> str:
         problems.append(f"unknown column(s) {', '.join(unknown)}")
     if missing:
         problems.append(f"missing column(s) {', '.join(missing)}")
+        if blank:
+            problems[-1] += f" (without a value in any row, so not given: {', '.join(blank)})"
     if problems:
         raise ImportError_(
             f"{path}: line {hline}: {kind} data: {'; '.join(problems)} (columns and units: "
@@ -147,8 +159,13 @@ def read_csv(
         raise ImportError_(f"{path}: empty file (a header row and data rows are needed)")
     hline, header = rows[0]
     header = [h.strip() for h in header]
-    kind = _kind(path, header, hline)
     data = rows[1:]
+    blank = _not_given(header, data)
+    if blank:  # no value in any row: as if the column were not there
+        keep = [j for j, h in enumerate(header) if h not in blank]
+        header = [header[j] for j in keep]
+        data = [(n, [r[j] for j in keep]) for n, r in data]
+    kind = _kind(path, header, hline, blank)
     if len(data) < 3:
         raise ImportError_(f"{path}: only {len(data)} data row(s); at least 3 are needed")
     vals = np.empty((len(data), len(header)))
@@ -230,6 +247,18 @@ def read_csv(
     if motor is not None:
         _check_units(path, cols, lines, cell, motor)
     return kind, cols
+
+
+def _not_given(header: list[str], data: list[tuple[int, list[str]]]) -> list[str]:
+    """The columns of NOT_GIVEN_OK whose every cell holds no value (NOT_GIVEN_TEXT); none when a
+    row has another number of values than the header (reported as such)."""
+    out = []
+    for j, h in enumerate(header):
+        if h in NOT_GIVEN_OK and all(
+            len(r) == len(header) and r[j].strip().lower() in NOT_GIVEN_TEXT for _, r in data
+        ):
+            out.append(h)
+    return out if data else []
 
 
 def _check_speed(path, hline: int, t, theta, omega) -> None:

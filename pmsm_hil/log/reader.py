@@ -32,6 +32,7 @@ import numpy as np
 
 from pmsm_hil.log.parse import Attachment, LogFormatError, Sink, Wanted, _Chan, _Parser, _Schema
 from pmsm_hil.log.schemas import PRIMITIVES, TOPICS, Codec, FieldDef, TopicDef, codec_for
+from pmsm_hil.names import did_you_mean
 
 __all__ = ["Attachment", "Log", "LogFormatError", "merge_topics", "read_log", "rewrite_log"]
 
@@ -146,6 +147,7 @@ class Log:
             ch.lts = []
             cols = self._decode_fallback(ch, ch.var_data)
         else:
+            self._check_fields(ch, codec.names)
             lt, cols = self._assemble(ch, codec)
         if len(lt) > 1 and np.any(lt[1:] < lt[:-1]):
             order = np.argsort(lt, kind="stable")
@@ -154,6 +156,19 @@ class Log:
         self._cache[name] = cols
         self._times[name] = lt
         return cols
+
+    def _check_fields(self, ch: _Chan, known: Iterable[str]) -> None:
+        """A field asked for in ``read_log(topics={topic: fields})`` that the topic's schema in
+        this file does not have is a KeyError naming it (a misspelt field would otherwise be left
+        out without a word)."""
+        known = list(known)
+        unknown = [f for f in ch.fields or () if f not in known]
+        if unknown:
+            hint = did_you_mean(unknown[0], known) if len(unknown) == 1 else ""
+            raise KeyError(
+                f"{self.path}: {ch.topic} has no field {', '.join(map(repr, unknown))}{hint} "
+                f"(fields: {', '.join(known)})"
+            )
 
     @staticmethod
     def _assemble(ch: _Chan, codec: Codec) -> tuple[np.ndarray, dict[str, np.ndarray]]:
@@ -216,6 +231,7 @@ class Log:
         if not msgs:
             return {}
         names = list(getattr(type(msgs[0]), "__slots__", ()) or vars(msgs[0]).keys())
+        self._check_fields(ch, names)
         cols = {}
         for n in names:
             if ch.fields is not None and n not in ch.fields:

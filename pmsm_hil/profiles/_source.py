@@ -285,6 +285,35 @@ def _bracket_hint(text: str, mark: Any, e: yaml.MarkedYAMLError) -> str:
     return f"; quote a field with an index inside {{...}}: '{m.group(1)}'"
 
 
+# the loaders' `what` and the shipped files' kind (pmsm_hil.profiles.shipped)
+_SHIPPED_KIND = {
+    "profile": "profile",
+    "motor file": "motor",
+    "rig file": "rig",
+    "sweep file": "sweep",
+}
+
+
+def _shipped_hint(path: str, what: str) -> str:
+    """For a loader given a path to nothing whose name is a shipped file's (`load_profile
+    ("paper-a")` in a script: the CLI finds shipped files by name, the loaders take paths only),
+    how to get the shipped file's path; else ""."""
+    kind = _SHIPPED_KIND.get(what)
+    if kind is None:
+        return ""
+    from .shipped import _shipped_named
+
+    name = os.path.basename(path)
+    found = _shipped_named(name, kind)
+    if found is None or os.path.abspath(found) == os.path.abspath(path):
+        return ""
+    stem = found.stem
+    return (
+        f"; {stem!r} is a shipped {kind}: its path is "
+        f"`pmsm_hil.profiles.shipped.resolve({stem!r}, {kind!r})`"
+    )
+
+
 def _not_utf8(path: str, raw: bytes, e: UnicodeDecodeError) -> Problem:
     """The octet that is not UTF-8, at its line and column (a file saved as Latin-1 or
     Windows-1252: a degree sign, a mu, an umlaut in a comment or a name)."""
@@ -330,9 +359,15 @@ def read_source(
                 )
             )
         else:
+            hint = _shipped_hint(path, what) if isinstance(e, FileNotFoundError) else ""
             src.problems.append(
                 Problem(
-                    path, None, None, None, f"cannot read the {what}: {reason}", has_value=False
+                    path,
+                    None,
+                    None,
+                    None,
+                    f"cannot read the {what}: {reason}{hint}",
+                    has_value=False,
                 )
             )
         return src
