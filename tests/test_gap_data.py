@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from pmsm_hil.cli.main import main
-from pmsm_hil.gap.csv_import import ImportError_, read_csv
+from pmsm_hil.gap.csv_import import CsvImportError, read_csv
 from pmsm_hil.gap.record import ControlRecord, SteadyRecord, load_record
 from pmsm_hil.log.reader import read_log
 
@@ -122,7 +122,7 @@ def test_csv_columns_named_in_the_error(tmp_path, capsys, cols, needle):
     data = {k: np.arange(n) * 1e-4 if k == "t_s" else np.zeros(n) for k in cols}
     p = tmp_path / "bad.csv"
     _write_csv(p, data)
-    with pytest.raises(ImportError_, match="line 1"):
+    with pytest.raises(CsvImportError, match="line 1"):
         read_csv(p)
     assert main(["import", str(p), "--motor", MOTOR, "-o", str(tmp_path / "x.mcap")]) == 2
     err = capsys.readouterr().err
@@ -144,7 +144,7 @@ def test_csv_gap_in_time_and_bad_values(tmp_path):
     c = _ok_cols()
     c["t_s"][4:] += 1e-4
     _write_csv(tmp_path / "gap.csv", c)
-    with pytest.raises(ImportError_, match=r"line 6: t_s = .* gap of 0.0002 s"):
+    with pytest.raises(CsvImportError, match=r"line 6: t_s = .* gap of 0.0002 s"):
         read_csv(tmp_path / "gap.csv")
     p = tmp_path / "nan.csv"
     _write_csv(p, _ok_cols())
@@ -153,12 +153,12 @@ def test_csv_gap_in_time_and_bad_values(tmp_path):
     f[1] = "abc"
     lines[3] = ",".join(f)
     p.write_text("\n".join(lines) + "\n")
-    with pytest.raises(ImportError_, match=r"line 4: i_a_a = 'abc' is not a number"):
+    with pytest.raises(CsvImportError, match=r"line 4: i_a_a = 'abc' is not a number"):
         read_csv(p)
     c = _ok_cols()
     c["t_s"][3] = c["t_s"][2]
     _write_csv(tmp_path / "mono.csv", c)
-    with pytest.raises(ImportError_, match=r"line 5: t_s = .* does not increase"):
+    with pytest.raises(CsvImportError, match=r"line 5: t_s = .* does not increase"):
         read_csv(tmp_path / "mono.csv")
 
 
@@ -252,7 +252,9 @@ def test_csv_with_a_byte_order_mark_imports(tmp_path):
     p.write_bytes(
         p.read_text(encoding="utf-8-sig").replace("t_s", "t_s # \u00b5s", 1).encode("cp1252")
     )
-    with pytest.raises(ImportError_, match=r"excel.csv: line 1: not UTF-8 text \(octet 6 = 0xb5: "):
+    with pytest.raises(
+        CsvImportError, match=r"excel.csv: line 1: not UTF-8 text \(octet 6 = 0xb5: "
+    ):
         read_csv(p)
 
 
@@ -264,7 +266,9 @@ def test_csv_not_utf8_names_the_line_and_the_octet_in_the_file(tmp_path, capsys)
     text = p.read_bytes()
     p.write_bytes(text + "# Temperatur 25 \u00b0C\n".encode("latin-1"))
     octet = len(text) + len(b"# Temperatur 25 ")
-    with pytest.raises(ImportError_, match=rf"line 2002: not UTF-8 text \(octet {octet} = 0xb0: "):
+    with pytest.raises(
+        CsvImportError, match=rf"line 2002: not UTF-8 text \(octet {octet} = 0xb0: "
+    ):
         read_csv(p)
     assert main(["import", str(p), "--motor", MOTOR, "-o", str(tmp_path / "x.mcap")]) == 2
     assert "line 2002" in capsys.readouterr().err
@@ -440,7 +444,7 @@ def test_csv_speed_must_be_the_angles_rate(tmp_path, written, refused):
         assert read_csv(p)[0] == "control"
         return
     with pytest.raises(
-        ImportError_, match=r"line 1: column omega_e_rad_s averages .* turns at 300 "
+        CsvImportError, match=r"line 1: column omega_e_rad_s averages .* turns at 300 "
     ):
         read_csv(p)
 
@@ -476,7 +480,7 @@ def test_a_csv_of_a_whole_control_rate_topic_imports(lab_log, tmp_path, no_value
     first[names.index("d_a")] = "0.5"
     lines[1] = ",".join(first)
     p.write_text("\n".join(lines) + "\n")
-    with pytest.raises(ImportError_, match=r"line 3: d_a = '(nan)?' is not (a number|finite)"):
+    with pytest.raises(CsvImportError, match=r"line 3: d_a = '(nan)?' is not (a number|finite)"):
         read_csv(p)
 
 
@@ -487,7 +491,7 @@ def test_a_voltage_group_without_values_is_named_as_not_given(tmp_path):
     # the u group's cells emptied: no applied voltage is given
     rows = [text[0]] + [",".join([*r.split(",")[:3], "", "", *r.split(",")[5:]]) for r in text[1:]]
     (tmp_path / "v.csv").write_text("\n".join(rows) + "\n")
-    with pytest.raises(ImportError_) as e:
+    with pytest.raises(CsvImportError) as e:
         read_csv(tmp_path / "v.csv")
     assert "the applied voltage" in str(e.value)
     assert "without a value in any row, so not given: u_alpha_v, u_beta_v" in str(e.value)

@@ -44,14 +44,14 @@ def main(args: argparse.Namespace) -> int:
     )
     if code is not None:
         return code
-    from pmsm_hil.gap.csv_import import ImportError_, import_csv
+    from pmsm_hil.gap.csv_import import CsvImportError, import_csv
     from pmsm_hil.profiles import ProfileError
 
     try:
         from pmsm_hil.profiles.shipped import resolve
 
         s = import_csv(args.csv, resolve(args.motor, "motor"), args.out)
-    except (ImportError_, ProfileError) as e:
+    except (CsvImportError, ProfileError) as e:
         return fail("error", str(e), 2)
     ts = f", sample time {s['ts_s']:.6g} s" if s["ts_s"] else ""
     print(f"{args.out}: {s['rows']} rows of {s['kind']} data{ts} ({s['topic']})")

@@ -60,7 +60,7 @@ SPEED_REL = 0.1
 SPEED_FLOOR_RAD_S = 5.0
 
 
-class ImportError_(ValueError):
+class CsvImportError(ValueError):
     """A CSV that cannot be imported; the message names file, line and column."""
 
 
@@ -69,23 +69,23 @@ def _kind(path: str, header: list[str], hline: int = 1, blank: list[str] | None 
     columns left out because no row gives them a value (named in a missing-column error)."""
     cols = set(header)
     if len(header) == 1 and (sep := next((c for c in ";\t|" if c in header[0]), None)):
-        raise ImportError_(
+        raise CsvImportError(
             f"{path}: line {hline}: the header {header[0]!r} is one column: the separator is a "
             f"comma, not {sep!r}"
         )
     empty = [j + 1 for j, c in enumerate(header) if not c]
     if empty:
-        raise ImportError_(
+        raise CsvImportError(
             f"{path}: line {hline}: column {', '.join(map(str, empty))} of the header has no name "
             "(a trailing or doubled separator?)"
         )
     dup = sorted({c for c in header if header.count(c) > 1})
     if dup:
-        raise ImportError_(
+        raise CsvImportError(
             f"{path}: line {hline}: column(s) {', '.join(dup)} appear more than once"
         )
     if set(FLUX_MAP_COLUMNS) <= cols:
-        raise ImportError_(
+        raise CsvImportError(
             f"{path}: line {hline}: a flux map ({', '.join(FLUX_MAP_COLUMNS)}), not control-rate "
             "or steady-state data: a motor file's flux_map or a rig's saturation map takes it "
             "(docs/profiles.md, docs/rigs.md)"
@@ -116,7 +116,7 @@ def _kind(path: str, header: list[str], hline: int = 1, blank: list[str] | None 
         if blank:
             problems[-1] += f" (without a value in any row, so not given: {', '.join(blank)})"
     if problems:
-        raise ImportError_(
+        raise CsvImportError(
             f"{path}: line {hline}: {kind} data: {'; '.join(problems)} (columns and units: "
             "docs/gap.md)"
         )
@@ -126,14 +126,14 @@ def _kind(path: str, header: list[str], hline: int = 1, blank: list[str] | None 
 def read_csv(
     path: str | os.PathLike, motor: Motor | None = None
 ) -> tuple[str, dict[str, np.ndarray]]:
-    """(kind, columns) with kind "control" or "steady"; raises ImportError_. With the motor file
+    """(kind, columns) with kind "control" or "steady"; raises CsvImportError. With the motor file
     the data belongs to, values its drive cannot have (a unit mistake) are errors too."""
     path = os.fspath(path)
     try:
         # utf-8-sig: a leading byte-order mark (Excel's "CSV UTF-8") is not part of the header
         f = open(path, newline="", encoding="utf-8-sig")  # noqa: SIM115  (closed by `with f:`)
     except OSError as e:
-        raise ImportError_(f"{path}: cannot read ({e.strerror})") from None
+        raise CsvImportError(f"{path}: cannot read ({e.strerror})") from None
     with f:
         try:
             rows = [
@@ -150,13 +150,13 @@ def read_csv(
                 raw.decode("utf-8")
             except UnicodeDecodeError as e:
                 line = raw.count(b"\n", 0, e.start) + 1
-                raise ImportError_(
+                raise CsvImportError(
                     f"{path}: line {line}: not UTF-8 text (octet {e.start} = "
                     f"0x{raw[e.start]:02x}: {e.reason}); save it as CSV UTF-8"
                 ) from None
-            raise ImportError_(f"{path}: not UTF-8 text; save it as CSV UTF-8") from None
+            raise CsvImportError(f"{path}: not UTF-8 text; save it as CSV UTF-8") from None
     if not rows:
-        raise ImportError_(f"{path}: empty file (a header row and data rows are needed)")
+        raise CsvImportError(f"{path}: empty file (a header row and data rows are needed)")
     hline, header = rows[0]
     header = [h.strip() for h in header]
     data = rows[1:]
@@ -167,20 +167,20 @@ def read_csv(
         data = [(n, [r[j] for j in keep]) for n, r in data]
     kind = _kind(path, header, hline, blank)
     if len(data) < 3:
-        raise ImportError_(f"{path}: only {len(data)} data row(s); at least 3 are needed")
+        raise CsvImportError(f"{path}: only {len(data)} data row(s); at least 3 are needed")
     vals = np.empty((len(data), len(header)))
     for i, (line, r) in enumerate(data):
         if len(r) != len(header):
-            raise ImportError_(f"{path}: line {line}: {len(r)} values for {len(header)} columns")
+            raise CsvImportError(f"{path}: line {line}: {len(r)} values for {len(header)} columns")
         for j, v in enumerate(r):
             try:
                 x = float(v)
             except ValueError:
-                raise ImportError_(
+                raise CsvImportError(
                     f"{path}: line {line}: {header[j]} = {v.strip()!r} is not a number"
                 ) from None
             if not math.isfinite(x):
-                raise ImportError_(
+                raise CsvImportError(
                     f"{path}: line {line}: {header[j]} = {v.strip()!r} is not finite"
                 )
             vals[i, j] = x
@@ -195,7 +195,7 @@ def read_csv(
     bad = np.nonzero(dt <= 0)[0]
     if len(bad):
         k = int(bad[0]) + 1
-        raise ImportError_(
+        raise CsvImportError(
             f"{path}: line {lines[k]}: t_s = {cell(k, 't_s')} does not increase (previous "
             f"{cell(k - 1, 't_s')})"
         )
@@ -211,7 +211,7 @@ def read_csv(
                 ),
                 "",
             )
-            raise ImportError_(
+            raise CsvImportError(
                 f"{path}: line {lines[1]}: t_s = {cell(1, 't_s')}: the sample time from t_s is "
                 f"{ts:.6g} s, not a control period ({TS_MIN_S:g} .. {TS_MAX_S:g} s: one row per "
                 f"PWM period); t_s is in seconds{hint}"
@@ -219,7 +219,7 @@ def read_csv(
         gap = np.nonzero(np.abs(dt - ts) > 0.01 * ts)[0]
         if len(gap):
             k = int(gap[0]) + 1
-            raise ImportError_(
+            raise CsvImportError(
                 f"{path}: line {lines[k]}: t_s = {cell(k, 't_s')} leaves a gap of "
                 f"{dt[k - 1]:.6g} s after {cell(k - 1, 't_s')}; the sample time from t_s is "
                 f"{ts:.6g} s (±1 %) ({len(gap)} such step(s); split the file at the gaps)"
@@ -227,17 +227,19 @@ def read_csv(
         for c in ("s_a", "s_b", "s_c", "pwm_on"):
             if c in cols and np.any((cols[c] != 0) & (cols[c] != 1)):
                 k = int(np.nonzero((cols[c] != 0) & (cols[c] != 1))[0][0])
-                raise ImportError_(f"{path}: line {lines[k]}: {c} = {cell(k, c)} is not 0 or 1")
+                raise CsvImportError(f"{path}: line {lines[k]}: {c} = {cell(k, c)} is not 0 or 1")
         for c in ("d_a", "d_b", "d_c"):
             if c in cols and np.any((cols[c] < 0) | (cols[c] > 1)):
                 k = int(np.nonzero((cols[c] < 0) | (cols[c] > 1))[0][0])
-                raise ImportError_(f"{path}: line {lines[k]}: {c} = {cell(k, c)} is not in [0, 1]")
+                raise CsvImportError(
+                    f"{path}: line {lines[k]}: {c} = {cell(k, c)} is not in [0, 1]"
+                )
         if "theta_e_rad" in cols:  # a wrapped angle steps by at most one turn between two rows
             step = np.abs(np.diff(cols["theta_e_rad"]))
             far = np.nonzero(step > 2 * np.pi * 1.01)[0]
             if len(far):
                 k = int(far[0]) + 1
-                raise ImportError_(
+                raise CsvImportError(
                     f"{path}: line {lines[k]}: theta_e_rad = {cell(k, 'theta_e_rad')} after "
                     f"{cell(k - 1, 'theta_e_rad')}: a step of more than one turn (2 pi rad) in "
                     "one row; theta_e_rad is in radians — is it written in degrees?"
@@ -270,7 +272,7 @@ def _check_speed(path, hline: int, t, theta, omega) -> None:
     mean = float(np.mean(omega))
     if abs(mean - rate) <= max(SPEED_REL * max(abs(rate), abs(mean)), SPEED_FLOOR_RAD_S):
         return
-    raise ImportError_(
+    raise CsvImportError(
         f"{path}: line {hline}: column omega_e_rad_s averages {mean:.5g} where theta_e_rad "
         f"turns at {rate:.5g} rad/s over the file; omega_e_rad_s is the electrical speed in "
         "rad/s — is it written in r/min, or is it the mechanical speed?"
@@ -293,7 +295,7 @@ def _check_units(path, cols, lines, cell, motor: Motor) -> None:
         over = np.nonzero(np.abs(cols[c]) > UNIT_FACTOR * lim)[0]
         if len(over):
             k = int(over[0])
-            raise ImportError_(
+            raise CsvImportError(
                 f"{path}: line {lines[k]}: {c} = {cell(k, c)} is more than {UNIT_FACTOR:g} times "
                 f"the motor file's {field} ({lim:g} {unit}): {c} is in {unit} — is it written in "
                 f"{small}?"
