@@ -246,3 +246,20 @@ def test_bench_commission_takes_the_users_motor(tmp_path, capsys):
     rows = [line for line in md.splitlines() if line.startswith("| ") and "/1 |" in line]
     assert len(rows) >= 9, md
     assert all(line.endswith("1/1 |") for line in rows), md
+
+
+def test_an_interrupted_bench_says_where_its_trials_are_kept(tmp_path, monkeypatch, capsys):
+    """A Ctrl-C after the trials (while the tables are written) said only "interrupted": the
+    line now says that the trials done are kept in --out and that the same command takes them
+    up (the trials' own phase says how many were done, pmsm_hil.sweep.tasks)."""
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(commission, "bench_commission", interrupted)
+    out = tmp_path / "bc"
+    code = cli_main(["bench", "commission", "--rigs", "default", "--seeds", "1", "--out", str(out)])
+    assert code == 130
+    err = " ".join(capsys.readouterr().err.split())
+    assert f"pmsm-hil bench: interrupted; the trials done are kept in {out}" in err, err
+    assert "the same command takes them up" in err and "Traceback" not in err

@@ -93,7 +93,10 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         # Ctrl-C in a command without its own handling (run, sweep and commission stop the motor
         # or keep the journal and say so themselves): one line, not a traceback
-        print(f"pmsm-hil {args.command}: interrupted", file=sys.stderr)
+        kept = ""
+        if args.command == "bench" and getattr(args, "out", None):  # its trials are journalled
+            kept = f"; the trials done are kept in {args.out}: the same command takes them up"
+        print(f"pmsm-hil {args.command}: interrupted{kept}", file=sys.stderr)
         return 130
     except BrokenPipeError:
         # the reader of our output went away (`| head`): the work itself has ended cleanly
