@@ -495,3 +495,15 @@ def test_a_voltage_group_without_values_is_named_as_not_given(tmp_path):
         read_csv(tmp_path / "v.csv")
     assert "the applied voltage" in str(e.value)
     assert "without a value in any row, so not given: u_alpha_v, u_beta_v" in str(e.value)
+
+
+def test_gap_record_takes_the_motor_given(tmp_path, capsys):
+    """`gap record --motor` replaces the profile's motor file as `run --motor` does (it was
+    ignored: the SEW motor on the SEW rig was checked, and refused, as paper A's on 60 V). The
+    diagnose profile's 1500 r/min is beyond the SEW motor's speed_max_rpm: the refusal names it."""
+    out = tmp_path / "sew.mcap"
+    argv = ["gap", "record", "diagnose", "--rig", "sew-cm3c80s", "-o", str(out)]
+    assert main([*argv, "--motor", "sew-cm3c80s"]) == 2
+    err = " ".join(capsys.readouterr().err.split())
+    assert "motors/sew-cm3c80s.yaml" in err and "paper-a-ipmsm.yaml" not in err, err
+    assert not out.exists()

@@ -124,3 +124,49 @@ def test_a_closure_far_outside_its_range_is_not_printed_as_a_number():
         "> 10",
         "-",
     ]
+
+
+def _flux_map_steady_csv(path: Path, r_s_ohm: float = 0.4) -> None:
+    """Steady operating points from the shipped SEW CM3C80S map, measured as it is (its
+    psi_q(0, 0) = -6 mWb artefact kept): u_d = R i_d - w psi_q(i), u_q = R i_q + w psi_d(i), at 300
+    and 600 r/min (p = 4)."""
+    fm = np.loadtxt(ROOT / "profiles/maps/sew-cm3c80s.csv", delimiter=",", comments="#", skiprows=4)
+    rows, t = ["t_s,u_d_v,u_q_v,i_d_a,i_q_a,speed_rpm"], 0.0
+    for rpm in (300.0, 600.0):
+        w = rpm * 4 * 2 * np.pi / 60
+        for idd, iq, pd, pq in fm:
+            rows.append(
+                f"{t:.1f},{r_s_ohm * idd - w * pq:.6f},{r_s_ohm * iq + w * pd:.6f},{idd},{iq},{rpm}"
+            )
+            t += 0.5
+    path.write_text("\n".join(rows) + "\n")
+
+
+def test_a_saturating_motor_is_not_reported_as_constant_inductances(tmp_path, capsys):
+    """A measured flux map's steady points: the constant fit's Lq says nothing of the motor (the
+    map's secant Lq falls from 2.9 mH at 4 A to 1.75 mH at 16 A); the verdict says the inductances
+    depend on the current, and names psi_q(0, 0) (about -6 mWb in the data)."""
+    _flux_map_steady_csv(tmp_path / "map.csv")
+    out = tmp_path / "map.mcap"
+    motor = str(ROOT / "profiles/motors/sew-cm3c80s.yaml")
+    assert main(["import", str(tmp_path / "map.csv"), "--motor", motor, "-o", str(out)]) == 0
+    capsys.readouterr()
+    assert main(["gap", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "the inductances depend on the current (saturation)" in text
+    assert "psi_q at zero current" in text
+    assert main(["gap", str(out), "--json"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    dep = res["current_dependence"]
+    assert "l_q_h" in dep["changed"]
+    assert dep["below"]["l_q_h"] > 1.1 * dep["above"]["l_q_h"]
+    assert -7e-3 < res["d_axis_emf"]["psi_q0_wb"] < -4e-3
+
+
+def test_a_linear_motor_is_not_said_to_saturate(scope, capsys):
+    capsys.readouterr()
+    assert main(["gap", str(scope), "--json"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["current_dependence"]["changed"] == []
+    assert "d_axis_emf" not in res
+    assert "depend on the current" not in res["verdict"]

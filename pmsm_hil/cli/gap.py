@@ -2,7 +2,7 @@
 
 pmsm-hil gap LOG.mcap --motor M.yaml [--json] [--report DIR] [--holdout LOG2.mcap] [--workers W]
 pmsm-hil gap augment LOG.mcap [--motor M.yaml] -o fitted-rig.yaml
-pmsm-hil gap record PROFILE.yaml --rig RIG.yaml -o real.mcap [--seed N] [--overwrite]  (emulator)
+pmsm-hil gap record PROFILE.yaml --rig RIG.yaml [--motor M.yaml] -o real.mcap [--seed N] [--overwrite]  (emulator)
 pmsm-hil gap selftest --trials N --seed S [--workers W] [--scheduler ADDR] [-o DIR] [--json]
     (trials on Dask, docs/sweep.md; -o DIR keeps a journal there, so an interrupted run resumes)
 pmsm-hil gap verify LOG.mcap --rig fitted-rig.yaml [--json]        (re-runs the log's profile)
@@ -37,7 +37,7 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     p.add_argument(
         "--motor",
         help="motor file of the nominal model, a path or a shipped name (default: the log's "
-        "motor.yaml)",
+        "motor.yaml); record: the motor instead of the profile's (as `run --motor`)",
     )
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("--report", metavar="DIR", help="write plots, gap.json and index.html here")
@@ -220,7 +220,9 @@ def main(args: argparse.Namespace) -> int:
             from pmsm_hil.profiles.shipped import resolve
 
             profile_path = resolve(args.rest[0], "profile")
-            spec = load_profile(profile_path).spec
+            # --motor replaces the profile's motor file, as `run --motor` (it was ignored here)
+            motor_path = resolve(args.motor, "motor") if args.motor else None
+            spec = load_profile(profile_path, motor_override=motor_path).spec
             # the diagnosis would refuse its record: say so before the run
             if foc_throughout(spec.control.current_ctrl, (g.current_ctrl for g in spec.segments)):
                 return fail(
@@ -236,6 +238,7 @@ def main(args: argparse.Namespace) -> int:
                 args.out,
                 rig_path=resolve(args.rig, "rig") if args.rig else None,
                 seed=args.seed,
+                motor_path=motor_path,
             )
             print(f"{args.out}: {len(cols['t_s'])} control periods recorded")
             return 0

@@ -57,6 +57,14 @@ def steady_lines(res: dict) -> list[str]:
             f"  motor file: R {nom['r_s_ohm']:.4g} ohm, Ld {nom['l_d_h'] * 1e3:.4g} mH, "
             f"Lq {nom['l_q_h'] * 1e3:.4g} mH, psi_f {nom['psi_f_wb']:.4g} Wb"
         )
+    de = res.get("d_axis_emf")
+    if de:
+        lo, hi = de["interval_95"]
+        out.append(
+            f"  a d-axis voltage in proportion to speed that the model has not: psi_q at zero "
+            f"current {de['psi_q0_wb'] * 1e3:.3g} mWb [{lo * 1e3:.3g}, {hi * 1e3:.3g}], or an "
+            f"angle offset of {de['angle_offset_rad'] * 1e3:.3g} mrad (electrical)"
+        )
     th = res.get("thermal")
     if th:
         out.append(

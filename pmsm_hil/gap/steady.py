@@ -9,6 +9,19 @@ from pmsm_hil.gap.model import MotorModel
 from pmsm_hil.gap.record import SteadyRecord
 
 Z95 = 1.96  # the 95 % intervals: fitted value +- Z95 standard errors
+# Are the constants constant? The fit is repeated on the operating points below and above the
+# median current magnitude (each half at least HALF_MIN points); Ld or Lq that differ between the
+# halves by more than CURRENT_REL and CURRENT_Z standard errors depend on the current
+# (saturation), and the constant values describe neither half. Those fits carry a d-axis voltage
+# in proportion to speed (-w psi_q0: psi_q at zero current, or an angle offset), which a measured
+# map can hold (the SEW CM3C80S map of ../shared/data/real/: psi_q(0, 0) = -6 mWb) and which
+# otherwise goes into Lq, most at small current.
+HALF_MIN = 8
+CURRENT_REL = 0.10
+CURRENT_Z = 3.0
+# that d-axis speed voltage is named on all the points when beyond D_EMF_Z standard errors and
+# D_EMF_REL of psi_f
+D_EMF_Z, D_EMF_REL = 3.0, 0.01
 
 # the parts of a control-rate diagnosis that steady-state dq data cannot give, with the reason
 NOT_ASSESSED = {
@@ -46,6 +59,67 @@ def parameter_text(p: dict) -> str:
     return ", ".join(parts) + f" (95 % intervals; closure {p['closure']:.2f})"
 
 
+def _fit(idd, iq, w, ud, uq, d_emf: bool = False):
+    """Least squares of the steady voltage equations: (x, se, mse, rank) with x = R, Ld, Lq, psi_f
+    (and psi_q0, the d-axis speed voltage's flux, with ``d_emf``)."""
+    z = np.zeros_like(w)
+    A = np.vstack([np.stack([idd, z, -w * iq, z], 1), np.stack([iq, w * idd, z, w], 1)])
+    if d_emf:
+        A = np.hstack([A, np.concatenate([-w, z])[:, None]])
+    y = np.concatenate([ud, uq])
+    x, _, rank, _ = np.linalg.lstsq(A, y, rcond=None)
+    res = y - A @ x
+    dof = max(len(y) - A.shape[1], 1)
+    cov = (res @ res / dof) * np.linalg.pinv(A.T @ A)
+    se = np.sqrt(np.maximum(np.diag(cov), 0))
+    return x, se, float(np.mean(res**2)), int(rank)
+
+
+def current_dependence(
+    idd: np.ndarray, iq: np.ndarray, w: np.ndarray, ud: np.ndarray, uq: np.ndarray
+) -> dict | None:
+    """Ld and Lq fitted below and above the median current magnitude (with the d-axis speed
+    voltage): {"split_a", "below", "above", "changed"}; None when a half is too small or cannot
+    give every parameter."""
+    mag = np.hypot(idd, iq)
+    split = float(np.median(mag))
+    halves = []
+    for k in (mag <= split, mag > split):
+        if k.sum() < HALF_MIN:
+            return None
+        x, se, _, rank = _fit(idd[k], iq[k], w[k], ud[k], uq[k], d_emf=True)
+        if rank < len(x):
+            return None
+        halves.append((x, se))
+    (xl, sl), (xh, sh) = halves
+    changed = []
+    for j, key in ((1, "l_d_h"), (2, "l_q_h")):
+        diff = abs(xh[j] - xl[j])
+        if diff > CURRENT_REL * max(abs(xl[j]), abs(xh[j])) and diff > CURRENT_Z * np.hypot(
+            sl[j], sh[j]
+        ):
+            changed.append(key)
+    return {
+        "split_a": split,
+        "below": {"l_d_h": float(xl[1]), "l_q_h": float(xl[2])},
+        "above": {"l_d_h": float(xh[1]), "l_q_h": float(xh[2])},
+        "changed": changed,
+    }
+
+
+def _dependence_text(dep: dict) -> str:
+    names = {"l_d_h": "Ld", "l_q_h": "Lq"}
+    parts = [
+        f"{names[k]} {dep['below'][k] * 1e3:.3g} mH at |i| <= {dep['split_a']:.3g} A, "
+        f"{dep['above'][k] * 1e3:.3g} mH above"
+        for k in dep["changed"]
+    ]
+    return (
+        f"; {' and '.join(parts)}: the inductances depend on the current (saturation), the constant "
+        "values describe neither; a flux map (docs/rigs.md) or control-rate data"
+    )
+
+
 def diagnose_steady(rec: SteadyRecord, m: MotorModel) -> dict:
     idd, iq = rec.i_dq[:, 0], rec.i_dq[:, 1]
     w = rec.omega_e_rad_s
@@ -53,16 +127,8 @@ def diagnose_steady(rec: SteadyRecord, m: MotorModel) -> dict:
     rd = ud - (m.r_s_ohm * idd - w * m.l_q_h * iq)
     rq = uq - (m.r_s_ohm * iq + w * (m.l_d_h * idd + m.psi_f_wb))
     # best constant parameters: unknowns R, Ld, Lq, psi_f (linear)
-    z = np.zeros_like(w)
-    A = np.vstack([np.stack([idd, z, -w * iq, z], 1), np.stack([iq, w * idd, z, w], 1)])
-    y = np.concatenate([ud, uq])
-    x, *_ = np.linalg.lstsq(A, y, rcond=None)
-    res = y - A @ x
-    dof = max(len(y) - 4, 1)
-    cov = (res @ res / dof) * np.linalg.pinv(A.T @ A)
-    se = np.sqrt(np.maximum(np.diag(cov), 0))
+    x, se, par, _ = _fit(idd, iq, w, ud, uq)
     base = float(np.mean(np.concatenate([rd, rq]) ** 2))
-    par = float(np.mean(res**2))
     closure = (base - par) / base if base > 0 else 0.0
     half = Z95 * se
     fitted = {"r_s_ohm": x[0], "l_d_h": x[1], "l_q_h": x[2], "psi_f_wb": x[3]}
@@ -91,6 +157,16 @@ def diagnose_steady(rec: SteadyRecord, m: MotorModel) -> dict:
         # what the steady-state analysis does not assess, and why (the report states it)
         "not_assessed": dict(NOT_ASSESSED),
     }
+    dep = current_dependence(idd, iq, w, ud, uq)
+    if dep is not None:
+        out["current_dependence"] = dep
+    x5, se5, _, rank5 = _fit(idd, iq, w, ud, uq, d_emf=True)
+    if rank5 == 5 and abs(x5[4]) > D_EMF_Z * se5[4] and abs(x5[4]) > D_EMF_REL * abs(m.psi_f_wb):
+        out["d_axis_emf"] = {
+            "psi_q0_wb": float(x5[4]),
+            "interval_95": [float(x5[4] - Z95 * se5[4]), float(x5[4] + Z95 * se5[4])],
+            "angle_offset_rad": float(abs(x5[4]) / max(abs(x5[3]), 1e-12)),
+        }
     temp = rec.temp_winding_c
     if temp is not None and np.ptp(temp) > 5:
         # R against winding temperature from the d-axis equation at low speed
@@ -108,5 +184,6 @@ def diagnose_steady(rec: SteadyRecord, m: MotorModel) -> dict:
         else "no structural gap found (steady-state data)"
     )
     # the verdict carries the fitted values: it is the line `pmsm-hil gap` prints for such data
-    out["verdict"] = f"{verdict}: {parameter_text(pg)}"
+    saturating = _dependence_text(dep) if dep and dep["changed"] else ""
+    out["verdict"] = f"{verdict}: {parameter_text(pg)}{saturating}"
     return out

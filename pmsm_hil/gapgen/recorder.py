@@ -51,12 +51,14 @@ def record_profile(
     seed: int = 1,
     full_log: bool = True,
     sensors: dict[str, float] | None = None,
+    motor_path: str | os.PathLike | None = None,
 ) -> dict[str, np.ndarray]:
     """Run the profile in process with the rig, record every control period and write a log with
     `/pmsm/control_rate`. full_log: also every topic of the run and its metadata (a user's log);
     otherwise only the control-rate record, the motor attachment and `gap_sensors` (a sealed
-    self-test log: nothing of the rig). Returns the recorded columns."""
-    profile = load_profile(str(profile_path), rig_override=rig_path)
+    self-test log: nothing of the rig). motor_path: a motor file instead of the profile's (as `run
+    --motor`). Returns the recorded columns."""
+    profile = load_profile(str(profile_path), rig_override=rig_path, motor_override=motor_path)
     settings = emulator_settings_for(profile, DeviceSpec(seed=seed))
     if not full_log:
         settings["truth_hz"] = 0.0
