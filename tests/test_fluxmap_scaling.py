@@ -98,6 +98,16 @@ _MAP = "# measured\ni_d_a,i_q_a,psi_d_wb,psi_q_wb\n" + "".join(
             "line 9: the node i_d_a = -1, i_q_a = 0 is given twice (first on line 5)",
         ),
         (lambda t: t.replace("psi_q_wb", "psi_q"), "line 2: missing column(s) psi_q_wb"),
+        # a flux that does not rise with its own current: the plant could not find the currents
+        (
+            lambda t: t.replace("0,1,0.1800,0.0120", "0,1,0.1800,-0.0130"),
+            "psi_q_wb does not rise with i_q_a between i_q_a = 0 and 1 A at i_d_a = 0 A "
+            "(0 -> -0.013 Wb; 1 such cells)",
+        ),
+        (
+            lambda t: t.replace("-1,0,0.1750", "-1,0,0.1800"),
+            "psi_d_wb does not rise with i_d_a between i_d_a = -1 and 0 A at i_q_a = 0 A",
+        ),
     ],
 )
 def test_flux_map_errors_name_line_column_and_value(tmp_path, edit, needle):

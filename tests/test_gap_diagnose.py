@@ -513,3 +513,33 @@ def test_a_clear_gain_under_the_practical_threshold_is_said_not_named():
     loose = step("saturation", 0.043, 0.0135, 0.123)
     assert below_threshold([step("delay", 45.7, 1.2, 3.6), loose], ["delay"]) is None
     assert below_threshold([], []) is None
+
+
+def test_a_fitted_saturation_map_holds_its_inductances_beyond_the_records_currents(tmp_path):
+    """The SEW rig's fitted saturation (its cross term extrapolated beyond the record's i_d of
+    -1.9..0.5 A): d psi_q / d i_q went negative at i_d = -5 A, i_q = 14 A, the map written on
+    the grid of +-1.25 i_max could not be inverted and the fitted rig's re-run tripped over_current
+    when its load came on (`gap verify` closure -91). Followed only over the record's currents,
+    the map rises with each current everywhere and the rig loader takes it; the same fit written
+    as before is refused by the loader, naming the cell."""
+    from pmsm_hil.gap.model import MotorModel
+    from pmsm_hil.gap.rigfile import fitted_rig
+    from pmsm_hil.profiles import load_motor
+    from pmsm_hil.profiles.fluxmap import FluxMapError, load_flux_map
+    from pmsm_hil.profiles.shipped import resolve
+
+    sew = MotorModel.from_motor(load_motor(resolve("sew-cm3c80s", "motor")))
+    fit = {"k_d": 0.267, "i_sd_a": 8.13, "k_q": 0.617, "i_sq_a": 2.29, "k_x": 0.524, "k_c": 0.0092}
+    res = {
+        "ts_s": 50e-6,
+        "effects": [{"name": "saturation", "selected": True, "parameters": fit}],
+        "current_range_a": {"i_d_a": [-1.85, 0.51], "i_q_a": [-7.02, 15.05]},
+    }
+    fitted_rig(res, sew, tmp_path / "rig.yaml")
+    fm = load_flux_map(str(tmp_path / "rig-map.csv"))
+    assert np.all(np.diff(fm.psi_d_wb, axis=1) > 0) and np.all(np.diff(fm.psi_q_wb, axis=0) > 0)
+    load_rig(str(tmp_path / "rig.yaml"))
+    del res["current_range_a"]  # the model followed over the whole grid, as before
+    fitted_rig(res, sew, tmp_path / "old.yaml")
+    with pytest.raises(FluxMapError, match="does not rise with"):
+        load_flux_map(str(tmp_path / "old-map.csv"))

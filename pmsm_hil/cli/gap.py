@@ -257,6 +257,12 @@ def main(args: argparse.Namespace) -> int:
             if args.json:
                 print(json.dumps(v))
             else:
+                for tag, st in v["stopped_early"].items():
+                    print(
+                        f"gap verify: the {tag} rig's re-run stopped at {st['t_s']:.3f} s "
+                        f"({st['why']}): its signals are compared up to there, the profile's "
+                        "rest not at all"
+                    )
                 print(
                     f"gap verify: free-run closure (median over i_d, i_q, u_d, u_q) {v['closure_median']:.2f}"
                 )

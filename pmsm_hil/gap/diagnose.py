@@ -16,7 +16,7 @@ from pmsm_hil.gap.model import MotorModel
 from pmsm_hil.gap.noise import floor_from_data, floor_from_spec
 from pmsm_hil.gap.plateaus import less_iron_drag, plateau_view
 from pmsm_hil.gap.pool import FitJob, FitPool, one_blas_thread
-from pmsm_hil.gap.probe import Probe, mse
+from pmsm_hil.gap.probe import Probe, current_range, mse
 from pmsm_hil.gap.record import ControlRecord
 from pmsm_hil.gap.views import view_effects
 
@@ -187,6 +187,7 @@ def _diagnose(
         "transitions": len(k),
         "ts_s": rec.ts_s,
         "voltage_kind": rec.voltage_kind,
+        "current_range_a": current_range(probe),
     }
 
     def floor_arr(r_final):

@@ -253,6 +253,16 @@ def _harmonic_flux(psi_f, harm, theta):
     return np.stack([ph.real, ph.imag], -1).T, np.stack([dph.real, dph.imag], -1).T
 
 
+def current_range(probe: Probe) -> dict[str, list[float]]:
+    """The dq currents the record's transitions span (0.5 and 99.5 percentiles, so that a spike
+    does not widen it): where a fitted saturation model was fitted, and where a flux map written
+    from it (gap augment) may follow it (rigfile.py)."""
+    k = probe.idx
+    i_dq = rot_cs(probe._iab[k], probe._c[k], -probe._s[k])
+    lo, hi = np.percentile(i_dq, [0.5, 99.5], axis=0)
+    return {"i_d_a": [float(lo[0]), float(hi[0])], "i_q_a": [float(lo[1]), float(hi[1])]}
+
+
 def mse(r: np.ndarray) -> float:
     return float(np.mean(r * r)) if len(r) else float("nan")
 

@@ -10,22 +10,44 @@ import yaml
 from pmsm_hil.files import write_text_whole
 from pmsm_hil.gap.model import MotorModel
 
+# how far beyond the currents the record spans the fitted saturation model is followed, as a
+# fraction of i_max (beyond: its incremental inductances at that edge, held)
+RANGE_MARGIN = 0.1
 
-def _flux_map_csv(path: str, m: MotorModel, k: dict) -> None:
-    """The fitted saturation as a flux map (the probe's saturation model on a 15 x 15 grid)."""
+
+def _flux_map_csv(
+    path: str, m: MotorModel, k: dict, current_range: dict[str, list[float]] | None = None
+) -> None:
+    """The fitted saturation as a flux map (the probe's saturation model on a 15 x 15 grid).
+
+    The model is followed only over the currents the record spans (``current_range``, the
+    diagnosis's `current_range_a`, widened by RANGE_MARGIN of i_max and to zero); beyond, the flux
+    goes on with the incremental inductances at that edge. Extrapolated, a fitted cross-saturation
+    term turned the incremental inductance negative (the SEW rig's fit: d psi_q / d i_q < 0 at
+    i_d = -5 A, i_q = 14 A, where the record never went), and the fitted rig's run tripped
+    over_current when its load came on."""
     from pmsm_hil.gap.model import PlantTerms, _flux
 
     i_max = m.i_max_a
     step = max(0.5, round(1.2 * i_max / 7 * 2) / 2)  # a grid the rig loader sees as regular
     g = np.arange(-7, 8) * step
     pt = PlantTerms(sat=(k["k_d"], k["i_sd_a"], k["k_q"], k["i_sq_a"], k["k_x"], k["k_c"]))
+    box = []
+    for axis in ("i_d_a", "i_q_a"):
+        lo, hi = (current_range or {}).get(axis, (g[0], g[-1]))
+        box.append((min(lo, 0.0) - RANGE_MARGIN * i_max, max(hi, 0.0) + RANGE_MARGIN * i_max))
     lines = [
-        "# flux map fitted by pmsm-hil gap augment (docs/gap.md): the probe's saturation model",
+        "# flux map fitted by pmsm-hil gap augment (docs/gap.md): the probe's saturation model over "
+        f"i_d {box[0][0]:.3g}..{box[0][1]:.3g} A, i_q {box[1][0]:.3g}..{box[1][1]:.3g} A (the "
+        "record's currents), its incremental inductances held beyond",
         "i_d_a,i_q_a,psi_d_wb,psi_q_wb",
     ]
     for iq in g:
         for id_ in g:
-            (pd, pq), _ = _flux(m, np.array([id_, iq]), pt, m.psi_f_wb)
+            inside = np.array([np.clip(id_, *box[0]), np.clip(iq, *box[1])])
+            (pd, pq), (ldd, ldq, lqq) = _flux(m, inside, pt, m.psi_f_wb)
+            dd, dq = id_ - inside[0], iq - inside[1]
+            pd, pq = pd + ldd * dd + ldq * dq, pq + ldq * dd + lqq * dq
             lines.append(f"{float(id_)!r},{float(iq)!r},{float(pd):.10g},{float(pq):.10g}")
     write_text_whole(path, "\n".join(lines) + "\n")
 
@@ -87,7 +109,12 @@ def fitted_rig(
             }
         elif n == "saturation":
             map_name = os.path.splitext(os.path.basename(os.fspath(out_path)))[0] + "-map.csv"
-            _flux_map_csv(os.path.join(os.path.dirname(os.fspath(out_path)) or ".", map_name), m, p)
+            _flux_map_csv(
+                os.path.join(os.path.dirname(os.fspath(out_path)) or ".", map_name),
+                m,
+                p,
+                result.get("current_range_a"),
+            )
             p = {"map": map_name}
         elif n == "iron_loss":
             p = {"r_fe_ohm": float(min(p["r_fe_ohm"], 1e6))}

@@ -87,6 +87,8 @@ def verify(log_path: str | os.PathLike, rig_path: str | os.PathLike, seed: int =
         with open(prof, "w") as f:
             yaml.safe_dump(spec, f)
         runs = {}
+        stopped: dict[str, dict[str, object]] = {}
+        out["stopped_early"] = stopped
         control = CONTROL_TOPIC in log.topics  # the re-runs are read as the log is
         for tag, rig in (
             ("nominal", default_file("rigs/ideal.yaml")),
@@ -94,7 +96,11 @@ def verify(log_path: str | os.PathLike, rig_path: str | os.PathLike, seed: int =
         ):
             path = os.path.join(d, f"{tag}.mcap")
             record_profile(prof, path, rig_path=rig, seed=seed, full_log=True)
-            runs[tag] = _series(read_log(path), path, control)
+            rerun = read_log(path)
+            runs[tag] = _series(rerun, path, control)
+            stop = _early_stop(rerun)
+            if stop:  # compared up to there only: said, or the scores read as a poor fit
+                stopped[tag] = stop
     ours = _series(log, log_path)
     t = np.asarray(real["t_s"], float)  # the comparison's grid: the log's telemetry times
     for s in SIGNALS:
@@ -120,6 +126,18 @@ def verify(log_path: str | os.PathLike, rig_path: str | os.PathLike, seed: int =
         np.median([v["closure"] for k, v in plateau.items() if k != "speed_rpm"])
     )
     return out
+
+
+def _early_stop(log) -> dict[str, object] | None:
+    """How a re-run ended when not at its profile's end: {"t_s", "why"} (a fault, e.g. a fitted
+    rig whose plant cannot carry the profile's load: over_current), else None."""
+    if "/pmsm/events" not in log.topics:
+        return None
+    ev = log.topic("/pmsm/events")
+    for t, kind, text in zip(ev["t_s"], ev["kind"], ev["text"], strict=True):
+        if kind == "stopped" and "profile end" not in str(text):
+            return {"t_s": float(t), "why": str(text)}
+    return None
 
 
 def _score(err_nominal: np.ndarray, err_fitted: np.ndarray) -> dict[str, float]:

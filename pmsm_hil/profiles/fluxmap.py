@@ -248,7 +248,34 @@ def from_points(data: np.ndarray, path: str = "", sha256: str = "") -> FluxMap:
     pd[k, j] = data[:, 2]
     pq[k, j] = data[:, 3]
     known[k, j] = True
-    return FluxMap(i_d, i_q, fill_missing(pd, known), fill_missing(pq, known), known, path, sha256)
+    pd, pq = fill_missing(pd, known), fill_missing(pq, known)
+    _check_rising(pd, i_d, i_q, "psi_d_wb", "i_d_a", 1)
+    _check_rising(pq, i_d, i_q, "psi_q_wb", "i_q_a", 0)
+    return FluxMap(i_d, i_q, pd, pq, known, path, sha256)
+
+
+def _check_rising(
+    psi: np.ndarray, i_d: np.ndarray, i_q: np.ndarray, name: str, along: str, ax: int
+):
+    """Each flux must rise with its own current everywhere (a positive incremental inductance):
+    the plant finds the currents from the flux linkage by Newton steps, which a map that falls
+    or stays flat cannot give (docs/plant.md). Raises FluxMapError naming the first such cell."""
+    step = np.diff(psi, axis=ax)
+    bad = np.argwhere(~(step > 0))
+    if not len(bad):
+        return
+    k, j = (int(x) for x in bad[0])
+    if ax == 1:  # along i_d at i_q[k]: nodes j, j + 1
+        where = f"between i_d_a = {i_d[j]:g} and {i_d[j + 1]:g} A at i_q_a = {i_q[k]:g} A"
+        a, b = psi[k, j], psi[k, j + 1]
+    else:  # along i_q at i_d[j]: nodes k, k + 1
+        where = f"between i_q_a = {i_q[k]:g} and {i_q[k + 1]:g} A at i_d_a = {i_d[j]:g} A"
+        a, b = psi[k, j], psi[k + 1, j]
+    raise FluxMapError(
+        f"{name} does not rise with {along} {where} ({a:.6g} -> {b:.6g} Wb; {len(bad)} such "
+        "cells): a flux map needs a positive incremental inductance everywhere (the plant finds "
+        "the currents from the flux)"
+    )
 
 
 def load_flux_map(path: str) -> FluxMap:
