@@ -26,14 +26,21 @@ def source_sha256():
 # pmsm_hil.shipped, so that an installed pmsm-hil finds them from any directory (docs/profiles.md);
 # the shipped sweep files (sweeps/) likewise, as pmsm_hil.shipped.sweeps (docs/sweep.md).
 SHIPPED = ["*.yaml", "motors/*.yaml", "rigs/*.yaml", "maps/*.csv"]
+# The CAN database (firmware/proto/pmsm_proto.dbc, generated) as pmsm_hil.proto, so that an
+# installed pmsm-hil has it for a CAN analyser; `pmsm-hil profiles` prints its path (docs/can.md).
 
 setup(
     packages=find_packages(include=["pmsm_hil", "pmsm_hil.*"])
-    + ["pmsm_hil.shipped", "pmsm_hil.shipped.sweeps"],
-    package_dir={"pmsm_hil.shipped": "profiles", "pmsm_hil.shipped.sweeps": "sweeps"},
+    + ["pmsm_hil.shipped", "pmsm_hil.shipped.sweeps", "pmsm_hil.proto"],
+    package_dir={
+        "pmsm_hil.shipped": "profiles",
+        "pmsm_hil.shipped.sweeps": "sweeps",
+        "pmsm_hil.proto": "firmware/proto",
+    },
     package_data={
         "pmsm_hil.shipped": SHIPPED,
         "pmsm_hil.shipped.sweeps": ["*.yaml"],
+        "pmsm_hil.proto": ["pmsm_proto.dbc"],
         "pmsm_hil.live": ["foxglove-layout.json"],  # run --foxglove prints its installed path
         # PEP 561: a user's type checker reads the package's annotations (scripts, notebooks)
         "pmsm_hil": ["py.typed"],

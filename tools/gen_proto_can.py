@@ -446,7 +446,7 @@ def render_all(
         C_HEADER: render_c_header(s, banner),
         C_SOURCE: render_c_source(s, banner),
         PY_TABLES: render_python(s, banner),
-        DBC: render_dbc(s, wire_types),
+        DBC: render_dbc(s, wire_types, doc.get("enums") or {}),
     }
     if (root / DOC).exists():
         files[DOC] = splice((root / DOC).read_text(encoding="utf-8"), render_doc(s))

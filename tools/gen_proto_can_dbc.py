@@ -1,20 +1,26 @@
 """The DBC of the CAN mapping (firmware/proto/pmsm_proto.dbc), built with cantools' database API
 from the layouts of tools/gen_proto_can.py: every direct frame with its signals (seq, the fields,
-crc_hi/crc_lo in a message's CRC frame) and the two transfer codes as multiplexed messages."""
+crc_hi/crc_lo in a message's CRC frame) and the two transfer codes as multiplexed messages.
+
+A field whose yaml comment names an enum (`# enum state`, not `# enum fault bits`) gets the
+enum's value table (VAL_), as does a transfer header's msg_id, so that a CAN analyser shows
+`running` and `config_ctrl` where the host's log shows them."""
 
 from __future__ import annotations
+
+import re
 
 from tools.gen_proto_can import NODE_BITS, TRANSFER_DATA, CanSchema, unit_of
 
 
-def _signal(name: str, start_octet: int, wt, scale, signed_override=None, **kw):
+def _signal(name: str, start_octet: int, wt, scale, signed_override=None, choices=None, **kw):
     from cantools.database.can import Signal
     from cantools.database.conversion import BaseConversion
 
     is_float = wt.name == "f32"
     signed = wt.name.startswith("i") if signed_override is None else signed_override
     conv = BaseConversion.factory(
-        scale=scale if scale is not None else 1, offset=0, is_float=is_float
+        scale=scale if scale is not None else 1, offset=0, choices=choices, is_float=is_float
     )
     return Signal(
         name,
@@ -28,7 +34,20 @@ def _signal(name: str, start_octet: int, wt, scale, signed_override=None, **kw):
     )
 
 
-def render_dbc(s: CanSchema, wire_types: dict) -> str:
+ENUM_NOTE = re.compile(r"enum (\w+)(?::|$)")  # "enum state", "enum angle_src: ..."; not "... bits"
+
+
+def choices_of(note: str, enums: dict[str, dict[str, int]]) -> dict[int, str] | None:
+    """The value table of a field from its yaml comment, None when it names no (value) enum."""
+    m = ENUM_NOTE.match(note or "")
+    if m is None or m.group(1) not in enums:
+        return None
+    return {v: k for k, v in sorted(enums[m.group(1)].items(), key=lambda kv: kv[1])}
+
+
+def render_dbc(
+    s: CanSchema, wire_types: dict, enums: dict[str, dict[str, int]] | None = None
+) -> str:
     from cantools.database.can import Database, Message, Node
 
     u8 = wire_types["u8"]
@@ -48,7 +67,15 @@ def render_dbc(s: CanSchema, wire_types: dict) -> str:
                 at = 1
             for f in fields:
                 sigs.append(
-                    _signal(f.name, at, f.type, f.scale, receivers=receiver, comment=f.note or None)
+                    _signal(
+                        f.name,
+                        at,
+                        f.type,
+                        f.scale,
+                        receivers=receiver,
+                        comment=f.note or None,
+                        choices=choices_of(f.note, enums or {}),
+                    )
                 )
                 at += f.octets
             if k == cm.crc_frame:
@@ -81,11 +108,8 @@ def render_dbc(s: CanSchema, wire_types: dict) -> str:
         (s.func_transfer_h2d, "h2d", host, dev),
         (s.func_transfer_d2h, "d2h", dev, host),
     ):
-        names = ", ".join(
-            f"{cm.msg.name} (0x{cm.msg.id:02X})"
-            for cm in s.messages
-            if cm.transfer and cm.msg.dir == direction
-        )
+        carried = [cm.msg for cm in s.messages if cm.transfer and cm.msg.dir == direction]
+        names = ", ".join(f"{m.name} (0x{m.id:02X})" for m in carried)
         n_data = max(
             (cm.n_frames - 1 for cm in s.messages if cm.transfer and cm.msg.dir == direction),
             default=1,
@@ -100,6 +124,7 @@ def render_dbc(s: CanSchema, wire_types: dict) -> str:
                 multiplexer_ids=[0],
                 multiplexer_signal="index",
                 receivers=[receiver],
+                choices={m.id: m.name for m in sorted(carried, key=lambda m: m.id)},
             ),
             _signal(
                 "seq",

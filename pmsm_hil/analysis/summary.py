@@ -311,7 +311,8 @@ def log_problems(log: Log) -> list[str]:
     rx_bad = int(np.max(status["rx_bad"])) if len(status.get("rx_bad", [])) else 0
     if rx_bad:
         out.append(
-            f"the device rejected {rx_bad} received frames (corrupted, incomplete or spliced)"
+            f"the device rejected {rx_bad} received frames (corrupted, incomplete or spliced, or "
+            "on a shared CAN bus another node's on its identifiers)"
         )
     link = log.topic("/host/link") if "/host/link" in log.topics else {}
 
@@ -322,10 +323,12 @@ def log_problems(log: Log) -> list[str]:
     gaps = last("seq_gaps")
     crc = last("crc_errors")
     bad = crc + last("cobs_errors") + last("len_errors")
-    if gaps or bad:
+    unknown = last("unknown_id")
+    if gaps or bad or unknown:
         out.append(
             f"the host lost frames on the link: {gaps} sequence gaps, {bad} corrupted frames "
             f"rejected ({crc} failed their CRC)"
+            + (f", {unknown} frames of an identifier it does not know" if unknown else "")
         )
     return out
 
@@ -344,8 +347,8 @@ SUMMARY_TOPICS = {
     ),
     "/pmsm/events": None,
     "/sim/truth": ("t_s", "speed_rpm", "theta_e_rad"),
-    "/pmsm/status": ("t_s", "tx_dropped"),
-    "/host/link": ("t_s", "seq_gaps", "crc_errors", "cobs_errors", "len_errors"),
+    "/pmsm/status": ("t_s", "tx_dropped", "rx_bad"),
+    "/host/link": ("t_s", "seq_gaps", "crc_errors", "cobs_errors", "len_errors", "unknown_id"),
 }
 
 

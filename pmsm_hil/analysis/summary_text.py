@@ -205,7 +205,9 @@ def verdict_text(summary: RunSummary, interrupted: bool = False, error: bool = F
     if summary.missing:
         parts.append(f"missing: {seg_list(summary.missing)}")
     if summary.problems and not summary.partial and not summary.missing:
-        parts.append("the file is damaged")
+        # frames lost on the link or rejected by the device, a cut file: each named below (it
+        # said "the file is damaged" of a whole file whose link had lost frames)
+        parts.append("the record is not whole: " + "; ".join(summary.problems[:2]))
     missed = [s.index for s in summary.segments if not (s.mean_ok and s.recovery_ok is not False)]
     if summary.faults:  # what tripped, with when (a fault ends a run: it is never "within bounds")
         parts.append(
@@ -214,5 +216,8 @@ def verdict_text(summary: RunSummary, interrupted: bool = False, error: bool = F
         )
     if not summary.segments:
         return f"[red]INCOMPLETE[/] ({'; '.join(parts)}): no segment can be checked"
+    if not summary.partial and not summary.missing:  # every segment played, the record not whole
+        seen = "bounds missed in the segments" if missed else "the segments are within bounds"
+        return f"[red]INCOMPLETE[/] ({'; '.join(parts)}): {seen}"
     seen = "bounds missed in the segments seen" if missed else "segments seen are within bounds"
     return f"[red]INCOMPLETE[/] ({'; '.join(parts)}): {seen}, the others were not checked"

@@ -114,4 +114,9 @@ def main(args: argparse.Namespace) -> int:
         f"shipped with pmsm-hil in {shipped_root()}; use a bare name, e.g. "
         f"`pmsm-hil run paper-a --rig lab-typical`"
     )
+    from pmsm_hil.protocol import dbc_path
+
+    console.print(
+        f"CAN database for a CAN analyser (node 1, docs/can.md): {dbc_path()}", soft_wrap=True
+    )
     return 0
