@@ -220,6 +220,11 @@ def test_cli_json_report_and_augment(logs, tmp_path, capsys):
         and (tmp_path / "rep/index.html").exists()
         and (tmp_path / "rep/gap.json").exists()
     )
+    # the effects not selected: their fitted-alone magnitudes greyed and marked, not findings
+    page = (tmp_path / "rep/index.html").read_text()
+    n_other = sum(1 for e in out["effects"] if not e["selected"])
+    assert n_other and page.count(" (alone)</span>") == n_other
+    assert "what it reached fitted alone" in page
     # the report has the fitted rig beside it (one diagnosis, not a second by `gap augment`)
     assert "fitted-rig.yaml" in text and "gap verify" in text
     in_report = load_rig(tmp_path / "rep" / "fitted-rig.yaml")
