@@ -125,3 +125,18 @@ def test_the_dbc_is_installed_and_profiles_prints_its_path(tmp_path, root):
     assert r.returncode == 0, r.stderr
     line = next(x for x in r.stdout.splitlines() if "CAN database" in x)
     assert line.endswith(str(dbc_path())), line
+
+
+def test_the_dbcs_integer_signals_carry_the_range_of_their_wire_type():
+    """An analyser's [min|max] is the physical range the wire type carries (it was [0|0] for
+    every signal): an i16 speed at 0.1 r/min spans -3276.8 .. 3276.7 r/min."""
+    from pmsm_hil.protocol import dbc_path
+
+    db = cantools.database.load_file(str(dbc_path()))
+    speed = db.get_message_by_name("telem_fast_1").get_signal_by_name("speed_rpm")
+    assert (speed.minimum, speed.maximum) == (-3276.8, 3276.7)
+    # (a transfer's `data` is 7 raw payload octets, not a quantity: no range)
+    ints = [s for m in db.messages for s in m.signals if not s.is_float and s.name != "data"]
+    assert ints and all(s.minimum is not None and s.maximum > s.minimum for s in ints)
+    floats = [s for m in db.messages for s in m.signals if s.is_float]
+    assert floats and all(s.minimum is None for s in floats)  # an f32 carries no fixed range

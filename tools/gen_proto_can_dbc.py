@@ -19,9 +19,13 @@ def _signal(name: str, start_octet: int, wt, scale, signed_override=None, choice
 
     is_float = wt.name == "f32"
     signed = wt.name.startswith("i") if signed_override is None else signed_override
-    conv = BaseConversion.factory(
-        scale=scale if scale is not None else 1, offset=0, choices=choices, is_float=is_float
-    )
+    k = scale if scale is not None else 1
+    conv = BaseConversion.factory(scale=k, offset=0, choices=choices, is_float=is_float)
+    if not is_float:  # the physical range the wire type carries (an analyser's [min|max])
+        bits = wt.octets * 8
+        lo, hi = (-(2 ** (bits - 1)), 2 ** (bits - 1) - 1) if signed else (0, 2**bits - 1)
+        kw.setdefault("minimum", _tidy(lo * k))
+        kw.setdefault("maximum", _tidy(hi * k))
     return Signal(
         name,
         start_octet * 8,
@@ -32,6 +36,12 @@ def _signal(name: str, start_octet: int, wt, scale, signed_override=None, choice
         unit=unit_of(name) or None,
         **kw,
     )
+
+
+def _tidy(x: float) -> float | int:
+    """A range end as written in the DBC: 255, not 255.0; 3276.7, not 3276.7000000000003."""
+    x = float(f"{x:.10g}")
+    return int(x) if x.is_integer() else x
 
 
 ENUM_NOTE = re.compile(r"enum (\w+)(?::|$)")  # "enum state", "enum angle_src: ..."; not "... bits"
