@@ -88,3 +88,9 @@ def test_an_interrupted_sweep_lists_its_stopped_runs_and_resumes_them(tmp_path, 
         Path(rows[0]["log_path"])
     )
     assert rows[0]["key"] not in Journal(out).done()  # the same command runs it again
+    # the report counts it as stopped, not as a run that failed to run
+    r = subprocess.run([*START, "sweep", "report", str(out)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    summary = (out / "report" / "summary.md").read_text()
+    assert "1 runs: 0 completed, 0 failed to run, 1 stopped by an interrupt" in summary, summary
+    assert f"- run 0: its log so far {rows[0]['log_path']}" in summary

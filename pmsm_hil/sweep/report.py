@@ -70,12 +70,16 @@ class SweepReport:
     files: list[Path] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)  # e.g. an older directory's columns renamed
     failed: list[tuple[Any, str]] = field(default_factory=list)  # (run index, error) not run
+    # (run index, log) of the runs an interrupt stopped (status interrupted: not failures; the
+    # same sweep command runs them again)
+    stopped: list[tuple[Any, str]] = field(default_factory=list)
 
     def headline(self) -> str:
-        """Runs completed / failed to run, and how many met the criteria: one line."""
+        """Runs completed / failed to run / stopped, and how many met the criteria: one line."""
         ran = (
             f"{self.runs} runs: {self.completed} completed, "
-            f"{self.runs - self.completed} failed to run"
+            f"{self.runs - self.completed - len(self.stopped)} failed to run"
+            + (f", {len(self.stopped)} stopped by an interrupt" if self.stopped else "")
         )
         if self.criteria:
             return (
@@ -153,6 +157,16 @@ def _summary(rep: SweepReport) -> str:
     if rep.failed:
         lines += ["", "## Runs that failed to run", ""]
         lines += [f"- run {i}: {err}" for i, err in rep.failed]
+    if rep.stopped:
+        lines += [
+            "",
+            "## Runs stopped by an interrupt (the same sweep command runs them again)",
+            "",
+        ]
+        lines += [
+            f"- run {i}: " + (f"its log so far {log}" if log else "no log kept")
+            for i, log in rep.stopped
+        ]
     return "\n".join(lines) + "\n"
 
 
@@ -190,7 +204,14 @@ def write_report(out: Path) -> SweepReport:
         stats=metric_stats(rows, cols),
         notes=notes,
         failed=[
-            (r.get("index"), str(r.get("error") or "")) for r in rows if r.get("status") != "ok"
+            (r.get("index"), str(r.get("error") or ""))
+            for r in rows
+            if r.get("status") not in ("ok", "interrupted")
+        ],
+        stopped=[
+            (r.get("index"), str(r.get("log_path") or ""))
+            for r in rows
+            if r.get("status") == "interrupted"
         ],
     )
     rep = out / "report"
