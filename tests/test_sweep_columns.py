@@ -447,7 +447,11 @@ def test_report_summary_names_the_runs_that_failed():
     from pmsm_hil.sweep.report import _summary
 
     rep = SimpleNamespace(
-        headline=lambda: "2 runs", notes=[], stats=[], failed=[(1, "run error: the link dropped")]
+        headline=lambda: "2 runs",
+        notes=[],
+        stats=[],
+        failed=[(1, "run error: the link dropped")],
+        stopped=[],
     )
     text = _summary(rep)  # type: ignore[arg-type]
     assert "## Runs that failed to run" in text and "- run 1: run error: the link dropped" in text
@@ -460,6 +464,7 @@ def test_summary_shows_relative_errors_in_percent_as_the_console_does():
         headline=lambda: "2 runs",
         notes=[],
         failed=[],
+        stopped=[],
         stats=[
             MetricStats("id_rls_l_d_h_error_rel", 2, 0.005, -0.0125, -0.0125, 0.005),
             MetricStats("speed_error_max_rpm", 2, 1.5, 2.25, 1.0, 2.25),
