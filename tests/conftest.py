@@ -18,6 +18,25 @@ def data() -> Path:
     return DATA
 
 
+@pytest.fixture(scope="session")
+def built_package(tmp_path_factory) -> Path:
+    """The package as setup.py installs it (build_py: the Python files and the package data) in
+    a folder of its own, built once for the tests that check what an install holds (one of them
+    copies the compiled extension beside it, to import the package from there)."""
+    import subprocess
+    import sys
+
+    lib = tmp_path_factory.mktemp("build") / "lib"
+    r = subprocess.run(
+        [sys.executable, "setup.py", "-q", "build_py", "--build-lib", str(lib)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+    )
+    assert r.returncode == 0, r.stderr
+    return lib
+
+
 @pytest.fixture()
 def ws(tmp_path, monkeypatch):
     """A work directory laid out like profiles/ (motors/, rigs/) with paper A's motor and the

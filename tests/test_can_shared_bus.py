@@ -96,7 +96,7 @@ def test_the_dbc_names_enum_values_as_the_log_does(root):
     assert db.get_message_by_name("status_1").get_signal_by_name("faults").choices is None
 
 
-def test_the_dbc_is_installed_and_profiles_prints_its_path(tmp_path, root):
+def test_the_dbc_is_installed_and_profiles_prints_its_path(tmp_path, root, built_package):
     """docs/can.md named firmware/proto/pmsm_proto.dbc, which `pip install` left behind: a user
     of an installed pmsm-hil had no DBC. It is package data now, and `pmsm-hil profiles` says
     where."""
@@ -105,14 +105,7 @@ def test_the_dbc_is_installed_and_profiles_prints_its_path(tmp_path, root):
 
     from pmsm_hil.protocol import dbc_path
 
-    lib = tmp_path / "lib"
-    r = subprocess.run(
-        [sys.executable, "setup.py", "-q", "build_py", "--build-lib", str(lib)],
-        cwd=root,
-        capture_output=True,
-        text=True,
-    )
-    assert r.returncode == 0, r.stderr
+    lib = built_package
     installed = lib / "pmsm_hil" / "proto" / "pmsm_proto.dbc"
     assert installed.read_bytes() == (root / "firmware" / "proto" / "pmsm_proto.dbc").read_bytes()
     assert dbc_path().is_file()

@@ -33,18 +33,13 @@ def test_a_bare_name_finds_the_shipped_sweep():
     assert "no-such-sweep" in str(e.value) and "tolerance" in str(e.value)
 
 
-def test_an_installed_pmsm_hil_runs_a_shipped_sweep_by_name_from_any_directory(tmp_path, root):
+def test_an_installed_pmsm_hil_runs_a_shipped_sweep_by_name_from_any_directory(
+    tmp_path, root, built_package
+):
     """The package as setup.py installs it (build_py: the Python files and the package data, the
     compiled extension copied beside them), imported from that copy only, in a folder without
     sweeps/ or profiles/."""
-    lib = tmp_path / "lib"
-    r = subprocess.run(
-        [sys.executable, "setup.py", "-q", "build_py", "--build-lib", str(lib)],
-        cwd=root,
-        capture_output=True,
-        text=True,
-    )
-    assert r.returncode == 0, r.stderr
+    lib = built_package
     assert (lib / "pmsm_hil" / "shipped" / "sweeps" / "tolerance.yaml").is_file()
     assert (lib / "pmsm_hil" / "shipped" / "paper-a-identify.yaml").is_file()
     for so in Path(pmsm_hil.__file__).parent.glob("_fw*.so"):

@@ -35,7 +35,9 @@ KINDS = {
 }
 
 
-def _package_dir(package: str) -> Path | None:
+def package_dir(package: str) -> Path | None:
+    """The folder of an installed data package of pmsm-hil (`pmsm_hil.shipped`, `pmsm_hil.proto`),
+    or None when it is not installed (the source tree: the caller knows its folder there)."""
     try:
         spec = importlib.util.find_spec(package)
     except ImportError:
@@ -48,13 +50,13 @@ def _package_dir(package: str) -> Path | None:
 
 def shipped_root() -> Path:
     """The folder of the shipped files (installed package data, or the source tree's profiles/)."""
-    return _package_dir("pmsm_hil.shipped") or Path(__file__).resolve().parents[2] / "profiles"
+    return package_dir("pmsm_hil.shipped") or Path(__file__).resolve().parents[2] / "profiles"
 
 
 def sweeps_root() -> Path:
     """The folder of the shipped sweep files (installed package data, or the source tree's
     sweeps/)."""
-    return _package_dir("pmsm_hil.shipped.sweeps") or Path(__file__).resolve().parents[2] / "sweeps"
+    return package_dir("pmsm_hil.shipped.sweeps") or Path(__file__).resolve().parents[2] / "sweeps"
 
 
 def _root(kind: str) -> Path:
