@@ -149,7 +149,9 @@ def read_csv(
             try:
                 raw.decode("utf-8")
             except UnicodeDecodeError as e:
-                line = raw.count(b"\n", 0, e.start) + 1
+                from pmsm_hil.files import octet_position
+
+                line, _ = octet_position(raw, e.start)
                 raise CsvImportError(
                     f"{path}: line {line}: not UTF-8 text (octet {e.start} = "
                     f"0x{raw[e.start]:02x}: {e.reason}); save it as CSV UTF-8"

@@ -317,8 +317,9 @@ def _shipped_hint(path: str, what: str) -> str:
 def _not_utf8(path: str, raw: bytes, e: UnicodeDecodeError) -> Problem:
     """The octet that is not UTF-8, at its line and column (a file saved as Latin-1 or
     Windows-1252: a degree sign, a mu, an umlaut in a comment or a name)."""
-    line = raw.count(b"\n", 0, e.start) + 1
-    column = e.start - (raw.rfind(b"\n", 0, e.start) + 1) + 1
+    from pmsm_hil.files import octet_position
+
+    line, column = octet_position(raw, e.start)
     text = raw[: e.start].rsplit(b"\n", 1)[-1].decode("utf-8", "replace")
     return Problem(
         path,
