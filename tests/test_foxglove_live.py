@@ -23,6 +23,7 @@ from pmsm_hil.live.foxglove import (
     json_schema,
     layout_path,
 )
+from pmsm_hil.live.ws_names import offered, rename
 from pmsm_hil.log.reader import read_log
 from pmsm_hil.log.schemas import TOPICS
 
@@ -170,6 +171,63 @@ def test_sink_decimates_per_topic_and_never_raises(monkeypatch):
         assert sink.published == n
     finally:
         sink.close()
+
+
+async def _one_message(port: int, subprotocols: list[str], sink: FoxgloveSink) -> tuple:
+    """Connect offering `subprotocols`, subscribe to /pmsm/status, have the sink publish one status
+    message: (the name the server chose, the message's JSON)."""
+    from websockets.asyncio.client import connect
+
+    async with await connect(
+        f"ws://127.0.0.1:{port}", subprotocols=subprotocols, open_timeout=5
+    ) as ws:
+        channels = {}
+        while not channels:
+            m = json.loads(await asyncio.wait_for(ws.recv(), timeout=5))
+            if m.get("op") == "advertise":
+                channels = {ch["topic"]: ch["id"] for ch in m["channels"]}
+        cid = channels["/pmsm/status"]
+        sub = {"op": "subscribe", "subscriptions": [{"id": 7, "channelId": cid}]}
+        await ws.send(json.dumps(sub))
+        deadline = time.monotonic() + 5
+        while not sink._channels["/pmsm/status"].has_sinks():
+            assert time.monotonic() < deadline, "the subscription never reached the server"
+            await asyncio.sleep(0.02)
+        sink.publish("/pmsm/status", 1.5, {"state": "run", "faults": 0})
+        while True:
+            raw = await asyncio.wait_for(ws.recv(), timeout=5)
+            if isinstance(raw, bytes) and raw[0] == 0x01:
+                assert struct.unpack_from("<I", raw, 1)[0] == 7
+                return ws.subprotocol, json.loads(raw[13:])
+
+
+@pytest.mark.parametrize("name", ["foxglove.websocket.v1", "foxglove.sdk.v1"])
+def test_clients_that_know_either_name_of_the_protocol_connect(name):
+    """PlotJuggler and older Lichtblick and Foxglove releases offer only foxglove.websocket.v1,
+    which foxglove-sdk's own server refuses: the sink's port takes both names."""
+    sink = FoxgloveSink(0)
+    try:
+        chosen, msg = asyncio.run(_one_message(sink.port, [name], sink))
+        assert chosen == name
+        assert msg == {"t_s": 1.5, "state": "run", "faults": 0}
+        # behind the relay, the SDK's server itself answers only to its own name
+        if name == "foxglove.websocket.v1":
+            with pytest.raises(websockets.exceptions.InvalidStatus):
+                asyncio.run(_one_message(sink._server.port, [name], sink))
+    finally:
+        sink.close()
+
+
+def test_the_relay_renames_only_the_protocol_name():
+    req = (
+        b"GET / HTTP/1.1\r\nHost: x\r\nsec-WebSocket-Protocol: chat, foxglove.websocket.v1\r\n"
+        b"Sec-WebSocket-Key: abc\r\n\r\n"
+    )
+    assert offered(req) == [b"chat", b"foxglove.websocket.v1"]
+    out = rename(req, b"foxglove.websocket.v1", b"foxglove.sdk.v1")
+    assert offered(out) == [b"chat", b"foxglove.sdk.v1"]
+    assert out.replace(b"foxglove.sdk.v1", b"foxglove.websocket.v1") == req  # nothing else
+    assert b"Sec-WebSocket-Key: abc\r\n\r\n" in out
 
 
 def test_sink_refuses_a_port_in_use_or_out_of_range():

@@ -24,6 +24,7 @@ import sys
 import time
 from pathlib import Path
 
+from pmsm_hil.live.ws_names import NameRelay
 from pmsm_hil.log.schemas import TOPICS
 
 
@@ -124,12 +125,19 @@ class FoxgloveSink:
             raise FoxgloveError(f"--foxglove {port}: not a TCP port (0..65535; 0 picks a free one)")
         self._ctx = foxglove.Context()
         try:
-            self._server = foxglove.start_server(name=name, host=HOST, port=port, context=self._ctx)
-        except (RuntimeError, OSError, OverflowError, ValueError) as e:
+            self._server = foxglove.start_server(name=name, host=HOST, port=0, context=self._ctx)
+        except (RuntimeError, OSError) as e:
+            raise FoxgloveError(f"--foxglove: the Foxglove server did not start ({e})") from None
+        try:
+            # the user's port is the relay's, which takes both names of the protocol
+            # (pmsm_hil/live/ws_names.py); the SDK's server listens on a port of its own
+            self._relay = NameRelay(HOST, port, self._server.port)
+        except (OSError, OverflowError) as e:
+            self._server.stop()
             raise FoxgloveError(
                 f"--foxglove {port}: cannot listen on {HOST}:{port} ({e})"
             ) from None
-        self.port = self._server.port
+        self.port = self._relay.port
         self.rates = dict(RATE_HZ, **(rates or {}))
         self._channels = {}
         for topic in LIVE_TOPICS:
@@ -187,3 +195,4 @@ class FoxgloveSink:
             with contextlib.suppress(Exception):
                 ch.close()
         self._server.stop()
+        self._relay.close()
