@@ -104,6 +104,29 @@ def fault_text(bits: int) -> str:
     return "+".join(names) if names else "none"
 
 
+# The motor file's limit that each protection fault trips on (sent in config_motor).
+FAULT_LIMITS = {
+    "over_current": ("i_trip_a", "A"),
+    "over_speed": ("speed_trip_rpm", "r/min"),
+    "dc_under_voltage": ("v_dc_min_v", "V"),
+    "dc_over_voltage": ("v_dc_max_v", "V"),
+}
+
+
+def fault_limits_text(bits: int, motor: object) -> str:
+    """``fault_text`` with the motor file's limit behind each protection fault, e.g.
+    "over_speed: beyond speed_trip_rpm 3000 r/min of motors/m.yaml"."""
+    path = getattr(motor, "path", "") or "the motor file"
+    parts = []
+    for name, b in FAULT_BITS.items():
+        if bits & b:
+            key, unit = FAULT_LIMITS.get(name, ("", ""))
+            value = getattr(motor, key, None) if key else None
+            limit = f": beyond {key} {value:g} {unit} of {path}" if value is not None else ""
+            parts.append(name + limit)
+    return "; ".join(parts) if parts else "none"
+
+
 def _estimator_name(code: int) -> str:
     return ESTIMATOR_NAMES.get(code, str(code))
 

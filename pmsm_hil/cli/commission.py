@@ -192,6 +192,8 @@ def main(args: argparse.Namespace) -> int:
         given = getattr(args, option[2:].replace("-", "_"))
         shown = f"{given:g}" if isinstance(given, float) else given
         return fail("error", f"{option} {shown}: {e}", 2)
+    for w in profile.warnings:  # the motor file's plausibility, before the motor is energised
+        report("warning", w)
     warning = angle_warning(profile, steps)
     if warning:
         report("warning", warning)

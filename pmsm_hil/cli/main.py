@@ -22,6 +22,7 @@ from pmsm_hil import __version__
 from pmsm_hil.cli import (
     analyze,
     bench,
+    check,
     commission,
     emulate,
     gap,
@@ -37,6 +38,7 @@ from pmsm_hil.transport import quiet_python_can
 
 COMMANDS = {
     "run": run,
+    "check": check,
     "commission": commission,
     "emulate": emulate,
     "analyze": analyze,

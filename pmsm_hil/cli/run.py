@@ -479,11 +479,14 @@ def _finish(result, print_summary, summarize_log, profile=None, stop_after_s=Non
         )
         return 130
     if result.faults:
-        from pmsm_hil.recorder import fault_text
+        from pmsm_hil.recorder import fault_limits_text, fault_text
 
-        return fail(
-            "fault", f"device faulted ({fault_text(result.faults)}); see {result.log_path}", 4
+        what = (
+            fault_limits_text(result.faults, profile.motor)
+            if profile is not None
+            else fault_text(result.faults)
         )
+        return fail("fault", f"device faulted ({what}); see {result.log_path}", 4)
     if result.stop_reason and result.stop_reason not in ("profile end", "host stop"):
         return fail("stopped", f"device stopped: {result.stop_reason}", 4)
     return 0

@@ -38,7 +38,8 @@ TELEMETRY_RANGE = {
 # How to get psi_f_wb from a datasheet's back-EMF constant (docs/profiles.md, Motor).
 PSI_F_HINT = (
     "psi_f_wb is the peak phase flux linkage, Ke [V/krpm, line-line rms] x sqrt(2/3) / "
-    "(104.72 x pole_pairs); pole_pairs is half the poles"
+    "(104.72 x pole_pairs), or Ke [V/krpm, line-line peak] / (sqrt 3 x 104.72 x pole_pairs); "
+    "pole_pairs is half the poles"
 )
 
 
@@ -331,7 +332,9 @@ def motor_checks(src: Source) -> list[Problem]:
                 src.problem(
                     ("torque_max_nm",),
                     f"is more than the {t_mtpa:.4g} N m that i_max_a {fmt_num(i_max)} A "
-                    f"gives on the MTPA trajectory",
+                    f"gives on the MTPA trajectory: write {t_mtpa:.4g} or less, or check "
+                    f"psi_f_wb (Wb), l_d_h and l_q_h (H), i_max_a (peak A: a datasheet's rms "
+                    f"x sqrt 2)",
                     t_max,
                 )
             )

@@ -15,6 +15,7 @@ from ._source import Problem, ProfileError, Source, fmt_num, read_source, resolv
 from ._validation import validation_problems
 from .acceptance import Acceptance, acceptance_problems
 from .motor import Motor, _load_motor_source
+from .plausibility import motor_warnings, ramp_warnings
 from .reach import reach_checks
 from .rig import Rig, _load_rig_source, plant_problems
 from .sensorless_checks import sensorless_checks
@@ -543,7 +544,8 @@ def load_profile(
     if motor is not None and msrc is not None:
         snl_problems, snl_warnings = sensorless_checks(src, motor, msrc)
         problems += snl_problems
-        warnings += snl_warnings
+        ts = spec.control.ts_s if spec is not None else None
+        warnings += snl_warnings + motor_warnings(motor, msrc, ts) + ramp_warnings(src, motor)
     if problems:
         raise ProfileError(_ordered(problems), _budget_warnings(src, path, problems))
     assert spec is not None and motor is not None and rig is not None

@@ -53,7 +53,10 @@ def reach_checks(src: Source, motor: Motor, rig: Rig) -> tuple[list[Problem], li
             f"{'write ' + str(math.floor(reach)) + ' r/min or less' if reach > 0 else 'lower load_nm'}"
         )
         if need_v > six_step_v:
-            hint = "; or check l_d_h, l_q_h (H, not mH) and psi_f_wb in the motor file"
+            hint = (
+                "; or check r_s_ohm (ohm, not mohm), l_d_h, l_q_h (H, not mH) and psi_f_wb "
+                "(Wb) in the motor file"
+            )
             problems.append(src.problem(("segments", i, "speed_rpm"), text + hint, v))
         else:
             line = src.line(("segments", i, "speed_rpm"))

@@ -1,0 +1,126 @@
+"""Values that are legal but probably in the wrong unit (docs/profiles.md, "Plausibility
+warnings"): a motor file's flux linkage, inductances and resistance against its DC link and
+current limit, and a profile's speed ramps against the motor's inertia and torque limit. Each is a
+warning naming file, line, field and value: the run goes ahead, as the numbers may be meant."""
+
+from __future__ import annotations
+
+import math
+
+from ._base import num
+from ._source import Source, fmt_num
+from .motor import PSI_F_HINT, TELEMETRY_SPEED_MAX_RPM, Motor
+
+# The back-EMF at the most the telemetry carries, as a share of v_dc / sqrt 3, below which psi_f_wb
+# is taken for a unit slip: a motor meant for its DC link uses tens of % of it at its rated speed
+# (paper A's 36 % at 1500 r/min, the 48 V servos' 75-96 %); a flux linkage 1000 x too small
+# (25 mWb written as 2.5e-5) gives 0.1 %, 100 x too small 1 %.
+EMF_SHARE_MIN = 0.02
+# The time the DC link needs to drive i_max_a into an inductance, L i_max / (v_dc / sqrt 3), above
+# which the inductance is taken for H written where mH was meant: motors take about 0.5 to 5 ms
+# (paper A's L_q 0.58 ms, the 48 V servos' 1 ms), 1000 x that is seconds.
+SLEW_MAX_S = 0.05
+# ... and the share of a control period below which it is taken for mH written as uH (a 1000 x
+# too small inductance): one period at full voltage would then move the current by ten times
+# i_max_a and more. Paper A's motor at 1/8 of its inductance, which FOC still controls
+# (docs/control.md), takes 0.6 of its 50 us period.
+SLEW_MIN_PERIODS = 0.1
+
+
+def _warn(src: Source, key: str, value: float, text: str) -> str:
+    return f"{src.path}:{src.line((key,))}: {key} = {fmt_num(value)} {text}"
+
+
+def motor_warnings(motor: Motor, motor_src: Source, ts_s: float | None) -> list[str]:
+    """Warnings for ``motor``'s psi_f_wb, l_d_h, l_q_h and r_s_ohm against its v_dc_v and
+    i_max_a (and the control period ``ts_s``, when known)."""
+    out: list[str] = []
+    reach_v = motor.v_dc_v / math.sqrt(3.0)
+    link = f"{reach_v:.4g} V (v_dc_v {fmt_num(motor.v_dc_v)} V / sqrt 3)"
+    w_top = motor.pole_pairs * TELEMETRY_SPEED_MAX_RPM * math.pi / 30.0
+    emf_top_v = motor.psi_f_wb * w_top
+    if emf_top_v < EMF_SHARE_MIN * reach_v:
+        out.append(
+            _warn(
+                motor_src,
+                "psi_f_wb",
+                motor.psi_f_wb,
+                f"Wb gives a back-EMF of only {emf_top_v:.3g} V peak phase even at "
+                f"{fmt_num(TELEMETRY_SPEED_MAX_RPM)} r/min (the most a profile may run), "
+                f"{100 * emf_top_v / reach_v:.2g} % of the DC link's {link}, where a motor for "
+                f"this link uses tens of % at its rated speed: psi_f_wb is in Wb (25 mWb is "
+                f"0.025); {PSI_F_HINT}",
+            )
+        )
+    for key in ("l_d_h", "l_q_h"):
+        l_h = getattr(motor, key)
+        slew_s = l_h * motor.i_max_a / reach_v
+        what = (
+            f"H: the DC link's {link} takes {slew_s:.3g} s to drive i_max_a "
+            f"{fmt_num(motor.i_max_a)} A into it"
+        )
+        if slew_s > SLEW_MAX_S:
+            out.append(
+                _warn(
+                    motor_src,
+                    key,
+                    l_h,
+                    f"{what}, where motors take a few ms: {key} is in H, per phase (1.6 mH is "
+                    f"0.0016)",
+                )
+            )
+        elif ts_s is not None and slew_s < SLEW_MIN_PERIODS * ts_s:
+            out.append(
+                _warn(
+                    motor_src,
+                    key,
+                    l_h,
+                    f"{what}, under a tenth of a control period (control.ts_s {fmt_num(ts_s)} "
+                    f"s): one period at full voltage moves the current by "
+                    f"{ts_s / slew_s:.3g} x i_max_a; {key} is in H (1.6 mH is 0.0016)",
+                )
+            )
+    drop_v = motor.r_s_ohm * motor.i_max_a
+    if drop_v > reach_v:
+        out.append(
+            _warn(
+                motor_src,
+                "r_s_ohm",
+                motor.r_s_ohm,
+                f"ohm needs {drop_v:.4g} V to carry i_max_a {fmt_num(motor.i_max_a)} A even at "
+                f"standstill, beyond the DC link's {link}: the current limit can never be "
+                f"reached; r_s_ohm is in ohm, per phase (350 mohm is 0.35)",
+            )
+        )
+    return out
+
+
+def ramp_warnings(src: Source, motor: Motor) -> list[str]:
+    """Warnings for run segments whose speed ramp needs more torque to accelerate the motor's
+    inertia (plus the segment's load) than its torque_max_nm: the speed lags the ramp."""
+    out: list[str] = []
+    segments = src.data.get("segments") if isinstance(src.data.get("segments"), list) else []
+    speed = 0.0
+    for i, seg in enumerate(segments):
+        if not isinstance(seg, dict):
+            continue
+        v, ramp = num(seg, "speed_rpm"), num(seg, "ramp_rpm_s", 0.0)
+        load = num(seg, "load_nm", 0.0)
+        if v is None or ramp is None or load is None:
+            continue
+        if seg.get("kind", "run") == "run" and ramp > 0 and v != speed:
+            accel_nm = motor.j_kgm2 * ramp * math.pi / 30.0
+            need_nm = accel_nm + (abs(load) if abs(v) > abs(speed) else 0.0)
+            if need_nm > motor.torque_max_nm:
+                out.append(
+                    f"{src.path}:{src.line(('segments', i, 'ramp_rpm_s'))}: "
+                    f"segments[{i}].ramp_rpm_s = {fmt_num(ramp)} needs {accel_nm:.4g} N m to "
+                    f"accelerate j_kgm2 {fmt_num(motor.j_kgm2)} kg m^2 (J x "
+                    f"{ramp * math.pi / 30.0:.4g} rad/s^2"
+                    f"{f', plus load_nm {fmt_num(load)}' if need_nm > accel_nm else ''}), "
+                    f"beyond the motor's torque_max_nm {fmt_num(motor.torque_max_nm)} N m "
+                    f"({motor.path}): the speed will lag the ramp; lower ramp_rpm_s, or check "
+                    f"j_kgm2 (kg m^2: 0.35 kg cm^2 is 3.5e-05)"
+                )
+        speed = v
+    return out

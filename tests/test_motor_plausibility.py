@@ -1,0 +1,186 @@
+"""A motor file of one's own whose numbers are legal but in the wrong unit (a flux linkage 1000 x
+too small, inductances in H written for mH or in uH, a resistance in mohm written as ohm, an
+inertia in kg cm^2 written as kg m^2) is warned of at load, naming file, line, field and value,
+where it used to run (or commission) without a word and miss its speeds; `pmsm-hil check`
+validates the files without running them; a fault names the motor file's limit it tripped on."""
+
+from __future__ import annotations
+
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from pmsm_hil.cli.main import main as cli_main
+from pmsm_hil.profiles import ProfileError, load_profile
+from pmsm_hil.profiles.shipped import shipped
+
+# A 400 W, 8-pole servo for 48 V from its datasheet: R 0.35 ohm and L_d 1.1 mH, L_q 1.6 mH per
+# phase, Ke 18.5 V/krpm line-line peak (psi_f = 18.5 / (sqrt 3 x 104.72 x 4)), 15 A rms peak
+# current (21.2 A), J 0.35 kg cm^2.
+MOTOR = """\
+name: servo400
+pole_pairs: 4
+r_s_ohm: 0.35
+l_d_h: 0.0011
+l_q_h: 0.0016
+psi_f_wb: 0.025499
+j_kgm2: 3.5e-5
+v_dc_v: 48.0
+i_max_a: 21.2
+i_trip_a: 30.0
+speed_max_rpm: 2500.0
+speed_trip_rpm: 3000.0
+torque_max_nm: 3.0
+v_dc_min_v: 36.0
+v_dc_max_v: 60.0
+"""
+
+# Up to 2000 r/min and back, without load: no segment that the voltage check would refuse.
+PROFILE = """\
+name: servo400-walk
+motor: motor.yaml
+rig: rig.yaml
+segments:
+  - {name: up, duration_s: 1.5, speed_rpm: 2000, ramp_rpm_s: 2000}
+  - {name: stop, duration_s: 1.5, speed_rpm: 0, ramp_rpm_s: 2000}
+"""
+
+LINE = {k: i for i, k in enumerate((ln.split(":")[0] for ln in MOTOR.splitlines()), 1)}
+
+
+def _files(tmp_path: Path, **motor_values: str) -> Path:
+    lines = [
+        f"{k}: {motor_values[k]}" if (k := ln.split(":")[0]) in motor_values else ln
+        for ln in MOTOR.splitlines()
+    ]
+    (tmp_path / "motor.yaml").write_text("\n".join(lines) + "\n")
+    (tmp_path / "rig.yaml").write_text("name: bench\n")
+    (tmp_path / "p.yaml").write_text(PROFILE)
+    return tmp_path / "p.yaml"
+
+
+def test_the_datasheet_motor_loads_without_warnings(tmp_path):
+    assert load_profile(_files(tmp_path)).warnings == []
+
+
+@pytest.mark.parametrize(
+    ("values", "field", "words"),
+    [
+        (
+            {"psi_f_wb": "2.5499e-5", "torque_max_nm": "0.5"},
+            "psi_f_wb",
+            ["0.13 % of the DC link's 27.71 V", "in Wb"],
+        ),
+        ({"l_d_h": "1.1"}, "l_d_h", ["takes 0.841 s to drive i_max_a 21.2 A", "in H"]),
+        ({"l_q_h": "1.6"}, "l_q_h", ["takes 1.22 s", "in H"]),
+        ({"l_d_h": "1.1e-6"}, "l_d_h", ["under a tenth of a control period", "59.4 x i_max_a"]),
+        ({"r_s_ohm": "350"}, "r_s_ohm", ["needs 7420 V to carry i_max_a 21.2 A", "in ohm"]),
+    ],
+)
+def test_a_value_in_the_wrong_unit_is_warned_of_at_its_line(tmp_path, values, field, words):
+    warnings = load_profile(_files(tmp_path, **values)).warnings
+    (w,) = [w for w in warnings if f": {field} = " in w]
+    value = values[field]
+    assert w.startswith(f"{tmp_path / 'motor.yaml'}:{LINE[field]}: {field} = {float(value):g} ")
+    for text in words:
+        assert text in w, w
+
+
+def test_an_inertia_in_kg_cm2_is_warned_of_at_the_ramps_it_cannot_follow(tmp_path):
+    warnings = load_profile(_files(tmp_path, j_kgm2="0.35")).warnings
+    assert len(warnings) == 2  # the ramp up and the ramp down
+    assert warnings[0].startswith(f"{tmp_path / 'p.yaml'}:5: segments[0].ramp_rpm_s = 2000 ")
+    assert "needs 73.3 N m to accelerate j_kgm2 0.35 kg m^2" in warnings[0]
+    assert "torque_max_nm 3 N m" in warnings[0] and "kg cm^2" in warnings[0]
+
+
+def test_the_shipped_profiles_and_motors_are_not_warned_of():
+    for path in shipped("profile"):
+        for motor in [None, *shipped("motor")]:
+            try:
+                profile = load_profile(path, motor_override=motor)
+            except ProfileError:
+                continue  # a profile that another motor's limits refuse
+            ours = [w for w in profile.warnings if "is in " in w or "lag the ramp" in w]
+            assert not ours, (path, motor)
+
+
+def test_the_refusals_name_every_field_that_may_be_in_the_wrong_unit(tmp_path):
+    path = _files(tmp_path, torque_max_nm="10")
+    with pytest.raises(ProfileError) as ei:
+        load_profile(path)
+    assert "write 3.482 or less, or check psi_f_wb (Wb), l_d_h and l_q_h (H)" in str(ei.value)
+    path = _files(tmp_path, r_s_ohm="350")
+    text = path.read_text().replace("ramp_rpm_s: 2000}", "ramp_rpm_s: 2000, load_nm: 1}", 1)
+    path.write_text(text)
+    with pytest.raises(ProfileError) as ei:
+        load_profile(path)
+    assert "or check r_s_ohm (ohm, not mohm), l_d_h, l_q_h (H, not mH)" in str(ei.value)
+
+
+def test_check_validates_without_running_and_prints_the_datasheet_figures(
+    tmp_path, capsys, monkeypatch
+):
+    path = _files(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    assert cli_main(["check", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith(f"ok: {path} (motor {tmp_path / 'motor.yaml'}")
+    # the numbers to hold against the datasheet: Ke 18.5 V/krpm line-line peak, back to front
+    assert "Ke 13.08 V/krpm line-line rms, 18.5 peak" in out
+    assert "torque at i_max_a 21.2 A on MTPA: 3.482 N m" in out
+    assert not (tmp_path / "runs").exists()  # nothing ran, no log
+    assert (
+        cli_main(["check", str(_files(tmp_path, psi_f_wb="2.5499e-5", torque_max_nm="0.5"))]) == 0
+    )
+    captured = capsys.readouterr()
+    assert captured.out.startswith("ok, with warnings:")
+    assert "warning: " in captured.err and "psi_f_wb = 2.5499e-05" in captured.err
+    assert cli_main(["check", str(_files(tmp_path, torque_max_nm="10"))]) == 2
+    assert "torque_max_nm = 10 is more than" in capsys.readouterr().err
+
+
+def test_commission_warns_of_the_motor_file_before_it_energises_the_motor(tmp_path, capsys):
+    _files(tmp_path, l_d_h="1.1", l_q_h="1.6")
+    args = ["commission", "--in-process", "--motor", str(tmp_path / "motor.yaml")]
+    args += ["--steps", "offsets,v_dc"]
+    args += ["--rig", str(tmp_path / "rig.yaml"), "--log", str(tmp_path / "c.mcap")]
+    assert cli_main([*args, "-o", str(tmp_path / "out.yaml")]) == 0
+    err = capsys.readouterr().err
+    assert f"warning: {tmp_path / 'motor.yaml'}:{LINE['l_d_h']}: l_d_h = 1.1 H" in err
+    assert f"{tmp_path / 'motor.yaml'}:{LINE['l_q_h']}: l_q_h = 1.6 H" in err
+
+
+def test_a_fault_names_the_motor_files_limit(tmp_path):
+    from pmsm_hil.recorder import FAULT_BITS, fault_limits_text
+
+    profile = load_profile(_files(tmp_path))
+    bits = FAULT_BITS["over_speed"] | FAULT_BITS["heartbeat"]
+    assert fault_limits_text(bits, profile.motor) == (
+        f"over_speed: beyond speed_trip_rpm 3000 r/min of {tmp_path / 'motor.yaml'}; heartbeat"
+    )
+    assert "i_trip_a 30 A" in fault_limits_text(FAULT_BITS["over_current"], profile.motor)
+
+
+def test_run_says_which_limit_tripped(tmp_path, capsys):
+    """2450 r/min on a 48 V servo with a rated-load step: the speed overshoots when the load
+    comes off and trips over_speed at 3000 r/min."""
+    path = _files(tmp_path)
+    path.write_text(
+        textwrap.dedent(
+            """\
+            name: servo400-trip
+            motor: motor.yaml
+            rig: rig.yaml
+            segments:
+              - {name: up, duration_s: 1.5, speed_rpm: 2450, ramp_rpm_s: 2450}
+              - {name: load on, duration_s: 0.5, speed_rpm: 2450, load_nm: 1.1}
+              - {name: load off, duration_s: 0.5, speed_rpm: 2450}
+            """
+        )
+    )
+    code = cli_main(["run", str(path), "--no-live", "-o", str(tmp_path / "r.mcap")])
+    err = capsys.readouterr().err
+    assert code == 4, err
+    assert f"over_speed: beyond speed_trip_rpm 3000 r/min of {tmp_path / 'motor.yaml'}" in err
