@@ -28,9 +28,10 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     b = bsub.add_parser(
         "identify",
         help="online identification: RLS, Adaline, NLMS-Adaline vs paper A Table 2",
-        description="Runs paper-a-identify on the emulator (a few seconds) and prints the final "
-        "estimates and convergence times of RLS, Adaline and NLMS-Adaline beside paper A's Table "
-        "2; writes the log, the convergence plot and the table into --out. --mismatch, "
+        description="Runs an identification profile (paper-a-identify, or --profile) on the "
+        "emulator (a few seconds) and prints the final estimates and convergence times of RLS, "
+        "Adaline and NLMS-Adaline beside the truth (for paper A's motor, beside its Table "
+        "2 too); writes the log, the convergence plot and the table into --out. --mismatch, "
         "--per-effect and --rigs add runs on a local Dask cluster, with a progress bar "
         "(docs/identification.md).",
     )
