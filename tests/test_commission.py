@@ -295,6 +295,21 @@ def test_an_inverter_row_from_before_the_drop_was_measured_reads_as_it_was_writt
     assert q["v_drop_v"].value == 1.5 and q["fit_rms_v"].value == 0.07
 
 
+def test_the_measured_dc_link_extremes_do_not_take_the_motor_files_trip_limit_names():
+    """The v_dc step's lowest and highest samples were named v_dc_min_v / v_dc_max_v, the motor
+    file's trip limits, in the printed and JSON results."""
+    from pmsm_hil.commission.steps import step_quantities
+    from pmsm_hil.profiles.motor import Motor
+
+    row = {"step": "v_dc"}
+    for k, (v, s) in enumerate([(540.2, 0.4), (539.1, 0.0), (541.3, 0.0)]):
+        row[f"value_{k}"], row[f"spread_{k}"] = v, s
+    q = step_quantities(row)
+    assert q["v_dc_v"].value == 540.2
+    assert (q["v_dc_lowest_v"].value, q["v_dc_highest_v"].value) == (539.1, 541.3)
+    assert set(q) & set(Motor.model_fields) == {"v_dc_v"}  # the mean: the same meaning
+
+
 def test_a_quantity_shows_its_spread_only_when_the_step_measured_one():
     from pmsm_hil.commission.steps import Measured
 

@@ -142,8 +142,8 @@ def step_quantities(row: dict) -> dict[str, Measured]:
     if step == "v_dc":
         return {
             "v_dc_v": Measured(v[0], s[0], "V"),
-            "v_dc_min_v": Measured(v[1], 0.0, "V"),
-            "v_dc_max_v": Measured(v[2], 0.0, "V"),
+            "v_dc_lowest_v": Measured(v[1], 0.0, "V"),  # not the motor file's trip limits
+            "v_dc_highest_v": Measured(v[2], 0.0, "V"),
         }
     if step == "encoder":
         ga, gb = row["ref_0"], row["ref_1"]
