@@ -6,6 +6,8 @@ validates the files without running them; a fault names the motor file's limit i
 
 from __future__ import annotations
 
+import math
+import re
 import textwrap
 from pathlib import Path
 
@@ -184,3 +186,47 @@ def test_run_says_which_limit_tripped(tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 4, err
     assert f"over_speed: beyond speed_trip_rpm 3000 r/min of {tmp_path / 'motor.yaml'}" in err
+    # ... and that the profile's own load step came just before it, with what it does to the speed
+    m = re.search(
+        r"hint: the fault came ([0-9.]+) ms after segment 2 'load off' began, where the load "
+        r"steps off \(1.1 -> 0 N m\): on j_kgm2 ([0-9.e-]+) kg m\^2 the step alone changes the "
+        r"speed by ([0-9.]+) r/min per ms",
+        err,
+    )
+    assert m, err
+    j = float(m.group(2))
+    assert j == load_profile(path).motor.j_kgm2
+    assert float(m.group(3)) == pytest.approx(1.1 / j * 30 / math.pi / 1000, rel=1e-3)
+    assert 0.0 <= float(m.group(1)) <= 50.0
+
+
+def test_a_fault_is_put_down_to_a_load_step_only_soon_after_one():
+    from types import SimpleNamespace
+
+    from pmsm_hil.analysis.fault_hint import load_step_hint
+
+    seg = SimpleNamespace
+    profile = SimpleNamespace(
+        motor=SimpleNamespace(j_kgm2=6e-4),
+        segments=[
+            seg(name="a", load_nm=0.0),
+            seg(name="b", load_nm=5.0),
+            seg(name="c", load_nm=5.0),
+        ],
+    )
+
+    def events(seg_i, t_seg, t_fault, what="fault: over_speed"):
+        return [
+            (0.0, "segment_start", 0, ""),
+            (t_seg, "segment_start", seg_i, ""),
+            (t_fault, "fault", 2, what),
+        ]
+
+    hint = load_step_hint(events(1, 5.0, 5.003), profile)
+    assert hint is not None and "steps on (0 -> 5 N m)" in hint
+    assert "3.0 ms after segment 1 'b'" in hint and "79.6 r/min per ms" in hint
+    assert load_step_hint(events(1, 5.0, 5.2), profile) is None  # long after the step
+    assert load_step_hint(events(2, 5.0, 5.003), profile) is None  # no load change there
+    assert load_step_hint(events(1, 5.0, 5.003, "fault: heartbeat"), profile) is None
+    assert "more current" in load_step_hint(events(1, 5.0, 5.003, "fault: over_current"), profile)
+    assert load_step_hint([(5.0, "segment_start", 1, "")], profile) is None  # no fault

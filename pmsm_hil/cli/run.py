@@ -486,7 +486,14 @@ def _finish(result, print_summary, summarize_log, profile=None, stop_after_s=Non
             if profile is not None
             else fault_text(result.faults)
         )
-        return fail("fault", f"device faulted ({what}); see {result.log_path}", 4)
+        code = fail("fault", f"device faulted ({what}); see {result.log_path}", 4)
+        if profile is not None:
+            from pmsm_hil.analysis.fault_hint import load_step_hint
+
+            step_hint = load_step_hint(result.live.events, profile)
+            if step_hint:
+                print(f"hint: {step_hint}", file=sys.stderr)
+        return code
     if result.stop_reason and result.stop_reason not in ("profile end", "host stop"):
         return fail("stopped", f"device stopped: {result.stop_reason}", 4)
     return 0
