@@ -219,7 +219,7 @@ def test_bench_help_says_what_each_benchmark_runs_and_where_it_writes(capsys, mo
     for which, says, out in (
         (
             "identify",
-            "Runs paper-a-identify on the emulator (a few seconds)",
+            "Runs an identification profile (paper-a-identify, or --profile) on the emulator (a few seconds)",
             "runs/bench-identify",
         ),
         ("commission", "Commissions the emulated drive on every rig and seed", None),
