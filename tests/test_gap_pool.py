@@ -77,3 +77,38 @@ def test_a_job_submitted_alone_and_blas_on_one_thread(probe):
     with one_blas_thread():
         blas = [i for i in threadpool_info() if i["user_api"] == "blas"]
         assert blas and all(i["num_threads"] == 1 for i in blas)
+
+
+def test_the_fit_processes_are_born_deaf_to_ctrl_c(probe):
+    """Ctrl-C goes to the whole process group: a fit process still importing when it came raised
+    KeyboardInterrupt there, with a traceback on the terminal. They are made with SIGINT blocked
+    (a child keeps its parent's mask), and this process's mask is as it was."""
+    import signal
+
+    before = signal.pthread_sigmask(signal.SIG_BLOCK, set())
+    with FitPool(probe, workers=2) as pool:
+        kids = [p.pid for p in pool._ex._processes.values()]
+        assert len(kids) == 2
+        for pid in kids:
+            status = Path(f"/proc/{pid}/status").read_text()
+            blocked = int(
+                next(ln for ln in status.splitlines() if ln.startswith("SigBlk:")).split()[1], 16
+            )
+            assert blocked & (1 << (signal.SIGINT - 1)), status
+        assert signal.pthread_sigmask(signal.SIG_BLOCK, set()) == before
+
+
+def test_a_fit_process_that_starts_after_its_pool_closed_says_nothing(tmp_path, capsys):
+    """Closed by Ctrl-C while a fit process still started, the pool's folder is gone: its
+    initializer raised FileNotFoundError and the terminal showed a traceback after "interrupted"."""
+    import signal
+
+    from pmsm_hil.gap.pool import _start_worker
+
+    old = signal.getsignal(signal.SIGINT)
+    try:
+        assert _start_worker(str(tmp_path / "gone" / "probe.pickle")) is None
+        assert signal.getsignal(signal.SIGINT) == signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGINT, old)
+    assert capsys.readouterr().err == ""

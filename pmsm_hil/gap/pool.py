@@ -69,10 +69,13 @@ def run_job(probe: Probe, job: FitJob) -> tuple[Fit, np.ndarray | None]:
 
 
 def _start_worker(probe_file: str) -> None:
-    with open(probe_file, "rb") as f:
-        set_worker_probe(pickle.load(f))
     # Ctrl-C goes to the whole process group: the diagnosing process stops the pool
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        with open(probe_file, "rb") as f:
+            set_worker_probe(pickle.load(f))
+    except FileNotFoundError:  # the pool was closed (Ctrl-C) while this process still started
+        return  # its folder is gone; no job will come, and a traceback would only alarm
     threadpool_limits(1, user_api="blas")
 
 
@@ -122,8 +125,16 @@ class FitPool:
                 initializer=_start_worker,
                 initargs=(path,),
             )
-            for _ in range(self.workers):  # start them now: they load while the base residuals run
-                self._ex.submit(int)
+            # start them now: they load while the base residuals run. SIGINT is blocked while
+            # they are made, and a child keeps its parent's mask: a Ctrl-C that came while one
+            # was still importing raised KeyboardInterrupt there, with a traceback on the
+            # terminal, before its initializer could ignore it (here it waits, and comes on)
+            old_mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+            try:
+                for _ in range(self.workers):
+                    self._ex.submit(int)
+            finally:
+                signal.pthread_sigmask(signal.SIG_SETMASK, old_mask)
 
     def __enter__(self) -> FitPool:
         return self
