@@ -180,6 +180,9 @@ def _print(cases) -> None:
                 escape(ch["bound"]),
                 "[green]pass[/]" if ch["passed"] else "[red]FAIL[/]",
             )
+        if not console.is_terminal:  # a CI log: each check on one line, however long its names
+            unbounded = console.options.update_width(10_000)
+            console.width = max(console.width, console.measure(tab, options=unbounded).maximum)
         console.print(tab if c.checks else tab.title)  # no checks: the title, no empty table
         if c.default_criteria:
             console.print(

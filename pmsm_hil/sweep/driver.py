@@ -403,12 +403,17 @@ def _has_criteria(runs: list[Run]) -> bool:
     )
 
 
+PLAIN_EVERY_S = 5.0  # without a terminal: a progress line at most this often (and the last run's)
+
+
 class _Bar:
     """rich progress: runs done (and skipped), failed to run, runs per minute, time left; with
     ``missed`` (the count so far: the profile has acceptance criteria) the completed runs that
     missed them, so that a run done is not read as a run passed. On a terminal too narrow for all
     of it on one line (80 columns) the counts go on a second line, rather than rich cutting the
-    numbers short ("12…")."""
+    numbers short ("12…"). Without a terminal (a CI log, a pipe) the same in a plain line as runs
+    finish, at most one each PLAIN_EVERY_S and the last (rich would print its bar once, at the
+    end: a long sweep in CI showed nothing for minutes)."""
 
     def __init__(
         self,
@@ -424,6 +429,9 @@ class _Bar:
         self.total, self.done, self.failed = total, skipped, 0
         self.missed = missed
         self.new = 0
+        self.label = label
+        self.plain = False  # no terminal: plain lines (_say), the rich bar not shown
+        self._said_s, self._said_done, self._elapsed_s = -PLAIN_EVERY_S, skipped, 0.0
         if enabled:
             from rich.console import Console
             from rich.progress import (
@@ -439,6 +447,7 @@ class _Bar:
             if missed is not None:
                 counts.append(("missed", "missed the criteria"))
             console = Console()
+            self.plain = not console.is_terminal
             if not console.is_terminal:  # a CI log: the final line whole, not cut at 80 columns
                 console = Console(width=max(console.width, 160))
             # the widest the one line gets (every count as large as the total), with a bar of 10
@@ -478,13 +487,31 @@ class _Bar:
             )
 
     def __enter__(self):
-        if self.enabled:
+        if self.enabled and not self.plain:
             self.progress.__enter__()
         return self
 
     def __exit__(self, *exc):
-        if self.enabled:
+        if self.enabled and not self.plain:
             self.progress.__exit__(*exc)
+        elif self.enabled and self.done != self._said_done:  # interrupted since the last line
+            self._say(self._elapsed_s)
+
+    def _say(self, elapsed_s: float) -> None:
+        """The progress as one plain line: ``sweep: 5/12 runs done, 0 failed to run, 1 missed the
+        criteria; 54.4 runs/min, about 0:00:08 left``."""
+        counts = [f"{self.failed} failed to run"]
+        if self.missed is not None:
+            counts.append(f"{self.missed} missed the criteria")
+        line = f"{self.label}: {self.done}/{self.total} {self.unit} done, {', '.join(counts)}"
+        if elapsed_s > 0 and self.new:
+            rate = 60.0 * self.new / elapsed_s
+            line += f"; {rate:.1f} {self.unit}/min"
+            if self.done < self.total:
+                left_s = round(60.0 * (self.total - self.done) / rate)
+                line += f", about {left_s // 3600}:{left_s // 60 % 60:02d}:{left_s % 60:02d} left"
+        print(line, flush=True)
+        self._said_s, self._said_done = elapsed_s, self.done
 
     def advance(self, ok: bool, elapsed_s: float, met: bool = True) -> None:
         """One more done: ``ok`` it completed, ``met`` it met the acceptance criteria."""
@@ -493,6 +520,7 @@ class _Bar:
         self.failed += 0 if ok else 1
         if self.missed is not None and ok and not met:
             self.missed += 1
+        self._elapsed_s = elapsed_s
         if self.enabled:
             rate = 60.0 * self.new / elapsed_s if elapsed_s > 0 else 0.0
             self.progress.update(
@@ -502,3 +530,6 @@ class _Bar:
                 missed=self.missed or 0,
                 rate=f"{rate:.1f} {self.unit}/min",
             )
+        due = elapsed_s - self._said_s >= PLAIN_EVERY_S or self.done == self.total
+        if self.enabled and self.plain and due:
+            self._say(elapsed_s)

@@ -28,7 +28,7 @@ from pmsm_hil.profiles._source import Problem, fmt_value, loc_str, read_source, 
 from pmsm_hil.profiles._validation import error_message, resolve_field
 from pmsm_hil.seeds import SEED_MAX
 
-from .spec import Axis, Sweep
+from .spec import FILE_AXES, Axis, Sweep
 
 __all__ = ["Run", "axis_values", "materialise", "plan_runs", "profile_run"]
 
@@ -200,11 +200,15 @@ def _seed_problems(sweep: Sweep, i: int, ax: Axis) -> list[Problem]:
     return []
 
 
-def _check_axes(sweep: Sweep, base: _Base) -> None:
-    problems: list[Problem] = list(sweep.problems)  # the file's own, kept by load_sweep(defer=True)
+def _check_axes(sweep: Sweep, base: _Base, own: bool = True) -> None:
+    """The axes against the base files; ``own``: with the sweep file's own problems (kept by
+    load_sweep(defer=True)) and its seed axes (once, not for each file of a file axis)."""
+    problems: list[Problem] = list(sweep.problems) if own else []
     for i, ax in enumerate(sweep.axes):
         if ax.field == "seed":
-            problems += _seed_problems(sweep, i, ax)
+            problems += _seed_problems(sweep, i, ax) if own else []
+            continue
+        if ax.field in FILE_AXES:
             continue
         parts = _parts(ax.field)
         root, rest = str(parts[0]), parts[1:]
@@ -235,7 +239,7 @@ def _check_axes(sweep: Sweep, base: _Base) -> None:
         raise ProfileError(problems)
     problems = []
     for i, ax in enumerate(sweep.axes):
-        if ax.field != "seed":
+        if ax.field != "seed" and ax.field not in FILE_AXES:
             problems += _value_problems(sweep, base, i, ax)
     if problems:
         raise ProfileError(problems)
@@ -318,6 +322,9 @@ def materialise(
             seed = int(v)
             columns[ax.name] = seed
             continue
+        if ax.field in FILE_AXES:  # the base is that file's (_bases): the name as written
+            columns[ax.name] = v
+            continue
         parts = _parts(ax.field)
         root, rest = str(parts[0]), parts[1:]
         concrete = _concrete(v, _base_value(base.objects[root], rest), ax.relative)
@@ -345,10 +352,47 @@ def run_key(texts: dict[str, str], seed: int, commission: bool = False) -> str:
     return hashlib.sha256(blob.encode("utf-8")).hexdigest()[:16]
 
 
+def _bases(sweep: Sweep) -> dict[tuple[str | None, str | None], _Base]:
+    """The base files of every (rig, motor) value of the file axes (one base without them), each
+    loaded with the profile, and the other axes checked against each: ProfileError at the sweep
+    file's line of a file that does not load (with its own problems after)."""
+    rigs: list[tuple[int, str | None]] = [(-1, None)]
+    motors: list[tuple[int, str | None]] = [(-1, None)]
+    for kind, choice in (("rig", rigs), ("motor", motors)):
+        if kind in sweep.files:
+            choice[:] = list(enumerate(sweep.files[kind]))
+    axis_of = {ax.field: i for i, ax in enumerate(sweep.axes)}
+    bases: dict[tuple[str | None, str | None], _Base] = {}
+    for (j, rig), (k, motor) in itertools.product(rigs, motors):
+        try:
+            base = _Base(sweep.profile_path, rig or sweep.rig_path, motor or sweep.motor_path)
+        except ProfileError as e:
+            if not (rig or motor):
+                raise
+            # the file to blame: the rig when its own file has a problem, or it alone is swept
+            in_rig = rig is not None and any(
+                os.path.realpath(p.file) == os.path.realpath(rig) for p in e.problems
+            )
+            kind, n = ("rig", j) if rig and (in_rig or not motor) else ("motor", k)
+            i = axis_of[kind]
+            v = (sweep.axes[i].values or [])[n]
+            said = "does not load with the profile (the problems below)"
+            raise ProfileError(
+                [sweep.src.problem(("axes", i, "values", n), said, v), *e.problems]
+            ) from None
+        _check_axes(sweep, base, own=not bases)
+        bases[(rig, motor)] = base
+    return bases
+
+
 def plan_runs(sweep: Sweep) -> list[Run]:
     """Every run of the sweep, in order; raises ProfileError for an axis that names no field."""
-    base = _Base(sweep.profile_path, sweep.rig_path, sweep.motor_path)
-    _check_axes(sweep, base)
+    bases = _bases(sweep)
+    paths = {
+        kind: dict(zip(sweep.axes[i].values or [], sweep.files[kind], strict=True))
+        for i, ax in enumerate(sweep.axes)
+        if (kind := ax.field) in sweep.files
+    }
     grid = [a for a in sweep.axes if not a.random]
     rand = [a for a in sweep.axes if a.random]
     rng = np.random.Generator(np.random.PCG64(sweep.spec.draw_seed))
@@ -359,6 +403,12 @@ def plan_runs(sweep: Sweep) -> list[Run]:
         for combo in combos:
             by_field = dict(drawn)
             by_field.update({a.field: v for a, v in zip(grid, combo, strict=False)})
+            base = bases[
+                (
+                    paths["rig"][by_field["rig"]] if "rig" in paths else None,
+                    paths["motor"][by_field["motor"]] if "motor" in paths else None,
+                )
+            ]
             texts, seed, values = materialise(base, sweep.axes, by_field, sweep.spec.seed)
             com = sweep.spec.commission
             runs.append(

@@ -220,16 +220,19 @@ def write_report(out: Path) -> SweepReport:
     written.append(rep / "summary.md")
     written[0].write_text(_summary(report))
     ok = [r for r in rows if r.get("status") == "ok"]
-    num_axes = [
+    plot_axes = [  # numbers, or names (a rig or motor file, `mtpa`/`id_zero`) as categories
         a
         for a in axes
-        if all(isinstance(r.get(a), (int, float)) for r in rows)
+        if (
+            all(isinstance(r.get(a), (int, float)) for r in rows)
+            or all(isinstance(r.get(a), str) for r in rows)
+        )
         and len({r.get(a) for r in rows}) > 1  # a one-value axis is a fixed change: no panel
     ]
-    if num_axes and ok:
+    if plot_axes and ok:
         for c in cols:
             p = rep / f"{_safe(c)}.png"
-            _metric_plot(ok, c, num_axes, f"{meta.get('name', out.name)}: {c}", p)
+            _metric_plot(ok, c, plot_axes, f"{meta.get('name', out.name)}: {c}", p)
             written.append(p)
     grid = [
         a["column"]
@@ -248,12 +251,17 @@ def write_report(out: Path) -> SweepReport:
 PANELS_PER_ROW = 4
 
 
+def _tick(v: Any) -> str:
+    """An axis value as a tick label: a number in 4 digits, a name (a rig file) as it is."""
+    return f"{v:.4g}" if isinstance(v, (int, float)) and not isinstance(v, bool) else str(v)
+
+
 def _metric_plot(
     ok: list[dict[str, Any]], c: str, num_axes: list[str], title: str, p: Path
 ) -> None:
-    """One metric against each numeric axis, a panel per axis, at most PANELS_PER_ROW to a row;
-    passing runs as dots, the others as crosses; a relative error in %, a whole-number axis (a
-    seed) with whole-number ticks."""
+    """One metric against each axis, a panel per axis, at most PANELS_PER_ROW to a row; passing
+    runs as dots, the others as crosses; a relative error in %, a whole-number axis (a seed) with
+    whole-number ticks, an axis of names (rig files) with a tick per name."""
     from matplotlib.ticker import EngFormatter, MaxNLocator
 
     from pmsm_hil.analysis.report_style import plt
@@ -281,23 +289,32 @@ def _metric_plot(
             ax.set_visible(False)
             continue
         a = num_axes[k]
-        ax.plot([r[a] for r in good], [scale * float(r[c]) for r in good], "o", ms=4, label="pass")
+        names = sorted({r[a] for r in ok}) if isinstance(ok[0][a], str) else None
+
+        def x(r: dict[str, Any], a: str = a, names: list | None = names) -> Any:
+            return names.index(r[a]) if names is not None else r[a]
+
+        ax.plot([x(r) for r in good], [scale * float(r[c]) for r in good], "o", ms=4, label="pass")
         if bad:
             ax.plot(
-                [r[a] for r in bad],
+                [x(r) for r in bad],
                 [scale * float(r[c]) for r in bad],
                 "x",
                 color="C3",
                 label="fail",
             )
         ax.set_xlabel(a, fontsize=8)
-        whole = all(isinstance(r[a], int) and not isinstance(r[a], bool) for r in ok)
-        # close values' long tick labels would touch: few ticks
-        ax.xaxis.set_major_locator(MaxNLocator(nbins=4, integer=whole))
-        if (
-            0 < max(abs(float(r[a])) for r in ok) < 1e-2
-        ):  # a dead time: 2 µs, not 2e-6 and an offset
-            ax.xaxis.set_major_formatter(EngFormatter(unit=unit_of(a), sep=" "))
+        if names is not None:
+            ax.set_xticks(range(len(names)), names, rotation=20 if len(names) > 2 else 0)
+            ax.set_xlim(-0.5, len(names) - 0.5)
+        else:
+            whole = all(isinstance(r[a], int) and not isinstance(r[a], bool) for r in ok)
+            # close values' long tick labels would touch: few ticks
+            ax.xaxis.set_major_locator(MaxNLocator(nbins=4, integer=whole))
+            if (
+                0 < max(abs(float(r[a])) for r in ok) < 1e-2
+            ):  # a dead time: 2 µs, not 2e-6 and an offset
+                ax.xaxis.set_major_formatter(EngFormatter(unit=unit_of(a), sep=" "))
         ax.tick_params(labelsize=8)
         ax.grid(alpha=0.3)
         if k % ncols == 0:
@@ -327,8 +344,8 @@ def _pass_map(rows, grid, rep: Path, name: str) -> Path:
                 frac[j, i] = sum(passed(r) for r in cell) / len(cell)
     fig, ax = plt.subplots(figsize=(1.2 + 0.8 * len(xs), 1.2 + 0.6 * len(ys)), layout="constrained")
     im = ax.imshow(frac, cmap="RdYlGn", vmin=0, vmax=1, origin="lower", aspect="auto")
-    ax.set_xticks(range(len(xs)), [f"{x:.4g}" for x in xs], fontsize=7, rotation=45)
-    ax.set_yticks(range(len(ys)), [f"{y:.4g}" for y in ys], fontsize=7)
+    ax.set_xticks(range(len(xs)), [_tick(x) for x in xs], fontsize=7, rotation=45)
+    ax.set_yticks(range(len(ys)), [_tick(y) for y in ys], fontsize=7)
     ax.set_xlabel(xa, fontsize=8)
     ax.set_ylabel(ya, fontsize=8)
     fig.colorbar(im, ax=ax, label="share of runs passed")

@@ -63,7 +63,9 @@ class Journal:
     def add(self, row: dict[str, Any]) -> None:
         self.rows[row["key"]] = row
         with open(self.path, "a", encoding="utf-8") as f:
-            f.write(json.dumps(row, sort_keys=True) + "\n")
+            # in the row's own order (not sorted): a table written from the journal (a resumed
+            # sweep) has its columns where a fresh sweep's are
+            f.write(json.dumps(row) + "\n")
             f.flush()
 
 

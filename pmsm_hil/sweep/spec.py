@@ -8,6 +8,7 @@
     axes:
       - {field: motor.r_s_ohm, normal: {mean: 1.0, std: 0.05}, relative: true}
       - {field: rig.effects.dead_time.dead_time_s, uniform: {low: 1.5e-6, high: 3.0e-6}}
+      - {field: rig, values: [default, lab-typical]}   # a whole rig (or motor) file per run
       - {field: seed, values: [1, 2]}
     metrics: [speed_error, ripple, identification, faults, completeness]
     keep_logs: false
@@ -31,11 +32,26 @@ from pmsm_hil.profiles._source import Problem, ProfileError, Source, read_source
 from pmsm_hil.profiles._validation import validation_problems
 from pmsm_hil.seeds import SEED_MAX
 
-__all__ = ["FIELD_RE", "METRICS", "Axis", "Sweep", "SweepFile", "factor_column", "load_sweep"]
+__all__ = [
+    "FIELD_RE",
+    "FILE_AXES",
+    "METRICS",
+    "Axis",
+    "Sweep",
+    "SweepFile",
+    "factor_column",
+    "load_sweep",
+]
 
 METRICS = ("speed_error", "ripple", "recovery", "faults", "completeness", "identification", "angle")
-# profile.FIELD.PATH / motor.FIELD / rig.FIELD.PATH (list items as [i]) or seed
-FIELD_RE = re.compile(r"^(seed|(profile|motor|rig)(\.[a-z_][a-z0-9_]*(\[\d+\])?)+)$")
+# profile.FIELD.PATH / motor.FIELD / rig.FIELD.PATH (list items as [i]), seed, or a whole motor or
+# rig file (FILE_AXES)
+FIELD_RE = re.compile(r"^(seed|motor|rig|(profile|motor|rig)(\.[a-z_][a-z0-9_]*(\[\d+\])?)+)$")
+FILE_AXES = ("motor", "rig")  # an axis of files (or shipped names): each run's motor or rig file
+FIELDS_SAID = (
+    "seed, rig, motor (files or shipped names), profile.PATH, motor.FIELD or rig.PATH "
+    "(e.g. rig.effects.dead_time.dead_time_s, profile.segments[2].load_nm)"
+)
 MAX_RUNS = 100_000
 
 
@@ -68,8 +84,8 @@ class Axis(StrictModel):
 
     field: str = Field(
         min_length=1,
-        description="what is varied: seed, profile.PATH, motor.FIELD or "
-        "rig.PATH, e.g. rig.effects.dead_time.dead_time_s",
+        description="what is varied: seed, rig or motor (a file or shipped name per run), "
+        "profile.PATH, motor.FIELD or rig.PATH, e.g. rig.effects.dead_time.dead_time_s",
     )
     values: list[float | int | bool | str] | None = Field(
         None, min_length=1, description="grid values"
@@ -187,6 +203,8 @@ class Sweep:
         self.motor_path = motor_path
         self.rig_path = rig_path
         self.axes: list[Axis] = list(spec.axes)
+        # an axis of files (`field: rig` or `motor`): its values' paths, in the values' order
+        self.files: dict[str, list[str]] = {}
         # problems found in the file that do not keep its axes from being checked against the
         # base files (load_sweep(..., defer=True)): plan_runs reports them with those
         self.problems: list[Problem] = []
@@ -195,19 +213,57 @@ class Sweep:
         return self.src.line(("axes", i, "field"))
 
 
-def _resolve(src: Source, key: str, value: str, kind: str) -> tuple[str | None, list[Problem]]:
+def _resolve(
+    src: Source, key: str | tuple, value: str, kind: str
+) -> tuple[str | None, list[Problem]]:
     from pmsm_hil.profiles.shipped import resolve
 
+    loc = key if isinstance(key, tuple) else (key,)
     rel = resolve_ref(src.path, value)
     if os.path.isfile(rel):
         return rel, []
     try:
         found = resolve(value, kind)
     except ProfileError as e:
-        return None, [src.problem((key,), e.problems[0].message, value)]
+        return None, [src.problem(loc, e.problems[0].message, value)]
     if not os.path.isfile(found):
-        return None, [src.problem((key,), f"names a {kind} file that does not exist: {rel}", value)]
+        return None, [src.problem(loc, f"names a {kind} file that does not exist: {rel}", value)]
     return found, []
+
+
+def _file_axis(
+    src: Source, spec: SweepFile, i: int, ax: Axis
+) -> tuple[list[str] | None, list[Problem]]:
+    """An axis of whole files (`field: rig` or `motor`): a list of files or shipped names, each
+    found as the sweep's `rig:`/`motor:` is, none twice, and not also given as the sweep's key."""
+    kind = ax.field
+    if ax.values is None or ax.relative:
+        why = "takes values: [...] of files or shipped names (not a range, a draw or a factor)"
+        return None, [src.problem(("axes", i, "field"), why, ax.field)]
+    problems: list[Problem] = []
+    if getattr(spec, kind) is not None:
+        problems.append(
+            src.problem((kind,), f"is given and swept (axes[{i}]): remove one", getattr(spec, kind))
+        )
+    paths: list[str] = []
+    for j, v in enumerate(ax.values):
+        if not isinstance(v, str):
+            problems.append(
+                src.problem(("axes", i, "values", j), f"is not a {kind} file or shipped name", v)
+            )
+            continue
+        found, probs = _resolve(src, ("axes", i, "values", j), v, kind)
+        problems += probs
+        if found is None:
+            continue
+        if os.path.realpath(found) in {os.path.realpath(q) for q in paths}:
+            problems.append(
+                src.problem(
+                    ("axes", i, "values", j), f"repeats a {kind} file (the same runs twice)", v
+                )
+            )
+        paths.append(found)
+    return (paths if not problems else None), problems
 
 
 def load_sweep(path: str | os.PathLike, defer: bool = False) -> Sweep:
@@ -237,18 +293,17 @@ def load_sweep(path: str | os.PathLike, defer: bool = False) -> Sweep:
     seen: dict[str, int] = {}
     columns: dict[str, int] = {}  # results column -> the first axis that has it
     unreadable = False  # an axis field plan_runs could not check against the base files
+    files: dict[str, list[str]] = {}
     for i, ax in enumerate(spec.axes):
         if not FIELD_RE.match(ax.field):
             unreadable = True
-            problems.append(
-                src.problem(
-                    ("axes", i, "field"),
-                    "is not seed, profile.PATH, motor.FIELD or "
-                    "rig.PATH (e.g. rig.effects.dead_time.dead_time_s, "
-                    "profile.segments[2].load_nm)",
-                    ax.field,
-                )
-            )
+            problems.append(src.problem(("axes", i, "field"), f"is not {FIELDS_SAID}", ax.field))
+        elif ax.field in FILE_AXES and ax.field not in seen:
+            found, probs = _file_axis(src, spec, i, ax)
+            problems += probs
+            unreadable = unreadable or found is None
+            if found is not None:
+                files[ax.field] = found
         if ax.field in seen:
             problems.append(
                 src.problem(
@@ -298,4 +353,5 @@ def load_sweep(path: str | os.PathLike, defer: bool = False) -> Sweep:
     assert profile_path is not None  # the profile is required and was resolved, or a problem
     sweep = Sweep(spec, path, src, profile_path, resolved["motor"], resolved["rig"])
     sweep.problems = problems
+    sweep.files = files
     return sweep
