@@ -1,9 +1,11 @@
-"""Helpers shared by the tests that run profiles on the in-process emulator."""
+"""Helpers shared by the tests that run profiles on the in-process emulator, and a bare client of
+the emulator's CAN endpoint (socketcand)."""
 
 from __future__ import annotations
 
 import contextlib
 import os
+import socket
 import threading
 
 from mcap.reader import make_reader
@@ -74,3 +76,30 @@ def emulator_children(pid: int) -> list[int]:
             if ppid == pid:
                 out.append(int(d))
     return out
+
+
+def socketcand_listener(
+    host: str, port: int, channel: str = "emu0", rcvbuf_octets: int | None = None
+) -> socket.socket:
+    """A client of a socketcand endpoint with its channel open in raw mode (docs/can.md), as a
+    bare socket that reads nothing more: the caller reads the frames, or never does. Each reply
+    of the handshake is checked. ``rcvbuf_octets`` shrinks its receive buffer (a slow reader)."""
+    sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    if rcvbuf_octets is not None:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, rcvbuf_octets)
+    sock.settimeout(30.0)
+    sock.connect((host, port))
+    for send, want in (
+        (None, b"< hi >"),
+        (f"< open {channel} >", b"< ok >"),
+        ("< rawmode >", b"< ok >"),
+    ):
+        if send is not None:
+            sock.sendall(send.encode("ascii"))
+        got = b""
+        while len(got) < len(want):
+            part = sock.recv(len(want) - len(got))
+            assert part, f"the endpoint closed the connection; it had sent {got!r}"
+            got += part
+        assert got == want, (send, got)
+    return sock

@@ -3,13 +3,21 @@
 
     server: < hi >                      client: < open CHANNEL >    server: < ok >
     client: < rawmode >                 server: < ok >
-    server: < frame ID SEC.USEC DATA >  (device -> host; time stamps are device time)
-    client: < send ID LEN B0 B1 ... >   (host -> device)
+    server: < frame ID SEC.USEC DATA >  (bus traffic; time stamps are device time)
+    client: < send ID LEN B0 B1 ... >   (onto the bus)
 
-One controlling client at a time: while one has its channel open, a second is refused (`< error busy
-... >`, counted, reported on stderr); a connection that never opened a channel (a probe) is replaced.
-When the client goes away the device runs on in real time, so its heartbeat timeout
-stops the motor as on a rig, and the next client may connect. Pacing as in server.py.
+The endpoint is a bus: several clients may have the channel open at once. Every frame the device
+sends goes to every client; a frame a client sends goes to the device and to every other client
+(not back to its sender), as other nodes on a bus see it. So python-can (`can.logger`, `can.viewer`,
+a script with the DBC) can listen beside `pmsm-hil run`. What each client is (a probe, a listener,
+a node) and how its queue fills: socketcand_client.py.
+
+Pacing as in server.py, and a listener never slows the device: its frames are dropped when its
+queue is full (counted, said on stderr when it leaves). A node (a client that has sent a frame,
+the host) holds the device while its queue is full, until it has read. When the last node goes
+away the device runs on in real time, so its heartbeat timeout stops the motor as on a rig;
+listeners send no heartbeats and keep nothing running. A probe (a connection that never opens a
+channel) gets no frames; when all places are taken the oldest probe makes way.
 """
 
 from __future__ import annotations
@@ -24,18 +32,14 @@ from collections.abc import Callable
 
 from pmsm_hil.emulator.fwlib import EmulatedDevice
 from pmsm_hil.emulator.server import Pacer, ParentWatch, StateReporter
+from pmsm_hil.emulator.socketcand_client import BusClient, format_frame, format_frames
 
-MAX_PENDING = 1 << 16  # octets of text waiting for the client before the device pauses
 CHANNEL = "emu0"
-
-
-def format_frames(frames: list[tuple[int, bytes, int]], ts_s: float) -> bytes:
-    out = []
-    for ident, data, isr in frames:
-        t = isr * ts_s
-        sec = int(t)
-        out.append(f"< frame {ident:03X} {sec}.{round((t - sec) * 1e6):06d} {data.hex().upper()} >")
-    return "".join(out).encode("ascii")
+MAX_CLIENTS = 16  # connections at once (probes, listeners and nodes)
+# the kernel's send buffer for each client (Linux allots twice this): fixed, so that a listener
+# that lags loses frames (counted) behind MAX_PENDING and this, rather than receiving them seconds
+# late from a buffer the kernel grows to megabytes
+SEND_BUFFER_OCTETS = 1 << 16
 
 
 class SocketcandServer:
@@ -53,18 +57,14 @@ class SocketcandServer:
         self.lsock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
         self.lsock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         self.lsock.bind((host, port))
-        self.lsock.listen(1)
+        self.lsock.listen(MAX_CLIENTS)
         self.lsock.setblocking(False)
         self.host, self.port = self.lsock.getsockname()[:2]
-        self.client: socket.socket | None = None
-        self._inbuf = ""
-        self._pending = bytearray()
-        self._raw = False  # handshake done
-        self._forward = False  # the client has sent a frame: device output goes to it
+        self.clients: list[BusClient] = []
         self._stop = False
-        self.frames_in = 0
-        self.frames_out = 0
-        self.refused = 0  # second clients refused while a session was connected
+        self.frames_in = 0  # frames clients sent onto the bus
+        self.frames_out = 0  # frames the device sent
+        self.refused = 0  # connections refused: all places taken, none by a probe
         self.ts_s = device.get("ts_s")
 
     @property
@@ -74,108 +74,74 @@ class SocketcandServer:
     def stop(self, *_args: object) -> None:
         self._stop = True
 
-    # ------------------------------------------------------------------ client handling
-    def _drop_client(self) -> None:
-        if self.client is not None:
-            with contextlib.suppress(OSError):
-                self.client.close()
-        self.client = None
-        self.pacer.host_gone()
-        self._inbuf = ""
-        self._pending.clear()
-        self._raw = self._forward = False
-
-    def _accept(self) -> None:
-        try:
-            c, _ = self.lsock.accept()
-        except BlockingIOError:
-            return
-        if self.client is not None and self._raw and self._alive():
-            # one controlling session at a time: a second client may not take over a running
-            # motor (its heartbeats would keep it running unsupervised); refused, and said so
-            self.refused += 1
-            with contextlib.suppress(OSError):
-                c.sendall(b"< error busy: another host controls this drive >")
-            c.close()
+    # ------------------------------------------------------------------ clients
+    def _drop_client(self, client: BusClient) -> None:
+        """It is gone (or the server closes): the last node gone means the host is gone."""
+        client.close()
+        if client in self.clients:
+            self.clients.remove(client)
+        if client.frames_dropped:
             print(
-                f"refused a second CAN client: a controlling session is connected "
-                f"({self.refused} refused)",
+                f"CAN listener {client.name} left: {client.frames_dropped} frames dropped for it "
+                f"(it did not read as fast as the bus ran; the drive did not wait for it)",
                 file=sys.stderr,
                 flush=True,
             )
-            return
-        if self.client is not None:  # the old one is gone, or a probe that never opened a channel
-            self._drop_client()
-        c.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        self.client = c
-        self.pacer.host_back()
-        c.sendall(b"< hi >")
-        c.setblocking(False)
+        if client.is_node and not any(c.is_node for c in self.clients):
+            self.pacer.host_gone()
 
-    def _alive(self) -> bool:
-        """Whether the current client's connection is still open (a peek, nothing consumed)."""
-        if self.client is None:
-            return False
+    def _accept(self, now_s: float) -> None:
         try:
-            return self.client.recv(1, socket.MSG_PEEK) != b""
+            sock, _ = self.lsock.accept()
         except BlockingIOError:
-            return True
-        except OSError:
-            return False
-
-    def _handle(self, cmd: str) -> None:
-        parts = cmd.split()
-        if not parts:
             return
-        if parts[0] == "send" and self._raw and len(parts) >= 3:
-            try:
-                ident = int(parts[1], 16)
-                n = int(parts[2], 16)
-                data = bytes(int(b, 16) for b in parts[3 : 3 + n])
-            except ValueError:
+        if len(self.clients) >= MAX_CLIENTS:
+            probe = next((c for c in self.clients if c.is_probe), None)
+            if probe is None:
+                self.refused += 1
+                with contextlib.suppress(OSError):
+                    sock.sendall(b"< error busy: %d clients are connected >" % MAX_CLIENTS)
+                sock.close()
+                print(
+                    f"refused a CAN client: {MAX_CLIENTS} clients are connected "
+                    f"({self.refused} refused)",
+                    file=sys.stderr,
+                    flush=True,
+                )
                 return
+            self._drop_client(probe)  # the oldest connection that never opened a channel
+        try:
+            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, SEND_BUFFER_OCTETS)
+            sock.sendall(b"< hi >")
+            sock.setblocking(False)
+        except OSError:  # gone already (a probe that only checked the port)
+            sock.close()
+            return
+        self.clients.append(BusClient(sock, now_s))
+
+    def _read(self, client: BusClient, now_s: float) -> None:
+        was_node = client.is_node
+        frames = client.read(now_s)
+        if frames is None:
+            self._drop_client(client)
+            return
+        if not frames:
+            return
+        if not was_node and not any(c.is_node for c in self.clients if c is not client):
+            self.pacer.host_back()  # the first node: a host is here
+        t_s = self.dev.isr_count * self.ts_s
+        texts = []
+        for ident, data, extended in frames:
             self.frames_in += 1
-            self._forward = True
             self.dev.can_rx(ident, data)
-        elif parts[0] == "open":
-            self._reply("< ok >" if len(parts) > 1 else "< error >")
-        elif parts[0] == "rawmode":
-            self._raw = True
-            self._reply("< ok >")
-        elif parts[0] == "echo":
-            self._reply("< echo >")
+            texts.append(format_frame(ident, data, t_s, extended))
+        self._broadcast(texts, now_s, sender=client)
 
-    def _reply(self, text: str) -> None:
-        if self.client is None:
-            return
-        try:
-            self.client.sendall(text.encode("ascii"))
-        except OSError:
-            self._drop_client()
-
-    def _read_client(self) -> None:
-        if self.client is None:
-            return
-        try:
-            data = self.client.recv(65536)
-        except BlockingIOError:
-            return
-        except OSError:
-            data = b""
-        if not data:
-            self._drop_client()
-            return
-        self._inbuf += data.decode("ascii", errors="replace")
-        while self.client is not None:
-            start = self._inbuf.find("<")
-            end = self._inbuf.find(">", start + 1)
-            if start < 0 or end < 0:
-                if start < 0:
-                    self._inbuf = ""
-                break
-            cmd = self._inbuf[start + 1 : end]
-            self._inbuf = self._inbuf[end + 1 :]
-            self._handle(cmd)
+    def _broadcast(self, texts: list[bytes], now_s: float, sender: BusClient | None = None) -> None:
+        for c in self.clients:
+            if c is not sender and c.receives(now_s):
+                c.queue(texts)
 
     # ------------------------------------------------------------------ main loop
     def serve(
@@ -191,33 +157,30 @@ class SocketcandServer:
             ticks = self.pacer.allowance(self.dev, now) if active else 0
             if not active:
                 self.pacer.idle()
-            can_run = len(self._pending) < MAX_PENDING
+            can_run = not any(c.holds_device for c in self.clients)
             busy = active and ticks > 0 and can_run
-            rl = [self.lsock] + ([self.client] if self.client is not None else [])
-            wl = [self.client] if self.client is not None and self._pending else []
-            r, _w, _ = select.select(rl, wl, [], 0.0 if busy else 0.002)
+            rl = [self.lsock] + [c.sock for c in self.clients]
+            wl = [c.sock for c in self.clients if c.pending]
+            r, w, _ = select.select(rl, wl, [], 0.0 if busy else 0.002)
             if self.lsock in r:
-                self._accept()
-            if self.client is not None and self.client in r:
-                self._read_client()
+                self._accept(now)
+            for c in [c for c in self.clients if c.sock in r]:
+                self._read(c, now)
             if can_run:
                 self.dev.run(ticks if active else 0)
                 frames = self.dev.can_take()
                 if frames:
                     self.frames_out += len(frames)
-                    if self.client is not None and self._forward:
-                        self._pending += format_frames(frames, self.ts_s)
-            if self.client is not None and self._pending:
-                try:
-                    n = self.client.send(self._pending)
-                    del self._pending[:n]
-                except BlockingIOError:
-                    pass
-                except OSError:
-                    self._drop_client()
+                    self._broadcast(format_frames(frames, self.ts_s), now)
+            # a node's text goes at once; a listener's when its socket takes it (one that does
+            # not read costs no failed send each turn)
+            for c in [c for c in self.clients if c.pending and (c.is_node or c.sock in w)]:
+                if not c.flush():
+                    self._drop_client(c)
 
     def close(self) -> None:
-        self._drop_client()
+        for c in list(self.clients):
+            self._drop_client(c)
         with contextlib.suppress(OSError):
             self.lsock.close()
 
