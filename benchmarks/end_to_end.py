@@ -83,9 +83,13 @@ def warm(envs: dict[str, dict]) -> None:
     """One untimed import per tree of what the timed commands import (the host's CLI, runner,
     analysis and report, the emulator child's entry), so that the byte-code caches exist before
     the first timed command."""
+    # each module that the tree has (an older base tree, e.g. wave 1's, lacks some)
     code = (
-        "import pmsm_hil.cli.main, pmsm_hil.cli.run, pmsm_hil.cli.analyze, pmsm_hil.cli.report, "
-        "pmsm_hil.cli.log, pmsm_hil.runner, pmsm_hil.analysis.summary, pmsm_hil.emulator.entry"
+        "import importlib.util as u\n"
+        "for m in ('pmsm_hil.cli.main', 'pmsm_hil.cli.run', 'pmsm_hil.cli.analyze', "
+        "'pmsm_hil.cli.report', 'pmsm_hil.cli.log', 'pmsm_hil.runner', "
+        "'pmsm_hil.analysis.summary', 'pmsm_hil.emulator.entry'):\n"
+        "    if u.find_spec(m) is not None: __import__(m)"
     )
     for env in envs.values():
         subprocess.run([sys.executable, "-c", code], env=env, check=True, cwd=tempfile.gettempdir())
