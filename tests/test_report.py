@@ -491,3 +491,34 @@ def test_the_reports_read_draws_what_a_read_of_everything_draws(short_log, tmp_p
                 drawn += 1
     assert drawn == 10  # five each: the capture on the run, the estimation error (and the
     # parameters against a truth that has none of them) on the synthetic log
+
+
+@pytest.mark.parametrize("second", [None, "mpcc"])
+def test_the_capture_panel_leaves_out_switch_states_where_foc_ran(data, tmp_path, second):
+    """The firmware records switch states for the MPCC only (0 under FOC): the panel must not
+    draw a FOC run's legs as off with zero duty while its currents flow."""
+    from pmsm_hil.analysis.report_capture import FOC_NOTE, capture
+    from pmsm_hil.analysis.report_context import run_context
+    from pmsm_hil.log.reader import read_log
+
+    text = (data / "short.yaml").read_text()
+    text = text.replace("../../profiles/", str(data.parent.parent / "profiles") + "/")
+    text = text.replace("segments:", "control: {current_ctrl: foc}\nsegments:")
+    if second:  # the capture's pre-trigger samples under FOC, the rest under the MPCC
+        text = text.replace("capture: true}", f"capture: true, current_ctrl: {second}}}")
+    prof = tmp_path / "foc.yaml"
+    prof.write_text(text)
+    out = tmp_path / "foc.mcap"
+    run_inproc(prof, out)
+    fig = capture(run_context(read_log(out), out))
+    assert FOC_NOTE in fig.get_suptitle()
+    duty_ax, zoom_ax = fig.axes[1], fig.axes[3]
+    duty = np.concatenate([line.get_ydata() for line in duty_ax.get_lines()])
+    zoom = np.concatenate([line.get_ydata() for line in zoom_ax.get_lines()])
+    assert np.isnan(zoom).all()  # the first 60 periods are before the trigger: FOC
+    if second is None:
+        assert np.isnan(duty).all()
+        assert FOC_NOTE in [t.get_text() for t in duty_ax.texts]
+    else:
+        drawn = duty[~np.isnan(duty)]
+        assert drawn.size and 0.1 < drawn.mean() < 0.9  # the MPCC's duty, not FOC's zeros

@@ -57,7 +57,8 @@ PANELS = (
         "Capture waveforms",
         report_capture.capture,
         "At the control rate: phase currents; each leg's duty (its switch state averaged over 20 "
-        "control periods); the DC-link voltage; the switch states of the first 60 periods.",
+        "control periods); the DC-link voltage; the switch states of the first 60 periods. "
+        "Switch states are recorded under the MPCC only: not where FOC ran.",
     ),
 )
 

@@ -1,12 +1,15 @@
 """Report panel: the control-rate capture (/pmsm/capture): phase currents, the legs' duty (switch
 states averaged over DUTY_PERIODS control periods), the DC-link voltage, and the raw switch
-states of the first ZOOM_PERIODS periods."""
+states of the first ZOOM_PERIODS periods. The firmware records switch states for the MPCC only
+(FOC applies SVPWM duties, which the capture does not hold: its s_a..s_c are 0 there), so the
+samples taken while FOC ran are left out of the duty and switch-state axes, and said so."""
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
 import numpy as np
+import yaml
 
 from pmsm_hil.analysis.report_context import RunContext
 from pmsm_hil.analysis.report_style import figure, legend
@@ -26,6 +29,34 @@ def _duty(s: np.ndarray, n: int) -> np.ndarray:
     if len(s) < n:
         return s.astype(float)
     return np.convolve(s.astype(float), np.ones(n) / n, mode="same")
+
+
+FOC_NOTE = "FOC (SVPWM) ran: the capture holds switch states for the MPCC only"
+
+
+def foc_samples(ctx: RunContext, t_s: np.ndarray) -> np.ndarray:
+    """True for the capture samples taken while FOC ran: control.current_ctrl and each segment's
+    `current_ctrl` (null: the previous one's) from the log's profile, at the segments' starts."""
+    att = ctx.log.attachment("profile.yaml")
+    mask = np.zeros(len(t_s), dtype=bool)
+    try:
+        data = yaml.safe_load(att.data.decode("utf-8", "replace")) if att is not None else None
+    except yaml.YAMLError:
+        return mask
+    if not isinstance(data, dict):
+        return mask
+    control = data.get("control")
+    ctrl = (control.get("current_ctrl") if isinstance(control, dict) else None) or "mpcc"
+    segments = data.get("segments")
+    per_segment = []
+    for seg in segments if isinstance(segments, list) else []:
+        ctrl = (seg.get("current_ctrl") if isinstance(seg, dict) else None) or ctrl
+        per_segment.append(ctrl)
+    mask[:] = (per_segment[0] if per_segment else ctrl) == "foc"
+    for s in sorted(ctx.segments, key=lambda s: s.t_start_s):
+        if 0 <= s.index < len(per_segment):
+            mask[t_s >= s.t_start_s - 1e-9] = per_segment[s.index] == "foc"
+    return mask
 
 
 def trigger_text(ctx: RunContext, span_ms: float) -> str:
@@ -55,6 +86,12 @@ def capture(ctx: RunContext) -> Figure | str:
     t_ms = (t - t[0]) * 1e3
     ts_ms = float(np.median(np.diff(t_ms))) if len(t) > 1 else 0.05
     why = trigger_text(ctx, t_ms[-1] + ts_ms)
+    foc = foc_samples(ctx, t)
+    if foc.any():
+        why += f"; {FOC_NOTE}" + (
+            " (its samples are left out of the switch axes)" if not foc.all() else ""
+        )
+    states = {ph: np.where(foc, np.nan, np.asarray(cap[f"s_{ph}"], float)) for ph, _ in LEGS}
     fig, axes = figure(
         ctx, f"Capture at the control rate, from t = {t[0]:.4f} s", 4, sharex=False, note=why
     )
@@ -65,13 +102,7 @@ def capture(ctx: RunContext) -> Figure | str:
     legend(ax)
     ax = axes[1]
     for ph, c in LEGS:
-        ax.plot(
-            t_ms,
-            _duty(np.asarray(cap[f"s_{ph}"]), DUTY_PERIODS),
-            lw=1.0,
-            color=c,
-            label=f"leg {ph}",
-        )
+        ax.plot(t_ms, _duty(states[ph], DUTY_PERIODS), lw=1.0, color=c, label=f"leg {ph}")
     ax.set_ylabel(f"duty, {DUTY_PERIODS}-period mean")
     ax.set_ylim(-0.05, 1.05)
     legend(ax, title="upper switch on")
@@ -89,7 +120,7 @@ def capture(ctx: RunContext) -> Figure | str:
         base = 2 * (2 - j)  # leg a on top
         ax.step(
             np.append(t_ms[:k], t_ms[k - 1] + ts_ms),
-            np.append(np.asarray(cap[f"s_{ph}"][:k], float), cap[f"s_{ph}"][k - 1]) * 0.8 + base,
+            np.append(states[ph][:k], states[ph][k - 1]) * 0.8 + base,
             where="post",
             lw=1.0,
             color=c,
@@ -97,7 +128,11 @@ def capture(ctx: RunContext) -> Figure | str:
         )
     ax.set_yticks([0, 0.8, 2, 2.8, 4, 4.8], ["c off", "c on", "b off", "b on", "a off", "a on"])
     ax.set_ylim(-0.4, 5.4)
+    ax.set_xlim(t_ms[0], t_ms[k - 1] + ts_ms)
     ax.set_ylabel("switch state\n(upper switch)")
     ax.set_xlabel(f"time since the capture's first sample (ms): the first {k} control periods")
     legend(ax)
+    if foc.all():
+        for ax in (axes[1], axes[3]):
+            ax.text(0.5, 0.5, FOC_NOTE, transform=ax.transAxes, ha="center", va="center")
     return fig

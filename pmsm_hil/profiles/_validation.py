@@ -197,6 +197,24 @@ def _merged_unions(errors: Any, loc_prefix: tuple) -> list[tuple[tuple, dict]]:
     return out
 
 
+def _not_a_setting(owner: type[BaseModel] | None, name: str) -> str:
+    """Why a control key that an engineer may look for is not a setting ('' for other keys)."""
+    if owner is None or owner.__name__ != "Control":
+        return ""
+    key = name.lower().replace("-", "_")
+    if "delay" in key:
+        return (
+            "the one-period delay compensation is always on, in the MPCC and in FOC "
+            "(docs/control.md, 'Delay compensation and the angles used')"
+        )
+    if key.startswith(("foc_k", "foc_gain", "current_k", "i_k")):
+        return (
+            "the FOC PI gains are designed from control.foc_bw_rad_s and the motor's L and R "
+            "(kp = bw L, ki = bw R; docs/sensorless.md); set foc_bw_rad_s"
+        )
+    return ""
+
+
 def validation_problems(
     exc: ValidationError, src: Source, model: type[BaseModel], loc_prefix: tuple = ()
 ) -> list[Problem]:
@@ -219,7 +237,10 @@ def validation_problems(
             allowed = list(owner.model_fields) if owner is not None else []
             hint = did_you_mean(str(name), allowed)
             section = loc_str(loc[:-1]) or "the file"
-            if hint:
+            why = _not_a_setting(owner, str(name))
+            if why:
+                msg = f"is not a field of {section}: {why}"
+            elif hint:
                 msg = f"is not a field of {section}{hint}"
             else:
                 msg = f"is not a field of {section} (known: {', '.join(allowed)})"

@@ -14,6 +14,7 @@ from ._base import meta_value, num
 from ._source import Problem, ProfileError, Source, fmt_num, read_source, resolve_ref
 from ._validation import validation_problems
 from .acceptance import Acceptance, acceptance_problems
+from .control_checks import control_checks
 from .motor import Motor, _load_motor_source
 from .plausibility import motor_warnings, ramp_warnings
 from .reach import reach_checks
@@ -344,6 +345,9 @@ def _profile_checks(src: Source, motor: Motor | None) -> tuple[list[Problem], li
         )
 
     segments = d.get("segments") if isinstance(d.get("segments"), list) else []
+    ctrl_problems, ctrl_warnings = control_checks(src, control, segments, ts)
+    problems += ctrl_problems
+    warnings += ctrl_warnings
     total = 0.0
     speed = 0.0
     mpath = motor.path if motor is not None else ""
