@@ -310,12 +310,43 @@ def test_the_capture_panel_says_what_triggered_it(short_log, data, tmp_path):
     def title(path) -> str:
         return capture(run_context(read_log(path), path)).get_suptitle()
 
-    assert title(short_log).endswith("\ntriggered at segment 1 'load on'")
+    assert "\ntriggered at segment 1 'load on'; MPCC switching frequency" in title(short_log)
     out = tmp_path / "untriggered.mcap"
     run_inproc(data / "long.yaml", out, stop_after_s=0.3)
-    assert title(out).endswith(
-        "\nnot triggered: the run's last 51.2 ms (no segment has capture: true)"
+    assert "\nnot triggered: the run's last 51.2 ms (no segment has capture: true);" in title(out)
+
+
+def test_the_capture_panel_gives_the_mpccs_switching_frequency(short_log):
+    """Per leg: the upper switch's changes over the capture, half of them a period, per second;
+    FOC's samples (NaN) left out."""
+    import re
+
+    from pmsm_hil.analysis.report_capture import capture, switching_hz
+    from pmsm_hil.analysis.report_context import run_context
+    from pmsm_hil.log.reader import read_log
+
+    ts_s = 50e-6
+    toggling = np.tile([0.0, 1.0], 50)  # a change every period: one switching period in two
+    assert switching_hz({"a": toggling}, ts_s)["a"] == pytest.approx(1 / (2 * ts_s))
+    half = toggling.copy()
+    half[:50] = np.nan  # FOC ran there: only the known pairs count
+    assert switching_hz({"a": half}, ts_s)["a"] == pytest.approx(1 / (2 * ts_s))
+    assert switching_hz({"a": np.full(10, np.nan)}, ts_s) == {}
+
+    log = read_log(short_log)
+    cap = log.topic("/pmsm/capture")
+    m = re.search(
+        r"MPCC switching frequency per leg \(mean over the capture\): a ([0-9.]+), "
+        r"b ([0-9.]+), c ([0-9.]+) kHz",
+        capture(run_context(log, short_log)).get_suptitle(),
     )
+    assert m
+    for ph, got_khz in zip("abc", m.groups(), strict=True):
+        s = np.asarray(cap[f"s_{ph}"], float)
+        t = np.asarray(cap["t_s"], float)
+        want = np.count_nonzero(np.diff(s)) / 2 / ((len(s) - 1) * np.median(np.diff(t)))
+        assert float(got_khz) == pytest.approx(want / 1e3, abs=0.006)
+        assert 0.5 < float(got_khz) < 10.0  # between a switch every 20 periods and every period
 
 
 def test_a_long_series_is_drawn_from_each_slices_extremes_in_time_order():
@@ -518,6 +549,7 @@ def test_the_capture_panel_leaves_out_switch_states_where_foc_ran(data, tmp_path
     assert np.isnan(zoom).all()  # the first 60 periods are before the trigger: FOC
     if second is None:
         assert np.isnan(duty).all()
+        assert "switching frequency" not in fig.get_suptitle()  # no MPCC sample
         assert FOC_NOTE in [t.get_text() for t in duty_ax.texts]
     else:
         drawn = duty[~np.isnan(duty)]

@@ -75,6 +75,19 @@ def trigger_text(ctx: RunContext, span_ms: float) -> str:
     return f"not triggered: the run's last {span_ms:.1f} ms (no segment has capture: true)"
 
 
+def switching_hz(states: dict[str, np.ndarray], ts_s: float) -> dict[str, float]:
+    """Each leg's mean switching frequency over the capture: its upper switch's changes over
+    consecutive samples where both are known (not NaN: FOC's left out), half of them a period,
+    per second. The MPCC's figure that a fixed-carrier drive states as its PWM frequency."""
+    out: dict[str, float] = {}
+    for ph, s in states.items():
+        known = ~np.isnan(s[:-1]) & ~np.isnan(s[1:])
+        n = int(known.sum())
+        if n and ts_s > 0:
+            out[ph] = float(np.count_nonzero(s[1:][known] != s[:-1][known])) / 2.0 / (n * ts_s)
+    return out
+
+
 def capture(ctx: RunContext) -> Figure | str:
     if not ctx.has(CAP):
         return (
@@ -92,6 +105,10 @@ def capture(ctx: RunContext) -> Figure | str:
             " (its samples are left out of the switch axes)" if not foc.all() else ""
         )
     states = {ph: np.where(foc, np.nan, np.asarray(cap[f"s_{ph}"], float)) for ph, _ in LEGS}
+    f_sw = switching_hz(states, ts_ms * 1e-3)
+    if f_sw:
+        legs = ", ".join(f"{ph} {hz / 1e3:.2f}" for ph, hz in f_sw.items())
+        why += f"; MPCC switching frequency per leg (mean over the capture): {legs} kHz"
     fig, axes = figure(
         ctx, f"Capture at the control rate, from t = {t[0]:.4f} s", 4, sharex=False, note=why
     )
