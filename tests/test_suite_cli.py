@@ -80,6 +80,20 @@ def test_junit_holds_characters_xml_cannot_as_escapes():
     assert error.text == "x.yaml:2: name = '\\x1b' ..."
 
 
+def test_a_dotted_profile_name_is_not_split_into_a_package_by_ci():
+    """Jenkins and GitLab read a JUnit classname's dots as packages: `paper-a.v2` showed as class
+    `v2` of package `paper-a`. The suite keeps the name as it is."""
+    from pmsm_hil.sweep.suite import SuiteCase, junit_xml
+
+    case = SuiteCase(profile="p.yaml", name="paper-a.v2", status="failed", error="x")
+    case.checks = [
+        {"scope": "run", "criterion": "faults", "measured": 0, "bound": 0, "passed": True}
+    ]
+    root = ET.fromstring(junit_xml([case]))
+    assert root.find("testsuite").get("name") == "paper-a.v2"
+    assert {tc.get("classname") for tc in root.iter("testcase")} == {"paper-a_v2"}
+
+
 def test_an_interrupted_test_is_not_judged_and_exits_130(tmp_path, data):
     """Ctrl-C during the run: the motor stopped, the profile NOT JUDGED (before: FAIL, "complete:
     no (stopped: host stop)", exit 1, as if the drive had stopped on its own), exit 130 as for
