@@ -13,7 +13,7 @@ def test_a_foc_bandwidth_above_half_the_sampling_rate_is_refused_before_the_run(
     path = write("x.yaml", GOOD.replace("  rho: 1.0", "  current_ctrl: foc\n  foc_bw_rad_s: 20000"))
     (msg,) = problems_of(path)
     assert msg == (
-        "x.yaml:6: control.foc_bw_rad_s = 20000 is not below 0.5/control.ts_s = 10000 rad/s, "
+        "x.yaml:6: control.foc_bw_rad_s = 20000 is above 0.5/control.ts_s = 10000 rad/s, "
         "the most the control rate 20000 Hz allows (the firmware refuses it); null gives "
         "2 pi/(20 ts_s) = 6283 rad/s"
     )

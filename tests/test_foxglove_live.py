@@ -11,6 +11,7 @@ import socket
 import struct
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -23,7 +24,7 @@ from pmsm_hil.live.foxglove import (
     json_schema,
     layout_path,
 )
-from pmsm_hil.live.ws_names import offered, rename
+from pmsm_hil.live.ws_names import NameRelay, offered, rename
 from pmsm_hil.log.reader import read_log
 from pmsm_hil.log.schemas import TOPICS
 
@@ -228,6 +229,62 @@ def test_the_relay_renames_only_the_protocol_name():
     assert offered(out) == [b"chat", b"foxglove.sdk.v1"]
     assert out.replace(b"foxglove.sdk.v1", b"foxglove.websocket.v1") == req  # nothing else
     assert b"Sec-WebSocket-Key: abc\r\n\r\n" in out
+
+
+def _answering_upstream() -> socket.socket:
+    """A stand-in for the SDK's server: answers each handshake with 101 and closes."""
+    srv = socket.create_server(("127.0.0.1", 0))
+
+    def serve() -> None:
+        while True:
+            try:
+                c, _ = srv.accept()
+            except OSError:
+                return
+            with c:
+                buf = b""
+                while b"\r\n\r\n" not in buf:
+                    chunk = c.recv(4096)
+                    if not chunk:
+                        break
+                    buf += chunk
+                c.sendall(b"HTTP/1.1 101 Switching Protocols\r\n\r\n")
+
+    threading.Thread(target=serve, daemon=True).start()
+    return srv
+
+
+def _wait(cond, seconds: float = 5.0) -> bool:
+    end = time.monotonic() + seconds
+    while not cond():
+        if time.monotonic() > end:
+            return False
+        time.sleep(0.01)
+    return True
+
+
+def test_the_relay_forgets_connections_that_ended_and_frees_its_port_when_closed():
+    up = _answering_upstream()
+    relay = NameRelay("127.0.0.1", 0, up.getsockname()[1])
+    try:
+        for _ in range(3):
+            with socket.create_connection(("127.0.0.1", relay.port), timeout=5) as c:
+                c.sendall(b"GET / HTTP/1.1\r\nHost: x\r\n\r\n")
+                got = b""
+                while chunk := c.recv(4096):  # the answer, then the upstream's close
+                    got += chunk
+                assert got.startswith(b"HTTP/1.1 101")
+        assert _wait(lambda: not relay._conns), relay._conns  # none kept (each run adds some)
+        # a client still in its handshake when the relay closes is let go at once
+        pending = socket.create_connection(("127.0.0.1", relay.port), timeout=5)
+        assert _wait(lambda: len(relay._conns) == 1)
+    finally:
+        relay.close()
+        up.close()
+    with pending:
+        assert pending.recv(1) == b""  # not the 10 s handshake timeout
+    # the port no longer listens: a second sink may take it
+    socket.create_server(("127.0.0.1", relay.port)).close()
 
 
 def test_sink_refuses_a_port_in_use_or_out_of_range():

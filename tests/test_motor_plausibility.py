@@ -230,3 +230,19 @@ def test_a_fault_is_put_down_to_a_load_step_only_soon_after_one():
     assert load_step_hint(events(1, 5.0, 5.003, "fault: heartbeat"), profile) is None
     assert "more current" in load_step_hint(events(1, 5.0, 5.003, "fault: over_current"), profile)
     assert load_step_hint([(5.0, "segment_start", 1, "")], profile) is None  # no fault
+
+
+def test_a_gimbal_motor_that_the_link_cannot_drive_to_its_limit_is_not_a_unit_slip(tmp_path):
+    """7.5 ohm, 1.5 A on 12 V: R i_max_a is 1.6 x v_dc/sqrt 3, by design (the warning fired for
+    it); 1000 x that resistance (mohm written as ohm) is still warned of."""
+    from pmsm_hil.profiles._source import read_source
+    from pmsm_hil.profiles.plausibility import motor_warnings
+
+    path = _files(tmp_path)
+    motor = load_profile(path).motor
+    src = read_source(str(tmp_path / "motor.yaml"))
+    for r_ohm, warned in ((7.5, False), (7500.0, True)):
+        gimbal = motor.model_copy(update={"r_s_ohm": r_ohm, "i_max_a": 1.5, "v_dc_v": 12.0})
+        texts = [t for t in motor_warnings(gimbal, src, None) if "r_s_ohm" in t]
+        assert bool(texts) == warned, texts
+    assert "r_s_ohm = 7500 ohm needs 1.125e+04 V" in texts[0] and "1.62e+03 x" in texts[0]

@@ -109,6 +109,8 @@ class NameRelay:
     def _serve(self, client: socket.socket) -> None:
         up = None
         try:
+            if not self._track(client):  # close() ends a handshake still under way too
+                raise ConnectionError("relay closed")
             client.settimeout(10.0)
             request, rest = _read_header(client)
             names = offered(request)
@@ -116,7 +118,7 @@ class NameRelay:
             if legacy:
                 request = rename(request, OLD_NAME, SDK_NAME)
             up = socket.create_connection(self.upstream, timeout=10.0)
-            if not self._track(client, up):
+            if not self._track(up):
                 raise ConnectionError("relay closed")
             up.sendall(request + rest)
             answer, rest = _read_header(up)
@@ -131,14 +133,26 @@ class NameRelay:
                 if s is not None:
                     with contextlib.suppress(OSError):
                         s.close()
+            self._untrack(client, up)
             return
         threading.Thread(target=_pump, args=(up, client), daemon=True).start()
-        _pump(client, up)
+        _pump(client, up)  # it closes both, which ends the other direction's copy too
+        self._untrack(client, up)
+
+    def _untrack(self, *socks: socket.socket | None) -> None:
+        with self._lock:
+            for s in socks:
+                if s is not None:
+                    self._conns.discard(s)
 
     def close(self) -> None:
         with self._lock:
             self._closed = True
             conns = list(self._conns)
+        # shut down before the close: a close alone does not wake the accept() under way in
+        # _accept (Linux), which would keep the port listening until a connection came
+        with contextlib.suppress(OSError):
+            self._sock.shutdown(socket.SHUT_RDWR)
         with contextlib.suppress(OSError):
             self._sock.close()
         for s in conns:

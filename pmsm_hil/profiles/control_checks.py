@@ -1,5 +1,5 @@
 """Checks of the current controllers' settings across fields: the FOC bandwidth against the
-control rate (the firmware refuses a configuration at or above 0.5/ts_s), and settings of a
+control rate (the firmware refuses a configuration above 0.5/ts_s), and settings of a
 controller that no segment runs (they have no effect: a warning)."""
 
 from __future__ import annotations
@@ -32,12 +32,12 @@ def control_checks(
     bw = num(control, "foc_bw_rad_s")
     if bw is not None and bw > 0 and ts_s is not None and ts_s > 0:
         bw_max = FOC_BW_TS_MAX / ts_s
-        if bw >= bw_max:
+        if bw > bw_max:  # the firmware takes bw <= 0.5/ts_s
             default = 2.0 * math.pi / (20.0 * ts_s)
             problems.append(
                 src.problem(
                     ("control", "foc_bw_rad_s"),
-                    f"is not below 0.5/control.ts_s = {fmt_num(round(bw_max, 3))} rad/s, the "
+                    f"is above 0.5/control.ts_s = {fmt_num(round(bw_max, 3))} rad/s, the "
                     f"most the control rate {fmt_num(round(1.0 / ts_s, 3))} Hz allows (the "
                     f"firmware refuses it); null gives 2 pi/(20 ts_s) = {default:.0f} rad/s",
                     bw,
