@@ -13,6 +13,7 @@ import yaml
 
 from pmsm_hil.analysis.report_context import RunContext
 from pmsm_hil.analysis.report_style import figure, legend
+from pmsm_hil.profiles.control_checks import segment_controllers
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -45,14 +46,12 @@ def foc_samples(ctx: RunContext, t_s: np.ndarray) -> np.ndarray:
         return mask
     if not isinstance(data, dict):
         return mask
-    control = data.get("control")
-    ctrl = (control.get("current_ctrl") if isinstance(control, dict) else None) or "mpcc"
-    segments = data.get("segments")
-    per_segment = []
-    for seg in segments if isinstance(segments, list) else []:
-        ctrl = (seg.get("current_ctrl") if isinstance(seg, dict) else None) or ctrl
-        per_segment.append(ctrl)
-    mask[:] = (per_segment[0] if per_segment else ctrl) == "foc"
+    control, segments = data.get("control"), data.get("segments")
+    control = control if isinstance(control, dict) else {}
+    # without segments: the run's own controller
+    per_segment = segment_controllers(control, segments if isinstance(segments, list) else [])
+    per_segment = per_segment or segment_controllers(control, [{}])
+    mask[:] = per_segment[0] == "foc"
     for s in sorted(ctx.segments, key=lambda s: s.t_start_s):
         if 0 <= s.index < len(per_segment):
             mask[t_s >= s.t_start_s - 1e-9] = per_segment[s.index] == "foc"

@@ -14,14 +14,23 @@ from ._source import Problem, Source, fmt_num
 FOC_BW_TS_MAX = 0.5
 
 
+def segment_controllers(control: dict, segments: list) -> list[str]:
+    """The current controller of each segment, from a profile's raw `control` and `segments`
+    (its YAML data, or a log's attached profile): the segment's `current_ctrl`, else the previous
+    segment's, else `control.current_ctrl` (default mpcc)."""
+    first = control.get("current_ctrl")
+    ctrl = first if isinstance(first, str) else "mpcc"
+    out = []
+    for seg in segments:
+        own = seg.get("current_ctrl") if isinstance(seg, dict) else None
+        ctrl = own if isinstance(own, str) else ctrl
+        out.append(ctrl)
+    return out
+
+
 def _controllers(control: dict, segments: list) -> set[str]:
     """The current controllers the run uses: control.current_ctrl and any segment's choice."""
-    first = control.get("current_ctrl", "mpcc")
-    used = {first if isinstance(first, str) else "mpcc"}
-    for seg in segments:
-        if isinstance(seg, dict) and isinstance(seg.get("current_ctrl"), str):
-            used.add(seg["current_ctrl"])
-    return used
+    return {*segment_controllers(control, [{}]), *segment_controllers(control, segments)}
 
 
 def control_checks(
