@@ -14,7 +14,7 @@ def test_firmware_core_builds_strict_and_its_c_tests_pass(root, tmp_path):
         pytest.fail("make is needed to build the firmware's C tests")
     build = tmp_path / "fwbuild"
     r = subprocess.run(
-        ["make", "-j2", "-C", str(root / "firmware"), "test", f"BUILD={build}"],  # 21 -> 15 s
+        ["make", "-j2", "-C", str(root / "firmware"), "test", f"BUILD={build}"],
         capture_output=True,
         text=True,
         timeout=600,
@@ -23,7 +23,7 @@ def test_firmware_core_builds_strict_and_its_c_tests_pass(root, tmp_path):
     assert r.returncode == 0, r.stdout[-5000:] + r.stderr[-5000:]
     assert " 0 failed" in r.stdout
     assert "FAIL" not in r.stdout
-    # every C test program ran and said so (two at a time: their lines may interleave)
+    # every C test program ran and said so (two at a time, each one's lines together)
     programs = set(re.findall(r"^== \S+/tests/(test_\w+)$", r.stdout, re.M))
     sources = {p.stem for p in (root / "firmware" / "tests").glob("test_*.c")}
     assert programs == sources, sources ^ programs
@@ -119,7 +119,15 @@ def test_fuzz_targets_run_clean_for_half_a_minute(root, tmp_path):
     if shutil.which("clang") is None:
         pytest.skip("clang (libFuzzer) is not installed")
     r = subprocess.run(
-        ["make", "-C", str(root / "firmware"), "fuzz", "FUZZ_SECONDS=10", f"BUILD={tmp_path}"],
+        [
+            "make",
+            "-j2",
+            "-C",
+            str(root / "firmware"),
+            "fuzz",
+            "FUZZ_SECONDS=10",
+            f"BUILD={tmp_path}",
+        ],
         capture_output=True,
         text=True,
         timeout=600,

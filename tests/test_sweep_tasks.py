@@ -60,37 +60,47 @@ REFERENCE = """
 import json, sys
 import numpy as np
 from pmsm_hil.gapgen.draw import draw_trial
-from pmsm_hil.gapgen.selftest import run_trial, score
-seed, n = int(sys.argv[1]), int(sys.argv[2])
+from pmsm_hil.gapgen.selftest import run_trial
+seed, n, i = int(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3])
 rng = np.random.default_rng(seed)
 trials = [draw_trial(rng) for _ in range(n)]
-outs = [run_trial(t) for t in trials]
-print(json.dumps({"score": score(trials, outs), "outs": outs}))
+print(json.dumps(run_trial(trials[i])))
 """
 
 
 def test_gap_selftest_on_dask_equals_its_trials_run_in_process(tmp_path):
-    """The same trials run one after the other in a plain process (BLAS on one thread, as in a
-    Dask worker: the diagnoser's least-squares sums are otherwise split by the core count) give
-    the same answers and scores, to the last bit."""
-    from pmsm_hil.gapgen.selftest import run_selftest
+    """The same trials, each run in a plain process of its own (BLAS on one thread, as in a Dask
+    worker: the diagnoser's least-squares sums are otherwise split by the core count), give the
+    same answers and scores, to the last bit."""
+    import numpy as np
 
-    seed, n = 11, 2
+    from pmsm_hil.gapgen.draw import draw_trial
+    from pmsm_hil.gapgen.selftest import run_selftest, score
+
+    seed, n = 9, 2  # two one-effect trials (friction, a current-sensor offset), 3-5 s each
     res = run_selftest(n, seed, workers=2, progress=False, out=tmp_path / "st")
     env = {**os.environ, **{v: "1" for v in BLAS_THREADS}}
-    r = subprocess.run(
-        [sys.executable, "-c", REFERENCE, str(seed), str(n)],
-        capture_output=True,
-        text=True,
-        env=env,
-        timeout=900,
-    )
-    assert r.returncode == 0, r.stderr
-    ref = json.loads(r.stdout)
-    assert not [o for o in ref["outs"] if "error" in o]
-    want = ref["score"]
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-c", REFERENCE, str(seed), str(n), str(i)],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            env=env,
+        )
+        for i in range(n)
+    ]
+    outs = []
+    for p in procs:
+        stdout, stderr = p.communicate(timeout=900)
+        assert p.returncode == 0, stderr
+        outs.append(json.loads(stdout))
+    assert not [o for o in outs if "error" in o]
+    assert all(o["selected"] for o in outs)  # each trial found an effect: a diagnosis was compared
+    rng = np.random.default_rng(seed)
+    want = score([draw_trial(rng) for _ in range(n)], outs)
     assert json.dumps({k: res[k] for k in want}, sort_keys=True) == json.dumps(want, sort_keys=True)
-    assert res["answers"] == [o["selected"] for o in ref["outs"]]
+    assert res["answers"] == [o["selected"] for o in outs]
     again = run_selftest(n, seed, workers=1, progress=False, out=tmp_path / "st")
     assert again == res  # from the journal, no trial run again
 
