@@ -94,6 +94,26 @@ def test_a_dotted_profile_name_is_not_split_into_a_package_by_ci():
     assert {tc.get("classname") for tc in root.iter("testcase")} == {"paper-a_v2"}
 
 
+def test_junit_cases_add_up_to_the_runs_time():
+    """Every case had time="0": GitLab adds the cases' times and showed each profile as taking
+    none. The run's wall time is now on its first case (the run's error case when it failed)."""
+    from pmsm_hil.sweep.suite import SuiteCase, junit_xml
+
+    check = {"scope": "run", "criterion": "faults", "measured": 0, "bound": 0, "passed": True}
+    ok = SuiteCase(profile="a.yaml", name="a", status="ok", wall_s=1.25)
+    ok.checks = [check, {**check, "criterion": "complete"}]
+    failed = SuiteCase(profile="b.yaml", name="b", status="failed", error="x", wall_s=0.5)
+    failed.checks = [check]
+    root = ET.fromstring(junit_xml([ok, failed]))
+    a, b = root.findall("testsuite")
+    assert [tc.get("time") for tc in a.iter("testcase")] == ["1.250", "0"]
+    assert [tc.get("time") for tc in b.iter("testcase")] == ["0.500", "0"]
+    assert b.find("testcase").get("name") == "run"
+    for s in (a, b):
+        assert sum(float(tc.get("time")) for tc in s.iter("testcase")) == float(s.get("time"))
+    assert root.get("time") == "1.750"
+
+
 def test_an_interrupted_test_is_not_judged_and_exits_130(tmp_path, data):
     """Ctrl-C during the run: the motor stopped, the profile NOT JUDGED (before: FAIL, "complete:
     no (stopped: host stop)", exit 1, as if the drive had stopped on its own), exit 130 as for

@@ -473,3 +473,21 @@ def test_summary_shows_relative_errors_in_percent_as_the_console_does():
     text = _summary(rep)  # type: ignore[arg-type]
     assert "| id_rls_l_d_h_error_rel | 2 | +0.50 % | -1.25 % | -1.25 % | +0.50 % |" in text
     assert "| speed_error_max_rpm | 2 | 1.5 | 2.25 | 1 | 2.25 |" in text
+
+
+def test_sweep_report_help_is_the_reports_own(capsys, tmp_path, monkeypatch):
+    """`sweep report --help` used to print the sweep's usage (SWEEP, --limit, --scheduler...):
+    `report` is a value of the sweep's first argument. It now prints the report's; a file named
+    `report` here is a sweep file, and then the sweep's help is what is asked for."""
+    from pmsm_hil.cli.main import main
+
+    monkeypatch.chdir(tmp_path)
+    assert main(["sweep", "report", "--help"]) == 0
+    text = capsys.readouterr().out
+    assert text.startswith("usage: pmsm-hil sweep report [-h] DIR")
+    assert "summary.md" in text and "--scheduler" not in text
+    (tmp_path / "report").write_text("")
+    with pytest.raises(SystemExit) as e:
+        main(["sweep", "report", "--help"])
+    assert e.value.code == 0
+    assert "--scheduler" in capsys.readouterr().out

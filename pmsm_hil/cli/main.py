@@ -87,6 +87,9 @@ def _terms_as_interrupts() -> dict[int, object]:
 
 
 def main(argv: list[str] | None = None) -> int:
+    if sweep.asks_report_help(sys.argv[1:] if argv is None else argv):
+        sweep.report_parser().print_help()
+        return 0
     args = build_parser().parse_args(argv)
     quiet_python_can()
     replaced = _terms_as_interrupts()

@@ -52,6 +52,29 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
+def report_parser() -> argparse.ArgumentParser:
+    """`pmsm-hil sweep report --help`: the report's own usage (argparse would print the sweep's,
+    `report` being a value of its SWEEP argument)."""
+    p = argparse.ArgumentParser(
+        prog="pmsm-hil sweep report",
+        description="Writes the report of a sweep's results into DIR/report/: summary.md (per "
+        "metric: runs, median, worst, min, max over the completed runs), a plot per metric "
+        "against each axis (pass: dot, fail: cross) and, for two grid axes, pass_map.png (the "
+        "share of runs passed in each cell); prints the table of the metrics (docs/sweep.md).",
+    )
+    p.add_argument("dir", metavar="DIR", help="the sweep's output folder (its --out)")
+    return p
+
+
+def asks_report_help(argv: list[str]) -> bool:
+    """``sweep report ... --help`` (and no file named ``report`` here, which would be a sweep)."""
+    return (
+        argv[:2] == ["sweep", "report"]
+        and any(a in ("-h", "--help") for a in argv[2:])
+        and not os.path.isfile("report")
+    )
+
+
 def main(args: argparse.Namespace) -> int:
     if args.sweep == "report" and not os.path.isfile("report"):
         return _report(args)
