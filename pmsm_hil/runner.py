@@ -138,6 +138,16 @@ def _identity(session: Session) -> Identity:
     return session.identity
 
 
+def _segment_controllers(profile: Profile) -> list[str]:
+    """Each segment's current controller (its own, else the previous segment's, else the
+    control section's)."""
+    ctrl, out = profile.control.current_ctrl, []
+    for seg in profile.segments:
+        ctrl = seg.current_ctrl or ctrl
+        out.append(ctrl)
+    return out
+
+
 def _metadata(profile: Profile, session: Session, options: RunOptions) -> dict[str, dict[str, str]]:
     ident = _identity(session)
     return {
@@ -153,6 +163,9 @@ def _metadata(profile: Profile, session: Session, options: RunOptions) -> dict[s
             "segment_names": "|".join(
                 s.name or f"segment {i}" for i, s in enumerate(profile.segments)
             ),
+            # what controlled the currents in each segment, and where the angle came from
+            "current_ctrl": "|".join(_segment_controllers(profile)),
+            "angle_src": profile.control.angle_src,
         },
         # the rig's effects in force and their sizes (docs/rigs.md); the rig yaml is attached too
         "rig_effects": profile.rig.effective_metadata(nominal_machine(profile.motor)),

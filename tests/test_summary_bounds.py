@@ -100,6 +100,32 @@ def test_the_summary_names_what_ran():
     rig = {"run": {"profile": "paper-a", "rig": "", "seed": ""}, "device": {"board": "f28335"}}
     assert run_tag(rig) == "profile paper-a, board f28335"
     assert run_tag({}) == ""
+    # the current controllers in the order the segments first run them, and an estimator's name
+    emu["run"].update(current_ctrl="mpcc|foc|mpcc", angle_src="encoder")
+    assert run_tag(emu).startswith("profile paper-a, MPCC then FOC, motor ")
+    emu["run"].update(current_ctrl="foc|foc", angle_src="mras")
+    assert run_tag(emu).startswith("profile paper-a, FOC, sensorless (mras), motor ")
+
+
+def test_a_runs_log_records_each_segments_current_controller(tmp_path, data):
+    """The log's run metadata says which controller ran each segment and the angle source (the
+    summary's title names them: an MPCC run and a FOC run were told apart by file name only)."""
+    from emu_helpers import run_inproc
+
+    from pmsm_hil.log.reader import read_log
+
+    text = (
+        (data / "short.yaml")
+        .read_text()
+        .replace("../../profiles/", f"{data.parent.parent}/profiles/")
+    )
+    text = text.replace('{name: "load on", ', '{name: "load on", current_ctrl: foc, ')
+    prof = tmp_path / "p.yaml"
+    prof.write_text(text)
+    run_inproc(prof, tmp_path / "r.mcap")
+    meta = read_log(tmp_path / "r.mcap", topics=[]).metadata
+    assert meta["run"]["current_ctrl"] == "mpcc|foc|foc" and meta["run"]["angle_src"] == "encoder"
+    assert run_tag(meta).startswith("profile short, MPCC then FOC, motor paper-a-ipmsm, rig ")
 
 
 def test_a_fault_that_ends_the_run_is_counted_and_named_in_every_verdict(tmp_path):

@@ -398,13 +398,30 @@ def rig_name(meta: dict) -> str:
     return meta.get("rig_effects", {}).get("rig", "")
 
 
+def control_tag(run: dict) -> str:
+    """The current controllers and the angle source of a run, from its metadata: "MPCC", "FOC",
+    "MPCC then FOC" (in the order the segments first run them), with ", sensorless (mras)" when
+    an estimator gave the angle; "" for a log written before they were recorded."""
+    seen: list[str] = []
+    for c in str(run.get("current_ctrl", "")).split("|"):
+        if c and c.upper() not in seen:
+            seen.append(c.upper())
+    tag = " then ".join(seen)
+    src = run.get("angle_src", "")
+    if tag and src and src != "encoder":
+        tag += f", sensorless ({src})"
+    return tag
+
+
 def run_tag(meta: dict) -> str:
-    """What ran, from a log's metadata: "profile paper-a, motor paper-a-ipmsm, rig lab-typical,
-    seed 4" (a rig's run,
+    """What ran, from a log's metadata: "profile paper-a, MPCC, motor paper-a-ipmsm, rig
+    lab-typical, seed 4" (a rig's run,
     which has no seed, names its board)."""
     run = meta.get("run", {})
     rig = rig_name(meta)
     parts = [f"profile {run['profile']}"] if run.get("profile") else []
+    if control_tag(run):
+        parts.append(control_tag(run))
     if run.get("motor"):  # two runs with other motor files (a commissioned one) tell apart
         parts.append(f"motor {run['motor']}")
     if rig:
