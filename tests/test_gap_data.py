@@ -507,3 +507,33 @@ def test_gap_record_takes_the_motor_given(tmp_path, capsys):
     err = " ".join(capsys.readouterr().err.split())
     assert "motors/sew-cm3c80s.yaml" in err and "paper-a-ipmsm.yaml" not in err, err
     assert not out.exists()
+
+
+def test_gap_record_of_a_run_that_faults_says_so_and_keeps_the_record(tmp_path, capsys):
+    """A recording whose run tripped (the SEW's light rotor, a load taken off near its trip
+    speed) printed only "N control periods recorded", exit 0: the user diagnosed half a profile
+    without knowing. It now says the fault with the motor file's limit, the load-step hint and
+    how far the record goes, exit 4 as `run`; the record is written and loads."""
+    prof = tmp_path / "trip.yaml"
+    prof.write_text(
+        f"name: trip\nmotor: {ROOT}/profiles/motors/sew-cm3c80s.yaml\n"
+        f"rig: {ROOT}/profiles/rigs/default.yaml\n"
+        "segments:\n"
+        "  - {name: up, duration_s: 0.25, speed_rpm: 600, ramp_rpm_s: 6000, load_nm: 4.0}\n"
+        "  - {name: load off, duration_s: 0.3, speed_rpm: 600, load_nm: 0}\n"
+        "  - {name: stop, duration_s: 0.2, speed_rpm: 0, ramp_rpm_s: 6000, load_nm: 0}\n"
+    )
+    out = tmp_path / "r.mcap"
+    assert main(["gap", "record", str(prof), "-o", str(out)]) == 4
+    io = capsys.readouterr()
+    n = int(re.match(rf"{re.escape(str(out))}: (\d+) control periods recorded", io.out).group(1))
+    assert "device faulted (over_speed: beyond speed_trip_rpm 720 r/min" in io.err
+    t_end = float(
+        re.search(
+            r"the record holds the run up to ([\d.]+) s of the profile's 0.75 s", io.err
+        ).group(1)
+    )
+    assert 0.25 < t_end < 0.3 and abs(n * 50e-6 - t_end) < 1e-3
+    assert "hint: the fault came" in io.err and "'load off'" in io.err
+    rec = load_record(out)
+    assert isinstance(rec, ControlRecord) and rec.n == n

@@ -18,8 +18,12 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from pmsm_hil.cli.errors import fail, report
+
+if TYPE_CHECKING:
+    from pmsm_hil.gapgen.recorder import Recorded
 from pmsm_hil.seeds import seed_arg
 
 ACTIONS = ("augment", "record", "selftest", "verify")
@@ -73,6 +77,34 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         metavar="ADDR",
         help="selftest: a Dask scheduler, e.g. tcp://HOST:8786 (default: a local cluster)",
     )
+
+
+def _record_ended(rec: Recorded, out: str) -> int:
+    """Exit code of `gap record` from how its run ended, said as `run` says it: a fault or a
+    stop before the profile's end leaves a record of the run up to there (it can be diagnosed,
+    but it lacks the operating points after the stop)."""
+    res = rec.result
+    t_end = float(rec.cols["t_s"][-1]) if len(rec.cols["t_s"]) else 0.0
+    kept = (
+        f"the record holds the run up to {t_end:.3f} s of the profile's "
+        f"{rec.profile.total_duration_s:g} s: {out}"
+    )
+    if res.interrupted:
+        print(f"stopped: run interrupted; the motor was stopped and {kept}", file=sys.stderr)
+        return 130
+    if res.faults:
+        from pmsm_hil.analysis.fault_hint import load_step_hint
+        from pmsm_hil.recorder import fault_limits_text
+
+        what = fault_limits_text(res.faults, rec.profile.motor)
+        code = fail("fault", f"device faulted ({what}); {kept}", 4)
+        hint = load_step_hint(res.live.events, rec.profile)
+        if hint:
+            print(f"hint: {hint}", file=sys.stderr)
+        return code
+    if res.stop_reason and res.stop_reason not in ("profile end", "host stop"):
+        return fail("stopped", f"device stopped: {res.stop_reason}; {kept}", 4)
+    return 0
 
 
 def _out_problem(path: str, what: str, overwrite: bool = True) -> str | None:
@@ -233,15 +265,15 @@ def main(args: argparse.Namespace) -> int:
                     2,
                 )
 
-            cols = record_profile(
+            rec = record_profile(
                 profile_path,
                 args.out,
                 rig_path=resolve(args.rig, "rig") if args.rig else None,
                 seed=args.seed,
                 motor_path=motor_path,
             )
-            print(f"{args.out}: {len(cols['t_s'])} control periods recorded")
-            return 0
+            print(f"{args.out}: {len(rec.cols['t_s'])} control periods recorded")
+            return _record_ended(rec, args.out)
         if args.target == "verify":
             from pmsm_hil.gapgen.verify import verify
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 import ctypes
 import os
 import tempfile
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -15,9 +16,9 @@ from pmsm_hil.emulator.fwlib import EmulatedDevice
 from pmsm_hil.gap.record import CONTROL_TOPIC, GAP_TOPICS
 from pmsm_hil.log.reader import read_log
 from pmsm_hil.log.writer import LogWriter
-from pmsm_hil.profiles import load_profile
+from pmsm_hil.profiles import Profile, load_profile
 from pmsm_hil.protocol.session import Session
-from pmsm_hil.runner import RunOptions, run_profile
+from pmsm_hil.runner import RunOptions, RunResult, run_profile
 from pmsm_hil.transport.inproc import InProcessTransport
 
 REC_COLS = (
@@ -36,6 +37,16 @@ REC_COLS = (
 )
 
 
+@dataclass
+class Recorded:
+    """A recording: the control-rate columns written, how the run ended (a fault or a stop
+    before the profile's end leaves a shorter record) and the profile it played."""
+
+    cols: dict[str, np.ndarray]
+    result: RunResult
+    profile: Profile
+
+
 def _bind(dev: EmulatedDevice):
     lib = dev._lib
     lib.emu_record.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_uint32]
@@ -52,12 +63,12 @@ def record_profile(
     full_log: bool = True,
     sensors: dict[str, float] | None = None,
     motor_path: str | os.PathLike | None = None,
-) -> dict[str, np.ndarray]:
+) -> Recorded:
     """Run the profile in process with the rig, record every control period and write a log with
     `/pmsm/control_rate`. full_log: also every topic of the run and its metadata (a user's log);
     otherwise only the control-rate record, the motor attachment and `gap_sensors` (a sealed
     self-test log: nothing of the rig). motor_path: a motor file instead of the profile's (as `run
-    --motor`). Returns the recorded columns."""
+    --motor`). Returns the recorded columns with the run's result."""
     profile = load_profile(str(profile_path), rig_override=rig_path, motor_override=motor_path)
     settings = emulator_settings_for(profile, DeviceSpec(seed=seed))
     if not full_log:
@@ -71,7 +82,9 @@ def record_profile(
     fd, tmp = tempfile.mkstemp(suffix=".mcap")
     os.close(fd)
     try:
-        run_profile(profile, Session(transport), Path(tmp), RunOptions(seed=seed, capture=full_log))
+        result = run_profile(
+            profile, Session(transport), Path(tmp), RunOptions(seed=seed, capture=full_log)
+        )
         n = lib.emu_record_count(dev._p)
         lib.emu_record(dev._p, None, 0)
         cols = {k: buf[:n, j].copy() for j, k in enumerate(REC_COLS)}
@@ -100,4 +113,4 @@ def record_profile(
             w.write_many(CONTROL_TOPIC, cols)
     finally:
         os.unlink(tmp)
-    return cols
+    return Recorded(cols, result, profile)
