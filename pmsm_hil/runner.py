@@ -141,7 +141,8 @@ def _identity(session: Session) -> Identity:
 def _segment_controllers(profile: Profile) -> list[str]:
     """Each segment's current controller (its own, else the previous segment's, else the
     control section's)."""
-    ctrl, out = profile.control.current_ctrl, []
+    ctrl: str = profile.control.current_ctrl
+    out: list[str] = []
     for seg in profile.segments:
         ctrl = seg.current_ctrl or ctrl
         out.append(ctrl)
