@@ -9,6 +9,9 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from rich.console import Console
 
+    from pmsm_hil.profiles import Profile
+    from pmsm_hil.runner import RunResult
+
 
 @cache
 def err_console() -> Console:
@@ -30,6 +33,31 @@ def fail(kind: str, message: str, code: int) -> int:
     report(kind, message)
     sys.stderr.flush()
     return code
+
+
+def device_ended_early(result: RunResult, profile: Profile | None, where: str) -> int | None:
+    """Exit 4 with one line for a run the device ended before its profile's end: a fault (the
+    motor file's limit it tripped, and the load-step hint when a step caused it) or another stop;
+    ``where`` says what was kept ("see LOG"). None for a run that ended as planned."""
+    if result.faults:
+        from pmsm_hil.recorder import fault_limits_text, fault_text
+
+        what = (
+            fault_limits_text(result.faults, profile.motor)
+            if profile is not None
+            else fault_text(result.faults)
+        )
+        code = fail("fault", f"device faulted ({what}); {where}", 4)
+        if profile is not None:
+            from pmsm_hil.analysis.fault_hint import load_step_hint
+
+            step_hint = load_step_hint(result.live.events, profile)
+            if step_hint:
+                print(f"hint: {step_hint}", file=sys.stderr)
+        return code
+    if result.stop_reason and result.stop_reason not in ("profile end", "host stop"):
+        return fail("stopped", f"device stopped: {result.stop_reason}; {where}", 4)
+    return None
 
 
 # what reaching a Dask scheduler can raise: OSError, nothing answers; ValueError, not an address

@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from pmsm_hil.cli.errors import fail, report
+from pmsm_hil.cli.errors import device_ended_early, fail, report
 
 if TYPE_CHECKING:
     from pmsm_hil.gapgen.recorder import Recorded
@@ -92,19 +92,8 @@ def _record_ended(rec: Recorded, out: str) -> int:
     if res.interrupted:
         print(f"stopped: run interrupted; the motor was stopped and {kept}", file=sys.stderr)
         return 130
-    if res.faults:
-        from pmsm_hil.analysis.fault_hint import load_step_hint
-        from pmsm_hil.recorder import fault_limits_text
-
-        what = fault_limits_text(res.faults, rec.profile.motor)
-        code = fail("fault", f"device faulted ({what}); {kept}", 4)
-        hint = load_step_hint(res.live.events, rec.profile)
-        if hint:
-            print(f"hint: {hint}", file=sys.stderr)
-        return code
-    if res.stop_reason and res.stop_reason not in ("profile end", "host stop"):
-        return fail("stopped", f"device stopped: {res.stop_reason}; {kept}", 4)
-    return 0
+    code = device_ended_early(res, rec.profile, kept)
+    return 0 if code is None else code
 
 
 def _out_problem(path: str, what: str, overwrite: bool = True) -> str | None:

@@ -13,7 +13,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from pmsm_hil.cli.errors import fail, report
+from pmsm_hil.cli.errors import device_ended_early, fail, report
 from pmsm_hil.seeds import seed_arg
 
 if TYPE_CHECKING:
@@ -478,22 +478,5 @@ def _finish(result, print_summary, summarize_log, profile=None, stop_after_s=Non
             f"there: {result.log_path}",
         )
         return 130
-    if result.faults:
-        from pmsm_hil.recorder import fault_limits_text, fault_text
-
-        what = (
-            fault_limits_text(result.faults, profile.motor)
-            if profile is not None
-            else fault_text(result.faults)
-        )
-        code = fail("fault", f"device faulted ({what}); see {result.log_path}", 4)
-        if profile is not None:
-            from pmsm_hil.analysis.fault_hint import load_step_hint
-
-            step_hint = load_step_hint(result.live.events, profile)
-            if step_hint:
-                print(f"hint: {step_hint}", file=sys.stderr)
-        return code
-    if result.stop_reason and result.stop_reason not in ("profile end", "host stop"):
-        return fail("stopped", f"device stopped: {result.stop_reason}", 4)
-    return 0
+    code = device_ended_early(result, profile, f"see {result.log_path}")
+    return 0 if code is None else code
