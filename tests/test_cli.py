@@ -320,16 +320,18 @@ def test_only_a_command_that_ends_clean_skips_the_interpreters_teardown(data, tm
     not this process's."""
     out = tmp_path / "short.mcap"
     script = (
-        "import os, sys, threading, time\n"
+        "import os, sys, threading\n"
         "from pmsm_hil.cli import main as m\n"
         "def fake(code):\n"
         "    print(f'os._exit {code}', flush=True)\n"
         "    raise SystemExit(code)\n"
         "m.os._exit = fake\n"
         "sys.argv = ['pmsm-hil', *sys.argv[1:]]\n"
-        "if os.environ.get('KEEP_THREAD'):\n"
-        "    threading.Thread(target=time.sleep, args=(1.0,)).start()  # not a daemon\n"
+        "done = threading.Event()\n"
+        "if os.environ.get('KEEP_THREAD'):  # not a daemon, alive until entry() has returned\n"
+        "    threading.Thread(target=done.wait, args=(20.0,)).start()\n"
         "print('returned', m.entry(), flush=True)\n"
+        "done.set()\n"
     )
 
     def entry(*args, **env):
