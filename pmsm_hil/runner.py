@@ -20,6 +20,7 @@ from pmsm_hil.interrupts import Interrupts as _Interrupts
 from pmsm_hil.log.blocks import MessageBlock
 from pmsm_hil.log.writer import LogWriteError, LogWriter
 from pmsm_hil.profiles import Motor, Profile
+from pmsm_hil.profiles.control_checks import profile_controllers
 from pmsm_hil.profiles.motor import nominal_machine
 from pmsm_hil.protocol import generated as gen
 from pmsm_hil.protocol.session import Identity, Session
@@ -138,17 +139,6 @@ def _identity(session: Session) -> Identity:
     return session.identity
 
 
-def _segment_controllers(profile: Profile) -> list[str]:
-    """Each segment's current controller (its own, else the previous segment's, else the
-    control section's)."""
-    ctrl: str = profile.control.current_ctrl
-    out: list[str] = []
-    for seg in profile.segments:
-        ctrl = seg.current_ctrl or ctrl
-        out.append(ctrl)
-    return out
-
-
 def _metadata(profile: Profile, session: Session, options: RunOptions) -> dict[str, dict[str, str]]:
     ident = _identity(session)
     return {
@@ -165,7 +155,7 @@ def _metadata(profile: Profile, session: Session, options: RunOptions) -> dict[s
                 s.name or f"segment {i}" for i, s in enumerate(profile.segments)
             ),
             # what controlled the currents in each segment, and where the angle came from
-            "current_ctrl": "|".join(_segment_controllers(profile)),
+            "current_ctrl": "|".join(profile_controllers(profile)),
             "angle_src": profile.control.angle_src,
         },
         # the rig's effects in force and their sizes (docs/rigs.md); the rig yaml is attached too

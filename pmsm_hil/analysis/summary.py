@@ -420,8 +420,9 @@ def run_tag(meta: dict) -> str:
     run = meta.get("run", {})
     rig = rig_name(meta)
     parts = [f"profile {run['profile']}"] if run.get("profile") else []
-    if control_tag(run):
-        parts.append(control_tag(run))
+    ctrl = control_tag(run)
+    if ctrl:
+        parts.append(ctrl)
     if run.get("motor"):  # two runs with other motor files (a commissioned one) tell apart
         parts.append(f"motor {run['motor']}")
     if rig:

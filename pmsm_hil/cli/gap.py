@@ -21,10 +21,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from pmsm_hil.cli.errors import device_ended_early, fail, report
+from pmsm_hil.seeds import seed_arg
 
 if TYPE_CHECKING:
     from pmsm_hil.gapgen.recorder import Recorded
-from pmsm_hil.seeds import seed_arg
 
 ACTIONS = ("augment", "record", "selftest", "verify")
 

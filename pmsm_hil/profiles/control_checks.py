@@ -5,10 +5,13 @@ controller that no segment runs (they have no effect: a warning)."""
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ._base import num
 from ._source import Problem, Source, fmt_num
+
+if TYPE_CHECKING:
+    from .profile import Profile
 
 # the firmware's limit on the FOC current-loop bandwidth: foc_bw_rad_s * ts_s < 0.5
 FOC_BW_TS_MAX = 0.5
@@ -26,6 +29,14 @@ def segment_controllers(control: dict, segments: list) -> list[str]:
         ctrl = own if isinstance(own, str) else ctrl
         out.append(ctrl)
     return out
+
+
+def profile_controllers(profile: Profile) -> list[str]:
+    """``segment_controllers`` of a loaded profile."""
+    return segment_controllers(
+        {"current_ctrl": profile.control.current_ctrl},
+        [{"current_ctrl": seg.current_ctrl} for seg in profile.segments],
+    )
 
 
 def _controllers(control: dict, segments: list) -> set[str]:

@@ -9,6 +9,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from .control_checks import profile_controllers
+
 if TYPE_CHECKING:
     from .profile import Profile
 
@@ -39,11 +41,6 @@ def current_step(profile: Profile) -> CurrentStep:
     segment's ``current_ctrl``, else the previous segment's, else ``control.current_ctrl``)."""
     motor, v_dc = profile.motor, profile.v_dc_v
     l_min = min(motor.l_d_h, motor.l_q_h)
-    ctrl = profile.control.current_ctrl
-    mpcc = []
-    for i, seg in enumerate(profile.segments):
-        ctrl = seg.current_ctrl or ctrl
-        if ctrl == "mpcc":
-            mpcc.append(i)
+    mpcc = [i for i, ctrl in enumerate(profile_controllers(profile)) if ctrl == "mpcc"]
     ts = profile.control.ts_s
     return CurrentStep(2.0 / 3.0 * v_dc * ts / l_min, motor.i_max_a, v_dc, ts, l_min, tuple(mpcc))
