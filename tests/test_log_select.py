@@ -116,9 +116,10 @@ def _chunk_threads() -> list:
 def test_chunks_read_ahead_give_what_one_chunk_at_a_time_gives(
     mixed_log, tmp_path, monkeypatch, finalised, pread
 ):
-    """Chunks are read and decompressed on a second thread ahead of the decoding: the columns,
-    times, counts and problems are those of decoding each chunk as it is met, in a finalised log
-    and in one cut short, with or without os.pread, and no thread outlives the read."""
+    """Chunks are read and decompressed on a second thread ahead of the decoding, and decoded
+    several at a time: the columns, times, counts and problems are those of decoding each chunk
+    as it is met, in a finalised log and in one cut short, with or without os.pread, and no
+    thread outlives the read."""
     from pmsm_hil.log import parse
 
     path = mixed_log
@@ -128,8 +129,18 @@ def test_chunks_read_ahead_give_what_one_chunk_at_a_time_gives(
         path.write_bytes(data[: len(data) * 2 // 3])
     if not pread:  # a platform without os.pread (Windows): the thread's own file handle
         monkeypatch.delattr(parse.os, "pread")
+    groups = []
+    merged = parse._Parser._decode_merged
+
+    def spy(self, group):
+        groups.append(len(group))
+        merged(self, group)
+
+    monkeypatch.setattr(parse._Parser, "_decode_merged", spy)
     ahead = read_log(path)
+    assert len(groups) > 1 and max(groups) == parse._MERGE
     monkeypatch.setattr(parse, "_AHEAD", 0)
+    monkeypatch.setattr(parse, "_MERGE", 1)
     one = read_log(path)
     assert ahead.chunks_read == one.chunks_read > 10
     assert ahead.finalised == one.finalised == finalised
@@ -140,22 +151,46 @@ def test_chunks_read_ahead_give_what_one_chunk_at_a_time_gives(
     assert not _chunk_threads()
 
 
+def test_a_group_whose_indexes_do_not_fit_is_decoded_chunk_by_chunk(mixed_log, monkeypatch):
+    """When the joined chunks' message indexes do not account for their records (a damaged or
+    partial index), each chunk of the group is decoded on its own: the same columns."""
+    from pmsm_hil.log import parse
+
+    full = read_log(mixed_log)
+    calls = []
+    original = parse._Parser._chunk_indexed
+
+    def refuse_groups(self, records, indexes):
+        calls.append(len(records))
+        if len(records) > 3 * 16 * 1024:  # a group of chunks (16 KiB each), not one chunk
+            return False
+        return original(self, records, indexes)
+
+    monkeypatch.setattr(parse._Parser, "_chunk_indexed", refuse_groups)
+    again = read_log(mixed_log)
+    assert max(calls) > 3 * 16 * 1024 and min(calls) <= 16 * 1024 + 4096
+    assert again.chunks_read == full.chunks_read and again.counts == full.counts
+    for t in full.topics:
+        assert_same(again.topic(t), full.topic(t))
+        np.testing.assert_array_equal(again.log_times_ns(t), full.log_times_ns(t))
+
+
 def test_a_read_that_fails_midway_leaves_no_read_ahead_behind(mixed_log, monkeypatch):
     from pmsm_hil.log import parse
 
     seen = []
-    original = parse._Parser._decode_chunk
+    original = parse._Parser._chunk_indexed
 
     def failing(self, records, indexes):
         seen.append(1)
-        if len(seen) == 3:
-            raise RuntimeError("decoding failed on the third chunk")
-        original(self, records, indexes)
+        if len(seen) == 2:
+            raise RuntimeError("decoding failed on the second group of chunks")
+        return original(self, records, indexes)
 
-    monkeypatch.setattr(parse._Parser, "_decode_chunk", failing)
-    with pytest.raises(RuntimeError, match="third chunk"):
+    monkeypatch.setattr(parse._Parser, "_chunk_indexed", failing)
+    with pytest.raises(RuntimeError, match="second group"):
         read_log(mixed_log)
-    assert len(seen) == 3 and not _chunk_threads()
+    assert len(seen) == 2 and not _chunk_threads()
 
 
 def test_the_read_ahead_is_bounded_in_octets(mixed_log, monkeypatch):

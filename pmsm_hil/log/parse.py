@@ -32,6 +32,7 @@ _MSG = struct.Struct("<HIQQ").unpack_from
 _FOOTER = 1 + 8 + 20  # opcode, length, summary_start, summary_offset_start, crc
 _BATCH_OCTETS = 8 << 20  # message data gathered across chunks before it is decoded at once
 _AHEAD = 4  # chunks read, decompressed and CRC-checked ahead of the one being decoded
+_MERGE = 4  # chunks decoded as one (_Parser._decode_merged) while _AHEAD more are read
 _AHEAD_OCTETS = 32 << 20  # ... and at most this many compressed octets of them (large chunks)
 
 
@@ -319,7 +320,8 @@ class _Parser:
             self._pool = ThreadPoolExecutor(1, thread_name_prefix="mcap-chunks")
         self._ahead.append((self._pool.submit(self._load, start, length), indexes, length))
         self._ahead_octets += length
-        self._drain(_AHEAD)
+        if len(self._ahead) >= _AHEAD + _MERGE or self._ahead_octets > _AHEAD_OCTETS:
+            self._drain(_AHEAD)
 
     def _load(self, start: int, length: int) -> bytes | str:
         """A chunk's records, read (pread: the walk's file position is left alone), decompressed
@@ -335,11 +337,18 @@ class _Parser:
 
     def _drain(self, keep: int) -> None:
         """Decode the chunks read ahead, oldest first, until ``keep`` are left in flight, holding
-        at most ``_AHEAD_OCTETS`` compressed octets (a file of large chunks keeps fewer)."""
+        at most ``_AHEAD_OCTETS`` compressed octets (a file of large chunks keeps fewer); up to
+        ``_MERGE`` of them at a time, decoded as one (``_decode_merged``)."""
         while len(self._ahead) > keep or (self._ahead and self._ahead_octets > _AHEAD_OCTETS):
-            fut, indexes, length = self._ahead.popleft()
-            self._ahead_octets -= length
-            self._decode_chunk(fut.result(), indexes)
+            group = []
+            for _ in range(min(_MERGE, max(1, len(self._ahead) - keep))):
+                fut, indexes, length = self._ahead.popleft()
+                self._ahead_octets -= length
+                group.append((fut.result(), indexes))
+            if len(group) > 1:
+                self._decode_merged(group)
+            else:
+                self._decode_chunk(*group[0])
 
     def _decode_chunk(self, records: bytes | str, indexes: dict[int, np.ndarray]) -> None:
         if isinstance(records, str):
@@ -349,6 +358,30 @@ class _Parser:
         if indexes and self._chunk_indexed(records, indexes):
             return
         self._chunk_sequential(records)
+
+    def _decode_merged(self, group: list[tuple[bytes | str, dict[int, np.ndarray]]]) -> None:
+        """Consecutive chunks decoded as one: their records joined and their message indexes
+        shifted to match, so that the per-chunk work (a few dozen numpy calls) is done once for
+        the group; each channel's messages keep their order. A group that is not all indexed
+        chunks read whole, or whose indexes do not account for its records, is decoded chunk
+        by chunk (the same result)."""
+        ok: list[tuple[bytes, dict[int, np.ndarray]]] = []
+        for records, indexes in group:
+            if not (isinstance(records, bytes) and indexes):
+                break
+            ok.append((records, indexes))
+        if len(ok) > 1:
+            base, merged = 0, dict[int, list[np.ndarray]]()
+            for records, indexes in ok:
+                for cid, idx in indexes.items():
+                    merged.setdefault(cid, []).append(idx + np.array([0, base], np.uint64))
+                base += len(records)
+            joined = b"".join(records for records, _ in ok)
+            if self._chunk_indexed(joined, {c: np.concatenate(p) for c, p in merged.items()}):
+                self.log.chunks_read += len(ok)
+                group = group[len(ok) :]
+        for records, indexes in group:
+            self._decode_chunk(records, indexes)
 
     def _take(self, ch: _Chan, buf: np.ndarray, starts, sizes, lts) -> None:
         """A batch of one channel's messages (data at ``starts`` in ``buf``) into its columns."""
