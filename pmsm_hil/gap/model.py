@@ -121,6 +121,10 @@ def _floored(a, b, c, l_min: float):
     prediction divides by the matrix's determinant there: one RK4 stage on a SEW CM3C80S record
     crossed into such a region and predicted a 3 kV residual, which one test block's mean could
     not survive (docs/gap.md, "Which")."""
+    # Gershgorin: every eigenvalue is at least min(a, c) - |b|; checked on the extremes first,
+    # which is enough for almost every evaluation (a fit's saturation seldom comes near the floor)
+    if min(np.min(a), np.min(c)) - np.max(np.abs(b)) >= l_min:
+        return a, b, c
     mid = 0.5 * (a + c)
     rad = np.hypot(0.5 * (a - c), b)
     short = l_min - (mid - rad)
