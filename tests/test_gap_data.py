@@ -537,3 +537,19 @@ def test_gap_record_of_a_run_that_faults_says_so_and_keeps_the_record(tmp_path, 
     assert "hint: the fault came" in io.err and "'load off'" in io.err
     rec = load_record(out)
     assert isinstance(rec, ControlRecord) and rec.n == n
+
+
+def test_the_sew_diagnosis_profile_runs_to_its_end_on_its_rig(tmp_path, capsys):
+    """`gap record diagnose-sew` (the diagnosis excitation scaled to the SEW CM3C80S, on its
+    measured map): every period of the profile recorded, no fault, with every current and speed
+    level the diagnosis needs (both directions, loaded and not)."""
+    out = tmp_path / "sew.mcap"
+    assert main(["gap", "record", "diagnose-sew", "--seed", "2", "-o", str(out)]) == 0
+    io = capsys.readouterr()
+    assert "fault" not in io.err, io.err
+    rec = load_record(out)
+    assert isinstance(rec, ControlRecord) and abs(rec.n * rec.ts_s - 4.1) < 1e-3
+    speed_rpm = rec.omega_e_rad_s / 4 * 60 / (2 * np.pi)
+    assert speed_rpm.max() > 440 and speed_rpm.min() < -440
+    i_peak = np.abs(rec.i_abc).max()
+    assert 8.0 < i_peak < 20.0  # loaded (up to 5 N m) and inside the bench's +-20 A sensors
