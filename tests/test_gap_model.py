@@ -29,34 +29,34 @@ inductance = st.floats(1e-4, 1e-2)
 
 @settings(max_examples=300, deadline=None)
 @given(inductance, st.floats(-1e-2, 1e-2), inductance, st.floats(1e-5, 5e-3))
-def test_the_floor_leaves_a_matrix_above_it_bit_for_bit(a, b, c, l_min):
+def test_the_floor_leaves_a_matrix_above_it_bit_for_bit(a, b, c, l_min_h):
     arrs = np.array([a]), np.array([b]), np.array([c])
-    out = _floored(*arrs, l_min)
+    out = _floored(*arrs, l_min_h)
     lo, hi = _min_eig(a, b, c), _max_eig(a, b, c)
-    if lo >= l_min:
+    if lo >= l_min_h:
         assert all(np.array_equal(x, y) for x, y in zip(out, arrs, strict=True))
         return
     # each eigenvalue raised to the floor where it is below, kept where it is above
-    tol = 1e-9 * max(a, c, abs(b), l_min)
-    assert abs(_min_eig(*out)[0] - min(max(lo, l_min), max(hi, l_min))) <= tol
-    assert abs(_max_eig(*out)[0] - max(hi, l_min)) <= tol
+    tol = 1e-9 * max(a, c, abs(b), l_min_h)
+    assert abs(_min_eig(*out)[0] - min(max(lo, l_min_h), max(hi, l_min_h))) <= tol
+    assert abs(_max_eig(*out)[0] - max(hi, l_min_h)) <= tol
     if hi > lo:  # the eigenvectors kept: M and its floored form commute
         m = np.array([[a, b], [b, c]])
         f = np.array([[out[0][0], out[1][0]], [out[1][0], out[2][0]]])
-        assert np.allclose(m @ f, f @ m, rtol=0, atol=1e-9 * max(a, c, abs(b), l_min) ** 2)
+        assert np.allclose(m @ f, f @ m, rtol=0, atol=1e-9 * max(a, c, abs(b), l_min_h) ** 2)
 
 
 def test_a_mixed_batch_changes_only_the_matrices_under_the_floor():
     a = np.array([3e-3, 1e-3, 2e-3])
     b = np.array([0.0, 1.2e-3, 0.0])
     c = np.array([3e-3, 1.5e-3, 2e-3])
-    l_min = 2.75e-4
-    out = _floored(a, b, c, l_min)
+    l_min_h = 2.75e-4
+    out = _floored(a, b, c, l_min_h)
     before = _min_eig(a, b, c)
-    assert before[0] > l_min and before[1] < l_min and before[2] > l_min
+    assert before[0] > l_min_h and before[1] < l_min_h and before[2] > l_min_h
     for x, y in zip(out, (a, b, c), strict=True):
         assert x[0] == y[0] and x[2] == y[2]  # untouched, bit for bit
-    assert np.isclose(_min_eig(*out)[1], l_min, rtol=1e-9)
+    assert np.isclose(_min_eig(*out)[1], l_min_h, rtol=1e-9)
 
 
 def test_a_fitted_cross_saturation_cannot_make_the_prediction_diverge():
@@ -76,10 +76,10 @@ def test_a_fitted_cross_saturation_cannot_make_the_prediction_diverge():
         -2 * lx * g[:, 0] * g[:, 1] - 2 * lc * g[:, 1],
         lq - lx * g[:, 0] ** 2 - 2 * lc * g[:, 0],
     )
-    l_min = L_FLOOR * min(SEW.l_d_h, SEW.l_q_h)
+    l_min_h = L_FLOOR * min(SEW.l_d_h, SEW.l_q_h)
     assert (_min_eig(*raw) < 0).any()  # the case the floor is for
     _, mat = _flux(SEW, g, pt, SEW.psi_f_wb)
-    assert (_min_eig(*mat) >= l_min * (1 - 1e-9)).all()
+    assert (_min_eig(*mat) >= l_min_h * (1 - 1e-9)).all()
     u = np.tile([SEW.v_dc_v / np.sqrt(3), 0.0], (len(g), 1))
     omega = np.full(len(g), 4 * 2 * np.pi * 600 / 60)
     rate = _deriv(SEW, g, u, omega, pt, SEW.r_s_ohm, SEW.psi_f_wb)
@@ -89,4 +89,4 @@ def test_a_fitted_cross_saturation_cannot_make_the_prediction_diverge():
         u[:, 1] - SEW.r_s_ohm * g[:, 1] - omega * psi_d,
     )
     assert np.isfinite(rate).all()
-    assert (np.hypot(rate[:, 0], rate[:, 1]) <= v / l_min * (1 + 1e-9)).all()
+    assert (np.hypot(rate[:, 0], rate[:, 1]) <= v / l_min_h * (1 + 1e-9)).all()

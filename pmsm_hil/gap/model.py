@@ -113,8 +113,8 @@ def _flux(m: MotorModel, i: np.ndarray, pt: PlantTerms, psi_f):
     return (psi_d, psi_q), _floored(ldd, ldq, lqq, L_FLOOR * min(m.l_d_h, m.l_q_h))
 
 
-def _floored(a, b, c, l_min: float):
-    """The incremental inductance matrix [[a, b], [b, c]] with its eigenvalues raised to l_min
+def _floored(a, b, c, l_min_h: float):
+    """The incremental inductance matrix [[a, b], [b, c]] with its eigenvalues raised to l_min_h
     where they are below, its eigenvectors kept (the same values, bit for bit, where both are
     above). The cross terms of a fitted saturation can make the matrix lose positive definiteness
     at large currents; a magnetic circuit's cannot (its co-energy is convex), and the period's
@@ -123,14 +123,14 @@ def _floored(a, b, c, l_min: float):
     not survive (docs/gap.md, "Which")."""
     # Gershgorin: every eigenvalue is at least min(a, c) - |b|; checked on the extremes first,
     # which is enough for almost every evaluation (a fit's saturation seldom comes near the floor)
-    if min(np.min(a), np.min(c)) - np.max(np.abs(b)) >= l_min:
+    if min(np.min(a), np.min(c)) - np.max(np.abs(b)) >= l_min_h:
         return a, b, c
     mid = 0.5 * (a + c)
     rad = np.hypot(0.5 * (a - c), b)
-    short = l_min - (mid - rad)
+    short = l_min_h - (mid - rad)
     if not np.any(short > 0.0):
         return a, b, c
-    lo, hi = np.maximum(short, 0.0), np.maximum(l_min - (mid + rad), 0.0)
+    lo, hi = np.maximum(short, 0.0), np.maximum(l_min_h - (mid + rad), 0.0)
     # the projector on the smaller eigenvalue's eigenvector, (lam_max I - M) / (2 rad), and on
     # the larger's, I less it; a multiple of the identity (rad = 0) is raised as a whole
     live = rad > 0.0
