@@ -345,10 +345,7 @@ class _Parser:
                 fut, indexes, length = self._ahead.popleft()
                 self._ahead_octets -= length
                 group.append((fut.result(), indexes))
-            if len(group) > 1:
-                self._decode_merged(group)
-            else:
-                self._decode_chunk(*group[0])
+            self._decode_merged(group)
 
     def _decode_chunk(self, records: bytes | str, indexes: dict[int, np.ndarray]) -> None:
         if isinstance(records, str):
@@ -362,9 +359,9 @@ class _Parser:
     def _decode_merged(self, group: list[tuple[bytes | str, dict[int, np.ndarray]]]) -> None:
         """Consecutive chunks decoded as one: their records joined and their message indexes
         shifted to match, so that the per-chunk work (a few dozen numpy calls) is done once for
-        the group; each channel's messages keep their order. A group that is not all indexed
-        chunks read whole, or whose indexes do not account for its records, is decoded chunk
-        by chunk (the same result)."""
+        the group; each channel's messages keep their order. A group of one, one that is not all
+        indexed chunks read whole, or one whose indexes do not account for its records, is
+        decoded chunk by chunk (the same result)."""
         ok: list[tuple[bytes, dict[int, np.ndarray]]] = []
         for records, indexes in group:
             if not (isinstance(records, bytes) and indexes):
