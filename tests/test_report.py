@@ -416,11 +416,17 @@ def test_a_long_band_covers_every_samples_band_without_crossing_itself():
         np.testing.assert_array_equal(got, want)
 
 
-def test_the_voltage_panels_mean_and_the_angle_errors_wrap():
+@pytest.mark.parametrize("block", [None, 1000, 41])
+def test_the_voltage_panels_mean_and_the_angle_errors_wrap(block, monkeypatch):
     """The 20 ms mean is np.convolve's centred window (zeros beyond the ends) for odd and even
-    windows; the angle error is brought into [-pi, pi] by whole turns."""
+    windows, also where it is computed a block at a time (blocks of 1000 and of 41 samples, as
+    short as a window: each block's edges take their neighbours' samples); the angle error is
+    brought into [-pi, pi] by whole turns."""
+    from pmsm_hil.analysis import report_signals
     from pmsm_hil.analysis.report_signals import _mean, _wrap
 
+    if block is not None:
+        monkeypatch.setattr(report_signals, "BLOCK", block)
     rng = np.random.default_rng(5)
     x = rng.normal(80.0, 40.0, 5003)
     for step_s in (5e-4, 4.9e-4, 1e-3, 2e-3):  # windows of 40, 41, 20 and 10 samples
@@ -432,7 +438,7 @@ def test_the_voltage_panels_mean_and_the_angle_errors_wrap():
     t = np.arange(len(x)) * 0.05  # a window of one sample: the series as it is
     np.testing.assert_array_equal(_mean(t, x, 0.02), x)
     a = rng.uniform(-40.0, 40.0, 10_000)
-    w = _wrap(a)
+    w = _wrap(a.copy())
     assert np.all(np.abs(w) <= np.pi)
     turns = (a - w) / (2.0 * np.pi)
     np.testing.assert_allclose(turns, np.round(turns), atol=1e-9)

@@ -185,7 +185,7 @@ def identification_table(
     log = log if log is not None else read_log(path, topics=IDENT_TOPICS)
     par = log.topic("/pmsm/params")
     t_all = np.asarray(par["t_s"], dtype=float)
-    names = np.asarray(par["estimator"]).astype(str)
+    names = _names(par)
     t0 = float(t_all.min()) if t0_s is None and len(t_all) else (t0_s or 0.0)
     t1 = _last_change(par, t_all, names) if t1_s is None and len(t_all) else (t1_s or 0.0)
     table = IdentTable(str(path), "", t0, t1, motor=log.metadata.get("run", {}).get("motor", ""))
@@ -224,6 +224,14 @@ def identification_table(
                 )
             )
     return table
+
+
+def _names(par) -> np.ndarray:
+    """The params messages' estimator names, compared element by element with a name (``==``):
+    the column as read (strings as objects), not made into a fixed-width string array, which for
+    an hour's 1.4 M messages is some 70 MB."""
+    names = np.asarray(par["estimator"])
+    return names if names.dtype == object or names.dtype.kind == "U" else names.astype(str)
 
 
 def _last_change(par, t_all: np.ndarray, names: np.ndarray) -> float:
@@ -353,7 +361,7 @@ def convergence_plot(
     log = read_log(path, topics=IDENT_TOPICS)
     par = log.topic("/pmsm/params")
     t_all = np.asarray(par["t_s"], dtype=float)
-    names = np.asarray(par["estimator"]).astype(str)
+    names = _names(par)
     from pmsm_hil.analysis.report_style import legend
 
     fig, axes = plt.subplots(4, 1, figsize=(11, 10), sharex=True)
