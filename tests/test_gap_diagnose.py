@@ -105,6 +105,20 @@ def test_null_record_selects_nothing(logs, motor):
         "~ thermal: held-out MSE down 0.113 V^2 (10 standard errors), under the practical " in text
     )
     assert "not named; the data may hold it" in text and "repeat cold" in text
+    res["below_threshold"] = {  # as the SEW CM3C80S record with its measured map gives it
+        "effect": "thermal",
+        "gain_v2": 0.0626,
+        "gain_se_v2": 0.0186,
+        "threshold_v2": 0.458,
+        "left_v2": 45.81,
+        "left_rel": 0.005,
+        "experiment": "record the winding/magnet temperature, or repeat cold",
+    }
+    text = " ".join(" ".join(verdict_lines(res)).split())
+    assert (
+        "~ thermal: held-out MSE down 0.0626 V^2 (3 standard errors), 0.14 % of the 45.8 V^2 "
+        "left above the floor (at least 0.5 % asked): not named" in text
+    )
 
 
 def test_the_encoders_half_count_lag_is_the_sensors_not_an_effect(logs, motor, tmp_path):
@@ -487,15 +501,20 @@ def test_a_clear_gain_under_the_practical_threshold_is_said_not_named():
     time's device drop took (a walk's rig: +55 K read as v_drop 2.79 V against 2.0 V, thermal's
     gain 0.113 V^2 at 10 standard errors under a threshold of 0.123 V^2). A gain within its
     noise, or a selection that ended on an accepted step, says nothing."""
-    from pmsm_hil.gap.diagnose import below_threshold
+    from pmsm_hil.gap.diagnose import LEFT_REL, PRACTICAL_REL, below_threshold
 
-    def step(effect, g, se, thr):
+    def step(effect, g, se, thr, left=None, floor=None):
+        # the practical threshold (0.3 % of the floor) bound, and nothing left beyond it, unless
+        # given: what was left before the step and its floor
+        floor = thr / PRACTICAL_REL if floor is None else floor
         return {
             "effect": effect,
             "gain_v2": g,
             "gain_se_v2": se,
             "threshold_v2": thr,
             "accepted": g > thr,
+            "residual_v2": floor if left is None else left,
+            "floor_v2": floor,
         }
 
     chosen = ["dead_time"]
@@ -518,6 +537,21 @@ def test_a_clear_gain_under_the_practical_threshold_is_said_not_named():
     loose = step("saturation", 0.043, 0.0135, 0.123)
     assert below_threshold([step("delay", 45.7, 1.2, 3.6), loose], ["delay"]) is None
     assert below_threshold([], []) is None
+    # clear, over the practical threshold, and refused only for taking 0.14 % of what was left
+    # (a SEW CM3C80S record: its measured map's misfit, 45.8 V^2 above the floor, after
+    # saturation, dead time and encoder): said, with what was left
+    chosen = ["saturation", "dead_time", "encoder"]
+    sliver = step("thermal", 0.0626, 0.0186, LEFT_REL * 45.811, left=46.974, floor=1.163)
+    seen = below_threshold([step("saturation", 458.5, 51.7, 155.0), sliver], chosen)
+    assert seen is not None and seen["effect"] == "thermal"
+    assert seen["left_v2"] == pytest.approx(45.811)
+    # the same gain within three of its standard errors: nothing said
+    assert (
+        below_threshold(
+            [step("saturation", 458.5, 51.7, 155.0), {**sliver, "gain_se_v2": 0.03}], chosen
+        )
+        is None
+    )
 
 
 def test_a_fitted_saturation_map_holds_its_inductances_beyond_the_records_currents(tmp_path):

@@ -133,7 +133,15 @@ def verdict_lines(res: dict) -> list[str]:
             f"  ? {a['effects'][0]} and {a['effects'][1]} cannot be told apart on this data: {a['experiment']}"
         )
     nb = res.get("below_threshold")
-    if nb:
+    if nb and nb.get("left_v2"):
+        z = nb["gain_v2"] / nb["gain_se_v2"]
+        out.append(
+            f"  ~ {nb['effect']}: held-out MSE down {nb['gain_v2']:.3g} V^2 ({z:.0f} standard "
+            f"errors), {100 * nb['gain_v2'] / nb['left_v2']:.2g} % of the {nb['left_v2']:.3g} V^2 "
+            f"left above the floor (at least {100 * nb['left_rel']:.2g} % asked): not named; what is left "
+            "is mostly something else, of which it takes a sliver"
+        )
+    elif nb:
         z = nb["gain_v2"] / nb["gain_se_v2"]
         out.append(
             f"  ~ {nb['effect']}: held-out MSE down {nb['gain_v2']:.3g} V^2 ({z:.0f} standard "

@@ -133,6 +133,7 @@ def _run_trial(trial: dict) -> dict:
         "d_omega": d_omega,
         "verdict": res["verdict"],
         "ambiguous": res["ambiguous"],
+        "steps": res["steps"],
     }
 
 
