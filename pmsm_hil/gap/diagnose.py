@@ -97,7 +97,10 @@ def below_threshold(steps: Sequence[_Step], chosen: Sequence[str]) -> dict | Non
     it: not named, and said. A
     real effect can end there when an effect chosen before it took most of its part (a warm
     winding beside the inverter's device drop: its R rise fitted as extra v_drop by the dead
-    time); a null record's next candidate stays within its noise (docs/gap.md, "Which")."""
+    time); a null record's next candidate stays within its noise (docs/gap.md, "Which"). Also
+    said, with ``left_v2``, when only LEFT_REL refused it (clear over SIGNIFICANCE_Z standard
+    errors and the practical threshold, but a sliver of what was left: a misfit outside the
+    library that it takes a little of)."""
     if not steps or steps[-1]["accepted"]:
         return None
     last = steps[-1]
