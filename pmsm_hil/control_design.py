@@ -6,19 +6,19 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING
 
+from pmsm_hil.profiles.sections import DEFAULT_SPEED_BW_RAD_S
 from pmsm_hil.protocol import generated as gen
 
 if TYPE_CHECKING:
     from pmsm_hil.profiles import Motor, Profile, Rig
 
-DEFAULT_SPEED_BW_RAD_S = 450.0
 DEFAULT_OBSERVER_BW_RAD_S = 1000.0  # encoder speed observer (docs/control.md)
 CAPTURE_PRE = 256
 
 
 def torque_constant(motor: Motor) -> float:
     """k_t = 1.5 p psi_f (N·m/A), the surface-magnet part; MTPA adds reluctance torque on top."""
-    return 1.5 * motor.pole_pairs * motor.psi_f_wb
+    return motor.k_t_nm_per_a
 
 
 def design_speed_pi(motor: Motor, bw_rad_s: float = DEFAULT_SPEED_BW_RAD_S) -> tuple[float, float]:

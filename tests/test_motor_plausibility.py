@@ -15,7 +15,7 @@ import pytest
 
 from pmsm_hil.cli.main import main as cli_main
 from pmsm_hil.profiles import ProfileError, load_profile
-from pmsm_hil.profiles.shipped import shipped
+from pmsm_hil.profiles.shipped import shipped, shipped_root
 
 # A 400 W, 8-pole servo for 48 V from its datasheet: R 0.35 ohm and L_d 1.1 mH, L_q 1.6 mH per
 # phase, Ke 18.5 V/krpm line-line peak (psi_f = 18.5 / (sqrt 3 x 104.72 x 4)), 15 A rms peak
@@ -104,7 +104,11 @@ def test_the_shipped_profiles_and_motors_are_not_warned_of():
                 profile = load_profile(path, motor_override=motor)
             except ProfileError:
                 continue  # a profile that another motor's limits refuse
-            ours = [w for w in profile.warnings if "is in " in w or "lag the ramp" in w]
+            ours = [
+                w
+                for w in profile.warnings
+                if "is in " in w or "lag the ramp" in w or "over_speed" in w
+            ]
             assert not ours, (path, motor)
 
 
@@ -246,3 +250,37 @@ def test_a_gimbal_motor_that_the_link_cannot_drive_to_its_limit_is_not_a_unit_sl
         texts = [t for t in motor_warnings(gimbal, src, None) if "r_s_ohm" in t]
         assert bool(texts) == warned, texts
     assert "r_s_ohm = 7500 ohm needs 1.125e+04 V" in texts[0] and "1.62e+03 x" in texts[0]
+
+
+def _sew_last_load(tmp_path, load_nm: str) -> Path:
+    """The shipped diagnose-sew profile with its last segment's load (4 N m at 200 r/min, stepped
+    on while the speed leaves -450 r/min with -2 N m on) set to ``load_nm``."""
+    text = (shipped_root() / "diagnose-sew.yaml").read_text()
+    old = "speed_rpm: 200,   ramp_rpm_s: 20000, load_nm: 4.0"
+    assert old in text
+    text = text.replace(old, f"speed_rpm: 200,   ramp_rpm_s: 20000, load_nm: {load_nm}")
+    text = text.replace("motor: motors/", "motor: ").replace("rig: rigs/", "rig: ")
+    text = text.replace("sew-cm3c80s.yaml", "sew-cm3c80s")
+    path = tmp_path / f"sew-{load_nm}.yaml"
+    path.write_text(text)
+    return path
+
+
+def test_a_load_step_that_swings_the_speed_to_its_trip_is_warned_of_and_faults(tmp_path):
+    """The speed loop's swing after a load step (its bandwidth and the motor's J): on the SEW
+    CM3C80S, 7.5 N m stepped on at -450 r/min with -2 N m taken off swings the speed past its
+    720 r/min trip; the warning names the segment's line and field and the swing, and the run
+    faults over_speed as it says. The shipped 4 N m step (to -667 r/min) is not warned of."""
+    from emu_helpers import run_inproc
+
+    assert not [w for w in load_profile(_sew_last_load(tmp_path, "4.0")).warnings if "swing" in w]
+    path = _sew_last_load(tmp_path, "7.5")
+    warnings = [w for w in load_profile(path).warnings if "swing" in w]
+    assert len(warnings) == 1
+    assert re.match(
+        rf"{re.escape(str(path))}:\d+: segments\[13\]\.load_nm = 7.5 steps", warnings[0]
+    )
+    assert "from -2 N m at -450 r/min" in warnings[0] and "speed_trip_rpm 720" in warnings[0]
+    assert "about 334 r/min" in warnings[0] and "may fault over_speed" in warnings[0]
+    _, result = run_inproc(path, tmp_path / "sew.mcap", seed=1)
+    assert result.faults and result.stop_reason == "fault"

@@ -218,7 +218,7 @@ class Motor(FileModel):
         False: i_d = 0), from u_d = R i_d - w L_q i_q, u_q = R i_q + w (L_d i_d + psi_f)."""
         w_m = speed_rpm * math.pi / 30.0
         torque = load_nm + self.b_visc_nms * w_m + math.copysign(self.t_coulomb_nm, w_m)
-        k_t = 1.5 * self.pole_pairs * self.psi_f_wb
+        k_t = self.k_t_nm_per_a
         i_d, i_q = 0.0, abs(torque) / k_t
         if mtpa and abs(torque) > 0:
             lo, hi = 0.0, abs(torque) / k_t  # MTPA torque per ampere is at least k_t
@@ -231,6 +231,11 @@ class Motor(FileModel):
         u_d = self.r_s_ohm * i_d - w_e * self.l_q_h * i_q
         u_q = self.r_s_ohm * i_q + w_e * (self.l_d_h * i_d + self.psi_f_wb)
         return math.hypot(u_d, u_q)
+
+    @property
+    def k_t_nm_per_a(self) -> float:
+        """k_t = 1.5 p psi_f (N·m/A), the surface-magnet part; MTPA adds reluctance torque on top."""
+        return 1.5 * self.pole_pairs * self.psi_f_wb
 
     @property
     def speed_max_rad_s(self) -> float:

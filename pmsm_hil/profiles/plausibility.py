@@ -10,6 +10,18 @@ import math
 from ._base import num
 from ._source import Source, fmt_num
 from .motor import PSI_F_HINT, TELEMETRY_SPEED_MAX_RPM, Motor
+from .sections import DEFAULT_SPEED_BW_RAD_S
+
+# The speed's swing after a load step of dT on the speed loop (crossover bw, PI zero at bw/4, ideal
+# current loop): dw(t) = (dT/J) t exp(-bw t / 2) peaks at 2/(e bw) dT/J (docs/control.md, "Speed
+# loop"); the loop's delays (1 ms sampling, the encoder observer) add about a third: 5 N m stepping
+# off at 450 r/min on the SEW CM3C80S (J 6e-4 kg m^2, bw 450 rad/s) swung to 624 r/min on the
+# emulator, 174 r/min where the ideal loop gives 130. On four steps of that motor the swing was
+# 0.99-1.07 of this estimate, so a step is warned of when 1.1 times it reaches the trip (a 6 and a
+# 7.5 N m step at -450 r/min faulted over_speed; a 4 N m one swung to -667 r/min, a 5 N m one to
+# -712, warned of; tests/test_profiles.py)
+LOAD_STEP_SWING = 2.0 / math.e * 1.35
+LOAD_STEP_MARGIN = 1.1
 
 # The back-EMF at the most the telemetry carries, as a share of v_dc / sqrt 3, below which psi_f_wb
 # is taken for a unit slip: a motor meant for its DC link uses tens of % of it at its rated speed
@@ -127,4 +139,39 @@ def ramp_warnings(src: Source, motor: Motor) -> list[str]:
                     f"j_kgm2 (kg m^2: 0.35 kg cm^2 is 3.5e-05)"
                 )
         speed = v
+    return out
+
+
+def load_step_warnings(src: Source, motor: Motor, kp_a_per_rad_s: float | None) -> list[str]:
+    """Warnings for load steps between run segments that swing the speed beyond the motor's
+    speed_trip_rpm (the firmware faults over_speed there): the swing LOAD_STEP_SWING dT / (J bw),
+    with bw the speed loop's crossover (kp k_t / J for the profile's kp, else the designed one's)."""
+    out: list[str] = []
+    segments = src.data.get("segments") if isinstance(src.data.get("segments"), list) else []
+    bw = DEFAULT_SPEED_BW_RAD_S
+    if kp_a_per_rad_s is not None and motor.j_kgm2 > 0:
+        bw = kp_a_per_rad_s * motor.k_t_nm_per_a / motor.j_kgm2
+    if bw <= 0 or motor.j_kgm2 <= 0:
+        return out
+    speed = load = 0.0
+    for i, seg in enumerate(segments):
+        if not isinstance(seg, dict) or seg.get("kind", "run") != "run":
+            continue
+        v, new = num(seg, "speed_rpm"), num(seg, "load_nm", 0.0)
+        if v is None or new is None:
+            continue
+        # a load that rises brakes the rotor (positive speed) and one that falls speeds it up
+        swing_rpm = -LOAD_STEP_SWING * (new - load) / (motor.j_kgm2 * bw) * 30.0 / math.pi
+        peak = speed + swing_rpm
+        if new != load and abs(speed + LOAD_STEP_MARGIN * swing_rpm) > motor.speed_trip_rpm:
+            out.append(
+                f"{src.path}:{src.line(('segments', i, 'load_nm'))}: segments[{i}].load_nm = "
+                f"{fmt_num(new)} steps the load from {fmt_num(load)} N m at {fmt_num(speed)} r/min: "
+                f"with j_kgm2 {fmt_num(motor.j_kgm2)} kg m^2 and the speed loop's {bw:.0f} rad/s "
+                f"the speed swings by about {abs(swing_rpm):.0f} r/min (10 % more at most), to "
+                f"{peak:.0f} r/min, at or beyond the motor's speed_trip_rpm "
+                f"{fmt_num(motor.speed_trip_rpm)} ({motor.path}): the run may fault over_speed; "
+                f"step the load in two segments, or less"
+            )
+        speed, load = v, new
     return out

@@ -16,7 +16,7 @@ from ._validation import validation_problems
 from .acceptance import Acceptance, acceptance_problems
 from .control_checks import control_checks
 from .motor import Motor, _load_motor_source
-from .plausibility import motor_warnings, ramp_warnings
+from .plausibility import load_step_warnings, motor_warnings, ramp_warnings
 from .reach import reach_checks
 from .rig import Rig, _load_rig_source, plant_problems
 from .sensorless_checks import sensorless_checks
@@ -550,6 +550,8 @@ def load_profile(
         problems += snl_problems
         ts = spec.control.ts_s if spec is not None else None
         warnings += snl_warnings + motor_warnings(motor, msrc, ts) + ramp_warnings(src, motor)
+        kp = spec.control.speed_kp_a_per_rad_s if spec is not None else None
+        warnings += load_step_warnings(src, motor, kp)
     if problems:
         raise ProfileError(_ordered(problems), _budget_warnings(src, path, problems))
     assert spec is not None and motor is not None and rig is not None

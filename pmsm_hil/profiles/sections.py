@@ -12,6 +12,10 @@ from ..protocol import generated as gen
 from ._base import StrictModel
 from .acceptance import Acceptance
 
+# the speed loop's crossover when a profile leaves its gains null (pmsm_hil.control_design designs
+# them; docs/control.md, "Speed loop")
+DEFAULT_SPEED_BW_RAD_S = 450.0
+
 TS_MIN_S = 20e-6
 TS_MAX_S = 1e-3
 MAX_TOTAL_DURATION_S = 3600.0
