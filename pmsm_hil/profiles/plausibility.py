@@ -16,10 +16,10 @@ from .sections import DEFAULT_SPEED_BW_RAD_S
 # current loop): dw(t) = (dT/J) t exp(-bw t / 2) peaks at 2/(e bw) dT/J (docs/control.md, "Speed
 # loop"); the loop's delays (1 ms sampling, the encoder observer) add about a third: 5 N m stepping
 # off at 450 r/min on the SEW CM3C80S (J 6e-4 kg m^2, bw 450 rad/s) swung to 624 r/min on the
-# emulator, 174 r/min where the ideal loop gives 130. On four steps of that motor the swing was
-# 0.99-1.07 of this estimate, so a step is warned of when 1.1 times it reaches the trip (a 6 and a
-# 7.5 N m step at -450 r/min faulted over_speed; a 4 N m one swung to -667 r/min, a 5 N m one to
-# -712, warned of; tests/test_profiles.py)
+# emulator, 174 r/min where the ideal loop gives 130. On three steps of that motor the swing was
+# 0.99-1.07 times this estimate, so a step is warned of when 1.1 times it reaches the trip (5.5, 6
+# and 7.5 N m steps at -450 r/min faulted over_speed; a 4 N m one swung to -667 r/min, a 5 N m one
+# to -712, warned of; docs/control.md, tests/test_motor_plausibility.py)
 LOAD_STEP_SWING = 2.0 / math.e * 1.35
 LOAD_STEP_MARGIN = 1.1
 
