@@ -16,14 +16,9 @@ DEFAULT_OBSERVER_BW_RAD_S = 1000.0  # encoder speed observer (docs/control.md)
 CAPTURE_PRE = 256
 
 
-def torque_constant(motor: Motor) -> float:
-    """k_t = 1.5 p psi_f (N·m/A), the surface-magnet part; MTPA adds reluctance torque on top."""
-    return motor.k_t_nm_per_a
-
-
 def design_speed_pi(motor: Motor, bw_rad_s: float = DEFAULT_SPEED_BW_RAD_S) -> tuple[float, float]:
     """PI on mechanical rad/s -> stator current (A): crossover at bw, PI zero at bw/4."""
-    kp = motor.j_kgm2 * bw_rad_s / torque_constant(motor)
+    kp = motor.j_kgm2 * bw_rad_s / motor.k_t_nm_per_a
     ki = kp * bw_rad_s / 4.0
     return kp, ki
 

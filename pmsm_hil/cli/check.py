@@ -44,7 +44,7 @@ def figures(profile: Profile) -> list[str]:
         f"{ke_ll_rms * math.sqrt(2.0):.4g} peak",
         f"torque at i_max_a {m.i_max_a:g} A on MTPA: {m.torque_mtpa_nm(m.i_max_a):.4g} N m "
         f"(i_d {i_d:.3g} A, i_q {i_q:.3g} A; torque_max_nm {m.torque_max_nm:g}); "
-        f"Kt {1.5 * m.pole_pairs * m.psi_f_wb * math.sqrt(2.0):.4g} N m/A rms",
+        f"Kt {m.k_t_nm_per_a * math.sqrt(2.0):.4g} N m/A rms",
         f"MPCC current step 2/3 v_dc ts_s / min(L_d, L_q): {step.step_a:.3g} A, "
         f"{100 * step.share:.3g} % of i_max_a",
     ]

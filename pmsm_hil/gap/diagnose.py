@@ -273,7 +273,7 @@ def _diagnose(
             break
         rows.sort(key=lambda r: -r[0])
         g, se, c, f, r_te = rows[0]
-        left = float(np.mean(cur_test**2))  # on the test blocks before this step
+        left = mse(cur_test)  # on the test blocks before this step
         thr = max(
             SIGNIFICANCE_Z * se, PRACTICAL_REL * floor_mean, LEFT_REL * max(left - floor_mean, 0.0)
         )

@@ -133,22 +133,23 @@ def verdict_lines(res: dict) -> list[str]:
             f"  ? {a['effects'][0]} and {a['effects'][1]} cannot be told apart on this data: {a['experiment']}"
         )
     nb = res.get("below_threshold")
-    if nb and nb.get("left_v2"):
+    if nb:
         z = nb["gain_v2"] / nb["gain_se_v2"]
-        out.append(
-            f"  ~ {nb['effect']}: held-out MSE down {nb['gain_v2']:.3g} V^2 ({z:.0f} standard "
-            f"errors), {100 * nb['gain_v2'] / nb['left_v2']:.2g} % of the {nb['left_v2']:.3g} V^2 "
-            f"left above the floor (at least {100 * nb['left_rel']:.2g} % asked): not named; what is left "
-            "is mostly something else, of which it takes a sliver"
-        )
-    elif nb:
-        z = nb["gain_v2"] / nb["gain_se_v2"]
-        out.append(
-            f"  ~ {nb['effect']}: held-out MSE down {nb['gain_v2']:.3g} V^2 ({z:.0f} standard "
-            f"errors), under the practical threshold {nb['threshold_v2']:.3g} V^2: not named; the "
-            "data may hold it, partly carried by an effect named above"
-            + (f" ({nb['experiment']})" if nb["experiment"] else "")
-        )
+        seen = f"  ~ {nb['effect']}: held-out MSE down {nb['gain_v2']:.3g} V^2 ({z:.0f} standard errors), "
+        if nb.get("left_v2"):  # refused for its share of what was left (LEFT_REL)
+            out.append(
+                seen
+                + f"{100 * nb['gain_v2'] / nb['left_v2']:.2g} % of the {nb['left_v2']:.3g} V^2 "
+                f"left above the floor (at least {100 * nb['left_rel']:.2g} % asked): not named; "
+                "what is left is mostly something else, of which it takes a sliver"
+            )
+        else:
+            out.append(
+                seen
+                + f"under the practical threshold {nb['threshold_v2']:.3g} V^2: not named; the "
+                "data may hold it, partly carried by an effect named above"
+                + (f" ({nb['experiment']})" if nb["experiment"] else "")
+            )
     pl = res.get("plateaus") or {}
     if "rms_before_v" in pl:
         b4, af = pl["rms_before_v"], pl["rms_after_v"]

@@ -147,7 +147,7 @@ def _hidden_torque_nm(name: str, p: dict) -> float:
         return p["amplitude_nm"] / np.sqrt(2.0)
     if name == "sensor_offset":
         m = _motor()
-        return 1.5 * m.pole_pairs * m.psi_f_wb * true_primary(name, p) / np.sqrt(2.0)
+        return m.k_t_nm_per_a * true_primary(name, p) / np.sqrt(2.0)
     return 0.0
 
 

@@ -148,11 +148,11 @@ def load_step_warnings(src: Source, motor: Motor, kp_a_per_rad_s: float | None) 
     with bw the speed loop's crossover (kp k_t / J for the profile's kp, else the designed one's)."""
     out: list[str] = []
     segments = src.data.get("segments") if isinstance(src.data.get("segments"), list) else []
-    bw = DEFAULT_SPEED_BW_RAD_S
-    if kp_a_per_rad_s is not None and motor.j_kgm2 > 0:
-        bw = kp_a_per_rad_s * motor.k_t_nm_per_a / motor.j_kgm2
-    if bw <= 0 or motor.j_kgm2 <= 0:
+    if motor.j_kgm2 <= 0:
         return out
+    bw = DEFAULT_SPEED_BW_RAD_S
+    if kp_a_per_rad_s is not None:
+        bw = kp_a_per_rad_s * motor.k_t_nm_per_a / motor.j_kgm2
     speed = load = 0.0
     for i, seg in enumerate(segments):
         if not isinstance(seg, dict) or seg.get("kind", "run") != "run":
